@@ -1,0 +1,49 @@
+# Helpers shared by every component. Keep them small; anything component-specific belongs in the
+# component's own CMakeLists.txt.
+
+# Warnings are errors on project code (never on third-party headers: those come in as SYSTEM).
+function(lw_project_warnings target)
+  target_compile_options(${target} PRIVATE
+    -Wall -Wextra -Wpedantic -Werror -Wshadow -Wnon-virtual-dtor -Wcast-align
+    -Wunused -Wnull-dereference -Wdouble-promotion -Wformat=2 -Wimplicit-fallthrough)
+endfunction()
+
+# Freestanding code (protocol, firmware): no exceptions, no RTTI, no thread-safe statics, and on the
+# MCU no unwinding tables. The same flags apply on the host so host tests catch violations.
+function(lw_freestanding target)
+  target_compile_options(${target} PRIVATE
+    $<$<COMPILE_LANGUAGE:CXX>:-fno-exceptions -fno-rtti -fno-threadsafe-statics>
+    -ffunction-sections -fdata-sections)
+  if(CMAKE_CROSSCOMPILING)
+    target_compile_options(${target} PRIVATE -ffreestanding -fno-unwind-tables -fno-asynchronous-unwind-tables)
+  endif()
+  lw_project_warnings(${target})
+endfunction()
+
+# Prints the size of a freestanding static library after it is built (cross builds only).
+function(lw_print_size target)
+  if(CMAKE_CROSSCOMPILING AND CMAKE_SIZE)
+    add_custom_command(TARGET ${target} POST_BUILD
+      COMMAND ${CMAKE_SIZE} --totals $<TARGET_FILE:${target}>
+      COMMENT "Size of ${target} (arm-none-eabi)")
+  endif()
+endfunction()
+
+# One CppUTest binary per module, registered with ctest.
+#   lw_add_unit_test(NAME test_x SOURCES a.cpp b.cpp LIBS lib1 lib2 [LABELS l] [TIMEOUT s])
+function(lw_add_unit_test)
+  cmake_parse_arguments(T "" "NAME;TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${T_NAME} ${T_SOURCES} ${PROJECT_SOURCE_DIR}/tests/support/cpputest_main.cpp)
+  target_link_libraries(${T_NAME} PRIVATE ${T_LIBS} PkgConfig::CPPUTEST)
+  target_include_directories(${T_NAME} PRIVATE ${PROJECT_SOURCE_DIR}/tests)
+  set_target_properties(${T_NAME} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/tests)
+  lw_project_warnings(${T_NAME})
+  add_test(NAME ${T_NAME} COMMAND ${T_NAME} -c)
+  if(NOT T_TIMEOUT)
+    set(T_TIMEOUT 120)
+  endif()
+  set_tests_properties(${T_NAME} PROPERTIES TIMEOUT ${T_TIMEOUT})
+  if(T_LABELS)
+    set_tests_properties(${T_NAME} PROPERTIES LABELS "${T_LABELS}")
+  endif()
+endfunction()

@@ -1,0 +1,65 @@
+#pragma once
+/// Incremental XBee API frame decoder: feed bytes as they arrive from a UART; it reports each
+/// complete, checksum-valid frame, resynchronises on the next 0x7E after any error, and counts
+/// each kind of error. Freestanding, fixed buffer, no allocation. Not thread-safe; call from one
+/// context (on an MCU: the task loop, not the UART ISR).
+#include <cstddef>
+#include <cstdint>
+
+#include "protocol/xbee_api.hpp"
+
+namespace lw::protocol {
+
+/// Per-kind error and traffic counters. Monotonic until Reset().
+struct DecoderCounters {
+  uint32_t frames_ok = 0;
+  uint32_t bytes_discarded = 0;    ///< bytes outside any frame (garbage before a delimiter)
+  uint32_t checksum_errors = 0;
+  uint32_t escape_errors = 0;      ///< 0x7D followed by 0x7E, or an unescaped 0x7E inside a frame (mode 2)
+  uint32_t length_errors = 0;      ///< declared length 0 or above kMaxFrameData
+  uint32_t truncated_frames = 0;   ///< a new delimiter arrived before the frame was complete
+  uint32_t unknown_types = 0;      ///< valid frame whose API identifier is not a FrameType (still delivered)
+};
+
+enum class DecodeEvent : uint8_t {
+  kNone = 0,         ///< byte consumed, no complete frame yet
+  kFrame,            ///< a valid frame is available through frame_data()/frame_length()
+  kChecksumError,
+  kEscapeError,
+  kLengthError,
+  kTruncated,
+};
+
+class FrameDecoder {
+ public:
+  explicit FrameDecoder(ApiMode mode) : mode_(mode) {}
+
+  /// Consumes one byte. After kFrame, frame_data()/frame_length() stay valid until the next Feed().
+  DecodeEvent Feed(uint8_t byte);
+
+  /// Frame data of the last complete frame: API identifier first, without length and checksum.
+  const uint8_t* frame_data() const { return buffer_; }
+  size_t frame_length() const { return frame_length_; }
+  /// API identifier of the last complete frame.
+  uint8_t frame_type() const { return frame_length_ ? buffer_[0] : 0; }
+
+  const DecoderCounters& counters() const { return counters_; }
+  void ResetCounters() { counters_ = DecoderCounters{}; }
+  ApiMode mode() const { return mode_; }
+
+ private:
+  enum class State : uint8_t { kIdle, kLengthHigh, kLengthLow, kData, kChecksum };
+  DecodeEvent Accept(uint8_t byte);  // one unescaped byte
+
+  ApiMode mode_;
+  State state_ = State::kIdle;
+  bool escape_next_ = false;
+  uint16_t expected_ = 0;
+  size_t received_ = 0;
+  size_t frame_length_ = 0;
+  uint8_t sum_ = 0;
+  uint8_t buffer_[kMaxFrameData] = {};
+  DecoderCounters counters_;
+};
+
+}  // namespace lw::protocol
