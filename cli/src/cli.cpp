@@ -1,0 +1,336 @@
+#include "cli/cli.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <system_error>
+
+#include "core/bundle.hpp"
+#include "core/reconstruction.hpp"
+#include "core/time.hpp"
+#include "core/wear_map.hpp"
+#include "diagnosis/diagnose.hpp"
+
+namespace lw::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kUsage =
+    "usage: linerwatch <command> [options]\n"
+    "\n"
+    "commands:\n"
+    "  diagnose BUNDLE --json OUT.json [--html OUT.html] [--predict-at TIME] [--predict-vtk OUT.vtk]\n"
+    "                  [--no-pairs] [--config FILE]\n"
+    "      Compare the bundle's readings (and scans) with the Eq. 9 reconstruction of its DEM map, test\n"
+    "      whether the mismatch is real, locate it, and name the physics the DEM left out.\n"
+    "      Exit 0 when the diagnosis ran, whatever it found (see CONTRACTS.md section 4).\n"
+    "  reconstruct BUNDLE [--at TIME] [--json OUT.json] [--vtk OUT.vtk] [--config FILE]\n"
+    "      Eq. 9 global wear from the sensors' latest readings (at TIME, default: the last reading);\n"
+    "      prints a per-row summary.\n"
+    "\n"
+    "options:\n"
+    "  --config FILE   JSON object with the same options, e.g. {\"bundle\": \"b\", \"json\": \"out.json\",\n"
+    "                  \"predict_at\": \"2024-05-01\"}; command-line flags override it\n"
+    "  --help          this text\n"
+    "TIME is ISO-8601 UTC (YYYY-MM-DD or YYYY-MM-DDTHH:MM:SSZ).\n";
+
+/// A one-line, user-facing error.
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+struct BadInput : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct Options {
+  std::map<std::string, std::string> values;  // normalised key (dashes -> underscores) -> value
+  std::vector<std::string> flags;             // boolean flags present
+  bool Has(const std::string& k) const { return values.count(k) > 0; }
+  std::string Get(const std::string& k) const {
+    auto it = values.find(k);
+    return it == values.end() ? std::string() : it->second;
+  }
+  bool Flag(const std::string& k) const {
+    for (const auto& f : flags)
+      if (f == k) return true;
+    return false;
+  }
+};
+
+std::string Normalise(std::string key) {
+  for (char& c : key)
+    if (c == '-') c = '_';
+  return key;
+}
+
+Options ParseOptions(const std::vector<std::string>& args, size_t first, const std::vector<std::string>& value_keys,
+                     const std::vector<std::string>& flag_keys) {
+  Options cmdline;
+  std::optional<std::string> config;
+  auto known_value = [&](const std::string& k) {
+    for (const auto& v : value_keys)
+      if (v == k) return true;
+    return false;
+  };
+  auto known_flag = [&](const std::string& k) {
+    for (const auto& v : flag_keys)
+      if (v == k) return true;
+    return false;
+  };
+  for (size_t i = first; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a.rfind("--", 0) == 0) {
+      std::string key = a.substr(2), value;
+      const size_t eq = key.find('=');
+      bool inline_value = false;
+      if (eq != std::string::npos) {
+        value = key.substr(eq + 1);
+        key = key.substr(0, eq);
+        inline_value = true;
+      }
+      key = Normalise(key);
+      if (key == "config") {
+        if (!inline_value) {
+          if (i + 1 >= args.size()) throw UsageError("--config needs a FILE");
+          value = args[++i];
+        }
+        config = value;
+      } else if (known_flag(key)) {
+        cmdline.flags.push_back(key);
+      } else if (known_value(key)) {
+        if (!inline_value) {
+          if (i + 1 >= args.size()) throw UsageError("--" + a.substr(2) + " needs a value");
+          value = args[++i];
+        }
+        cmdline.values[key] = value;
+      } else {
+        throw UsageError("unknown option " + a + " (see --help)");
+      }
+    } else {
+      if (cmdline.Has("bundle")) throw UsageError("unexpected argument '" + a + "' (one BUNDLE only)");
+      cmdline.values["bundle"] = a;
+    }
+  }
+  Options merged;
+  if (config) {
+    std::ifstream in(*config);
+    if (!in) throw BadInput(*config + ": cannot open config file");
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::parse_error& e) {
+      throw BadInput(*config + ": invalid JSON (" + std::string(e.what()) + ")");
+    }
+    if (!j.is_object()) throw BadInput(*config + ": rule: the config must be a JSON object");
+    for (auto it = j.begin(); it != j.end(); ++it) {
+      const std::string key = Normalise(it.key());
+      if (known_flag(key)) {
+        if (!it.value().is_boolean()) throw BadInput(*config + ": \"" + it.key() + "\" must be true or false");
+        if (it.value().get<bool>()) merged.flags.push_back(key);
+      } else if (known_value(key) || key == "bundle") {
+        if (!it.value().is_string()) throw BadInput(*config + ": \"" + it.key() + "\" must be a string");
+        merged.values[key] = it.value().get<std::string>();
+      } else {
+        throw BadInput(*config + ": unknown option \"" + it.key() + "\"");
+      }
+    }
+  }
+  for (const auto& kv : cmdline.values) merged.values[kv.first] = kv.second;
+  for (const auto& f : cmdline.flags) merged.flags.push_back(f);
+  return merged;
+}
+
+core::TimePoint ParseTime(const std::string& text, const std::string& option) {
+  auto t = core::ParseIsoTime(text);
+  if (!t) throw UsageError("--" + option + ": '" + text + "' is not an ISO-8601 time (YYYY-MM-DD[THH:MM:SSZ])");
+  return *t;
+}
+
+void CheckWritable(const std::string& path, const std::string& option) {
+  const fs::path p(path);
+  const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw BadInput("--" + option + ": directory " + dir.string() + " does not exist");
+  if (fs::is_directory(p, ec)) throw BadInput("--" + option + ": " + path + " is a directory");
+}
+
+/// Output files written to temporaries, all renamed only when every one was written.
+class OutputSet {
+ public:
+  ~OutputSet() {
+    std::error_code ec;
+    for (const auto& f : pending_) fs::remove(f.second, ec);
+  }
+  void Add(const std::string& path, const std::string& content) {
+    fs::path tmp = path;
+    tmp += ".tmp" + std::to_string(pending_.size());
+    std::ofstream out(tmp, std::ios::binary);
+    if (!out) throw BadInput(path + ": cannot write");
+    out << content;
+    out.close();
+    if (!out) throw BadInput(path + ": write failed");
+    pending_.push_back({path, tmp});
+  }
+  void Commit() {
+    for (const auto& f : pending_) fs::rename(f.second, f.first);
+    pending_.clear();
+  }
+
+ private:
+  std::vector<std::pair<std::string, fs::path>> pending_;
+};
+
+core::Bundle Load(const Options& o) {
+  if (!o.Has("bundle")) throw UsageError("missing BUNDLE (a campaign folder)");
+  const fs::path dir = o.Get("bundle");
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw BadInput(dir.string() + ": not a directory (a bundle is a folder)");
+  return core::LoadBundle(dir);
+}
+
+int Diagnose(const std::vector<std::string>& args, std::ostream& out) {
+  const Options o = ParseOptions(args, 1, {"json", "html", "predict_at", "predict_vtk"}, {"no_pairs"});
+  if (!o.Has("json")) throw UsageError("diagnose needs --json OUT.json");
+  CheckWritable(o.Get("json"), "json");
+  if (o.Has("html")) CheckWritable(o.Get("html"), "html");
+  if (o.Has("predict_vtk")) {
+    CheckWritable(o.Get("predict_vtk"), "predict-vtk");
+    if (!o.Has("predict_at")) throw UsageError("--predict-vtk needs --predict-at TIME");
+  }
+  diagnosis::DiagnoseOptions opt;
+  if (o.Has("predict_at")) opt.predict_at = ParseTime(o.Get("predict_at"), "predict-at");
+  opt.try_pairs = !o.Flag("no_pairs");
+  const core::Bundle bundle = Load(o);
+  const diagnosis::DiagnosisResult result = diagnosis::Diagnose(bundle, opt);
+
+  OutputSet outputs;
+  outputs.Add(o.Get("json"), diagnosis::ToJson(result).dump(2) + "\n");
+  if (o.Has("html")) outputs.Add(o.Get("html"), diagnosis::RenderHtml(result));
+  if (o.Has("predict_vtk")) diagnosis::WritePredictionVtk(o.Get("predict_vtk"), bundle, result);
+  try {
+    outputs.Commit();
+  } catch (...) {
+    std::error_code ec;
+    if (o.Has("predict_vtk")) fs::remove(o.Get("predict_vtk"), ec);
+    throw;
+  }
+  out << "diagnosis of " << result.crusher_id << ": mismatch " << (result.mismatch_detected ? "detected" : "not detected")
+      << "; " << result.findings.size() << " finding(s)";
+  if (!result.findings.empty()) out << ", top: " << result.findings.front().effect;
+  out << "; " << result.data_quality.size() << " data-quality issue(s)\n";
+  return 0;
+}
+
+int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
+  const Options o = ParseOptions(args, 1, {"at", "json", "vtk"}, {});
+  if (o.Has("json")) CheckWritable(o.Get("json"), "json");
+  if (o.Has("vtk")) CheckWritable(o.Get("vtk"), "vtk");
+  std::optional<core::TimePoint> at;
+  if (o.Has("at")) at = ParseTime(o.Get("at"), "at");
+  const core::Bundle bundle = Load(o);
+  // Latest reading of each sensor at or before `at`.
+  std::map<std::string, const core::Reading*> latest;
+  for (const core::Reading& r : bundle.readings) {
+    if (at && r.time > *at) continue;
+    auto& slot = latest[r.sensor_id];
+    if (!slot || r.time > slot->time || (r.time == slot->time && r.thickness_mm < slot->thickness_mm)) slot = &r;
+  }
+  std::vector<core::SensorWear> wear;
+  for (const core::SensorInfo& s : bundle.crusher.sensors) {
+    auto it = latest.find(s.id);
+    if (it == latest.end()) continue;
+    const double new_mm = s.thickness_new_mm > 0 ? s.thickness_new_mm : bundle.crusher.thickness_new_mm;
+    wear.push_back({s.id, new_mm - it->second->thickness_mm});
+  }
+  if (wear.empty()) throw BadInput(bundle.dir.string() + "/readings.csv: no reading at or before the requested time");
+  const core::Reconstruction rec = core::Reconstruct(bundle.crusher, bundle.map, wear);
+  char line[256];
+  out << "row        scale_mm/unit  mean_wear_mm  min_thickness_mm  at_z_m  at_theta_deg  sensors\n";
+  for (const core::RowSummary& r : rec.rows) {
+    std::snprintf(line, sizeof line, "%-10s %13.4f %13.2f %17.2f %7.3f %13.1f %8zu\n", r.row.c_str(),
+                  r.scale_mm_per_unit, r.mean_wear_mm, r.min_thickness_mm, r.min_z_m, r.min_theta_deg,
+                  r.sensors_used);
+    out << line;
+  }
+  std::snprintf(line, sizeof line, "minimum remaining thickness %.2f mm (face %zu)\n", rec.min_thickness_mm,
+                rec.min_face);
+  out << line;
+
+  OutputSet outputs;
+  if (o.Has("json")) {
+    nlohmann::ordered_json j;
+    j["crusher_id"] = bundle.crusher.crusher_id;
+    if (at) j["at"] = core::FormatIsoTime(*at);
+    j["min_thickness_mm"] = rec.min_thickness_mm;
+    j["min_face"] = rec.min_face;
+    j["rows"] = nlohmann::ordered_json::array();
+    for (const core::RowSummary& r : rec.rows) {
+      nlohmann::ordered_json x;
+      x["row"] = r.row;
+      x["scale_mm_per_unit"] = r.scale_mm_per_unit;
+      x["mean_wear_mm"] = r.mean_wear_mm;
+      x["min_thickness_mm"] = r.min_thickness_mm;
+      x["min_z_m"] = r.min_z_m;
+      x["min_theta_deg"] = r.min_theta_deg;
+      x["sensors_used"] = r.sensors_used;
+      j["rows"].push_back(x);
+    }
+    j["sensors"] = nlohmann::ordered_json::object();
+    for (const auto& w : wear) j["sensors"][w.sensor_id] = w.wear_mm;
+    outputs.Add(o.Get("json"), j.dump(2) + "\n");
+  }
+  if (o.Has("vtk")) {
+    core::WriteWearMapVtk(o.Get("vtk"), bundle.map, {{"wear_mm", &rec.wear_mm}, {"remaining_mm", &rec.remaining_mm}});
+  }
+  try {
+    outputs.Commit();
+  } catch (...) {
+    std::error_code ec;
+    if (o.Has("vtk")) fs::remove(o.Get("vtk"), ec);
+    throw;
+  }
+  return 0;
+}
+
+std::string OneLine(std::string s) {
+  for (char& c : s)
+    if (c == '\n' || c == '\r') c = ' ';
+  return s;
+}
+
+}  // namespace
+
+int RunCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  try {
+    if (args.empty()) throw UsageError("missing command (diagnose, reconstruct); see --help");
+    const std::string& command = args[0];
+    for (const auto& a : args) {
+      if (a == "--help" || a == "-h") {
+        out << kUsage;
+        return 0;
+      }
+    }
+    if (command == "diagnose") return Diagnose(args, out);
+    if (command == "reconstruct") return Reconstruct(args, out);
+    throw UsageError("unknown command '" + command + "' (diagnose, reconstruct); see --help");
+  } catch (const UsageError& e) {
+    err << "linerwatch: " << OneLine(e.what()) << "\n";
+    return 2;
+  } catch (const core::InputError& e) {
+    err << "linerwatch: " << e.file();
+    if (e.line() > 0) err << ":" << e.line();
+    err << ": " << OneLine(e.rule()) << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    err << "linerwatch: " << OneLine(e.what()) << "\n";
+    return 1;
+  }
+}
+
+}  // namespace lw::cli

@@ -1,0 +1,153 @@
+#pragma once
+/// Simulation-versus-recording diagnosis (CONTRACTS.md §4): compares a campaign's sensor readings
+/// (and laser scans, if any) with the Eq. 9 reconstruction of the DEM wear map, tests whether the
+/// mismatch is real, locates it, and names the physics the DEM left out by fitting a library of
+/// physically parameterised wear-model changes.
+///
+/// Thread safety: Diagnose() is re-entrant (no global state); results are plain values.
+#include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/bundle.hpp"
+#include "core/time.hpp"
+
+namespace lw::diagnosis {
+
+/// Effect names, exactly as CONTRACTS.md §4 spells them.
+inline constexpr const char* kWorkHardening = "work_hardening";
+inline constexpr const char* kHardnessGradient = "hardness_gradient";
+inline constexpr const char* kSqueezeWear = "squeeze_wear";
+inline constexpr const char* kProfileEvolution = "profile_evolution";
+inline constexpr const char* kFeedSegregation = "feed_segregation";
+inline constexpr const char* kThroughputVariation = "throughput_variation";
+inline constexpr const char* kMaterialLoss = "material_loss";
+inline constexpr const char* kUnexplained = "unexplained";
+
+struct DiagnoseOptions {
+  /// When set, predict every sensor's thickness (and every face's wear) at this time.
+  std::optional<core::TimePoint> predict_at;
+  /// Share of the sensor time span (the latest part) held out to judge fits on unseen data.
+  double holdout_fraction = 0.25;
+  /// Try pairs of effects (slower, needed for overlapping effects).
+  bool try_pairs = true;
+};
+
+/// Error of a model against the measurements (mm of wear depth).
+struct ErrorSummary {
+  double rmse_mm = 0;
+  double max_abs_mm = 0;
+  double holdout_rmse_mm = 0;  ///< on data the fit did not see (later readings, left-out sensors, scan sectors)
+  size_t observations = 0;
+  size_t holdout_observations = 0;
+};
+
+/// A located mismatch. "over": the model predicts more wear than measured.
+struct Region {
+  double z_min_m = 0;
+  double z_max_m = 0;
+  double theta_min_deg = 0;
+  double theta_max_deg = 0;
+  core::TimePoint from{};
+  core::TimePoint to{};
+  std::string sign;     ///< "over" | "under"
+  double size_mm = 0;   ///< mean absolute residual over the region
+  std::string source;   ///< "scan:<file>" or "sensor:<id>"
+};
+
+struct Finding {
+  std::string effect;  ///< one of the k* names above
+  double confidence = 0;
+  std::string explanation;
+  nlohmann::ordered_json parameters = nlohmann::ordered_json::object();
+  nlohmann::ordered_json evidence = nlohmann::ordered_json::object();
+};
+
+/// A sensor fault (never a physics finding). Times are the fault's first and last affected reading.
+struct DataQualityIssue {
+  std::string sensor_id;
+  std::string issue;  ///< non_physical, zero, dead, spike, flicker, thickness_up, stuck, crack, dropout, premature_step
+  core::TimePoint from{};
+  core::TimePoint to{};
+  std::string detail;
+};
+
+/// Per-sensor curves for the report: measured readings and the two models' thickness.
+struct SensorCurve {
+  std::string sensor_id;
+  std::string row;
+  double thickness_new_mm = 0;
+  std::vector<double> reading_days;     ///< days since installation
+  std::vector<double> reading_mm;       ///< raw readings
+  std::vector<bool> reading_used;       ///< false when excluded as a fault
+  std::vector<double> model_days;
+  std::vector<double> baseline_thickness_mm;
+  std::vector<double> improved_thickness_mm;
+  bool used = true;
+};
+
+/// Residual (model - measured wear, mm) over the unwrapped liner from one scan; NaN where no data.
+struct ResidualGrid {
+  std::string scan_file;
+  core::TimePoint date{};
+  size_t nz = 0;
+  size_t ntheta = 0;
+  double z_min_m = 0;
+  double z_max_m = 0;
+  double theta_min_deg = 0;
+  double theta_max_deg = 0;
+  std::vector<double> measured_mm;  ///< nz * ntheta, row-major in z
+  std::vector<double> before_mm;    ///< baseline (row scales refit on all data) minus measured
+  std::vector<double> after_mm;     ///< improved model minus measured
+};
+
+struct SensorPrediction {
+  std::string sensor_id;
+  double baseline_thickness_mm = 0;
+  double improved_thickness_mm = 0;
+};
+
+struct Prediction {
+  core::TimePoint time{};
+  std::vector<SensorPrediction> sensors;
+  std::vector<double> face_wear_baseline_mm;  ///< per map face
+  std::vector<double> face_wear_improved_mm;
+};
+
+struct DiagnosisResult {
+  std::string crusher_id;
+  core::TimePoint installed_at{};
+  ErrorSummary baseline;
+  ErrorSummary improved;
+  bool mismatch_detected = false;
+  double mismatch_z_score = 0;  ///< chi-square excess of the baseline over the noise model, in sigmas
+  std::vector<Region> regions;
+  std::vector<Finding> findings;
+  std::vector<DataQualityIssue> data_quality;
+  std::optional<Prediction> prediction;
+  std::vector<std::string> notes;  ///< skipped hypotheses and why, noise estimates
+  nlohmann::ordered_json noise = nlohmann::ordered_json::object();
+  nlohmann::ordered_json hypotheses = nlohmann::ordered_json::array();  ///< every model tried
+  std::vector<SensorCurve> curves;
+  std::vector<ResidualGrid> grids;
+};
+
+/// Runs the whole diagnosis on a loaded bundle. Never throws on physically odd data (faults are
+/// reported); throws std::invalid_argument only when nothing can be diagnosed (no usable sensor).
+DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& options = {});
+
+/// The CONTRACTS §4 JSON document (plus optional extra keys).
+nlohmann::ordered_json ToJson(const DiagnosisResult& result);
+
+/// Self-contained HTML report (inline SVG, no scripts).
+std::string RenderHtml(const DiagnosisResult& result);
+
+/// Writes OUT.json-style, HTML and VTK outputs; each file goes to a temporary and is renamed.
+void WriteHtml(const std::filesystem::path& path, const DiagnosisResult& result);
+void WritePredictionVtk(const std::filesystem::path& path, const core::Bundle& bundle,
+                        const DiagnosisResult& result);
+
+}  // namespace lw::diagnosis

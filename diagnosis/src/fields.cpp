@@ -1,0 +1,407 @@
+#include "fields.hpp"
+
+#include <Eigen/QR>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <unordered_map>
+
+namespace lw::diagnosis::detail {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  return v[mid];
+}
+
+double WeightedQuantile(std::vector<std::pair<double, double>> value_weight, double q) {
+  if (value_weight.empty()) return 0;
+  std::sort(value_weight.begin(), value_weight.end());
+  double total = 0;
+  for (const auto& vw : value_weight) total += vw.second;
+  double acc = 0;
+  for (const auto& vw : value_weight) {
+    acc += vw.second;
+    if (acc >= q * total) return vw.first;
+  }
+  return value_weight.back().first;
+}
+
+// Hash of face centroids on the unwrapped surface (z, arc length at the mean radius), with the
+// angular direction wrapping around.
+class UnwrappedIndex {
+ public:
+  UnwrappedIndex(const core::WearMap& map, double bucket_m, double mean_radius_m)
+      : map_(map), bucket_(bucket_m), radius_(mean_radius_m) {
+    circumference_buckets_ = std::max<long>(1, static_cast<long>(std::ceil(2 * kPi * radius_ / bucket_)));
+    for (size_t f = 0; f < map.face_count(); ++f) {
+      buckets_[Key(BucketZ(map.z[static_cast<Eigen::Index>(f)]), BucketT(map.theta_deg[static_cast<Eigen::Index>(f)]))]
+          .push_back(f);
+    }
+  }
+  long BucketZ(double z) const { return static_cast<long>(std::floor(z / bucket_)); }
+  long BucketT(double theta_deg) const {
+    const long b = static_cast<long>(std::floor(theta_deg * kPi / 180.0 * radius_ / bucket_));
+    return ((b % circumference_buckets_) + circumference_buckets_) % circumference_buckets_;
+  }
+  static long long Key(long bz, long bt) { return (static_cast<long long>(bz) << 32) ^ static_cast<long long>(bt); }
+
+  /// Calls fn(face, distance_m) for faces in the (2 * reach + 1)^2 buckets around (z, theta).
+  template <typename Fn>
+  void Visit(double z, double theta_deg, long reach, Fn&& fn) const {
+    const long bz = BucketZ(z);
+    const long bt = BucketT(theta_deg);
+    const long span_t = std::min<long>(2 * reach + 1, circumference_buckets_);
+    for (long dz = -reach; dz <= reach; ++dz) {
+      for (long k = 0; k < span_t; ++k) {
+        const long t = (((bt - reach + k) % circumference_buckets_) + circumference_buckets_) % circumference_buckets_;
+        auto it = buckets_.find(Key(bz + dz, t));
+        if (it == buckets_.end()) continue;
+        for (size_t f : it->second) {
+          const auto fi = static_cast<Eigen::Index>(f);
+          const double ddz = map_.z[fi] - z;
+          const double arc = AngleDiffDeg(map_.theta_deg[fi], theta_deg) * kPi / 180.0 * map_.radius[fi];
+          fn(f, std::sqrt(ddz * ddz + arc * arc));
+        }
+      }
+    }
+  }
+
+ private:
+  const core::WearMap& map_;
+  double bucket_;
+  double radius_;
+  long circumference_buckets_ = 1;
+  std::unordered_map<long long, std::vector<size_t>> buckets_;
+};
+
+}  // namespace
+
+double AngleDiffDeg(double a, double b) {
+  double d = std::fmod(a - b, 360.0);
+  if (d > 180.0) d -= 360.0;
+  if (d <= -180.0) d += 360.0;
+  return d;
+}
+
+int CellGrid::CellOf(double z, double theta_deg) const {
+  const double fz = (z - z0) / dz;
+  double rel = std::fmod(theta_deg - t0_deg + 720.0, 360.0);
+  const double span = dt_deg * static_cast<double>(nt);
+  if (rel > span) {
+    // Just outside the covered range: snap to the nearest edge bin when close.
+    if (rel - span < 0.5 * dt_deg) rel = span - 1e-9;
+    else if (360.0 - rel < 0.5 * dt_deg) rel = 0;
+    else return -1;
+  }
+  long iz = static_cast<long>(std::floor(fz));
+  long it = static_cast<long>(std::floor(rel / dt_deg));
+  if (iz < 0 && fz > -0.5) iz = 0;
+  if (iz >= static_cast<long>(nz) && fz < static_cast<double>(nz) + 0.5) iz = static_cast<long>(nz) - 1;
+  it = std::clamp<long>(it, 0, static_cast<long>(nt) - 1);
+  if (iz < 0 || iz >= static_cast<long>(nz)) return -1;
+  return static_cast<int>(iz * static_cast<long>(nt) + it);
+}
+
+MapFields ComputeMapFields(const core::Bundle& bundle) {
+  const core::WearMap& map = bundle.map;
+  const auto nf = static_cast<Eigen::Index>(map.face_count());
+  MapFields f;
+  Eigen::VectorXd raw = map.wear.cwiseMax(0.0);
+  std::vector<double> positive;
+  for (Eigen::Index i = 0; i < nf; ++i)
+    if (raw[i] > 0) positive.push_back(raw[i]);
+  f.intensity_median = positive.empty() ? 1.0 : Median(positive);
+  if (f.intensity_median <= 0) f.intensity_median = 1.0;
+  f.intensity = raw / f.intensity_median;
+
+  std::vector<double> sizes;
+  double area_sum = 0, radius_sum = 0;
+  for (Eigen::Index i = 0; i < nf; ++i) {
+    sizes.push_back(std::sqrt(2.0 * std::max(map.areas[i], 0.0)));
+    area_sum += map.areas[i];
+    radius_sum += map.areas[i] * map.radius[i];
+  }
+  f.face_size_m = std::max(Median(sizes), 1e-4);
+  f.mean_radius_m = area_sum > 0 ? radius_sum / area_sum : 1.0;
+
+  // Angular coverage: the complement of the largest empty arc (1 degree bins).
+  {
+    std::vector<bool> occupied(360, false);
+    for (Eigen::Index i = 0; i < nf; ++i) occupied[static_cast<size_t>(std::clamp(map.theta_deg[i], 0.0, 359.999))] = true;
+    int best_len = 0, best_end = 0;
+    for (int start = 0; start < 360; ++start) {
+      if (occupied[static_cast<size_t>(start)] || occupied[static_cast<size_t>((start + 359) % 360)] == false) continue;
+      int len = 0;
+      while (len < 360 && !occupied[static_cast<size_t>((start + len) % 360)]) ++len;
+      if (len > best_len) {
+        best_len = len;
+        best_end = (start + len) % 360;
+      }
+    }
+    if (best_len >= 5 && best_len < 360) {
+      f.theta_lo_deg = best_end;
+      f.theta_span_deg = 360.0 - best_len;
+    } else {
+      f.theta_lo_deg = 0;
+      f.theta_span_deg = 360;
+    }
+  }
+
+  f.z_bottom = std::numeric_limits<double>::max();
+  f.z_top = std::numeric_limits<double>::lowest();
+  for (const auto& r : bundle.crusher.rows) {
+    f.z_bottom = std::min(f.z_bottom, r.z_min_m);
+    f.z_top = std::max(f.z_top, r.z_max_m);
+  }
+  if (bundle.crusher.rows.empty() || f.z_top <= f.z_bottom) {
+    f.z_bottom = nf > 0 ? map.z.minCoeff() : 0.0;
+    f.z_top = nf > 0 ? map.z.maxCoeff() : 1.0;
+    if (f.z_top <= f.z_bottom) f.z_top = f.z_bottom + 1.0;
+  }
+
+  f.has_normal = map.has_normal_stress() && map.normal_stress.size() == nf && map.normal_stress.maxCoeff() > 0;
+  if (f.has_normal) {
+    Eigen::VectorXd n = map.normal_stress.cwiseMax(0.0);
+    std::vector<std::pair<double, double>> vw;
+    double n_mean = 0, i_mean = 0;
+    for (Eigen::Index i = 0; i < nf; ++i) {
+      vw.push_back({n[i], map.areas[i]});
+      n_mean += n[i] * map.areas[i];
+      i_mean += f.intensity[i] * map.areas[i];
+    }
+    double robust_max = WeightedQuantile(vw, 0.95);
+    if (robust_max <= 0) robust_max = n.maxCoeff();
+    f.normal_tilde = (n / robust_max).cwiseMin(1.5);
+    f.normal_i = n * (n_mean > 0 ? i_mean / n_mean : 0.0);
+  } else {
+    f.normal_tilde = Eigen::VectorXd::Ones(nf);
+    f.normal_i = Eigen::VectorXd::Zero(nf);
+  }
+
+  // The map's own noise: each face against the area-weighted mean of its neighbours.
+  if (nf > 8) {
+    UnwrappedIndex index(map, 2.5 * f.face_size_m, f.mean_radius_m);
+    const Eigen::Index step = std::max<Eigen::Index>(1, nf / 4000);
+    std::vector<double> rel;
+    for (Eigen::Index i = 0; i < nf; i += step) {
+      double sw = 0, swi = 0;
+      index.Visit(map.z[i], map.theta_deg[i], 1, [&](size_t face, double d) {
+        if (static_cast<Eigen::Index>(face) == i || d > 2.5 * f.face_size_m) return;
+        const auto fi = static_cast<Eigen::Index>(face);
+        sw += map.areas[fi];
+        swi += map.areas[fi] * f.intensity[fi];
+      });
+      if (sw <= 0) continue;
+      const double mean = swi / sw;
+      if (mean > 0.1) rel.push_back(f.intensity[i] / mean - 1.0);
+    }
+    if (rel.size() >= 8) {
+      const double med = Median(rel);
+      for (double& r : rel) r = std::fabs(r - med);
+      f.face_rel_noise = 1.4826 * Median(rel);
+    }
+  }
+  return f;
+}
+
+PointField FieldAt(const core::WearMap& map, const MapFields& fields, double z, double theta_deg, double radius_m,
+                   size_t min_faces) {
+  const auto nf = static_cast<Eigen::Index>(map.face_count());
+  std::vector<std::pair<double, Eigen::Index>> dist;
+  dist.reserve(static_cast<size_t>(nf));
+  for (Eigen::Index i = 0; i < nf; ++i) {
+    const double dz = map.z[i] - z;
+    const double arc = AngleDiffDeg(map.theta_deg[i], theta_deg) * kPi / 180.0 * map.radius[i];
+    dist.push_back({dz * dz + arc * arc, i});
+  }
+  size_t take = 0;
+  for (const auto& d : dist)
+    if (d.first <= radius_m * radius_m) ++take;
+  take = std::min(std::max(take, min_faces), dist.size());
+  std::partial_sort(dist.begin(), dist.begin() + static_cast<std::ptrdiff_t>(take), dist.end());
+  PointField p;
+  p.z = z;
+  p.theta_deg = theta_deg;
+  p.normal_tilde = 0;
+  double sw = 0, sw2 = 0;
+  for (size_t k = 0; k < take; ++k) {
+    const Eigen::Index i = dist[k].second;
+    const double a = std::max(map.areas[i], 1e-12);
+    sw += a;
+    sw2 += a * a;
+    p.intensity += a * fields.intensity[i];
+    p.normal_tilde += a * fields.normal_tilde[i];
+    p.normal_i += a * fields.normal_i[i];
+  }
+  if (sw > 0) {
+    p.intensity /= sw;
+    p.normal_tilde /= sw;
+    p.normal_i /= sw;
+    p.rel_noise = fields.face_rel_noise * std::sqrt(sw2) / sw;
+  }
+  p.area = sw;
+  p.faces = take;
+  return p;
+}
+
+CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t target_cells) {
+  CellGrid g;
+  const auto nf = static_cast<Eigen::Index>(map.face_count());
+  if (nf == 0) return g;
+  const double zmin = map.z.minCoeff();
+  const double zmax = map.z.maxCoeff();
+  const double height = std::max(zmax - zmin, 1e-3);
+  const double arc = fields.theta_span_deg * kPi / 180.0 * fields.mean_radius_m;
+  const double cell = std::sqrt(height * arc / static_cast<double>(std::max<size_t>(target_cells, 1)));
+  // At least a few faces per cell on average.
+  const double min_cell = 2.0 * fields.face_size_m;
+  const double size = std::max(cell, min_cell);
+  g.nz = std::max<size_t>(1, static_cast<size_t>(std::lround(height / size)));
+  g.nt = std::max<size_t>(1, static_cast<size_t>(std::lround(arc / size)));
+  g.z0 = zmin - 1e-9;
+  g.dz = (height + 2e-9) / static_cast<double>(g.nz);
+  g.t0_deg = fields.theta_lo_deg;
+  g.dt_deg = fields.theta_span_deg / static_cast<double>(g.nt);
+  g.cells.assign(g.nz * g.nt, PointField{});
+  g.face_cell.assign(static_cast<size_t>(nf), -1);
+  std::vector<double> sw(g.cells.size(), 0.0), sw2(g.cells.size(), 0.0), sz(g.cells.size(), 0.0);
+  for (auto& c : g.cells) c.normal_tilde = 0;
+  for (Eigen::Index i = 0; i < nf; ++i) {
+    const int c = g.CellOf(map.z[i], map.theta_deg[i]);
+    g.face_cell[static_cast<size_t>(i)] = c;
+    if (c < 0) continue;
+    const auto ci = static_cast<size_t>(c);
+    const double a = std::max(map.areas[i], 1e-12);
+    sw[ci] += a;
+    sw2[ci] += a * a;
+    sz[ci] += a * map.z[i];
+    g.cells[ci].intensity += a * fields.intensity[i];
+    g.cells[ci].normal_tilde += a * fields.normal_tilde[i];
+    g.cells[ci].normal_i += a * fields.normal_i[i];
+    g.cells[ci].faces += 1;
+  }
+  for (size_t c = 0; c < g.cells.size(); ++c) {
+    PointField& p = g.cells[c];
+    const size_t iz = c / g.nt, it = c % g.nt;
+    p.theta_deg = std::fmod(g.t0_deg + (static_cast<double>(it) + 0.5) * g.dt_deg, 360.0);
+    p.z = g.z0 + (static_cast<double>(iz) + 0.5) * g.dz;
+    if (sw[c] <= 0) continue;
+    p.intensity /= sw[c];
+    p.normal_tilde /= sw[c];
+    p.normal_i /= sw[c];
+    p.z = sz[c] / sw[c];
+    p.rel_noise = fields.face_rel_noise * std::sqrt(sw2[c]) / sw[c];
+    p.area = sw[c];
+  }
+  return g;
+}
+
+ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const CellGrid& grid, const core::Scan& scan,
+                      double t_days, double thickness_new_mm) {
+  ScanCells s;
+  s.t_days = t_days;
+  s.file = scan.file;
+  s.points_total = scan.points.size();
+  const size_t nf = map.face_count();
+  const size_t nc = grid.cells.size();
+  s.wear_mm.assign(nc, kNaN);
+  s.sigma_mm.assign(nc, kNaN);
+  s.points.assign(nc, 0);
+  s.face_wear_mm.assign(nf, kNaN);
+  if (nf == 0) return s;
+  UnwrappedIndex index(map, 1.5 * fields.face_size_m, fields.mean_radius_m);
+  std::vector<std::vector<double>> per_face(nf);
+  std::vector<std::vector<Eigen::Vector3d>> local(nf);  // (dz, arc, wear) per point, for the noise estimate
+  const double reach = 1.5 * fields.face_size_m;
+  for (const Eigen::Vector3d& p : scan.points) {
+    double theta = std::atan2(p.y(), p.x()) * 180.0 / kPi;
+    if (theta < 0) theta += 360.0;
+    size_t best = nf;
+    double best_d = std::numeric_limits<double>::max();
+    index.Visit(p.z(), theta, 1, [&](size_t face, double d) {
+      if (d < best_d) {
+        best_d = d;
+        best = face;
+      }
+    });
+    if (best == nf || best_d > reach) continue;
+    const Eigen::Vector3d& c = map.centroids[best];
+    const double w = (c - p).dot(map.normals[best]) * 1000.0;
+    if (w < -20.0 || w > thickness_new_mm + 20.0) continue;
+    per_face[best].push_back(w);
+    const auto bi = static_cast<Eigen::Index>(best);
+    local[best].push_back({p.z() - map.z[bi], AngleDiffDeg(theta, map.theta_deg[bi]) * kPi / 180.0 * map.radius[bi], w});
+    ++s.points_used;
+  }
+  // Point noise: scatter about a plane fitted to each face's points (wear varies across a face).
+  std::vector<double> dev;
+  for (size_t f = 0; f < nf; ++f) {
+    const size_t n = local[f].size();
+    if (n < 6) continue;
+    Eigen::MatrixXd a(static_cast<Eigen::Index>(n), 3);
+    Eigen::VectorXd b(static_cast<Eigen::Index>(n));
+    for (size_t k = 0; k < n; ++k) {
+      const auto kk = static_cast<Eigen::Index>(k);
+      a(kk, 0) = 1;
+      a(kk, 1) = local[f][k].x();
+      a(kk, 2) = local[f][k].y();
+      b[kk] = local[f][k].z();
+    }
+    const Eigen::VectorXd coef = a.colPivHouseholderQr().solve(b);
+    const Eigen::VectorXd res = b - a * coef;
+    const double inflate = std::sqrt(static_cast<double>(n) / static_cast<double>(n - 3));
+    for (Eigen::Index k = 0; k < res.size(); ++k) dev.push_back(std::fabs(res[k]) * inflate);
+  }
+  s.point_noise_mm = dev.size() >= 10 ? 1.4826 * Median(dev) : 0.5;
+  s.point_noise_mm = std::max(s.point_noise_mm, 0.05);
+  std::vector<double> sw(nc, 0.0), swv(nc, 0.0), svar(nc, 0.0), sw2(nc, 0.0);
+  s.fields.assign(nc, PointField{});
+  for (auto& pf : s.fields) pf.normal_tilde = 0;
+  for (size_t f = 0; f < nf; ++f) {
+    if (per_face[f].empty()) continue;
+    const double mean = std::accumulate(per_face[f].begin(), per_face[f].end(), 0.0) /
+                        static_cast<double>(per_face[f].size());
+    const double med = Median(per_face[f]);
+    // Robust face value: median when enough points, else the mean.
+    const double value = per_face[f].size() >= 5 ? med : mean;
+    s.face_wear_mm[f] = value;
+    const int c = grid.face_cell[f];
+    if (c < 0) continue;
+    const auto ci = static_cast<size_t>(c);
+    const double a = std::max(map.areas[static_cast<Eigen::Index>(f)], 1e-12);
+    sw[ci] += a;
+    sw2[ci] += a * a;
+    swv[ci] += a * value;
+    const auto fi = static_cast<Eigen::Index>(f);
+    s.fields[ci].intensity += a * fields.intensity[fi];
+    s.fields[ci].normal_tilde += a * fields.normal_tilde[fi];
+    s.fields[ci].normal_i += a * fields.normal_i[fi];
+    s.fields[ci].z += a * map.z[fi];
+    s.fields[ci].faces += 1;
+    svar[ci] += a * a * s.point_noise_mm * s.point_noise_mm / static_cast<double>(per_face[f].size());
+    s.points[ci] += per_face[f].size();
+  }
+  for (size_t c = 0; c < nc; ++c) {
+    if (sw[c] <= 0) continue;
+    s.wear_mm[c] = swv[c] / sw[c];
+    s.sigma_mm[c] = std::sqrt(svar[c]) / sw[c];
+    PointField& pf = s.fields[c];
+    pf.intensity /= sw[c];
+    pf.normal_tilde /= sw[c];
+    pf.normal_i /= sw[c];
+    pf.z /= sw[c];
+    pf.theta_deg = grid.cells[c].theta_deg;
+    pf.rel_noise = fields.face_rel_noise * std::sqrt(sw2[c]) / sw[c];
+    pf.area = sw[c];
+  }
+  return s;
+}
+
+}  // namespace lw::diagnosis::detail

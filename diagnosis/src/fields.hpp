@@ -1,0 +1,75 @@
+#pragma once
+/// Fields the wear model needs, derived from the DEM map: normalised intensity, normalised normal
+/// stress, the map's own noise level, an unwrapped (z, theta) cell grid, and scan wear per cell.
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "core/bundle.hpp"
+
+namespace lw::diagnosis::detail {
+
+struct MapFields {
+  Eigen::VectorXd intensity;     ///< per face, raw / median (median face = 1)
+  Eigen::VectorXd normal_tilde;  ///< per face, normal stress / robust max, clipped to [0, 1.5]; 1 when absent
+  Eigen::VectorXd normal_i;      ///< per face, normal stress in intensity units (same area-weighted mean)
+  bool has_normal = false;
+  double intensity_median = 1;   ///< raw intensity that maps to 1
+  double face_rel_noise = 0;     ///< relative per-face noise of the map (face vs its neighbourhood)
+  double face_size_m = 0.05;     ///< typical face edge
+  double z_bottom = 0;           ///< concave extent along z (rows)
+  double z_top = 1;
+  double theta_lo_deg = 0;       ///< start of the covered angular range
+  double theta_span_deg = 360;   ///< covered angular range
+  double mean_radius_m = 1;
+};
+
+/// What the wear model needs at one location (a sensor or a grid cell).
+struct PointField {
+  double z = 0;
+  double theta_deg = 0;
+  double intensity = 0;     ///< normalised
+  double normal_tilde = 1;
+  double normal_i = 0;
+  double rel_noise = 0;     ///< relative noise of `intensity` from the map's per-face noise
+  double area = 0;
+  size_t faces = 0;
+};
+
+struct CellGrid {
+  size_t nz = 0;
+  size_t nt = 0;
+  double z0 = 0;
+  double dz = 1;
+  double t0_deg = 0;
+  double dt_deg = 360;
+  std::vector<int> face_cell;       ///< per face: cell index or -1
+  std::vector<PointField> cells;    ///< nz * nt (cells with faces == 0 are empty)
+  int CellOf(double z, double theta_deg) const;
+};
+
+/// Per-cell wear measured by one scan (mm along the as-new face normal).
+struct ScanCells {
+  double t_days = 0;
+  std::string file;
+  std::vector<double> wear_mm;      ///< per cell (NaN where no points)
+  std::vector<double> sigma_mm;     ///< standard error of the cell mean
+  std::vector<size_t> points;       ///< per cell
+  std::vector<double> face_wear_mm; ///< per face (NaN where no points), for crater checks
+  std::vector<PointField> fields;   ///< per cell, over the faces the scan covered
+  double point_noise_mm = 0;        ///< estimated scan noise per point
+  size_t points_used = 0;
+  size_t points_total = 0;
+};
+
+MapFields ComputeMapFields(const core::Bundle& bundle);
+/// Neighbourhood average around (z, theta) within radius (m), at least `min_faces` nearest faces.
+PointField FieldAt(const core::WearMap& map, const MapFields& fields, double z, double theta_deg, double radius_m,
+                   size_t min_faces);
+CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t target_cells);
+ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const CellGrid& grid, const core::Scan& scan,
+                      double t_days, double thickness_new_mm);
+
+double AngleDiffDeg(double a, double b);  ///< signed a - b wrapped to (-180, 180]
+
+}  // namespace lw::diagnosis::detail

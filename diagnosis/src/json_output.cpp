@@ -1,0 +1,100 @@
+// CONTRACTS.md §4 JSON document.
+#include <cmath>
+
+#include "diagnosis/diagnose.hpp"
+
+namespace lw::diagnosis {
+namespace {
+
+double Round(double v, double digits = 3) {
+  if (!std::isfinite(v)) return 0;
+  const double f = std::pow(10.0, digits);
+  return std::round(v * f) / f;
+}
+
+nlohmann::ordered_json Errors(const ErrorSummary& e) {
+  nlohmann::ordered_json j;
+  j["rmse_mm"] = Round(e.rmse_mm);
+  j["max_abs_mm"] = Round(e.max_abs_mm);
+  j["holdout_rmse_mm"] = Round(e.holdout_rmse_mm);
+  j["observations"] = e.observations;
+  j["holdout_observations"] = e.holdout_observations;
+  return j;
+}
+
+}  // namespace
+
+nlohmann::ordered_json ToJson(const DiagnosisResult& r) {
+  nlohmann::ordered_json j;
+  j["crusher_id"] = r.crusher_id;
+  j["baseline"] = Errors(r.baseline);
+  nlohmann::ordered_json mismatch;
+  mismatch["detected"] = r.mismatch_detected;
+  mismatch["z_score"] = Round(r.mismatch_z_score, 2);
+  mismatch["regions"] = nlohmann::ordered_json::array();
+  for (const Region& g : r.regions) {
+    nlohmann::ordered_json x;
+    x["z_min_m"] = Round(g.z_min_m, 4);
+    x["z_max_m"] = Round(g.z_max_m, 4);
+    x["theta_min_deg"] = Round(g.theta_min_deg, 2);
+    x["theta_max_deg"] = Round(g.theta_max_deg, 2);
+    x["from"] = core::FormatIsoTime(g.from);
+    x["to"] = core::FormatIsoTime(g.to);
+    x["sign"] = g.sign;
+    x["size_mm"] = Round(g.size_mm, 2);
+    x["source"] = g.source;
+    mismatch["regions"].push_back(x);
+  }
+  j["mismatch"] = mismatch;
+  j["findings"] = nlohmann::ordered_json::array();
+  for (const Finding& f : r.findings) {
+    nlohmann::ordered_json x;
+    x["effect"] = f.effect;
+    x["confidence"] = Round(f.confidence);
+    x["explanation"] = f.explanation;
+    x["parameters"] = f.parameters;
+    x["evidence"] = f.evidence;
+    j["findings"].push_back(x);
+  }
+  j["improved"] = Errors(r.improved);
+  j["data_quality"] = nlohmann::ordered_json::array();
+  for (const DataQualityIssue& d : r.data_quality) {
+    nlohmann::ordered_json x;
+    x["sensor_id"] = d.sensor_id;
+    x["issue"] = d.issue;
+    x["from"] = core::FormatIsoTime(d.from);
+    x["to"] = core::FormatIsoTime(d.to);
+    x["detail"] = d.detail;
+    j["data_quality"].push_back(x);
+  }
+  if (r.prediction) {
+    nlohmann::ordered_json p;
+    p["time"] = core::FormatIsoTime(r.prediction->time);
+    nlohmann::ordered_json b = nlohmann::ordered_json::object(), i = nlohmann::ordered_json::object();
+    for (const SensorPrediction& s : r.prediction->sensors) {
+      b[s.sensor_id] = Round(s.baseline_thickness_mm, 3);
+      i[s.sensor_id] = Round(s.improved_thickness_mm, 3);
+    }
+    p["baseline"]["sensors"] = b;
+    p["improved"]["sensors"] = i;
+    j["prediction"] = p;
+  }
+  j["noise"] = r.noise;
+  j["notes"] = r.notes;
+  j["hypotheses"] = r.hypotheses;
+  return j;
+}
+
+void WritePredictionVtk(const std::filesystem::path& path, const core::Bundle& bundle, const DiagnosisResult& result) {
+  if (!result.prediction) throw std::invalid_argument("--predict-vtk needs --predict-at");
+  const auto nf = static_cast<Eigen::Index>(bundle.map.face_count());
+  Eigen::VectorXd base = Eigen::VectorXd::Zero(nf), improved = Eigen::VectorXd::Zero(nf);
+  const auto& p = *result.prediction;
+  for (Eigen::Index f = 0; f < nf && static_cast<size_t>(f) < p.face_wear_baseline_mm.size(); ++f) {
+    base[f] = p.face_wear_baseline_mm[static_cast<size_t>(f)];
+    improved[f] = p.face_wear_improved_mm[static_cast<size_t>(f)];
+  }
+  core::WriteWearMapVtk(path, bundle.map, {{"wear_mm_baseline", &base}, {"wear_mm_improved", &improved}});
+}
+
+}  // namespace lw::diagnosis

@@ -1,0 +1,130 @@
+// The `linerwatch` CLI through its library entry point: help, bad input (non-zero, one line, no
+// output file), diagnose outputs (JSON keys, HTML, prediction VTK), --config equivalence.
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli/cli.hpp"
+#include "unit/diagnosis/synthetic_bundle.hpp"
+
+// CppUTest last: its leak-detector macros redefine new.
+#include <CppUTest/TestHarness.h>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Run {
+  int code = 0;
+  std::string out, err;
+};
+
+Run Cli(const std::vector<std::string>& args) {
+  std::ostringstream out, err;
+  Run r;
+  r.code = lw::cli::RunCli(args, out, err);
+  r.out = out.str();
+  r.err = err.str();
+  return r;
+}
+
+bool OneLine(const std::string& s) { return !s.empty() && s.find('\n') == s.size() - 1; }
+
+std::string Slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+TEST_GROUP(Linerwatch) {
+  fs::path dir;
+  void setup() override { dir = lw::test::MakeTempDir("cli"); }
+  void teardown() override { fs::remove_all(dir); }
+  fs::path Bundle(const lw::test::SyntheticSpec& spec = {}) {
+    const fs::path b = dir / "bundle";
+    lw::test::WriteSyntheticBundle(b, spec);
+    return b;
+  }
+};
+
+TEST(Linerwatch, HelpExitsZero) {
+  const Run r = Cli({"--help"});
+  LONGS_EQUAL(0, r.code);
+  CHECK_TRUE(r.out.find("diagnose BUNDLE --json") != std::string::npos);
+  LONGS_EQUAL(0, Cli({"diagnose", "--help"}).code);
+}
+
+TEST(Linerwatch, MissingBundleIsOneLineErrorAndNoOutput) {
+  const fs::path out = dir / "out.json";
+  const Run r = Cli({"diagnose", (dir / "nope").string(), "--json", out.string()});
+  CHECK_TRUE(r.code != 0);
+  CHECK_TRUE(OneLine(r.err));
+  CHECK_TRUE(r.err.find("nope") != std::string::npos);
+  CHECK_FALSE(fs::exists(out));
+}
+
+TEST(Linerwatch, BadReadingNamesFileAndLineAndWritesNothing) {
+  const fs::path b = Bundle();
+  {
+    std::ofstream f(b / "readings.csv");
+    f << "time,sensor_id,thickness_mm\n2024-01-02T00:00:00Z,LDWN-1,99\nyesterday,LDWN-1,98\n";
+  }
+  const fs::path out = dir / "out.json";
+  const Run r = Cli({"diagnose", b.string(), "--json", out.string()});
+  CHECK_TRUE(r.code != 0);
+  CHECK_TRUE(OneLine(r.err));
+  CHECK_TRUE(r.err.find("readings.csv") != std::string::npos);
+  CHECK_TRUE(r.err.find(":3") != std::string::npos);
+  CHECK_FALSE(fs::exists(out));
+}
+
+TEST(Linerwatch, UsageErrorsAreRefusedBeforeAnyWork) {
+  const fs::path b = Bundle();
+  const fs::path out = dir / "out.json";
+  Run r = Cli({"diagnose", b.string()});
+  CHECK_TRUE(r.code != 0);
+  CHECK_TRUE(OneLine(r.err));
+  r = Cli({"diagnose", b.string(), "--json", out.string(), "--predict-vtk", (dir / "x.vtk").string()});
+  CHECK_TRUE(r.code != 0);
+  CHECK_TRUE(r.err.find("--predict-at") != std::string::npos);
+  r = Cli({"diagnose", b.string(), "--json", out.string(), "--predict-at", "someday"});
+  CHECK_TRUE(r.code != 0);
+  r = Cli({"diagnose", b.string(), "--json", out.string(), "--bogus"});
+  CHECK_TRUE(r.code != 0);
+  r = Cli({"frobnicate"});
+  CHECK_TRUE(r.code != 0);
+  CHECK_FALSE(fs::exists(out));
+  CHECK_FALSE(fs::exists(dir / "x.vtk"));
+}
+
+TEST(Linerwatch, DiagnoseWritesJsonHtmlAndPredictionVtkFromConfig) {
+  lw::test::SyntheticSpec spec;
+  spec.feed_amplitude = 0.25;
+  const fs::path b = Bundle(spec);
+  const fs::path json = dir / "d.json", html = dir / "d.html", vtk = dir / "p.vtk", cfg = dir / "cfg.json";
+  {
+    std::ofstream c(cfg);
+    c << "{\"bundle\": \"" << b.string() << "\", \"json\": \"" << json.string() << "\", \"html\": \"" << html.string()
+      << "\", \"predict-at\": \"2024-04-20\", \"predict_vtk\": \"" << vtk.string() << "\", \"no_pairs\": true}";
+  }
+  const Run r = Cli({"diagnose", "--config", cfg.string()});
+  LONGS_EQUAL(0, r.code);
+  const auto j = nlohmann::json::parse(Slurp(json));
+  for (const char* key : {"baseline", "mismatch", "findings", "improved", "data_quality", "prediction"})
+    CHECK_TRUE(j.contains(key));
+  STRCMP_EQUAL("feed_segregation", j["findings"][0]["effect"].get<std::string>().c_str());
+  STRCMP_EQUAL("2024-04-20T00:00:00Z", j["prediction"]["time"].get<std::string>().c_str());
+  CHECK_TRUE(j["prediction"]["improved"]["sensors"].contains("LDWN-1"));
+  const std::string v = Slurp(vtk);
+  CHECK_TRUE(v.find("wear_mm_baseline") != std::string::npos);
+  CHECK_TRUE(v.find("wear_mm_improved") != std::string::npos);
+  CHECK_TRUE(Slurp(html).find("<svg") != std::string::npos);
+  // No temporaries left next to the outputs.
+  for (const auto& e : fs::directory_iterator(dir)) CHECK_TRUE(e.path().string().find(".tmp") == std::string::npos);
+}

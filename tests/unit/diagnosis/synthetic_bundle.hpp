@@ -1,0 +1,40 @@
+#pragma once
+// Test-only forward model: writes a small campaign bundle whose truth is the diagnosis' own
+// hypothesis forms (so a clear effect must be found and its parameters recovered), with 1 mm
+// quantised sensor readings, multiplicative DEM map noise and scan noise.
+#include <filesystem>
+#include <string>
+
+namespace lw::test {
+
+struct SyntheticSpec {
+  unsigned seed = 1;
+  double days = 90;
+  double report_hours = 6;
+  double map_noise = 0.05;      ///< relative per-face noise of the DEM map vs the truth
+  double scan_noise_mm = 0.3;
+  bool with_scan = true;
+  bool with_normal_stress = true;
+  bool with_operations = false;
+  double rate = 0.6;            ///< mm/day per unit of intensity
+  // Effects (0 = absent).
+  double hardening_h = 0, hardening_tau_days = 6;
+  double gradient_g = 0, gradient_onset_mm = 10;
+  double squeeze_beta = 0;
+  double profile_p = 0;         ///< per 100 days, top vs bottom
+  double feed_amplitude = 0, feed_theta_deg = 60;
+  double throughput_phi = 0;
+  // Faults / local events.
+  std::string stuck_sensor;
+  double stuck_from_day = 0;
+  std::string loss_sensor;
+  double loss_day = 0, loss_mm = 0;
+};
+
+/// Writes crusher.json, wear_map.vtk, readings.csv, optional operations.csv and scans/ into `dir`.
+void WriteSyntheticBundle(const std::filesystem::path& dir, const SyntheticSpec& spec);
+
+/// A fresh, empty temporary directory (removed by the caller).
+std::filesystem::path MakeTempDir(const std::string& tag);
+
+}  // namespace lw::test

@@ -1,0 +1,177 @@
+// Diagnosis engine on synthetic bundles from the test forward model (synthetic_bundle.cpp): a null
+// campaign gives no finding, each effect at a clear strength is named first with parameters near
+// the truth, sensor faults go to data_quality, and the JSON carries every contract key.
+#include <cmath>
+#include <filesystem>
+#include <string>
+
+#include "core/bundle.hpp"
+#include "diagnosis/diagnose.hpp"
+#include "unit/diagnosis/synthetic_bundle.hpp"
+
+// CppUTest last: its leak-detector macros redefine new.
+#include <CppUTest/TestHarness.h>
+
+namespace {
+
+lw::diagnosis::DiagnosisResult Run(const lw::test::SyntheticSpec& spec, bool pairs = false) {
+  const auto dir = lw::test::MakeTempDir("diag");
+  lw::test::WriteSyntheticBundle(dir, spec);
+  const lw::core::Bundle bundle = lw::core::LoadBundle(dir);
+  lw::diagnosis::DiagnoseOptions options;
+  options.try_pairs = pairs;
+  options.predict_at = lw::core::AddDays(bundle.crusher.installed_at, 100);
+  auto result = lw::diagnosis::Diagnose(bundle, options);
+  std::filesystem::remove_all(dir);
+  return result;
+}
+
+double Param(const lw::diagnosis::Finding& f, const char* name) { return f.parameters.at(name).get<double>(); }
+
+bool HasIssue(const lw::diagnosis::DiagnosisResult& r, const std::string& sensor, const std::string& issue) {
+  for (const auto& d : r.data_quality)
+    if (d.sensor_id == sensor && d.issue == issue) return true;
+  return false;
+}
+
+}  // namespace
+
+TEST_GROUP(Diagnose){};
+
+TEST(Diagnose, NullCampaignHasNoFindingAndNoMismatch) {
+  lw::test::SyntheticSpec spec;
+  spec.seed = 7;
+  const auto r = Run(spec);
+  CHECK_FALSE(r.mismatch_detected);
+  CHECK_TRUE(r.findings.empty());
+  CHECK_TRUE(r.data_quality.empty());
+  // Improved equals the baseline when nothing was found.
+  DOUBLES_EQUAL(r.baseline.rmse_mm, r.improved.rmse_mm, 1e-12);
+}
+
+TEST(Diagnose, WorkHardeningIsNamedWithSaturationTime) {
+  lw::test::SyntheticSpec spec;
+  spec.hardening_h = 0.5;
+  spec.hardening_tau_days = 6;
+  const auto r = Run(spec);
+  CHECK_TRUE(r.mismatch_detected);
+  CHECK_FALSE(r.findings.empty());
+  STRCMP_EQUAL("work_hardening", r.findings[0].effect.c_str());
+  // Truth normalises normal stress by its maximum, the diagnosis by a robust maximum: h within 0.3..0.65.
+  CHECK_TRUE(Param(r.findings[0], "h") > 0.3 && Param(r.findings[0], "h") < 0.65);
+  DOUBLES_EQUAL(6.0, Param(r.findings[0], "tau_days"), 2.0);
+  CHECK_TRUE(r.improved.holdout_rmse_mm < 0.7 * r.baseline.holdout_rmse_mm);
+  CHECK_TRUE(r.findings[0].explanation.find("normal stress") != std::string::npos);
+}
+
+TEST(Diagnose, FeedSegregationAmplitudeAndDirection) {
+  lw::test::SyntheticSpec spec;
+  spec.feed_amplitude = 0.2;
+  spec.feed_theta_deg = 60;
+  const auto r = Run(spec);
+  CHECK_FALSE(r.findings.empty());
+  STRCMP_EQUAL("feed_segregation", r.findings[0].effect.c_str());
+  DOUBLES_EQUAL(0.2, Param(r.findings[0], "amplitude"), 0.04);
+  DOUBLES_EQUAL(60.0, Param(r.findings[0], "theta_f_deg"), 8.0);
+}
+
+TEST(Diagnose, SqueezeWearFollowsNormalStress) {
+  lw::test::SyntheticSpec spec;
+  spec.squeeze_beta = 0.4;
+  const auto r = Run(spec);
+  CHECK_FALSE(r.findings.empty());
+  STRCMP_EQUAL("squeeze_wear", r.findings[0].effect.c_str());
+  DOUBLES_EQUAL(0.4, Param(r.findings[0], "beta"), 0.1);
+}
+
+TEST(Diagnose, HardnessGradientOnsetDepth) {
+  lw::test::SyntheticSpec spec;
+  spec.gradient_g = 0.4;
+  spec.gradient_onset_mm = 10;
+  const auto r = Run(spec);
+  CHECK_FALSE(r.findings.empty());
+  STRCMP_EQUAL("hardness_gradient", r.findings[0].effect.c_str());
+  DOUBLES_EQUAL(0.4, Param(r.findings[0], "g"), 0.1);
+  DOUBLES_EQUAL(10.0, Param(r.findings[0], "onset_depth_mm"), 4.0);
+}
+
+TEST(Diagnose, ProfileEvolutionDrift) {
+  lw::test::SyntheticSpec spec;
+  spec.profile_p = 1.0;
+  const auto r = Run(spec);
+  CHECK_FALSE(r.findings.empty());
+  STRCMP_EQUAL("profile_evolution", r.findings[0].effect.c_str());
+  DOUBLES_EQUAL(1.0, Param(r.findings[0], "p_per_100_days"), 0.25);
+}
+
+TEST(Diagnose, ThroughputVariationFollowsTonnageLog) {
+  lw::test::SyntheticSpec spec;
+  spec.with_operations = true;
+  spec.throughput_phi = 0.8;
+  const auto r = Run(spec);
+  CHECK_FALSE(r.findings.empty());
+  STRCMP_EQUAL("throughput_variation", r.findings[0].effect.c_str());
+  DOUBLES_EQUAL(0.8, Param(r.findings[0], "phi"), 0.15);
+}
+
+TEST(Diagnose, StuckSensorIsDataQualityNotPhysics) {
+  lw::test::SyntheticSpec spec;
+  spec.stuck_sensor = "LDWN-2";
+  spec.stuck_from_day = 40;
+  const auto r = Run(spec);
+  CHECK_TRUE(HasIssue(r, "LDWN-2", "stuck"));
+  CHECK_TRUE(r.findings.empty());
+}
+
+TEST(Diagnose, MaterialLossIsAPhysicsFindingWithDepth) {
+  lw::test::SyntheticSpec spec;
+  spec.loss_sensor = "LMID-3";
+  spec.loss_day = 40;
+  spec.loss_mm = 8;
+  const auto r = Run(spec);
+  CHECK_FALSE(r.findings.empty());
+  STRCMP_EQUAL("material_loss", r.findings[0].effect.c_str());
+  STRCMP_EQUAL("LMID-3", r.findings[0].parameters.at("sensor_id").get<std::string>().c_str());
+  DOUBLES_EQUAL(8.0, Param(r.findings[0], "depth_mm"), 1.5);
+  CHECK_TRUE(r.data_quality.empty());
+}
+
+TEST(Diagnose, JsonHasEveryContractKeyAndPrediction) {
+  lw::test::SyntheticSpec spec;
+  spec.hardening_h = 0.4;
+  const auto r = Run(spec);
+  const auto j = lw::diagnosis::ToJson(r);
+  for (const char* block : {"baseline", "improved"}) {
+    for (const char* key : {"rmse_mm", "max_abs_mm", "holdout_rmse_mm"}) CHECK_TRUE(j.at(block).at(key).is_number());
+  }
+  CHECK_TRUE(j.at("mismatch").at("detected").is_boolean());
+  CHECK_TRUE(j.at("mismatch").at("regions").is_array());
+  CHECK_FALSE(j.at("mismatch").at("regions").empty());
+  for (const auto& region : j.at("mismatch").at("regions")) {
+    for (const char* key : {"z_min_m", "z_max_m", "theta_min_deg", "theta_max_deg", "size_mm"})
+      CHECK_TRUE(region.at(key).is_number());
+    for (const char* key : {"from", "to"}) CHECK_TRUE(region.at(key).is_string());
+    const std::string sign = region.at("sign").get<std::string>();
+    CHECK_TRUE(sign == "over" || sign == "under");
+  }
+  CHECK_TRUE(j.at("findings").is_array());
+  for (const auto& f : j.at("findings")) {
+    CHECK_TRUE(f.at("effect").is_string());
+    CHECK_TRUE(f.at("confidence").get<double>() >= 0 && f.at("confidence").get<double>() <= 1);
+    CHECK_TRUE(f.at("explanation").is_string());
+    CHECK_TRUE(f.at("parameters").is_object());
+    CHECK_TRUE(f.at("evidence").is_object());
+  }
+  CHECK_TRUE(j.at("data_quality").is_array());
+  const auto& p = j.at("prediction");
+  CHECK_TRUE(p.at("time").is_string());
+  LONGS_EQUAL(12, p.at("baseline").at("sensors").size());
+  LONGS_EQUAL(12, p.at("improved").at("sensors").size());
+  LONGS_EQUAL(static_cast<long>(r.prediction->face_wear_baseline_mm.size()),
+              static_cast<long>(r.prediction->face_wear_improved_mm.size()));
+  // The report renders and is self-contained.
+  const std::string html = lw::diagnosis::RenderHtml(r);
+  CHECK_TRUE(html.find("<svg") != std::string::npos);
+  CHECK_TRUE(html.find("<script") == std::string::npos);
+  CHECK_TRUE(html.find("work_hardening") != std::string::npos);
+}
