@@ -215,7 +215,8 @@ void WriteSyntheticBundle(const std::filesystem::path& dir, const SyntheticSpec&
 
   if (s.with_scan) {
     std::filesystem::create_directories(dir / "scans");
-    std::ofstream sc(dir / "scans" / ("scan_" + Iso(s.days).substr(0, 10) + ".xyz"));
+    const double scan_day = s.scan_day > 0 ? s.scan_day : s.days;
+    std::ofstream sc(dir / "scans" / ("scan_" + Iso(scan_day).substr(0, 10) + ".xyz"));
     std::uniform_real_distribution<double> uni(0.0, 1.0);
     for (const auto& f : faces) {
       for (int k = 0; k < 6; ++k) {
@@ -231,7 +232,7 @@ void WriteSyntheticBundle(const std::filesystem::path& dir, const SyntheticSpec&
                   b * (pts[static_cast<size_t>(f[2])][dd] - pts[static_cast<size_t>(f[0])][dd]);
         }
         const double th = std::atan2(p[1], p[0]);
-        double w = truth.Wear(p[2], th, s.days) + s.scan_noise_mm * gauss(rng);
+        double w = truth.Wear(p[2], th, scan_day) + s.scan_noise_mm * gauss(rng);
         // Move outward, perpendicular to the cone surface (normal of r = 1 + 0.4 z).
         const double nr = 1.0 / std::sqrt(1.0 + 0.16), nz = -0.4 / std::sqrt(1.0 + 0.16);
         p[0] += std::cos(th) * nr * w / 1000.0;

@@ -14,6 +14,7 @@ struct SyntheticSpec {
   double map_noise = 0.05;      ///< relative per-face noise of the DEM map vs the truth
   double scan_noise_mm = 0.3;
   bool with_scan = true;
+  double scan_day = -1;         ///< day of the scan (default: the last day)
   bool with_normal_stress = true;
   bool with_operations = false;
   double rate = 0.6;            ///< mm/day per unit of intensity
