@@ -1,0 +1,82 @@
+#pragma once
+/// Campaign bundle (CONTRACTS.md §3): crusher.json, wear_map.vtk, readings.csv, operations.csv,
+/// scans/scan_YYYY-MM-DD.xyz.
+#include <Eigen/Core>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/time.hpp"
+#include "core/wear_map.hpp"
+
+namespace lw::core {
+
+struct Row {
+  std::string name;
+  double z_min_m = 0;
+  double z_max_m = 0;
+};
+
+struct SensorInfo {
+  std::string id;
+  std::string row;
+  double z_m = 0;
+  double theta_deg = 0;
+  double thickness_new_mm = 0;
+  std::optional<uint64_t> address;  ///< radio 64-bit address
+};
+
+struct CrusherConfig {
+  std::string crusher_id;
+  TimePoint installed_at{};
+  double thickness_new_mm = 0;
+  double thickness_min_mm = 0;
+  std::vector<Row> rows;
+  std::vector<SensorInfo> sensors;
+
+  const SensorInfo* FindSensor(const std::string& id) const;
+  /// Index of the row with that name, or -1.
+  int RowIndex(const std::string& name) const;
+};
+
+struct Reading {
+  TimePoint time{};
+  std::string sensor_id;
+  double thickness_mm = 0;  ///< lower bound: true thickness in [thickness_mm, thickness_mm + 1)
+};
+
+struct OperationsSample {
+  TimePoint time{};
+  double throughput_tph = 0;
+  std::optional<double> power_kw;
+  std::optional<double> ore_ai;
+};
+
+struct Scan {
+  TimePoint date{};
+  std::string file;
+  std::vector<Eigen::Vector3d> points;  ///< metres, crusher frame
+};
+
+struct Bundle {
+  std::filesystem::path dir;
+  CrusherConfig crusher;
+  WearMap map;
+  MapValidation map_validation;
+  std::vector<Reading> readings;  ///< sorted by (sensor_id, time); duplicates kept
+  std::vector<OperationsSample> operations;  ///< sorted by time; empty when no operations.csv
+  std::vector<Scan> scans;                   ///< sorted by date
+};
+
+/// Parses crusher.json. Throws InputError (file, line, rule).
+CrusherConfig LoadCrusherConfig(const std::filesystem::path& path);
+/// Parses readings.csv (header time,sensor_id,thickness_mm; extra columns ignored).
+std::vector<Reading> LoadReadings(const std::filesystem::path& path);
+std::vector<OperationsSample> LoadOperations(const std::filesystem::path& path);
+Scan LoadScan(const std::filesystem::path& path);
+
+/// Loads and validates a whole bundle; readings naming unknown sensors are refused.
+Bundle LoadBundle(const std::filesystem::path& dir);
+
+}  // namespace lw::core

@@ -1,0 +1,51 @@
+#pragma once
+/// Global wear reconstruction, seed paper Eq. 9: W(x) = W_i(x) * W_s0 / W_i0 per row, with the
+/// row scale interpolated along z between row centres (not stepped) and DEM per-face noise smoothed.
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "core/bundle.hpp"
+
+namespace lw::core {
+
+struct SensorWear {
+  std::string sensor_id;
+  double wear_mm = 0;  ///< thickness_new - measured thickness lower bound (+0.5 for interval centre)
+};
+
+struct RowSummary {
+  std::string row;
+  double scale_mm_per_unit = 0;  ///< W_s0 / W_i0 for the row
+  double min_thickness_mm = 0;
+  size_t min_face = 0;
+  double min_z_m = 0;
+  double min_theta_deg = 0;
+  double mean_wear_mm = 0;
+  size_t sensors_used = 0;
+};
+
+struct ReconstructionOptions {
+  bool interpolate_between_rows = true;
+  double smoothing_radius_m = 0.0;  ///< 0 = no smoothing; else area-weighted mean over neighbours
+  bool interval_centre = true;      ///< use thickness + 0.5 mm (centre of [n, n+1)) as the estimate
+};
+
+struct Reconstruction {
+  Eigen::VectorXd wear_mm;       ///< per face
+  Eigen::VectorXd remaining_mm;  ///< per face: thickness_new - wear
+  std::vector<RowSummary> rows;
+  double min_thickness_mm = 0;
+  size_t min_face = 0;
+};
+
+/// Map-intensity at each sensor position (area-weighted over faces within `radius_m` of it, or the
+/// nearest face when none is that close). Same order as crusher.sensors.
+Eigen::VectorXd IntensityAtSensors(const CrusherConfig& crusher, const WearMap& map, double radius_m = 0.05);
+
+/// Eq. 9 reconstruction from each sensor's current wear.
+Reconstruction Reconstruct(const CrusherConfig& crusher, const WearMap& map,
+                           const std::vector<SensorWear>& sensor_wear,
+                           const ReconstructionOptions& options = {});
+
+}  // namespace lw::core
