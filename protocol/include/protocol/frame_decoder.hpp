@@ -50,6 +50,10 @@ class FrameDecoder {
  private:
   enum class State : uint8_t { kIdle, kLengthHigh, kLengthLow, kData, kChecksum };
   DecodeEvent Accept(uint8_t byte);  // one unescaped byte
+  // API mode 1 only: after a checksum or length error the bytes of the failed frame may hold the
+  // start of the next frame (the failed one was truncated); re-scan them from the next 0x7E.
+  DecodeEvent Resync(DecodeEvent error);
+  DecodeEvent FeedUnescaped(uint8_t byte);
 
   ApiMode mode_;
   State state_ = State::kIdle;
@@ -59,6 +63,9 @@ class FrameDecoder {
   size_t frame_length_ = 0;
   uint8_t sum_ = 0;
   uint8_t buffer_[kMaxFrameData] = {};
+  uint8_t raw_[kMaxFrameData + 3] = {};  // mode 1: bytes after the delimiter of the current frame
+  size_t raw_length_ = 0;
+  bool replaying_ = false;
   DecoderCounters counters_;
 };
 

@@ -1,0 +1,181 @@
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "protocol/xbee_api.hpp"
+#include "unit/protocol/frame_helpers.hpp"
+
+#include <CppUTest/TestHarness.h>
+
+using namespace lw::protocol;
+using lw::protocol::test::Encode;
+using lw::protocol::test::Hex;
+
+TEST_GROUP(XbeeApi) {};
+
+// Digi XBee Zigbee user guide, 0x10 Transmit Request example: payload "TxData0A" to 0013A200400A0127.
+TEST(XbeeApi, DigiTransmitRequestExampleEncodesByteExact) {
+  const char* text = "TxData0A";
+  TransmitRequest req;
+  req.frame_id = 0x01;
+  req.dest64 = 0x0013A200400A0127ull;
+  req.dest16 = 0xFFFE;
+  req.payload = reinterpret_cast<const uint8_t*>(text);
+  req.payload_len = std::strlen(text);
+  uint8_t data[kMaxFrameData];
+  size_t n = 0;
+  CHECK(BuildTransmitRequest(req, data, sizeof data, &n) == Status::kOk);
+  const auto wire = Encode(ApiMode::kUnescaped, std::vector<uint8_t>(data, data + n));
+  const auto expected = Hex("7E 00 16 10 01 00 13 A2 00 40 0A 01 27 FF FE 00 00 54 78 44 61 74 61 30 41 13");
+  CHECK(wire == expected);
+}
+
+TEST(XbeeApi, DigiTransmitStatusExampleParses) {
+  const auto wire = Hex("7E 00 07 8B 01 7D 84 00 00 01 71");
+  const std::vector<uint8_t> data(wire.begin() + 3, wire.end() - 1);
+  TransmitStatus st;
+  CHECK(ParseTransmitStatus(data.data(), data.size(), &st) == Status::kOk);
+  LONGS_EQUAL(0x01, st.frame_id);
+  LONGS_EQUAL(0x7D84, st.dest16);
+  LONGS_EQUAL(0, st.retry_count);
+  LONGS_EQUAL(0, st.delivery_status);
+  STRCMP_EQUAL("success", DeliveryStatusName(st.delivery_status));
+  LONGS_EQUAL(0x01, st.discovery_status);
+  LONGS_EQUAL(0x71, Checksum(data.data(), data.size()));
+}
+
+TEST(XbeeApi, DigiReceivePacketExampleParses) {
+  const auto wire = Hex("7E 00 12 90 00 13 A2 00 40 52 2B AA 7D 84 01 52 78 44 61 74 61 0D");
+  const std::vector<uint8_t> data(wire.begin() + 3, wire.end() - 1);
+  ReceivePacket rx;
+  CHECK(ParseReceivePacket(data.data(), data.size(), &rx) == Status::kOk);
+  CHECK(rx.src64 == 0x0013A20040522BAAull);
+  LONGS_EQUAL(0x7D84, rx.src16);
+  LONGS_EQUAL(0x01, rx.options);
+  LONGS_EQUAL(6, rx.payload_len);
+  MEMCMP_EQUAL("RxData", rx.payload, 6);
+}
+
+TEST(XbeeApi, DigiModemStatusExampleRoundTrips) {
+  ModemStatus ms{0x06};
+  uint8_t data[4];
+  size_t n = 0;
+  CHECK(BuildModemStatus(ms, data, sizeof data, &n) == Status::kOk);
+  CHECK(Encode(ApiMode::kUnescaped, std::vector<uint8_t>(data, data + n)) == Hex("7E 00 02 8A 06 6F"));
+  ModemStatus back;
+  CHECK(ParseModemStatus(data, n, &back) == Status::kOk);
+  STRCMP_EQUAL("coordinator_started", ModemStatusName(back.status));
+}
+
+// Digi's API-mode-2 example: frame data 23 11 is sent as 23 7D 31.
+TEST(XbeeApi, EscapedModeEscapesDataBytes) {
+  CHECK(Encode(ApiMode::kEscaped, Hex("23 11")) == Hex("7E 00 02 23 7D 31 CB"));
+  CHECK(Encode(ApiMode::kUnescaped, Hex("23 11")) == Hex("7E 00 02 23 11 CB"));
+}
+
+TEST(XbeeApi, EscapedModeEscapesLengthAndChecksum) {
+  // Length 0x13 (XOFF) must be escaped; choose data whose checksum is 0x7E.
+  std::vector<uint8_t> data(0x13, 0x00);
+  data[0] = 0x10;
+  // checksum = 0xFF - sum; make sum = 0x81 -> checksum 0x7E.
+  data[1] = 0x71;
+  LONGS_EQUAL(0x7E, Checksum(data.data(), data.size()));
+  const auto wire = Encode(ApiMode::kEscaped, data);
+  LONGS_EQUAL(0x7E, wire[0]);
+  LONGS_EQUAL(0x00, wire[1]);
+  LONGS_EQUAL(0x7D, wire[2]);
+  LONGS_EQUAL(0x33, wire[3]);
+  LONGS_EQUAL(0x7D, wire[wire.size() - 2]);
+  LONGS_EQUAL(0x5E, wire[wire.size() - 1]);
+  for (size_t i = 1; i < wire.size(); ++i) CHECK(wire[i] != 0x7E);
+}
+
+TEST(XbeeApi, EncodeRefusesSmallBufferAndBadLength) {
+  const auto data = Hex("8A 06");
+  uint8_t out[5];
+  LONGS_EQUAL(0, EncodeFrame(ApiMode::kUnescaped, data.data(), data.size(), out, sizeof out));
+  uint8_t big[kMaxFrameData + 1] = {};
+  uint8_t wire[kMaxWireFrame + 4];
+  LONGS_EQUAL(0, EncodeFrame(ApiMode::kUnescaped, big, sizeof big, wire, sizeof wire));
+  LONGS_EQUAL(0, EncodeFrame(ApiMode::kUnescaped, big, 0, wire, sizeof wire));
+  // Escaped frame that needs every byte escaped still fits kMaxWireFrame.
+  uint8_t all_escape[kMaxFrameData];
+  std::memset(all_escape, 0x7D, sizeof all_escape);
+  CHECK(EncodeFrame(ApiMode::kEscaped, all_escape, sizeof all_escape, wire, kMaxWireFrame) > 0);
+}
+
+TEST(XbeeApi, NodeIdentificationRoundTrips) {
+  NodeIdentification ni;
+  ni.sender64 = 0x0013A20040A1B2C3ull;
+  ni.sender16 = 0x1234;
+  ni.receive_options = 0x02;
+  ni.remote16 = 0x1234;
+  ni.remote64 = 0x0013A20040A1B2C3ull;
+  std::strcpy(ni.node_identifier, "LDWN-S07");
+  ni.parent16 = 0xFFFE;
+  ni.device_type = 2;
+  ni.source_event = 1;
+  ni.profile_id = 0xC105;
+  ni.manufacturer_id = 0x101E;
+  uint8_t data[kMaxFrameData];
+  size_t n = 0;
+  CHECK(BuildNodeIdentification(ni, data, sizeof data, &n) == Status::kOk);
+  LONGS_EQUAL(0x95, data[0]);
+  NodeIdentification back;
+  CHECK(ParseNodeIdentification(data, n, &back) == Status::kOk);
+  CHECK(back.sender64 == ni.sender64);
+  CHECK(back.remote64 == ni.remote64);
+  LONGS_EQUAL(ni.sender16, back.sender16);
+  STRCMP_EQUAL("LDWN-S07", back.node_identifier);
+  LONGS_EQUAL(2, back.device_type);
+  LONGS_EQUAL(0xC105, back.profile_id);
+  LONGS_EQUAL(0x101E, back.manufacturer_id);
+  // Truncated anywhere -> error, never a read past the end.
+  for (size_t len = 0; len < n; ++len) {
+    CHECK(ParseNodeIdentification(data, len, &back) != Status::kOk);
+  }
+}
+
+TEST(XbeeApi, ParsersRejectWrongTypeAndTruncation) {
+  const auto ms = Hex("8A 06");
+  ReceivePacket rx;
+  CHECK(ParseReceivePacket(ms.data(), ms.size(), &rx) == Status::kWrongType);
+  TransmitStatus st;
+  CHECK(ParseTransmitStatus(ms.data(), ms.size(), &st) == Status::kWrongType);
+  const auto ts = Hex("8B 01 7D 84 00 00");
+  CHECK(ParseTransmitStatus(ts.data(), ts.size(), &st) == Status::kTruncated);
+  CHECK(ParseModemStatus(nullptr, 0, nullptr) == Status::kTruncated);
+  const auto rx_short = Hex("90 00 13 A2 00 40 52 2B AA 7D 84");
+  CHECK(ParseReceivePacket(rx_short.data(), rx_short.size(), &rx) == Status::kTruncated);
+}
+
+TEST(XbeeApi, TransmitRequestRoundTripAndLimits) {
+  uint8_t payload[kMaxRfPayload];
+  for (size_t i = 0; i < sizeof payload; ++i) payload[i] = static_cast<uint8_t>(i * 7);
+  TransmitRequest req;
+  req.frame_id = 0x42;
+  req.dest64 = 0x0013A20040A1B2C3ull;
+  req.payload = payload;
+  req.payload_len = sizeof payload;
+  uint8_t data[kMaxFrameData];
+  size_t n = 0;
+  CHECK(BuildTransmitRequest(req, data, sizeof data, &n) == Status::kOk);
+  TransmitRequest back;
+  CHECK(ParseTransmitRequest(data, n, &back) == Status::kOk);
+  LONGS_EQUAL(0x42, back.frame_id);
+  CHECK(back.dest64 == req.dest64);
+  LONGS_EQUAL(sizeof payload, back.payload_len);
+  MEMCMP_EQUAL(payload, back.payload, sizeof payload);
+  req.payload_len = kMaxRfPayload + 1;
+  CHECK(BuildTransmitRequest(req, data, sizeof data, &n) == Status::kPayloadTooLarge);
+  req.payload_len = 10;
+  CHECK(BuildTransmitRequest(req, data, 12, &n) == Status::kBufferTooSmall);
+}
+
+TEST(XbeeApi, DeliveryStatusNamesCoverDocumentedCodes) {
+  STRCMP_EQUAL("mac_ack_failure", DeliveryStatusName(0x01));
+  STRCMP_EQUAL("network_ack_failure", DeliveryStatusName(0x21));
+  STRCMP_EQUAL("route_not_found", DeliveryStatusName(0x25));
+  STRCMP_EQUAL("data_payload_too_large", DeliveryStatusName(0x74));
+  STRCMP_EQUAL("unknown", DeliveryStatusName(0x99));
+}
