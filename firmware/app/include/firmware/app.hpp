@@ -1,0 +1,74 @@
+#pragma once
+/// The sensor application: one instance per board, all state inside (a simulator runs many).
+///
+/// Wake cycle (Step): drain the radio (acks that arrived), read the ladder (vote), update the
+/// monotonic thickness, queue a record on change or heartbeat, transmit due records (several per
+/// frame), drain the radio again, persist what must survive a reset, kick the watchdog and arm
+/// the RTC alarm for the next poll or retransmission. RunOnce = Step + sleep.
+#include <cstdint>
+
+#include "firmware/config.hpp"
+#include "firmware/ladder.hpp"
+#include "firmware/persistence.hpp"
+#include "firmware/report_queue.hpp"
+#include "hal/board.hpp"
+#include "protocol/frame_decoder.hpp"
+
+namespace lw::firmware {
+
+struct AppStats {
+  uint32_t wakes = 0;
+  uint32_t records_queued = 0;
+  uint32_t frames_sent = 0;
+  uint32_t records_acked = 0;
+  uint32_t tx_status_failures = 0;
+  uint32_t flash_errors = 0;
+  uint32_t ladder_faults = 0;
+};
+
+class App {
+ public:
+  App(const Config& config, const hal::Board& board);
+
+  /// Boot: starts the watchdog, restores persistent state (seq, last thickness), notes the reset
+  /// cause. Call once after reset.
+  void Init();
+  /// One wake cycle; returns the RTC time of the next wake (also armed as the alarm).
+  uint32_t Step();
+  /// Step, then sleep until the alarm. What the MCU's main loop calls forever.
+  void RunOnce();
+
+  const AppStats& stats() const { return stats_; }
+  const ReportQueue& queue() const { return queue_; }
+  /// Last reported thickness lower bound in 0.1 mm (0xFFFF before the first valid sample).
+  uint16_t reported_thickness_dmm() const;
+  uint32_t next_seq() const { return next_seq_; }
+
+ private:
+  void DrainRadio();
+  void HandleFrame();
+  void Sample(uint32_t now);
+  void Enqueue(uint32_t now, const LadderSample& sample, uint16_t flags, bool heartbeat);
+  void Transmit(uint32_t now);
+  uint32_t TakeSeq();
+  void Persist();
+  uint32_t Backoff(uint8_t attempts) const;
+
+  Config config_;
+  hal::Board board_;
+  protocol::FrameDecoder decoder_;
+  ReportQueue queue_;
+  StateStore store_;
+  PersistentState state_;
+  AppStats stats_;
+  uint32_t next_seq_ = 0;
+  uint8_t reported_loops_ = 0xFF;  // 0xFF: nothing reported yet
+  uint16_t pending_flags_ = 0;     // boot/reset flags for the next record
+  uint32_t last_queued_s_ = 0;
+  bool have_queued_ = false;
+  uint16_t last_fault_flags_ = 0;
+  uint8_t frame_id_ = 0;
+  bool dirty_ = false;
+};
+
+}  // namespace lw::firmware

@@ -1,0 +1,210 @@
+#include "firmware/app.hpp"
+
+#include "protocol/xbee_api.hpp"
+
+namespace lw::firmware {
+namespace {
+constexpr uint16_t kFaultFlags = protocol::kFlagLoopHealed | protocol::kFlagNonContiguous |
+                                 protocol::kFlagAllOpen | protocol::kFlagSpiStuck;
+}
+
+App::App(const Config& config, const hal::Board& board)
+    : config_(config), board_(board), decoder_(config.api_mode), store_(board.flash, 0) {}
+
+void App::Init() {
+  board_.watchdog.Start(config_.watchdog_timeout_s);
+  PersistentState loaded;
+  if (store_.Load(&loaded) && loaded.ladder_loops == config_.ladder_loops) {
+    state_ = loaded;
+  } else {
+    state_ = PersistentState{};
+    state_.ladder_loops = config_.ladder_loops;
+  }
+  // Resume above every seq that may have been used before the reset, then reserve a new block.
+  next_seq_ = state_.seq_reserved_until;
+  reported_loops_ = state_.reported_loops;
+  state_.boots++;
+  pending_flags_ = protocol::kFlagBoot;
+  if (board_.power.LastResetCause() == hal::ResetCause::kWatchdog) pending_flags_ |= protocol::kFlagWatchdogReset;
+  state_.seq_reserved_until = next_seq_ + config_.seq_reserve_block;
+  dirty_ = true;
+  Persist();
+}
+
+uint16_t App::reported_thickness_dmm() const {
+  if (reported_loops_ == 0xFF) return 0xFFFF;
+  return static_cast<uint16_t>(config_.base_offset_dmm + reported_loops_ * config_.loop_pitch_dmm);
+}
+
+uint32_t App::TakeSeq() {
+  const uint32_t seq = next_seq_++;
+  if (next_seq_ >= state_.seq_reserved_until) {
+    state_.seq_reserved_until = next_seq_ + config_.seq_reserve_block;
+    dirty_ = true;
+    Persist();  // must be durable before any seq of the new block goes out
+  }
+  return seq;
+}
+
+void App::Persist() {
+  if (!dirty_) return;
+  state_.reported_loops = reported_loops_;
+  state_.dropped_total = static_cast<uint16_t>(queue_.dropped_total() > 0xFFFF ? 0xFFFF : queue_.dropped_total());
+  if (store_.Save(&state_)) {
+    dirty_ = false;
+  } else {
+    ++stats_.flash_errors;
+  }
+}
+
+uint32_t App::Backoff(uint8_t attempts) const {
+  uint32_t delay = config_.backoff_min_s;
+  for (uint8_t i = 1; i < attempts && delay < config_.backoff_max_s; ++i) delay *= 2;
+  return delay < config_.backoff_max_s ? delay : config_.backoff_max_s;
+}
+
+void App::Enqueue(uint32_t now, const LadderSample& sample, uint16_t flags, bool heartbeat) {
+  QueuedRecord q;
+  q.heartbeat = heartbeat;
+  q.sampled_at_s = now;
+  q.next_try_s = now;
+  protocol::SensorRecord& r = q.record;
+  r.seq = TakeSeq();
+  r.loops_intact = reported_loops_ == 0xFF ? 0 : reported_loops_;
+  r.thickness_dmm = reported_thickness_dmm() == 0xFFFF ? 0 : reported_thickness_dmm();
+  r.flags = static_cast<uint16_t>(flags | pending_flags_ | (heartbeat ? protocol::kFlagHeartbeat : 0));
+  if (queue_.dropped_total() > 0) r.flags |= protocol::kFlagDropped;
+  int32_t mv = 0, temp = 0;
+  if (board_.adc.Read(hal::AdcChannel::kBatteryMillivolts, &mv)) {
+    r.battery_mv = static_cast<uint16_t>(mv < 0 ? 0 : (mv > 0xFFFF ? 0xFFFF : mv));
+    if (mv < config_.low_battery_mv) r.flags |= protocol::kFlagLowBattery;
+  }
+  if (board_.adc.Read(hal::AdcChannel::kTemperatureCelsius, &temp)) {
+    r.temperature_c = static_cast<int8_t>(temp < -128 ? -128 : (temp > 127 ? 127 : temp));
+  }
+  for (size_t i = 0; i < protocol::kMaxBitmapBytes; ++i) r.loop_bitmap[i] = sample.intact[i];
+  pending_flags_ = 0;
+  const uint32_t dropped_before = queue_.dropped_total();
+  queue_.Push(q);
+  if (queue_.dropped_total() != dropped_before) dirty_ = true;
+  ++stats_.records_queued;
+  last_queued_s_ = now;
+  have_queued_ = true;
+}
+
+void App::Sample(uint32_t now) {
+  const LadderSample s = ReadLadder(board_.ladder_spi, board_.ladder_power, config_.votes_per_poll, config_.ladder_loops);
+  uint16_t flags = s.flags;
+  bool changed = false;
+  if (s.valid) {
+    if (reported_loops_ == 0xFF || s.loops_intact < reported_loops_) {
+      reported_loops_ = s.loops_intact;
+      changed = true;
+      dirty_ = true;
+    } else if (s.loops_intact > reported_loops_ && !(s.flags & protocol::kFlagFlicker)) {
+      flags |= protocol::kFlagLoopHealed;  // never reported: wear is irreversible
+    }
+  }
+  const uint16_t faults = flags & kFaultFlags;
+  if (faults) ++stats_.ladder_faults;
+  const bool new_fault = (faults & ~last_fault_flags_) != 0;
+  last_fault_flags_ = faults;
+  const bool heartbeat_due = !have_queued_ || now - last_queued_s_ >= config_.heartbeat_period_s;
+  if (changed || new_fault || pending_flags_) {
+    Enqueue(now, s, flags, false);
+  } else if (heartbeat_due) {
+    Enqueue(now, s, flags, true);
+  }
+}
+
+void App::Transmit(uint32_t now) {
+  const size_t per_frame = protocol::MaxRecordsPerPayload(config_.ladder_loops);
+  size_t due[8];
+  const size_t max = per_frame < 8 ? per_frame : 8;
+  // Send every due record this wake, several per frame.
+  for (int guard = 0; guard < kQueueCapacity; ++guard) {
+    const size_t n = queue_.Due(now, due, max);
+    if (n == 0) return;
+    protocol::SensorRecord recs[8];
+    for (size_t i = 0; i < n; ++i) {
+      QueuedRecord& q = queue_.at(due[i]);
+      recs[i] = q.record;
+      recs[i].age_s = now - q.sampled_at_s;
+      ++q.attempts;
+      q.next_try_s = now + Backoff(q.attempts);
+    }
+    protocol::ReadingsHeader h;
+    h.sensor_id = config_.sensor_id;
+    h.ladder_loops = config_.ladder_loops;
+    h.dropped_total = static_cast<uint16_t>(queue_.dropped_total() > 0xFFFF ? 0xFFFF : queue_.dropped_total());
+    uint8_t payload[protocol::kMaxRfPayload];
+    size_t plen = 0;
+    if (protocol::EncodeReadings(h, recs, n, payload, sizeof payload, &plen) != protocol::PayloadStatus::kOk) return;
+    protocol::TransmitRequest req;
+    frame_id_ = static_cast<uint8_t>(frame_id_ == 0xFF ? 1 : frame_id_ + 1);
+    req.frame_id = frame_id_;
+    req.dest64 = config_.coordinator_address64;
+    req.payload = payload;
+    req.payload_len = plen;
+    uint8_t frame[protocol::kMaxFrameData];
+    size_t flen = 0;
+    if (protocol::BuildTransmitRequest(req, frame, sizeof frame, &flen) != protocol::Status::kOk) return;
+    uint8_t wire[protocol::kMaxWireFrame];
+    const size_t wlen = protocol::EncodeFrame(config_.api_mode, frame, flen, wire, sizeof wire);
+    board_.radio.Write(wire, wlen);
+    ++stats_.frames_sent;
+    DrainRadio();  // an ack may already be there; it frees queue slots
+  }
+}
+
+void App::HandleFrame() {
+  const uint8_t* data = decoder_.frame_data();
+  const size_t len = decoder_.frame_length();
+  protocol::TransmitStatus st;
+  if (protocol::ParseTransmitStatus(data, len, &st) == protocol::Status::kOk) {
+    if (st.delivery_status != 0) ++stats_.tx_status_failures;
+    return;
+  }
+  protocol::ReceivePacket rx;
+  if (protocol::ParseReceivePacket(data, len, &rx) != protocol::Status::kOk) return;
+  protocol::Ack ack;
+  if (protocol::DecodeAck(rx.payload, rx.payload_len, &ack) != protocol::PayloadStatus::kOk) return;
+  if (ack.sensor_id != config_.sensor_id) return;
+  for (size_t i = 0; i < ack.count; ++i) {
+    if (queue_.Ack(ack.seqs[i])) ++stats_.records_acked;
+  }
+}
+
+void App::DrainRadio() {
+  uint8_t buf[64];
+  for (;;) {
+    const size_t n = board_.radio.Read(buf, sizeof buf);
+    if (n == 0) return;
+    for (size_t i = 0; i < n; ++i) {
+      if (decoder_.Feed(buf[i]) == protocol::DecodeEvent::kFrame) HandleFrame();
+    }
+  }
+}
+
+uint32_t App::Step() {
+  ++stats_.wakes;
+  const uint32_t now = board_.rtc.NowSeconds();
+  DrainRadio();
+  Sample(now);
+  Transmit(now);
+  DrainRadio();
+  Persist();
+  board_.watchdog.Kick();
+  uint32_t next = now + config_.poll_period_s;
+  const uint32_t due = queue_.NextDue();
+  if (due > now && due < next) next = due;
+  board_.rtc.SetAlarm(next);
+  return next;
+}
+
+void App::RunOnce() {
+  Step();
+  board_.power.Sleep();
+}
+
+}  // namespace lw::firmware

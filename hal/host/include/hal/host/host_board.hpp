@@ -1,0 +1,213 @@
+#pragma once
+/// Host port of the HAL: every peripheral is a fake whose behaviour a test or the simulator
+/// controls. Host-only (uses the standard library freely). One HostBoard per virtual sensor board;
+/// nothing is global, so a simulator can run many boards in one process.
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <vector>
+
+#include "hal/board.hpp"
+#include "protocol/frame_decoder.hpp"
+#include "protocol/xbee_api.hpp"
+
+namespace lw::hal::host {
+
+/// Signature byte of the last (hard-wired) shift register in the ladder chain: a stuck bus reads
+/// 0x00 or 0xFF there instead. The MCU firmware checks it after every read.
+inline constexpr uint8_t kLadderSignature = 0xA5;
+
+/// The wear ladder behind daisy-chained parallel-in shift registers: byte i carries loops
+/// 8i..8i+7 (bit = 1: loop intact), then the signature byte.
+class HostLadder final : public Spi {
+ public:
+  explicit HostLadder(uint8_t loops);
+  uint8_t loops() const { return loops_; }
+  /// Loops 0..n-1 intact (loop 0 nearest the base), the rest broken: a clean wear state.
+  void SetIntactCount(uint8_t n);
+  void SetLoop(uint8_t index, bool intact);
+  bool Loop(uint8_t index) const;
+  /// The loop toggles on every read (being cut at the wear face); -1 = none.
+  void SetFlickerLoop(int index) { flicker_loop_ = index; }
+  /// Every read returns this byte on the whole bus (stuck MISO); -1 = normal.
+  void SetStuckByte(int value) { stuck_byte_ = value; }
+  void SetTransferFails(bool fails) { transfer_fails_ = fails; }
+  uint32_t transfers() const { return transfers_; }
+
+ private:
+  bool DoTransfer(const uint8_t* tx, uint8_t* rx, size_t len) override;
+  uint8_t loops_;
+  std::vector<bool> intact_;
+  int flicker_loop_ = -1;
+  bool flicker_phase_ = false;
+  int stuck_byte_ = -1;
+  bool transfer_fails_ = false;
+  uint32_t transfers_ = 0;
+};
+
+class HostPin final : public DigitalOut {
+ public:
+  bool high() const { return high_; }
+  uint32_t rising_edges() const { return rising_edges_; }
+
+ private:
+  void DoSet(bool high) override {
+    if (high && !high_) ++rising_edges_;
+    high_ = high;
+  }
+  bool high_ = false;
+  uint32_t rising_edges_ = 0;
+};
+
+class HostAdc final : public Adc {
+ public:
+  void set_battery_mv(int32_t mv) { battery_mv_ = mv; }
+  void set_temperature_c(int32_t c) { temperature_c_ = c; }
+
+ private:
+  bool DoRead(AdcChannel channel, int32_t* value) override;
+  int32_t battery_mv_ = 3600;
+  int32_t temperature_c_ = 25;
+};
+
+/// Virtual time. The simulator advances it; Sleep() jumps to the alarm.
+class HostRtc final : public Rtc {
+ public:
+  explicit HostRtc(uint32_t start = 0) : now_(start) {}
+  void Advance(uint32_t seconds) { now_ += seconds; }
+  void Set(uint32_t now) { now_ = now; }
+  uint32_t alarm() const { return alarm_; }
+  bool alarm_armed() const { return armed_; }
+  uint32_t now() const { return now_; }
+
+ private:
+  uint32_t DoNowSeconds() override { return now_; }
+  void DoSetAlarm(uint32_t at) override {
+    alarm_ = at;
+    armed_ = true;
+  }
+  uint32_t now_;
+  uint32_t alarm_ = 0;
+  bool armed_ = false;
+};
+
+class HostPower final : public Power {
+ public:
+  explicit HostPower(HostRtc& rtc) : rtc_(rtc) {}
+  void set_reset_cause(ResetCause cause) { cause_ = cause; }
+  uint32_t sleeps() const { return sleeps_; }
+
+ private:
+  void DoSleep() override;
+  ResetCause DoLastResetCause() override { return cause_; }
+  HostRtc& rtc_;
+  ResetCause cause_ = ResetCause::kPowerOn;
+  uint32_t sleeps_ = 0;
+};
+
+class HostWatchdog final : public Watchdog {
+ public:
+  explicit HostWatchdog(HostRtc& rtc) : rtc_(rtc) {}
+  bool started() const { return started_; }
+  uint32_t kicks() const { return kicks_; }
+  uint32_t timeout_s() const { return timeout_s_; }
+  /// True when the watchdog would have reset the MCU by now.
+  bool Expired() const { return started_ && rtc_.now() - last_kick_ > timeout_s_; }
+
+ private:
+  void DoStart(uint32_t timeout_s) override {
+    started_ = true;
+    timeout_s_ = timeout_s;
+    last_kick_ = rtc_.now();
+  }
+  void DoKick() override {
+    ++kicks_;
+    last_kick_ = rtc_.now();
+  }
+  HostRtc& rtc_;
+  bool started_ = false;
+  uint32_t timeout_s_ = 0;
+  uint32_t last_kick_ = 0;
+  uint32_t kicks_ = 0;
+};
+
+/// NOR flash: erase sets 0xFF, program clears bits. Power loss can be injected at any byte of
+/// erase or program work: that byte and everything after it in the operation does not happen
+/// (an erase proceeds byte by byte), and every later call fails until PowerRestored().
+class HostFlash final : public FlashPages {
+ public:
+  HostFlash(size_t page_size, size_t page_count);
+  /// After `bytes` more bytes of erase/program work, power is lost. -1 disables.
+  void LosePowerAfter(long bytes) { budget_ = bytes; }
+  bool power_lost() const { return power_lost_; }
+  void PowerRestored() {
+    power_lost_ = false;
+    budget_ = -1;
+  }
+  /// Bytes of erase/program work done so far (to size an injection sweep).
+  uint64_t work_bytes() const { return work_bytes_; }
+  uint32_t erases() const { return erases_; }
+
+ private:
+  size_t DoPageSize() override { return page_size_; }
+  size_t DoPageCount() override { return pages_.size(); }
+  bool DoErase(size_t page) override;
+  bool DoProgram(size_t page, size_t offset, const uint8_t* data, size_t len) override;
+  bool DoRead(size_t page, size_t offset, uint8_t* data, size_t len) override;
+  bool Spend();  // one byte of work; false when power is lost at it
+  size_t page_size_;
+  std::vector<std::vector<uint8_t>> pages_;
+  long budget_ = -1;
+  bool power_lost_ = false;
+  uint64_t work_bytes_ = 0;
+  uint32_t erases_ = 0;
+};
+
+/// The XBee module as seen from the MCU's UART, plus the radio link beyond it. It decodes the
+/// firmware's API frames; a 0x10 Transmit Request is delivered to `on_deliver` when the link
+/// accepts it and answered with a 0x8B Transmit Status either way. Frames for the firmware
+/// (0x90 from the coordinator) are queued with Inject().
+class HostRadio final : public Uart {
+ public:
+  using DeliverFn = std::function<void(uint64_t src64, const uint8_t* payload, size_t len)>;
+  HostRadio(uint64_t address64, protocol::ApiMode mode);
+  void set_on_deliver(DeliverFn fn) { on_deliver_ = std::move(fn); }
+  /// false: every transmission fails with 0x21 network ACK failure (link down).
+  void set_link_up(bool up) { link_up_ = up; }
+  /// Queues a 0x90 Receive Packet from the coordinator carrying `payload`.
+  void Inject(const uint8_t* payload, size_t len);
+  uint64_t address64() const { return address64_; }
+  uint32_t transmit_requests() const { return transmit_requests_; }
+  uint32_t delivered() const { return delivered_; }
+  const protocol::DecoderCounters& counters() const { return decoder_.counters(); }
+
+ private:
+  size_t DoWrite(const uint8_t* data, size_t len) override;
+  size_t DoRead(uint8_t* out, size_t cap) override;
+  void QueueFrame(const uint8_t* frame_data, size_t len);
+  uint64_t address64_;
+  protocol::ApiMode mode_;
+  protocol::FrameDecoder decoder_;
+  DeliverFn on_deliver_;
+  bool link_up_ = true;
+  std::deque<uint8_t> to_mcu_;
+  uint32_t transmit_requests_ = 0;
+  uint32_t delivered_ = 0;
+};
+
+/// All host peripherals of one board, wired into a hal::Board.
+struct HostBoard {
+  HostBoard(uint8_t ladder_loops, uint64_t radio_address64, protocol::ApiMode mode,
+            size_t flash_page_size = 256, size_t flash_pages = 2);
+  HostLadder ladder;
+  HostPin ladder_power;
+  HostRadio radio;
+  HostAdc adc;
+  HostRtc rtc;
+  HostPower power;
+  HostWatchdog watchdog;
+  HostFlash flash;
+  Board board();
+};
+
+}  // namespace lw::hal::host

@@ -1,0 +1,165 @@
+#include "hal/host/host_board.hpp"
+
+#include <algorithm>
+
+namespace lw::hal::host {
+
+HostLadder::HostLadder(uint8_t loops) : loops_(loops), intact_(loops, true) {}
+
+void HostLadder::SetIntactCount(uint8_t n) {
+  for (uint8_t i = 0; i < loops_; ++i) intact_[i] = i < n;
+}
+void HostLadder::SetLoop(uint8_t index, bool intact) {
+  if (index < loops_) intact_[index] = intact;
+}
+bool HostLadder::Loop(uint8_t index) const { return index < loops_ && intact_[index]; }
+
+bool HostLadder::DoTransfer(const uint8_t* /*tx*/, uint8_t* rx, size_t len) {
+  ++transfers_;
+  if (transfer_fails_) return false;
+  const size_t data_bytes = (loops_ + 7u) / 8u;
+  for (size_t i = 0; i < len; ++i) {
+    uint8_t byte = 0;
+    if (stuck_byte_ >= 0) {
+      byte = static_cast<uint8_t>(stuck_byte_);
+    } else if (i < data_bytes) {
+      for (size_t b = 0; b < 8; ++b) {
+        const size_t loop = i * 8 + b;
+        if (loop >= loops_) break;
+        bool on = intact_[loop];
+        if (static_cast<int>(loop) == flicker_loop_) on = flicker_phase_;
+        if (on) byte = static_cast<uint8_t>(byte | (1u << b));
+      }
+    } else if (i == data_bytes) {
+      byte = kLadderSignature;
+    }
+    rx[i] = byte;
+  }
+  flicker_phase_ = !flicker_phase_;
+  return true;
+}
+
+bool HostAdc::DoRead(AdcChannel channel, int32_t* value) {
+  switch (channel) {
+    case AdcChannel::kBatteryMillivolts: *value = battery_mv_; return true;
+    case AdcChannel::kTemperatureCelsius: *value = temperature_c_; return true;
+  }
+  return false;
+}
+
+void HostPower::DoSleep() {
+  ++sleeps_;
+  if (rtc_.alarm_armed() && rtc_.alarm() > rtc_.now()) rtc_.Set(rtc_.alarm());
+}
+
+HostFlash::HostFlash(size_t page_size, size_t page_count)
+    : page_size_(page_size), pages_(page_count, std::vector<uint8_t>(page_size, 0xFF)) {}
+
+bool HostFlash::Spend() {
+  if (power_lost_) return false;
+  if (budget_ == 0) {
+    power_lost_ = true;
+    return false;
+  }
+  if (budget_ > 0) --budget_;
+  ++work_bytes_;
+  return true;
+}
+
+bool HostFlash::DoErase(size_t page) {
+  if (page >= pages_.size() || power_lost_) return false;
+  ++erases_;
+  for (auto& b : pages_[page]) {
+    if (!Spend()) return false;
+    b = 0xFF;
+  }
+  return true;
+}
+
+bool HostFlash::DoProgram(size_t page, size_t offset, const uint8_t* data, size_t len) {
+  if (page >= pages_.size() || offset + len > page_size_ || power_lost_) return false;
+  for (size_t i = 0; i < len; ++i) {
+    if (!Spend()) return false;
+    pages_[page][offset + i] &= data[i];
+  }
+  return true;
+}
+
+bool HostFlash::DoRead(size_t page, size_t offset, uint8_t* data, size_t len) {
+  if (page >= pages_.size() || offset + len > page_size_) return false;
+  std::copy_n(pages_[page].begin() + static_cast<long>(offset), len, data);
+  return true;
+}
+
+HostRadio::HostRadio(uint64_t address64, protocol::ApiMode mode)
+    : address64_(address64), mode_(mode), decoder_(mode) {}
+
+size_t HostRadio::DoWrite(const uint8_t* data, size_t len) {
+  for (size_t i = 0; i < len; ++i) {
+    if (decoder_.Feed(data[i]) != protocol::DecodeEvent::kFrame) continue;
+    protocol::TransmitRequest req;
+    if (protocol::ParseTransmitRequest(decoder_.frame_data(), decoder_.frame_length(), &req) != protocol::Status::kOk) {
+      continue;
+    }
+    ++transmit_requests_;
+    // Copy: delivering may inject frames, which must not disturb this request's bytes.
+    std::vector<uint8_t> payload(req.payload, req.payload + req.payload_len);
+    const uint8_t frame_id = req.frame_id;
+    const bool ok = link_up_;
+    if (ok) {
+      ++delivered_;
+      if (on_deliver_) on_deliver_(address64_, payload.data(), payload.size());
+    }
+    if (frame_id != 0) {
+      protocol::TransmitStatus st;
+      st.frame_id = frame_id;
+      st.dest16 = 0x0000;
+      st.delivery_status = ok ? 0x00 : static_cast<uint8_t>(protocol::DeliveryStatus::kNetworkAckFailure);
+      uint8_t frame[16];
+      size_t n = 0;
+      if (protocol::BuildTransmitStatus(st, frame, sizeof frame, &n) == protocol::Status::kOk) QueueFrame(frame, n);
+    }
+  }
+  return len;
+}
+
+void HostRadio::Inject(const uint8_t* payload, size_t len) {
+  protocol::ReceivePacket rx;
+  rx.src64 = protocol::kCoordinatorAddress64;
+  rx.src16 = 0x0000;
+  rx.options = 0x01;
+  rx.payload = payload;
+  rx.payload_len = len;
+  uint8_t frame[protocol::kMaxFrameData];
+  size_t n = 0;
+  if (protocol::BuildReceivePacket(rx, frame, sizeof frame, &n) == protocol::Status::kOk) QueueFrame(frame, n);
+}
+
+void HostRadio::QueueFrame(const uint8_t* frame_data, size_t len) {
+  uint8_t wire[protocol::kMaxWireFrame];
+  const size_t n = protocol::EncodeFrame(mode_, frame_data, len, wire, sizeof wire);
+  to_mcu_.insert(to_mcu_.end(), wire, wire + n);
+}
+
+size_t HostRadio::DoRead(uint8_t* out, size_t cap) {
+  size_t n = 0;
+  while (n < cap && !to_mcu_.empty()) {
+    out[n++] = to_mcu_.front();
+    to_mcu_.pop_front();
+  }
+  return n;
+}
+
+HostBoard::HostBoard(uint8_t ladder_loops, uint64_t radio_address64, protocol::ApiMode mode,
+                     size_t flash_page_size, size_t flash_pages)
+    : ladder(ladder_loops),
+      radio(radio_address64, mode),
+      power(rtc),
+      watchdog(rtc),
+      flash(flash_page_size, flash_pages) {}
+
+Board HostBoard::board() {
+  return Board{ladder, ladder_power, radio, adc, rtc, power, watchdog, flash};
+}
+
+}  // namespace lw::hal::host

@@ -1,0 +1,22 @@
+#pragma once
+#include <cstdint>
+
+namespace lw::hal {
+
+/// Independent watchdog: resets the MCU when not kicked within the timeout. Once started it
+/// cannot be stopped (also not during sleep: the timeout must exceed the longest sleep).
+class Watchdog {
+ public:
+  void Start(uint32_t timeout_s) { DoStart(timeout_s); }
+  /// ISR-safe.
+  void Kick() { DoKick(); }
+
+ protected:
+  ~Watchdog() = default;
+
+ private:
+  virtual void DoStart(uint32_t timeout_s) = 0;
+  virtual void DoKick() = 0;
+};
+
+}  // namespace lw::hal

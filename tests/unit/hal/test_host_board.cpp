@@ -1,0 +1,120 @@
+#include <vector>
+
+#include "hal/host/host_board.hpp"
+
+#include <CppUTest/TestHarness.h>
+
+using namespace lw::hal;
+using namespace lw::hal::host;
+
+TEST_GROUP(HostBoard) {};
+
+TEST(HostBoard, LadderServesLoopsAsShiftRegisterBytesThenSignature) {
+  HostLadder ladder(12);
+  ladder.SetIntactCount(9);
+  Spi& spi = ladder;
+  uint8_t rx[3] = {};
+  CHECK(spi.Transfer(nullptr, rx, 3));
+  LONGS_EQUAL(0xFF, rx[0]);
+  LONGS_EQUAL(0x01, rx[1]);  // loop 8 intact, 9..11 broken, 12..15 do not exist
+  LONGS_EQUAL(kLadderSignature, rx[2]);
+  ladder.SetStuckByte(0x00);
+  CHECK(spi.Transfer(nullptr, rx, 3));
+  LONGS_EQUAL(0x00, rx[2]);
+  ladder.SetStuckByte(-1);
+  ladder.SetTransferFails(true);
+  CHECK_FALSE(spi.Transfer(nullptr, rx, 3));
+}
+
+TEST(HostBoard, FlickerLoopTogglesBetweenReads) {
+  HostLadder ladder(8);
+  ladder.SetIntactCount(4);
+  ladder.SetFlickerLoop(4);
+  uint8_t a[2], b[2];
+  static_cast<Spi&>(ladder).Transfer(nullptr, a, 2);
+  static_cast<Spi&>(ladder).Transfer(nullptr, b, 2);
+  CHECK((a[0] ^ b[0]) == 0x10);
+}
+
+TEST(HostBoard, SleepJumpsVirtualTimeToTheAlarm) {
+  HostRtc rtc(100);
+  HostPower power(rtc);
+  static_cast<Rtc&>(rtc).SetAlarm(1000);
+  static_cast<Power&>(power).Sleep();
+  LONGS_EQUAL(1000, rtc.now());
+}
+
+TEST(HostBoard, WatchdogExpiresWithoutKicks) {
+  HostRtc rtc(0);
+  HostWatchdog wd(rtc);
+  static_cast<Watchdog&>(wd).Start(60);
+  rtc.Advance(59);
+  CHECK_FALSE(wd.Expired());
+  static_cast<Watchdog&>(wd).Kick();
+  rtc.Advance(61);
+  CHECK(wd.Expired());
+}
+
+TEST(HostBoard, FlashIsNorAndLosesPowerAtTheChosenByte) {
+  HostFlash flash(16, 2);
+  FlashPages& f = flash;
+  const uint8_t data[4] = {0x0F, 0xF0, 0x00, 0xAA};
+  CHECK(f.Program(0, 0, data, 4));
+  const uint8_t more[1] = {0xF0};
+  CHECK(f.Program(0, 0, more, 1));  // programming only clears bits
+  uint8_t out[4];
+  CHECK(f.Read(0, 0, out, 4));
+  LONGS_EQUAL(0x00, out[0]);
+  flash.LosePowerAfter(5);  // erase of 16 bytes stops after 5
+  CHECK_FALSE(f.Erase(0));
+  CHECK(flash.power_lost());
+  CHECK(f.Read(0, 0, out, 4));
+  LONGS_EQUAL(0xFF, out[0]);
+  LONGS_EQUAL(0xFF, out[3]);
+  CHECK_FALSE(f.Program(1, 0, data, 1));  // everything fails until power returns
+  flash.PowerRestored();
+  CHECK(f.Program(1, 0, data, 1));
+  CHECK_FALSE(f.Program(2, 0, data, 1));
+  CHECK_FALSE(f.Program(0, 15, data, 2));
+}
+
+TEST(HostBoard, RadioDeliversTransmitRequestsAndAnswersWithStatus) {
+  HostRadio radio(0x0013A20000000001ull, lw::protocol::ApiMode::kEscaped);
+  std::vector<uint8_t> got;
+  radio.set_on_deliver([&](uint64_t src, const uint8_t* p, size_t n) {
+    CHECK(src == 0x0013A20000000001ull);
+    got.assign(p, p + n);
+  });
+  const uint8_t payload[3] = {0x7E, 0x11, 0x42};
+  lw::protocol::TransmitRequest req;
+  req.frame_id = 7;
+  req.payload = payload;
+  req.payload_len = 3;
+  uint8_t frame[64], wire[160];
+  size_t fl = 0;
+  CHECK(lw::protocol::BuildTransmitRequest(req, frame, sizeof frame, &fl) == lw::protocol::Status::kOk);
+  const size_t wl = lw::protocol::EncodeFrame(lw::protocol::ApiMode::kEscaped, frame, fl, wire, sizeof wire);
+  static_cast<Uart&>(radio).Write(wire, wl);
+  LONGS_EQUAL(3, got.size());
+  LONGS_EQUAL(0x7E, got[0]);
+  // The status frame comes back on the MCU side.
+  uint8_t rx[64];
+  const size_t n = static_cast<Uart&>(radio).Read(rx, sizeof rx);
+  lw::protocol::FrameDecoder dec(lw::protocol::ApiMode::kEscaped);
+  bool seen = false;
+  for (size_t i = 0; i < n; ++i) {
+    if (dec.Feed(rx[i]) == lw::protocol::DecodeEvent::kFrame) {
+      lw::protocol::TransmitStatus st;
+      CHECK(lw::protocol::ParseTransmitStatus(dec.frame_data(), dec.frame_length(), &st) == lw::protocol::Status::kOk);
+      LONGS_EQUAL(7, st.frame_id);
+      LONGS_EQUAL(0, st.delivery_status);
+      seen = true;
+    }
+  }
+  CHECK(seen);
+  radio.set_link_up(false);
+  got.clear();
+  static_cast<Uart&>(radio).Write(wire, wl);
+  CHECK(got.empty());
+  LONGS_EQUAL(1, radio.delivered());
+}
