@@ -110,12 +110,12 @@ int main(int argc, char** argv) {
   const char* level_names[3] = {"weak", "moderate", "strong"};
   for (const std::string& e : kEffects) {
     for (int level = 0; level < 3; ++level) {
-      for (int rep = 0; rep < 4; ++rep) {
+      for (int rep = 0; rep < 5; ++rep) {
         Case c;
         c.truth = e;
         c.level = level_names[level];
         c.spec.seed = seed++;
-        c.spec.with_scan = rep != 3;  // one in four without a scan: sensors only
+        c.spec.with_scan = rep != 3;  // one in five without a scan: sensors only
         Apply(e, level, c.spec, c.param);
         cases.push_back(c);
       }

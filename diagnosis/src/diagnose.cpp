@@ -673,10 +673,13 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     available.push_back(effect);
   }
   std::vector<ModelEval> evals;
+  // Over-dispersion (quasi-likelihood): when even the best model leaves chi2/dof > 1, the noise model
+  // is too optimistic for this data, and every chi-square gain is divided by that factor.
+  double dispersion = 1.0;
   auto judge = [&](ModelEval& ev) {
     const double p_extra = static_cast<double>(ev.full.spec.ParamCount() - prob.rows);
-    ev.delta_bic = (null_eval.full.chi2 - ev.full.chi2) - p_extra * log_n;
-    ev.ho_gain = null_eval.ho_chi2 - ev.ho_chi2;
+    ev.delta_bic = (null_eval.full.chi2 - ev.full.chi2) / dispersion - p_extra * log_n;
+    ev.ho_gain = (null_eval.ho_chi2 - ev.ho_chi2) / dispersion;
     ev.ho_rel = null_eval.ho_chi2 > 0 ? ev.ho_gain / null_eval.ho_chi2 : 0;
     ev.accepted = ev.delta_bic > th.min_delta_bic && ev.ho_gain > th.min_holdout_gain && ev.ho_rel > th.min_holdout_rel;
     ev.score = ev.delta_bic + ev.ho_gain;
@@ -694,6 +697,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
 
   // Pairs among the most promising single effects.
   const size_t singles = evals.size();
+  std::vector<std::pair<size_t, size_t>> pair_parts;
   if (options.try_pairs) {
     std::vector<size_t> top;
     for (size_t k : order)
@@ -704,13 +708,29 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
         spec.effects = {evals[top[a]].full.spec.effects[0], evals[top[b]].full.spec.effects[0]};
         ModelEval ev = evaluate(spec, {&evals[top[a]].full, &evals[top[b]].full});
         judge(ev);
-        // A pair must beat both of its single effects on both criteria.
-        for (size_t k : {top[a], top[b]}) {
-          const double gain = (evals[k].full.chi2 - ev.full.chi2) -
-                              static_cast<double>(ev.full.spec.ParamCount() - evals[k].full.spec.ParamCount()) * log_n;
-          if (gain < th.pair_delta_bic || ev.ho_chi2 > evals[k].ho_chi2) ev.accepted = false;
-        }
+        pair_parts.push_back({top[a], top[b]});
         evals.push_back(std::move(ev));
+      }
+    }
+  }
+  {
+    double best_reduced = null_eval.full.chi2 / std::max(1.0, static_cast<double>(null_eval.full.n_train) -
+                                                                   static_cast<double>(prob.rows));
+    for (const ModelEval& ev : evals) {
+      const double dof_m = std::max(1.0, static_cast<double>(ev.full.n_train) -
+                                             static_cast<double>(ev.full.spec.ParamCount()));
+      best_reduced = std::min(best_reduced, ev.full.chi2 / dof_m);
+    }
+    dispersion = std::max(1.0, best_reduced);
+    result.noise["dispersion"] = Round(dispersion, 3);
+    for (ModelEval& ev : evals) judge(ev);
+    // A pair must beat both of its single effects on both criteria.
+    for (size_t k = singles; k < evals.size(); ++k) {
+      ModelEval& ev = evals[k];
+      for (size_t part : {pair_parts[k - singles].first, pair_parts[k - singles].second}) {
+        const double gain = (evals[part].full.chi2 - ev.full.chi2) / dispersion -
+                            static_cast<double>(ev.full.spec.ParamCount() - evals[part].full.spec.ParamCount()) * log_n;
+        if (gain < th.pair_delta_bic || ev.ho_chi2 > evals[part].ho_chi2) ev.accepted = false;
       }
     }
   }
