@@ -166,7 +166,8 @@ void WriteSyntheticBundle(const std::filesystem::path& dir, const SyntheticSpec&
     for (const auto& f : faces) {
       const auto c = centroid(f);
       const double th = std::atan2(c[1], c[0]);
-      m << TrueIntensity(c[2], th) * std::max(0.05, 1.0 + s.map_noise * gauss(rng)) * 3.7e-4 << "\n";
+      const double smooth = 1.0 + s.map_smooth_error * std::sin(3.0 * c[2] + 0.5) * std::cos(2.0 * th + 1.0);
+      m << TrueIntensity(c[2], th) * smooth * std::max(0.05, 1.0 + s.map_noise * gauss(rng)) * 3.7e-4 << "\n";
     }
     if (s.with_normal_stress) {
       m << "SCALARS normal_stress_average double 1\nLOOKUP_TABLE default\n";

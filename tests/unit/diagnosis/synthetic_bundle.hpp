@@ -12,6 +12,7 @@ struct SyntheticSpec {
   double days = 90;
   double report_hours = 6;
   double map_noise = 0.05;      ///< relative per-face noise of the DEM map vs the truth
+  double map_smooth_error = 0;  ///< amplitude of a smooth (z, theta) DEM error no effect describes
   double scan_noise_mm = 0.3;
   bool with_scan = true;
   double scan_day = -1;         ///< day of the scan (default: the last day)
