@@ -44,6 +44,7 @@ struct Reading {
   TimePoint time{};
   std::string sensor_id;
   double thickness_mm = 0;  ///< lower bound: true thickness in [thickness_mm, thickness_mm + 1)
+  size_t line = 0;          ///< line in readings.csv (0 when not from a file)
 };
 
 struct OperationsSample {

@@ -39,6 +39,30 @@ struct Reconstruction {
   size_t min_face = 0;
 };
 
+/// Everything about a map and crusher that does not depend on the readings, computed once
+/// (smoothing is the expensive part); Reconstruct(plan, ...) is then a pass over the faces.
+struct ReconstructionPlan {
+  const CrusherConfig* crusher = nullptr;
+  const WearMap* map = nullptr;
+  ReconstructionOptions options;
+  Eigen::VectorXd intensity;           ///< per face, smoothed when options.smoothing_radius_m > 0
+  Eigen::VectorXd sensor_intensity;    ///< per sensor (crusher order), from the smoothed intensity
+  std::vector<int> face_row;           ///< row index of each face by z (-1 outside every row)
+};
+
+ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const WearMap& map,
+                                         const ReconstructionOptions& options = {});
+Reconstruction Reconstruct(const ReconstructionPlan& plan, const std::vector<SensorWear>& sensor_wear);
+
+/// Area-weighted mean of `values` over faces within `radius_m` (surface distance in z and arc
+/// length) of each face. Grid-bucketed: linear in the face count for a fixed radius.
+Eigen::VectorXd SmoothOverSurface(const WearMap& map, const Eigen::VectorXd& values, double radius_m);
+
+/// Current wear per sensor from readings up to `at` (latest reading of each sensor):
+/// wear = thickness_new - (reading + 0.5 when interval_centre). Sensors without readings are left out.
+std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings,
+                                     TimePoint at, bool interval_centre = true);
+
 /// Map-intensity at each sensor position (area-weighted over faces within `radius_m` of it, or the
 /// nearest face when none is that close). Same order as crusher.sensors.
 Eigen::VectorXd IntensityAtSensors(const CrusherConfig& crusher, const WearMap& map, double radius_m = 0.05);

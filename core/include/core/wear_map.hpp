@@ -49,6 +49,8 @@ struct WearMap {
   bool has_normal_stress() const { return normal_stress.size() > 0; }
   bool has_shear_stress() const { return shear_stress.size() > 0; }
   void ComputeGeometry();
+  /// Faces whose winding pointed away from the axis (their normals were flipped inward).
+  size_t flipped_faces = 0;
 };
 
 /// Problems found while validating a map (not fatal: reported with the import).

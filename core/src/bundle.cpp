@@ -1,0 +1,275 @@
+#include "core/bundle.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <sstream>
+
+namespace lw::core {
+namespace {
+
+using nlohmann::json;
+
+std::string Trim(std::string s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  size_t i = 0;
+  while (i < s.size() && std::isspace(static_cast<unsigned char>(s[i]))) ++i;
+  return s.substr(i);
+}
+
+std::vector<std::string> SplitCsv(const std::string& line) {
+  std::vector<std::string> out;
+  std::string cell;
+  bool quoted = false;
+  for (char c : line) {
+    if (c == '"') {
+      quoted = !quoted;
+    } else if (c == ',' && !quoted) {
+      out.push_back(Trim(cell));
+      cell.clear();
+    } else if (c != '\r') {
+      cell += c;
+    }
+  }
+  out.push_back(Trim(cell));
+  return out;
+}
+
+double ParseNumber(const std::string& text, const std::string& file, size_t line, const std::string& column) {
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || end == text.c_str() || *end != '\0') throw InputError(file, line, column + " '" + text + "' is not a number");
+  if (!std::isfinite(v)) throw InputError(file, line, column + " '" + text + "' is not finite");
+  return v;
+}
+
+TimePoint ParseTime(const std::string& text, const std::string& file, size_t line, const std::string& column) {
+  const auto t = ParseIsoTime(text);
+  if (!t) throw InputError(file, line, column + " '" + text + "' is not an ISO-8601 time (e.g. 2026-03-01T12:00:00Z)");
+  // Absurd dates are input errors, not data.
+  const auto y = static_cast<int>(std::chrono::year_month_day{std::chrono::floor<std::chrono::days>(*t)}.year());
+  if (y < 1990 || y > 2200) throw InputError(file, line, column + " '" + text + "' is outside 1990-2200");
+  return *t;
+}
+
+// Reads a CSV file with a header; calls row(cells, line) for each data row.
+template <typename F>
+void ReadCsv(const std::filesystem::path& path, const std::vector<std::string>& required, F row,
+             std::map<std::string, size_t>* columns) {
+  const std::string file = path.filename().string();
+  std::ifstream in(path);
+  if (!in) throw InputError(file, 0, "cannot open '" + path.string() + "'");
+  std::string line;
+  if (!std::getline(in, line)) throw InputError(file, 1, "empty file: a header line is required");
+  if (line.size() >= 3 && static_cast<unsigned char>(line[0]) == 0xEF) line = line.substr(3);  // UTF-8 BOM
+  const auto header = SplitCsv(line);
+  columns->clear();
+  for (size_t i = 0; i < header.size(); ++i) (*columns)[header[i]] = i;
+  for (const auto& r : required) {
+    if (!columns->count(r)) {
+      std::string need;
+      for (const auto& q : required) need += (need.empty() ? "" : ",") + q;
+      throw InputError(file, 1, "header lacks column '" + r + "' (required: " + need + ")");
+    }
+  }
+  size_t lineno = 1;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (Trim(line).empty()) continue;
+    const auto cells = SplitCsv(line);
+    if (cells.size() < header.size()) {
+      throw InputError(file, lineno, "has " + std::to_string(cells.size()) + " columns, the header has " + std::to_string(header.size()));
+    }
+    row(cells, lineno);
+  }
+}
+
+template <typename T>
+T Get(const json& j, const char* key, const std::string& where, const std::string& file) {
+  if (!j.contains(key)) throw InputError(file, 0, where + " lacks \"" + key + "\"");
+  try {
+    return j.at(key).get<T>();
+  } catch (const json::exception&) {
+    throw InputError(file, 0, where + " \"" + key + "\" has the wrong type");
+  }
+}
+
+}  // namespace
+
+const SensorInfo* CrusherConfig::FindSensor(const std::string& id) const {
+  for (const auto& s : sensors) {
+    if (s.id == id) return &s;
+  }
+  return nullptr;
+}
+
+int CrusherConfig::RowIndex(const std::string& name) const {
+  for (size_t i = 0; i < rows.size(); ++i) {
+    if (rows[i].name == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
+  const std::string file = path.filename().string();
+  std::ifstream in(path);
+  if (!in) throw InputError(file, 0, "cannot open '" + path.string() + "'");
+  json j;
+  try {
+    j = json::parse(in);
+  } catch (const json::parse_error& e) {
+    // nlohmann reports a byte offset; turn it into a line.
+    std::ifstream again(path);
+    std::string text((std::istreambuf_iterator<char>(again)), std::istreambuf_iterator<char>());
+    const size_t line = 1 + static_cast<size_t>(std::count(text.begin(), text.begin() + static_cast<long>(std::min(e.byte, text.size())), '\n'));
+    throw InputError(file, line, std::string("not valid JSON: ") + e.what());
+  }
+  if (!j.is_object()) throw InputError(file, 0, "must hold a JSON object");
+  CrusherConfig c;
+  c.crusher_id = Get<std::string>(j, "crusher_id", "the top level", file);
+  if (c.crusher_id.empty() || c.crusher_id.find_first_of("/+# ") != std::string::npos) {
+    throw InputError(file, 0, "crusher_id '" + c.crusher_id + "' must be non-empty without '/', '+', '#' or spaces");
+  }
+  c.installed_at = ParseTime(Get<std::string>(j, "installed_at", "the top level", file), file, 0, "installed_at");
+  if (!j.contains("concave") || !j["concave"].is_object()) throw InputError(file, 0, "\"concave\" object is required");
+  const json& cc = j["concave"];
+  c.thickness_new_mm = Get<double>(cc, "thickness_new_mm", "concave", file);
+  c.thickness_min_mm = Get<double>(cc, "thickness_min_mm", "concave", file);
+  if (!(c.thickness_new_mm > 0) || !(c.thickness_min_mm >= 0) || c.thickness_min_mm >= c.thickness_new_mm) {
+    throw InputError(file, 0, "concave thickness_min_mm must be >= 0 and below thickness_new_mm > 0");
+  }
+  if (!cc.contains("rows") || !cc["rows"].is_array() || cc["rows"].empty()) throw InputError(file, 0, "concave.rows must be a non-empty array");
+  for (const auto& r : cc["rows"]) {
+    Row row;
+    row.name = Get<std::string>(r, "name", "a concave row", file);
+    row.z_min_m = Get<double>(r, "z_min_m", "row '" + row.name + "'", file);
+    row.z_max_m = Get<double>(r, "z_max_m", "row '" + row.name + "'", file);
+    if (!(row.z_max_m > row.z_min_m)) throw InputError(file, 0, "row '" + row.name + "': z_max_m must be above z_min_m");
+    if (c.RowIndex(row.name) >= 0) throw InputError(file, 0, "row '" + row.name + "' is listed twice");
+    c.rows.push_back(row);
+  }
+  if (!j.contains("sensors") || !j["sensors"].is_array()) throw InputError(file, 0, "\"sensors\" array is required");
+  for (const auto& s : j["sensors"]) {
+    SensorInfo si;
+    if (s.contains("id") && s["id"].is_number_integer()) si.id = std::to_string(s["id"].get<long long>());
+    else si.id = Get<std::string>(s, "id", "a sensor", file);
+    const std::string where = "sensor '" + si.id + "'";
+    si.row = Get<std::string>(s, "row", where, file);
+    si.z_m = Get<double>(s, "z_m", where, file);
+    si.theta_deg = Get<double>(s, "theta_deg", where, file);
+    si.thickness_new_mm = s.contains("thickness_new_mm") ? Get<double>(s, "thickness_new_mm", where, file) : c.thickness_new_mm;
+    if (s.contains("address")) {
+      const std::string a = Get<std::string>(s, "address", where, file);
+      try {
+        size_t used = 0;
+        si.address = std::stoull(a, &used, 16);
+        if (used != a.size()) throw std::invalid_argument("hex");
+      } catch (const std::exception&) {
+        throw InputError(file, 0, where + " address '" + a + "' is not a 64-bit hex number");
+      }
+    }
+    if (c.RowIndex(si.row) < 0) throw InputError(file, 0, where + " names row '" + si.row + "' that is not in concave.rows");
+    if (c.FindSensor(si.id)) throw InputError(file, 0, where + " is listed twice");
+    if (!(si.thickness_new_mm > 0)) throw InputError(file, 0, where + " thickness_new_mm must be positive");
+    c.sensors.push_back(si);
+  }
+  return c;
+}
+
+std::vector<Reading> LoadReadings(const std::filesystem::path& path) {
+  const std::string file = path.filename().string();
+  std::vector<Reading> out;
+  std::map<std::string, size_t> col;
+  ReadCsv(path, {"time", "sensor_id", "thickness_mm"}, [&](const std::vector<std::string>& c, size_t line) {
+    Reading r;
+    r.line = line;
+    r.time = ParseTime(c[col["time"]], file, line, "time");
+    r.sensor_id = c[col["sensor_id"]];
+    if (r.sensor_id.empty()) throw InputError(file, line, "sensor_id is empty");
+    r.thickness_mm = ParseNumber(c[col["thickness_mm"]], file, line, "thickness_mm");
+    if (r.thickness_mm < 0) throw InputError(file, line, "thickness_mm " + c[col["thickness_mm"]] + " is negative");
+    out.push_back(std::move(r));
+  }, &col);
+  std::stable_sort(out.begin(), out.end(), [](const Reading& a, const Reading& b) {
+    return a.sensor_id != b.sensor_id ? a.sensor_id < b.sensor_id : a.time < b.time;
+  });
+  return out;
+}
+
+std::vector<OperationsSample> LoadOperations(const std::filesystem::path& path) {
+  const std::string file = path.filename().string();
+  std::vector<OperationsSample> out;
+  std::map<std::string, size_t> col;
+  ReadCsv(path, {"time", "throughput_tph"}, [&](const std::vector<std::string>& c, size_t line) {
+    OperationsSample s;
+    s.time = ParseTime(c[col["time"]], file, line, "time");
+    s.throughput_tph = ParseNumber(c[col["throughput_tph"]], file, line, "throughput_tph");
+    if (s.throughput_tph < 0) throw InputError(file, line, "throughput_tph is negative");
+    if (col.count("power_kw") && !c[col["power_kw"]].empty()) s.power_kw = ParseNumber(c[col["power_kw"]], file, line, "power_kw");
+    if (col.count("ore_ai") && !c[col["ore_ai"]].empty()) s.ore_ai = ParseNumber(c[col["ore_ai"]], file, line, "ore_ai");
+    out.push_back(s);
+  }, &col);
+  std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.time < b.time; });
+  return out;
+}
+
+Scan LoadScan(const std::filesystem::path& path) {
+  const std::string file = "scans/" + path.filename().string();
+  static const std::regex kName(R"(scan_(\d{4}-\d{2}-\d{2})\.xyz)");
+  std::smatch m;
+  const std::string name = path.filename().string();
+  if (!std::regex_match(name, m, kName)) throw InputError(file, 0, "scan file name must be scan_YYYY-MM-DD.xyz");
+  Scan s;
+  s.file = file;
+  s.date = ParseTime(m[1].str(), file, 0, "file name date");
+  std::ifstream in(path);
+  if (!in) throw InputError(file, 0, "cannot open '" + path.string() + "'");
+  std::string line;
+  size_t lineno = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    const std::string t = Trim(line);
+    if (t.empty() || t[0] == '#') continue;
+    std::istringstream ls(t);
+    double x, y, z;
+    if (!(ls >> x >> y >> z) || !std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) {
+      throw InputError(file, lineno, "expected three finite numbers 'x y z' (metres)");
+    }
+    s.points.emplace_back(x, y, z);
+  }
+  if (s.points.empty()) throw InputError(file, 0, "no points");
+  return s;
+}
+
+Bundle LoadBundle(const std::filesystem::path& dir) {
+  if (!std::filesystem::is_directory(dir)) throw InputError(dir.string(), 0, "bundle is not a directory");
+  Bundle b;
+  b.dir = dir;
+  for (const char* req : {"crusher.json", "wear_map.vtk", "readings.csv"}) {
+    if (!std::filesystem::exists(dir / req)) throw InputError(req, 0, "required bundle file is missing in '" + dir.string() + "'");
+  }
+  b.crusher = LoadCrusherConfig(dir / "crusher.json");
+  b.map = LoadWearMap(dir / "wear_map.vtk", &b.map_validation);
+  b.readings = LoadReadings(dir / "readings.csv");
+  // Every reading must name a known sensor.
+  for (const auto& r : b.readings) {
+    if (!b.crusher.FindSensor(r.sensor_id)) {
+      throw InputError("readings.csv", r.line, "sensor_id '" + r.sensor_id + "' is not a sensor in crusher.json");
+    }
+  }
+  if (std::filesystem::exists(dir / "operations.csv")) b.operations = LoadOperations(dir / "operations.csv");
+  if (std::filesystem::is_directory(dir / "scans")) {
+    std::vector<std::filesystem::path> files;
+    for (const auto& e : std::filesystem::directory_iterator(dir / "scans")) {
+      if (e.path().extension() == ".xyz") files.push_back(e.path());
+    }
+    std::sort(files.begin(), files.end());
+    for (const auto& f : files) b.scans.push_back(LoadScan(f));
+  }
+  return b;
+}
+
+}  // namespace lw::core

@@ -1,0 +1,432 @@
+#include "core/wear_map.hpp"
+
+#include <openssl/evp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <unordered_map>
+
+#include <Eigen/Geometry>
+
+namespace lw::core {
+
+InputError::InputError(std::string file, size_t line, const std::string& rule)
+    : std::runtime_error(file + (line ? ":" + std::to_string(line) : std::string()) + ": " + rule),
+      file_(std::move(file)),
+      line_(line),
+      rule_(rule) {}
+
+namespace {
+
+std::string Sha256Hex(const std::string& bytes) {
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int len = 0;
+  EVP_Digest(bytes.data(), bytes.size(), digest, &len, EVP_sha256(), nullptr);
+  std::string hex;
+  char b[3];
+  for (unsigned i = 0; i < len; ++i) {
+    std::snprintf(b, sizeof b, "%02x", digest[i]);
+    hex += b;
+  }
+  return hex;
+}
+
+std::string ReadFile(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path.filename().string(), 0, "cannot open '" + path.string() + "'");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Whitespace-separated tokens with their line numbers.
+class Tokens {
+ public:
+  Tokens(const std::string& text, std::string file) : file_(std::move(file)) {
+    size_t line = 1, i = 0;
+    while (i < text.size()) {
+      const char c = text[i];
+      if (c == '\n') {
+        ++line;
+        ++i;
+        continue;
+      }
+      if (std::isspace(static_cast<unsigned char>(c))) {
+        ++i;
+        continue;
+      }
+      size_t j = i;
+      while (j < text.size() && !std::isspace(static_cast<unsigned char>(text[j]))) ++j;
+      toks_.push_back(text.substr(i, j - i));
+      lines_.push_back(line);
+      i = j;
+    }
+  }
+  bool done() const { return pos_ >= toks_.size(); }
+  size_t line() const { return pos_ < lines_.size() ? lines_[pos_] : (lines_.empty() ? 0 : lines_.back()); }
+  const std::string& Peek() const {
+    static const std::string kEmpty;
+    return done() ? kEmpty : toks_[pos_];
+  }
+  std::string Next(const char* what) {
+    if (done()) throw Error("file ends where " + std::string(what) + " was expected");
+    return toks_[pos_++];
+  }
+  double Number(const char* what) {
+    const size_t l = line();
+    const std::string t = Next(what);
+    char* end = nullptr;
+    const double v = std::strtod(t.c_str(), &end);
+    if (end == t.c_str() || *end != '\0') throw InputError(file_, l, std::string(what) + " '" + t + "' is not a number");
+    if (!std::isfinite(v)) throw InputError(file_, l, std::string(what) + " '" + t + "' is not finite");
+    return v;
+  }
+  long long Integer(const char* what) {
+    const size_t l = line();
+    const double v = Number(what);
+    if (v != std::floor(v) || v < 0) throw InputError(file_, l, std::string(what) + " must be a non-negative whole number");
+    return static_cast<long long>(v);
+  }
+  InputError Error(const std::string& rule) const { return InputError(file_, line(), rule); }
+  // Line of the token just consumed (for messages about it).
+  size_t LastLine() const { return pos_ ? lines_[pos_ - 1] : 0; }
+
+ private:
+  std::string file_;
+  std::vector<std::string> toks_;
+  std::vector<size_t> lines_;
+  size_t pos_ = 0;
+};
+
+void Assign(WearMap& map, const std::string& name, Eigen::VectorXd values) {
+  if (name == "wear") map.wear = std::move(values);
+  else if (name == "normal_stress_average") map.normal_stress = std::move(values);
+  else if (name == "shear_stress_average") map.shear_stress = std::move(values);
+  else map.extra[name] = std::move(values);
+}
+
+WearMap ParseVtk(const std::string& text, const std::string& file) {
+  // Header: 4 lines, the title line is free text.
+  std::istringstream hs(text);
+  std::string l1, l2, l3;
+  std::getline(hs, l1);
+  std::getline(hs, l2);
+  std::getline(hs, l3);
+  if (l1.rfind("# vtk DataFile Version", 0) != 0) throw InputError(file, 1, "not a legacy VTK file (expected '# vtk DataFile Version')");
+  const bool v5 = l1.find("5.") != std::string::npos;
+  auto trim = [](std::string s) {
+    while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+    return s;
+  };
+  if (trim(l3) != "ASCII") throw InputError(file, 3, "only ASCII legacy VTK is supported (found '" + trim(l3) + "')");
+  // Tokenise from line 4 on, keeping line numbers.
+  size_t offset = 0;
+  for (int i = 0; i < 3; ++i) offset = text.find('\n', offset) + 1;
+  Tokens t(std::string(3, '\n') + text.substr(offset), file);
+
+  WearMap map;
+  if (t.Next("DATASET") != "DATASET" || t.Next("POLYDATA") != "POLYDATA") {
+    throw InputError(file, t.LastLine(), "expected 'DATASET POLYDATA'");
+  }
+  size_t cell_count = 0;
+  bool in_cell_data = false, in_point_data = false;
+  size_t point_data_count = 0;
+  while (!t.done()) {
+    const size_t kw_line = t.line();
+    const std::string kw = t.Next("keyword");
+    if (kw == "POINTS") {
+      const auto n = static_cast<size_t>(t.Integer("point count"));
+      t.Next("point type");
+      map.points.resize(n);
+      for (auto& p : map.points) {
+        p.x() = t.Number("x");
+        p.y() = t.Number("y");
+        p.z() = t.Number("z");
+      }
+    } else if (kw == "POLYGONS" || kw == "VERTICES" || kw == "LINES" || kw == "TRIANGLE_STRIPS") {
+      const auto a = static_cast<size_t>(t.Integer("cell count"));
+      const auto b = static_cast<size_t>(t.Integer("cell size"));
+      std::vector<std::array<uint32_t, 3>> faces;
+      if (v5 && t.Peek() == "OFFSETS") {
+        t.Next("OFFSETS");
+        t.Next("offset type");
+        std::vector<long long> offsets(a);
+        for (auto& o : offsets) o = t.Integer("offset");
+        if (t.Next("CONNECTIVITY") != "CONNECTIVITY") throw InputError(file, t.LastLine(), "expected CONNECTIVITY after OFFSETS");
+        t.Next("connectivity type");
+        std::vector<long long> conn(b);
+        for (auto& c : conn) c = t.Integer("point index");
+        for (size_t i = 0; i + 1 < a; ++i) {
+          const long long k = offsets[i + 1] - offsets[i];
+          if (kw == "POLYGONS" && k != 3) throw InputError(file, kw_line, "polygon " + std::to_string(i) + " has " + std::to_string(k) + " vertices; only triangles are supported");
+          if (kw == "POLYGONS") {
+            faces.push_back({static_cast<uint32_t>(conn[offsets[i]]), static_cast<uint32_t>(conn[offsets[i] + 1]),
+                             static_cast<uint32_t>(conn[offsets[i] + 2])});
+          }
+        }
+      } else {
+        for (size_t i = 0; i < a; ++i) {
+          const size_t line = t.line();
+          const long long k = t.Integer("vertex count");
+          std::vector<uint32_t> idx(static_cast<size_t>(k));
+          for (auto& v : idx) v = static_cast<uint32_t>(t.Integer("point index"));
+          if (kw == "POLYGONS") {
+            if (k != 3) throw InputError(file, line, "polygon with " + std::to_string(k) + " vertices; only triangles are supported");
+            faces.push_back({idx[0], idx[1], idx[2]});
+          }
+        }
+      }
+      if (kw == "POLYGONS") map.faces = std::move(faces);
+    } else if (kw == "CELL_DATA") {
+      cell_count = static_cast<size_t>(t.Integer("cell data count"));
+      in_cell_data = true;
+      in_point_data = false;
+    } else if (kw == "POINT_DATA") {
+      point_data_count = static_cast<size_t>(t.Integer("point data count"));
+      in_point_data = true;
+      in_cell_data = false;
+    } else if (kw == "SCALARS") {
+      const std::string name = t.Next("array name");
+      t.Next("data type");
+      int ncomp = 1;
+      if (t.Peek() != "LOOKUP_TABLE") ncomp = static_cast<int>(t.Integer("component count"));
+      if (t.Next("LOOKUP_TABLE") != "LOOKUP_TABLE") throw InputError(file, t.LastLine(), "expected LOOKUP_TABLE after SCALARS " + name);
+      t.Next("lookup table name");
+      const size_t n = (in_point_data ? point_data_count : cell_count) * static_cast<size_t>(ncomp);
+      Eigen::VectorXd v(static_cast<Eigen::Index>(n));
+      for (size_t i = 0; i < n; ++i) v[static_cast<Eigen::Index>(i)] = t.Number(name.c_str());
+      if (in_cell_data && ncomp == 1) Assign(map, name, std::move(v));
+    } else if (kw == "FIELD") {
+      t.Next("field name");
+      const auto arrays = t.Integer("array count");
+      for (long long a = 0; a < arrays; ++a) {
+        const size_t line = t.line();
+        const std::string name = t.Next("array name");
+        const auto ncomp = static_cast<size_t>(t.Integer("component count"));
+        const auto ntuples = static_cast<size_t>(t.Integer("tuple count"));
+        t.Next("data type");
+        if (in_cell_data && ntuples != cell_count) {
+          throw InputError(file, line, "array '" + name + "' has " + std::to_string(ntuples) + " tuples but CELL_DATA is " + std::to_string(cell_count));
+        }
+        Eigen::VectorXd v(static_cast<Eigen::Index>(ncomp * ntuples));
+        for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = t.Number(name.c_str());
+        if (in_cell_data && ncomp == 1) Assign(map, name, std::move(v));
+      }
+    } else if (kw == "VECTORS" || kw == "NORMALS") {
+      t.Next("array name");
+      t.Next("data type");
+      const size_t n = 3 * (in_point_data ? point_data_count : cell_count);
+      for (size_t i = 0; i < n; ++i) t.Number(kw.c_str());
+    } else if (kw == "METADATA") {
+      // VTK 5.1 may add METADATA blocks (INFORMATION ...); skip to the next known keyword.
+      while (!t.done()) {
+        const std::string& p = t.Peek();
+        if (p == "CELL_DATA" || p == "POINT_DATA" || p == "SCALARS" || p == "FIELD" || p == "VECTORS") break;
+        t.Next("metadata");
+      }
+    } else {
+      throw InputError(file, kw_line, "unexpected keyword '" + kw + "'");
+    }
+  }
+  if (map.faces.empty()) throw InputError(file, 0, "no triangles (POLYGONS) found");
+  for (size_t i = 0; i < map.faces.size(); ++i) {
+    for (uint32_t v : map.faces[i]) {
+      if (v >= map.points.size()) throw InputError(file, 0, "triangle " + std::to_string(i) + " refers to point " + std::to_string(v) + " of " + std::to_string(map.points.size()));
+    }
+  }
+  if (cell_count != 0 && cell_count != map.faces.size()) {
+    throw InputError(file, 0, "CELL_DATA count " + std::to_string(cell_count) + " differs from the triangle count " + std::to_string(map.faces.size()));
+  }
+  if (map.wear.size() == 0) throw InputError(file, 0, "no per-face array named 'wear' in CELL_DATA");
+  return map;
+}
+
+WearMap ParseCsv(const std::string& text, const std::string& file) {
+  std::istringstream in(text);
+  std::string header;
+  std::getline(in, header);
+  std::vector<std::string> cols;
+  {
+    std::stringstream hs(header);
+    std::string c;
+    while (std::getline(hs, c, ',')) {
+      while (!c.empty() && std::isspace(static_cast<unsigned char>(c.back()))) c.pop_back();
+      while (!c.empty() && std::isspace(static_cast<unsigned char>(c.front()))) c.erase(c.begin());
+      cols.push_back(c);
+    }
+  }
+  const char* kCoords[] = {"x1", "y1", "z1", "x2", "y2", "z2", "x3", "y3", "z3"};
+  std::vector<int> coord_idx;
+  for (const char* k : kCoords) {
+    auto it = std::find(cols.begin(), cols.end(), k);
+    if (it == cols.end()) throw InputError(file, 1, std::string("header lacks column '") + k + "' (x1,y1,z1,x2,y2,z2,x3,y3,z3,wear required)");
+    coord_idx.push_back(static_cast<int>(it - cols.begin()));
+  }
+  auto wear_it = std::find(cols.begin(), cols.end(), "wear");
+  if (wear_it == cols.end()) throw InputError(file, 1, "header lacks column 'wear'");
+  std::vector<std::pair<std::string, int>> arrays;
+  for (size_t i = 0; i < cols.size(); ++i) {
+    if (std::find(coord_idx.begin(), coord_idx.end(), static_cast<int>(i)) == coord_idx.end() && !cols[i].empty()) {
+      arrays.emplace_back(cols[i], static_cast<int>(i));
+    }
+  }
+  WearMap map;
+  std::vector<std::vector<double>> values(arrays.size());
+  std::string line;
+  size_t lineno = 1;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (line.empty() || line == "\r") continue;
+    std::vector<double> v;
+    std::stringstream ls(line);
+    std::string cell;
+    while (std::getline(ls, cell, ',')) {
+      char* end = nullptr;
+      const double d = std::strtod(cell.c_str(), &end);
+      while (end && *end && std::isspace(static_cast<unsigned char>(*end))) ++end;
+      if (end == cell.c_str() || (end && *end) || !std::isfinite(d)) {
+        throw InputError(file, lineno, "column " + std::to_string(v.size() + 1) + " '" + cell + "' is not a finite number");
+      }
+      v.push_back(d);
+    }
+    if (v.size() != cols.size()) throw InputError(file, lineno, "has " + std::to_string(v.size()) + " columns, header has " + std::to_string(cols.size()));
+    const auto base = static_cast<uint32_t>(map.points.size());
+    for (int p = 0; p < 3; ++p) map.points.emplace_back(v[coord_idx[3 * p]], v[coord_idx[3 * p + 1]], v[coord_idx[3 * p + 2]]);
+    map.faces.push_back({base, base + 1, base + 2});
+    for (size_t a = 0; a < arrays.size(); ++a) values[a].push_back(v[arrays[a].second]);
+  }
+  if (map.faces.empty()) throw InputError(file, 0, "no faces");
+  for (size_t a = 0; a < arrays.size(); ++a) {
+    Assign(map, arrays[a].first, Eigen::Map<Eigen::VectorXd>(values[a].data(), static_cast<Eigen::Index>(values[a].size())));
+  }
+  return map;
+}
+
+MapValidation Validate(WearMap& map) {
+  MapValidation v;
+  const auto n = static_cast<Eigen::Index>(map.face_count());
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (map.areas[i] <= 1e-12) ++v.degenerate_faces;
+    if (map.wear[i] < 0) ++v.negative_wear_faces;
+  }
+  v.zero_wear_fraction = static_cast<double>((map.wear.array() == 0.0).count()) / static_cast<double>(n);
+  // %f truncation: printf("%f") keeps 6 decimals, so small intensities collapse onto few values.
+  size_t on_grid = 0;
+  std::set<long long> distinct;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double scaled = map.wear[i] * 1e6;
+    if (std::abs(scaled - std::round(scaled)) < 1e-6) ++on_grid;
+    distinct.insert(std::llround(scaled));
+  }
+  const double max_wear = map.wear.size() ? map.wear.maxCoeff() : 0.0;
+  v.looks_truncated = n > 20 && on_grid == static_cast<size_t>(n) && max_wear < 1e-2 &&
+                      distinct.size() < static_cast<size_t>(n) / 4;
+  if (v.degenerate_faces) v.warnings.push_back(std::to_string(v.degenerate_faces) + " degenerate (zero-area) faces");
+  if (v.negative_wear_faces) v.warnings.push_back(std::to_string(v.negative_wear_faces) + " faces with negative wear");
+  if (v.zero_wear_fraction > 0.25) {
+    char b[96];
+    std::snprintf(b, sizeof b, "%.0f %% of faces have zero wear (short DEM run or unreached area?)", 100 * v.zero_wear_fraction);
+    v.warnings.push_back(b);
+  }
+  if (v.looks_truncated) v.warnings.push_back("wear values look %f-truncated to 6 decimals: rescale the DEM output before export");
+  return v;
+}
+
+}  // namespace
+
+void WearMap::ComputeGeometry() {
+  const size_t n = faces.size();
+  centroids.resize(n);
+  normals.resize(n);
+  areas.resize(static_cast<Eigen::Index>(n));
+  z.resize(static_cast<Eigen::Index>(n));
+  theta_deg.resize(static_cast<Eigen::Index>(n));
+  radius.resize(static_cast<Eigen::Index>(n));
+  flipped_faces = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const auto& a = points[faces[i][0]];
+    const auto& b = points[faces[i][1]];
+    const auto& c = points[faces[i][2]];
+    const Eigen::Vector3d cross = (b - a).cross(c - a);
+    const auto k = static_cast<Eigen::Index>(i);
+    areas[k] = 0.5 * cross.norm();
+    const Eigen::Vector3d cen = (a + b + c) / 3.0;
+    centroids[i] = cen;
+    Eigen::Vector3d nrm = areas[k] > 0 ? Eigen::Vector3d(cross.normalized()) : Eigen::Vector3d(0, 0, 0);
+    const Eigen::Vector3d radial(cen.x(), cen.y(), 0.0);
+    if (nrm.dot(radial) > 0) {  // pointing away from the axis: the liner's inner surface faces inward
+      nrm = -nrm;
+      ++flipped_faces;
+    }
+    normals[i] = nrm;
+    z[k] = cen.z();
+    radius[k] = std::hypot(cen.x(), cen.y());
+    double th = std::atan2(cen.y(), cen.x()) * 180.0 / M_PI;
+    if (th < 0) th += 360.0;
+    theta_deg[k] = th;
+  }
+}
+
+WearMap LoadWearMap(const std::filesystem::path& path, MapValidation* validation) {
+  const std::string text = ReadFile(path);
+  const std::string file = path.filename().string();
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  WearMap map;
+  if (ext == ".vtk") map = ParseVtk(text, file);
+  else if (ext == ".csv") map = ParseCsv(text, file);
+  else throw InputError(file, 0, "unknown map format '" + ext + "' (expected .vtk or .csv)");
+  const auto n = static_cast<Eigen::Index>(map.faces.size());
+  for (const auto* arr : {&map.normal_stress, &map.shear_stress}) {
+    if (arr->size() != 0 && arr->size() != n) throw InputError(file, 0, "per-face array length differs from the face count");
+  }
+  if (map.wear.size() != n) throw InputError(file, 0, "'wear' has " + std::to_string(map.wear.size()) + " values for " + std::to_string(n) + " faces");
+  map.ComputeGeometry();
+  map.sha256 = Sha256Hex(text);
+  MapValidation v = Validate(map);
+  v.outward_faces_flipped = map.flipped_faces;
+  if (v.outward_faces_flipped > 0 && v.outward_faces_flipped < map.face_count()) {
+    v.warnings.push_back(std::to_string(v.outward_faces_flipped) + " faces were wound outward and were re-oriented inward");
+  }
+  if (validation) *validation = v;
+  return map;
+}
+
+void WriteWearMapVtk(const std::filesystem::path& path, const WearMap& map,
+                     const std::vector<std::pair<std::string, const Eigen::VectorXd*>>& cell_arrays) {
+  const auto n = map.face_count();
+  for (const auto& [name, arr] : cell_arrays) {
+    if (!arr || static_cast<size_t>(arr->size()) != n) throw std::invalid_argument("cell array '" + name + "' does not have one value per face");
+    if (name.empty() || name.find_first_of(" \t\n") != std::string::npos) throw std::invalid_argument("cell array name '" + name + "' is not a VTK name");
+  }
+  std::filesystem::path tmp = path;
+  tmp += ".tmp";
+  {
+    std::ofstream out(tmp);
+    if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
+    out.precision(10);
+    out << "# vtk DataFile Version 4.2\nlinerwatch wear map\nASCII\nDATASET POLYDATA\n";
+    out << "POINTS " << map.points.size() << " double\n";
+    for (const auto& p : map.points) out << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
+    out << "POLYGONS " << n << ' ' << 4 * n << '\n';
+    for (const auto& f : map.faces) out << "3 " << f[0] << ' ' << f[1] << ' ' << f[2] << '\n';
+    out << "CELL_DATA " << n << '\n';
+    for (const auto& [name, arr] : cell_arrays) {
+      out << "SCALARS " << name << " double 1\nLOOKUP_TABLE default\n";
+      for (Eigen::Index i = 0; i < arr->size(); ++i) out << (*arr)[i] << '\n';
+    }
+    out.flush();
+    if (!out) {
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      throw std::runtime_error("write failed for '" + tmp.string() + "'");
+    }
+  }
+  std::filesystem::rename(tmp, path);
+}
+
+}  // namespace lw::core

@@ -1,0 +1,53 @@
+#pragma once
+// Writes a small valid bundle (two rows on a cylinder map) into a scratch directory.
+#include <cmath>
+#include <string>
+
+#include "core/wear_map.hpp"
+#include "unit/core/temp_dir.hpp"
+
+namespace lw::test {
+
+/// Cylinder of radius 1 m, z in [0, 2] m, nt x nz quads; wear = intensity(z) per face.
+template <typename F>
+core::WearMap CylinderMap(int nt, int nz, F intensity) {
+  core::WearMap m;
+  for (int k = 0; k <= nz; ++k) {
+    for (int j = 0; j < nt; ++j) {
+      const double th = 2 * M_PI * j / nt;
+      m.points.emplace_back(std::cos(th), std::sin(th), 2.0 * k / nz);
+    }
+  }
+  std::vector<double> w;
+  for (int k = 0; k < nz; ++k) {
+    for (int j = 0; j < nt; ++j) {
+      const auto a = static_cast<uint32_t>(k * nt + j), b = static_cast<uint32_t>(k * nt + (j + 1) % nt);
+      const auto c = a + static_cast<uint32_t>(nt), d = b + static_cast<uint32_t>(nt);
+      m.faces.push_back({a, d, b});
+      m.faces.push_back({a, c, d});
+      const double zc = 2.0 * (k + 0.5) / nz;
+      w.push_back(intensity(zc));
+      w.push_back(intensity(zc));
+    }
+  }
+  m.wear = Eigen::Map<Eigen::VectorXd>(w.data(), static_cast<Eigen::Index>(w.size()));
+  m.ComputeGeometry();
+  return m;
+}
+
+inline const char* kCrusherJson = R"({
+  "crusher_id": "cr1", "installed_at": "2026-01-01T00:00:00Z",
+  "concave": {"thickness_new_mm": 120, "thickness_min_mm": 30,
+              "rows": [{"name": "LDWN", "z_min_m": 0.0, "z_max_m": 1.0}, {"name": "LUP", "z_min_m": 1.0, "z_max_m": 2.0}]},
+  "sensors": [{"id": "1001", "row": "LDWN", "z_m": 0.5, "theta_deg": 0},
+              {"id": "1002", "row": "LUP", "z_m": 1.5, "theta_deg": 90, "address": "0013A20040A1B2C3"}]
+})";
+
+inline void WriteBundle(const ScratchDir& dir, const std::string& readings) {
+  dir.Write("crusher.json", kCrusherJson);
+  core::WearMap m = CylinderMap(24, 20, [](double z) { return 2.0 - 0.5 * z; });
+  core::WriteWearMapVtk(dir.path() / "wear_map.vtk", m, {{"wear", &m.wear}});
+  dir.Write("readings.csv", readings);
+}
+
+}  // namespace lw::test

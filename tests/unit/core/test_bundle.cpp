@@ -1,0 +1,90 @@
+#include "core/bundle.hpp"
+#include "unit/core/bundle_fixture.hpp"
+
+#include <CppUTest/TestHarness.h>
+
+using namespace lw::core;
+
+namespace {
+std::string ErrorOf(const lw::test::ScratchDir& dir) {
+  try {
+    LoadBundle(dir.path());
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST_GROUP(Bundle) { lw::test::ScratchDir dir; };
+
+TEST(Bundle, LoadsEveryFileSortedAndIgnoresExtras) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm,comment\n"
+                             "2026-01-03T00:00:00Z,1002,118,x\n2026-01-02T00:00:00Z,1001,119,\n"
+                             "2026-01-01T00:00:00Z,1002,120,\n2026-01-02T00:00:00Z,1001,119,dup\n");
+  dir.Write("operations.csv", "time,throughput_tph,ore_ai,mill\n2026-01-02T00:00:00Z,3400,0.3,a\n2026-01-01T00:00:00Z,3500,,b\n");
+  dir.Write("scans/scan_2026-02-01.xyz", "1.01 0 0.5\n# comment\n0 1.02 1.5\n");
+  dir.Write("notes.txt", "ignored");
+  const Bundle b = LoadBundle(dir.path());
+  STRCMP_EQUAL("cr1", b.crusher.crusher_id.c_str());
+  LONGS_EQUAL(2, b.crusher.rows.size());
+  CHECK(b.crusher.sensors[1].address == 0x0013A20040A1B2C3ull);
+  DOUBLES_EQUAL(120.0, b.crusher.sensors[0].thickness_new_mm, 1e-12);
+  LONGS_EQUAL(4, b.readings.size());  // duplicates kept
+  STRCMP_EQUAL("1001", b.readings[0].sensor_id.c_str());
+  STRCMP_EQUAL("1002", b.readings[2].sensor_id.c_str());
+  CHECK(b.readings[2].time < b.readings[3].time);
+  LONGS_EQUAL(2, b.operations.size());
+  DOUBLES_EQUAL(3500, b.operations[0].throughput_tph, 1e-12);
+  CHECK_FALSE(b.operations[0].ore_ai.has_value());
+  DOUBLES_EQUAL(0.3, *b.operations[1].ore_ai, 1e-12);
+  LONGS_EQUAL(1, b.scans.size());
+  LONGS_EQUAL(2, b.scans[0].points.size());
+  STRCMP_EQUAL("2026-02-01T00:00:00Z", FormatIsoTime(b.scans[0].date).c_str());
+  LONGS_EQUAL(960, b.map.face_count());
+}
+
+TEST(Bundle, BadReadingsNameFileLineAndRule) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n2026-01-02T00:00:00Z,1001,119\n2026-01-02T00:00:00Z,1001,abc\n");
+  std::string e = ErrorOf(dir);
+  CHECK(e.find("readings.csv:3") != std::string::npos);
+  CHECK(e.find("thickness_mm 'abc' is not a number") != std::string::npos);
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n2026-01-02T00:00:00Z,9999,119\n");
+  e = ErrorOf(dir);
+  CHECK(e.find("readings.csv:2") != std::string::npos);
+  CHECK(e.find("'9999'") != std::string::npos);
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\nlast tuesday,1001,119\n");
+  CHECK(ErrorOf(dir).find("readings.csv:2: time 'last tuesday'") != std::string::npos);
+  lw::test::WriteBundle(dir, "time,sensor_id\n");
+  CHECK(ErrorOf(dir).find("lacks column 'thickness_mm'") != std::string::npos);
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n2026-01-02T00:00:00Z,1001,-4\n");
+  CHECK(ErrorOf(dir).find("negative") != std::string::npos);
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n1850-01-02T00:00:00Z,1001,4\n");
+  CHECK(ErrorOf(dir).find("outside") != std::string::npos);
+}
+
+TEST(Bundle, BadCrusherJsonIsRefusedWithTheRule) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
+  std::string j = lw::test::kCrusherJson;
+  dir.Write("crusher.json", j.replace(j.find("\"row\": \"LUP\""), 12, "\"row\": \"LX\""));
+  CHECK(ErrorOf(dir).find("sensor '1002' names row 'LX' that is not in concave.rows") != std::string::npos);
+  dir.Write("crusher.json", "{\"crusher_id\": \"cr1\",\n \"installed_at\": }");
+  const std::string e = ErrorOf(dir);
+  CHECK(e.find("crusher.json:2") != std::string::npos);
+  CHECK(e.find("not valid JSON") != std::string::npos);
+  std::filesystem::remove(dir.path() / "wear_map.vtk");
+  dir.Write("crusher.json", lw::test::kCrusherJson);
+  CHECK(ErrorOf(dir).find("wear_map.vtk") != std::string::npos);
+}
+
+TEST(Bundle, BadScansAndOperationsAreRefused) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
+  dir.Write("scans/scan_2026-02-01.xyz", "1 2\n");
+  CHECK(ErrorOf(dir).find("scans/scan_2026-02-01.xyz:1") != std::string::npos);
+  std::filesystem::remove_all(dir.path() / "scans");
+  dir.Write("scans/scan_feb.xyz", "1 2 3\n");
+  CHECK(ErrorOf(dir).find("scan_YYYY-MM-DD.xyz") != std::string::npos);
+  std::filesystem::remove_all(dir.path() / "scans");
+  dir.Write("operations.csv", "time,throughput_tph\n2026-01-01,lots\n");
+  CHECK(ErrorOf(dir).find("operations.csv:2") != std::string::npos);
+}

@@ -1,0 +1,84 @@
+#include <cmath>
+
+#include "core/reconstruction.hpp"
+#include "unit/core/bundle_fixture.hpp"
+
+#include <CppUTest/TestHarness.h>
+
+using namespace lw::core;
+
+namespace {
+CrusherConfig TwoRows() {
+  CrusherConfig c;
+  c.crusher_id = "cr1";
+  c.thickness_new_mm = 120;
+  c.thickness_min_mm = 30;
+  c.rows = {{"LDWN", 0.0, 1.0}, {"LUP", 1.0, 2.0}};
+  c.sensors = {{"1001", "LDWN", 0.5, 0.0, 120, {}}, {"1002", "LUP", 1.5, 90.0, 120, {}}};
+  return c;
+}
+}  // namespace
+
+TEST_GROUP(Reconstruction) {};
+
+// Intensity 2 - z/2: 1.75 at the lower sensor, 1.25 at the upper one.
+TEST(Reconstruction, Eq9ScalesEachRowBySensorOverIntensity) {
+  const CrusherConfig c = TwoRows();
+  const WearMap m = lw::test::CylinderMap(36, 40, [](double z) { return 2.0 - 0.5 * z; });
+  const Eigen::VectorXd at = IntensityAtSensors(c, m, 0.05);
+  DOUBLES_EQUAL(1.75, at[0], 0.02);
+  DOUBLES_EQUAL(1.25, at[1], 0.02);
+  ReconstructionOptions o;
+  o.interpolate_between_rows = false;
+  const Reconstruction r = Reconstruct(c, m, {{"1001", 35.0}, {"1002", 12.5}}, o);
+  // Row scale = W_s0 / W_i0: 20 mm per unit below, 10 above.
+  DOUBLES_EQUAL(20.0, r.rows[0].scale_mm_per_unit, 0.3);
+  DOUBLES_EQUAL(10.0, r.rows[1].scale_mm_per_unit, 0.2);
+  // Worst spot: the bottom edge, intensity 2 - 0.025 = 1.975 -> wear 39.5 mm.
+  DOUBLES_EQUAL(120 - 1.975 * 20, r.min_thickness_mm, 0.6);
+  CHECK(m.z[static_cast<Eigen::Index>(r.min_face)] < 0.1);
+  DOUBLES_EQUAL(r.min_thickness_mm, r.rows[0].min_thickness_mm, 1e-12);
+  LONGS_EQUAL(1, r.rows[0].sensors_used);
+}
+
+TEST(Reconstruction, ScaleIsInterpolatedAlongZBetweenRowCentres) {
+  const CrusherConfig c = TwoRows();
+  const WearMap m = lw::test::CylinderMap(36, 40, [](double) { return 1.0; });
+  const Reconstruction r = Reconstruct(c, m, {{"1001", 30.0}, {"1002", 10.0}});
+  for (Eigen::Index i = 0; i < m.z.size(); ++i) {
+    const double z = m.z[i];
+    const double expected = z <= 0.5 ? 30.0 : (z >= 1.5 ? 10.0 : 30.0 - 20.0 * (z - 0.5));
+    DOUBLES_EQUAL(expected, r.wear_mm[i], 1e-9);
+    DOUBLES_EQUAL(120.0 - expected, r.remaining_mm[i], 1e-9);
+  }
+}
+
+TEST(Reconstruction, RowWithoutSensorsTakesItsScaleFromItsNeighbours) {
+  CrusherConfig c = TwoRows();
+  c.rows.push_back({"LTOP", 2.0, 3.0});
+  const WearMap m = lw::test::CylinderMap(12, 20, [](double) { return 1.0; });
+  const Reconstruction r = Reconstruct(c, m, {{"1001", 30.0}});  // only the lower row reports
+  for (Eigen::Index i = 0; i < m.z.size(); ++i) DOUBLES_EQUAL(30.0, r.wear_mm[i], 1e-9);
+  LONGS_EQUAL(0, r.rows[1].sensors_used);
+}
+
+TEST(Reconstruction, SensorWearUsesTheIntervalCentreOfTheLatestReading) {
+  const CrusherConfig c = TwoRows();
+  const auto t0 = *ParseIsoTime("2026-01-01");
+  std::vector<Reading> rs = {{t0, "1001", 110, 0}, {AddDays(t0, 2), "1001", 100, 0}, {AddDays(t0, 5), "1001", 90, 0}};
+  auto w = SensorWearAt(c, rs, AddDays(t0, 3));
+  LONGS_EQUAL(1, w.size());
+  DOUBLES_EQUAL(19.5, w[0].wear_mm, 1e-12);
+  w = SensorWearAt(c, rs, AddDays(t0, 3), false);
+  DOUBLES_EQUAL(20.0, w[0].wear_mm, 1e-12);
+}
+
+TEST(Reconstruction, SmoothingRemovesFaceNoiseButKeepsTheMean) {
+  WearMap m = lw::test::CylinderMap(72, 40, [](double) { return 1.0; });
+  for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] = (i % 2) ? 1.2 : 0.8;
+  const Eigen::VectorXd s = SmoothOverSurface(m, m.wear, 0.15);
+  double max_dev = 0;
+  for (Eigen::Index i = 0; i < s.size(); ++i) max_dev = std::max(max_dev, std::abs(s[i] - 1.0));
+  CHECK(max_dev < 0.05);
+  DOUBLES_EQUAL(1.0, s.mean(), 0.01);
+}

@@ -1,0 +1,32 @@
+#include "core/time.hpp"
+
+#include <CppUTest/TestHarness.h>
+
+using namespace lw::core;
+
+TEST_GROUP(Time) {};
+
+TEST(Time, ParsesTheUsualIsoForms) {
+  const auto base = ParseIsoTime("2026-03-01T12:00:00Z");
+  CHECK(base.has_value());
+  STRCMP_EQUAL("2026-03-01T12:00:00Z", FormatIsoTime(*base).c_str());
+  CHECK(ParseIsoTime("2026-03-01 12:00:00") == base);
+  CHECK(ParseIsoTime("2026-03-01T12:00:00.750Z") == base);
+  CHECK(ParseIsoTime("2026-03-01T14:00:00+02:00") == base);
+  CHECK(ParseIsoTime("2026-03-01T07:00:00-0500") == base);
+  CHECK(ParseIsoTime("2026-03-01T12:00Z") == base);
+  STRCMP_EQUAL("2026-03-01T00:00:00Z", FormatIsoTime(*ParseIsoTime("2026-03-01")).c_str());
+}
+
+TEST(Time, RefusesImpossibleAndMalformedTimes) {
+  for (const char* bad : {"", "2026-02-30", "2026-13-01T00:00:00Z", "2026-03-01T25:00:00Z", "yesterday",
+                          "2026/03/01", "2026-03-01T12:00:00Q", "2026-03-01T12"}) {
+    CHECK_FALSE(ParseIsoTime(bad).has_value());
+  }
+}
+
+TEST(Time, DayArithmetic) {
+  const auto a = *ParseIsoTime("2026-03-01");
+  DOUBLES_EQUAL(1.5, DaysBetween(a, *ParseIsoTime("2026-03-02T12:00:00Z")), 1e-12);
+  STRCMP_EQUAL("2026-03-03T06:00:00Z", FormatIsoTime(AddDays(a, 2.25)).c_str());
+}
