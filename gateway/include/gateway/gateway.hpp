@@ -1,0 +1,123 @@
+#pragma once
+/// The gateway's logic, free of I/O: bytes from the coordinator in, acks to the sensors out through
+/// a ByteSink, records into the Spool, messages out through a Publisher, commit acks in. The caller
+/// (main) owns the threads: every method is called from one thread, with the current Unix time in
+/// ms passed in so tests control time.
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <set>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "gateway/publisher.hpp"
+#include "gateway/spool.hpp"
+#include "protocol/frame_decoder.hpp"
+
+namespace lw::gateway {
+
+struct GatewayOptions {
+  std::string site;
+  std::string crusher;
+  std::string gateway_id;
+  protocol::ApiMode api_mode = protocol::ApiMode::kEscaped;
+  /// Records of one sensor published and awaiting the server's commit ack at a time. 1 keeps the
+  /// server's first sight of a sensor's records in seq order whatever the broker loses.
+  size_t window = 1;
+  /// A published record without a commit ack after this long is published again.
+  int64_t republish_after_ms = 30'000;
+  /// Period of `gateway/stats` (0: never).
+  int64_t stats_interval_ms = 60'000;
+  /// Log sink (one line, no newline). Defaults to stderr.
+  std::function<void(const std::string&)> log;
+};
+
+/// Counters of the gateway's own work (the frame decoder's are in DecoderCounters).
+struct GatewayCounters {
+  uint64_t records_received = 0;    ///< records decoded from readings payloads (duplicates too)
+  uint64_t records_spooled = 0;     ///< new records stored
+  uint64_t records_duplicate = 0;   ///< retransmissions of records already spooled
+  uint64_t records_rejected = 0;    ///< spool full: not stored, not acked
+  uint64_t bad_payloads = 0;        ///< 0x90 frames whose payload failed to decode
+  uint64_t unknown_payloads = 0;    ///< 0x90 frames with a payload type we do not handle
+  uint64_t malformed_frames = 0;    ///< valid checksum but a known type failed to parse
+  uint64_t unknown_frames = 0;      ///< frames of a type the gateway does not handle
+  uint64_t acks_sent = 0;
+  uint64_t ack_write_errors = 0;
+  uint64_t tx_failures = 0;         ///< 0x8B Transmit Status with a non-success delivery status
+  uint64_t spool_errors = 0;        ///< SQLite failures (records not acked)
+  uint64_t published = 0;           ///< first publications of a record
+  uint64_t republished = 0;         ///< publications after a reconnect or the republish timeout
+  uint64_t committed = 0;           ///< records deleted after the server's commit ack
+  uint64_t bad_commit_acks = 0;
+  uint64_t connects = 0;
+  int64_t latency_last_ms = -1;     ///< receive -> commit ack of the last committed record
+  int64_t latency_max_ms = -1;
+  int64_t latency_sum_ms = 0;
+};
+
+class Gateway {
+ public:
+  Gateway(GatewayOptions options, Spool& spool, Publisher& publisher, ByteSink& radio);
+
+  /// Bytes read from the coordinator's serial port.
+  void OnBytes(const uint8_t* data, size_t len, int64_t now_ms);
+
+  /// The MQTT client (re)connected: publishes the retained online status and the device registry
+  /// and republishes every unconfirmed record from the start of each sensor's queue.
+  void OnConnected(int64_t now_ms);
+
+  /// A message arrived on a subscribed topic (commit acks).
+  void OnMessage(std::string_view topic, std::string_view payload, int64_t now_ms);
+
+  /// Publishes what is due: records (in seq order per sensor), stats. Cheap when nothing changed.
+  void Pump(int64_t now_ms);
+
+  /// Topic root `linerwatch/v1/{site}/{crusher}/`.
+  const std::string& topic_root() const { return root_; }
+  /// Subscription for commit acks: `{root}sensors/+/committed`.
+  std::string CommittedFilter() const { return root_ + "sensors/+/committed"; }
+  std::string StatusTopic() const { return root_ + "gateway/status"; }
+  std::string StatsTopic() const { return root_ + "gateway/stats"; }
+  std::string DevicesTopic() const { return root_ + "gateway/devices"; }
+
+  /// The stats message (docs/gateway.md lists the fields).
+  std::string StatsJson(int64_t now_ms) const;
+
+  const GatewayCounters& counters() const { return counters_; }
+  const protocol::DecoderCounters& decoder_counters() const { return decoder_.counters(); }
+  size_t spool_depth() const { return spool_.depth(); }
+  size_t in_flight() const;
+
+ private:
+  void OnFrame(const uint8_t* frame, size_t len, int64_t now_ms);
+  void OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms);
+  void SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, const std::vector<uint32_t>& seqs);
+  void NoteDevice(const DeviceEntry& device, int64_t now_ms);
+  void PublishRecords(int64_t now_ms);
+  void PublishDevices(int64_t now_ms);
+  /// Logs the first few events of a kind, then every 1000th, so a noisy radio cannot fill the disk.
+  void LogLimited(const std::string& kind, const std::string& line);
+  void Log(const std::string& line) const;
+
+  GatewayOptions options_;
+  Spool& spool_;
+  Publisher& publisher_;
+  ByteSink& radio_;
+  protocol::FrameDecoder decoder_;
+  std::string root_;
+  GatewayCounters counters_;
+  // Records published and awaiting a commit ack: sensor -> seq -> time of the last publication.
+  std::map<std::string, std::map<uint32_t, int64_t>> in_flight_;
+  std::set<std::string> known_devices_;  // "address/sensor" already in the registry
+  std::map<std::string, uint64_t> log_counts_;
+  bool records_dirty_ = true;
+  bool devices_dirty_ = true;
+  int64_t next_republish_check_ms_ = 0;
+  int64_t next_stats_ms_ = 0;
+  uint8_t next_frame_id_ = 1;
+};
+
+}  // namespace lw::gateway

@@ -1,0 +1,59 @@
+#pragma once
+/// The Paho MQTT C++ adapter: the only gateway file that includes mqtt/ headers (in the .cpp).
+/// Paho's callbacks only queue events; the owner's thread calls Poll() to (re)connect with
+/// exponential backoff, subscribe after every connect, and collect what happened, and publishes
+/// through the Publisher interface. Never calls the client from inside a Paho callback.
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gateway/publisher.hpp"
+
+namespace lw::gateway {
+
+struct LinkOptions {
+  std::string uri;        ///< tcp://, ssl://, mqtt://, mqtts://
+  std::string client_id;
+  std::string username;
+  std::string password;
+  std::string tls_ca;     ///< trust store for ssl:// (empty: system default)
+  OutMessage will;        ///< last will (retained offline status)
+  std::vector<std::string> subscriptions;  ///< QoS 1, renewed after every connect
+  int64_t reconnect_min_ms = 1000;
+  int64_t reconnect_max_ms = 60'000;
+  int keep_alive_s = 20;
+};
+
+struct LinkEvent {
+  enum class Kind { kConnected, kDisconnected, kMessage };
+  Kind kind = Kind::kMessage;
+  std::string topic;    ///< kMessage
+  std::string payload;  ///< kMessage; reason text for kDisconnected
+};
+
+class PahoLink : public Publisher {
+ public:
+  /// Throws std::runtime_error when Paho refuses the URI or options.
+  explicit PahoLink(LinkOptions options);
+  ~PahoLink() override;
+  PahoLink(const PahoLink&) = delete;
+  PahoLink& operator=(const PahoLink&) = delete;
+
+  /// Drives the connection (starts a connect attempt when due) and returns the events since the
+  /// last call, in order. Non-blocking.
+  std::vector<LinkEvent> Poll(int64_t now_ms);
+
+  /// Publishes `final_message` (if its topic is not empty) and disconnects, waiting at most
+  /// `timeout_ms`. Blocking.
+  void Shutdown(const OutMessage& final_message, int timeout_ms);
+
+ private:
+  bool DoPublish(const OutMessage& message) override;
+  bool DoIsConnected() const override;
+
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace lw::gateway

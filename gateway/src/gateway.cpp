@@ -1,0 +1,414 @@
+#include "gateway/gateway.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cstdio>
+#include <exception>
+#include <utility>
+
+#include "gateway/messages.hpp"
+#include "protocol/sensor_payload.hpp"
+#include "protocol/xbee_api.hpp"
+
+namespace lw::gateway {
+namespace {
+
+constexpr size_t kMaxRecordsPerMessage = 8;
+
+std::string FrameTypeHex(uint8_t type) {
+  char buf[8];
+  std::snprintf(buf, sizeof buf, "0x%02X", type);
+  return buf;
+}
+
+}  // namespace
+
+Gateway::Gateway(GatewayOptions options, Spool& spool, Publisher& publisher, ByteSink& radio)
+    : options_(std::move(options)),
+      spool_(spool),
+      publisher_(publisher),
+      radio_(radio),
+      decoder_(options_.api_mode),
+      root_("linerwatch/v1/" + options_.site + "/" + options_.crusher + "/") {
+  if (options_.window == 0) options_.window = 1;
+  for (const DeviceEntry& d : spool_.Devices()) known_devices_.insert(d.address + "/" + d.sensor);
+}
+
+void Gateway::Log(const std::string& line) const {
+  if (options_.log) {
+    options_.log(line);
+  } else {
+    std::fprintf(stderr, "%s\n", line.c_str());
+  }
+}
+
+void Gateway::LogLimited(const std::string& kind, const std::string& line) {
+  const uint64_t n = ++log_counts_[kind];
+  if (n <= 10 || n % 1000 == 0) Log(line + (n > 10 ? " (" + std::to_string(n) + " so far)" : ""));
+}
+
+void Gateway::OnBytes(const uint8_t* data, size_t len, int64_t now_ms) {
+  for (size_t i = 0; i < len; ++i) {
+    switch (decoder_.Feed(data[i])) {
+      case protocol::DecodeEvent::kNone:
+        break;
+      case protocol::DecodeEvent::kFrame:
+        OnFrame(decoder_.frame_data(), decoder_.frame_length(), now_ms);
+        break;
+      case protocol::DecodeEvent::kChecksumError:
+        LogLimited("checksum", "serial: frame with a bad checksum dropped");
+        break;
+      case protocol::DecodeEvent::kEscapeError:
+        LogLimited("escape", "serial: frame with an escape error dropped");
+        break;
+      case protocol::DecodeEvent::kLengthError:
+        LogLimited("length", "serial: frame with an invalid length dropped");
+        break;
+      case protocol::DecodeEvent::kTruncated:
+        LogLimited("truncated", "serial: truncated frame dropped");
+        break;
+    }
+  }
+}
+
+void Gateway::OnFrame(const uint8_t* frame, size_t len, int64_t now_ms) {
+  const uint8_t type = len ? frame[0] : 0;
+  switch (static_cast<protocol::FrameType>(type)) {
+    case protocol::FrameType::kReceivePacket:
+      OnReceivePacket(frame, len, now_ms);
+      return;
+    case protocol::FrameType::kNodeIdentification: {
+      protocol::NodeIdentification ni;
+      if (protocol::ParseNodeIdentification(frame, len, &ni) != protocol::Status::kOk) {
+        ++counters_.malformed_frames;
+        LogLimited("malformed", "serial: malformed node identification frame (" + std::to_string(len) + " bytes)");
+        return;
+      }
+      DeviceEntry d;
+      d.address = AddressHex(ni.remote64);
+      d.node_identifier = ni.node_identifier;
+      d.device_type = ni.device_type;
+      d.first_seen_ms = now_ms;
+      NoteDevice(d, now_ms);
+      return;
+    }
+    case protocol::FrameType::kTransmitStatus: {
+      protocol::TransmitStatus st;
+      if (protocol::ParseTransmitStatus(frame, len, &st) != protocol::Status::kOk) {
+        ++counters_.malformed_frames;
+        LogLimited("malformed", "serial: malformed transmit status frame");
+        return;
+      }
+      if (st.delivery_status != static_cast<uint8_t>(protocol::DeliveryStatus::kSuccess)) {
+        ++counters_.tx_failures;
+        char dest[8];
+        std::snprintf(dest, sizeof dest, "%04X", static_cast<unsigned>(st.dest16));
+        LogLimited("tx_failure", std::string("radio: ack delivery to 16-bit address ") + dest + " failed: " +
+                                     protocol::DeliveryStatusName(st.delivery_status) + " (the sensor retransmits)");
+      }
+      return;
+    }
+    case protocol::FrameType::kModemStatus: {
+      protocol::ModemStatus ms;
+      if (protocol::ParseModemStatus(frame, len, &ms) == protocol::Status::kOk) {
+        Log(std::string("radio: modem status ") + protocol::ModemStatusName(ms.status));
+      } else {
+        ++counters_.malformed_frames;
+      }
+      return;
+    }
+    case protocol::FrameType::kTransmitRequest:
+      break;
+  }
+  ++counters_.unknown_frames;
+  LogLimited("unknown_frame", "serial: frame of unhandled type " + FrameTypeHex(type) + " (" + std::to_string(len) + " bytes) ignored");
+}
+
+void Gateway::OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms) {
+  protocol::ReceivePacket rx;
+  if (protocol::ParseReceivePacket(frame, len, &rx) != protocol::Status::kOk) {
+    ++counters_.malformed_frames;
+    LogLimited("malformed", "serial: malformed receive packet frame (" + std::to_string(len) + " bytes)");
+    return;
+  }
+  const std::string source = AddressHex(rx.src64);
+  const uint8_t payload_type = protocol::PayloadType(rx.payload, rx.payload_len);
+  if (payload_type != protocol::kMsgReadings) {
+    ++counters_.unknown_payloads;
+    LogLimited("unknown_payload", "radio: payload of unknown type " + FrameTypeHex(payload_type) + " from " + source + " ignored");
+    return;
+  }
+  protocol::ReadingsHeader header;
+  protocol::SensorRecord records[kMaxRecordsPerMessage];
+  size_t count = 0;
+  const protocol::PayloadStatus status =
+      protocol::DecodeReadings(rx.payload, rx.payload_len, &header, records, kMaxRecordsPerMessage, &count);
+  if (status != protocol::PayloadStatus::kOk) {
+    ++counters_.bad_payloads;
+    LogLimited("bad_payload", std::string("radio: bad readings payload from ") + source + ": " +
+                                  protocol::PayloadStatusName(status));
+    return;
+  }
+  counters_.records_received += count;
+  const std::string sensor = std::to_string(header.sensor_id);
+  ReadingContext context{rx.src64, options_.gateway_id, now_ms};
+  std::vector<SpoolRecord> batch;
+  batch.reserve(count);
+  for (size_t i = 0; i < count; ++i) {
+    SpoolRecord r;
+    r.sensor = sensor;
+    r.seq = records[i].seq;
+    r.received_ms = now_ms;
+    r.heartbeat = (records[i].flags & protocol::kFlagHeartbeat) != 0;
+    r.payload = ReadingJson(header, records[i], context);
+    batch.push_back(std::move(r));
+  }
+  std::vector<InsertOutcome> outcomes;
+  try {
+    outcomes = spool_.Insert(batch);
+  } catch (const std::exception& e) {
+    ++counters_.spool_errors;
+    LogLimited("spool_error", std::string("spool: records from sensor ") + sensor + " not stored (not acked): " + e.what());
+    return;
+  }
+  std::vector<uint32_t> ack_seqs;
+  for (size_t i = 0; i < outcomes.size(); ++i) {
+    switch (outcomes[i]) {
+      case InsertOutcome::kStored:
+        ++counters_.records_spooled;
+        ack_seqs.push_back(batch[i].seq);
+        records_dirty_ = true;
+        break;
+      case InsertOutcome::kDuplicate:
+        ++counters_.records_duplicate;
+        ack_seqs.push_back(batch[i].seq);
+        break;
+      case InsertOutcome::kRejectedFull:
+        ++counters_.records_rejected;
+        LogLimited("spool_full", "spool: full (" + std::to_string(spool_.depth()) + " records), record " + sensor + "/" +
+                                     std::to_string(batch[i].seq) + " not acked; the sensor keeps it");
+        break;
+    }
+  }
+  if (!ack_seqs.empty()) SendAck(rx.src64, rx.src16, header.sensor_id, ack_seqs);
+
+  DeviceEntry d;
+  d.address = source;
+  d.sensor = sensor;
+  d.first_seen_ms = now_ms;
+  NoteDevice(d, now_ms);
+}
+
+void Gateway::SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, const std::vector<uint32_t>& seqs) {
+  for (size_t start = 0; start < seqs.size(); start += protocol::kMaxAckSeqs) {
+    protocol::Ack ack;
+    ack.sensor_id = sensor_id;
+    const size_t n = std::min(protocol::kMaxAckSeqs, seqs.size() - start);
+    for (size_t i = 0; i < n; ++i) ack.seqs[i] = seqs[start + i];
+    ack.count = static_cast<uint8_t>(n);
+    uint8_t payload[protocol::kMaxRfPayload];
+    size_t payload_len = 0;
+    uint8_t frame[protocol::kMaxFrameData];
+    size_t frame_len = 0;
+    uint8_t wire[protocol::kMaxWireFrame];
+    protocol::TransmitRequest req;
+    req.frame_id = next_frame_id_;
+    next_frame_id_ = static_cast<uint8_t>(next_frame_id_ == 255 ? 1 : next_frame_id_ + 1);
+    req.dest64 = dest64;
+    req.dest16 = dest16;
+    if (protocol::EncodeAck(ack, payload, sizeof payload, &payload_len) != protocol::PayloadStatus::kOk) return;
+    req.payload = payload;
+    req.payload_len = payload_len;
+    if (protocol::BuildTransmitRequest(req, frame, sizeof frame, &frame_len) != protocol::Status::kOk) return;
+    const size_t wire_len = protocol::EncodeFrame(options_.api_mode, frame, frame_len, wire, sizeof wire);
+    if (wire_len == 0 || !radio_.Write(wire, wire_len)) {
+      ++counters_.ack_write_errors;
+      LogLimited("ack_write", "serial: writing an ack to " + AddressHex(dest64) + " failed (the sensor retransmits)");
+      continue;
+    }
+    ++counters_.acks_sent;
+  }
+}
+
+void Gateway::NoteDevice(const DeviceEntry& device, int64_t now_ms) {
+  const std::string key = device.address + "/" + device.sensor;
+  // Sensors are checked in memory on every frame; the database is touched only for news.
+  if (!device.sensor.empty() && known_devices_.count(key)) return;
+  bool changed = false;
+  try {
+    changed = spool_.RecordDevice(device);
+  } catch (const std::exception& e) {
+    ++counters_.spool_errors;
+    LogLimited("spool_error", std::string("spool: device registry: ") + e.what());
+    return;
+  }
+  known_devices_.insert(key);
+  if (!changed) return;
+  Log("registry: " + (device.sensor.empty() ? std::string("node") : "sensor " + device.sensor) + " at " + device.address +
+      (device.node_identifier.empty() ? "" : " \"" + device.node_identifier + "\""));
+  devices_dirty_ = true;
+  (void)now_ms;
+}
+
+void Gateway::OnConnected(int64_t now_ms) {
+  ++counters_.connects;
+  // Whatever was in flight may have been lost with the old connection (or the broker): start
+  // every sensor's queue over, in order.
+  in_flight_.clear();
+  records_dirty_ = true;
+  devices_dirty_ = true;
+  publisher_.Publish({StatusTopic(), StatusJson(true, options_.gateway_id, now_ms), 1, true});
+  Pump(now_ms);
+}
+
+void Gateway::OnMessage(std::string_view topic, std::string_view payload, int64_t now_ms) {
+  // {root}sensors/{sensor}/committed
+  const std::string prefix = root_ + "sensors/";
+  const std::string_view suffix = "/committed";
+  if (topic.substr(0, prefix.size()) != prefix || topic.size() <= prefix.size() + suffix.size() ||
+      topic.substr(topic.size() - suffix.size()) != suffix) {
+    LogLimited("unexpected_topic", "mqtt: message on unexpected topic " + std::string(topic) + " ignored");
+    return;
+  }
+  const std::string topic_sensor(topic.substr(prefix.size(), topic.size() - prefix.size() - suffix.size()));
+  std::string error;
+  const auto ack = ParseCommitAck(payload, topic_sensor, &error);
+  if (!ack) {
+    ++counters_.bad_commit_acks;
+    LogLimited("bad_commit", "mqtt: bad commit ack on " + std::string(topic) + ": " + error);
+    return;
+  }
+  std::vector<int64_t> received;
+  try {
+    received = spool_.Confirm(ack->sensor, ack->seqs);
+  } catch (const std::exception& e) {
+    ++counters_.spool_errors;
+    LogLimited("spool_error", std::string("spool: confirm failed (records kept, will be republished): ") + e.what());
+    return;
+  }
+  auto it = in_flight_.find(ack->sensor);
+  if (it != in_flight_.end()) {
+    for (uint32_t seq : ack->seqs) it->second.erase(seq);
+    if (it->second.empty()) in_flight_.erase(it);
+  }
+  for (int64_t r : received) {
+    const int64_t latency = std::max<int64_t>(0, now_ms - r);
+    ++counters_.committed;
+    counters_.latency_last_ms = latency;
+    counters_.latency_max_ms = std::max(counters_.latency_max_ms, latency);
+    counters_.latency_sum_ms += latency;
+  }
+  if (!received.empty()) records_dirty_ = true;
+}
+
+size_t Gateway::in_flight() const {
+  size_t n = 0;
+  for (const auto& [sensor, seqs] : in_flight_) n += seqs.size();
+  return n;
+}
+
+void Gateway::Pump(int64_t now_ms) {
+  if (publisher_.IsConnected()) {
+    if (devices_dirty_) PublishDevices(now_ms);
+    if (records_dirty_ || now_ms >= next_republish_check_ms_) PublishRecords(now_ms);
+  }
+  if (options_.stats_interval_ms > 0 && now_ms >= next_stats_ms_) {
+    next_stats_ms_ = now_ms + options_.stats_interval_ms;
+    if (publisher_.IsConnected()) publisher_.Publish({StatsTopic(), StatsJson(now_ms), 0, false});
+  }
+}
+
+void Gateway::PublishDevices(int64_t now_ms) {
+  try {
+    const std::string payload = DevicesJson(spool_.Devices(), options_.gateway_id, now_ms);
+    if (publisher_.Publish({DevicesTopic(), payload, 1, true})) devices_dirty_ = false;
+  } catch (const std::exception& e) {
+    ++counters_.spool_errors;
+    LogLimited("spool_error", std::string("spool: reading the device registry: ") + e.what());
+  }
+}
+
+void Gateway::PublishRecords(int64_t now_ms) {
+  std::vector<SpoolRecord> heads;
+  try {
+    heads = spool_.Heads(options_.window);
+  } catch (const std::exception& e) {
+    ++counters_.spool_errors;
+    LogLimited("spool_error", std::string("spool: reading records: ") + e.what());
+    return;
+  }
+  records_dirty_ = false;
+  // Forget in-flight entries that are no longer at the head (committed or evicted).
+  std::map<std::string, std::map<uint32_t, int64_t>> kept;
+  int64_t next_due = now_ms + options_.republish_after_ms;
+  bool all_sent = true;
+  for (const SpoolRecord& r : heads) {
+    auto& sensor_flight = in_flight_[r.sensor];
+    auto found = sensor_flight.find(r.seq);
+    const bool first = found == sensor_flight.end();
+    if (!first && now_ms - found->second < options_.republish_after_ms) {
+      kept[r.sensor][r.seq] = found->second;
+      next_due = std::min(next_due, found->second + options_.republish_after_ms);
+      continue;
+    }
+    if (!publisher_.Publish({topic_root() + "sensors/" + r.sensor + "/reading", r.payload, 1, false})) {
+      all_sent = false;
+      if (!first) kept[r.sensor][r.seq] = found->second;
+      continue;
+    }
+    if (first) {
+      ++counters_.published;
+    } else {
+      ++counters_.republished;
+    }
+    kept[r.sensor][r.seq] = now_ms;
+  }
+  in_flight_ = std::move(kept);
+  if (!all_sent) {
+    records_dirty_ = true;  // retry on the next Pump
+  }
+  next_republish_check_ms_ = next_due;
+}
+
+std::string Gateway::StatsJson(int64_t now_ms) const {
+  const protocol::DecoderCounters& d = decoder_.counters();
+  nlohmann::json latency = {{"last", counters_.latency_last_ms}, {"max", counters_.latency_max_ms},
+                            {"mean", counters_.committed ? counters_.latency_sum_ms / static_cast<int64_t>(counters_.committed) : -1}};
+  const nlohmann::json j = {
+      {"gateway", options_.gateway_id},
+      {"time", IsoUtc(now_ms)},
+      {"frames_ok", d.frames_ok},
+      {"checksum_errors", d.checksum_errors},
+      {"escape_errors", d.escape_errors},
+      {"length_errors", d.length_errors},
+      {"truncated_frames", d.truncated_frames},
+      {"bytes_discarded", d.bytes_discarded},
+      {"unknown_types", d.unknown_types},
+      {"unknown_frames", counters_.unknown_frames},
+      {"malformed_frames", counters_.malformed_frames},
+      {"bad_payloads", counters_.bad_payloads},
+      {"unknown_payloads", counters_.unknown_payloads},
+      {"records_received", counters_.records_received},
+      {"records_spooled", counters_.records_spooled},
+      {"records_duplicate", counters_.records_duplicate},
+      {"records_rejected", counters_.records_rejected},
+      {"records_evicted", spool_.evicted()},
+      {"acks_sent", counters_.acks_sent},
+      {"ack_write_errors", counters_.ack_write_errors},
+      {"tx_failures", counters_.tx_failures},
+      {"spool_errors", counters_.spool_errors},
+      {"spool_depth", spool_.depth()},
+      {"spool_max_records", spool_.max_records()},
+      {"in_flight", in_flight()},
+      {"published", counters_.published},
+      {"republished", counters_.republished},
+      {"committed", counters_.committed},
+      {"bad_commit_acks", counters_.bad_commit_acks},
+      {"connects", counters_.connects},
+      {"publish_latency_ms", latency},
+  };
+  return j.dump();
+}
+
+}  // namespace lw::gateway

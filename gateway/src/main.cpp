@@ -1,0 +1,150 @@
+// linerwatch-gateway: XBee coordinator serial port -> SQLite spool -> MQTT (docs/gateway.md).
+// One thread runs everything below; Paho's own threads only queue events for it (paho_link.cpp).
+#include <poll.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <exception>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gateway/config.hpp"
+#include "gateway/gateway.hpp"
+#include "gateway/messages.hpp"
+#include "gateway/paho_link.hpp"
+#include "gateway/serial_port.hpp"
+#include "gateway/spool.hpp"
+
+namespace {
+
+volatile std::sig_atomic_t g_stop = 0;
+void OnSignal(int) { g_stop = 1; }
+
+int64_t NowMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+void Log(const std::string& line) {
+  std::fprintf(stderr, "linerwatch-gateway: %s\n", line.c_str());
+  std::fflush(stderr);
+}
+
+int Run(const lw::gateway::Config& config) {
+  using namespace lw::gateway;
+  Spool spool(config.spool, config.spool_max_records);
+  Log("spool " + config.spool + ": " + std::to_string(spool.depth()) + " records waiting for a commit ack");
+
+  SerialPort serial(config.serial, config.baud);
+  GatewayOptions options;
+  options.site = config.site;
+  options.crusher = config.crusher;
+  options.gateway_id = config.gateway_id;
+  options.api_mode = config.api_mode == 1 ? lw::protocol::ApiMode::kUnescaped : lw::protocol::ApiMode::kEscaped;
+  options.window = config.window;
+  options.republish_after_ms = static_cast<int64_t>(config.republish_after_s * 1000);
+  options.stats_interval_ms = static_cast<int64_t>(config.stats_interval_s * 1000);
+  options.log = Log;
+
+  LinkOptions link_options;
+  link_options.uri = config.broker;
+  link_options.client_id = config.gateway_id;
+  link_options.username = config.username;
+  link_options.password = config.password;
+  link_options.tls_ca = config.tls_ca;
+  link_options.reconnect_min_ms = static_cast<int64_t>(config.reconnect_min_s * 1000);
+  link_options.reconnect_max_ms = static_cast<int64_t>(config.reconnect_max_s * 1000);
+
+  const std::string root = "linerwatch/v1/" + config.site + "/" + config.crusher + "/";
+  link_options.will = {root + "gateway/status", StatusJson(false, config.gateway_id, NowMs()), 1, true};
+  link_options.subscriptions = {root + "sensors/+/committed"};
+  auto link = std::make_unique<PahoLink>(link_options);
+  Gateway gateway(options, spool, *link, serial);
+
+  std::string error;
+  int64_t next_open_ms = 0;
+  bool reported_open_error = false;
+  uint8_t buffer[4096];
+  while (!g_stop) {
+    int64_t now = NowMs();
+    if (!serial.is_open() && now >= next_open_ms) {
+      if (serial.Open(&error)) {
+        Log("serial " + config.serial + " open (" + std::to_string(config.baud) + " baud, API mode " +
+            std::to_string(config.api_mode) + ")");
+        reported_open_error = false;
+      } else {
+        if (!reported_open_error) Log(error + " (retrying every 2 s)");
+        reported_open_error = true;
+        next_open_ms = now + 2000;
+      }
+    }
+    pollfd p{serial.fd(), POLLIN, 0};
+    const int ready = ::poll(&p, serial.is_open() ? 1 : 0, 100);
+    now = NowMs();
+    if (ready > 0 && serial.is_open()) {
+      bool got_bytes = false;
+      for (;;) {
+        const long n = serial.Read(buffer, sizeof buffer);
+        if (n > 0) {
+          gateway.OnBytes(buffer, static_cast<size_t>(n), now);
+          got_bytes = true;
+          continue;
+        }
+        // A regular file at its end or a FIFO without writer polls ready forever: do not spin.
+        if (n == 0 && !got_bytes) ::poll(nullptr, 0, 100);
+        if (n < 0) {
+          Log("serial " + config.serial + ": closed or failed; reopening");
+          serial.Close();
+          next_open_ms = now + 1000;
+        }
+        break;
+      }
+    }
+    for (const LinkEvent& e : link->Poll(now)) {
+      switch (e.kind) {
+        case LinkEvent::Kind::kConnected:
+          Log("mqtt: connected to " + config.broker);
+          gateway.OnConnected(now);
+          break;
+        case LinkEvent::Kind::kDisconnected:
+          Log("mqtt: " + e.payload);
+          break;
+        case LinkEvent::Kind::kMessage:
+          gateway.OnMessage(e.topic, e.payload, now);
+          break;
+      }
+    }
+    gateway.Pump(now);
+  }
+  Log("stopping; " + std::to_string(spool.depth()) + " records stay in the spool");
+  link->Shutdown({gateway.StatusTopic(), StatusJson(false, config.gateway_id, NowMs()), 1, true}, 2000);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  lw::gateway::Config config;
+  try {
+    const std::vector<std::string> args(argv, argv + argc);
+    if (lw::gateway::ParseCommandLine(args, &config) == lw::gateway::ParseResult::kHelp) {
+      std::fputs(lw::gateway::UsageText().c_str(), stdout);
+      return 0;
+    }
+  } catch (const lw::gateway::ConfigError& e) {
+    std::fprintf(stderr, "linerwatch-gateway: error: %s\n", e.what());
+    return 2;
+  }
+  struct sigaction sa {};
+  sa.sa_handler = OnSignal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  std::signal(SIGPIPE, SIG_IGN);
+  try {
+    return Run(config);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "linerwatch-gateway: error: %s\n", e.what());
+    return 1;
+  }
+}

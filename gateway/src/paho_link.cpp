@@ -1,0 +1,163 @@
+#include "gateway/paho_link.hpp"
+
+#include <mqtt/async_client.h>
+
+#include <algorithm>
+#include <atomic>
+#include <deque>
+#include <mutex>
+#include <utility>
+
+namespace lw::gateway {
+
+struct PahoLink::Impl {
+  LinkOptions options;
+  mqtt::async_client client;
+  mqtt::connect_options connect_options;
+  std::mutex mutex;
+  std::deque<LinkEvent> events;  // filled by Paho's threads, drained by Poll()
+  std::atomic<bool> connected{false};
+  mqtt::token_ptr pending_connect;
+  int64_t next_attempt_ms = 0;
+  int64_t backoff_ms = 0;
+
+  explicit Impl(LinkOptions o)
+      : options(std::move(o)), client(options.uri, options.client_id, nullptr) {}
+
+  void Push(LinkEvent e) {
+    std::lock_guard<std::mutex> lock(mutex);
+    events.push_back(std::move(e));
+  }
+};
+
+namespace {
+bool IsTls(const std::string& uri) {
+  return uri.rfind("ssl://", 0) == 0 || uri.rfind("mqtts://", 0) == 0 || uri.rfind("wss://", 0) == 0;
+}
+}  // namespace
+
+PahoLink::PahoLink(LinkOptions options) {
+  try {
+    impl_ = std::make_unique<Impl>(std::move(options));
+  } catch (const mqtt::exception& e) {
+    throw std::runtime_error("broker: " + std::string(e.what()));
+  }
+  Impl& im = *impl_;
+  im.backoff_ms = im.options.reconnect_min_ms;
+  auto& co = im.connect_options;
+  co.set_clean_session(true);  // the spool, not the broker session, guarantees delivery
+  co.set_keep_alive_interval(im.options.keep_alive_s);
+  co.set_connect_timeout(10);
+  co.set_max_inflight(1000);
+  co.set_automatic_reconnect(false);  // Poll() reconnects with our own backoff
+  if (!im.options.username.empty()) {
+    co.set_user_name(im.options.username);
+    co.set_password(im.options.password);
+  }
+  if (!im.options.will.topic.empty()) {
+    co.set_will(mqtt::will_options(im.options.will.topic, im.options.will.payload, im.options.will.qos,
+                                   im.options.will.retained));
+  }
+  if (IsTls(im.options.uri)) {
+    mqtt::ssl_options ssl;
+    if (!im.options.tls_ca.empty()) ssl.set_trust_store(im.options.tls_ca);
+    ssl.set_enable_server_cert_auth(true);
+    co.set_ssl(std::move(ssl));
+  }
+  // Callbacks run on Paho's threads: they only queue.
+  im.client.set_connected_handler([&im](const std::string&) {
+    im.connected = true;
+    im.Push({LinkEvent::Kind::kConnected, "", ""});
+  });
+  im.client.set_connection_lost_handler([&im](const std::string& cause) {
+    im.connected = false;
+    im.Push({LinkEvent::Kind::kDisconnected, "", cause.empty() ? "connection lost" : cause});
+  });
+  im.client.set_message_callback([&im](mqtt::const_message_ptr msg) {
+    im.Push({LinkEvent::Kind::kMessage, msg->get_topic(), msg->to_string()});
+  });
+}
+
+PahoLink::~PahoLink() {
+  if (!impl_) return;
+  try {
+    if (impl_->client.is_connected()) impl_->client.disconnect(0)->wait_for(std::chrono::seconds(2));
+  } catch (const std::exception&) {
+  }
+}
+
+std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
+  Impl& im = *impl_;
+  std::vector<LinkEvent> out;
+  if (im.pending_connect && im.pending_connect->is_complete()) {
+    const int rc = im.pending_connect->get_return_code();
+    im.pending_connect.reset();
+    if (rc != 0 || !im.connected) {
+      out.push_back({LinkEvent::Kind::kDisconnected, "", "connect to " + im.options.uri + " failed (code " + std::to_string(rc) + ")"});
+      im.next_attempt_ms = now_ms + im.backoff_ms;
+      im.backoff_ms = std::min(im.backoff_ms * 2, im.options.reconnect_max_ms);
+    } else {
+      im.backoff_ms = im.options.reconnect_min_ms;
+    }
+  }
+  std::deque<LinkEvent> queued;
+  {
+    std::lock_guard<std::mutex> lock(im.mutex);
+    queued.swap(im.events);
+  }
+  for (LinkEvent& e : queued) {
+    if (e.kind == LinkEvent::Kind::kConnected) {
+      im.backoff_ms = im.options.reconnect_min_ms;
+      try {
+        for (const std::string& filter : im.options.subscriptions) im.client.subscribe(filter, 1);
+      } catch (const mqtt::exception& ex) {
+        out.push_back({LinkEvent::Kind::kDisconnected, "", std::string("subscribe failed: ") + ex.what()});
+      }
+    } else if (e.kind == LinkEvent::Kind::kDisconnected) {
+      im.next_attempt_ms = now_ms + im.backoff_ms;
+      im.backoff_ms = std::min(im.backoff_ms * 2, im.options.reconnect_max_ms);
+    }
+    out.push_back(std::move(e));
+  }
+  if (!im.connected && !im.pending_connect && now_ms >= im.next_attempt_ms) {
+    try {
+      im.pending_connect = im.client.connect(im.connect_options);
+    } catch (const mqtt::exception& ex) {
+      out.push_back({LinkEvent::Kind::kDisconnected, "", std::string("connect: ") + ex.what()});
+      im.next_attempt_ms = now_ms + im.backoff_ms;
+      im.backoff_ms = std::min(im.backoff_ms * 2, im.options.reconnect_max_ms);
+    }
+  }
+  return out;
+}
+
+void PahoLink::Shutdown(const OutMessage& final_message, int timeout_ms) {
+  Impl& im = *impl_;
+  try {
+    if (!im.client.is_connected()) return;
+    if (!final_message.topic.empty()) {
+      im.client.publish(final_message.topic, final_message.payload.data(), final_message.payload.size(), final_message.qos,
+                        final_message.retained)
+          ->wait_for(std::chrono::milliseconds(timeout_ms));
+    }
+    im.client.disconnect(timeout_ms)->wait_for(std::chrono::milliseconds(timeout_ms));
+  } catch (const std::exception&) {
+    // Best effort: the broker publishes the last will if the goodbye did not get through.
+  }
+  im.connected = false;
+}
+
+bool PahoLink::DoPublish(const OutMessage& message) {
+  Impl& im = *impl_;
+  if (!im.connected) return false;
+  try {
+    im.client.publish(message.topic, message.payload.data(), message.payload.size(), message.qos, message.retained);
+    return true;
+  } catch (const mqtt::exception&) {
+    return false;
+  }
+}
+
+bool PahoLink::DoIsConnected() const { return impl_->connected; }
+
+}  // namespace lw::gateway

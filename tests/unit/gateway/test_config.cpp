@@ -1,0 +1,118 @@
+// Command line and JSON configuration: required flags, validation messages, file + flag merge.
+#include <fstream>
+
+#include "gateway/config.hpp"
+#include "unit/gateway/gateway_test_support.hpp"
+
+// CppUTest last: its new/delete macros break standard headers included after it.
+#include <CppUTest/TestHarness.h>
+
+using lw::gateway::Config;
+using lw::gateway::ConfigError;
+using lw::gateway::ParseCommandLine;
+using lw::gateway::ParseResult;
+
+namespace {
+std::vector<std::string> Base() {
+  return {"linerwatch-gateway", "--serial", "/dev/ttyUSB0", "--broker", "tcp://127.0.0.1:1883",
+          "--site", "s1", "--crusher", "c1", "--spool", "/tmp/x.db"};
+}
+std::string ErrorOf(const std::vector<std::string>& args) {
+  Config c;
+  try {
+    ParseCommandLine(args, &c);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+bool Contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+}  // namespace
+
+TEST_GROUP(Config) {
+  lw::gateway::test::TempDir dir;
+};
+
+TEST(Config, MinimalFlagsGiveDefaults) {
+  Config c;
+  CHECK(ParseCommandLine(Base(), &c) == ParseResult::kRun);
+  STRCMP_EQUAL("/dev/ttyUSB0", c.serial.c_str());
+  LONGS_EQUAL(9600, c.baud);
+  LONGS_EQUAL(2, c.api_mode);
+  LONGS_EQUAL(1, c.window);
+  CHECK(c.gateway_id.rfind("gw-", 0) == 0);
+}
+
+TEST(Config, HelpWins) {
+  Config c;
+  CHECK(ParseCommandLine({"linerwatch-gateway", "--help"}, &c) == ParseResult::kHelp);
+  CHECK(Contains(lw::gateway::UsageText(), "--api-mode"));
+}
+
+TEST(Config, EveryRequiredFlagIsNamedWhenMissing) {
+  for (const char* flag : {"serial", "broker", "site", "crusher", "spool"}) {
+    std::vector<std::string> args{"linerwatch-gateway"};
+    const auto base = Base();
+    for (size_t i = 1; i < base.size(); i += 2) {
+      if (base[i] != std::string("--") + flag) {
+        args.push_back(base[i]);
+        args.push_back(base[i + 1]);
+      }
+    }
+    STRCMP_EQUAL((std::string("--") + flag + " is required (see --help)").c_str(), ErrorOf(args).c_str());
+  }
+}
+
+TEST(Config, BadValuesAreNamed) {
+  auto a = Base();
+  a.insert(a.end(), {"--baud", "12345"});
+  CHECK(Contains(ErrorOf(a), "--baud: 12345"));
+  a = Base();
+  a.insert(a.end(), {"--api-mode", "3"});
+  CHECK(Contains(ErrorOf(a), "--api-mode: must be 1 or 2"));
+  a = Base();
+  a.insert(a.end(), {"--baud", "fast"});
+  CHECK(Contains(ErrorOf(a), "'baud' must be an integer"));
+  a = Base();
+  a[4] = "localhost:1883";
+  CHECK(Contains(ErrorOf(a), "--broker"));
+  a = Base();
+  a[6] = "a/b";
+  CHECK(Contains(ErrorOf(a), "--site"));
+  a = Base();
+  a.insert(a.end(), {"--password", "p"});
+  CHECK(Contains(ErrorOf(a), "--password given without --username"));
+  a = Base();
+  a.push_back("--bogus");
+  a.push_back("1");
+  CHECK(Contains(ErrorOf(a), "unknown option --bogus"));
+  a = Base();
+  a.push_back("--window");
+  CHECK(Contains(ErrorOf(a), "--window needs a value"));
+}
+
+TEST(Config, JsonFileWithFlagOverride) {
+  const std::string file = dir.File("gw.json");
+  std::ofstream(file) << R"({"serial": "/dev/ttyS1", "baud": 115200, "api_mode": 1, "broker": "tcp://b:1883",
+                            "site": "mine", "crusher": "cr2", "spool": "/var/lib/x.db", "gateway-id": "gw-9",
+                            "republish-after": 2.5})";
+  Config c;
+  ParseCommandLine({"linerwatch-gateway", "--config", file, "--baud", "57600"}, &c);
+  STRCMP_EQUAL("/dev/ttyS1", c.serial.c_str());
+  LONGS_EQUAL(57600, c.baud);
+  LONGS_EQUAL(1, c.api_mode);
+  STRCMP_EQUAL("gw-9", c.gateway_id.c_str());
+  DOUBLES_EQUAL(2.5, c.republish_after_s, 1e-12);
+}
+
+TEST(Config, BadJsonFilesAreNamed) {
+  const std::string file = dir.File("bad.json");
+  std::ofstream(file) << R"({"serial": "/dev/ttyS1", "colour": "red"})";
+  const std::string e1 = ErrorOf({"linerwatch-gateway", "--config", file});
+  CHECK(Contains(e1, file) && Contains(e1, "unknown key 'colour'"));
+  std::ofstream(file) << R"({"baud": "fast"})";
+  CHECK(Contains(ErrorOf({"linerwatch-gateway", "--config", file}), "key 'baud': must be a number"));
+  std::ofstream(file) << R"({"baud": )";
+  CHECK(Contains(ErrorOf({"linerwatch-gateway", "--config", file}), "invalid JSON"));
+  CHECK(Contains(ErrorOf({"linerwatch-gateway", "--config", dir.File("none.json")}), "cannot be read"));
+}

@@ -1,0 +1,80 @@
+// SerialPort on a real pty: raw bytes both ways, reopen after hang-up.
+#include <fcntl.h>
+#include <poll.h>
+#include <pty.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <string>
+#include <vector>
+
+#include "gateway/serial_port.hpp"
+
+// CppUTest last: its new/delete macros break standard headers included after it.
+#include <CppUTest/TestHarness.h>
+
+TEST_GROUP(SerialPort) {
+  int master = -1;
+  int slave = -1;
+  std::string name;
+  void setup() override {
+    char buf[128];
+    CHECK(openpty(&master, &slave, buf, nullptr, nullptr) == 0);
+    name = buf;
+  }
+  void teardown() override {
+    if (master >= 0) close(master);
+    if (slave >= 0) close(slave);
+  }
+  std::vector<uint8_t> ReadMaster(size_t want) {
+    std::vector<uint8_t> out;
+    for (int tries = 0; tries < 100 && out.size() < want; ++tries) {
+      pollfd p{master, POLLIN, 0};
+      if (poll(&p, 1, 50) <= 0) continue;
+      uint8_t b[256];
+      const ssize_t n = read(master, b, sizeof b);
+      if (n > 0) out.insert(out.end(), b, b + n);
+    }
+    return out;
+  }
+};
+
+TEST(SerialPort, BinaryBytesPassUnchangedBothWays) {
+  lw::gateway::SerialPort port(name, 115200);
+  std::string error;
+  CHECK_TRUE_TEXT(port.Open(&error), error.c_str());
+  // Bytes a cooked tty would eat or translate: CR, NL, XON/XOFF, ^C, ^D, DEL.
+  const std::vector<uint8_t> bytes{0x7E, 0x0D, 0x0A, 0x11, 0x13, 0x03, 0x04, 0x7F, 0x00, 0xFF};
+  CHECK(write(master, bytes.data(), bytes.size()) == static_cast<ssize_t>(bytes.size()));
+  std::vector<uint8_t> got;
+  for (int tries = 0; tries < 100 && got.size() < bytes.size(); ++tries) {
+    pollfd p{port.fd(), POLLIN, 0};
+    poll(&p, 1, 50);
+    uint8_t b[64];
+    const long n = port.Read(b, sizeof b);
+    CHECK(n >= 0);
+    if (n > 0) got.insert(got.end(), b, b + n);
+  }
+  CHECK(got == bytes);
+  CHECK_TRUE(port.Write(bytes.data(), bytes.size()));
+  CHECK(ReadMaster(bytes.size()) == bytes);
+}
+
+TEST(SerialPort, MissingDeviceIsReportedWithItsPath) {
+  lw::gateway::SerialPort port("/dev/does-not-exist-lw", 9600);
+  std::string error;
+  CHECK_FALSE(port.Open(&error));
+  CHECK(error.find("/dev/does-not-exist-lw") != std::string::npos);
+}
+
+TEST(SerialPort, HangUpIsReportedSoTheCallerReopens) {
+  lw::gateway::SerialPort port(name, 9600);
+  std::string error;
+  CHECK_TRUE(port.Open(&error));
+  close(slave);
+  slave = -1;
+  close(master);
+  master = -1;
+  uint8_t b[16];
+  LONGS_EQUAL(-1, port.Read(b, sizeof b));
+}
