@@ -1,0 +1,132 @@
+#pragma once
+/// HAL port for the Arm MPS2 AN386 FPGA image (Cortex-M4) as qemu-system-arm emulates it: the
+/// CI target that proves the firmware boots and talks on real registers. Production boards use a
+/// low-power part (docs/firmware.md); their ports follow this one's shape.
+///
+/// - UART0 (CMSDK APB UART, 0x40004000): the XBee radio, RX by interrupt into a ring buffer.
+/// - UART1 (0x40005000): the test path standing in for the SPI ladder. The host sends frames
+///   `0x55, n, n bytes` (the shift registers' image, loop i = bit i%8 of byte i/8); Transfer()
+///   returns the latest image followed by the chain's signature byte.
+/// - SysTick at 1 kHz: the RTC (seconds since boot) and the wake-up alarm; Sleep() is WFI.
+/// - CMSDK watchdog (0x40008000): resets the core when not kicked.
+/// - Flash: the AN386 has no flash controller (code runs from SSRAM), so the page store is two
+///   RAM pages; a production port programs the MCU's own flash here.
+/// - ADC: none on the board; fixed battery and temperature values.
+#include <cstddef>
+#include <cstdint>
+
+#include "hal/board.hpp"
+
+namespace lw::hal::mps2 {
+
+/// Byte ring filled from an ISR and drained by the task loop (single producer, single consumer).
+template <size_t N>
+class IsrRing {
+ public:
+  void Push(uint8_t b) {
+    const size_t next = (head_ + 1) % N;
+    if (next == tail_) {
+      overruns_ = overruns_ + 1;
+      return;
+    }
+    buf_[head_] = b;
+    head_ = next;
+  }
+  bool Pop(uint8_t* b) {
+    if (tail_ == head_) return false;
+    *b = buf_[tail_];
+    tail_ = (tail_ + 1) % N;
+    return true;
+  }
+  uint32_t overruns() const { return overruns_; }
+
+ private:
+  uint8_t buf_[N] = {};
+  volatile size_t head_ = 0;
+  volatile size_t tail_ = 0;
+  volatile uint32_t overruns_ = 0;
+};
+
+class CmsdkUart final : public Uart {
+ public:
+  explicit CmsdkUart(uintptr_t base) : base_(base) {}
+  /// Enables TX, RX and the RX interrupt; `baud_div` = system clock / baud.
+  void Init(uint32_t baud_div);
+  /// Called from the RX interrupt handler.
+  void OnRxInterrupt();
+
+ private:
+  size_t DoWrite(const uint8_t* data, size_t len) override;
+  size_t DoRead(uint8_t* out, size_t cap) override;
+  uintptr_t base_;
+  IsrRing<256> rx_;
+};
+
+class UartLadder final : public Spi {
+ public:
+  explicit UartLadder(CmsdkUart& link) : link_(link) {}
+
+ private:
+  bool DoTransfer(const uint8_t* tx, uint8_t* rx, size_t len) override;
+  void Drain();
+  CmsdkUart& link_;
+  uint8_t image_[17] = {};
+  uint8_t image_len_ = 0;
+  uint8_t parse_[17] = {};
+  uint8_t parse_state_ = 0;  // 0: wait 0x55, 1: length, 2: data
+  uint8_t parse_len_ = 0;
+  uint8_t parse_pos_ = 0;
+};
+
+class Led final : public DigitalOut {
+ private:
+  void DoSet(bool high) override;
+};
+
+class FixedAdc final : public Adc {
+ private:
+  bool DoRead(AdcChannel channel, int32_t* value) override;
+};
+
+class SysTickClock final : public Rtc, public Power {
+ public:
+  /// Starts SysTick at 1 kHz from a `core_hz` clock.
+  void Init(uint32_t core_hz);
+  void OnTick() { ms_ = ms_ + 1; }
+  uint32_t millis() const { return ms_; }
+
+ private:
+  uint32_t DoNowSeconds() override { return ms_ / 1000u; }
+  void DoSetAlarm(uint32_t at_seconds) override { alarm_s_ = at_seconds; }
+  void DoSleep() override;
+  ResetCause DoLastResetCause() override { return ResetCause::kPowerOn; }
+  volatile uint32_t ms_ = 0;
+  uint32_t alarm_s_ = 0;
+};
+
+class CmsdkWatchdog final : public Watchdog {
+ public:
+  explicit CmsdkWatchdog(uint32_t core_hz) : core_hz_(core_hz) {}
+
+ private:
+  void DoStart(uint32_t timeout_s) override;
+  void DoKick() override;
+  uint32_t core_hz_;
+  uint32_t reload_ = 0;
+};
+
+class RamFlash final : public FlashPages {
+ public:
+  static constexpr size_t kPageSize = 256;
+  static constexpr size_t kPages = 2;
+
+ private:
+  size_t DoPageSize() override { return kPageSize; }
+  size_t DoPageCount() override { return kPages; }
+  bool DoErase(size_t page) override;
+  bool DoProgram(size_t page, size_t offset, const uint8_t* data, size_t len) override;
+  bool DoRead(size_t page, size_t offset, uint8_t* data, size_t len) override;
+  uint8_t pages_[kPages][kPageSize];
+};
+
+}  // namespace lw::hal::mps2
