@@ -1,0 +1,110 @@
+#pragma once
+// Integration-test helpers: a child process that is always cleaned up, and a real mosquitto broker
+// on a free 127.0.0.1 port with its config (and optional persistence) in a temp dir.
+//
+//   lw::test::MosquittoFixture broker({.persistence = true});
+//   broker.Start();                 // throws std::runtime_error with the reason (and log tail)
+//   ... connect to broker.uri() ...
+//   broker.Stop();  broker.Start(); // same port, same persistence dir
+//   // destructor: kills the broker, removes the temp dir
+//
+// Children get PR_SET_PDEATHSIG(SIGKILL): if the test binary dies, they die too.
+#include <sys/types.h>
+
+#include <chrono>
+#include <string>
+#include <vector>
+
+namespace lw::test {
+
+/// A fresh directory under $TMPDIR (or /tmp), removed recursively on destruction.
+class TempDirectory {
+ public:
+  explicit TempDirectory(const std::string& prefix = "lw-test");
+  ~TempDirectory();
+  TempDirectory(const TempDirectory&) = delete;
+  TempDirectory& operator=(const TempDirectory&) = delete;
+  const std::string& path() const { return path_; }
+  std::string File(const std::string& name) const { return path_ + "/" + name; }
+
+ private:
+  std::string path_;
+};
+
+/// One child process (fork + exec), stdout and stderr appended to a log file.
+class ChildProcess {
+ public:
+  ChildProcess() = default;
+  ~ChildProcess() { Kill(); }
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+
+  /// Starts argv[0] (searched in PATH when it has no '/'). Throws std::runtime_error.
+  void Start(const std::vector<std::string>& argv, const std::string& log_file);
+  /// True while the child has not exited (reaps it when it has).
+  bool Running();
+  /// Sends `signal`, waits up to `timeout`, then SIGKILLs. Returns the wait status (-1: none).
+  int Stop(int signal, std::chrono::milliseconds timeout = std::chrono::seconds(5));
+  /// SIGKILL and reap. No-op when not running.
+  void Kill();
+  pid_t pid() const { return pid_; }
+  /// Wait status after the child exited (from waitpid), -1 before.
+  int status() const { return status_; }
+
+ private:
+  pid_t pid_ = -1;
+  int status_ = -1;
+};
+
+/// A free TCP port on 127.0.0.1 (bound and released; there is a small race, as with any such helper).
+int FreeLoopbackPort();
+
+/// True when a TCP connection to 127.0.0.1:port succeeds.
+bool PortAccepts(int port);
+
+/// Last `max_bytes` of a text file ("" when missing), for failure messages.
+std::string FileTail(const std::string& path, size_t max_bytes = 2000);
+
+/// The broker binary: $LW_MOSQUITTO, else /usr/sbin/mosquitto, else "mosquitto" on PATH.
+std::string MosquittoBinary();
+
+class MosquittoFixture {
+ public:
+  struct Options {
+    bool persistence = false;   ///< persistence true + autosave every second in the temp dir
+    std::string extra_config;   ///< appended to mosquitto.conf verbatim
+  };
+  MosquittoFixture() : MosquittoFixture(Options{}) {}
+  explicit MosquittoFixture(Options options);
+  ~MosquittoFixture();
+  MosquittoFixture(const MosquittoFixture&) = delete;
+  MosquittoFixture& operator=(const MosquittoFixture&) = delete;
+
+  /// Starts mosquitto and waits (up to 5 s) until the port accepts connections. Throws
+  /// std::runtime_error with the log tail on failure.
+  void Start();
+  /// SIGTERM (mosquitto saves its persistence database) and wait.
+  void Stop();
+  /// SIGKILL: an abrupt broker death (nothing saved since the last autosave).
+  void Kill();
+  void Restart() {
+    Stop();
+    Start();
+  }
+  bool running() { return process_.Running(); }
+
+  int port() const { return port_; }
+  /// "tcp://127.0.0.1:PORT".
+  std::string uri() const;
+  /// The temp dir holding mosquitto.conf, mosquitto.log and the persistence database.
+  const std::string& dir() const { return dir_.path(); }
+  std::string log_file() const { return dir_.File("mosquitto.log"); }
+
+ private:
+  Options options_;
+  TempDirectory dir_;
+  int port_;
+  ChildProcess process_;
+};
+
+}  // namespace lw::test
