@@ -79,10 +79,10 @@ int Run(const lw::gateway::Config& config) {
         next_open_ms = now + 2000;
       }
     }
-    pollfd p{serial.fd(), POLLIN, 0};
-    const int ready = ::poll(&p, serial.is_open() ? 1 : 0, 100);
+    pollfd fds[2] = {{link->wake_fd(), POLLIN, 0}, {serial.fd(), POLLIN, 0}};
+    ::poll(fds, serial.is_open() ? 2 : 1, 100);
     now = NowMs();
-    if (ready > 0 && serial.is_open()) {
+    if (serial.is_open() && (fds[1].revents & (POLLIN | POLLHUP | POLLERR))) {
       bool got_bytes = false;
       for (;;) {
         const long n = serial.Read(buffer, sizeof buffer);

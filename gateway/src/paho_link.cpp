@@ -1,6 +1,8 @@
 #include "gateway/paho_link.hpp"
 
 #include <mqtt/async_client.h>
+#include <sys/eventfd.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -20,13 +22,22 @@ struct PahoLink::Impl {
   mqtt::token_ptr pending_connect;
   int64_t next_attempt_ms = 0;
   int64_t backoff_ms = 0;
+  int wake = -1;
 
   explicit Impl(LinkOptions o)
-      : options(std::move(o)), client(options.uri, options.client_id, nullptr) {}
+      : options(std::move(o)), client(options.uri, options.client_id, nullptr),
+        wake(eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {}
+  ~Impl() {
+    if (wake >= 0) close(wake);
+  }
 
   void Push(LinkEvent e) {
-    std::lock_guard<std::mutex> lock(mutex);
-    events.push_back(std::move(e));
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      events.push_back(std::move(e));
+    }
+    const uint64_t one = 1;
+    if (wake >= 0) (void)!write(wake, &one, sizeof one);
   }
 };
 
@@ -100,6 +111,10 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
       im.backoff_ms = im.options.reconnect_min_ms;
     }
   }
+  if (im.wake >= 0) {
+    uint64_t count = 0;
+    (void)!read(im.wake, &count, sizeof count);
+  }
   std::deque<LinkEvent> queued;
   {
     std::lock_guard<std::mutex> lock(im.mutex);
@@ -157,6 +172,8 @@ bool PahoLink::DoPublish(const OutMessage& message) {
     return false;
   }
 }
+
+int PahoLink::wake_fd() const { return impl_->wake; }
 
 bool PahoLink::DoIsConnected() const { return impl_->connected; }
 

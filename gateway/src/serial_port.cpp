@@ -48,7 +48,8 @@ bool SerialPort::Open(std::string* error) {
   tio.c_cflag &= ~static_cast<tcflag_t>(CSTOPB | PARENB | CRTSCTS);
   tio.c_cflag |= CLOCAL | CREAD | CS8;
   tio.c_iflag &= ~static_cast<tcflag_t>(IXON | IXOFF | IXANY);
-  tio.c_cc[VMIN] = 0;
+  // VMIN=1 with O_NONBLOCK: an empty port reads EAGAIN, so a read of 0 bytes means hang-up.
+  tio.c_cc[VMIN] = 1;
   tio.c_cc[VTIME] = 0;
   const speed_t speed = ToSpeed(baud_);
   if (speed == B0 || cfsetispeed(&tio, speed) != 0 || cfsetospeed(&tio, speed) != 0) {

@@ -44,6 +44,10 @@ class PahoLink : public Publisher {
   /// last call, in order. Non-blocking.
   std::vector<LinkEvent> Poll(int64_t now_ms);
 
+  /// A descriptor that becomes readable when events are queued: poll() it beside the serial port
+  /// so commit acks are handled at once (Poll() drains it).
+  int wake_fd() const;
+
   /// Publishes `final_message` (if its topic is not empty) and disconnects, waiting at most
   /// `timeout_ms`. Blocking.
   void Shutdown(const OutMessage& final_message, int timeout_ms);

@@ -12,6 +12,8 @@
 
 #include <atomic>
 #include <csignal>
+#include <cstdio>
+#include <cstdlib>
 #include <chrono>
 #include <deque>
 #include <map>
@@ -328,6 +330,10 @@ Outcome RunScenario(bool persistence, Disruption disruption) {
     SleepMs(5);
   }
   gateway.Stop(SIGTERM);
+  if (std::getenv("LW_IT_VERBOSE")) {
+    std::fprintf(stderr, "\n[scenario took %lld ms, disruption at +%lld ms]\n%s\n", static_cast<long long>(NowMs() - start),
+                 static_cast<long long>(disrupted_at < 0 ? -1 : disrupted_at - start), lw::test::FileTail(gateway_log, 6000).c_str());
+  }
   return out;
 }
 
