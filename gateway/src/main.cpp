@@ -1,6 +1,7 @@
 // linerwatch-gateway: XBee coordinator serial port -> SQLite spool -> MQTT (docs/gateway.md).
 // One thread runs everything below; Paho's own threads only queue events for it (paho_link.cpp).
 #include <poll.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <csignal>
@@ -33,6 +34,12 @@ void Log(const std::string& line) {
 
 int Run(const lw::gateway::Config& config) {
   using namespace lw::gateway;
+  // A missing port at start is a configuration error; once running, a vanished port (USB
+  // adapter unplugged) is waited for instead.
+  if (::access(config.serial.c_str(), F_OK) != 0) {
+    std::fprintf(stderr, "linerwatch-gateway: error: --serial: %s does not exist\n", config.serial.c_str());
+    return 2;
+  }
   Spool spool(config.spool, config.spool_max_records);
   Log("spool " + config.spool + ": " + std::to_string(spool.depth()) + " records waiting for a commit ack");
 
