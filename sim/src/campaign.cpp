@@ -263,7 +263,7 @@ Throughput MakeThroughput(const CampaignSpec& s, const EffectSpec* effect, size_
   }
   std::vector<std::pair<double, double>> stops;
   const int n_stops = 2 + static_cast<int>(uni(rng) * 2);
-  for (int i = 0; i < n_stops; ++i) stops.emplace_back(uni(rng) * static_cast<double>(hours), 12.0 + 24.0 * uni(rng));
+  for (int i = 0; i < n_stops; ++i) stops.emplace_back(uni(rng) * s.days * 24.0, 12.0 + 24.0 * uni(rng));
   for (size_t h = 0; h < hours; ++h) {
     double swing = 0;
     for (int i = 0; i < 4; ++i) swing += std::sin(2 * kPi * static_cast<double>(h) / per[i] + ph[i]) / 2.0;
@@ -408,7 +408,9 @@ Campaign GenerateCampaign(const CampaignSpec& input, uint64_t seed) {
     double stuck_value = -1;
     bool flicker_phase = false;
     bool dead = false;
-    for (double day = 0; day <= s.days + 1e-9; day += poll_days) {
+    const auto polls = static_cast<long>(std::floor(s.days / poll_days + 1e-9));
+    for (long p = 0; p <= polls; ++p) {
+      const double day = static_cast<double>(p) * poll_days;
       const double truth = c.TrueSensorThickness(static_cast<size_t>(k), day);
       double value = std::max(0.0, std::floor(truth));
       bool silent = false;

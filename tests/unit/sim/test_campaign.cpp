@@ -1,0 +1,154 @@
+#include <cmath>
+#include <cstdlib>
+#include <unistd.h>
+#include <filesystem>
+#include <map>
+
+#include "core/bundle.hpp"
+#include "sim/campaign.hpp"
+
+#include <CppUTest/TestHarness.h>
+
+using namespace lw;
+using sim::CampaignSpec;
+using sim::GenerateCampaign;
+
+namespace {
+CampaignSpec Small() {
+  CampaignSpec s;
+  s.n_theta = 36;
+  s.n_z = 18;
+  s.scan_points = 3000;
+  return s;
+}
+std::map<std::string, std::vector<double>> BySensor(const sim::Campaign& c) {
+  std::map<std::string, std::vector<double>> m;
+  for (const auto& r : c.readings()) m[r.sensor_id].push_back(r.thickness_mm);
+  return m;
+}
+size_t Index(const sim::Campaign& c, const std::string& id) {
+  for (size_t i = 0; i < c.crusher().sensors.size(); ++i) {
+    if (c.crusher().sensors[i].id == id) return i;
+  }
+  return 0;
+}
+}  // namespace
+
+TEST_GROUP(SimCampaign) {};
+
+TEST(SimCampaign, SameSeedSameCampaignOtherSeedOtherMap) {
+  const auto a = GenerateCampaign(Small(), 7), b = GenerateCampaign(Small(), 7), c = GenerateCampaign(Small(), 8);
+  CHECK(a.map().wear.isApprox(b.map().wear));
+  LONGS_EQUAL(a.readings().size(), b.readings().size());
+  CHECK_FALSE(a.map().wear.isApprox(c.map().wear));
+}
+
+TEST(SimCampaign, ReadingsAreFloorsOfTheTruthAndNeverRiseWithoutFaults) {
+  const auto c = GenerateCampaign(Small(), 3);
+  const auto t0 = c.crusher().installed_at;
+  for (const auto& r : c.readings()) {
+    const double day = core::DaysBetween(t0, r.time);
+    const double truth = c.TrueSensorThickness(Index(c, r.sensor_id), std::floor(day * 96.0 + 1e-6) / 96.0);
+    DOUBLES_EQUAL(std::floor(truth), r.thickness_mm, 1e-9);
+  }
+  for (const auto& [id, v] : BySensor(c)) {
+    for (size_t i = 1; i < v.size(); ++i) CHECK(v[i] <= v[i - 1]);
+  }
+}
+
+TEST(SimCampaign, ReferenceCampaignMatchesThePapersRowRatios) {
+  const auto c = GenerateCampaign(Small(), 1);
+  std::map<std::string, std::pair<double, int>> rows;
+  for (size_t i = 0; i < c.crusher().sensors.size(); ++i) {
+    auto& r = rows[c.crusher().sensors[i].row];
+    r.first += 120.0 - c.TrueSensorThickness(i, 95);
+    ++r.second;
+  }
+  const double ldwn = rows["LDWN"].first / rows["LDWN"].second, lmid = rows["LMID"].first / rows["LMID"].second,
+               lup = rows["LUP"].first / rows["LUP"].second;
+  DOUBLES_EQUAL(85.0, ldwn, 0.5);
+  DOUBLES_EQUAL(6.0, ldwn / lup, 1.0);
+  DOUBLES_EQUAL(2.0, ldwn / lmid, 0.35);
+}
+
+TEST(SimCampaign, EachEffectMovesTheTruthTheDocumentedWay) {
+  const auto base = GenerateCampaign(Small(), 5);
+  auto with = [](const std::string& effect) {
+    CampaignSpec s = Small();
+    s.effects.push_back(sim::ParseEffect(effect));
+    return GenerateCampaign(s, 5);
+  };
+  const size_t ldwn = Index(base, "1007");  // LDWN at 45 deg
+  // Hardening: less wear where normal stress is high; saturating, so early wear is hit hardest.
+  const auto hard = with("work_hardening:h=0.4,tau_days=6");
+  CHECK(hard.TrueSensorThickness(ldwn, 95) > base.TrueSensorThickness(ldwn, 95) + 3);
+  // Softer core: wear accelerates once the worn depth passes the onset.
+  const auto grad = with("hardness_gradient:c=0.3,onset_mm=20,width_mm=20");
+  CHECK(grad.TrueSensorThickness(ldwn, 95) < base.TrueSensorThickness(ldwn, 95) - 5);
+  DOUBLES_EQUAL(base.TrueSensorThickness(ldwn, 10), grad.TrueSensorThickness(ldwn, 10), 1e-9);
+  // Feed segregation: the feed side (theta_f) wears more than the far side.
+  const auto feed = with("feed_segregation:amplitude=0.2,theta_deg=45");
+  CHECK(120 - feed.TrueSensorThickness(ldwn, 95) > 1.3 * (120 - feed.TrueSensorThickness(Index(base, "1009"), 95)));
+  // Squeeze adds wear; material loss steps one place down at once.
+  CHECK(with("squeeze_wear:beta=0.3").TrueSensorThickness(ldwn, 95) < base.TrueSensorThickness(ldwn, 95) - 2);
+  const auto loss = with("material_loss:depth_mm=10,day=40,sensor_index=6");
+  CHECK(loss.TrueSensorThickness(6, 39.9) - loss.TrueSensorThickness(6, 40.1) > 9.5);
+  // Throughput variation: operations.csv varies and wear stops during stops.
+  const auto tp = with("throughput_variation:amplitude=0.5");
+  double lo = 1e9, hi = 0;
+  for (const auto& o : tp.operations()) {
+    lo = std::min(lo, o.throughput_tph);
+    hi = std::max(hi, o.throughput_tph);
+  }
+  DOUBLES_EQUAL(0.0, lo, 1e-9);
+  CHECK(hi > 4000);
+}
+
+TEST(SimCampaign, FaultsShowInTheReadings) {
+  CampaignSpec s = Small();
+  s.faults = {{"1005", "stuck", 30, 0}, {"1008", "crack", 20, 4}, {"1003", "dropout", 10, 5}};
+  const auto c = GenerateCampaign(s, 2);
+  const auto t0 = c.crusher().installed_at;
+  double last_stuck = -1;
+  bool gap = true;
+  for (const auto& r : c.readings()) {
+    const double day = core::DaysBetween(t0, r.time);
+    if (r.sensor_id == "1005" && day > 31) {
+      if (last_stuck >= 0) DOUBLES_EQUAL(last_stuck, r.thickness_mm, 1e-9);
+      last_stuck = r.thickness_mm;
+    }
+    if (r.sensor_id == "1003" && day > 10.1 && day < 14.9) gap = false;
+  }
+  CHECK(gap);
+  CHECK(last_stuck > 0);
+}
+
+TEST(SimCampaign, BundleReadsBackAndIsWrittenAtomically) {
+  const auto dir = std::filesystem::temp_directory_path() / ("lw-sim-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  const auto c = GenerateCampaign(Small(), 4);
+  c.WriteBundle(dir);
+  const core::Bundle b = core::LoadBundle(dir);
+  LONGS_EQUAL(c.readings().size(), b.readings.size());
+  LONGS_EQUAL(c.map().face_count(), b.map.face_count());
+  CHECK(b.map.has_normal_stress());
+  LONGS_EQUAL(1, b.scans.size());
+  CHECK(b.scans[0].points.size() > 2000);
+  CHECK(!b.operations.empty());
+  CHECK_THROWS(std::runtime_error, c.WriteBundle(dir));  // never overwrites a bundle
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SimCampaign, BadSpecsAreRefusedNamingTheField) {
+  CampaignSpec s = Small();
+  s.effects.push_back({"warp_drive", {}});
+  try {
+    GenerateCampaign(s, 1);
+    FAIL("expected invalid_argument");
+  } catch (const std::invalid_argument& e) {
+    CHECK(std::string(e.what()).find("warp_drive") != std::string::npos);
+  }
+  CHECK_THROWS(std::invalid_argument, sim::ParseFault("1001:stuck"));
+  CHECK_THROWS(std::invalid_argument, sim::ParseEffect("feed_segregation:amplitude=x"));
+  CHECK_THROWS(std::invalid_argument, sim::CampaignSpec::FromJson(nlohmann::json{{"dayz", 3}}));
+}
