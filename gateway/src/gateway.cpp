@@ -309,6 +309,9 @@ size_t Gateway::in_flight() const {
 }
 
 void Gateway::Pump(int64_t now_ms) {
+  // The wall clock may step back (NTP on a box without RTC): never wait longer than one period.
+  next_republish_check_ms_ = std::min(next_republish_check_ms_, now_ms + options_.republish_after_ms);
+  next_stats_ms_ = std::min(next_stats_ms_, now_ms + options_.stats_interval_ms);
   if (publisher_.IsConnected()) {
     if (devices_dirty_) PublishDevices(now_ms);
     if (records_dirty_ || now_ms >= next_republish_check_ms_) PublishRecords(now_ms);
@@ -347,7 +350,7 @@ void Gateway::PublishRecords(int64_t now_ms) {
     auto& sensor_flight = in_flight_[r.sensor];
     auto found = sensor_flight.find(r.seq);
     const bool first = found == sensor_flight.end();
-    if (!first && now_ms - found->second < options_.republish_after_ms) {
+    if (!first && found->second <= now_ms && now_ms - found->second < options_.republish_after_ms) {
       kept[r.sensor][r.seq] = found->second;
       next_due = std::min(next_due, found->second + options_.republish_after_ms);
       continue;

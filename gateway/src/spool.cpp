@@ -182,7 +182,13 @@ std::vector<int64_t> Spool::Confirm(const std::string& sensor, const std::vector
 std::vector<SpoolRecord> Spool::Heads(size_t per_sensor) const {
   std::vector<SpoolRecord> out;
   sqlite3* db = db_->handle;
-  Stmt sensors(db, path_, "SELECT sensor FROM records GROUP BY sensor ORDER BY MIN(id)");
+  // Distinct sensors by a loose index scan over UNIQUE(sensor, seq): one index seek per sensor,
+  // not a scan of the whole spool (a spool after a long outage holds hundreds of thousands).
+  Stmt sensors(db, path_,
+               "WITH RECURSIVE s(sensor) AS ("
+               " SELECT MIN(sensor) FROM records"
+               " UNION ALL SELECT (SELECT MIN(sensor) FROM records WHERE sensor > s.sensor) FROM s WHERE s.sensor IS NOT NULL)"
+               " SELECT sensor FROM s WHERE sensor IS NOT NULL");
   Stmt head(db, path_,
             "SELECT seq, received_ms, heartbeat, payload FROM records WHERE sensor = ?1 ORDER BY seq LIMIT ?2");
   while (sensors.Step()) {

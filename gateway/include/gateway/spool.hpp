@@ -61,7 +61,7 @@ class Spool {
   /// deleted (unknown pairs are ignored). Throws SpoolError.
   std::vector<int64_t> Confirm(const std::string& sensor, const std::vector<uint32_t>& seqs);
 
-  /// Per sensor, its `per_sensor` lowest-seq records, in seq order; sensors in id order.
+  /// Per sensor, its `per_sensor` lowest-seq records, in seq order; sensors in id order (text).
   std::vector<SpoolRecord> Heads(size_t per_sensor) const;
 
   size_t depth() const { return depth_; }

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -116,6 +117,8 @@ class FakeRadio : public ByteSink {
   std::vector<SentAck> acks;
   size_t other_frames = 0;
   bool fail = false;
+  /// Called before each write is accepted (e.g. to check the spool file at that moment).
+  std::function<void()> on_write;
 
   std::vector<uint32_t> AckedSeqs() const {
     std::vector<uint32_t> out;
@@ -124,6 +127,7 @@ class FakeRadio : public ByteSink {
   }
 
   bool Write(const uint8_t* data, size_t len) override {
+    if (on_write) on_write();
     if (fail) return false;
     for (size_t i = 0; i < len; ++i) {
       if (decoder_.Feed(data[i]) != protocol::DecodeEvent::kFrame) continue;
