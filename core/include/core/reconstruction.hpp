@@ -27,7 +27,7 @@ struct RowSummary {
 
 struct ReconstructionOptions {
   bool interpolate_between_rows = true;
-  double smoothing_radius_m = 0.0;  ///< 0 = no smoothing; else area-weighted mean over neighbours
+  double smoothing_radius_m = 0.15;  ///< DEM per-face noise: area-weighted mean within this radius (0 = off)
   bool interval_centre = true;      ///< use thickness + 0.5 mm (centre of [n, n+1)) as the estimate
 };
 
