@@ -16,11 +16,13 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/bundle.hpp"
 #include "diagnosis/diagnose.hpp"
+#include "sim/campaign.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
 
 namespace {
@@ -32,7 +34,31 @@ struct Case {
   std::string level;   // weak / moderate / strong / - 
   double param = 0;    // true value of the effect's main parameter
   lw::test::SyntheticSpec spec;
+  // --generator sim: the independent campaign generator (sim/), whose effect forms differ from the
+  // diagnosis' hypotheses; its truth gives the thickness at the withheld date.
+  lw::sim::CampaignSpec sim;
+  uint64_t sim_seed = 0;
+  std::string stuck_sensor;
 };
+
+void ApplySim(const std::string& effect, int level, uint64_t seed, lw::sim::CampaignSpec& s, double& param) {
+  static const std::map<std::string, std::vector<double>> kLevels = {
+      {"work_hardening", {0.15, 0.3, 0.5}},     {"hardness_gradient", {0.1, 0.2, 0.35}},
+      {"squeeze_wear", {0.1, 0.25, 0.5}},       {"profile_evolution", {0.3, 0.6, 1.2}},
+      {"feed_segregation", {0.05, 0.1, 0.2}},   {"throughput_variation", {0.2, 0.4, 0.6}},
+      {"material_loss", {4.0, 8.0, 15.0}}};
+  const double v = kLevels.at(effect)[static_cast<size_t>(level)];
+  param = v;
+  lw::sim::EffectSpec e{effect, {}};
+  if (effect == "work_hardening") e.params = {{"h", v}, {"tau_days", 3.0 + 3.0 * static_cast<double>(seed % 4)}};
+  else if (effect == "hardness_gradient") e.params = {{"c", v}, {"onset_mm", 15.0 + 10.0 * static_cast<double>(seed % 3)}, {"width_mm", 25}};
+  else if (effect == "squeeze_wear") e.params = {{"beta", v}};
+  else if (effect == "profile_evolution") e.params = {{"p", v}};
+  else if (effect == "feed_segregation") e.params = {{"amplitude", v}, {"theta_deg", 20.0 + 67.0 * static_cast<double>(seed % 5)}};
+  else if (effect == "throughput_variation") e.params = {{"amplitude", v}};
+  else if (effect == "material_loss") e.params = {{"depth_mm", v}, {"day", 20.0 + 8.0 * static_cast<double>(seed % 5)}, {"sensor_index", seed % 2 ? 6.0 : 3.0}};
+  s.effects.push_back(e);
+}
 
 const std::vector<std::string> kEffects = {"work_hardening",   "hardness_gradient",    "squeeze_wear",
                                            "profile_evolution", "feed_segregation",    "throughput_variation",
@@ -92,17 +118,24 @@ double Median(std::vector<double> v) {
 int main(int argc, char** argv) {
   int max_cases = 1 << 30;
   unsigned seed0 = 1;
-  std::string keep;
+  std::string keep, generator = "test";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--cases" && i + 1 < argc) max_cases = std::stoi(argv[++i]);
+    if (a == "--generator" && i + 1 < argc) generator = argv[++i];
+    else if (a == "--cases" && i + 1 < argc) max_cases = std::stoi(argv[++i]);
     else if (a == "--seed" && i + 1 < argc) seed0 = static_cast<unsigned>(std::stoul(argv[++i]));
     else if (a == "--keep" && i + 1 < argc) keep = argv[++i];
     else {
-      std::fprintf(stderr, "usage: lw_bench_diagnosis [--cases N] [--seed S] [--keep DIR]\n");
+      std::fprintf(stderr, "usage: lw_bench_diagnosis [--generator test|sim] [--cases N] [--seed S] [--keep DIR]\n");
       return 2;
     }
   }
+  if (generator != "test" && generator != "sim") {
+    std::fprintf(stderr, "lw_bench_diagnosis: --generator must be test or sim\n");
+    return 2;
+  }
+  const bool use_sim = generator == "sim";
+  std::printf("generator: %s\n", use_sim ? "sim (independent campaign generator, sim/)" : "test forward model (the diagnosis' own forms)");
 
   // Case list.
   std::vector<Case> cases;
@@ -117,6 +150,9 @@ int main(int argc, char** argv) {
         c.spec.seed = seed++;
         c.spec.with_scan = rep != 3;  // one in five without a scan: sensors only
         Apply(e, level, c.spec, c.param);
+        c.sim_seed = c.spec.seed;
+        c.sim.write_scan = rep != 3;
+        if (use_sim) ApplySim(e, level, c.sim_seed, c.sim, c.param);
         cases.push_back(c);
       }
     }
@@ -134,6 +170,11 @@ int main(int argc, char** argv) {
       double dummy;
       Apply(p.first, 1, c.spec, c.param);
       Apply(p.second, 1, c.spec, dummy);
+      c.sim_seed = c.spec.seed;
+      if (use_sim) {
+        ApplySim(p.first, 1, c.sim_seed, c.sim, c.param);
+        ApplySim(p.second, 1, c.sim_seed, c.sim, dummy);
+      }
       cases.push_back(c);
     }
   }
@@ -146,6 +187,10 @@ int main(int argc, char** argv) {
     c.spec.with_operations = rep % 2 == 0;
     c.spec.with_normal_stress = rep % 5 != 4;
     c.spec.map_noise = 0.03 + 0.02 * (rep % 4);
+    c.sim_seed = c.spec.seed;
+    c.sim.write_scan = c.spec.with_scan;
+    c.sim.write_operations = c.spec.with_operations;
+    c.sim.dem_noise = 0.04 + 0.02 * (rep % 4);
     cases.push_back(c);
   }
   for (int rep = 0; rep < 20; ++rep) {
@@ -155,12 +200,17 @@ int main(int argc, char** argv) {
     c.spec.seed = seed++;
     c.spec.stuck_sensor = (rep % 3 == 0) ? "LDWN-1" : (rep % 3 == 1 ? "LMID-4" : "LUP-2");
     c.spec.stuck_from_day = 25.0 + 3.0 * (rep % 10);
+    c.sim_seed = c.spec.seed;
+    c.stuck_sensor = use_sim ? (rep % 3 == 0 ? "1007" : (rep % 3 == 1 ? "1004" : "1001")) : c.spec.stuck_sensor;
+    c.sim.faults.push_back({c.stuck_sensor, "stuck", c.spec.stuck_from_day, 0});
     cases.push_back(c);
   }
   if (static_cast<int>(cases.size()) > max_cases) cases.resize(static_cast<size_t>(max_cases));
   for (Case& c : cases) {
     c.spec.days = 90;
     c.spec.scan_day = 70;
+    c.sim.days = 90;
+    c.sim.scan_day = 70;
   }
   const double withheld_after_days = 70, predict_day = 90;
 
@@ -176,15 +226,27 @@ int main(int argc, char** argv) {
   for (size_t k = 0; k < cases.size(); ++k) {
     const Case& c = cases[k];
     const auto dir = tmp / ("case_" + std::to_string(k));
-    lw::test::WriteSyntheticBundle(dir, c.spec);
+    std::map<std::string, std::pair<lw::core::TimePoint, double>> truth_at;
+    std::optional<lw::sim::Campaign> campaign;
+    if (use_sim) {
+      campaign.emplace(lw::sim::GenerateCampaign(c.sim, c.sim_seed));
+      campaign->WriteBundle(dir);
+    } else {
+      lw::test::WriteSyntheticBundle(dir, c.spec);
+    }
     lw::core::Bundle bundle = lw::core::LoadBundle(dir);
     const auto t_cut = lw::core::AddDays(bundle.crusher.installed_at, withheld_after_days);
     const auto t_pred = lw::core::AddDays(bundle.crusher.installed_at, predict_day);
-    // Truth at the withheld date: the last reading at or before it (+ 0.5 mm, the interval centre).
-    std::map<std::string, std::pair<lw::core::TimePoint, double>> truth_at;
-    for (const auto& r : bundle.readings)
-      if (r.time <= t_pred && (!truth_at.count(r.sensor_id) || r.time >= truth_at[r.sensor_id].first))
-        truth_at[r.sensor_id] = {r.time, r.thickness_mm + 0.5};
+    if (campaign) {
+      // Truth at the withheld date from the generator itself.
+      for (size_t i = 0; i < bundle.crusher.sensors.size(); ++i)
+        truth_at[bundle.crusher.sensors[i].id] = {t_pred, campaign->TrueSensorThickness(i, predict_day)};
+    } else {
+      // Truth at the withheld date: the last reading at or before it (+ 0.5 mm, the interval centre).
+      for (const auto& r : bundle.readings)
+        if (r.time <= t_pred && (!truth_at.count(r.sensor_id) || r.time >= truth_at[r.sensor_id].first))
+          truth_at[r.sensor_id] = {r.time, r.thickness_mm + 0.5};
+    }
     std::erase_if(bundle.readings, [&](const lw::core::Reading& r) { return r.time > t_cut; });
     std::erase_if(bundle.operations, [&](const lw::core::OperationsSample& o) { return o.time > t_pred; });
 
@@ -221,7 +283,7 @@ int main(int argc, char** argv) {
       ++fault_total;
       bool flagged = false;
       for (const auto& d : r.data_quality)
-        if (d.sensor_id == c.spec.stuck_sensor && d.issue == "stuck") flagged = true;
+        if (d.sensor_id == c.stuck_sensor && d.issue == "stuck") flagged = true;
       if (flagged && r.findings.empty()) ++fault_ok;
     } else if (c.truth.find('+') != std::string::npos) {
       ++pair_total;
