@@ -104,7 +104,9 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
     const int rc = im.pending_connect->get_return_code();
     im.pending_connect.reset();
     if (rc != 0 || !im.connected) {
-      out.push_back({LinkEvent::Kind::kDisconnected, "", "connect to " + im.options.uri + " failed (code " + std::to_string(rc) + ")"});
+      out.push_back({LinkEvent::Kind::kDisconnected, "", "connect to " + im.options.uri + " failed: " + mqtt::exception::error_str(rc) +
+                                                                " (code " + std::to_string(rc) + "); retrying in " +
+                                                                std::to_string(im.backoff_ms) + " ms"});
       im.next_attempt_ms = now_ms + im.backoff_ms;
       im.backoff_ms = std::min(im.backoff_ms * 2, im.options.reconnect_max_ms);
     } else {

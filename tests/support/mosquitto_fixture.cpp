@@ -90,6 +90,24 @@ int ChildProcess::Stop(int signal, std::chrono::milliseconds timeout) {
 
 void ChildProcess::Kill() { Stop(SIGKILL); }
 
+int ChildProcess::Wait(std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (Running()) {
+    if (std::chrono::steady_clock::now() >= deadline) {
+      Kill();
+      return -1;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return WIFEXITED(status_) ? WEXITSTATUS(status_) : -1;
+}
+
+int RunCommand(const std::vector<std::string>& argv, const std::string& log_file) {
+  ChildProcess p;
+  p.Start(argv, log_file);
+  return p.Wait();
+}
+
 int FreeLoopbackPort() {
   const int s = socket(AF_INET, SOCK_STREAM, 0);
   if (s < 0) throw std::runtime_error("socket failed");
@@ -136,10 +154,32 @@ std::string MosquittoBinary() {
 
 MosquittoFixture::MosquittoFixture(Options options)
     : options_(std::move(options)), dir_("lw-mosquitto"), port_(FreeLoopbackPort()) {
+  const std::string setup_log = dir_.File("setup.log");
+  auto run = [&](const std::vector<std::string>& argv) {
+    if (RunCommand(argv, setup_log) != 0) {
+      throw std::runtime_error("MosquittoFixture: '" + argv[0] + " " + argv[1] + "' failed: " + FileTail(setup_log));
+    }
+  };
   std::ofstream conf(dir_.File("mosquitto.conf"));
-  conf << "listener " << port_ << " 127.0.0.1\n"
-       << "allow_anonymous true\n"
-       << "log_dest stderr\n"
+  conf << "listener " << port_ << " 127.0.0.1\n";
+  if (options_.tls) {
+    const std::string d = dir_.path() + "/";
+    std::ofstream(d + "san.ext") << "subjectAltName=IP:127.0.0.1,DNS:localhost\n";
+    run({"openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes", "-keyout",
+         d + "ca.key", "-out", d + "ca.pem", "-days", "2", "-subj", "/CN=linerwatch test CA"});
+    run({"openssl", "req", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes", "-keyout",
+         d + "server.key", "-out", d + "server.csr", "-subj", "/CN=127.0.0.1"});
+    run({"openssl", "x509", "-req", "-in", d + "server.csr", "-CA", d + "ca.pem", "-CAkey", d + "ca.key",
+         "-CAcreateserial", "-out", d + "server.pem", "-days", "2", "-extfile", d + "san.ext"});
+    conf << "cafile " << d << "ca.pem\ncertfile " << d << "server.pem\nkeyfile " << d << "server.key\n";
+  }
+  if (!options_.username.empty()) {
+    run({"mosquitto_passwd", "-b", "-c", dir_.File("passwords"), options_.username, options_.password});
+    conf << "allow_anonymous false\npassword_file " << dir_.File("passwords") << "\n";
+  } else {
+    conf << "allow_anonymous true\n";
+  }
+  conf << "log_dest stderr\n"
        << "log_type error\nlog_type warning\nlog_type notice\n";
   // Started as root, mosquitto would switch to user "mosquitto", who cannot write our temp dir.
   if (const passwd* pw = getpwuid(geteuid())) conf << "user " << pw->pw_name << "\n";
@@ -155,7 +195,9 @@ MosquittoFixture::MosquittoFixture(Options options)
 
 MosquittoFixture::~MosquittoFixture() { process_.Kill(); }
 
-std::string MosquittoFixture::uri() const { return "tcp://127.0.0.1:" + std::to_string(port_); }
+std::string MosquittoFixture::uri() const {
+  return (options_.tls ? "ssl://127.0.0.1:" : "tcp://127.0.0.1:") + std::to_string(port_);
+}
 
 void MosquittoFixture::Start() {
   if (process_.Running()) return;

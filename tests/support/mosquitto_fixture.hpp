@@ -47,6 +47,9 @@ class ChildProcess {
   int Stop(int signal, std::chrono::milliseconds timeout = std::chrono::seconds(5));
   /// SIGKILL and reap. No-op when not running.
   void Kill();
+  /// Waits up to `timeout` for the child to exit by itself; returns its exit code, or -1 when it
+  /// was killed (after the timeout) or died by a signal.
+  int Wait(std::chrono::milliseconds timeout = std::chrono::seconds(30));
   pid_t pid() const { return pid_; }
   /// Wait status after the child exited (from waitpid), -1 before.
   int status() const { return status_; }
@@ -65,13 +68,24 @@ bool PortAccepts(int port);
 /// Last `max_bytes` of a text file ("" when missing), for failure messages.
 std::string FileTail(const std::string& path, size_t max_bytes = 2000);
 
+/// Runs a command to completion (output appended to `log_file`); returns its exit code, -1 when it
+/// did not finish within 30 s or died by a signal.
+int RunCommand(const std::vector<std::string>& argv, const std::string& log_file);
+
 /// The broker binary: $LW_MOSQUITTO, else /usr/sbin/mosquitto, else "mosquitto" on PATH.
+/// (mosquitto_passwd and openssl are looked up on PATH.)
 std::string MosquittoBinary();
 
 class MosquittoFixture {
  public:
   struct Options {
     bool persistence = false;   ///< persistence true + autosave every second in the temp dir
+    /// TLS listener: a throw-away CA and a server certificate for 127.0.0.1 are made with the
+    /// openssl CLI in the temp dir; clients trust ca_file(). uri() becomes ssl://.
+    bool tls = false;
+    /// When set, clients must log in with these (password file made with mosquitto_passwd).
+    std::string username;
+    std::string password;
     std::string extra_config;   ///< appended to mosquitto.conf verbatim
   };
   MosquittoFixture() : MosquittoFixture(Options{}) {}
@@ -94,8 +108,10 @@ class MosquittoFixture {
   bool running() { return process_.Running(); }
 
   int port() const { return port_; }
-  /// "tcp://127.0.0.1:PORT".
+  /// "tcp://127.0.0.1:PORT" ("ssl://..." with tls).
   std::string uri() const;
+  /// The CA certificate clients trust (tls only).
+  std::string ca_file() const { return dir_.File("ca.pem"); }
   /// The temp dir holding mosquitto.conf, mosquitto.log and the persistence database.
   const std::string& dir() const { return dir_.path(); }
   std::string log_file() const { return dir_.File("mosquitto.log"); }

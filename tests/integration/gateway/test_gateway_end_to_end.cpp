@@ -21,6 +21,7 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <mqtt/async_client.h>
@@ -177,7 +178,9 @@ class SensorSite {
 // watch the gateway's status and stats. Its own thread; reconnects whenever the broker is back.
 class TestServer {
  public:
-  explicit TestServer(const std::string& uri) : client_(uri, "lw-it-server", nullptr) {
+  TestServer(const std::string& uri, std::string ca_file, std::string username, std::string password)
+      : client_(uri, "lw-it-server", nullptr), ca_file_(std::move(ca_file)), username_(std::move(username)),
+        password_(std::move(password)) {
     client_.start_consuming();
     thread_ = std::thread([this] { Run(); });
   }
@@ -209,6 +212,15 @@ class TestServer {
           mqtt::connect_options opts;
           opts.set_clean_session(true);
           opts.set_connect_timeout(1);
+          if (!ca_file_.empty()) {
+            mqtt::ssl_options ssl;
+            ssl.set_trust_store(ca_file_);
+            opts.set_ssl(ssl);
+          }
+          if (!username_.empty()) {
+            opts.set_user_name(username_);
+            opts.set_password(password_);
+          }
           client_.connect(opts)->wait_for(std::chrono::seconds(2));
           client_.subscribe(std::string(kRoot) + "sensors/+/reading", 1)->wait_for(std::chrono::seconds(2));
           client_.subscribe(std::string(kRoot) + "gateway/#", 1)->wait_for(std::chrono::seconds(2));
@@ -247,6 +259,9 @@ class TestServer {
   }
 
   mqtt::async_client client_;
+  std::string ca_file_;
+  std::string username_;
+  std::string password_;
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::mutex mutex_;
@@ -267,18 +282,29 @@ size_t Distinct(const TestServer::View& v) {
   return n;
 }
 
-Outcome RunScenario(bool persistence, Disruption disruption) {
-  lw::test::MosquittoFixture broker({persistence, ""});
+Outcome RunScenario(bool persistence, Disruption disruption, bool tls_and_login = false) {
+  lw::test::MosquittoFixture::Options broker_options;
+  broker_options.persistence = persistence;
+  if (tls_and_login) {
+    broker_options.tls = true;
+    broker_options.username = "gw-user";
+    broker_options.password = "s3cret pass";
+  }
+  lw::test::MosquittoFixture broker(broker_options);
   broker.Start();
   lw::test::TempDirectory dir("lw-gateway-it");
   SensorSite site;
-  TestServer server(broker.uri());
+  TestServer server(broker.uri(), tls_and_login ? broker.ca_file() : "", broker_options.username, broker_options.password);
   lw::test::ChildProcess gateway;
-  const std::vector<std::string> args = {
+  std::vector<std::string> args = {
       LW_GATEWAY_BIN,  "--serial", site.slave_name(), "--baud", "115200", "--api-mode", "2",
       "--broker", broker.uri(), "--site", "s1", "--crusher", "c1", "--spool", dir.File("spool.db"),
       "--gateway-id", "gw-it", "--republish-after", "1.5", "--stats-interval", "0.3",
       "--reconnect-min", "0.1", "--reconnect-max", "0.5"};
+  if (tls_and_login) {
+    args.insert(args.end(), {"--tls-ca", broker.ca_file(), "--username", broker_options.username, "--password",
+                             broker_options.password});
+  }
   const std::string gateway_log = dir.File("gateway.log");
   gateway.Start(args, gateway_log);
 
@@ -390,4 +416,10 @@ TEST(GatewayEndToEnd, GatewayKilledWithSigkillAndRestartedOnItsSpool) {
     if (st[i] == "offline" && st.back() == "online") offline_then_online = true;
   }
   CHECK_TRUE(offline_then_online);
+}
+
+TEST(GatewayEndToEnd, TlsWithLoginAndBrokerKilledMidStream) {
+  const Outcome out = RunScenario(false, Disruption::kKillBroker, /*tls_and_login=*/true);
+  CHECK_TRUE(out.disrupted_mid_stream);
+  CheckComplete(out);
 }
