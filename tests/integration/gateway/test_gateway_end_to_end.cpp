@@ -8,6 +8,7 @@
 #include <poll.h>
 #include <pty.h>
 #include <termios.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -274,6 +275,7 @@ struct Outcome {
   TestServer::View view;
   bool disrupted_mid_stream = false;
   std::string failure;
+  std::string shutdown_failure;  // SIGTERM must end the gateway cleanly with exit status 0
 };
 
 size_t Distinct(const TestServer::View& v) {
@@ -355,7 +357,11 @@ Outcome RunScenario(bool persistence, Disruption disruption, bool tls_and_login 
     }
     SleepMs(5);
   }
-  gateway.Stop(SIGTERM);
+  const int status = gateway.Stop(SIGTERM);
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    out.shutdown_failure = "gateway did not exit cleanly on SIGTERM (wait status " + std::to_string(status) + "):\n" +
+                           lw::test::FileTail(gateway_log);
+  }
   if (std::getenv("LW_IT_VERBOSE")) {
     std::fprintf(stderr, "\n[scenario took %lld ms, disruption at +%lld ms]\n%s\n", static_cast<long long>(NowMs() - start),
                  static_cast<long long>(disrupted_at < 0 ? -1 : disrupted_at - start), lw::test::FileTail(gateway_log, 6000).c_str());
@@ -366,6 +372,7 @@ Outcome RunScenario(bool persistence, Disruption disruption, bool tls_and_login 
 // Every record of every sensor arrived, and each sensor's records were first seen in seq order.
 void CheckComplete(const Outcome& out) {
   CHECK_TRUE_TEXT(out.failure.empty(), out.failure.c_str());
+  CHECK_TRUE_TEXT(out.shutdown_failure.empty(), out.shutdown_failure.c_str());
   LONGS_EQUAL(kSensors, out.view.arrivals.size());
   for (const auto& [sensor, seqs] : out.view.arrivals) {
     std::vector<uint32_t> first_seen;
