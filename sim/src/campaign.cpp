@@ -490,12 +490,14 @@ void Campaign::Integrate(double to_day) const {
   const auto ns = sensor_now_.size();
   const double dt = 1.0 / 24.0;
 
+  auto ProfileShift = [&](double day) { return profile ? Param(*profile, "p", 0.6) * 0.15 * day / s.reference_day : 0.0; };
+  double profile_norm = 1.0;
   auto rate = [&](double zeta, double theta, double normal, double d, double day, double q) {
     double w = Abrasion(zeta);
     if (profile) {
-      // The worn chamber nips rock higher up: the wear profile slides up the liner.
-      const double shift = Param(*profile, "p", 0.6) * 0.15 * day / s.reference_day;
-      w = Abrasion(zeta - shift);
+      // The worn chamber nips rock higher up: the wear profile slides up the liner. The same
+      // tonnage does the same total work, so the shifted profile keeps the liner-mean intensity.
+      w = Abrasion(zeta - ProfileShift(day)) * profile_norm;
     }
     double m = 1.0;
     if (hard) {
@@ -518,6 +520,15 @@ void Campaign::Integrate(double to_day) const {
   for (long h = hours_done_; h < target; ++h) {
     const double day = static_cast<double>(h) / 24.0;
     const double q = static_cast<size_t>(h) < throughput_q_.size() ? throughput_q_[static_cast<size_t>(h)] : 1.0;
+    if (profile) {
+      double a0 = 0, a1 = 0;
+      for (int i = 0; i < 60; ++i) {
+        const double zeta = (i + 0.5) / 60.0;
+        a0 += Abrasion(zeta);
+        a1 += Abrasion(zeta - ProfileShift(day));
+      }
+      profile_norm = a0 / a1;
+    }
     for (Eigen::Index i = 0; i < face_now_.size(); ++i) {
       face_now_[i] += dt * rate(map_.z[i] / s.height_m, map_.theta_deg[i], normal_[i], face_now_[i], day, q);
     }
