@@ -1,0 +1,89 @@
+// The linerwatch-gateway program's command-line contract (CONTRACTS §2): --help, a non-zero exit
+// with one line naming what was wrong, and no spool file left behind on bad input.
+#include <unistd.h>
+
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "support/mosquitto_fixture.hpp"
+
+// CppUTest last: its new/delete macros break standard headers included after it.
+#include <CppUTest/TestHarness.h>
+
+namespace {
+
+struct Result {
+  int exit_code;
+  std::string output;
+};
+
+Result Run(lw::test::TempDirectory& dir, const std::vector<std::string>& args) {
+  std::vector<std::string> argv{LW_GATEWAY_BIN};
+  argv.reserve(args.size() + 1);
+  for (const std::string& a : args) argv.push_back(a);
+  const std::string log = dir.File("out.log");
+  std::remove(log.c_str());
+  const int rc = lw::test::RunCommand(argv, log);
+  return {rc, lw::test::FileTail(log, 100000)};
+}
+
+size_t Lines(const std::string& s) {
+  size_t n = 0;
+  for (char c : s) n += c == '\n';
+  return n;
+}
+
+}  // namespace
+
+TEST_GROUP(GatewayCommandLine) {
+  lw::test::TempDirectory dir{"lw-gateway-cli"};
+  std::vector<std::string> Valid() {
+    return {"--serial", "/dev/null", "--broker", "tcp://127.0.0.1:1", "--site", "s", "--crusher", "c",
+            "--spool", dir.File("spool.db")};
+  }
+};
+
+TEST(GatewayCommandLine, HelpExitsZeroAndListsTheContractFlags) {
+  const Result r = Run(dir, {"--help"});
+  LONGS_EQUAL(0, r.exit_code);
+  for (const char* flag : {"--serial", "--baud", "--api-mode", "--broker", "--site", "--crusher", "--spool",
+                           "--username", "--password", "--config", "--tls-ca", "--gateway-id"}) {
+    CHECK_TEXT(r.output.find(flag) != std::string::npos, flag);
+  }
+}
+
+TEST(GatewayCommandLine, BadInputExitsNonZeroWithOneLineAndNoSpool) {
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--serial", "/dev/null"}, "--broker is required"},
+      {{"--api-mode", "3"}, "--api-mode"},
+      {{"--baud", "1000"}, "--baud"},
+      {{"--broker", "127.0.0.1:1883"}, "--broker"},
+      {{"--serial", dir.File("no-such-tty")}, "does not exist"},
+      {{"--config", dir.File("missing.json")}, "cannot be read"},
+      {{"--frobnicate", "1"}, "unknown option --frobnicate"},
+  };
+  for (const auto& [change, expected] : cases) {
+    std::vector<std::string> args = Valid();
+    if (change.size() == 2 && change[0] == "--serial" && change[1] == "/dev/null") {
+      args = {"--serial", "/dev/null", "--site", "s", "--crusher", "c", "--spool", dir.File("spool.db")};
+    } else {
+      args.insert(args.end(), change.begin(), change.end());
+    }
+    const Result r = Run(dir, args);
+    CHECK_TEXT(r.exit_code != 0, expected.c_str());
+    CHECK_TEXT(r.output.find(expected) != std::string::npos, (expected + " not in: " + r.output).c_str());
+    LONGS_EQUAL_TEXT(1, Lines(r.output), r.output.c_str());
+    CHECK_TEXT(access(dir.File("spool.db").c_str(), F_OK) != 0, "spool file created on bad input");
+  }
+}
+
+TEST(GatewayCommandLine, JsonConfigErrorsNameFileAndKey) {
+  const std::string file = dir.File("gw.json");
+  std::ofstream(file) << R"({"serial": "/dev/null", "broker": "tcp://127.0.0.1:1", "site": "s", "crusher": "c",
+                            "spool": ")" << dir.File("spool.db") << R"(", "baud": "fast"})";
+  const Result r = Run(dir, {"--config", file});
+  CHECK(r.exit_code == 2);
+  CHECK_TEXT(r.output.find(file) != std::string::npos && r.output.find("'baud'") != std::string::npos, r.output.c_str());
+}
