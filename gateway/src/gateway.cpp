@@ -90,7 +90,7 @@ void Gateway::OnFrame(const uint8_t* frame, size_t len, int64_t now_ms) {
       d.node_identifier = ni.node_identifier;
       d.device_type = ni.device_type;
       d.first_seen_ms = now_ms;
-      NoteDevice(d, now_ms);
+      NoteDevice(d);
       return;
     }
     case protocol::FrameType::kTransmitStatus: {
@@ -197,7 +197,7 @@ void Gateway::OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms) 
   d.address = source;
   d.sensor = sensor;
   d.first_seen_ms = now_ms;
-  NoteDevice(d, now_ms);
+  NoteDevice(d);
 }
 
 void Gateway::SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, const std::vector<uint32_t>& seqs) {
@@ -231,7 +231,7 @@ void Gateway::SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, cons
   }
 }
 
-void Gateway::NoteDevice(const DeviceEntry& device, int64_t now_ms) {
+void Gateway::NoteDevice(const DeviceEntry& device) {
   const std::string key = device.address + "/" + device.sensor;
   // Sensors are checked in memory on every frame; the database is touched only for news.
   if (!device.sensor.empty() && known_devices_.count(key)) return;
@@ -248,7 +248,6 @@ void Gateway::NoteDevice(const DeviceEntry& device, int64_t now_ms) {
   Log("registry: " + (device.sensor.empty() ? std::string("node") : "sensor " + device.sensor) + " at " + device.address +
       (device.node_identifier.empty() ? "" : " \"" + device.node_identifier + "\""));
   devices_dirty_ = true;
-  (void)now_ms;
 }
 
 void Gateway::OnConnected(int64_t now_ms) {

@@ -95,7 +95,7 @@ class Gateway {
   void OnFrame(const uint8_t* frame, size_t len, int64_t now_ms);
   void OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms);
   void SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, const std::vector<uint32_t>& seqs);
-  void NoteDevice(const DeviceEntry& device, int64_t now_ms);
+  void NoteDevice(const DeviceEntry& device);
   void PublishRecords(int64_t now_ms);
   void PublishDevices(int64_t now_ms);
   /// Logs the first few events of a kind, then every 1000th, so a noisy radio cannot fill the disk.
