@@ -107,6 +107,12 @@ void App::Sample(uint32_t now) {
   }
   const uint16_t faults = flags & kFaultFlags;
   if (faults) ++stats_.ladder_faults;
+  // No record before the first valid sample: a thickness of "unknown" would read as 0 mm
+  // downstream. The boot flag and any fault ride on the first valid record.
+  if (reported_loops_ == 0xFF) {
+    pending_flags_ = static_cast<uint16_t>(pending_flags_ | faults);
+    return;
+  }
   const bool new_fault = (faults & ~last_fault_flags_) != 0;
   last_fault_flags_ = faults;
   const bool heartbeat_due = !have_queued_ || now - last_queued_s_ >= config_.heartbeat_period_s;

@@ -251,3 +251,18 @@ TEST(FirmwareApp, LowBatteryIsFlagged) {
   CHECK(recs.back().flags & protocol::kFlagLowBattery);
   LONGS_EQUAL(3100, recs.back().battery_mv);
 }
+
+TEST(FirmwareApp, NoRecordBeforeTheFirstValidLadderRead) {
+  Rig rig;
+  rig.board.ladder.SetTransferFails(true);  // ladder cable not yet connected at boot
+  rig.RunUntil(3600);
+  LONGS_EQUAL(0, rig.gateway.records.size());
+  rig.board.ladder.SetTransferFails(false);
+  rig.board.ladder.SetIntactCount(88);
+  rig.RunUntil(7200);
+  CHECK(!rig.gateway.records.empty());
+  const auto& first = rig.gateway.records.begin()->second;
+  LONGS_EQUAL(88, first.loops_intact);
+  CHECK(first.flags & protocol::kFlagBoot);
+  CHECK(first.flags & protocol::kFlagSpiStuck);  // the early failures are reported, not lost
+}

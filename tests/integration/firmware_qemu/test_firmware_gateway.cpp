@@ -1,0 +1,178 @@
+// The firmware image under qemu-system-arm talks to the real linerwatch-gateway: its UART0 (the
+// sensor's XBee) is bridged by this test, acting as the radio link, to a pty that the gateway opens
+// as its coordinator port; the gateway publishes the readings on a real mosquitto and sends its acks
+// back over the same link. Checks the readings arrive on MQTT with the thickness the ladder shows,
+// and that the gateway's acks reach the firmware (its queue drains: retransmissions stop).
+#include <chrono>
+#include <csignal>
+#include <fcntl.h>
+#include <fstream>
+#include <map>
+#include <mqtt/async_client.h>
+#include <nlohmann/json.hpp>
+#include <pty.h>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <sys/wait.h>
+#include <termios.h>
+#include <thread>
+#include <unistd.h>
+#include <vector>
+
+#include "protocol/frame_decoder.hpp"
+#include "protocol/xbee_api.hpp"
+#include "support/mosquitto_fixture.hpp"
+
+#include <CppUTest/TestHarness.h>
+
+using namespace lw::protocol;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr uint64_t kSensorRadio = 0x0013A20000001001ull;
+
+int OpenRaw(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK);
+  if (fd < 0) return -1;
+  termios t{};
+  ::tcgetattr(fd, &t);
+  ::cfmakeraw(&t);
+  ::tcsetattr(fd, TCSANOW, &t);
+  return fd;
+}
+
+void WriteFrame(int fd, const uint8_t* frame, size_t len) {
+  uint8_t wire[kMaxWireFrame];
+  const size_t n = EncodeFrame(ApiMode::kEscaped, frame, len, wire, sizeof wire);
+  CHECK(::write(fd, wire, n) == static_cast<ssize_t>(n));
+}
+
+// Carries the RF payload of every 0x10 read from `from` to `to` as a 0x90 from `src64`; returns
+// how many frames it carried.
+int Relay(int from, FrameDecoder& dec, int to, uint64_t src64) {
+  uint8_t buf[512];
+  int carried = 0;
+  for (;;) {
+    const ssize_t n = ::read(from, buf, sizeof buf);
+    if (n <= 0) return carried;
+    for (ssize_t i = 0; i < n; ++i) {
+      if (dec.Feed(buf[i]) != DecodeEvent::kFrame) continue;
+      TransmitRequest req;
+      if (ParseTransmitRequest(dec.frame_data(), dec.frame_length(), &req) != Status::kOk) continue;
+      ReceivePacket rx;
+      rx.src64 = src64;
+      rx.src16 = 0x1234;
+      rx.options = 0x01;
+      rx.payload = req.payload;
+      rx.payload_len = req.payload_len;
+      uint8_t frame[kMaxFrameData];
+      size_t flen = 0;
+      if (BuildReceivePacket(rx, frame, sizeof frame, &flen) == Status::kOk) WriteFrame(to, frame, flen);
+      ++carried;
+    }
+  }
+}
+
+}  // namespace
+
+TEST_GROUP(FirmwareToGateway) {};
+
+TEST(FirmwareToGateway, ReadingsReachMqttAndGatewayAcksReachTheFirmware) {
+  lw::test::TempDirectory dir("lw-fw-gw");
+  lw::test::MosquittoFixture broker;
+  broker.Start();
+
+  // The firmware under QEMU: UART0 = its radio, UART1 = the ladder test path.
+  lw::test::ChildProcess qemu;
+  qemu.Start({"qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none", "-kernel", LW_FIRMWARE_ELF,
+              "-serial", "pty", "-serial", "pty"},
+             dir.File("qemu.log"));
+  std::string radio_path, ladder_path;
+  const std::regex re(R"((/dev/pts/\d+) \(label serial(\d)\))");
+  for (int i = 0; i < 200 && (radio_path.empty() || ladder_path.empty()); ++i) {
+    const std::string text = lw::test::FileTail(dir.File("qemu.log"), 4000);
+    for (std::sregex_iterator it(text.begin(), text.end(), re), end; it != end; ++it) {
+      ((*it)[2] == "0" ? radio_path : ladder_path) = (*it)[1];
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  const int fw_radio = OpenRaw(radio_path), ladder = OpenRaw(ladder_path);
+  CHECK_TEXT(fw_radio >= 0 && ladder >= 0, "QEMU ptys not found");
+
+  // The coordinator side: a pty whose slave the gateway opens.
+  int coord_master = -1, coord_slave = -1;
+  char slave_name[128] = {};
+  CHECK(::openpty(&coord_master, &coord_slave, slave_name, nullptr, nullptr) == 0);
+  termios t{};
+  ::tcgetattr(coord_master, &t);
+  ::cfmakeraw(&t);
+  ::tcsetattr(coord_master, TCSANOW, &t);
+  ::fcntl(coord_master, F_SETFL, O_NONBLOCK);
+
+  lw::test::ChildProcess gateway;
+  gateway.Start({LW_GATEWAY_BIN, "--serial", slave_name, "--api-mode", "2", "--broker", broker.uri(), "--site", "qemu",
+                 "--crusher", "c1", "--spool", dir.File("spool.db"), "--gateway-id", "gw-qemu", "--stats-interval", "5"},
+                dir.File("gateway.log"));
+
+  // The server's part: collect readings, confirm commits so the spool drains.
+  mqtt::async_client sub(broker.uri(), "fw-gw-test");
+  sub.start_consuming();
+  sub.connect()->wait_for(std::chrono::seconds(5));
+  sub.subscribe("linerwatch/v1/qemu/c1/sensors/+/reading", 1)->wait_for(std::chrono::seconds(5));
+
+  auto set_ladder = [&](int intact) {
+    uint8_t frame[2 + 13] = {0x55, 13};
+    for (int i = 0; i < intact; ++i) frame[2 + i / 8] = static_cast<uint8_t>(frame[2 + i / 8] | (1u << (i % 8)));
+    CHECK(::write(ladder, frame, sizeof frame) == static_cast<ssize_t>(sizeof frame));
+  };
+  FrameDecoder from_fw(ApiMode::kEscaped), from_gw(ApiMode::kEscaped);
+  std::map<uint32_t, double> readings;  // seq -> thickness_mm
+  int fw_frames = 0, gw_acks = 0, fw_frames_late = 0;
+  auto pump = [&](double seconds, int* counter) {
+    const auto end = Clock::now() + std::chrono::milliseconds(static_cast<int>(seconds * 1000));
+    while (Clock::now() < end) {
+      const int c = Relay(fw_radio, from_fw, coord_master, kSensorRadio);
+      fw_frames += c;
+      if (counter) *counter += c;
+      gw_acks += Relay(coord_master, from_gw, fw_radio, kCoordinatorAddress64);
+      mqtt::const_message_ptr msg;
+      while (sub.try_consume_message(&msg) && msg) {
+        const auto j = nlohmann::json::parse(msg->to_string());
+        readings[j.at("seq").get<uint32_t>()] = j.at("thickness_mm").get<double>();
+        sub.publish("linerwatch/v1/qemu/c1/sensors/" + j.at("sensor").get<std::string>() + "/committed",
+                    nlohmann::json{{"sensor", j.at("sensor")}, {"seqs", {j.at("seq")}}}.dump(), 1, false);
+        STRCMP_EQUAL("1001", j.at("sensor").get<std::string>().c_str());
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  };
+  set_ladder(84);
+  pump(4.0, nullptr);
+  for (int loops = 83; loops >= 81; --loops) {
+    set_ladder(loops);
+    pump(2.5, nullptr);
+  }
+  // Quiet period: with every record acked by the gateway, only heartbeats (every 5 s) go out.
+  pump(3.0, &fw_frames_late);
+
+  const std::string why = "gateway log:\n" + lw::test::FileTail(dir.File("gateway.log"));
+  CHECK_TEXT(fw_frames > 0, "the firmware sent no frame");
+  CHECK_TEXT(gw_acks > 0, why.c_str());
+  CHECK_TEXT(!readings.empty(), why.c_str());
+  std::map<double, bool> seen;
+  double last = 1e9;
+  for (const auto& [seq, mm] : readings) {  // in seq order: never thicker
+    CHECK(mm <= last);
+    last = mm;
+    seen[mm] = true;
+  }
+  for (double mm : {84.0, 83.0, 82.0, 81.0}) CHECK_TEXT(seen[mm], ("no reading of " + std::to_string(mm) + " mm; " + why).c_str());
+  CHECK_TEXT(fw_frames_late <= 2, "the firmware kept retransmitting: the gateway's acks did not reach it");
+  sub.disconnect()->wait_for(std::chrono::seconds(2));
+  ::close(coord_master);
+  ::close(coord_slave);
+  ::close(fw_radio);
+  ::close(ladder);
+}
