@@ -1,11 +1,15 @@
 // linerwatch-gateway: XBee coordinator serial port -> SQLite spool -> MQTT (docs/gateway.md).
 // One thread runs everything below; Paho's own threads only queue events for it (paho_link.cpp).
+#include <fcntl.h>
 #include <poll.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <csignal>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <memory>
 #include <string>
@@ -39,6 +43,18 @@ int Run(const lw::gateway::Config& config) {
   if (::access(config.serial.c_str(), F_OK) != 0) {
     std::fprintf(stderr, "linerwatch-gateway: error: --serial: %s does not exist\n", config.serial.c_str());
     return 2;
+  }
+  // One gateway per spool: a second instance would also steal bytes from the serial port. flock
+  // does not interfere with SQLite's POSIX locks; the descriptor stays open until exit (closing
+  // another descriptor of a SQLite file would drop SQLite's own locks).
+  const int lock_fd = ::open(config.spool.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0640);
+  if (lock_fd < 0) {
+    std::fprintf(stderr, "linerwatch-gateway: error: spool %s: cannot open: %s\n", config.spool.c_str(), std::strerror(errno));
+    return 1;
+  }
+  if (::flock(lock_fd, LOCK_EX | LOCK_NB) != 0) {
+    std::fprintf(stderr, "linerwatch-gateway: error: spool %s is in use by another linerwatch-gateway\n", config.spool.c_str());
+    return 1;
   }
   Spool spool(config.spool, config.spool_max_records);
   Log("spool " + config.spool + ": " + std::to_string(spool.depth()) + " records waiting for a commit ack");

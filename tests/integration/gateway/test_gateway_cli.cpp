@@ -1,6 +1,9 @@
 // The linerwatch-gateway program's command-line contract (CONTRACTS §2): --help, a non-zero exit
 // with one line naming what was wrong, and no spool file left behind on bad input.
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <csignal>
 
 #include <cstdio>
 #include <fstream>
@@ -86,4 +89,22 @@ TEST(GatewayCommandLine, JsonConfigErrorsNameFileAndKey) {
   const Result r = Run(dir, {"--config", file});
   CHECK(r.exit_code == 2);
   CHECK_TEXT(r.output.find(file) != std::string::npos && r.output.find("'baud'") != std::string::npos, r.output.c_str());
+}
+
+TEST(GatewayCommandLine, SecondGatewayOnTheSameSpoolIsRefused) {
+  lw::test::ChildProcess first;
+  std::vector<std::string> argv{LW_GATEWAY_BIN};
+  for (const std::string& a : Valid()) argv.push_back(a);
+  first.Start(argv, dir.File("first.log"));
+  // Wait until the first one has its spool (it logs the spool depth once the spool is open).
+  for (int i = 0; i < 500 && lw::test::FileTail(dir.File("first.log")).find("records waiting") == std::string::npos; ++i) {
+    usleep(10'000);
+  }
+  CHECK_TRUE(first.Running());
+  const Result second = Run(dir, Valid());
+  LONGS_EQUAL(1, second.exit_code);
+  CHECK_TEXT(second.output.find("in use") != std::string::npos, second.output.c_str());
+  CHECK_TRUE(first.Running());
+  first.Stop(SIGTERM);
+  CHECK(WIFEXITED(first.status()) && WEXITSTATUS(first.status()) == 0);
 }
