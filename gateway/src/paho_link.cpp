@@ -103,7 +103,8 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
   if (im.pending_connect && im.pending_connect->is_complete()) {
     const int rc = im.pending_connect->get_return_code();
     im.pending_connect.reset();
-    if (rc != 0 || !im.connected) {
+    // rc 0: connected (the connected handler may run just before or after the token completes).
+    if (rc != 0) {
       out.push_back({LinkEvent::Kind::kDisconnected, "", "connect to " + im.options.uri + " failed: " + mqtt::exception::error_str(rc) +
                                                                 " (code " + std::to_string(rc) + "); retrying in " +
                                                                 std::to_string(im.backoff_ms) + " ms"});
