@@ -13,8 +13,15 @@
 namespace lw::gateway {
 
 struct PahoLink::Impl {
+  // Declaration order matters for destruction: the client (last) goes first, so no Paho callback
+  // can run against the queue, the mutex or the wake descriptor after they are gone.
+  struct WakeFd {
+    int fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+    ~WakeFd() {
+      if (fd >= 0) close(fd);
+    }
+  };
   LinkOptions options;
-  mqtt::async_client client;
   mqtt::connect_options connect_options;
   std::mutex mutex;
   std::deque<LinkEvent> events;  // filled by Paho's threads, drained by Poll()
@@ -22,13 +29,15 @@ struct PahoLink::Impl {
   mqtt::token_ptr pending_connect;
   int64_t next_attempt_ms = 0;
   int64_t backoff_ms = 0;
-  int wake = -1;
+  WakeFd wake;
+  mqtt::async_client client;
 
-  explicit Impl(LinkOptions o)
-      : options(std::move(o)), client(options.uri, options.client_id, nullptr),
-        wake(eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {}
+  explicit Impl(LinkOptions o) : options(std::move(o)), client(options.uri, options.client_id, nullptr) {}
   ~Impl() {
-    if (wake >= 0) close(wake);
+    try {
+      client.disable_callbacks();
+    } catch (const std::exception&) {
+    }
   }
 
   void Push(LinkEvent e) {
@@ -37,7 +46,7 @@ struct PahoLink::Impl {
       events.push_back(std::move(e));
     }
     const uint64_t one = 1;
-    if (wake >= 0) (void)!write(wake, &one, sizeof one);
+    if (wake.fd >= 0) (void)!write(wake.fd, &one, sizeof one);
   }
 };
 
@@ -114,9 +123,9 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
       im.backoff_ms = im.options.reconnect_min_ms;
     }
   }
-  if (im.wake >= 0) {
+  if (im.wake.fd >= 0) {
     uint64_t count = 0;
-    (void)!read(im.wake, &count, sizeof count);
+    (void)!read(im.wake.fd, &count, sizeof count);
   }
   std::deque<LinkEvent> queued;
   {
@@ -176,7 +185,7 @@ bool PahoLink::DoPublish(const OutMessage& message) {
   }
 }
 
-int PahoLink::wake_fd() const { return impl_->wake; }
+int PahoLink::wake_fd() const { return impl_->wake.fd; }
 
 bool PahoLink::DoIsConnected() const { return impl_->connected; }
 
