@@ -22,6 +22,7 @@
 
 #include "protocol/frame_decoder.hpp"
 #include "protocol/xbee_api.hpp"
+#include "integration/firmware_qemu/qemu_link.hpp"
 #include "support/mosquitto_fixture.hpp"
 
 #include <CppUTest/TestHarness.h>
@@ -32,16 +33,6 @@ using Clock = std::chrono::steady_clock;
 namespace {
 
 constexpr uint64_t kSensorRadio = 0x0013A20000001001ull;
-
-int OpenRaw(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK);
-  if (fd < 0) return -1;
-  termios t{};
-  ::tcgetattr(fd, &t);
-  ::cfmakeraw(&t);
-  ::tcsetattr(fd, TCSANOW, &t);
-  return fd;
-}
 
 void WriteFrame(int fd, const uint8_t* frame, size_t len) {
   uint8_t wire[kMaxWireFrame];
@@ -90,15 +81,11 @@ TEST(FirmwareToGateway, ReadingsReachMqttAndGatewayAcksReachTheFirmware) {
               "-serial", "pty", "-serial", "pty"},
              dir.File("qemu.log"));
   std::string radio_path, ladder_path;
-  const std::regex re(R"((/dev/pts/\d+) \(label serial(\d)\))");
   for (int i = 0; i < 200 && (radio_path.empty() || ladder_path.empty()); ++i) {
-    const std::string text = lw::test::FileTail(dir.File("qemu.log"), 4000);
-    for (std::sregex_iterator it(text.begin(), text.end(), re), end; it != end; ++it) {
-      ((*it)[2] == "0" ? radio_path : ladder_path) = (*it)[1];
-    }
+    lw::test::FindQemuPtys(lw::test::FileTail(dir.File("qemu.log"), 4000), &radio_path, &ladder_path);
     std::this_thread::sleep_for(std::chrono::milliseconds(25));
   }
-  const int fw_radio = OpenRaw(radio_path), ladder = OpenRaw(ladder_path);
+  const int fw_radio = lw::test::OpenRawPty(radio_path), ladder = lw::test::OpenRawPty(ladder_path);
   CHECK_TEXT(fw_radio >= 0 && ladder >= 0, "QEMU ptys not found");
 
   // The coordinator side: a pty whose slave the gateway opens.
@@ -123,9 +110,9 @@ TEST(FirmwareToGateway, ReadingsReachMqttAndGatewayAcksReachTheFirmware) {
   sub.subscribe("linerwatch/v1/qemu/c1/sensors/+/reading", 1)->wait_for(std::chrono::seconds(5));
 
   auto set_ladder = [&](int intact) {
-    uint8_t frame[2 + 13] = {0x55, 13};
-    for (int i = 0; i < intact; ++i) frame[2 + i / 8] = static_cast<uint8_t>(frame[2 + i / 8] | (1u << (i % 8)));
-    CHECK(::write(ladder, frame, sizeof frame) == static_cast<ssize_t>(sizeof frame));
+    unsigned char frame[15];
+    const size_t n = lw::test::LadderFrame(intact, frame);
+    CHECK(::write(ladder, frame, n) == static_cast<ssize_t>(n));
   };
   FrameDecoder from_fw(ApiMode::kEscaped), from_gw(ApiMode::kEscaped);
   std::map<uint32_t, double> readings;  // seq -> thickness_mm

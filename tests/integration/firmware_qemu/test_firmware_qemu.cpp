@@ -17,12 +17,16 @@
 
 #include "protocol/frame_decoder.hpp"
 #include "protocol/sensor_payload.hpp"
+#include "integration/firmware_qemu/qemu_link.hpp"
 #include "protocol/xbee_api.hpp"
 
 #include <CppUTest/TestHarness.h>
 
 using namespace lw::protocol;
 using Clock = std::chrono::steady_clock;
+using lw::test::FindQemuPtys;
+using lw::test::LadderFrame;
+using lw::test::OpenRawPty;
 
 namespace {
 
@@ -41,20 +45,15 @@ class Qemu {
                "-kernel", LW_FIRMWARE_ELF, "-serial", "pty", "-serial", "pty", static_cast<char*>(nullptr));
       ::_exit(127);
     }
-    // QEMU prints "char device redirected to /dev/pts/N (label serialK)".
-    const std::regex re(R"((/dev/pts/\d+) \(label serial(\d)\))");
     for (int i = 0; i < 200 && (radio_path_.empty() || ladder_path_.empty()); ++i) {
       std::ifstream in(log_);
       std::stringstream ss;
       ss << in.rdbuf();
-      const std::string text = ss.str();
-      for (std::sregex_iterator it(text.begin(), text.end(), re), end; it != end; ++it) {
-        ((*it)[2] == "0" ? radio_path_ : ladder_path_) = (*it)[1];
-      }
+      FindQemuPtys(ss.str(), &radio_path_, &ladder_path_);
       std::this_thread::sleep_for(std::chrono::milliseconds(25));
     }
-    radio_ = OpenRaw(radio_path_);
-    ladder_ = OpenRaw(ladder_path_);
+    radio_ = OpenRawPty(radio_path_);
+    ladder_ = OpenRawPty(ladder_path_);
   }
   ~Qemu() {
     if (radio_ >= 0) ::close(radio_);
@@ -70,22 +69,12 @@ class Qemu {
   int radio() const { return radio_; }
   // Loops 0..intact-1 intact of a 100-loop ladder.
   void SetLadder(int intact) {
-    uint8_t frame[2 + 13] = {0x55, 13};
-    for (int i = 0; i < intact; ++i) frame[2 + i / 8] = static_cast<uint8_t>(frame[2 + i / 8] | (1u << (i % 8)));
-    CHECK(::write(ladder_, frame, sizeof frame) == static_cast<ssize_t>(sizeof frame));
+    unsigned char frame[15];
+    const size_t n = LadderFrame(intact, frame);
+    CHECK(::write(ladder_, frame, n) == static_cast<ssize_t>(n));
   }
 
  private:
-  static int OpenRaw(const std::string& path) {
-    if (path.empty()) return -1;
-    const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK);
-    if (fd < 0) return -1;
-    termios t{};
-    ::tcgetattr(fd, &t);
-    ::cfmakeraw(&t);
-    ::tcsetattr(fd, TCSANOW, &t);
-    return fd;
-  }
   std::string dir_, log_, radio_path_, ladder_path_;
   pid_t pid_ = -1;
   int radio_ = -1, ladder_ = -1;
