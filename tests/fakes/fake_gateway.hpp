@@ -12,7 +12,10 @@ namespace lw::test {
 
 class FakeGateway {
  public:
-  explicit FakeGateway(hal::host::HostRadio& radio) : radio_(radio) {
+  /// With `rtc`, each record's sample time (arrival - age_s) identifies it, so a seq handed out
+  /// twice for different samples is caught even when the contents happen to match.
+  explicit FakeGateway(hal::host::HostRadio& radio, const hal::host::HostRtc* rtc = nullptr)
+      : radio_(radio), rtc_(rtc) {
     radio_.set_on_deliver([this](uint64_t, const uint8_t* p, size_t n) { OnDeliver(p, n); });
   }
   void set_acking(bool on) { acking_ = on; }
@@ -22,6 +25,9 @@ class FakeGateway {
   uint16_t last_dropped_total = 0;
   uint32_t frames = 0;
   uint32_t bad_payloads = 0;
+  /// Arrivals whose seq was seen before with a different sample (time, thickness, flags): a
+  /// reused sequence number, which the real gateway would discard as a duplicate.
+  uint32_t seq_conflicts = 0;
 
  private:
   void OnDeliver(const uint8_t* p, size_t n) {
@@ -37,7 +43,14 @@ class FakeGateway {
     protocol::Ack ack;
     ack.sensor_id = h.sensor_id;
     for (size_t i = 0; i < count; ++i) {
-      records.emplace(recs[i].seq, recs[i]);
+      const uint32_t sampled_at = rtc_ ? rtc_->now() - recs[i].age_s : 0;
+      const auto [it, inserted] = records.emplace(recs[i].seq, recs[i]);
+      if (inserted) {
+        sampled_at_[recs[i].seq] = sampled_at;
+      } else if (sampled_at_[recs[i].seq] != sampled_at || it->second.loops_intact != recs[i].loops_intact ||
+                 it->second.flags != recs[i].flags) {
+        ++seq_conflicts;
+      }
       arrival_order.push_back(recs[i].seq);
       ack.seqs[ack.count++] = recs[i].seq;
     }
@@ -47,6 +60,8 @@ class FakeGateway {
     if (protocol::EncodeAck(ack, buf, sizeof buf, &len) == protocol::PayloadStatus::kOk) radio_.Inject(buf, len);
   }
   hal::host::HostRadio& radio_;
+  const hal::host::HostRtc* rtc_;
+  std::map<uint32_t, uint32_t> sampled_at_;
   bool acking_ = true;
 };
 

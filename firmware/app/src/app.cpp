@@ -26,6 +26,7 @@ void App::Init() {
   state_.boots++;
   pending_flags_ = protocol::kFlagBoot;
   if (board_.power.LastResetCause() == hal::ResetCause::kWatchdog) pending_flags_ |= protocol::kFlagWatchdogReset;
+  durable_seq_limit_ = next_seq_;  // nothing reserved by this boot yet
   state_.seq_reserved_until = next_seq_ + config_.seq_reserve_block;
   dirty_ = true;
   Persist();
@@ -36,14 +37,18 @@ uint16_t App::reported_thickness_dmm() const {
   return static_cast<uint16_t>(config_.base_offset_dmm + reported_loops_ * config_.loop_pitch_dmm);
 }
 
-uint32_t App::TakeSeq() {
-  const uint32_t seq = next_seq_++;
-  if (next_seq_ >= state_.seq_reserved_until) {
+bool App::TakeSeq(uint32_t* seq) {
+  // A seq may only go out when a durable reservation covers it: after a reset the board resumes
+  // at the saved block end, so an unsaved reservation could hand the same seq out twice (and the
+  // gateway would discard the second record as a duplicate).
+  if (next_seq_ >= durable_seq_limit_) {
     state_.seq_reserved_until = next_seq_ + config_.seq_reserve_block;
     dirty_ = true;
-    Persist();  // must be durable before any seq of the new block goes out
+    Persist();
+    if (dirty_) return false;  // not saved: no record this wake, retried on the next one
   }
-  return seq;
+  *seq = next_seq_++;
+  return true;
 }
 
 void App::Persist() {
@@ -52,6 +57,7 @@ void App::Persist() {
   state_.dropped_total = static_cast<uint16_t>(queue_.dropped_total() > 0xFFFF ? 0xFFFF : queue_.dropped_total());
   if (store_.Save(&state_)) {
     dirty_ = false;
+    durable_seq_limit_ = state_.seq_reserved_until;
   } else {
     ++stats_.flash_errors;
   }
@@ -69,7 +75,16 @@ void App::Enqueue(uint32_t now, const LadderSample& sample, uint16_t flags, bool
   q.sampled_at_s = now;
   q.next_try_s = now;
   protocol::SensorRecord& r = q.record;
-  r.seq = TakeSeq();
+  // A record is queued only once the state it reflects (reported thickness, seq reservation) is
+  // in flash; otherwise a reset could bring back an older thickness or hand its seq out again.
+  Persist();
+  if (dirty_ || !TakeSeq(&r.seq)) {
+    // Keep what this record would have carried for the next attempt.
+    pending_flags_ = static_cast<uint16_t>(pending_flags_ | (flags & ~protocol::kFlagHeartbeat));
+    if (!heartbeat) retry_record_ = true;
+    return;
+  }
+  retry_record_ = false;
   r.loops_intact = reported_loops_ == 0xFF ? 0 : reported_loops_;
   r.thickness_dmm = reported_thickness_dmm() == 0xFFFF ? 0 : reported_thickness_dmm();
   r.flags = static_cast<uint16_t>(flags | pending_flags_ | (heartbeat ? protocol::kFlagHeartbeat : 0));
@@ -116,7 +131,7 @@ void App::Sample(uint32_t now) {
   const bool new_fault = (faults & ~last_fault_flags_) != 0;
   last_fault_flags_ = faults;
   const bool heartbeat_due = !have_queued_ || now - last_queued_s_ >= config_.heartbeat_period_s;
-  if (changed || new_fault || pending_flags_) {
+  if (changed || new_fault || pending_flags_ || retry_record_) {
     Enqueue(now, s, flags, false);
   } else if (heartbeat_due) {
     Enqueue(now, s, flags, true);
@@ -196,7 +211,7 @@ uint32_t App::Step() {
   ++stats_.wakes;
   const uint32_t now = board_.rtc.NowSeconds();
   DrainRadio();
-  Sample(now);
+  Sample(now);  // queues a record only after the state it reflects is saved (see Enqueue)
   Transmit(now);
   DrainRadio();
   Persist();

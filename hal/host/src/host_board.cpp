@@ -95,6 +95,10 @@ HostRadio::HostRadio(uint64_t address64, protocol::ApiMode mode)
     : address64_(address64), mode_(mode), decoder_(mode) {}
 
 size_t HostRadio::DoWrite(const uint8_t* data, size_t len) {
+  if (power_good_ && !power_good_()) {
+    bytes_lost_to_brownout_ += len;
+    return len;
+  }
   for (size_t i = 0; i < len; ++i) {
     if (decoder_.Feed(data[i]) != protocol::DecodeEvent::kFrame) continue;
     protocol::TransmitRequest req;
@@ -156,7 +160,9 @@ HostBoard::HostBoard(uint8_t ladder_loops, uint64_t radio_address64, protocol::A
       radio(radio_address64, mode),
       power(rtc),
       watchdog(rtc),
-      flash(flash_page_size, flash_pages) {}
+      flash(flash_page_size, flash_pages) {
+  radio.set_power_good([this] { return !flash.power_lost(); });
+}
 
 Board HostBoard::board() {
   return Board{ladder, ladder_power, radio, adc, rtc, power, watchdog, flash};

@@ -3,6 +3,7 @@
 
 namespace lw::hal {
 
+/// What an analog read measures; the port converts to the unit named here.
 enum class AdcChannel : uint8_t {
   kBatteryMillivolts = 0,  ///< battery terminal voltage, mV
   kTemperatureCelsius = 1, ///< die or board temperature, whole degrees Celsius

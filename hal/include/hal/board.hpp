@@ -12,14 +12,15 @@
 
 namespace lw::hal {
 
+/// Non-owning: the port owns the drivers and must outlive every Board (and App) built from them.
 struct Board {
   Spi& ladder_spi;           ///< daisy-chained parallel-in shift registers over the ladder
   DigitalOut& ladder_power;  ///< powers the ladder only while it is read
   Uart& radio;               ///< XBee module in API mode
-  Adc& adc;
-  Rtc& rtc;
-  Power& power;
-  Watchdog& watchdog;
+  Adc& adc;                  ///< battery (mV) and temperature (degrees C)
+  Rtc& rtc;                  ///< seconds clock with the wake-up alarm
+  Power& power;              ///< sleep and reset cause
+  Watchdog& watchdog;        ///< independent watchdog, kicked once per wake
   FlashPages& flash;         ///< at least two pages for the state slots
 };
 

@@ -9,10 +9,19 @@ namespace lw::hal {
 /// loss during Erase or Program may leave the page partially erased or programmed.
 class FlashPages {
  public:
+  /// Bytes per page (the erase unit). Constant for the life of the object. Non-blocking.
   size_t PageSize() { return DoPageSize(); }
+  /// Pages reserved for the application (indices 0..PageCount()-1). Non-blocking.
   size_t PageCount() { return DoPageCount(); }
+  /// Sets every byte of `page` to 0xFF. Blocking (milliseconds). Returns false on a bad index or a
+  /// controller error; after a failure the page content is undefined.
   bool Erase(size_t page) { return DoErase(page); }
+  /// Clears bits: each byte at `offset + i` becomes `old & data[i]`. The range must lie inside the
+  /// page (else false, nothing written). Blocking; the port handles its program granularity
+  /// (padding with 0xFF). Returns false on a controller error.
   bool Program(size_t page, size_t offset, const uint8_t* data, size_t len) { return DoProgram(page, offset, data, len); }
+  /// Copies `len` bytes at `offset` of `page` into `data`. Blocking (microseconds); false when
+  /// the range is outside the page.
   bool Read(size_t page, size_t offset, uint8_t* data, size_t len) { return DoRead(page, offset, data, len); }
 
  protected:

@@ -3,7 +3,14 @@
 
 namespace lw::hal {
 
-enum class ResetCause : uint8_t { kPowerOn = 0, kWatchdog, kSoftware, kBrownout, kPin };
+/// Why the MCU last reset (ports map their reset-status register onto these).
+enum class ResetCause : uint8_t {
+  kPowerOn = 0,  ///< supply applied (or the cause is unknown)
+  kWatchdog,     ///< the watchdog was not kicked in time
+  kSoftware,     ///< the firmware requested the reset
+  kBrownout,     ///< the supply dipped below the brown-out threshold
+  kPin,          ///< the reset pin was pulled
+};
 
 /// Low-power control.
 class Power {

@@ -7,8 +7,10 @@ namespace lw::hal {
 /// cannot be stopped (also not during sleep: the timeout must exceed the longest sleep).
 class Watchdog {
  public:
+  /// Starts the watchdog with `timeout_s` seconds (a port rounds up to what its prescaler
+  /// allows). Called once at boot; a second call only restarts the countdown. Non-blocking.
   void Start(uint32_t timeout_s) { DoStart(timeout_s); }
-  /// ISR-safe.
+  /// Restarts the countdown. Non-blocking; ISR-safe.
   void Kick() { DoKick(); }
 
  protected:

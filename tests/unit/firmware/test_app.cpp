@@ -17,7 +17,7 @@ namespace {
 constexpr uint32_t kDay = 86400;
 
 struct Rig {
-  explicit Rig(Config c = Config{}) : config(c), board(c.ladder_loops, 0x0013A20000001001ull, c.api_mode), gateway(board.radio) {
+  explicit Rig(Config c = Config{}) : config(c), board(c.ladder_loops, 0x0013A20000001001ull, c.api_mode), gateway(board.radio, &board.rtc) {
     board.ladder.SetIntactCount(c.ladder_loops);
     Boot();
   }
@@ -39,6 +39,22 @@ struct Rig {
   }
   void RunUntil(uint32_t until) {
     RunUntil(until, [](uint32_t) {});
+  }
+  // Like RunUntil, but stops after the wake in which the board lost power.
+  template <typename F>
+  void RunUntilPowerLoss(uint32_t until, F wear) {
+    while (board.rtc.now() < until && !board.flash.power_lost()) {
+      wear(board.rtc.now());
+      app->RunOnce();
+    }
+  }
+  // Thickness as the gateway sees it, in seq order, never goes up.
+  void CheckMonotonicAtGateway() const {
+    uint8_t prev = 255;
+    for (const auto& [seq, r] : gateway.records) {
+      CHECK(r.loops_intact <= prev);
+      prev = r.loops_intact;
+    }
   }
   std::vector<protocol::SensorRecord> Received() const {
     std::vector<protocol::SensorRecord> v;
@@ -265,4 +281,71 @@ TEST(FirmwareApp, NoRecordBeforeTheFirstValidLadderRead) {
   LONGS_EQUAL(88, first.loops_intact);
   CHECK(first.flags & protocol::kFlagBoot);
   CHECK(first.flags & protocol::kFlagSpiStuck);  // the early failures are reported, not lost
+}
+
+namespace {
+// One wear step every 3 h and a seq block of 2: thickness saves and seq-block saves interleave.
+Config PowerLossConfig() {
+  Config c;
+  c.seq_reserve_block = 2;
+  return c;
+}
+uint8_t StepEvery3h(uint32_t t) { return static_cast<uint8_t>(100 - t / (3 * 3600)); }
+}  // namespace
+
+// The board browns out at every byte of every flash erase/program during a day of wear (both
+// kinds of save: a new thickness and a new seq block), reboots at once, and runs on. The first
+// read after the reboot catches the loop being cut still closed (flicker at the face), the case
+// where restoring an older thickness would report wear going up.
+TEST(FirmwareApp, PowerLossAtEveryByteOfEveryFlashWriteRecovers) {
+  uint64_t work = 0;
+  {
+    Rig probe(PowerLossConfig());
+    const uint64_t boot_work = probe.board.flash.work_bytes();
+    probe.RunUntil(kDay, [&](uint32_t t) { probe.board.ladder.SetIntactCount(StepEvery3h(t)); });
+    work = probe.board.flash.work_bytes() - boot_work;
+  }
+  CHECK(work > 5 * 256);  // several saves in the window
+  for (long cut = 0; cut < static_cast<long>(work); ++cut) {
+    Rig rig(PowerLossConfig());
+    auto wear = [&](uint32_t t) { rig.board.ladder.SetIntactCount(StepEvery3h(t)); };
+    rig.board.flash.LosePowerAfter(cut);
+    rig.RunUntilPowerLoss(kDay, wear);
+    CHECK(rig.board.flash.power_lost());
+    rig.board.flash.PowerRestored();
+    const uint32_t t_loss = rig.board.rtc.now();
+    rig.board.ladder.SetIntactCount(static_cast<uint8_t>(StepEvery3h(t_loss) + 1));  // flicker
+    rig.Boot(hal::ResetCause::kBrownout);
+    rig.app->RunOnce();
+    rig.RunUntil(t_loss + kDay / 2, wear);
+    LONGS_EQUAL(0, rig.gateway.seq_conflicts);
+    rig.CheckMonotonicAtGateway();
+    LONGS_EQUAL(StepEvery3h(rig.board.rtc.now() - 1) * 10, rig.app->reported_thickness_dmm());
+    LONGS_EQUAL(0, rig.app->queue().size());
+    // Every step of wear reached the gateway despite the power loss.
+    std::set<uint8_t> values;
+    for (const auto& [seq, r] : rig.gateway.records) values.insert(r.loops_intact);
+    for (uint8_t v = StepEvery3h(rig.board.rtc.now() - 1); v <= 100; ++v) CHECK(values.count(v) == 1);
+  }
+}
+
+// The flash fails (e.g. worn out) while the MCU keeps running and the radio works: the firmware
+// must not send records whose seq reservation or thickness is not saved, or the next reset would
+// reuse seqs. It resumes once the flash works again.
+TEST(FirmwareApp, FlashFailureWithoutResetNeverLeadsToReusedSeqs) {
+  Rig rig(PowerLossConfig());
+  rig.board.radio.set_power_good(nullptr);  // the MCU keeps running: no brownout
+  auto wear = [&](uint32_t t) { rig.board.ladder.SetIntactCount(StepEvery3h(t)); };
+  rig.RunUntil(kDay / 2, wear);
+  const size_t before = rig.gateway.records.size();
+  rig.board.flash.LosePowerAfter(0);  // every erase/program fails from now on
+  rig.RunUntil(kDay, wear);
+  CHECK(rig.app->stats().flash_errors > 0);
+  LONGS_EQUAL(before, rig.gateway.records.size());  // nothing new without a durable state
+  rig.board.flash.PowerRestored();
+  rig.Boot();
+  rig.RunUntil(2 * kDay, wear);
+  LONGS_EQUAL(0, rig.gateway.seq_conflicts);
+  rig.CheckMonotonicAtGateway();
+  LONGS_EQUAL(StepEvery3h(rig.board.rtc.now() - 1) * 10, rig.app->reported_thickness_dmm());
 }

@@ -2,9 +2,10 @@
 /// The sensor application: one instance per board, all state inside (a simulator runs many).
 ///
 /// Wake cycle (Step): drain the radio (acks that arrived), read the ladder (vote), update the
-/// monotonic thickness, queue a record on change or heartbeat, transmit due records (several per
-/// frame), drain the radio again, persist what must survive a reset, kick the watchdog and arm
-/// the RTC alarm for the next poll or retransmission. RunOnce = Step + sleep.
+/// monotonic thickness, save what must survive a reset and only then queue a record (on change
+/// or heartbeat), transmit due records (several per frame), drain the radio
+/// again, kick the watchdog and arm the RTC alarm for the next poll or retransmission.
+/// RunOnce = Step + sleep.
 #include <cstdint>
 
 #include "firmware/config.hpp"
@@ -50,7 +51,7 @@ class App {
   void Sample(uint32_t now);
   void Enqueue(uint32_t now, const LadderSample& sample, uint16_t flags, bool heartbeat);
   void Transmit(uint32_t now);
-  uint32_t TakeSeq();
+  bool TakeSeq(uint32_t* seq);
   void Persist();
   uint32_t Backoff(uint8_t attempts) const;
 
@@ -69,6 +70,8 @@ class App {
   uint16_t last_fault_flags_ = 0;
   uint8_t frame_id_ = 0;
   bool dirty_ = false;
+  uint32_t durable_seq_limit_ = 0;  // seqs below this are covered by a saved reservation
+  bool retry_record_ = false;       // a change record could not get a seq: queue it next wake
 };
 
 }  // namespace lw::firmware

@@ -174,6 +174,11 @@ class HostRadio final : public Uart {
   void set_on_deliver(DeliverFn fn) { on_deliver_ = std::move(fn); }
   /// false: every transmission fails with 0x21 network ACK failure (link down).
   void set_link_up(bool up) { link_up_ = up; }
+  /// Supply check: while it returns false the board is browned out and whatever the MCU writes
+  /// never reaches the radio (HostBoard ties it to the flash's injected power loss).
+  void set_power_good(std::function<bool()> fn) { power_good_ = std::move(fn); }
+  /// Bytes the MCU wrote while the supply was down (they went nowhere).
+  uint64_t bytes_lost_to_brownout() const { return bytes_lost_to_brownout_; }
   /// Queues a 0x90 Receive Packet from the coordinator carrying `payload`.
   void Inject(const uint8_t* payload, size_t len);
   uint64_t address64() const { return address64_; }
@@ -189,16 +194,23 @@ class HostRadio final : public Uart {
   protocol::ApiMode mode_;
   protocol::FrameDecoder decoder_;
   DeliverFn on_deliver_;
+  std::function<bool()> power_good_;
+  uint64_t bytes_lost_to_brownout_ = 0;
   bool link_up_ = true;
   std::deque<uint8_t> to_mcu_;
   uint32_t transmit_requests_ = 0;
   uint32_t delivered_ = 0;
 };
 
-/// All host peripherals of one board, wired into a hal::Board.
+/// All host peripherals of one board, wired into a hal::Board. A power loss injected with
+/// `flash.LosePowerAfter()` browns out the whole board: from that byte on, the radio transmits
+/// nothing until `flash.PowerRestored()` (the test then reboots the App, as the MCU would).
+/// Peripherals refer to each other, so a HostBoard is built in place and never copied or moved.
 struct HostBoard {
   HostBoard(uint8_t ladder_loops, uint64_t radio_address64, protocol::ApiMode mode,
             size_t flash_page_size = 256, size_t flash_pages = 2);
+  HostBoard(const HostBoard&) = delete;
+  HostBoard& operator=(const HostBoard&) = delete;
   HostLadder ladder;
   HostPin ladder_power;
   HostRadio radio;
