@@ -23,6 +23,7 @@ void App::Init() {
   // Resume above every seq that may have been used before the reset, then reserve a new block.
   next_seq_ = state_.seq_reserved_until;
   reported_loops_ = state_.reported_loops;
+  dropped_before_boot_ = state_.dropped_total;  // the count covers the board's life, not one boot
   state_.boots++;
   pending_flags_ = protocol::kFlagBoot;
   if (board_.power.LastResetCause() == hal::ResetCause::kWatchdog) pending_flags_ |= protocol::kFlagWatchdogReset;
@@ -35,6 +36,11 @@ void App::Init() {
 uint16_t App::reported_thickness_dmm() const {
   if (reported_loops_ == 0xFF) return 0xFFFF;
   return static_cast<uint16_t>(config_.base_offset_dmm + reported_loops_ * config_.loop_pitch_dmm);
+}
+
+uint16_t App::DroppedTotal16() const {
+  const uint32_t total = dropped_total();
+  return static_cast<uint16_t>(total > 0xFFFF ? 0xFFFF : total);
 }
 
 bool App::TakeSeq(uint32_t* seq) {
@@ -54,7 +60,7 @@ bool App::TakeSeq(uint32_t* seq) {
 void App::Persist() {
   if (!dirty_) return;
   state_.reported_loops = reported_loops_;
-  state_.dropped_total = static_cast<uint16_t>(queue_.dropped_total() > 0xFFFF ? 0xFFFF : queue_.dropped_total());
+  state_.dropped_total = DroppedTotal16();
   if (store_.Save(&state_)) {
     dirty_ = false;
     durable_seq_limit_ = state_.seq_reserved_until;
@@ -88,7 +94,7 @@ void App::Enqueue(uint32_t now, const LadderSample& sample, uint16_t flags, bool
   r.loops_intact = reported_loops_ == 0xFF ? 0 : reported_loops_;
   r.thickness_dmm = reported_thickness_dmm() == 0xFFFF ? 0 : reported_thickness_dmm();
   r.flags = static_cast<uint16_t>(flags | pending_flags_ | (heartbeat ? protocol::kFlagHeartbeat : 0));
-  if (queue_.dropped_total() > 0) r.flags |= protocol::kFlagDropped;
+  if (dropped_total() > 0) r.flags |= protocol::kFlagDropped;
   int32_t mv = 0, temp = 0;
   if (board_.adc.Read(hal::AdcChannel::kBatteryMillivolts, &mv)) {
     r.battery_mv = static_cast<uint16_t>(mv < 0 ? 0 : (mv > 0xFFFF ? 0xFFFF : mv));
@@ -157,7 +163,7 @@ void App::Transmit(uint32_t now) {
     protocol::ReadingsHeader h;
     h.sensor_id = config_.sensor_id;
     h.ladder_loops = config_.ladder_loops;
-    h.dropped_total = static_cast<uint16_t>(queue_.dropped_total() > 0xFFFF ? 0xFFFF : queue_.dropped_total());
+    h.dropped_total = DroppedTotal16();
     uint8_t payload[protocol::kMaxRfPayload];
     size_t plen = 0;
     if (protocol::EncodeReadings(h, recs, n, payload, sizeof payload, &plen) != protocol::PayloadStatus::kOk) return;

@@ -349,3 +349,19 @@ TEST(FirmwareApp, FlashFailureWithoutResetNeverLeadsToReusedSeqs) {
   rig.CheckMonotonicAtGateway();
   LONGS_EQUAL(StepEvery3h(rig.board.rtc.now() - 1) * 10, rig.app->reported_thickness_dmm());
 }
+
+// Drops are counted over the board's life: a reset does not zero the count the gateway sees.
+TEST(FirmwareApp, DroppedCountSurvivesAReset) {
+  Rig rig;
+  rig.board.radio.set_link_up(false);
+  rig.RunUntil(20 * kDay);  // ~80 heartbeats into 48 slots
+  const uint32_t dropped = rig.app->dropped_total();
+  CHECK(dropped > 0);
+  rig.Boot();
+  LONGS_EQUAL(dropped, rig.app->dropped_total());
+  rig.board.radio.set_link_up(true);
+  rig.RunUntil(21 * kDay);
+  CHECK(!rig.gateway.records.empty());
+  LONGS_EQUAL(dropped, rig.gateway.last_dropped_total);
+  CHECK(rig.gateway.records.rbegin()->second.flags & protocol::kFlagDropped);
+}

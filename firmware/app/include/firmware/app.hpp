@@ -44,6 +44,9 @@ class App {
   /// Last reported thickness lower bound in 0.1 mm (0xFFFF before the first valid sample).
   uint16_t reported_thickness_dmm() const;
   uint32_t next_seq() const { return next_seq_; }
+  /// Records dropped from the full queue over the board's life (saved in flash across resets);
+  /// the payload header carries it, saturated at 65535.
+  uint32_t dropped_total() const { return dropped_before_boot_ + queue_.dropped_total(); }
 
  private:
   void DrainRadio();
@@ -52,6 +55,7 @@ class App {
   void Enqueue(uint32_t now, const LadderSample& sample, uint16_t flags, bool heartbeat);
   void Transmit(uint32_t now);
   bool TakeSeq(uint32_t* seq);
+  uint16_t DroppedTotal16() const;
   void Persist();
   uint32_t Backoff(uint8_t attempts) const;
 
@@ -71,7 +75,8 @@ class App {
   uint8_t frame_id_ = 0;
   bool dirty_ = false;
   uint32_t durable_seq_limit_ = 0;  // seqs below this are covered by a saved reservation
-  bool retry_record_ = false;       // a change record could not get a seq: queue it next wake
+  bool retry_record_ = false;         // a change record could not be queued: queue it next wake
+  uint32_t dropped_before_boot_ = 0;  // dropped_total saved by earlier boots
 };
 
 }  // namespace lw::firmware
