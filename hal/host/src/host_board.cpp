@@ -17,6 +17,10 @@ bool HostLadder::Loop(uint8_t index) const { return index < loops_ && intact_[in
 bool HostLadder::DoTransfer(const uint8_t* /*tx*/, uint8_t* rx, size_t len) {
   ++transfers_;
   if (transfer_fails_) return false;
+  if (fail_next_ > 0) {
+    --fail_next_;
+    return false;
+  }
   const size_t data_bytes = (loops_ + 7u) / 8u;
   for (size_t i = 0; i < len; ++i) {
     uint8_t byte = 0;

@@ -60,3 +60,32 @@ TEST(Ladder, StuckBusIsNotReadAsWear) {
   ladder.SetTransferFails(true);
   CHECK_FALSE(ReadLadder(ladder, power, 3, 100).valid);
 }
+
+TEST(Ladder, FailedReadsAmongTheVotesAreExcludedAndReported) {
+  ladder.SetIntactCount(55);
+  ladder.FailNextTransfers(2);  // 2 of 5 reads fail: the other 3 still give the thickness
+  LadderSample s = ReadLadder(ladder, power, 5, 100);
+  CHECK(s.valid);
+  LONGS_EQUAL(55, s.loops_intact);
+  CHECK(s.flags & lw::protocol::kFlagSpiStuck);
+  CHECK_FALSE(s.flags & lw::protocol::kFlagFlicker);
+  ladder.FailNextTransfers(5);  // all 5 fail: no thickness from this poll
+  s = ReadLadder(ladder, power, 5, 100);
+  CHECK_FALSE(s.valid);
+}
+
+TEST(Ladder, MajorityVoteDecidesEachLoop) {
+  // Decode raw reads directly: loop 20 reads intact in 2 of 5 reads, loop 10 open in 1 of 5.
+  uint8_t raw[kMaxVotes][lw::protocol::kMaxBitmapBytes + 1] = {};
+  for (int v = 0; v < 5; ++v) {
+    for (int i = 0; i < 20; ++i) raw[v][i / 8] = static_cast<uint8_t>(raw[v][i / 8] | (1u << (i % 8)));
+    if (v < 2) raw[v][20 / 8] = static_cast<uint8_t>(raw[v][20 / 8] | (1u << (20 % 8)));
+    if (v == 4) raw[v][10 / 8] = static_cast<uint8_t>(raw[v][10 / 8] & ~(1u << (10 % 8)));
+    raw[v][(24 + 7) / 8] = kLadderSignature;
+  }
+  const LadderSample s = DecodeLadder(raw, 5, 24);
+  CHECK(s.valid);
+  LONGS_EQUAL(20, s.loops_intact);  // loop 20 outvoted, loop 10 kept
+  CHECK(s.flags & lw::protocol::kFlagFlicker);
+  CHECK_FALSE(s.flags & lw::protocol::kFlagNonContiguous);
+}

@@ -118,3 +118,28 @@ TEST(HostBoard, RadioDeliversTransmitRequestsAndAnswersWithStatus) {
   CHECK(got.empty());
   LONGS_EQUAL(1, radio.delivered());
 }
+
+TEST(HostBoard, FlashPowerLossBrownsOutTheWholeBoard) {
+  HostBoard hb(16, 0x0013A20000000002ull, lw::protocol::ApiMode::kEscaped);
+  uint32_t delivered = 0;
+  hb.radio.set_on_deliver([&](uint64_t, const uint8_t*, size_t) { ++delivered; });
+  const uint8_t payload[2] = {0x01, 0x02};
+  lw::protocol::TransmitRequest req;
+  req.payload = payload;
+  req.payload_len = 2;
+  uint8_t frame[64], wire[160];
+  size_t fl = 0;
+  CHECK(lw::protocol::BuildTransmitRequest(req, frame, sizeof frame, &fl) == lw::protocol::Status::kOk);
+  const size_t wl = lw::protocol::EncodeFrame(lw::protocol::ApiMode::kEscaped, frame, fl, wire, sizeof wire);
+  Board b = hb.board();
+  b.radio.Write(wire, wl);
+  LONGS_EQUAL(1, delivered);
+  hb.flash.LosePowerAfter(0);
+  CHECK_FALSE(b.flash.Erase(0));
+  b.radio.Write(wire, wl);  // the MCU is dead: nothing reaches the radio
+  LONGS_EQUAL(1, delivered);
+  LONGS_EQUAL(wl, hb.radio.bytes_lost_to_brownout());
+  hb.flash.PowerRestored();
+  b.radio.Write(wire, wl);
+  LONGS_EQUAL(2, delivered);
+}

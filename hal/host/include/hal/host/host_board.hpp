@@ -31,7 +31,10 @@ class HostLadder final : public Spi {
   void SetFlickerLoop(int index) { flicker_loop_ = index; }
   /// Every read returns this byte on the whole bus (stuck MISO); -1 = normal.
   void SetStuckByte(int value) { stuck_byte_ = value; }
+  /// Every transfer fails (returns false) until cleared: no response from the chain.
   void SetTransferFails(bool fails) { transfer_fails_ = fails; }
+  /// Only the next `n` transfers fail (a glitch inside one poll's votes).
+  void FailNextTransfers(uint32_t n) { fail_next_ = n; }
   uint32_t transfers() const { return transfers_; }
 
  private:
@@ -42,6 +45,7 @@ class HostLadder final : public Spi {
   bool flicker_phase_ = false;
   int stuck_byte_ = -1;
   bool transfer_fails_ = false;
+  uint32_t fail_next_ = 0;
   uint32_t transfers_ = 0;
 };
 
