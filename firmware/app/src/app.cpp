@@ -9,7 +9,11 @@ constexpr uint16_t kFaultFlags = protocol::kFlagLoopHealed | protocol::kFlagNonC
 }
 
 App::App(const Config& config, const hal::Board& board)
-    : config_(config), board_(board), decoder_(config.api_mode), store_(board.flash, 0) {}
+    : config_(config),
+      board_(board),
+      decoder_(config.api_mode),
+      store_(board.flash, 0),
+      jitter_state_(config.sensor_id * 2654435761u | 1u) {}
 
 void App::Init() {
   board_.watchdog.Start(config_.watchdog_timeout_s);
@@ -69,10 +73,16 @@ void App::Persist() {
   }
 }
 
-uint32_t App::Backoff(uint8_t attempts) const {
+uint32_t App::Backoff(uint8_t attempts) {
   uint32_t delay = config_.backoff_min_s;
   for (uint8_t i = 1; i < attempts && delay < config_.backoff_max_s; ++i) delay *= 2;
-  return delay < config_.backoff_max_s ? delay : config_.backoff_max_s;
+  if (delay > config_.backoff_max_s) delay = config_.backoff_max_s;
+  // Boards that lost the gateway together must not all retry at the same second when it returns:
+  // take off up to a quarter of the delay, pseudo-random per board (xorshift32 seeded by the id).
+  jitter_state_ ^= jitter_state_ << 13;
+  jitter_state_ ^= jitter_state_ >> 17;
+  jitter_state_ ^= jitter_state_ << 5;
+  return delay - jitter_state_ % (delay / 4 + 1);
 }
 
 void App::Enqueue(uint32_t now, const LadderSample& sample, uint16_t flags, bool heartbeat) {

@@ -365,3 +365,37 @@ TEST(FirmwareApp, DroppedCountSurvivesAReset) {
   LONGS_EQUAL(dropped, rig.gateway.last_dropped_total);
   CHECK(rig.gateway.records.rbegin()->second.flags & protocol::kFlagDropped);
 }
+
+// Retransmissions back off exponentially between backoff_min_s and backoff_max_s, less a
+// per-board jitter of up to a quarter, so boards that lost the link together spread out.
+TEST(FirmwareApp, RetransmissionsBackOffWithPerBoardJitter) {
+  std::vector<std::vector<uint32_t>> tries;
+  for (uint32_t id : {1001u, 1002u}) {
+    Config c;
+    c.sensor_id = id;
+    c.heartbeat_period_s = 10 * kDay;  // no heartbeats: a single record is retried
+    Rig rig(c);
+    rig.board.radio.set_link_up(false);
+    rig.board.ladder.SetIntactCount(90);  // one record, never acked
+    std::vector<uint32_t> times;
+    uint32_t last_requests = rig.board.radio.transmit_requests();
+    while (rig.board.rtc.now() < 3 * kDay) {
+      rig.app->RunOnce();
+      if (rig.board.radio.transmit_requests() != last_requests && rig.app->queue().size() == 1) {
+        times.push_back(rig.board.rtc.now());
+      }
+      last_requests = rig.board.radio.transmit_requests();
+    }
+    CHECK(times.size() >= 6);
+    uint32_t nominal = c.backoff_min_s;
+    for (size_t i = 1; i < times.size(); ++i) {
+      const uint32_t gap = times[i] - times[i - 1];
+      // The wake happens at the retry alarm or the next poll, whichever is first.
+      CHECK(gap <= nominal);
+      CHECK(gap >= std::min(nominal - nominal / 4, c.poll_period_s));
+      nominal = std::min(nominal * 2, c.backoff_max_s);
+    }
+    tries.push_back(times);
+  }
+  CHECK(tries[0] != tries[1]);  // the two boards do not retry in lockstep
+}

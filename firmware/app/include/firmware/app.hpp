@@ -57,7 +57,7 @@ class App {
   bool TakeSeq(uint32_t* seq);
   uint16_t DroppedTotal16() const;
   void Persist();
-  uint32_t Backoff(uint8_t attempts) const;
+  uint32_t Backoff(uint8_t attempts);
 
   Config config_;
   hal::Board board_;
@@ -77,6 +77,7 @@ class App {
   uint32_t durable_seq_limit_ = 0;  // seqs below this are covered by a saved reservation
   bool retry_record_ = false;         // a change record could not be queued: queue it next wake
   uint32_t dropped_before_boot_ = 0;  // dropped_total saved by earlier boots
+  uint32_t jitter_state_;             // xorshift32 state for the retransmission jitter
 };
 
 }  // namespace lw::firmware
