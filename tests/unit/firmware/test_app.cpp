@@ -18,6 +18,7 @@ constexpr uint32_t kDay = 86400;
 
 struct Rig {
   explicit Rig(Config c = Config{}) : config(c), board(c.ladder_loops, 0x0013A20000001001ull, c.api_mode), gateway(board.radio, &board.rtc) {
+    CHECK(firmware::CheckConfig(c) == firmware::ConfigError::kOk);
     board.ladder.SetIntactCount(c.ladder_loops);
     Boot();
   }

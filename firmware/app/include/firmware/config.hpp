@@ -27,4 +27,24 @@ struct Config {
 /// Capacity of the unacknowledged-record queue (compile time: it sizes a static buffer).
 inline constexpr uint16_t kQueueCapacity = 48;
 
+/// The first rule a Config breaks (kOk: none). An App must only be built from a Config that
+/// passes; provisioning tools and the simulator check with CheckConfig and print ConfigErrorText.
+enum class ConfigError : uint8_t {
+  kOk = 0,
+  kLadderLoops,     ///< ladder_loops outside 1..protocol::kMaxLadderLoops
+  kLoopPitch,       ///< loop_pitch_dmm is 0
+  kThicknessRange,  ///< base_offset_dmm + ladder_loops x loop_pitch_dmm exceeds 65535
+  kVotes,           ///< votes_per_poll outside 1..kMaxVotes (9)
+  kPollPeriod,      ///< poll_period_s is 0
+  kHeartbeat,       ///< heartbeat_period_s shorter than poll_period_s
+  kBackoff,         ///< backoff_min_s is 0 or above backoff_max_s
+  kWatchdog,        ///< watchdog_timeout_s not longer than poll_period_s (the longest sleep)
+  kSeqBlock,        ///< seq_reserve_block is 0
+};
+
+/// Checks every field of `config`; pure, no I/O. Returns the first broken rule.
+ConfigError CheckConfig(const Config& config);
+/// One line naming the field and its rule, e.g. "votes_per_poll must be 1..9". Never null.
+const char* ConfigErrorText(ConfigError error);
+
 }  // namespace lw::firmware
