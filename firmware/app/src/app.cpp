@@ -18,12 +18,15 @@ App::App(const Config& config, const hal::Board& board)
 void App::Init() {
   board_.watchdog.Start(config_.watchdog_timeout_s);
   PersistentState loaded;
-  if (store_.Load(&loaded) && loaded.ladder_loops == config_.ladder_loops) {
+  if (store_.Load(&loaded)) {
     state_ = loaded;
+    // A board re-provisioned for another ladder keeps its seq and drop count (a seq must never
+    // repeat for this sensor id) but not the thickness, which belonged to the old ladder.
+    if (state_.ladder_loops != config_.ladder_loops) state_.reported_loops = 0xFF;
   } else {
     state_ = PersistentState{};
-    state_.ladder_loops = config_.ladder_loops;
   }
+  state_.ladder_loops = config_.ladder_loops;
   // Resume above every seq that may have been used before the reset, then reserve a new block.
   next_seq_ = state_.seq_reserved_until;
   reported_loops_ = state_.reported_loops;

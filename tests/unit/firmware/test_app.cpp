@@ -400,3 +400,15 @@ TEST(FirmwareApp, RetransmissionsBackOffWithPerBoardJitter) {
   }
   CHECK(tries[0] != tries[1]);  // the two boards do not retry in lockstep
 }
+
+// Re-provisioning the board for another ladder length forgets the thickness, not the seqs.
+TEST(FirmwareApp, ReprovisionedLadderKeepsSequenceNumbersAndForgetsThickness) {
+  Rig rig;
+  rig.board.ladder.SetIntactCount(70);
+  rig.RunUntil(kDay);
+  const uint32_t max_seq = rig.gateway.records.rbegin()->first;
+  rig.config.ladder_loops = 64;
+  rig.Boot();
+  CHECK(rig.app->next_seq() > max_seq);
+  LONGS_EQUAL(0xFFFF, rig.app->reported_thickness_dmm());
+}
