@@ -130,7 +130,11 @@ void App::Sample(uint32_t now) {
   const LadderSample s = ReadLadder(board_.ladder_spi, board_.ladder_power, config_.votes_per_poll, config_.ladder_loops);
   uint16_t flags = s.flags;
   bool changed = false;
-  if (s.valid) {
+  // Every loop open at once is a cut cable or a dead chain, not wear, unless only the last loop
+  // was left: then the sensor is consumed. Otherwise the thickness holds (flagged all_open), so a
+  // cable that comes back does not leave the sensor stuck at 0 mm for the rest of the campaign.
+  const bool all_open_fault = (s.flags & protocol::kFlagAllOpen) && (reported_loops_ == 0xFF || reported_loops_ > 1);
+  if (s.valid && !all_open_fault) {
     if (reported_loops_ == 0xFF || s.loops_intact < reported_loops_) {
       reported_loops_ = s.loops_intact;
       changed = true;

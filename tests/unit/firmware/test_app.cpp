@@ -251,6 +251,11 @@ TEST(FirmwareApp, StuckSpiBusAndAllOpenAreFaultsNotWear) {
   rig.board.ladder.SetStuckByte(-1);
   rig.board.ladder.SetIntactCount(0);  // cable cut: every loop reads open
   rig.RunUntil(3 * kDay);
+  LONGS_EQUAL(700, rig.app->reported_thickness_dmm());  // 70 loops cannot all break at once
+  rig.board.ladder.SetIntactCount(69);  // cable repaired; wear went on meanwhile
+  rig.RunUntil(4 * kDay);
+  LONGS_EQUAL(690, rig.app->reported_thickness_dmm());
+  rig.CheckMonotonicAtGateway();
   bool stuck = false, all_open = false;
   for (const auto& r : rig.Received()) {
     stuck |= (r.flags & protocol::kFlagSpiStuck) != 0;
@@ -411,4 +416,33 @@ TEST(FirmwareApp, ReprovisionedLadderKeepsSequenceNumbersAndForgetsThickness) {
   rig.Boot();
   CHECK(rig.app->next_seq() > max_seq);
   LONGS_EQUAL(0xFFFF, rig.app->reported_thickness_dmm());
+}
+
+// The last loop breaking is wear: the sensor is consumed and reports 0 loops with all_open.
+TEST(FirmwareApp, LastLoopBreakingReportsTheSensorConsumed) {
+  Rig rig;
+  rig.board.ladder.SetIntactCount(1);
+  rig.RunUntil(kDay);
+  LONGS_EQUAL(10, rig.app->reported_thickness_dmm());
+  rig.board.ladder.SetIntactCount(0);
+  rig.RunUntil(2 * kDay);
+  LONGS_EQUAL(0, rig.app->reported_thickness_dmm());
+  const auto& last = rig.gateway.records.rbegin()->second;
+  LONGS_EQUAL(0, last.loops_intact);
+  CHECK(last.flags & protocol::kFlagAllOpen);
+}
+
+// A board whose ladder reads all open from the first poll (cable cut before installation) sends
+// nothing rather than 0 mm, like a board whose bus is stuck.
+TEST(FirmwareApp, AllOpenBeforeAnyValidReadSendsNoThickness) {
+  Rig rig;
+  rig.board.ladder.SetIntactCount(0);
+  rig.Boot();
+  rig.RunUntil(kDay);
+  LONGS_EQUAL(0, rig.gateway.records.size());
+  rig.board.ladder.SetIntactCount(95);
+  rig.RunUntil(kDay + 3600);
+  const auto& first = rig.gateway.records.begin()->second;
+  LONGS_EQUAL(95, first.loops_intact);
+  CHECK(first.flags & protocol::kFlagAllOpen);  // the earlier fault rides on the first record
 }
