@@ -35,7 +35,7 @@ struct Thresholds {
   double pair_delta_bic = 10.0;   ///< gain of a pair over its best single effect
   double sensor_floor_mm = 0.1;   ///< loop-position tolerance of the ladder
   double scan_floor_mm = 0.2;     ///< scan registration / surface roughness floor
-  double model_floor_rel = 0.005; ///< relative model error floor
+  double model_floor_rel = 0.02;  ///< relative model error floor: DEM maps carry patchy, correlated error that cell averaging does not remove
   double u_floor_rel = 0.02;      ///< per-sensor intensity error floor (placement, local geometry)
 };
 
