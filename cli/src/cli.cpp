@@ -234,20 +234,9 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   std::optional<core::TimePoint> at;
   if (o.Has("at")) at = ParseTime(o.Get("at"), "at");
   const core::Bundle bundle = Load(o);
-  // Latest reading of each sensor at or before `at`.
-  std::map<std::string, const core::Reading*> latest;
-  for (const core::Reading& r : bundle.readings) {
-    if (at && r.time > *at) continue;
-    auto& slot = latest[r.sensor_id];
-    if (!slot || r.time > slot->time || (r.time == slot->time && r.thickness_mm < slot->thickness_mm)) slot = &r;
-  }
-  std::vector<core::SensorWear> wear;
-  for (const core::SensorInfo& s : bundle.crusher.sensors) {
-    auto it = latest.find(s.id);
-    if (it == latest.end()) continue;
-    const double new_mm = s.thickness_new_mm > 0 ? s.thickness_new_mm : bundle.crusher.thickness_new_mm;
-    wear.push_back({s.id, new_mm - it->second->thickness_mm});
-  }
+  // Wear from each sensor's latest reading at or before `at` (the reading itself: its lower bound).
+  const std::vector<core::SensorWear> wear = core::SensorWearAt(
+      bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), /*interval_centre=*/false);
   if (wear.empty()) throw BadInput(bundle.dir.string() + "/readings.csv: no reading at or before the requested time");
   const core::Reconstruction rec = core::Reconstruct(bundle.crusher, bundle.map, wear);
   char line[256];

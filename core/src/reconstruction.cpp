@@ -96,7 +96,8 @@ std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::ve
   for (const auto& r : readings) {
     if (r.time > at) continue;
     auto& l = latest[r.sensor_id];
-    if (!l || r.time >= l->time) l = &r;
+    // Same time twice (a duplicate): the thinner reading, since wear only goes one way.
+    if (!l || r.time > l->time || (r.time == l->time && r.thickness_mm < l->thickness_mm)) l = &r;
   }
   std::vector<SensorWear> out;
   for (const auto& s : crusher.sensors) {
