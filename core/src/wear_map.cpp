@@ -20,8 +20,6 @@ InputError::InputError(std::string file, size_t line, const std::string& rule)
       line_(line),
       rule_(rule) {}
 
-namespace {
-
 std::string Sha256Hex(const std::string& bytes) {
   unsigned char digest[EVP_MAX_MD_SIZE];
   unsigned int len = 0;
@@ -34,6 +32,8 @@ std::string Sha256Hex(const std::string& bytes) {
   }
   return hex;
 }
+
+namespace {
 
 std::string ReadFile(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);

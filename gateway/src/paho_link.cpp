@@ -65,7 +65,7 @@ PahoLink::PahoLink(LinkOptions options) {
   Impl& im = *impl_;
   im.backoff_ms = im.options.reconnect_min_ms;
   auto& co = im.connect_options;
-  co.set_clean_session(true);  // the spool, not the broker session, guarantees delivery
+  co.set_clean_session(im.options.clean_session);
   co.set_keep_alive_interval(im.options.keep_alive_s);
   co.set_connect_timeout(10);
   co.set_max_inflight(1000);

@@ -27,6 +27,9 @@ class InputError : public std::runtime_error {
   std::string rule_;
 };
 
+/// SHA-256 of `bytes` as 64 lower-case hex digits.
+std::string Sha256Hex(const std::string& bytes);
+
 struct WearMap {
   std::vector<Eigen::Vector3d> points;          ///< metres, crusher frame
   std::vector<std::array<uint32_t, 3>> faces;   ///< triangles, indices into points

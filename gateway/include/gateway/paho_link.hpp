@@ -23,6 +23,10 @@ struct LinkOptions {
   int64_t reconnect_min_ms = 1000;
   int64_t reconnect_max_ms = 60'000;
   int keep_alive_s = 20;
+  /// false: a persistent session (fixed client_id): the broker keeps subscriptions and queues QoS 1
+  /// messages while the client is away. The gateway uses true (its spool guarantees delivery); the
+  /// server uses false.
+  bool clean_session = true;
 };
 
 struct LinkEvent {
