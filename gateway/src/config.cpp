@@ -39,6 +39,7 @@ constexpr Option kOptions[] = {
     {"stats-interval", Kind::kSeconds, "seconds between gateway/stats messages (default 60)"},
     {"reconnect-min", Kind::kSeconds, "first reconnect delay, seconds (default 1)"},
     {"reconnect-max", Kind::kSeconds, "longest reconnect delay, seconds (default 60)"},
+    {"clock-file", Kind::kString, "simulation only: stamp readings with the virtual time in this file"},
 };
 
 const Option* FindOption(std::string name) {
@@ -94,6 +95,7 @@ void Assign(Config* c, const std::string& name, const std::string& text, const s
   else if (n == "stats-interval") c->stats_interval_s = seconds;
   else if (n == "reconnect-min") c->reconnect_min_s = seconds;
   else if (n == "reconnect-max") c->reconnect_max_s = seconds;
+  else if (n == "clock-file") c->clock_file = text;
 }
 
 void LoadFile(const std::string& path, std::map<std::string, std::string>* values) {

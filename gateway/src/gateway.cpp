@@ -152,7 +152,10 @@ void Gateway::OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms) 
   }
   counters_.records_received += count;
   const std::string sensor = std::to_string(header.sensor_id);
-  ReadingContext context{rx.src64, options_.gateway_id, now_ms};
+  // Read the stamp clock only now, after the frame's bytes were read: a simulator holds its
+  // virtual clock still until the ack below comes back.
+  const int64_t stamp_ms = options_.stamp_clock ? options_.stamp_clock(now_ms) : now_ms;
+  ReadingContext context{rx.src64, options_.gateway_id, stamp_ms};
   std::vector<SpoolRecord> batch;
   batch.reserve(count);
   for (size_t i = 0; i < count; ++i) {
@@ -196,7 +199,7 @@ void Gateway::OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms) 
   DeviceEntry d;
   d.address = source;
   d.sensor = sensor;
-  d.first_seen_ms = now_ms;
+  d.first_seen_ms = stamp_ms;
   NoteDevice(d);
 }
 

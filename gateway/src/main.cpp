@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "gateway/clock_file.hpp"
 #include "gateway/config.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/messages.hpp"
@@ -69,6 +70,16 @@ int Run(const lw::gateway::Config& config) {
   options.republish_after_ms = static_cast<int64_t>(config.republish_after_s * 1000);
   options.stats_interval_ms = static_cast<int64_t>(config.stats_interval_s * 1000);
   options.log = Log;
+  ClockFile clock(config.clock_file);
+  if (!config.clock_file.empty()) {
+    Log("reading times come from the virtual clock in " + config.clock_file + " (simulation)");
+    options.stamp_clock = [&clock](int64_t now_ms) {
+      const bool was_ok = clock.ok();
+      const int64_t t = clock.Now(now_ms);
+      if (was_ok && !clock.ok()) Log("clock file " + clock.path() + ": unreadable or not Unix ms; using the last good time");
+      return t;
+    };
+  }
 
   LinkOptions link_options;
   link_options.uri = config.broker;

@@ -34,6 +34,7 @@ struct Config {
   double stats_interval_s = 60;
   double reconnect_min_s = 1;
   double reconnect_max_s = 60;
+  std::string clock_file;      ///< simulation: reading times come from this virtual clock file
 };
 
 enum class ParseResult { kRun, kHelp };

@@ -30,6 +30,10 @@ struct GatewayOptions {
   int64_t republish_after_ms = 30'000;
   /// Period of `gateway/stats` (0: never).
   int64_t stats_interval_ms = 60'000;
+  /// Time (Unix ms) that stamps received records (`time` = it - age_s, `received`) and new
+  /// devices, given the loop's `now_ms`; unset: `now_ms`. Set from --clock-file when a simulator
+  /// runs virtual time; spool bookkeeping and every timer keep `now_ms`.
+  std::function<int64_t(int64_t now_ms)> stamp_clock;
   /// Log sink (one line, no newline). Defaults to stderr.
   std::function<void(const std::string&)> log;
 };
