@@ -1,0 +1,366 @@
+// linerwatch dashboard: hash routes  #/  (crusher list)  and  #/c/CRUSHER[/SENSOR]  (one crusher).
+import { api, paths, allReadings, subscribe, setToken, getToken, promptForToken, ApiError } from './api.js';
+import { h, fmt, fmtDate, fmtDateTime, ago, parseTime, thicknessColor, rgb, flash } from './util.js';
+import { UnwrappedMap, drawLegend } from './map.js';
+import { LinerView } from './liner3d.js';
+import { renderSeries } from './series.js';
+import { renderDiagnosis } from './diagnosis.js';
+
+const app = document.getElementById('app');
+const crumbs = document.getElementById('crumbs');
+let page = null; // the current page's teardown
+
+function setLive(state) {
+  const el = document.getElementById('live');
+  el.dataset.state = state;
+  document.getElementById('live-text').textContent =
+    { live: 'live', connecting: 'connecting…', lost: 'reconnecting…', off: 'offline' }[state] || state;
+}
+
+function pulseLive() {
+  const el = document.getElementById('live');
+  el.classList.remove('flash');
+  void el.offsetWidth;
+  el.classList.add('flash');
+}
+
+function showError(err) {
+  app.replaceChildren(h('div', { class: 'error-box', 'data-testid': 'error' }, String(err.message || err)));
+}
+
+// ---------------------------------------------------------------- crusher list
+async function listPage() {
+  crumbs.replaceChildren('Crushers');
+  app.replaceChildren(h('div', { class: 'empty' }, 'Loading crushers…'));
+  const { crushers } = await api.get(paths.crushers());
+  const cards = crushers.map((c) => {
+    const min = c.min_thickness_mm;
+    const span = c.thickness_new_mm - 0;
+    const pct = min == null ? 0 : Math.max(0, Math.min(100, (min / span) * 100));
+    return h('a', { class: 'card crusher-card', href: `#/c/${encodeURIComponent(c.crusher_id)}`, 'data-testid': 'crusher-card', 'data-crusher': c.crusher_id },
+      h('div', { class: 'card-head' }, h('h2', {}, c.crusher_id), h('span', { class: 'sub' }, `${c.sensor_count} sensors · ${c.rows.length} rows`)),
+      h('div', { class: 'sub' }, 'thinnest remaining'),
+      h('div', { class: 'big', style: { color: min != null && min < c.thickness_min_mm + 10 ? 'var(--bad)' : 'inherit' } },
+        min == null ? '–' : `${fmt(min)} `, h('small', {}, min == null ? 'no readings yet' : `mm of ${c.thickness_new_mm}`)),
+      h('div', { class: 'gauge', title: `minimum ${c.thickness_min_mm} mm` },
+        h('span', { style: { width: `${pct}%`, background: rgb(thicknessColor(min, c.thickness_min_mm, c.thickness_new_mm)) } }),
+        h('i', { style: { left: `${(c.thickness_min_mm / span) * 100}%` } })),
+      h('div', { class: 'meta' },
+        'installed', fmtDate(c.installed_at),
+        'latest reading', c.latest_reading_time ? `${fmtDateTime(c.latest_reading_time)} (${ago(c.latest_reading_time)})` : '–',
+        'rows', c.rows.map((r) => r.name).join(' · '),
+        'wear map', `${c.face_count} faces · ${String(c.map_sha256 || '').slice(0, 12)}`));
+  });
+  app.replaceChildren(
+    h('h1', {}, 'Crushers'),
+    h('div', { class: 'sub' }, 'Remaining concave liner thickness, from the wear sensors and the DEM wear map'),
+    crushers.length ? h('div', { class: 'crusher-grid' }, cards) : h('div', { class: 'empty' }, 'No crushers configured on this server (see --crusher-dir).'));
+  return () => {};
+}
+
+// ---------------------------------------------------------------- crusher page
+async function crusherPage(crusherId, initialSensor) {
+  crumbs.replaceChildren(h('a', { href: '#/' }, 'Crushers'), ' / ', crusherId);
+  app.replaceChildren(h('div', { class: 'empty' }, `Loading ${crusherId}…`));
+  const st = {
+    id: crusherId, detail: null, mesh: null, wear: null, forecast: null, sensors: [], diag: null,
+    selected: initialSensor, readings: new Map(), canWrite: null, runError: null,
+  };
+  const [detail, mesh, sensors] = await Promise.all([
+    api.get(paths.crusher(crusherId)), api.get(paths.mesh(crusherId)), api.get(paths.sensors(crusherId))]);
+  st.detail = detail;
+  st.mesh = mesh;
+  st.sensors = sensors.sensors;
+  const concave = detail.concave;
+  if (!st.selected || !st.sensors.some((x) => x.id === st.selected)) {
+    // Default: the sensor with the thinnest latest reading.
+    const withLatest = st.sensors.filter((x) => x.latest);
+    withLatest.sort((a, b) => a.latest.thickness_mm - b.latest.thickness_mm);
+    st.selected = (withLatest[0] || st.sensors[0])?.id;
+  }
+
+  // layout
+  const kpis = h('div', { class: 'kpis', 'data-testid': 'kpis' });
+  const mapBox = h('div', { class: 'map-wrap' });
+  const legend = h('canvas', { 'aria-label': 'colour legend, remaining thickness in mm' });
+  const view3d = h('div', { class: 'view3d' });
+  const chips = h('div', { class: 'sensor-chips', 'data-testid': 'sensor-chips' });
+  const seriesBox = h('div', { class: 'series' });
+  const seriesFoot = h('div', { class: 'series-foot' });
+  const seriesTitle = h('h2', {}, 'Sensor');
+  const table = h('tbody');
+  const diagBox = h('div', { class: 'card', 'data-testid': 'diagnosis' });
+  const mapSub = h('span', { class: 'sub' });
+  const warnings = h('div');
+  app.replaceChildren(
+    h('h1', {}, crusherId),
+    h('div', { class: 'sub' }, `installed ${fmtDate(detail.installed_at)} · new ${concave.thickness_new_mm} mm, minimum ${concave.thickness_min_mm} mm · ${detail.sensors.length} sensors · wear map ${detail.map.face_count} faces (${String(detail.map.sha256).slice(0, 12)})`),
+    warnings,
+    kpis,
+    h('div', { class: 'grid-2' },
+      h('section', { class: 'card' },
+        h('div', { class: 'card-head' }, h('h2', {}, 'Unwrapped concave: remaining thickness'), mapSub),
+        mapBox,
+        h('div', { class: 'legend' }, h('span', {}, 'mm remaining'), legend,
+          h('span', {}, h('span', { style: { color: 'var(--bad)' } }, '┃'), ` minimum ${concave.thickness_min_mm} mm · ◎ thinnest · ● sensor (reading)`))),
+      h('section', { class: 'card' },
+        h('div', { class: 'card-head' }, h('h2', {}, '3D liner'), h('span', { class: 'sub' }, 'inner surface, same colours')),
+        view3d)),
+    h('div', { class: 'grid-2b' },
+      h('section', { class: 'card' },
+        h('div', { class: 'card-head' }, seriesTitle, h('span', { class: 'sub' }, 'click a sensor on the map or below')),
+        chips, seriesBox, seriesFoot),
+      h('section', { class: 'card' },
+        h('div', { class: 'card-head' }, h('h2', {}, 'Per row'), h('span', { class: 'sub', 'data-testid': 'wear-time' })),
+        h('div', { class: 'table-wrap' }, h('table', { class: 'summary', 'data-testid': 'row-summary' },
+          h('thead', {}, h('tr', {}, ['Row', 'Min (mm)', 'Where', 'Wear rate', 'Reline (band)', 'Sensors'].map((t) => h('th', {}, t)))),
+          table)),
+        h('p', { class: 'sub', 'data-testid': 'wear-note' }))),
+    diagBox);
+  if (detail.map.warnings?.length) {
+    warnings.append(h('div', { class: 'error-box' }, `Wear map warnings: ${detail.map.warnings.join('; ')}`));
+  }
+
+  const map = new UnwrappedMap(mapBox, { onSelectSensor: (id) => selectSensor(id) });
+  const liner = new LinerView(view3d);
+
+  function sensorState() {
+    return st.sensors.map((x) => ({ ...x, thickness: x.latest ? x.latest.thickness_mm : null }));
+  }
+
+  function drawViews() {
+    const w = st.wear;
+    const state = {
+      mesh: st.mesh,
+      remaining: w?.remaining_mm || null,
+      thicknessMin: concave.thickness_min_mm,
+      thicknessNew: concave.thickness_new_mm,
+      rows: concave.rows,
+      sensors: sensorState(),
+      min: w ? { ...w.min, thickness: w.min_thickness_mm } : null,
+      selected: st.selected,
+      regions: st.diag?.result?.mismatch?.regions || [],
+    };
+    map.update(state);
+    liner.update(state);
+    drawLegend(legend, concave.thickness_min_mm, concave.thickness_new_mm);
+    mapSub.textContent = w ? `from readings up to ${fmtDateTime(w.time)}` : 'no readings yet: as new';
+  }
+
+  function drawKpis() {
+    const w = st.wear;
+    const f = st.forecast;
+    const rowsWithDate = (f?.rows || []).filter((r) => r.reach_date);
+    rowsWithDate.sort((a, b) => parseTime(a.reach_date) - parseTime(b.reach_date));
+    const next = rowsWithDate[0];
+    const fastest = (f?.rows || []).reduce((m, r) => (r.rate_mm_per_day > (m?.rate_mm_per_day ?? -Infinity) ? r : m), null);
+    const latest = st.sensors.map((x) => x.latest?.time).filter(Boolean).sort().pop();
+    const left = w ? w.min_thickness_mm - concave.thickness_min_mm : null;
+    kpis.replaceChildren(
+      h('div', { class: `card kpi${left != null && left < 10 ? ' alarm' : ''}`, 'data-testid': 'kpi-min' },
+        h('div', { class: 'label' }, 'Thinnest point'),
+        h('div', { class: 'value', 'data-value': w?.min_thickness_mm ?? '' }, w ? fmt(w.min_thickness_mm) : '–', ' ', h('small', {}, 'mm')),
+        h('div', { class: 'detail' }, w ? `${w.min.row}, z ${fmt(w.min.z_m, 2)} m, θ ${fmt(w.min.theta_deg, 0)}° · ${fmt(left)} mm above minimum` : 'no readings yet')),
+      h('div', { class: 'card kpi', 'data-testid': 'kpi-reline' },
+        h('div', { class: 'label' }, 'Next reline'),
+        h('div', { class: 'value' }, next ? fmtDate(next.reach_date) : '–'),
+        h('div', { class: 'detail' }, next ? `${next.row}: band ${fmtDate(next.reach_earliest)} – ${fmtDate(next.reach_latest)} · ${fmt((parseTime(next.reach_date) - parseTime(f.time)) / 86400000, 0)} d after the latest reading` : 'no forecast yet')),
+      h('div', { class: 'card kpi', 'data-testid': 'kpi-rate' },
+        h('div', { class: 'label' }, 'Fastest wear'),
+        h('div', { class: 'value' }, fastest ? fmt(fastest.rate_mm_per_day, 2) : '–', ' ', h('small', {}, 'mm/day')),
+        h('div', { class: 'detail' }, fastest ? `row ${fastest.row}` : '')),
+      h('div', { class: 'card kpi', 'data-testid': 'kpi-latest' },
+        h('div', { class: 'label' }, 'Latest reading'),
+        h('div', { class: 'value', style: { fontSize: '20px' } }, latest ? fmtDateTime(latest) : '–'),
+        h('div', { class: 'detail' }, `${st.detail.counters?.readings_stored ?? '–'} readings stored · ${st.detail.counters?.duplicates ?? 0} duplicates · ${st.detail.counters?.rejected ?? 0} rejected`)));
+  }
+
+  function drawTable() {
+    const w = st.wear;
+    const frows = new Map((st.forecast?.rows || []).map((r) => [r.row, r]));
+    const wrows = w?.rows || [];
+    const worst = wrows.reduce((m, r) => (m == null || r.min_thickness_mm < m.min_thickness_mm ? r : m), null);
+    const now = Number.isFinite(parseTime(st.forecast?.time)) ? parseTime(st.forecast.time) : Date.now();
+    const dates = [...frows.values()].flatMap((r) => [r.reach_earliest, r.reach_latest, r.reach_date]).map(parseTime).filter(Number.isFinite);
+    const hi = Math.max(now, ...dates);
+    const X = (t) => `${Math.max(0, Math.min(100, ((t - now) / (hi - now || 1)) * 100))}%`;
+    const names = concave.rows.map((r) => r.name).reverse(); // top row first, like the liner
+    table.replaceChildren(...names.map((name) => {
+      const r = wrows.find((x) => x.row === name);
+      const f = frows.get(name);
+      const colour = r ? rgb(thicknessColor(r.min_thickness_mm, concave.thickness_min_mm, concave.thickness_new_mm)) : '#ccc';
+      const pct = r ? (r.min_thickness_mm / concave.thickness_new_mm) * 100 : 0;
+      return h('tr', { class: r && r === worst ? 'worst' : null, 'data-row': name },
+        h('td', {}, h('b', {}, name)),
+        h('td', { class: 'num', 'data-testid': `row-min-${name}` }, r ? fmt(r.min_thickness_mm) : '–',
+          h('span', { class: 'minbar' }, h('span', { style: { width: `${pct}%`, background: colour } }))),
+        h('td', {}, r ? `z ${fmt(r.min_z_m, 2)} m, θ ${fmt(r.min_theta_deg, 0)}°` : '–'),
+        h('td', { class: 'num' }, f ? `${fmt(f.rate_mm_per_day, 2)} mm/d` : '–', r ? h('div', { class: 'band' }, `worn ${fmt(r.mean_wear_mm)} mm mean`) : null),
+        h('td', {}, f?.reach_date ? h('span', {}, h('b', {}, fmtDate(f.reach_date)),
+          h('div', { class: 'band' }, `${fmtDate(f.reach_earliest)} – ${fmtDate(f.reach_latest)}`),
+          h('div', { class: 'reline-bar', title: 'from the latest reading to the latest reline date of any row' },
+            Number.isFinite(parseTime(f.reach_earliest)) ? h('span', { class: 'rng', style: { left: X(parseTime(f.reach_earliest)), width: `calc(${X(parseTime(f.reach_latest))} - ${X(parseTime(f.reach_earliest))})` } }) : null,
+            h('span', { class: 'pt', style: { left: X(parseTime(f.reach_date)) } })))
+          : (f ? 'beyond forecast' : '–')),
+        h('td', { class: 'num' }, r ? String(r.sensors_used ?? '–') : '–'));
+    }));
+    app.querySelector('[data-testid="wear-time"]').textContent = w ? `as of ${fmtDateTime(w.time)}` : '';
+    app.querySelector('[data-testid="wear-note"]').textContent = w
+      ? `${w.note || ''}. Map ${String(w.map_sha256 || '').slice(0, 12)}, ${w.readings_used?.length ?? 0} readings used.`
+      : 'No readings yet.';
+  }
+
+  function drawChips() {
+    chips.replaceChildren(...st.sensors.map((x) => h('button', {
+      type: 'button', class: 'chip', 'aria-pressed': String(x.id === st.selected), 'data-sensor': x.id,
+      onclick: () => selectSensor(x.id),
+    }, h('span', { class: 'sw', style: { background: rgb(thicknessColor(x.latest?.thickness_mm, concave.thickness_min_mm, concave.thickness_new_mm)) } }),
+    `${x.id} · ${x.row}${x.latest ? ` · ${x.latest.thickness_mm} mm` : ''}`)));
+  }
+
+  async function drawSeries() {
+    const sensor = st.sensors.find((x) => x.id === st.selected);
+    if (!sensor) { seriesBox.replaceChildren(h('div', { class: 'empty' }, 'No sensors.')); return; }
+    if (!st.readings.has(sensor.id)) st.readings.set(sensor.id, await allReadings(crusherId, sensor.id));
+    const readings = st.readings.get(sensor.id);
+    const fc = (st.forecast?.sensors || []).find((x) => String(x.id) === String(sensor.id));
+    seriesTitle.textContent = `Sensor ${sensor.id}: ${sensor.row}, θ ${fmt(sensor.theta_deg, 0)}°, z ${fmt(sensor.z_m, 2)} m`;
+    renderSeries(seriesBox, { sensor, readings, forecast: fc, thicknessMin: concave.thickness_min_mm, thicknessNew: concave.thickness_new_mm, installedAt: detail.installed_at });
+    const last = readings[readings.length - 1];
+    seriesFoot.replaceChildren(
+      h('span', { class: 'key' }, h('i', { style: { background: '#1565c0' } }), 'reading n = thickness in [n, n+1) mm'),
+      h('span', { class: 'key' }, h('i', { style: { background: '#ef8f00' } }), 'forecast and band'),
+      h('span', { class: 'key' }, h('i', { style: { background: '#c62828' } }), 'minimum thickness'),
+      h('span', {}, 'latest ', h('b', { 'data-testid': 'series-latest' }, last ? `${last.thickness_mm} mm` : '–'), last ? ` (${fmtDateTime(last.time)}, battery ${last.battery_mv ?? '–'} mV)` : ''),
+      h('span', {}, 'rate ', h('b', {}, fc ? `${fmt(fc.rate_mm_per_day, 2)} mm/day` : '–')),
+      h('span', {}, 'reaches minimum ', h('b', {}, fc?.reach_date ? fmtDate(fc.reach_date) : '–'), fc?.reach_earliest ? ` (${fmtDate(fc.reach_earliest)} – ${fmtDate(fc.reach_latest)})` : ''),
+      h('span', {}, `${readings.length} readings`));
+  }
+
+  function selectSensor(id) {
+    st.selected = id;
+    history.replaceState(null, '', `#/c/${encodeURIComponent(crusherId)}/${encodeURIComponent(id)}`);
+    drawChips();
+    drawViews();
+    drawSeries().catch(showInlineError);
+  }
+
+  function showInlineError(err) {
+    warnings.replaceChildren(h('div', { class: 'error-box' }, String(err.message || err)));
+  }
+
+  async function loadWear() {
+    const [wear, forecast] = await Promise.all([
+      api.get(paths.wear(crusherId)).catch((e) => { if (e.status === 404) return null; throw e; }),
+      api.get(paths.forecast(crusherId)).catch((e) => { if (e.status === 404) return null; throw e; }),
+    ]);
+    st.wear = wear;
+    st.forecast = forecast;
+  }
+
+  async function loadDiagnosis() {
+    st.diag = await api.get(paths.diagnosis(crusherId)).catch((e) => (e.status === 404 ? null : Promise.reject(e)));
+  }
+
+  let diagTimer = null;
+  function drawDiagnosis() {
+    renderDiagnosis(diagBox, st.diag, { canWrite: st.canWrite, runError: st.runError, onRun: runDiagnosis });
+    clearTimeout(diagTimer);
+    if (st.diag?.status === 'running') {
+      diagTimer = setTimeout(() => loadDiagnosis().then(() => { drawDiagnosis(); drawViews(); }).catch(showInlineError), 3000);
+    }
+  }
+
+  async function runDiagnosis() {
+    st.runError = null;
+    try {
+      await api.post(paths.diagnosis(crusherId), {});
+      st.canWrite = true;
+    } catch (e) {
+      if (e instanceof ApiError && e.status === 403) st.canWrite = false;
+      else st.runError = e.message;
+    }
+    await loadDiagnosis().catch(showInlineError);
+    drawDiagnosis();
+  }
+
+  await Promise.all([loadWear(), loadDiagnosis()]);
+  drawKpis();
+  drawTable();
+  drawChips();
+  drawViews();
+  drawDiagnosis();
+  await drawSeries();
+
+  // Live: a reading is appended at once; the wear, forecast and counters are refetched (debounced).
+  let refreshTimer = null;
+  let refreshing = false;
+  const refresh = () => {
+    clearTimeout(refreshTimer);
+    refreshTimer = setTimeout(async () => {
+      if (refreshing) { refresh(); return; }
+      refreshing = true;
+      try {
+        const [sensorsRes, detailRes] = await Promise.all([api.get(paths.sensors(crusherId)), api.get(paths.crusher(crusherId)), loadWear()]);
+        st.sensors = sensorsRes.sensors;
+        st.detail = detailRes;
+        drawKpis();
+        drawTable();
+        drawChips();
+        drawViews();
+        await drawSeries();
+        flash(kpis);
+      } catch (e) {
+        showInlineError(e);
+      } finally {
+        refreshing = false;
+      }
+    }, 500);
+  };
+  const stop = subscribe(crusherId, {
+    reading: (r) => {
+      pulseLive();
+      const sensor = st.sensors.find((x) => String(x.id) === String(r.sensor));
+      if (sensor) sensor.latest = { ...r };
+      const list = st.readings.get(sensor?.id);
+      if (list && !list.some((x) => x.seq === r.seq)) {
+        list.push(r);
+        list.sort((a, b) => parseTime(a.time) - parseTime(b.time));
+      }
+      if (sensor && sensor.id === st.selected) drawSeries().catch(showInlineError);
+      drawChips();
+      refresh();
+    },
+    wear: () => { pulseLive(); refresh(); },
+  }, setLive);
+
+  return () => {
+    stop();
+    clearTimeout(refreshTimer);
+    clearTimeout(diagTimer);
+    map.destroy();
+    liner.destroy();
+  };
+}
+
+// ---------------------------------------------------------------- router
+async function route() {
+  if (page) { page(); page = null; }
+  setLive('off');
+  const parts = location.hash.replace(/^#\/?/, '').split('/').filter(Boolean).map(decodeURIComponent);
+  try {
+    if (parts[0] === 'c' && parts[1]) page = await crusherPage(parts[1], parts[2]);
+    else page = await listPage();
+  } catch (e) {
+    showError(e);
+  }
+}
+
+document.getElementById('token-button').addEventListener('click', async () => {
+  if (getToken() && !confirm('Forget the stored token for this tab?')) return;
+  setToken('');
+  await promptForToken('Enter an access token for this linerwatch server.');
+  route();
+});
+window.addEventListener('hashchange', route);
+route();
