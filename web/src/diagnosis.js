@@ -27,7 +27,7 @@ function metricChart(title, before, after) {
   const change = before && after != null ? ((after - before) / before) * 100 : null;
   return h('div', { class: 'diag-metric card' },
     h('div', { class: 'sub' }, title),
-    s('svg', { viewBox: `0 0 ${w} ${hgt}`, height: hgt },
+    s('svg', { viewBox: `0 0 ${w} ${hgt}`, height: hgt, preserveAspectRatio: 'xMinYMid meet' },
       bar(14, before, '#9aa6b2', 'before'),
       bar(44, after, '#1565c0', 'after'),
       s('text', { x: 0, y: 88, 'font-size': 11, fill: change != null && change < 0 ? '#2e7d32' : '#c62828' },
