@@ -597,6 +597,8 @@ void Campaign::WriteBundle(const std::filesystem::path& dir) const {
       cj["sensors"].push_back({{"id", x.id}, {"row", x.row}, {"z_m", x.z_m}, {"theta_deg", x.theta_deg}, {"thickness_new_mm", x.thickness_new_mm}});
     }
     std::ofstream(tmp / "crusher.json") << cj.dump(2) << "\n";
+    // Marks the folder as generated: `linerwatch-sim run` regenerates this truth from it.
+    std::ofstream(tmp / "campaign.json") << nlohmann::json{{"generator", "linerwatch-sim campaign"}, {"seed", seed_}, {"spec", spec_.ToJson()}}.dump(1) << "\n";
     core::WriteWearMapVtk(tmp / "wear_map.vtk", map_,
                           {{"wear", &map_.wear}, {"normal_stress_average", &map_.normal_stress}, {"shear_stress_average", &map_.shear_stress}});
     {

@@ -1,4 +1,4 @@
-// linerwatch-sim: host-side simulator. Subcommands: campaign (bundle generator).
+// linerwatch-sim: host-side simulator. Subcommands: campaign (bundle generator), run (virtual site).
 #include <cstdio>
 #include <fstream>
 #include <functional>
@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "run.hpp"
 #include "sim/campaign.hpp"
 
 namespace {
@@ -17,6 +18,7 @@ Usage: linerwatch-sim <command> [options]     (linerwatch-sim <command> --help f
 
 Commands:
   campaign   generate a synthetic campaign bundle (CONTRACTS §3) with a known truth
+  run        virtual sensor boards (real firmware) and XBee network feeding a gateway through a pty
 )";
 
 const char* kCampaignHelp = R"(linerwatch-sim campaign: write a synthetic campaign bundle.
@@ -131,7 +133,7 @@ int main(int argc, char** argv) {
     std::cout << kHelp;
     return args.empty() ? 2 : 0;
   }
-  const std::map<std::string, std::function<int(const std::vector<std::string>&)>> commands = {{"campaign", Campaign}};
+  const std::map<std::string, std::function<int(const std::vector<std::string>&)>> commands = {{"campaign", Campaign}, {"run", lw::sim::RunCommand}};
   auto it = commands.find(args[0]);
   if (it == commands.end()) return Fail("unknown command '" + args[0] + "' (see --help)");
   return it->second(std::vector<std::string>(args.begin() + 1, args.end()));
