@@ -1,0 +1,224 @@
+#include "core/forecast.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <map>
+
+namespace lw::core {
+namespace {
+
+constexpr double kQuantisationSd = 0.28867513459481287;  // 1/sqrt(12): uniform over [n, n+1)
+
+Eigen::Vector3d Basis(double s) { return {1.0, s, s * s}; }
+
+/// First time (days) in (t0, t0 + horizon] where f(t) >= limit; daily steps, then bisection.
+std::optional<double> FirstReach(const std::function<double(double)>& f, double t0, double horizon, double limit) {
+  if (f(t0) >= limit) return t0;
+  double prev = t0;
+  for (double t = t0 + 1.0; t <= t0 + horizon + 1e-9; t += 1.0) {
+    if (f(t) >= limit) {
+      double lo = prev, hi = t;
+      for (int i = 0; i < 30; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (f(mid) >= limit ? hi : lo) = mid;
+      }
+      return hi;
+    }
+    prev = t;
+  }
+  return std::nullopt;
+}
+
+std::optional<TimePoint> ToTime(const CrusherConfig& crusher, std::optional<double> days) {
+  if (!days) return std::nullopt;
+  return AddDays(crusher.installed_at, *days);
+}
+
+}  // namespace
+
+double WearCurve::Wear(double t_days) const { return Basis(t_days - t_ref_days).dot(c); }
+
+double WearCurve::RateMmPerDay(double t_days) const { return c[1] + 2.0 * c[2] * (t_days - t_ref_days); }
+
+double WearCurve::Sd(double t_days) const {
+  const Eigen::Vector3d x = Basis(t_days - t_ref_days);
+  const double param_var = std::max(0.0, x.dot(cov * x));
+  const double s = std::max(0.0, t_days - t_ref_days);
+  const double rate_sd = rate_uncertainty * std::max(0.0, RateMmPerDay(t_days)) * s;
+  return std::sqrt(param_var + rate_sd * rate_sd);
+}
+
+SensorForecast ForecastSensor(const CrusherConfig& crusher, const SensorInfo& sensor,
+                              const std::vector<Reading>& readings, const ForecastOptions& options) {
+  SensorForecast out;
+  out.sensor_id = sensor.id;
+  std::vector<std::pair<double, double>> pts;  // (days since installation, wear mm at interval centre)
+  for (const Reading& r : readings) {
+    if (r.sensor_id != sensor.id) continue;
+    pts.emplace_back(DaysBetween(crusher.installed_at, r.time), sensor.thickness_new_mm - (r.thickness_mm + 0.5));
+    if (r.time >= out.last_time) {
+      if (r.time > out.last_time || out.readings_used == 0) out.last_reading_mm = r.thickness_mm;
+      else out.last_reading_mm = std::min(out.last_reading_mm, r.thickness_mm);
+      out.last_time = r.time;
+    }
+    ++out.readings_used;
+  }
+  if (pts.empty()) {
+    out.note = "no readings";
+    return out;
+  }
+  std::sort(pts.begin(), pts.end());
+  const double t_last = pts.back().first;
+  const double window = std::max(options.window_min_days, options.window_fraction * std::max(0.0, t_last));
+  std::vector<std::pair<double, double>> fit;
+  for (const auto& p : pts) {
+    if (p.first >= t_last - window) fit.push_back(p);
+  }
+  // The installation itself is a data point (wear 0 at day 0, the thickness known exactly) when
+  // the window reaches back to it.
+  if (t_last - window <= 0.0) fit.emplace_back(0.0, 0.0);
+  const double span = fit.empty() ? 0.0 : t_last - std::min_element(fit.begin(), fit.end())->first;
+
+  WearCurve curve;
+  curve.t_ref_days = t_last;
+  curve.rate_uncertainty = options.rate_uncertainty;
+  if (span < 2.0 || fit.size() < 3) {
+    // Too little history in the window: straight line from the installation.
+    if (t_last < 1.0) {
+      out.note = "less than a day of readings";
+      return out;
+    }
+    const double rate = std::max(0.0, pts.back().second) / t_last;
+    curve.c = {pts.back().second, rate, 0.0};
+    curve.sigma_mm = kQuantisationSd;
+    curve.cov(0, 0) = kQuantisationSd * kQuantisationSd;
+    curve.cov(1, 1) = std::pow(kQuantisationSd / t_last, 2);
+    out.note = "few recent readings: rate from the installation";
+  } else {
+    const auto solve = [&](int cols) {
+      Eigen::MatrixXd X(static_cast<Eigen::Index>(fit.size()), cols);
+      Eigen::VectorXd y(static_cast<Eigen::Index>(fit.size()));
+      for (size_t i = 0; i < fit.size(); ++i) {
+        const Eigen::Vector3d b = Basis(fit[i].first - t_last);
+        X.row(static_cast<Eigen::Index>(i)) = b.head(cols).transpose();
+        y[static_cast<Eigen::Index>(i)] = fit[i].second;
+      }
+      const Eigen::MatrixXd xtx = X.transpose() * X;
+      const Eigen::VectorXd coef = xtx.ldlt().solve(X.transpose() * y);
+      const double rss = (X * coef - y).squaredNorm();
+      const double dof = std::max<double>(1.0, static_cast<double>(fit.size()) - cols);
+      const double sigma = std::max(kQuantisationSd, std::sqrt(rss / dof));
+      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+      cov.topLeftCorner(cols, cols) = sigma * sigma * xtx.inverse();
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      c.head(cols) = coef;
+      return std::make_tuple(c, cov, sigma);
+    };
+    auto [c, cov, sigma] = solve(3);
+    // Acceleration is allowed, deceleration is not extrapolated (work hardening flattens the
+    // early curve; a liner does not wear slower the thinner it gets): refit a straight line.
+    if (c[2] < 0.0 || span < 7.0) std::tie(c, cov, sigma) = solve(2);
+    if (c[1] < 0.0) {
+      c[1] = 0.0;
+      out.note = "no measurable wear in the fit window";
+    }
+    curve.c = c;
+    curve.cov = cov;
+    curve.sigma_mm = sigma;
+  }
+  out.curve = curve;
+  out.ok = true;
+  out.thickness_mm = sensor.thickness_new_mm - curve.Wear(t_last);
+  out.rate_mm_per_day = curve.RateMmPerDay(t_last);
+
+  const double limit = sensor.thickness_new_mm - crusher.thickness_min_mm;
+  const double k = options.band_sigmas;
+  const auto central = [&](double t) { return curve.Wear(t); };
+  const auto high = [&](double t) { return curve.Wear(t) + k * curve.Sd(t); };
+  const auto low = [&](double t) { return curve.Wear(t) - k * curve.Sd(t); };
+  const auto reach = FirstReach(central, t_last, options.horizon_days, limit);
+  const auto earliest = FirstReach(high, t_last, options.horizon_days, limit);
+  const auto latest = FirstReach(low, t_last, options.horizon_days, limit);
+  out.reach = ToTime(crusher, reach);
+  out.reach_earliest = ToTime(crusher, earliest);
+  out.reach_latest = ToTime(crusher, latest);
+
+  const double end = latest ? *latest : (reach ? *reach : t_last + std::min(options.horizon_days, 365.0));
+  for (double t = t_last; t <= end + 1e-9; t += options.curve_step_days) {
+    CurvePoint p;
+    p.time = AddDays(crusher.installed_at, t);
+    p.thickness_mm = sensor.thickness_new_mm - central(t);
+    p.lo_mm = sensor.thickness_new_mm - high(t);
+    p.hi_mm = sensor.thickness_new_mm - low(t);
+    out.points.push_back(p);
+    if (out.points.size() > 5000) break;
+  }
+  return out;
+}
+
+std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const Reconstruction& reconstruction,
+                                      const std::vector<SensorWear>& sensor_wear,
+                                      const std::vector<SensorForecast>& sensors, TimePoint now,
+                                      const ForecastOptions& options) {
+  std::map<std::string, double> wear_now;
+  for (const auto& w : sensor_wear) wear_now[w.sensor_id] = w.wear_mm;
+  std::map<std::string, const SensorForecast*> by_id;
+  for (const auto& f : sensors) by_id[f.sensor_id] = &f;
+
+  std::vector<RowForecast> out;
+  const double t_now = DaysBetween(crusher.installed_at, now);
+  for (const RowSummary& rs : reconstruction.rows) {
+    RowForecast rf;
+    rf.row = rs.row;
+    rf.min_thickness_mm = rs.min_thickness_mm;
+    std::vector<const SensorForecast*> members;
+    double mean_wear = 0;
+    for (const SensorInfo& s : crusher.sensors) {
+      if (s.row != rs.row) continue;
+      const auto f = by_id.find(s.id);
+      const auto w = wear_now.find(s.id);
+      if (f == by_id.end() || !f->second->ok || w == wear_now.end()) continue;
+      members.push_back(f->second);
+      mean_wear += w->second;
+    }
+    if (members.empty()) {
+      rf.note = "no sensor with a forecast in this row";
+      out.push_back(rf);
+      continue;
+    }
+    mean_wear /= static_cast<double>(members.size());
+    const double face_wear = crusher.thickness_new_mm - rs.min_thickness_mm;
+    if (mean_wear <= 0.0) {
+      rf.note = "no measurable wear yet";
+      out.push_back(rf);
+      continue;
+    }
+    const double ratio = face_wear / mean_wear;
+    const double n = static_cast<double>(members.size());
+    // Each sensor's curve is anchored at its own last reading; the row curve is the mean of the
+    // sensors' wear increments after `now`, scaled by the ratio of the thinnest face.
+    const auto increment = [&](double t, double sigmas) {
+      double inc = 0, sd = 0;
+      for (const SensorForecast* f : members) {
+        inc += f->curve.Wear(t) - f->curve.Wear(f->curve.t_ref_days);  // wear after its last reading
+        sd += f->curve.Sd(t);
+      }
+      return ratio * (inc + sigmas * sd) / n;
+    };
+    double rate = 0;
+    for (const SensorForecast* f : members) rate += f->curve.RateMmPerDay(t_now);
+    rf.rate_mm_per_day = ratio * rate / n;
+    const double limit = rs.min_thickness_mm - crusher.thickness_min_mm;  // wear left at that face
+    const double k = options.band_sigmas;
+    rf.reach = ToTime(crusher, FirstReach([&](double t) { return increment(t, 0.0); }, t_now, options.horizon_days, limit));
+    rf.reach_earliest = ToTime(crusher, FirstReach([&](double t) { return increment(t, k); }, t_now, options.horizon_days, limit));
+    rf.reach_latest = ToTime(crusher, FirstReach([&](double t) { return increment(t, -k); }, t_now, options.horizon_days, limit));
+    rf.ok = true;
+    out.push_back(rf);
+  }
+  return out;
+}
+
+}  // namespace lw::core

@@ -1,0 +1,97 @@
+#pragma once
+/// Ingest: validate reading messages (MQTT or REST), commit them in one transaction, and say which
+/// (sensor, seq) pairs the gateway may now drop (commit acknowledgements, docs/mqtt.md).
+/// Bad messages are never dropped: they go to the `rejected` table with their reason, are counted
+/// and logged, and are acknowledged once stored there so the gateway does not resend them forever.
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "server/registry.hpp"
+#include "server/store.hpp"
+
+namespace lw::server {
+
+/// `linerwatch/v1/{site}/{crusher}/sensors/{sensor}/reading` split up; nullopt for other topics.
+struct ReadingTopic {
+  std::string site;
+  std::string crusher;
+  std::string sensor;
+};
+std::optional<ReadingTopic> ParseReadingTopic(std::string_view topic, std::string_view root = "linerwatch/v1/");
+
+/// Fault flags whose readings are stored but not used for wear (every loop open, SPI stuck).
+bool IsFaultReading(int64_t flags);
+
+struct Incoming {
+  std::string site;
+  std::string crusher;
+  std::string sensor;  ///< from the topic (empty for REST, then the payload's is used)
+  std::string topic;   ///< for the rejected table and logs
+  std::string payload;
+};
+
+/// Outcome of validating one message. `reading` is set when it is valid; otherwise `error` says
+/// why. `sensor`/`seq` are set whenever the payload named them (so a rejection can be acked).
+struct Validation {
+  std::optional<StoredReading> reading;
+  std::string error;
+  std::string sensor;
+  std::optional<int64_t> seq;
+};
+
+/// Validates a reading message against the registry: JSON object; `sensor` (matching the topic's),
+/// `seq` (0..2^32-1), `time` (ISO-8601, not before the liner's installation minus a day, not more
+/// than a day after `now_s`), `thickness_mm` (0..thickness_new + 1), `loops_intact` (>= 0), `flags`
+/// (0..65535), `battery_mv` (0..10000); crusher and sensor known.
+Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t now_s);
+
+struct Ack {
+  std::string site;
+  std::string crusher;
+  std::string sensor;
+  std::vector<int64_t> seqs;
+};
+
+struct IngestResult {
+  size_t stored = 0;
+  size_t duplicates = 0;
+  size_t conflicts = 0;
+  size_t rejected = 0;
+  std::vector<Ack> acks;                   ///< grouped per (site, crusher, sensor), seqs ascending
+  std::vector<StoredReading> new_readings;  ///< stored by this call (not duplicates)
+  std::vector<std::string> log;             ///< one line per rejection or conflict
+};
+
+struct IngestCounters {
+  int64_t stored = 0, duplicates = 0, conflicts = 0, rejected = 0, batches = 0;
+};
+
+/// Thread-safe: the MQTT loop and REST handlers both call Ingest().
+class Ingestor {
+ public:
+  Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s);
+  /// Validates and commits `batch` in one transaction. Throws std::runtime_error on a database
+  /// failure (then nothing of the batch is stored and nothing may be acked).
+  IngestResult Ingest(const std::vector<Incoming>& batch);
+  IngestCounters Counters() const;
+  /// Per crusher: stored/duplicates/rejected since start.
+  IngestCounters CrusherCounters(const std::string& crusher) const;
+
+ private:
+  Store& store_;
+  const Registry& registry_;
+  std::function<int64_t()> now_s_;
+  mutable std::mutex mutex_;
+  IngestCounters totals_;
+  std::map<std::string, IngestCounters> per_crusher_;
+};
+
+}  // namespace lw::server

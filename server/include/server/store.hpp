@@ -1,0 +1,86 @@
+#pragma once
+/// The server's SQLite database: readings (unique on crusher + sensor + seq, so a redelivery is
+/// harmless), quarantined messages that failed validation (kept, never dropped), and the latest
+/// diagnosis per crusher. WAL journal, prepared statements, one transaction per batch.
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace lw::server {
+
+struct StoredReading {
+  std::string crusher;
+  std::string sensor;
+  int64_t seq = 0;
+  int64_t time_s = 0;  ///< unix seconds, when the sample was taken
+  double thickness_mm = 0;
+  int64_t loops_intact = 0;
+  int64_t flags = 0;
+  int64_t battery_mv = 0;
+  int64_t received_s = 0;  ///< unix seconds, when the server first stored it
+  std::string payload;     ///< the message as received (JSON)
+};
+
+struct Rejected {
+  int64_t received_s = 0;
+  std::string topic;
+  std::string payload;
+  std::string reason;
+};
+
+enum class InsertOutcome {
+  kStored,     ///< new
+  kDuplicate,  ///< the same (crusher, sensor, seq) with the same content was already stored
+  kConflict,   ///< the same key with different content: the first one is kept, this is logged
+};
+
+struct Page {
+  std::vector<StoredReading> readings;
+  std::optional<std::string> next_cursor;
+};
+
+class Store {
+ public:
+  /// Opens (creating if needed) the database. Throws std::runtime_error naming the file on failure
+  /// (unreadable, not a database, newer schema).
+  explicit Store(const std::filesystem::path& path);
+  ~Store();
+  Store(const Store&) = delete;
+  Store& operator=(const Store&) = delete;
+
+  /// Stores `readings` and `rejected` in ONE transaction; on any error nothing is committed and
+  /// std::runtime_error is thrown. Returns one outcome per reading, in order.
+  std::vector<InsertOutcome> Commit(const std::vector<StoredReading>& readings, const std::vector<Rejected>& rejected);
+
+  /// Latest reading (by time, then seq) of every sensor of `crusher` and its reading count.
+  struct SensorSummary {
+    StoredReading latest;
+    int64_t count = 0;
+  };
+  std::vector<SensorSummary> LatestPerSensor(const std::string& crusher);
+
+  /// Readings of one sensor in [from_s, to_s], oldest first, at most `limit`, starting after
+  /// `cursor` (from a previous page). Throws std::invalid_argument on a malformed cursor.
+  Page Range(const std::string& crusher, const std::string& sensor, int64_t from_s, int64_t to_s, int limit,
+             const std::string& cursor);
+
+  /// Every reading of `crusher`, ordered by sensor then time.
+  std::vector<StoredReading> All(const std::string& crusher);
+
+  int64_t CountReadings(const std::string& crusher);
+  int64_t CountRejected();
+  std::vector<Rejected> RejectedMessages(int limit);
+
+  void SaveDiagnosis(const std::string& crusher, int64_t time_s, const std::string& json);
+  /// (time_s, json) of the latest diagnosis of `crusher`.
+  std::optional<std::pair<int64_t, std::string>> LatestDiagnosis(const std::string& crusher);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace lw::server

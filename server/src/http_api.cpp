@@ -1,0 +1,413 @@
+#include "server/http_api.hpp"
+
+#include <httplib.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "core/time.hpp"
+#include "server/openapi.hpp"
+
+namespace lw::server {
+namespace {
+
+using nlohmann::ordered_json;
+
+void Reply(httplib::Response& res, int status, const ordered_json& body) {
+  res.status = status;
+  res.set_content(body.dump(), "application/json");
+}
+
+void Error(httplib::Response& res, int status, const std::string& message) { Reply(res, status, {{"error", message}}); }
+
+std::string Iso(int64_t unix_s) { return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(unix_s))); }
+
+ordered_json ReadingJson(const StoredReading& r) {
+  return {{"sensor", r.sensor},
+          {"time", Iso(r.time_s)},
+          {"seq", r.seq},
+          {"thickness_mm", r.thickness_mm},
+          {"loops_intact", r.loops_intact},
+          {"flags", r.flags},
+          {"battery_mv", r.battery_mv},
+          {"received", Iso(r.received_s)}};
+}
+
+/// Optional time query parameter; false (and a 400 reply) when malformed.
+bool TimeParam(const httplib::Request& req, httplib::Response& res, const char* name, int64_t* out) {
+  if (!req.has_param(name)) return true;
+  const std::string v = req.get_param_value(name);
+  const auto t = core::ParseIsoTime(v);
+  if (!t) {
+    Error(res, 400, std::string(name) + "='" + v + "' is not an ISO-8601 time (YYYY-MM-DDTHH:MM:SSZ)");
+    return false;
+  }
+  *out = t->time_since_epoch().count();
+  return true;
+}
+
+std::string BearerOf(const httplib::Request& req) {
+  const std::string h = req.get_header_value("Authorization");
+  if (h.rfind("Bearer ", 0) == 0) return h.substr(7);
+  if (req.has_param("access_token")) return req.get_param_value("access_token");
+  return {};
+}
+
+}  // namespace
+
+struct HttpApi::Impl {
+  ApiContext ctx;
+  httplib::Server svr;
+  std::thread thread;
+  std::atomic<bool> stopping{false};
+
+  const Crusher* CrusherOr404(const httplib::Request& req, httplib::Response& res) {
+    const std::string id = req.matches[1];
+    const Crusher* c = ctx.registry->Find(id);
+    if (!c) Error(res, 404, "unknown crusher '" + id + "'");
+    return c;
+  }
+
+  void Routes();
+};
+
+HttpApi::HttpApi(ApiContext context) : impl_(std::make_unique<Impl>()) {
+  impl_->ctx = std::move(context);
+  impl_->Routes();
+}
+
+HttpApi::~HttpApi() { Stop(); }
+
+int HttpApi::Bind(const std::string& host, int port) {
+  int bound = port;
+  if (port == 0) {
+    bound = impl_->svr.bind_to_any_port(host);
+    if (bound <= 0) throw std::runtime_error("--http " + host + ":0: cannot bind");
+  } else if (!impl_->svr.bind_to_port(host, port)) {
+    throw std::runtime_error("--http " + host + ":" + std::to_string(port) + ": cannot bind (in use or not a local address)");
+  }
+  return bound;
+}
+
+void HttpApi::Start() {
+  impl_->thread = std::thread([this] { impl_->svr.listen_after_bind(); });
+}
+
+void HttpApi::Stop() {
+  if (!impl_ || impl_->stopping.exchange(true)) return;
+  if (impl_->ctx.events) impl_->ctx.events->Close();
+  impl_->svr.stop();
+  if (impl_->thread.joinable()) impl_->thread.join();
+}
+
+void HttpApi::Impl::Routes() {
+  svr.new_task_queue = [] { return new httplib::ThreadPool(32); };
+  svr.set_payload_max_length(64u << 20);
+  svr.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
+    std::string what = "internal error";
+    try {
+      if (ep) std::rethrow_exception(ep);
+    } catch (const std::exception& e) {
+      what = std::string("internal error: ") + e.what();
+    } catch (...) {
+    }
+    Error(res, 500, what);
+  });
+  svr.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
+    if (res.body.empty()) Error(res, res.status, res.status == 404 ? "no such resource: " + req.path : "request failed");
+  });
+
+  // Bearer tokens on /api: read scope for GET, write scope for everything else.
+  svr.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    if (!ctx.tokens || !ctx.tokens->enabled() || req.path.rfind("/api/", 0) != 0) return httplib::Server::HandlerResponse::Unhandled;
+    const auto token = ctx.tokens->Check(BearerOf(req));
+    if (!token) {
+      res.set_header("WWW-Authenticate", "Bearer");
+      Error(res, 401, "missing or unknown bearer token");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    const bool write = req.method != "GET" && req.method != "HEAD";
+    if ((write && !token->write) || (!write && !token->read)) {
+      Error(res, 403, std::string("token '") + token->name + "' lacks the " + (write ? "write" : "read") + " scope");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
+
+  if (!ctx.web_dir.empty() && std::filesystem::is_directory(ctx.web_dir)) {
+    svr.set_mount_point("/", ctx.web_dir.string());
+  } else {
+    svr.Get("/", [](const httplib::Request&, httplib::Response& res) {
+      res.set_content(
+          "<!doctype html><title>linerwatch</title><p>linerwatch-server: the dashboard is not built "
+          "(see docs/dashboard.md). API: <a href=\"/api/v1/openapi.json\">/api/v1/openapi.json</a></p>",
+          "text/html");
+    });
+  }
+
+  svr.Get("/healthz", [this](const httplib::Request&, httplib::Response& res) {
+    ordered_json j = {{"status", "ok"}, {"version", "0.1.0"}};
+    try {
+      std::lock_guard<std::mutex> lock(*ctx.read_mutex);
+      ctx.read->CountRejected();
+      j["db"] = "ok";
+    } catch (const std::exception& e) {
+      j["status"] = "degraded";
+      j["db"] = e.what();
+    }
+    if (ctx.health) {
+      const ordered_json extra = ctx.health();
+      for (const auto& [k, v] : extra.items()) j[k] = v;
+    }
+    Reply(res, j["status"] == "ok" ? 200 : 503, j);
+  });
+
+  svr.Get("/api/v1/openapi.json", [](const httplib::Request&, httplib::Response& res) {
+    res.set_content(OpenApiJson(), "application/json");
+  });
+
+  svr.Get("/api/v1/crushers", [this](const httplib::Request&, httplib::Response& res) {
+    ordered_json list = ordered_json::array();
+    for (const Crusher* c : ctx.registry->All()) {
+      const auto st = ctx.wear->Get(c->config.crusher_id);
+      ordered_json rows = ordered_json::array();
+      for (const auto& r : c->config.rows) rows.push_back({{"name", r.name}, {"z_min_m", r.z_min_m}, {"z_max_m", r.z_max_m}});
+      list.push_back({{"crusher_id", c->config.crusher_id},
+                      {"installed_at", core::FormatIsoTime(c->config.installed_at)},
+                      {"thickness_new_mm", c->config.thickness_new_mm},
+                      {"thickness_min_mm", c->config.thickness_min_mm},
+                      {"rows", rows},
+                      {"sensor_count", c->config.sensors.size()},
+                      {"map_sha256", c->map.sha256},
+                      {"face_count", c->map.face_count()},
+                      {"latest_reading_time", st && st->has_wear ? ordered_json(core::FormatIsoTime(st->time)) : ordered_json(nullptr)},
+                      {"min_thickness_mm", st && st->has_wear ? ordered_json(st->reconstruction.min_thickness_mm) : ordered_json(nullptr)}});
+    }
+    Reply(res, 200, {{"crushers", list}});
+  });
+
+  svr.Get(R"(/api/v1/crushers/([^/]+))", [this](const httplib::Request& req, httplib::Response& res) {
+    const Crusher* c = CrusherOr404(req, res);
+    if (!c) return;
+    ordered_json rows = ordered_json::array();
+    for (const auto& r : c->config.rows) rows.push_back({{"name", r.name}, {"z_min_m", r.z_min_m}, {"z_max_m", r.z_max_m}});
+    ordered_json sensors = ordered_json::array();
+    for (const auto& s : c->config.sensors) {
+      sensors.push_back({{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg}, {"thickness_new_mm", s.thickness_new_mm}});
+    }
+    int64_t stored = 0;
+    {
+      std::lock_guard<std::mutex> lock(*ctx.read_mutex);
+      stored = ctx.read->CountReadings(c->config.crusher_id);
+    }
+    const IngestCounters cc = ctx.ingestor->CrusherCounters(c->config.crusher_id);
+    Reply(res, 200,
+          {{"crusher_id", c->config.crusher_id},
+           {"installed_at", core::FormatIsoTime(c->config.installed_at)},
+           {"concave", {{"thickness_new_mm", c->config.thickness_new_mm}, {"thickness_min_mm", c->config.thickness_min_mm}, {"rows", rows}}},
+           {"sensors", sensors},
+           {"map", {{"sha256", c->map.sha256}, {"face_count", c->map.face_count()}, {"warnings", c->validation.warnings}}},
+           {"counters", {{"readings_stored", stored}, {"duplicates", cc.duplicates}, {"conflicts", cc.conflicts}, {"rejected", cc.rejected}}}});
+  });
+
+  svr.Get(R"(/api/v1/crushers/([^/]+)/sensors)", [this](const httplib::Request& req, httplib::Response& res) {
+    const Crusher* c = CrusherOr404(req, res);
+    if (!c) return;
+    std::vector<Store::SensorSummary> latest;
+    {
+      std::lock_guard<std::mutex> lock(*ctx.read_mutex);
+      latest = ctx.read->LatestPerSensor(c->config.crusher_id);
+    }
+    ordered_json sensors = ordered_json::array();
+    for (const auto& s : c->config.sensors) {
+      ordered_json o = {{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg},
+                        {"thickness_new_mm", s.thickness_new_mm}, {"reading_count", 0}, {"latest", nullptr}};
+      for (const auto& l : latest) {
+        if (l.latest.sensor != s.id) continue;
+        o["reading_count"] = l.count;
+        ordered_json r = ReadingJson(l.latest);
+        r.erase("sensor");
+        o["latest"] = r;
+      }
+      sensors.push_back(o);
+    }
+    Reply(res, 200, {{"sensors", sensors}});
+  });
+
+  svr.Get(R"(/api/v1/crushers/([^/]+)/sensors/([^/]+)/readings)", [this](const httplib::Request& req, httplib::Response& res) {
+    const Crusher* c = CrusherOr404(req, res);
+    if (!c) return;
+    const std::string sensor = req.matches[2];
+    if (!c->config.FindSensor(sensor)) return Error(res, 404, "unknown sensor '" + sensor + "' on crusher " + c->config.crusher_id);
+    int64_t from = INT64_MIN, to = INT64_MAX;
+    if (!TimeParam(req, res, "from", &from) || !TimeParam(req, res, "to", &to)) return;
+    int limit = 500;
+    if (req.has_param("limit")) {
+      const std::string v = req.get_param_value("limit");
+      try {
+        size_t used = 0;
+        limit = std::stoi(v, &used);
+        if (used != v.size()) throw std::invalid_argument("");
+      } catch (const std::exception&) {
+        return Error(res, 400, "limit='" + v + "' is not a whole number");
+      }
+      if (limit < 1 || limit > 5000) return Error(res, 400, "limit must be in [1, 5000]");
+    }
+    Page page;
+    try {
+      std::lock_guard<std::mutex> lock(*ctx.read_mutex);
+      page = ctx.read->Range(c->config.crusher_id, sensor, from, to, limit, req.get_param_value("cursor"));
+    } catch (const std::invalid_argument& e) {
+      return Error(res, 400, e.what());
+    }
+    ordered_json readings = ordered_json::array();
+    for (const auto& r : page.readings) {
+      ordered_json o = ReadingJson(r);
+      o.erase("sensor");
+      readings.push_back(o);
+    }
+    Reply(res, 200, {{"readings", readings}, {"next_cursor", page.next_cursor ? ordered_json(*page.next_cursor) : ordered_json(nullptr)}});
+  });
+
+  svr.Post(R"(/api/v1/crushers/([^/]+)/readings)", [this](const httplib::Request& req, httplib::Response& res) {
+    const Crusher* c = CrusherOr404(req, res);
+    if (!c) return;
+    nlohmann::json body;
+    try {
+      body = nlohmann::json::parse(req.body);
+    } catch (const nlohmann::json::parse_error&) {
+      return Error(res, 400, "body is not valid JSON");
+    }
+    if (!body.is_object() || !body.contains("readings") || !body["readings"].is_array()) {
+      return Error(res, 400, "body must be {\"readings\": [...]}");
+    }
+    if (body["readings"].size() > 10000) return Error(res, 413, "at most 10000 readings per request");
+    std::vector<Incoming> batch;
+    for (const auto& r : body["readings"]) batch.push_back({"", c->config.crusher_id, "", "", r.dump()});
+    IngestResult result;
+    try {
+      result = ctx.ingestor->Ingest(batch);
+    } catch (const std::exception& e) {
+      return Error(res, 503, std::string("not stored: ") + e.what());
+    }
+    if (ctx.after_ingest) ctx.after_ingest(result);
+    ordered_json j = {{"stored", result.stored}, {"duplicates", result.duplicates}, {"conflicts", result.conflicts},
+                      {"rejected", result.rejected}, {"errors", result.log}};
+    if (result.rejected > 0 && result.rejected == batch.size()) j["error"] = "every reading was rejected";
+    Reply(res, result.rejected > 0 && result.rejected == batch.size() ? 422 : 200, j);
+  });
+
+  svr.Get(R"(/api/v1/crushers/([^/]+)/mesh)", [this](const httplib::Request& req, httplib::Response& res) {
+    const Crusher* c = CrusherOr404(req, res);
+    if (!c) return;
+    const auto& m = c->map;
+    std::vector<double> pts;
+    pts.reserve(m.points.size() * 3);
+    for (const auto& p : m.points) {
+      for (int k = 0; k < 3; ++k) pts.push_back(std::round(p[k] * 1e5) / 1e5);
+    }
+    std::vector<uint32_t> faces;
+    faces.reserve(m.faces.size() * 3);
+    for (const auto& f : m.faces) faces.insert(faces.end(), f.begin(), f.end());
+    std::vector<double> z(m.face_count()), th(m.face_count());
+    for (size_t i = 0; i < m.face_count(); ++i) {
+      z[i] = std::round(m.z[static_cast<Eigen::Index>(i)] * 1e4) / 1e4;
+      th[i] = std::round(m.theta_deg[static_cast<Eigen::Index>(i)] * 100) / 100;
+    }
+    Reply(res, 200, {{"points", pts}, {"faces", faces}, {"face_z_m", z}, {"face_theta_deg", th}});
+  });
+
+  svr.Get(R"(/api/v1/crushers/([^/]+)/wear)", [this](const httplib::Request& req, httplib::Response& res) {
+    const Crusher* c = CrusherOr404(req, res);
+    if (!c) return;
+    const auto st = ctx.wear->Get(c->config.crusher_id);
+    if (!st || !st->has_wear) return Error(res, 404, "no readings yet for crusher " + c->config.crusher_id);
+    const std::string format = req.has_param("format") ? req.get_param_value("format") : "json";
+    if (format == "vtk") {
+      char tmpl[] = "/tmp/linerwatch-wear-XXXXXX";
+      const int fd = mkstemp(tmpl);
+      if (fd < 0) return Error(res, 500, "cannot create a temporary file");
+      close(fd);
+      const std::filesystem::path path = std::string(tmpl) + ".vtk";
+      std::filesystem::remove(tmpl);
+      const Eigen::VectorXd& wear = st->reconstruction.wear_mm;
+      const Eigen::VectorXd& remaining = st->reconstruction.remaining_mm;
+      core::WriteWearMapVtk(path, c->map, {{"remaining_mm", &remaining}, {"wear_mm", &wear}, {"dem_wear", &c->map.wear}});
+      std::ifstream in(path, std::ios::binary);
+      std::stringstream ss;
+      ss << in.rdbuf();
+      std::filesystem::remove(path);
+      res.set_header("Content-Disposition", "attachment; filename=\"" + c->config.crusher_id + "_wear.vtk\"");
+      res.set_content(ss.str(), "application/octet-stream");
+      return;
+    }
+    if (format != "json") return Error(res, 400, "format='" + format + "': use json or vtk");
+    const bool faces = !(req.has_param("faces") && req.get_param_value("faces") == "false");
+    Reply(res, 200, WearJson(*st, faces));
+  });
+
+  svr.Get(R"(/api/v1/crushers/([^/]+)/forecast)", [this](const httplib::Request& req, httplib::Response& res) {
+    const Crusher* c = CrusherOr404(req, res);
+    if (!c) return;
+    const auto st = ctx.wear->Get(c->config.crusher_id);
+    if (!st || !st->has_wear) return Error(res, 404, "no readings yet for crusher " + c->config.crusher_id);
+    Reply(res, 200, ForecastJson(*st));
+  });
+
+  svr.Get(R"(/api/v1/crushers/([^/]+)/diagnosis)", [this](const httplib::Request& req, httplib::Response& res) {
+    const Crusher* c = CrusherOr404(req, res);
+    if (!c) return;
+    if (!ctx.diagnosis) return Error(res, 503, "diagnosis is not available on this server");
+    res.set_content(ctx.diagnosis->StatusJson(c->config.crusher_id), "application/json");
+  });
+
+  svr.Post(R"(/api/v1/crushers/([^/]+)/diagnosis)", [this](const httplib::Request& req, httplib::Response& res) {
+    const Crusher* c = CrusherOr404(req, res);
+    if (!c) return;
+    if (!ctx.diagnosis) return Error(res, 503, "diagnosis is not available on this server");
+    const bool started = ctx.diagnosis->Start(c->config.crusher_id);
+    Reply(res, started ? 202 : 409, started ? ordered_json{{"status", "running"}} : ordered_json{{"error", "a diagnosis is already running"}});
+  });
+
+  svr.Get("/api/v1/rejected", [this](const httplib::Request& req, httplib::Response& res) {
+    int limit = 100;
+    if (req.has_param("limit")) limit = std::clamp(std::atoi(req.get_param_value("limit").c_str()), 1, 1000);
+    ordered_json list = ordered_json::array();
+    std::lock_guard<std::mutex> lock(*ctx.read_mutex);
+    for (const auto& r : ctx.read->RejectedMessages(limit)) {
+      list.push_back({{"received", Iso(r.received_s)}, {"topic", r.topic}, {"payload", r.payload}, {"reason", r.reason}});
+    }
+    Reply(res, 200, {{"total", ctx.read->CountRejected()}, {"rejected", list}});
+  });
+
+  svr.Get(R"(/api/v1/crushers/([^/]+)/events)", [this](const httplib::Request& req, httplib::Response& res) {
+    const Crusher* c = CrusherOr404(req, res);
+    if (!c) return;
+    int64_t after = ctx.events->LastId();
+    const std::string last = req.get_header_value("Last-Event-ID");
+    if (!last.empty()) after = std::atoll(last.c_str());
+    const std::string crusher = c->config.crusher_id;
+    res.set_header("Cache-Control", "no-cache");
+    res.set_header("X-Accel-Buffering", "no");
+    auto first = std::make_shared<bool>(true);
+    res.set_chunked_content_provider("text/event-stream", [this, crusher, after, first](size_t, httplib::DataSink& sink) mutable {
+      if (stopping || ctx.events->closed()) return false;
+      std::string out;
+      if (*first) {
+        *first = false;
+        out = "retry: 3000\n: connected\n\n";
+        return sink.write(out.data(), out.size());
+      }
+      const auto events = ctx.events->WaitAfter(&after, crusher, std::chrono::milliseconds(15000));
+      if (stopping || ctx.events->closed()) return false;
+      if (events.empty()) out = ": keepalive\n\n";
+      for (const Event& e : events) out += "id: " + std::to_string(e.id) + "\nevent: " + e.name + "\ndata: " + e.data + "\n\n";
+      return sink.write(out.data(), out.size());
+    });
+  });
+}
+
+}  // namespace lw::server

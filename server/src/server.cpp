@@ -1,0 +1,216 @@
+#include "server/server.hpp"
+
+#include <poll.h>
+
+#include <chrono>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <set>
+
+#include "core/time.hpp"
+#include "gateway/paho_link.hpp"
+#include "server/diagnosis_runner.hpp"
+#include "server/http_api.hpp"
+#include "server/ingest.hpp"
+#include "server/registry.hpp"
+#include "server/store.hpp"
+#include "server/wear_service.hpp"
+
+namespace lw::server {
+namespace {
+
+int64_t WallMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+std::string Stamp() { return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(WallMs() / 1000))); }
+
+/// "now" for validation: the simulator's clock file when given (falls back to the wall clock).
+int64_t NowSeconds(const std::string& clock_file) {
+  if (!clock_file.empty()) {
+    std::ifstream in(clock_file);
+    long long ms = 0;
+    if (in >> ms && ms > 0) return ms / 1000;
+  }
+  return WallMs() / 1000;
+}
+
+class Logger {
+ public:
+  explicit Logger(std::ostream& out) : out_(out) {}
+  void operator()(const std::string& line) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    out_ << Stamp() << " linerwatch-server: " << line << std::endl;
+  }
+
+ private:
+  std::ostream& out_;
+  std::mutex mutex_;
+};
+
+}  // namespace
+
+void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostream& log_stream) {
+  Logger log(log_stream);
+  std::vector<std::string> errors;
+  const auto registry = Registry::Load(o.crusher_dir, &errors);
+  for (const auto& e : errors) log("crusher folder skipped: " + e);
+  if (registry->All().empty()) {
+    throw std::runtime_error("--crusher-dir '" + o.crusher_dir + "': no crusher loaded" +
+                             (errors.empty() ? std::string(" (no sub-folder holds a crusher.json)") : ": " + errors.front()));
+  }
+  for (const Crusher* c : registry->All()) {
+    log("crusher " + c->config.crusher_id + ": " + std::to_string(c->config.sensors.size()) + " sensors, map " +
+        std::to_string(c->map.face_count()) + " faces, sha256 " + c->map.sha256);
+    for (const auto& w : c->validation.warnings) log("crusher " + c->config.crusher_id + ": map: " + w);
+  }
+  TokenStore tokens;
+  if (!o.tokens.empty()) tokens = TokenStore::Load(o.tokens);
+
+  Store write(o.db);
+  Store read(o.db);
+  std::mutex read_mutex;
+  const std::string clock_file = o.clock_file;
+  Ingestor ingestor(write, *registry, [clock_file] { return NowSeconds(clock_file); });
+  WearService wear(*registry, read, read_mutex);
+  EventBus events;
+  DiagnosisRunner diagnosis(*registry, read, read_mutex);
+
+  std::mutex dirty_mutex;
+  std::set<std::string> dirty;
+  const auto on_committed = [&](const IngestResult& r) {
+    std::set<std::string> changed;
+    for (const StoredReading& s : r.new_readings) {
+      nlohmann::json j = nlohmann::json::parse(s.payload, nullptr, false);
+      if (!j.is_object()) j = nlohmann::json::object();
+      j["sensor"] = s.sensor;
+      j["time"] = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(s.time_s)));
+      events.Publish(s.crusher, "reading", j.dump());
+      changed.insert(s.crusher);
+    }
+    for (const auto& line : r.log) log(line);
+    for (const auto& c : changed) wear.MarkChanged(c);
+    std::lock_guard<std::mutex> lock(dirty_mutex);
+    dirty.insert(changed.begin(), changed.end());
+  };
+
+  gateway::LinkOptions lo;
+  lo.uri = o.broker;
+  lo.client_id = o.client_id;
+  lo.username = o.username;
+  lo.password = o.password;
+  lo.tls_ca = o.tls_ca;
+  lo.clean_session = false;  // persistent session: the broker queues readings while we are away
+  lo.subscriptions = {o.topic_root + "/+/+/sensors/+/reading"};
+  gateway::PahoLink link(lo);
+  std::atomic<bool> connected{false};
+
+  ApiContext ctx;
+  ctx.registry = registry.get();
+  ctx.read = &read;
+  ctx.read_mutex = &read_mutex;
+  ctx.wear = &wear;
+  ctx.ingestor = &ingestor;
+  ctx.events = &events;
+  ctx.diagnosis = &diagnosis;
+  ctx.tokens = &tokens;
+  ctx.web_dir = o.web_dir;
+  ctx.health = [&] {
+    const IngestCounters c = ingestor.Counters();
+    return nlohmann::ordered_json{{"broker", connected ? "connected" : "disconnected"},
+                                  {"readings_stored", c.stored},
+                                  {"duplicates", c.duplicates},
+                                  {"rejected", c.rejected},
+                                  {"crusher_errors", errors}};
+  };
+  ctx.after_ingest = on_committed;
+  HttpApi api(ctx);
+  const size_t colon = o.http.rfind(':');
+  const int port = api.Bind(o.http.substr(0, colon), std::stoi(o.http.substr(colon + 1)));
+  api.Start();
+  log("listening on http://" + o.http.substr(0, colon) + ":" + std::to_string(port) + "/ (REST /api/v1, dashboard " +
+      (o.web_dir.empty() ? std::string("not built") : o.web_dir) + ")");
+  if (tokens.enabled()) log("bearer tokens required on /api");
+
+  std::map<std::string, std::set<std::string>> sites;  // crusher -> sites it was heard from
+  int64_t last_wear_ms = 0, last_stats_ms = WallMs();
+  IngestCounters last_counters;
+  const std::string root = o.topic_root + "/";
+  while (!stop) {
+    const int64_t now = WallMs();
+    std::vector<Incoming> batch;
+    for (gateway::LinkEvent& e : link.Poll(now)) {
+      if (e.kind == gateway::LinkEvent::Kind::kConnected) {
+        connected = true;
+        log("connected to " + o.broker + " as " + o.client_id + " (persistent session)");
+      } else if (e.kind == gateway::LinkEvent::Kind::kDisconnected) {
+        connected = false;
+        log("broker: " + e.payload);
+      } else {
+        const auto t = ParseReadingTopic(e.topic, root);
+        if (!t) continue;
+        sites[t->crusher].insert(t->site);
+        batch.push_back({t->site, t->crusher, t->sensor, std::move(e.topic), std::move(e.payload)});
+      }
+    }
+    for (size_t start = 0; start < batch.size(); start += static_cast<size_t>(o.batch_max)) {
+      const size_t end = std::min(batch.size(), start + static_cast<size_t>(o.batch_max));
+      const std::vector<Incoming> part(std::make_move_iterator(batch.begin() + static_cast<std::ptrdiff_t>(start)),
+                                       std::make_move_iterator(batch.begin() + static_cast<std::ptrdiff_t>(end)));
+      IngestResult r;
+      try {
+        r = ingestor.Ingest(part);
+      } catch (const std::exception& e) {
+        // Nothing of the batch is stored and nothing is acked: the gateway republishes it.
+        log(std::string("database error, batch not stored (the gateway will resend it): ") + e.what());
+        continue;
+      }
+      const std::string when = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(NowSeconds(o.clock_file))));
+      for (const Ack& a : r.acks) {
+        const nlohmann::json payload = {{"sensor", a.sensor}, {"seqs", a.seqs}, {"time", when}};
+        link.Publish({root + a.site + "/" + a.crusher + "/sensors/" + a.sensor + "/committed", payload.dump(), 1, false});
+      }
+      on_committed(r);
+    }
+    std::set<std::string> to_publish;
+    if (now - last_wear_ms >= o.wear_interval_ms) {
+      std::lock_guard<std::mutex> lock(dirty_mutex);
+      to_publish.swap(dirty);
+    }
+    for (const std::string& c : to_publish) {
+      last_wear_ms = now;
+      std::shared_ptr<const CrusherState> st;
+      try {
+        st = wear.Get(c);
+      } catch (const std::exception& e) {
+        log("crusher " + c + ": wear not computed: " + e.what());
+        continue;
+      }
+      if (!st || !st->has_wear) continue;
+      const std::string summary = WearJson(*st, false).dump();
+      for (const std::string& site : sites[c]) link.Publish({root + site + "/" + c + "/wear", summary, 1, true});
+      events.Publish(c, "wear", summary);
+    }
+    if (now - last_stats_ms >= 60'000) {
+      const IngestCounters c = ingestor.Counters();
+      if (c.stored != last_counters.stored || c.rejected != last_counters.rejected || c.duplicates != last_counters.duplicates) {
+        log("stored " + std::to_string(c.stored) + ", duplicates " + std::to_string(c.duplicates) + ", rejected " +
+            std::to_string(c.rejected) + " since start");
+      }
+      last_counters = c;
+      last_stats_ms = now;
+    }
+    pollfd pfd{link.wake_fd(), POLLIN, 0};
+    const bool pending = [&] {
+      std::lock_guard<std::mutex> lock(dirty_mutex);
+      return !dirty.empty();
+    }();
+    ::poll(&pfd, 1, pending ? 10 : 50);
+  }
+  log("stopping");
+  api.Stop();
+  link.Shutdown({}, 2000);
+}
+
+}  // namespace lw::server

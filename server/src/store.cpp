@@ -1,0 +1,220 @@
+#include "server/store.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "core/sqlite.hpp"
+
+namespace lw::server {
+namespace {
+
+using Db = core::sqlite::Database<std::runtime_error>;
+using Stmt = core::sqlite::Statement<std::runtime_error>;
+using Tx = core::sqlite::Transaction<std::runtime_error>;
+
+constexpr int kSchemaVersion = 1;
+
+const char* kSelectColumns =
+    "crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload";
+
+StoredReading Row(const Stmt& s) {
+  StoredReading r;
+  r.crusher = s.Text(0);
+  r.sensor = s.Text(1);
+  r.seq = s.Int(2);
+  r.time_s = s.Int(3);
+  r.thickness_mm = s.Real(4);
+  r.loops_intact = s.Int(5);
+  r.flags = s.Int(6);
+  r.battery_mv = s.Int(7);
+  r.received_s = s.Int(8);
+  r.payload = s.Text(9);
+  return r;
+}
+
+std::string MakeCursor(int64_t time_s, int64_t seq) { return "t" + std::to_string(time_s) + "s" + std::to_string(seq); }
+
+void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq) {
+  const size_t s = cursor.find('s');
+  try {
+    if (cursor.size() < 4 || cursor[0] != 't' || s == std::string::npos) throw std::invalid_argument("");
+    size_t used = 0;
+    const std::string t = cursor.substr(1, s - 1), q = cursor.substr(s + 1);
+    *time_s = std::stoll(t, &used);
+    if (used != t.size()) throw std::invalid_argument("");
+    *seq = std::stoll(q, &used);
+    if (used != q.size()) throw std::invalid_argument("");
+  } catch (const std::exception&) {
+    throw std::invalid_argument("cursor '" + cursor + "' is not one this server issued");
+  }
+}
+
+}  // namespace
+
+struct Store::Impl {
+  Db db;
+  Stmt insert, existing, insert_rejected, latest, range, all, count, count_rejected, rejected_list, save_diag, load_diag;
+  explicit Impl(const std::string& path)
+      : db(path, "database"),
+        insert((Init(db), db),
+               "INSERT INTO readings(crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload)"
+               " VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10) ON CONFLICT DO NOTHING"),
+        existing(db, "SELECT time, thickness_mm FROM readings WHERE crusher=?1 AND sensor=?2 AND seq=?3"),
+        insert_rejected(db, "INSERT INTO rejected(received, topic, payload, reason) VALUES(?1,?2,?3,?4)"),
+        latest(db,
+               "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload, n FROM ("
+               " SELECT *, COUNT(*) OVER (PARTITION BY sensor) AS n,"
+               " ROW_NUMBER() OVER (PARTITION BY sensor ORDER BY time DESC, seq DESC) AS k"
+               " FROM readings WHERE crusher=?1) WHERE k=1 ORDER BY sensor"),
+        range(db, (std::string("SELECT ") + kSelectColumns +
+                   " FROM readings WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4"
+                   " AND (time>?5 OR (time=?5 AND seq>?6)) ORDER BY time, seq LIMIT ?7")
+                      .c_str()),
+        all(db, (std::string("SELECT ") + kSelectColumns + " FROM readings WHERE crusher=?1 ORDER BY sensor, time, seq").c_str()),
+        count(db, "SELECT COUNT(*) FROM readings WHERE crusher=?1"),
+        count_rejected(db, "SELECT COUNT(*) FROM rejected"),
+        rejected_list(db, "SELECT received, topic, payload, reason FROM rejected ORDER BY id DESC LIMIT ?1"),
+        save_diag(db, "INSERT INTO diagnoses(crusher, time, json) VALUES(?1,?2,?3)"),
+        load_diag(db, "SELECT time, json FROM diagnoses WHERE crusher=?1 ORDER BY id DESC LIMIT 1") {}
+
+  static void Init(const Db& db) {
+    int64_t v = 0;
+    {
+      Stmt version(db, "PRAGMA user_version");
+      version.Step();
+      v = version.Int(0);
+    }
+    if (v > kSchemaVersion) {
+      throw std::runtime_error("database " + db.path() + ": schema version " + std::to_string(v) +
+                               " is newer than this server's (" + std::to_string(kSchemaVersion) + ")");
+    }
+    // WAL + synchronous=FULL: a commit returns after the log is on disk, so a committed ack
+    // survives kill -9 and power loss. Readers (REST) never block the writer.
+    db.Exec("PRAGMA journal_mode=WAL");
+    db.Exec("PRAGMA synchronous=FULL");
+    db.Exec(
+        "CREATE TABLE IF NOT EXISTS readings ("
+        " crusher TEXT NOT NULL, sensor TEXT NOT NULL, seq INTEGER NOT NULL,"
+        " time INTEGER NOT NULL, thickness_mm REAL NOT NULL, loops_intact INTEGER NOT NULL,"
+        " flags INTEGER NOT NULL, battery_mv INTEGER NOT NULL, received INTEGER NOT NULL, payload TEXT NOT NULL,"
+        " PRIMARY KEY (crusher, sensor, seq)) WITHOUT ROWID;"
+        "CREATE INDEX IF NOT EXISTS readings_by_time ON readings(crusher, sensor, time, seq);"
+        "CREATE TABLE IF NOT EXISTS rejected (id INTEGER PRIMARY KEY AUTOINCREMENT, received INTEGER NOT NULL,"
+        " topic TEXT NOT NULL, payload TEXT NOT NULL, reason TEXT NOT NULL);"
+        "CREATE TABLE IF NOT EXISTS diagnoses (id INTEGER PRIMARY KEY AUTOINCREMENT, crusher TEXT NOT NULL,"
+        " time INTEGER NOT NULL, json TEXT NOT NULL);"
+        "PRAGMA user_version=1;");
+  }
+};
+
+Store::Store(const std::filesystem::path& path) : impl_(std::make_unique<Impl>(path.string())) {}
+Store::~Store() = default;
+
+std::vector<InsertOutcome> Store::Commit(const std::vector<StoredReading>& readings, const std::vector<Rejected>& rejected) {
+  Impl& im = *impl_;
+  std::vector<InsertOutcome> out;
+  out.reserve(readings.size());
+  Tx tx(im.db);
+  for (const StoredReading& r : readings) {
+    im.insert.Reset();
+    im.insert.Bind(1, r.crusher).Bind(2, r.sensor).Bind(3, r.seq).Bind(4, r.time_s).Bind(5, r.thickness_mm);
+    im.insert.Bind(6, r.loops_intact).Bind(7, r.flags).Bind(8, r.battery_mv).Bind(9, r.received_s).Bind(10, r.payload);
+    im.insert.Step();
+    if (im.insert.Changes() == 1) {
+      out.push_back(InsertOutcome::kStored);
+      continue;
+    }
+    im.existing.Reset();
+    im.existing.Bind(1, r.crusher).Bind(2, r.sensor).Bind(3, r.seq);
+    const bool same = im.existing.Step() && im.existing.Int(0) == r.time_s &&
+                      std::fabs(im.existing.Real(1) - r.thickness_mm) < 1e-9;
+    out.push_back(same ? InsertOutcome::kDuplicate : InsertOutcome::kConflict);
+  }
+  for (const Rejected& r : rejected) {
+    im.insert_rejected.Reset();
+    im.insert_rejected.Bind(1, r.received_s).Bind(2, r.topic).Bind(3, r.payload).Bind(4, r.reason);
+    im.insert_rejected.Step();
+  }
+  tx.Commit();
+  return out;
+}
+
+std::vector<Store::SensorSummary> Store::LatestPerSensor(const std::string& crusher) {
+  Impl& im = *impl_;
+  std::vector<SensorSummary> out;
+  im.latest.Reset();
+  im.latest.Bind(1, crusher);
+  while (im.latest.Step()) out.push_back({Row(im.latest), im.latest.Int(10)});
+  return out;
+}
+
+Page Store::Range(const std::string& crusher, const std::string& sensor, int64_t from_s, int64_t to_s, int limit,
+                  const std::string& cursor) {
+  Impl& im = *impl_;
+  int64_t after_t = INT64_MIN, after_seq = INT64_MIN;
+  if (!cursor.empty()) ParseCursor(cursor, &after_t, &after_seq);
+  Page page;
+  im.range.Reset();
+  im.range.Bind(1, crusher).Bind(2, sensor).Bind(3, from_s).Bind(4, to_s).Bind(5, after_t).Bind(6, after_seq);
+  im.range.Bind(7, static_cast<int64_t>(limit) + 1);
+  while (im.range.Step()) page.readings.push_back(Row(im.range));
+  if (page.readings.size() > static_cast<size_t>(limit)) {
+    page.readings.resize(static_cast<size_t>(limit));
+    page.next_cursor = MakeCursor(page.readings.back().time_s, page.readings.back().seq);
+  }
+  return page;
+}
+
+std::vector<StoredReading> Store::All(const std::string& crusher) {
+  Impl& im = *impl_;
+  std::vector<StoredReading> out;
+  im.all.Reset();
+  im.all.Bind(1, crusher);
+  while (im.all.Step()) out.push_back(Row(im.all));
+  return out;
+}
+
+int64_t Store::CountReadings(const std::string& crusher) {
+  Impl& im = *impl_;
+  im.count.Reset();
+  im.count.Bind(1, crusher);
+  im.count.Step();
+  return im.count.Int(0);
+}
+
+int64_t Store::CountRejected() {
+  Impl& im = *impl_;
+  im.count_rejected.Reset();
+  im.count_rejected.Step();
+  return im.count_rejected.Int(0);
+}
+
+std::vector<Rejected> Store::RejectedMessages(int limit) {
+  Impl& im = *impl_;
+  std::vector<Rejected> out;
+  im.rejected_list.Reset();
+  im.rejected_list.Bind(1, static_cast<int64_t>(limit));
+  while (im.rejected_list.Step()) {
+    out.push_back({im.rejected_list.Int(0), im.rejected_list.Text(1), im.rejected_list.Text(2), im.rejected_list.Text(3)});
+  }
+  return out;
+}
+
+void Store::SaveDiagnosis(const std::string& crusher, int64_t time_s, const std::string& json) {
+  Impl& im = *impl_;
+  Tx tx(im.db);
+  im.save_diag.Reset();
+  im.save_diag.Bind(1, crusher).Bind(2, time_s).Bind(3, json);
+  im.save_diag.Step();
+  tx.Commit();
+}
+
+std::optional<std::pair<int64_t, std::string>> Store::LatestDiagnosis(const std::string& crusher) {
+  Impl& im = *impl_;
+  im.load_diag.Reset();
+  im.load_diag.Bind(1, crusher);
+  if (!im.load_diag.Step()) return std::nullopt;
+  return std::make_pair(im.load_diag.Int(0), im.load_diag.Text(1));
+}
+
+}  // namespace lw::server

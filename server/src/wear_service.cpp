@@ -1,0 +1,176 @@
+#include "server/wear_service.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/time.hpp"
+#include "server/ingest.hpp"
+
+namespace lw::server {
+namespace {
+
+using nlohmann::ordered_json;
+
+core::TimePoint FromUnix(int64_t s) { return core::TimePoint(std::chrono::seconds(s)); }
+
+ordered_json OptTime(const std::optional<core::TimePoint>& t) {
+  return t ? ordered_json(core::FormatIsoTime(*t)) : ordered_json(nullptr);
+}
+
+double Round(double v, double step) {
+  const double inv = std::round(1.0 / step);  // divide by an exact integer: 0.0278, not 0.027800000000000002
+  return std::round(v * inv) / inv;
+}
+
+}  // namespace
+
+CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<StoredReading>& readings) {
+  CrusherState st;
+  st.crusher = &crusher;
+  std::vector<core::Reading> usable;
+  usable.reserve(readings.size());
+  for (const StoredReading& r : readings) {
+    if (IsFaultReading(r.flags)) continue;
+    core::Reading c;
+    c.time = FromUnix(r.time_s);
+    c.sensor_id = r.sensor;
+    c.thickness_mm = r.thickness_mm;
+    usable.push_back(std::move(c));
+    st.time = std::max(st.time, FromUnix(r.time_s));
+  }
+  if (usable.empty()) return st;
+  st.sensor_wear = core::SensorWearAt(crusher.config, usable, st.time);
+  // The reading each sensor's wear came from (latest by time; the thinner of two at one time).
+  for (const core::SensorWear& w : st.sensor_wear) {
+    const StoredReading* best = nullptr;
+    for (const StoredReading& r : readings) {
+      if (r.sensor != w.sensor_id || IsFaultReading(r.flags)) continue;
+      if (!best || r.time_s > best->time_s || (r.time_s == best->time_s && r.thickness_mm < best->thickness_mm)) best = &r;
+    }
+    if (best) st.used.push_back(*best);
+  }
+  st.reconstruction = core::Reconstruct(crusher.plan, st.sensor_wear);
+  st.has_wear = true;
+  for (const core::SensorInfo& s : crusher.config.sensors) {
+    st.sensor_forecasts.push_back(core::ForecastSensor(crusher.config, s, usable));
+  }
+  st.row_forecasts = core::ForecastRows(crusher.config, st.reconstruction, st.sensor_wear, st.sensor_forecasts, st.time);
+  return st;
+}
+
+ordered_json WearJson(const CrusherState& st, bool with_faces) {
+  const Crusher& c = *st.crusher;
+  const core::Reconstruction& rec = st.reconstruction;
+  ordered_json j;
+  j["crusher_id"] = c.config.crusher_id;
+  j["time"] = core::FormatIsoTime(st.time);
+  j["map_sha256"] = c.map.sha256;
+  j["thickness_new_mm"] = c.config.thickness_new_mm;
+  j["thickness_min_mm"] = c.config.thickness_min_mm;
+  j["min_thickness_mm"] = Round(rec.min_thickness_mm, 0.001);
+  const size_t f = rec.min_face;
+  std::string min_row;
+  if (f < c.plan.face_row.size() && c.plan.face_row[f] >= 0) min_row = c.config.rows[static_cast<size_t>(c.plan.face_row[f])].name;
+  j["min"] = {{"face", f},
+              {"z_m", f < c.map.face_count() ? Round(c.map.z[static_cast<Eigen::Index>(f)], 1e-4) : 0.0},
+              {"theta_deg", f < c.map.face_count() ? Round(c.map.theta_deg[static_cast<Eigen::Index>(f)], 0.01) : 0.0},
+              {"row", min_row}};
+  ordered_json rows = ordered_json::array();
+  for (const core::RowSummary& r : rec.rows) {
+    rows.push_back({{"row", r.row},
+                    {"scale_mm_per_unit", r.scale_mm_per_unit},
+                    {"min_thickness_mm", Round(r.min_thickness_mm, 0.001)},
+                    {"min_z_m", Round(r.min_z_m, 1e-4)},
+                    {"min_theta_deg", Round(r.min_theta_deg, 0.01)},
+                    {"mean_wear_mm", Round(r.mean_wear_mm, 0.001)},
+                    {"sensors_used", r.sensors_used}});
+  }
+  j["rows"] = rows;
+  ordered_json used = ordered_json::array();
+  for (const StoredReading& r : st.used) {
+    used.push_back({{"sensor", r.sensor}, {"seq", r.seq}, {"time", core::FormatIsoTime(FromUnix(r.time_s))},
+                    {"thickness_mm", r.thickness_mm}});
+  }
+  j["readings_used"] = used;
+  j["note"] = "a reading n means thickness in [n, n+1) mm; estimates use n + 0.5";
+  if (with_faces) {
+    std::vector<double> remaining(static_cast<size_t>(rec.remaining_mm.size()));
+    for (Eigen::Index i = 0; i < rec.remaining_mm.size(); ++i) remaining[static_cast<size_t>(i)] = Round(rec.remaining_mm[i], 0.001);
+    j["remaining_mm"] = remaining;
+  }
+  return j;
+}
+
+ordered_json ForecastJson(const CrusherState& st) {
+  const Crusher& c = *st.crusher;
+  ordered_json j;
+  j["crusher_id"] = c.config.crusher_id;
+  j["time"] = core::FormatIsoTime(st.time);
+  j["thickness_min_mm"] = c.config.thickness_min_mm;
+  ordered_json rows = ordered_json::array();
+  for (const core::RowForecast& r : st.row_forecasts) {
+    ordered_json o = {{"row", r.row},
+                      {"min_thickness_mm", Round(r.min_thickness_mm, 0.001)},
+                      {"rate_mm_per_day", Round(r.rate_mm_per_day, 1e-4)},
+                      {"reach_date", OptTime(r.reach)},
+                      {"reach_earliest", OptTime(r.reach_earliest)},
+                      {"reach_latest", OptTime(r.reach_latest)}};
+    if (!r.note.empty()) o["note"] = r.note;
+    rows.push_back(o);
+  }
+  j["rows"] = rows;
+  ordered_json sensors = ordered_json::array();
+  for (const core::SensorForecast& f : st.sensor_forecasts) {
+    ordered_json o = {{"id", f.sensor_id}, {"ok", f.ok}};
+    if (f.ok) {
+      o["last_time"] = core::FormatIsoTime(f.last_time);
+      o["last_reading_mm"] = f.last_reading_mm;
+      o["thickness_interval_mm"] = {f.last_reading_mm, f.last_reading_mm + 1.0};
+      o["thickness_mm"] = Round(f.thickness_mm, 0.001);
+      o["rate_mm_per_day"] = Round(f.rate_mm_per_day, 1e-4);
+      o["reach_date"] = OptTime(f.reach);
+      o["reach_earliest"] = OptTime(f.reach_earliest);
+      o["reach_latest"] = OptTime(f.reach_latest);
+      ordered_json curve = ordered_json::array();
+      for (const core::CurvePoint& p : f.points) {
+        curve.push_back({{"time", core::FormatIsoTime(p.time)},
+                         {"thickness_mm", Round(p.thickness_mm, 0.01)},
+                         {"lo_mm", Round(p.lo_mm, 0.01)},
+                         {"hi_mm", Round(p.hi_mm, 0.01)}});
+      }
+      o["curve"] = curve;
+    }
+    if (!f.note.empty()) o["note"] = f.note;
+    sensors.push_back(o);
+  }
+  j["sensors"] = sensors;
+  j["note"] = "a reading n means thickness in [n, n+1) mm; fits use n + 0.5; bands are +/-2 sd";
+  return j;
+}
+
+WearService::WearService(const Registry& registry, Store& read, std::mutex& read_mutex)
+    : registry_(registry), read_(read), read_mutex_(read_mutex) {}
+
+void WearService::MarkChanged(const std::string& crusher) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++entries_[crusher].version;
+}
+
+std::shared_ptr<const CrusherState> WearService::Get(const std::string& crusher_id) {
+  const Crusher* crusher = registry_.Find(crusher_id);
+  if (!crusher) return nullptr;
+  std::lock_guard<std::mutex> lock(mutex_);  // one computation at a time; others wait for it
+  Entry& e = entries_[crusher_id];
+  if (e.state && e.state->version == e.version) return e.state;
+  std::vector<StoredReading> readings;
+  {
+    std::lock_guard<std::mutex> rl(read_mutex_);
+    readings = read_.All(crusher_id);
+  }
+  auto st = std::make_shared<CrusherState>(ComputeCrusherState(*crusher, readings));
+  st->version = e.version;
+  e.state = st;
+  return st;
+}
+
+}  // namespace lw::server
