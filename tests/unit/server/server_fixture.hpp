@@ -1,0 +1,50 @@
+#pragma once
+// A crusher folder made by the campaign generator (crusher.json, wear_map.vtk, readings.csv) in a
+// scratch directory, and helpers to turn its readings into reading messages (docs/mqtt.md).
+#include <nlohmann/json.hpp>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/bundle.hpp"
+#include "server/ingest.hpp"
+#include "server/registry.hpp"
+#include "sim/campaign.hpp"
+#include "support/mosquitto_fixture.hpp"
+
+namespace lw::test {
+
+struct CrusherFolder {
+  TempDirectory dir{"lw-server-test"};
+  std::string crushers;  // the --crusher-dir
+  std::string folder;    // crushers/demo
+  core::Bundle bundle;   // as loaded back from the folder
+
+  explicit CrusherFolder(double days = 30, uint64_t seed = 7) {
+    sim::CampaignSpec spec;
+    spec.days = days;
+    crushers = dir.File("crushers");
+    folder = crushers + "/demo";
+    sim::GenerateCampaign(spec, seed).WriteBundle(folder);
+    bundle = core::LoadBundle(folder);
+  }
+  std::string id() const { return bundle.crusher.crusher_id; }
+};
+
+/// The bundle's readings as reading messages with per-sensor seqs 1, 2, ... (file order by time).
+inline std::vector<server::Incoming> Messages(const core::Bundle& b, const std::string& site = "site1") {
+  std::vector<server::Incoming> out;
+  std::map<std::string, int64_t> seq;
+  for (const core::Reading& r : b.readings) {
+    const nlohmann::json j = {{"sensor", r.sensor_id},    {"seq", ++seq[r.sensor_id]},
+                              {"time", core::FormatIsoTime(r.time)}, {"thickness_mm", r.thickness_mm},
+                              {"loops_intact", static_cast<int>(r.thickness_mm)}, {"flags", 0},
+                              {"battery_mv", 3550}};
+    out.push_back({site, b.crusher.crusher_id, r.sensor_id,
+                   "linerwatch/v1/" + site + "/" + b.crusher.crusher_id + "/sensors/" + r.sensor_id + "/reading", j.dump()});
+  }
+  return out;
+}
+
+}  // namespace lw::test

@@ -1,0 +1,168 @@
+#include "server/ingest.hpp"
+#include "server/wear_service.hpp"
+#include "unit/server/server_fixture.hpp"
+
+#include <CppUTest/TestHarness.h>  // last: its leak-detection macros clash with std headers
+
+using namespace lw::server;
+
+namespace {
+lw::test::CrusherFolder& Folder() {
+  static lw::test::CrusherFolder f(20);
+  return f;
+}
+int64_t Now() { return Folder().bundle.readings.back().time.time_since_epoch().count() + 3600; }
+
+Incoming With(const std::string& payload, const std::string& sensor = "1001") {
+  return {"site1", Folder().id(), sensor, "linerwatch/v1/site1/" + Folder().id() + "/sensors/" + sensor + "/reading", payload};
+}
+std::string Reading(const std::string& fields) {
+  return R"({"sensor":"1001","seq":5,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":0,"battery_mv":3500)" +
+         fields + "}";
+}
+}  // namespace
+
+TEST_GROUP(Ingest) {
+  std::unique_ptr<Registry> registry;
+  void setup() override {
+    std::vector<std::string> errors;
+    registry = Registry::Load(Folder().crushers, &errors);
+    CHECK(errors.empty());
+  }
+  std::string Reject(const Incoming& in) {
+    const Validation v = ValidateReading(in, *registry, Now());
+    CHECK_FALSE(v.reading.has_value());
+    return v.error;
+  }
+};
+
+TEST(Ingest, ParsesReadingTopicsOnly) {
+  const auto t = ParseReadingTopic("linerwatch/v1/mine/cr7/sensors/1001/reading");
+  CHECK(t.has_value());
+  STRCMP_EQUAL("mine", t->site.c_str());
+  STRCMP_EQUAL("cr7", t->crusher.c_str());
+  STRCMP_EQUAL("1001", t->sensor.c_str());
+  CHECK_FALSE(ParseReadingTopic("linerwatch/v1/mine/cr7/sensors/1001/committed"));
+  CHECK_FALSE(ParseReadingTopic("linerwatch/v1/mine/cr7/wear"));
+  CHECK_FALSE(ParseReadingTopic("other/v1/mine/cr7/sensors/1001/reading"));
+  CHECK_FALSE(ParseReadingTopic("linerwatch/v1/mine//sensors/1001/reading"));
+}
+
+TEST(Ingest, AcceptsAWellFormedReading) {
+  const Validation v = ValidateReading(With(Reading("")), *registry, Now());
+  CHECK_TRUE(v.error.empty());
+  CHECK(v.reading.has_value());
+  LONGS_EQUAL(5, v.reading->seq);
+  DOUBLES_EQUAL(100, v.reading->thickness_mm, 0);
+}
+
+TEST(Ingest, RejectsBadInputNamingTheRule) {
+  CHECK(Reject(With("{not json")).find("malformed JSON") != std::string::npos);
+  CHECK(Reject(With("[1,2]")).find("not a JSON object") != std::string::npos);
+  CHECK(Reject(With(R"({"sensor":"9999","seq":1})", "9999")).find("unknown sensor '9999'") != std::string::npos);
+  CHECK(Reject(With(Reading(""), "1002")).find("differs from the topic") != std::string::npos);
+  CHECK(Reject(With(R"({"sensor":"1001","seq":-1})")).find("\"seq\"") != std::string::npos);
+  const std::string base = R"({"sensor":"1001","seq":5,"loops_intact":1,"flags":0,"battery_mv":1,)";
+  CHECK(Reject(With(base + R"("time":"2026-01-10T00:00:00Z","thickness_mm":500})")).find("\"thickness_mm\" 500") != std::string::npos);
+  CHECK(Reject(With(base + R"("time":"2026-01-10T00:00:00Z","thickness_mm":"ten"})")).find("thickness_mm") != std::string::npos);
+  CHECK(Reject(With(base + R"("time":"2019-01-01T00:00:00Z","thickness_mm":100})")).find("before the liner was installed") != std::string::npos);
+  CHECK(Reject(With(base + R"("time":"2099-01-01T00:00:00Z","thickness_mm":100})")).find("future") != std::string::npos);
+  CHECK(Reject(With(base + R"("time":"yesterday","thickness_mm":100})")).find("ISO-8601") != std::string::npos);
+  CHECK(Reject(With(R"({"sensor":"1001","seq":5,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":70000,"battery_mv":3500})"))
+            .find("\"flags\" 70000") != std::string::npos);
+  CHECK(Reject(With(R"({"sensor":"1001","seq":5,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":0})"))
+            .find("missing \"battery_mv\"") != std::string::npos);
+  Incoming unknown = With(Reading(""));
+  unknown.crusher = "nope";
+  CHECK(Reject(unknown).find("unknown crusher 'nope'") != std::string::npos);
+}
+
+TEST(Ingest, StoresOnceAcksEveryCommittedOrQuarantinedMessageAndCounts) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  Ingestor ingestor(store, *registry, [] { return Now(); });
+  const auto msgs = lw::test::Messages(Folder().bundle);
+  const std::vector<Incoming> first(msgs.begin(), msgs.begin() + 50);
+  IngestResult r = ingestor.Ingest(first);
+  LONGS_EQUAL(50, r.stored);
+  LONGS_EQUAL(50, r.new_readings.size());
+  size_t acked = 0;
+  for (const Ack& a : r.acks) {
+    STRCMP_EQUAL("site1", a.site.c_str());
+    CHECK(std::is_sorted(a.seqs.begin(), a.seqs.end()));
+    acked += a.seqs.size();
+  }
+  LONGS_EQUAL(50, acked);
+
+  // Redelivery of ten plus one bad message: nothing new stored, all eleven acked.
+  std::vector<Incoming> again(msgs.begin() + 40, msgs.begin() + 50);
+  again.push_back(With(R"({"sensor":"1001","seq":999,"time":"garbage"})"));
+  r = ingestor.Ingest(again);
+  LONGS_EQUAL(0, r.stored);
+  LONGS_EQUAL(10, r.duplicates);
+  LONGS_EQUAL(1, r.rejected);
+  acked = 0;
+  bool bad_acked = false;
+  for (const Ack& a : r.acks) {
+    acked += a.seqs.size();
+    for (auto s : a.seqs) bad_acked |= (a.sensor == "1001" && s == 999);
+  }
+  LONGS_EQUAL(11, acked);
+  CHECK_TRUE(bad_acked);
+  LONGS_EQUAL(50, store.CountReadings(Folder().id()));
+  LONGS_EQUAL(1, store.CountRejected());
+  const IngestCounters c = ingestor.Counters();
+  LONGS_EQUAL(50, c.stored);
+  LONGS_EQUAL(10, c.duplicates);
+  LONGS_EQUAL(1, c.rejected);
+}
+
+TEST(Ingest, RestReadingsAreNotAckedOverMqtt) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  Ingestor ingestor(store, *registry, [] { return Now(); });
+  Incoming in = With(Reading(""));
+  in.site.clear();
+  in.sensor.clear();
+  in.topic.clear();
+  const IngestResult r = ingestor.Ingest({in});
+  LONGS_EQUAL(1, r.stored);
+  LONGS_EQUAL(0, r.acks.size());
+}
+
+TEST(Ingest, WearFromStoredReadingsEqualsTheOfflineReconstruction) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  Ingestor ingestor(store, *registry, [] { return Now(); });
+  ingestor.Ingest(lw::test::Messages(Folder().bundle));
+  const Crusher& c = *registry->Find(Folder().id());
+  const CrusherState st = ComputeCrusherState(c, store.All(Folder().id()));
+  CHECK_TRUE(st.has_wear);
+  const auto& b = Folder().bundle;
+  const auto last = std::max_element(b.readings.begin(), b.readings.end(),
+                                     [](const auto& x, const auto& y) { return x.time < y.time; })->time;
+  const auto offline = lw::core::Reconstruct(b.crusher, b.map, lw::core::SensorWearAt(b.crusher, b.readings, last));
+  DOUBLES_EQUAL(offline.min_thickness_mm, st.reconstruction.min_thickness_mm, 1e-9);
+  LONGS_EQUAL(offline.remaining_mm.size(), st.reconstruction.remaining_mm.size());
+  DOUBLES_EQUAL(0, (offline.remaining_mm - st.reconstruction.remaining_mm).cwiseAbs().maxCoeff(), 1e-9);
+  const auto j = WearJson(st, false);
+  STRCMP_EQUAL(c.map.sha256.c_str(), j["map_sha256"].get<std::string>().c_str());
+  LONGS_EQUAL(b.crusher.sensors.size(), j["readings_used"].size());
+  CHECK_FALSE(j.contains("remaining_mm"));
+}
+
+TEST(Ingest, FaultReadingsAreStoredButNotUsedForWear) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  Ingestor ingestor(store, *registry, [] { return Now(); });
+  ingestor.Ingest(lw::test::Messages(Folder().bundle));
+  const Crusher& c = *registry->Find(Folder().id());
+  const double before = ComputeCrusherState(c, store.All(Folder().id())).reconstruction.min_thickness_mm;
+  // An all-open reading (flag bit 3) of 0 mm after everything else: a cut cable, not wear.
+  const std::string t = lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(Now() - 60)));
+  const IngestResult r = ingestor.Ingest({With(R"({"sensor":"1001","seq":100000,"time":")" + t +
+                                               R"(","thickness_mm":0,"loops_intact":0,"flags":8,"battery_mv":3500})")});
+  LONGS_EQUAL(1, r.stored);
+  const double after = ComputeCrusherState(c, store.All(Folder().id())).reconstruction.min_thickness_mm;
+  DOUBLES_EQUAL(before, after, 1e-12);
+}

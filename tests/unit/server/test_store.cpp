@@ -1,0 +1,121 @@
+#include <sqlite3.h>
+
+#include "server/store.hpp"
+#include "support/mosquitto_fixture.hpp"
+
+#include <CppUTest/TestHarness.h>  // last: its leak-detection macros clash with std headers
+
+using lw::server::InsertOutcome;
+using lw::server::Store;
+using lw::server::StoredReading;
+
+namespace {
+StoredReading R(const std::string& sensor, int64_t seq, int64_t t, double mm) {
+  StoredReading r;
+  r.crusher = "c1";
+  r.sensor = sensor;
+  r.seq = seq;
+  r.time_s = t;
+  r.thickness_mm = mm;
+  r.loops_intact = static_cast<int64_t>(mm);
+  r.received_s = 5;
+  r.payload = "{}";
+  return r;
+}
+}  // namespace
+
+TEST_GROUP(Store) {
+  lw::test::TempDirectory dir{"lw-store"};
+  std::string db() { return dir.File("db.sqlite"); }
+};
+
+TEST(Store, RedeliveryIsStoredOnceAndReportedAsDuplicate) {
+  Store s(db());
+  auto out = s.Commit({R("a", 1, 100, 90), R("a", 2, 200, 89)}, {});
+  CHECK(out == std::vector<InsertOutcome>({InsertOutcome::kStored, InsertOutcome::kStored}));
+  out = s.Commit({R("a", 2, 200, 89), R("a", 3, 300, 88)}, {});
+  CHECK(out == std::vector<InsertOutcome>({InsertOutcome::kDuplicate, InsertOutcome::kStored}));
+  LONGS_EQUAL(3, s.CountReadings("c1"));
+}
+
+TEST(Store, SameKeyOtherContentIsAConflictAndTheFirstIsKept) {
+  Store s(db());
+  s.Commit({R("a", 1, 100, 90)}, {});
+  const auto out = s.Commit({R("a", 1, 100, 70)}, {});
+  CHECK(out[0] == InsertOutcome::kConflict);
+  DOUBLES_EQUAL(90, s.All("c1").at(0).thickness_mm, 0);
+}
+
+TEST(Store, SurvivesReopenAndKeepsRejectedMessages) {
+  {
+    Store s(db());
+    s.Commit({R("a", 1, 100, 90)}, {{7, "t/x", "garbage", "malformed JSON"}});
+  }
+  Store s(db());
+  LONGS_EQUAL(1, s.CountReadings("c1"));
+  LONGS_EQUAL(1, s.CountRejected());
+  const auto rej = s.RejectedMessages(10);
+  STRCMP_EQUAL("garbage", rej.at(0).payload.c_str());
+  STRCMP_EQUAL("malformed JSON", rej.at(0).reason.c_str());
+}
+
+TEST(Store, PagesThroughARangeWithCursorsWithoutGapsOrRepeats) {
+  Store s(db());
+  std::vector<StoredReading> rs;
+  for (int i = 1; i <= 25; ++i) rs.push_back(R("a", i, 1000 + (i / 2) * 10, 120 - i));  // equal times in pairs
+  rs.push_back(R("b", 1, 1000, 50));
+  s.Commit(rs, {});
+  std::vector<int64_t> seen;
+  std::string cursor;
+  int pages = 0;
+  while (true) {
+    const auto page = s.Range("c1", "a", 1010, 1100, 4, cursor);
+    for (const auto& r : page.readings) seen.push_back(r.seq);
+    ++pages;
+    if (!page.next_cursor) break;
+    cursor = *page.next_cursor;
+  }
+  // times 1010..1100 are seqs 2..21
+  LONGS_EQUAL(20, seen.size());
+  for (size_t i = 0; i < seen.size(); ++i) LONGS_EQUAL(static_cast<long>(i + 2), seen[i]);
+  LONGS_EQUAL(5, pages);
+}
+
+TEST(Store, MalformedCursorIsRefused) {
+  Store s(db());
+  CHECK_THROWS(std::invalid_argument, s.Range("c1", "a", 0, 10, 5, "t12x"));
+}
+
+TEST(Store, LatestPerSensorIsByTimeWithCounts) {
+  Store s(db());
+  s.Commit({R("a", 1, 100, 90), R("a", 3, 50, 95), R("b", 1, 10, 60)}, {});
+  const auto latest = s.LatestPerSensor("c1");
+  LONGS_EQUAL(2, latest.size());
+  LONGS_EQUAL(1, latest[0].latest.seq);  // seq 3 is older in time
+  LONGS_EQUAL(2, latest[0].count);
+  STRCMP_EQUAL("b", latest[1].latest.sensor.c_str());
+}
+
+TEST(Store, RefusesADatabaseFromANewerServer) {
+  {
+    sqlite3* h = nullptr;
+    sqlite3_open(db().c_str(), &h);
+    sqlite3_exec(h, "PRAGMA user_version=9", nullptr, nullptr, nullptr);
+    sqlite3_close(h);
+  }
+  try {
+    Store s(db());
+    FAIL("expected a refusal");
+  } catch (const std::runtime_error& e) {
+    CHECK(std::string(e.what()).find("newer") != std::string::npos);
+  }
+}
+
+TEST(Store, RefusesAFileThatIsNotADatabase) {
+  {
+    FILE* f = fopen(db().c_str(), "w");
+    fputs("this is not sqlite, but it is long enough to look like a header of something...........", f);
+    fclose(f);
+  }
+  CHECK_THROWS(std::runtime_error, Store(db()));
+}
