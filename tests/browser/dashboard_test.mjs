@@ -35,6 +35,7 @@ const artifacts = path.resolve(opt.artifacts);
 fs.mkdirSync(artifacts, { recursive: true });
 const children = [];
 let browser = null;
+const pages = [];
 
 function freePort() {
   return new Promise((resolve, reject) => {
@@ -119,6 +120,8 @@ async function newPage() {
   page.errors = [];
   page.on('pageerror', (e) => page.errors.push(e.message));
   page.on('console', (m) => { if (m.type() === 'error') console.log(`browser console: ${m.text()}`); });
+  page.on('response', (r) => { if (r.status() >= 400) console.log(`browser: ${r.status()} ${r.url()}`); });
+  pages.push(page);
   return page;
 }
 
@@ -144,6 +147,9 @@ async function main() {
     stored += r.json.stored;
   }
   check(stored === readings.length, `stored all ${readings.length} campaign readings (server said ${stored})`);
+  // The server reconstructs the wear in the background after a commit.
+  await waitFor('the server\'s first wear reconstruction', async () => (await http(base, 'GET', `/api/v1/crushers/${crusher}/wear?faces=false`)).status === 200);
+  check(true, 'wear reconstructed from the loaded readings');
 
   browser = await chromium.launch({
     executablePath: opt.chromium,
@@ -192,7 +198,7 @@ async function main() {
   const mine = readings.filter((r) => r.sensor === sensor);
   const last = mine[mine.length - 1];
   const injected = { sensor, seq: last.seq + 1, time: new Date(Date.parse(last.time) + 3600000).toISOString().replace(/\.\d{3}Z$/, 'Z'),
-    thickness_mm: last.thickness_mm - 6, loops_intact: last.thickness_mm - 6, flags: 0, battery_mv: 3590 };
+    thickness_mm: last.thickness_mm - 3, loops_intact: last.thickness_mm - 3, flags: 0, battery_mv: 3590 };
   const inj = await http(base, 'POST', `/api/v1/crushers/${crusher}/readings`, { readings: [injected] });
   check(inj.status === 200 && inj.json.stored === 1, `injected reading ${injected.thickness_mm} mm for sensor ${sensor}`);
   await page.waitForFunction(([n]) => Number(document.querySelector('[data-testid="sensor-series"]')?.dataset.points) === n, [points0 + 1], { timeout: 20000 });
@@ -238,6 +244,7 @@ try {
 } catch (e) {
   status = 1;
   console.error(`dashboard_test: FAILED: ${e.message}`);
+  for (const [i, p] of pages.entries()) await p.screenshot({ path: path.join(artifacts, `failure-page${i + 1}.png`), fullPage: true }).catch(() => {});
   console.error(`  logs and screenshots in ${artifacts}`);
 } finally {
   if (browser) await browser.close().catch(() => {});

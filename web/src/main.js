@@ -172,7 +172,7 @@ async function crusherPage(crusherId, initialSensor) {
       h('div', { class: 'card kpi', 'data-testid': 'kpi-latest' },
         h('div', { class: 'label' }, 'Latest reading'),
         h('div', { class: 'value', style: { fontSize: '20px' } }, latest ? fmtDateTime(latest) : '–'),
-        h('div', { class: 'detail' }, `${st.detail.counters?.readings_stored ?? '–'} readings stored · ${st.detail.counters?.duplicates ?? 0} duplicates · ${st.detail.counters?.rejected ?? 0} rejected`)));
+        h('div', { class: 'detail' }, `${st.detail.counters?.readings_stored ?? '–'} readings stored · ${st.detail.counters?.duplicates ?? 0} duplicates · ${st.detail.counters?.rejected ?? 0} rejected${st.detail.counters?.conflicts ? ` · ${st.detail.counters.conflicts} conflicts` : ''}`)));
   }
 
   function drawTable() {
@@ -201,7 +201,7 @@ async function crusherPage(crusherId, initialSensor) {
           h('div', { class: 'reline-bar', title: 'from the latest reading to the latest reline date of any row' },
             Number.isFinite(parseTime(f.reach_earliest)) ? h('span', { class: 'rng', style: { left: X(parseTime(f.reach_earliest)), width: `calc(${X(parseTime(f.reach_latest))} - ${X(parseTime(f.reach_earliest))})` } }) : null,
             h('span', { class: 'pt', style: { left: X(parseTime(f.reach_date)) } })))
-          : (f ? 'beyond forecast' : '–')),
+          : (f ? h('span', { class: 'band' }, f.note || 'beyond forecast') : '–')),
         h('td', { class: 'num' }, r ? String(r.sensors_used ?? '–') : '–'));
     }));
     app.querySelector('[data-testid="wear-time"]').textContent = w ? `as of ${fmtDateTime(w.time)}` : '';
@@ -234,7 +234,8 @@ async function crusherPage(crusherId, initialSensor) {
       h('span', {}, 'latest ', h('b', { 'data-testid': 'series-latest' }, last ? `${last.thickness_mm} mm` : '–'), last ? ` (${fmtDateTime(last.time)}, battery ${last.battery_mv ?? '–'} mV)` : ''),
       h('span', {}, 'rate ', h('b', {}, fc ? `${fmt(fc.rate_mm_per_day, 2)} mm/day` : '–')),
       h('span', {}, 'reaches minimum ', h('b', {}, fc?.reach_date ? fmtDate(fc.reach_date) : '–'), fc?.reach_earliest ? ` (${fmtDate(fc.reach_earliest)} – ${fmtDate(fc.reach_latest)})` : ''),
-      h('span', {}, `${readings.length} readings`));
+      h('span', {}, `${readings.length} readings`),
+      fc?.note ? h('span', {}, `forecast: ${fc.note}`) : null);
   }
 
   function selectSensor(id) {
