@@ -25,6 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/cmdline.hpp"
 #include "core/time.hpp"
 #include "sim/fleet.hpp"
 #include "sim/truth.hpp"
@@ -84,22 +85,9 @@ struct RunOptions {
   bool quiet = false;
 };
 
-class UsageError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+using core::UsageError;
 
-double Number(const std::string& name, const std::string& v) {
-  size_t used = 0;
-  double x = 0;
-  try {
-    x = std::stod(v, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != v.size() || !std::isfinite(x)) throw UsageError("--" + name + ": '" + v + "' is not a number");
-  return x;
-}
+double Number(const std::string& name, const std::string& v) { return core::ParseNumber(name, v); }
 
 void Assign(RunOptions* o, std::string name, const std::string& v) {
   std::replace(name.begin(), name.end(), '_', '-');
@@ -143,57 +131,9 @@ void Assign(RunOptions* o, std::string name, const std::string& v) {
 
 /// Returns false for --help.
 bool Parse(const std::vector<std::string>& args, RunOptions* o) {
-  std::vector<std::pair<std::string, std::string>> flags;
-  std::string config;
-  for (size_t i = 0; i < args.size(); ++i) {
-    const std::string& a = args[i];
-    if (a == "--help" || a == "-h") return false;
-    if (a.rfind("--", 0) != 0) throw UsageError("unexpected argument '" + a + "' (see --help)");
-    std::string name = a.substr(2), value;
-    const size_t eq = name.find('=');
-    if (eq != std::string::npos) {
-      value = name.substr(eq + 1);
-      name = name.substr(0, eq);
-    } else if (name == "quiet") {
-      value = "true";
-    } else {
-      if (i + 1 >= args.size()) throw UsageError(a + " needs a value");
-      value = args[++i];
-    }
-    if (name == "config") config = value;
-    else flags.emplace_back(name, value);
+  if (!core::ParseCommandLine(args, {"quiet"}, [o](const std::string& name, const std::string& value) { Assign(o, name, value); })) {
+    return false;
   }
-  if (!config.empty()) {
-    std::ifstream in(config);
-    if (!in) throw UsageError("--config: cannot read '" + config + "'");
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(in);
-    } catch (const std::exception& e) {
-      throw UsageError("--config '" + config + "' is not valid JSON: " + e.what());
-    }
-    if (!j.is_object()) throw UsageError("--config '" + config + "': must be a JSON object of option names to values");
-    for (const auto& [k, v] : j.items()) {
-      std::string text;
-      if (v.is_string()) text = v.get<std::string>();
-      else if (v.is_boolean()) text = v.get<bool>() ? "true" : "false";
-      else if (v.is_number_integer()) text = std::to_string(v.get<long long>());
-      else if (v.is_number()) {
-        std::ostringstream os;
-        os.precision(17);
-        os << v.get<double>();
-        text = os.str();
-      } else {
-        throw UsageError("--config '" + config + "', key '" + k + "': must be a string, number or boolean");
-      }
-      try {
-        Assign(o, k, text);
-      } catch (const UsageError& e) {
-        throw UsageError("--config '" + config + "', key '" + k + "': " + e.what());
-      }
-    }
-  }
-  for (const auto& [k, v] : flags) Assign(o, k, v);
   if (o->crusher_dir.empty()) throw UsageError("--crusher-dir DIR is required");
   if (o->serial_out.empty()) throw UsageError("--serial-out PATH is required");
   return true;
