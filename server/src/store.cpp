@@ -32,6 +32,20 @@ StoredReading Row(const Stmt& s) {
   return r;
 }
 
+/// Resets a statement when the scope ends, so no statement stays active between calls: an active
+/// statement keeps the connection's read transaction (its WAL snapshot) open, and later queries
+/// would not see newer commits.
+class InUse {
+ public:
+  explicit InUse(Stmt& s) : s_(s) { s_.Reset(); }
+  ~InUse() { s_.Reset(); }
+  InUse(const InUse&) = delete;
+  InUse& operator=(const InUse&) = delete;
+
+ private:
+  Stmt& s_;
+};
+
 std::string MakeCursor(int64_t time_s, int64_t seq) { return "t" + std::to_string(time_s) + "s" + std::to_string(seq); }
 
 void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq) {
@@ -116,7 +130,7 @@ std::vector<InsertOutcome> Store::Commit(const std::vector<StoredReading>& readi
   out.reserve(readings.size());
   Tx tx(im.db);
   for (const StoredReading& r : readings) {
-    im.insert.Reset();
+    InUse use_insert(im.insert);
     im.insert.Bind(1, r.crusher).Bind(2, r.sensor).Bind(3, r.seq).Bind(4, r.time_s).Bind(5, r.thickness_mm);
     im.insert.Bind(6, r.loops_intact).Bind(7, r.flags).Bind(8, r.battery_mv).Bind(9, r.received_s).Bind(10, r.payload);
     im.insert.Step();
@@ -124,14 +138,14 @@ std::vector<InsertOutcome> Store::Commit(const std::vector<StoredReading>& readi
       out.push_back(InsertOutcome::kStored);
       continue;
     }
-    im.existing.Reset();
+    InUse use_existing(im.existing);
     im.existing.Bind(1, r.crusher).Bind(2, r.sensor).Bind(3, r.seq);
     const bool same = im.existing.Step() && im.existing.Int(0) == r.time_s &&
                       std::fabs(im.existing.Real(1) - r.thickness_mm) < 1e-9;
     out.push_back(same ? InsertOutcome::kDuplicate : InsertOutcome::kConflict);
   }
   for (const Rejected& r : rejected) {
-    im.insert_rejected.Reset();
+    InUse use_insert_rejected(im.insert_rejected);
     im.insert_rejected.Bind(1, r.received_s).Bind(2, r.topic).Bind(3, r.payload).Bind(4, r.reason);
     im.insert_rejected.Step();
   }
@@ -142,7 +156,7 @@ std::vector<InsertOutcome> Store::Commit(const std::vector<StoredReading>& readi
 std::vector<Store::SensorSummary> Store::LatestPerSensor(const std::string& crusher) {
   Impl& im = *impl_;
   std::vector<SensorSummary> out;
-  im.latest.Reset();
+  InUse use_latest(im.latest);
   im.latest.Bind(1, crusher);
   while (im.latest.Step()) out.push_back({Row(im.latest), im.latest.Int(10)});
   return out;
@@ -154,7 +168,7 @@ Page Store::Range(const std::string& crusher, const std::string& sensor, int64_t
   int64_t after_t = INT64_MIN, after_seq = INT64_MIN;
   if (!cursor.empty()) ParseCursor(cursor, &after_t, &after_seq);
   Page page;
-  im.range.Reset();
+  InUse use_range(im.range);
   im.range.Bind(1, crusher).Bind(2, sensor).Bind(3, from_s).Bind(4, to_s).Bind(5, after_t).Bind(6, after_seq);
   im.range.Bind(7, static_cast<int64_t>(limit) + 1);
   while (im.range.Step()) page.readings.push_back(Row(im.range));
@@ -168,7 +182,7 @@ Page Store::Range(const std::string& crusher, const std::string& sensor, int64_t
 std::vector<StoredReading> Store::All(const std::string& crusher) {
   Impl& im = *impl_;
   std::vector<StoredReading> out;
-  im.all.Reset();
+  InUse use_all(im.all);
   im.all.Bind(1, crusher);
   while (im.all.Step()) out.push_back(Row(im.all));
   return out;
@@ -176,7 +190,7 @@ std::vector<StoredReading> Store::All(const std::string& crusher) {
 
 int64_t Store::CountReadings(const std::string& crusher) {
   Impl& im = *impl_;
-  im.count.Reset();
+  InUse use_count(im.count);
   im.count.Bind(1, crusher);
   im.count.Step();
   return im.count.Int(0);
@@ -184,7 +198,7 @@ int64_t Store::CountReadings(const std::string& crusher) {
 
 int64_t Store::CountRejected() {
   Impl& im = *impl_;
-  im.count_rejected.Reset();
+  InUse use_count_rejected(im.count_rejected);
   im.count_rejected.Step();
   return im.count_rejected.Int(0);
 }
@@ -192,7 +206,7 @@ int64_t Store::CountRejected() {
 std::vector<Rejected> Store::RejectedMessages(int limit) {
   Impl& im = *impl_;
   std::vector<Rejected> out;
-  im.rejected_list.Reset();
+  InUse use_rejected_list(im.rejected_list);
   im.rejected_list.Bind(1, static_cast<int64_t>(limit));
   while (im.rejected_list.Step()) {
     out.push_back({im.rejected_list.Int(0), im.rejected_list.Text(1), im.rejected_list.Text(2), im.rejected_list.Text(3)});
@@ -203,7 +217,7 @@ std::vector<Rejected> Store::RejectedMessages(int limit) {
 void Store::SaveDiagnosis(const std::string& crusher, int64_t time_s, const std::string& json) {
   Impl& im = *impl_;
   Tx tx(im.db);
-  im.save_diag.Reset();
+  InUse use_save_diag(im.save_diag);
   im.save_diag.Bind(1, crusher).Bind(2, time_s).Bind(3, json);
   im.save_diag.Step();
   tx.Commit();
@@ -211,7 +225,7 @@ void Store::SaveDiagnosis(const std::string& crusher, int64_t time_s, const std:
 
 std::optional<std::pair<int64_t, std::string>> Store::LatestDiagnosis(const std::string& crusher) {
   Impl& im = *impl_;
-  im.load_diag.Reset();
+  InUse use_load_diag(im.load_diag);
   im.load_diag.Bind(1, crusher);
   if (!im.load_diag.Step()) return std::nullopt;
   return std::make_pair(im.load_diag.Int(0), im.load_diag.Text(1));

@@ -119,3 +119,17 @@ TEST(Store, RefusesAFileThatIsNotADatabase) {
   }
   CHECK_THROWS(std::runtime_error, Store(db()));
 }
+
+TEST(Store, AReaderConnectionSeesCommitsMadeAfterItsEarlierQueries) {
+  Store writer(db());
+  Store reader(db());
+  writer.Commit({R("a", 1, 100, 90)}, {});
+  LONGS_EQUAL(1, reader.CountReadings("c1"));
+  LONGS_EQUAL(0, reader.CountRejected());
+  LONGS_EQUAL(1, reader.LatestPerSensor("c1").size());
+  writer.Commit({R("a", 2, 200, 89), R("b", 1, 200, 70)}, {{1, "t", "p", "r"}});
+  LONGS_EQUAL(3, reader.CountReadings("c1"));
+  LONGS_EQUAL(1, reader.CountRejected());
+  LONGS_EQUAL(2, reader.LatestPerSensor("c1").size());
+  LONGS_EQUAL(3, reader.All("c1").size());
+}

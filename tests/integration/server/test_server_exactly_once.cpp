@@ -1,0 +1,160 @@
+// The real linerwatch-server against a real mosquitto on 127.0.0.1: the test plays the gateway
+// (publishes readings QoS 1, republishes what the server has not confirmed), SIGKILLs the server
+// twice mid-stream and restarts it. Every reading must end up stored exactly once, confirmed, and
+// the retained global wear must equal the reconstruction computed offline from the same readings.
+#include <mqtt/async_client.h>
+
+#include <chrono>
+#include <map>
+#include <random>
+#include <set>
+#include <thread>
+
+#include "core/reconstruction.hpp"
+#include "server/store.hpp"
+#include "support/mosquitto_fixture.hpp"
+#include "unit/server/server_fixture.hpp"
+
+#include <httplib.h>  // after Eigen (<resolv.h> defines _res)
+
+#include <CppUTest/TestHarness.h>  // last
+
+using nlohmann::json;
+
+namespace {
+
+int64_t NowMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+struct ServerProcess {
+  lw::test::ChildProcess process;
+  std::vector<std::string> argv;
+  std::string log;
+  int http_port = 0;
+  void Start() {
+    process.Start(argv, log);
+    for (int i = 0; i < 100 && !lw::test::PortAccepts(http_port); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (!lw::test::PortAccepts(http_port)) FAIL(("server did not come up: " + lw::test::FileTail(log)).c_str());
+  }
+};
+
+}  // namespace
+
+TEST_GROUP(ServerExactlyOnce){};
+
+TEST(ServerExactlyOnce, SigkillMidStreamStoresEveryReadingOnceAndWearMatchesOffline) {
+  lw::test::MosquittoFixture broker;
+  broker.Start();
+  lw::test::CrusherFolder folder(30, 5);
+  const auto messages = lw::test::Messages(folder.bundle, "site1");
+  ServerProcess server;
+  server.http_port = lw::test::FreeLoopbackPort();
+  server.log = folder.dir.File("server.log");
+  const std::string db = folder.dir.File("server.sqlite");
+  server.argv = {LW_SERVER_BIN, "--broker", broker.uri(), "--db", db, "--http", "127.0.0.1:" + std::to_string(server.http_port),
+                 "--crusher-dir", folder.crushers, "--wear-interval-ms", "200", "--web-dir", ""};
+  server.Start();
+
+  mqtt::async_client client(broker.uri(), "test-gateway", nullptr);
+  mqtt::connect_options opts;
+  opts.set_clean_session(true);
+  client.start_consuming();
+  client.connect(opts)->wait();
+  const std::string root = "linerwatch/v1/site1/" + folder.id() + "/";
+  client.subscribe(root + "sensors/+/committed", 1)->wait();
+  client.subscribe(root + "wear", 1)->wait();
+
+  std::set<std::pair<std::string, int64_t>> confirmed;
+  std::map<size_t, int64_t> sent_at;  // message index -> last publish (ms)
+  std::string last_wear;
+  std::mt19937 rng(42);
+  const size_t kill_at[2] = {messages.size() / 4 + rng() % (messages.size() / 8),
+                             messages.size() / 2 + rng() % (messages.size() / 8)};
+  int kills = 0;
+  size_t next = 0;
+  const int64_t deadline = NowMs() + 120'000;
+  while (confirmed.size() < messages.size() && NowMs() < deadline) {
+    // Publish new readings at a steady pace, and republish any unconfirmed after 1.5 s.
+    for (int burst = 0; burst < 40 && next < messages.size(); ++burst, ++next) {
+      client.publish(messages[next].topic, messages[next].payload, 1, false);
+      sent_at[next] = NowMs();
+    }
+    if (kills < 2 && confirmed.size() >= kill_at[kills]) {
+      server.process.Kill();  // SIGKILL: no goodbye, mid-batch
+      ++kills;
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+      server.Start();
+    }
+    const int64_t now = NowMs();
+    for (auto& [i, t] : sent_at) {
+      const auto& m = messages[i];
+      const json j = json::parse(m.payload);
+      if (now - t > 1500 && !confirmed.count({m.sensor, j["seq"].get<int64_t>()})) {
+        client.publish(m.topic, m.payload, 1, false);
+        t = now;
+      }
+    }
+    mqtt::const_message_ptr msg;
+    while (client.try_consume_message_for(&msg, std::chrono::milliseconds(20))) {
+      if (!msg) continue;
+      const json j = json::parse(msg->to_string(), nullptr, false);
+      if (msg->get_topic() == root + "wear") {
+        last_wear = msg->to_string();
+        continue;
+      }
+      for (const auto& s : j["seqs"]) confirmed.insert({j["sensor"].get<std::string>(), s.get<int64_t>()});
+    }
+  }
+  LONGS_EQUAL(2, kills);
+  LONGS_EQUAL_TEXT(messages.size(), confirmed.size(), lw::test::FileTail(server.log).c_str());
+
+  // Stored exactly once, with the content that was sent.
+  {
+    lw::server::Store store(db);
+    const auto stored = store.All(folder.id());
+    LONGS_EQUAL(messages.size(), stored.size());
+    std::map<std::pair<std::string, int64_t>, const lw::server::StoredReading*> by_key;
+    for (const auto& r : stored) by_key[{r.sensor, r.seq}] = &r;
+    LONGS_EQUAL(messages.size(), by_key.size());
+    for (const auto& m : messages) {
+      const json j = json::parse(m.payload);
+      const auto it = by_key.find({m.sensor, j["seq"].get<int64_t>()});
+      CHECK(it != by_key.end());
+      DOUBLES_EQUAL(j["thickness_mm"].get<double>(), it->second->thickness_mm, 0);
+    }
+  }
+
+  // The REST view agrees with the store.
+  httplib::Client http("127.0.0.1", server.http_port);
+  auto res = http.Get("/api/v1/crushers/" + folder.id() + "/sensors");
+  CHECK(res);
+  LONGS_EQUAL_TEXT(200, res->status, res->body.c_str());
+  long total = 0;
+  const json sensors = json::parse(res->body);
+  for (const auto& s : sensors["sensors"]) total += s["reading_count"].get<long>();
+  LONGS_EQUAL(messages.size(), total);
+
+  // Retained global wear (wait for the final publication) equals the offline reconstruction.
+  const auto& b = folder.bundle;
+  const auto last = std::max_element(b.readings.begin(), b.readings.end(), [](const auto& x, const auto& y) { return x.time < y.time; })->time;
+  const auto offline = lw::core::Reconstruct(b.crusher, b.map, lw::core::SensorWearAt(b.crusher, b.readings, last));
+  const int64_t wear_deadline = NowMs() + 10'000;
+  while (NowMs() < wear_deadline) {
+    if (!last_wear.empty() && json::parse(last_wear)["time"] == lw::core::FormatIsoTime(last)) break;
+    mqtt::const_message_ptr msg;
+    if (client.try_consume_message_for(&msg, std::chrono::milliseconds(100)) && msg && msg->get_topic() == root + "wear") {
+      last_wear = msg->to_string();
+    }
+  }
+  CHECK_FALSE(last_wear.empty());
+  const json wear = json::parse(last_wear);
+  STRCMP_EQUAL(lw::core::FormatIsoTime(last).c_str(), wear["time"].get<std::string>().c_str());
+  DOUBLES_EQUAL(offline.min_thickness_mm, wear["min_thickness_mm"].get<double>(), 1e-3);
+  STRCMP_EQUAL(b.map.sha256.c_str(), wear["map_sha256"].get<std::string>().c_str());
+  for (size_t r = 0; r < offline.rows.size(); ++r) {
+    DOUBLES_EQUAL(offline.rows[r].min_thickness_mm, wear["rows"][r]["min_thickness_mm"].get<double>(), 1e-3);
+  }
+  client.disconnect()->wait();
+  CHECK(server.process.Stop(SIGTERM) == 0);
+}
