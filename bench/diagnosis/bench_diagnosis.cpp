@@ -8,12 +8,18 @@
 // (tests/unit/diagnosis/synthetic_bundle.cpp), which uses the diagnosis' own hypothesis forms: the
 // numbers are then a self-consistency check, not a test on an independent generator.
 //
-// usage: lw_bench_diagnosis [--cases N] [--seed S] [--keep DIR]
+// usage: lw_bench_diagnosis [--generator test|sim] [--cases N] [--only TRUTH] [--level L] [--seed S] [--keep DIR]
+//                           [--json-dir DIR]
+// --only keeps the cases whose truth label contains TRUTH (comma-separated list; "none", "fault",
+// "squeeze_wear", "+" for pairs);
+// --level keeps weak|moderate|strong single-effect cases (and drops the others). For quick iteration; the
+// reported results are from a run without filters.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
 #include <optional>
@@ -118,15 +124,20 @@ double Median(std::vector<double> v) {
 int main(int argc, char** argv) {
   int max_cases = 1 << 30;
   unsigned seed0 = 1;
-  std::string keep, generator = "test";
+  std::string keep, generator = "test", only, level_filter, json_dir;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--generator" && i + 1 < argc) generator = argv[++i];
     else if (a == "--cases" && i + 1 < argc) max_cases = std::stoi(argv[++i]);
     else if (a == "--seed" && i + 1 < argc) seed0 = static_cast<unsigned>(std::stoul(argv[++i]));
     else if (a == "--keep" && i + 1 < argc) keep = argv[++i];
+    else if (a == "--only" && i + 1 < argc) only = argv[++i];
+    else if (a == "--level" && i + 1 < argc) level_filter = argv[++i];
+    else if (a == "--json-dir" && i + 1 < argc) json_dir = argv[++i];
     else {
-      std::fprintf(stderr, "usage: lw_bench_diagnosis [--generator test|sim] [--cases N] [--seed S] [--keep DIR]\n");
+      std::fprintf(stderr,
+                   "usage: lw_bench_diagnosis [--generator test|sim] [--cases N] [--only TRUTH] [--level weak|moderate|strong] "
+                   "[--seed S] [--keep DIR] [--json-dir DIR]\n");
       return 2;
     }
   }
@@ -205,6 +216,19 @@ int main(int argc, char** argv) {
     c.sim.faults.push_back({c.stuck_sensor, "stuck", c.spec.stuck_from_day, 0});
     cases.push_back(c);
   }
+  if (!only.empty()) {
+    std::vector<std::string> wanted;
+    for (size_t from = 0; from <= only.size();) {
+      const size_t comma = std::min(only.find(',', from), only.size());
+      wanted.push_back(only.substr(from, comma - from));
+      from = comma + 1;
+    }
+    std::erase_if(cases, [&](const Case& c) {
+      return std::none_of(wanted.begin(), wanted.end(),
+                          [&](const std::string& w) { return c.truth.find(w) != std::string::npos; });
+    });
+  }
+  if (!level_filter.empty()) std::erase_if(cases, [&](const Case& c) { return c.level != level_filter; });
   if (static_cast<int>(cases.size()) > max_cases) cases.resize(static_cast<size_t>(max_cases));
   for (Case& c : cases) {
     c.spec.days = 90;
@@ -256,6 +280,11 @@ int main(int argc, char** argv) {
     const auto r = lw::diagnosis::Diagnose(bundle, opt);
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (keep.empty()) std::filesystem::remove_all(dir);
+    if (!json_dir.empty()) {
+      std::filesystem::create_directories(json_dir);
+      std::ofstream out(std::filesystem::path(json_dir) / ("case_" + std::to_string(k) + ".json"));
+      out << lw::diagnosis::ToJson(r).dump(1) << "\n";
+    }
 
     const std::string top = r.findings.empty() ? "none" : r.findings[0].effect;
     std::string truth_label = c.truth;

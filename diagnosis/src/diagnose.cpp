@@ -33,6 +33,7 @@ struct Thresholds {
   double min_holdout_gain = 4.0;  ///< held-out chi-square gain over the baseline
   double min_holdout_rel = 0.03;  ///< ... and as a share of the baseline's held-out chi-square
   double pair_delta_bic = 10.0;   ///< gain of a pair over its best single effect
+  double min_significance = 2.0;  ///< effect size in standard errors
   double sensor_floor_mm = 0.1;   ///< loop-position tolerance of the ladder
   double scan_floor_mm = 0.2;     ///< scan registration / surface roughness floor
   double model_floor_rel = 0.02;  ///< relative model error floor: DEM maps carry patchy, correlated error that cell averaging does not remove
@@ -196,14 +197,48 @@ struct TestScore {
   size_t n = 0;
 };
 
-// Scores a fit on held-out observations (sensors left out entirely get u = 0).
-TestScore Score(const Problem& p, const FitResult& f, const Mask& test, bool raw) {
+// Scores a fit on held-out observations. A sensor that had training data keeps its fitted
+// intensity error u; a sensor left out entirely has its u marginalised under its prior N(0, sigma_u^2)
+// (the predictive chi-square of the noise model: the map's error at an unseen sensor is noise, not
+// something a physical effect can be expected to predict). The mm error uses u = 0 there.
+TestScore Score(const Problem& p, const FitResult& f, const Mask& test, const Mask& train, bool raw) {
   Eigen::MatrixXd w;
   detail::Simulate(f.spec, f.x, p.points, p.grid, w);
   TestScore s;
+  std::vector<bool> seen(p.sensor_obs.size(), false);
+  for (size_t k = 0; k < p.sensor_obs.size(); ++k)
+    for (size_t i : p.sensor_obs[k])
+      if (train[i]) seen[k] = true;
+  for (size_t k = 0; k < p.sensor_obs.size(); ++k) {
+    if (seen[k]) continue;
+    double num = 0, den = 1.0 / (p.sigma_u[k] * p.sigma_u[k]);
+    bool any = false;
+    for (size_t i : p.sensor_obs[k]) {
+      if (!test[i]) continue;
+      any = true;
+      const Obs& o = p.obs[i];
+      const double pred = Interp(w, o);
+      num += (pred - (raw ? o.raw : o.wear)) * pred / (o.sigma * o.sigma);
+      den += pred * pred / (o.sigma * o.sigma);
+    }
+    if (!any) continue;
+    const double u = -num / den;
+    s.chi2 += u * u / (p.sigma_u[k] * p.sigma_u[k]);
+    for (size_t i : p.sensor_obs[k]) {
+      if (!test[i]) continue;
+      const Obs& o = p.obs[i];
+      const double pred = Interp(w, o);
+      const double e = pred * (1.0 + u) - (raw ? o.raw : o.wear);
+      const double e0 = pred - (raw ? o.raw : o.wear);
+      s.chi2 += e * e / (o.sigma * o.sigma);
+      s.sq_mm += e0 * e0;
+      s.n += 1;
+    }
+  }
   for (size_t i = 0; i < p.obs.size(); ++i) {
     if (!test[i]) continue;
     const Obs& o = p.obs[i];
+    if (o.sensor >= 0 && !seen[static_cast<size_t>(o.sensor)]) continue;
     double pred = Interp(w, o);
     if (o.sensor >= 0) pred *= 1.0 + f.u[static_cast<size_t>(o.sensor)];
     const double e = pred - (raw ? o.raw : o.wear);
@@ -231,7 +266,34 @@ struct ModelEval {
   double ho_rel = 0;
   bool accepted = false;
   double score = 0;
+  double significance = 0;  ///< smallest |effect size| / standard error over the model's effects
 };
+
+// |effect size| / standard error of an effect's main parameter in a fit (feed segregation: the
+// amplitude of its cosine). A finding needs its effect size determined by the data, not just a
+// better chi-square (two sensors can always be "explained" by a two-parameter angle pattern).
+double Significance(const FitResult& f, Effect e, double dispersion) {
+  const int o = f.spec.Offset(e);
+  if (o < 0 || f.stderr_x.size() != f.x.size()) return 0;
+  // An effect size pinned at the limit of its physical range: the data want something this effect
+  // cannot be, so it is not the explanation.
+  const detail::ParamSpec main = detail::EffectParams(e).front();
+  if (e != Effect::kFeedSegregation) {
+    const double span = main.upper - main.lower;
+    if (f.x[o] <= main.lower + 1e-3 * span && main.lower < 0) return 0;
+    if (f.x[o] >= main.upper - 1e-3 * span) return 0;
+  } else if (std::max(std::fabs(f.x[o]), std::fabs(f.x[o + 1])) >= 0.999 * main.upper) {
+    return 0;
+  }
+  const double inflate = std::sqrt(std::max(1.0, dispersion));
+  if (e == Effect::kFeedSegregation) {
+    const double amp = std::hypot(f.x[o], f.x[o + 1]);
+    const double se = std::hypot(f.stderr_x[o], f.stderr_x[o + 1]) / std::sqrt(2.0) * inflate;
+    return se > 0 ? amp / se : 0;
+  }
+  const double se = f.stderr_x[o] * inflate;
+  return se > 0 ? std::fabs(f.x[o]) / se : 0;
+}
 
 std::vector<Eigen::VectorXd> Starts(const ModelSpec& spec, const Eigen::VectorXd& k,
                                     const std::vector<const FitResult*>& seeds, double k_scale) {
@@ -343,6 +405,29 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
         "effect (no impact weighting)");
   }
 
+  for (const std::string& w : bundle.map_validation.warnings) result.notes.push_back("map: " + w);
+  if (!fields.noise_estimated) {
+    result.notes.push_back(Fmt("map has too few faces (%zu) to estimate its own noise: %.0f %% per face assumed",
+                               bundle.map.face_count(), 100.0 * fields.face_rel_noise));
+  }
+  // A noisy (patchy, count-limited or %f-truncated) map is averaged over more faces around each sensor,
+  // enough to bring the relative noise of the sensor's intensity to about 5 %, but over at most a
+  // tenth of the concave height (beyond that the map's real gradients would be smoothed away).
+  size_t sensor_faces = 3;
+  {
+    const double target = 0.05;
+    const double wanted = std::pow(fields.face_rel_noise / target, 2);
+    const double height_m = std::max(fields.z_top - fields.z_bottom, 1e-3);
+    const double cap_faces = std::pow(0.1 * height_m / std::max(fields.face_size_m, 1e-4), 2) * 3.14159;
+    sensor_faces = static_cast<size_t>(std::clamp(wanted, 3.0, std::max(3.0, cap_faces)));
+    if (sensor_faces > 3) {
+      result.notes.push_back(Fmt("map per-face noise %.0f %%: each sensor's DEM intensity is averaged over its %zu "
+                                 "nearest faces",
+                                 100.0 * fields.face_rel_noise, sensor_faces));
+    }
+    result.noise["sensor_intensity_faces"] = sensor_faces;
+  }
+
   // --- Sensors: data quality and crossing events ---------------------------------------------
   std::vector<SensorData> sensors;
   for (size_t i = 0; i < crusher.sensors.size(); ++i) {
@@ -362,7 +447,8 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       result.data_quality.push_back({s.id, q.issue, to_time(q.from_days), to_time(q.to_days), q.detail});
     if (s.analysis.readings.empty())
       result.data_quality.push_back({s.id, "no_readings", t0, t0, "the sensor never reported"});
-    s.field = detail::FieldAt(bundle.map, fields, s.z, s.theta, std::max(0.05, 1.5 * fields.face_size_m), 3);
+    s.field = detail::FieldAt(bundle.map, fields, s.z, s.theta, std::max(0.05, 1.5 * fields.face_size_m),
+                              sensor_faces);
     s.usable = s.analysis.events.size() >= 2 && s.field.intensity > 1e-6;
     s.sigma_u = std::sqrt(s.field.rel_noise * s.field.rel_noise + th.u_floor_rel * th.u_floor_rel);
     sensors.push_back(std::move(s));
@@ -402,6 +488,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     mp.normal_tilde = f.normal_tilde;
     mp.normal_i = f.normal_i;
     mp.zn = (f.z - z_mid) / height;
+    mp.shift_rel = detail::ProfileShiftRel(fields, f.z);
     mp.cos_t = std::cos(f.theta_deg * kPi / 180.0);
     mp.sin_t = std::sin(f.theta_deg * kPi / 180.0);
     mp.half_thickness_mm = half_thickness;
@@ -574,9 +661,12 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     const double cut = lo + (1.0 - options.holdout_fraction) * (hi - lo);
     Fold time{"later_readings", Mask(n_obs, false), Mask(n_obs, false)};
     size_t n_test = 0;
+    // Later sensor readings are held out; scans stay in training (a scan is a spatial snapshot, tested
+    // by the scan-sector fold; without it a spatial effect could not be identified in this fold).
     for (size_t i = 0; i < n_obs; ++i) {
-      (prob.obs[i].t <= cut ? time.train : time.test)[i] = true;
-      if (prob.obs[i].t > cut) ++n_test;
+      const bool later = prob.obs[i].sensor >= 0 && prob.obs[i].t > cut;
+      (later ? time.test : time.train)[i] = true;
+      if (later) ++n_test;
     }
     if (n_test >= 3) folds.push_back(std::move(time));
 
@@ -627,7 +717,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
                   40, k_scale);
     for (const Fold& fold : folds) {
       FitResult ff = Fit(prob, spec, fold.train, joint, {ev.full.x}, 15, k_scale);
-      const TestScore sc = Score(prob, ff, fold.test, false);
+      const TestScore sc = Score(prob, ff, fold.test, fold.train, false);
       ev.ho_chi2 += sc.chi2;
       ev.ho_sq_mm += sc.sq_mm;
       ev.ho_n += sc.n;
@@ -656,7 +746,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       Mask train(n_obs, false);
       for (size_t i = 0; i < n_obs; ++i) train[i] = fold.train[i] && sensors_only[i];
       const FitResult ff = Fit(prob, base_spec, train, eq9_opt, {eq9.x}, 15, k_scale);
-      const TestScore sc = Score(prob, ff, fold.test, true);
+      const TestScore sc = Score(prob, ff, fold.test, train, true);
       ho_sq += sc.sq_mm;
       ho_n += sc.n;
     }
@@ -681,7 +771,10 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     ev.delta_bic = (null_eval.full.chi2 - ev.full.chi2) / dispersion - p_extra * log_n;
     ev.ho_gain = (null_eval.ho_chi2 - ev.ho_chi2) / dispersion;
     ev.ho_rel = null_eval.ho_chi2 > 0 ? ev.ho_gain / null_eval.ho_chi2 : 0;
-    ev.accepted = ev.delta_bic > th.min_delta_bic && ev.ho_gain > th.min_holdout_gain && ev.ho_rel > th.min_holdout_rel;
+    ev.significance = std::numeric_limits<double>::max();
+    for (Effect e : ev.full.spec.effects) ev.significance = std::min(ev.significance, Significance(ev.full, e, dispersion));
+    ev.accepted = ev.delta_bic > th.min_delta_bic && ev.ho_gain > th.min_holdout_gain &&
+                  ev.ho_rel > th.min_holdout_rel && ev.significance > th.min_significance;
     ev.score = ev.delta_bic + ev.ho_gain;
   };
   for (Effect e : available) {
@@ -700,10 +793,20 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   std::vector<std::pair<size_t, size_t>> pair_parts;
   if (options.try_pairs) {
     std::vector<size_t> top;
-    for (size_t k : order)
-      if (evals[k].delta_bic > 0 && top.size() < 3) top.push_back(k);
+    for (size_t k : order) {
+      bool same_effect = false;  // the weaker form of an effect already in the list
+      for (size_t t : top)
+        if (std::string(detail::EffectName(evals[t].full.spec.effects[0])) ==
+            detail::EffectName(evals[k].full.spec.effects[0]))
+          same_effect = true;
+      if (evals[k].delta_bic > 0 && top.size() < 3 && !same_effect) top.push_back(k);
+    }
     for (size_t a = 0; a < top.size(); ++a) {
       for (size_t b = a + 1; b < top.size(); ++b) {
+        // Two forms of the same effect are alternatives, not a pair.
+        if (std::string(detail::EffectName(evals[top[a]].full.spec.effects[0])) ==
+            detail::EffectName(evals[top[b]].full.spec.effects[0]))
+          continue;
         ModelSpec spec = base_spec;
         spec.effects = {evals[top[a]].full.spec.effects[0], evals[top[b]].full.spec.effects[0]};
         ModelEval ev = evaluate(spec, {&evals[top[a]].full, &evals[top[b]].full});
@@ -824,6 +927,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       }
       case Effect::kProfileEvolution: {
         const double p = param(f, e, 0);
+        out.parameters["form"] = "tilt";
         out.parameters["p_per_100_days"] = Round(p, 3);
         out.parameters["p_stderr"] = Round(param_se(f, e, 0), 3);
         out.parameters["top_vs_bottom_change_over_campaign"] = Round(p * span_days / 100.0, 3);
@@ -834,6 +938,21 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
             100.0 * p * span_days / 100.0, span_days);
         const size_t pos = out.explanation.find("moved %s");
         if (pos != std::string::npos) out.explanation.replace(pos, 8, p > 0 ? "moved up" : "moved down");
+        break;
+      }
+      case Effect::kProfileShift: {
+        const double v = param(f, e, 0);
+        const double height_m = fields.z_top - fields.z_bottom;
+        out.parameters["form"] = "shift";
+        out.parameters["shift_per_100_days"] = Round(v, 4);
+        out.parameters["shift_stderr"] = Round(param_se(f, e, 0), 4);
+        out.parameters["shift_over_campaign_m"] = Round(v * height_m * span_days / 100.0, 3);
+        out.explanation = Fmt(
+            "The wear rates along the concave changed during the campaign the way the DEM's own wear profile "
+            "would if it slid %s the liner: by about %.0f mm over %.0f days, with the same total wear. The "
+            "worn chamber's geometry moves the crushing zone (the DEM of the new chamber cannot show this); "
+            "rows change rate at the same time, not at the same worn depth.",
+            v > 0 ? "up" : "down", 1000.0 * std::fabs(v) * height_m * span_days / 100.0, span_days);
         break;
       }
       case Effect::kFeedSegregation: {
@@ -884,7 +1003,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       const ModelEval& ev = evals[k];
       bool part = false;
       for (Effect e : chosen->full.spec.effects)
-        if (ev.full.spec.effects[0] == e) part = true;
+        if (std::string(detail::EffectName(ev.full.spec.effects[0])) == detail::EffectName(e)) part = true;
       if (!part) runner_up = std::max(runner_up, ev.score);
     }
     // Order the chosen model's effects by their own contribution (drop-one chi-square).
@@ -975,6 +1094,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     h["delta_bic"] = Round(ev.delta_bic, 2);
     h["holdout_chi2"] = Round(ev.ho_chi2, 2);
     h["holdout_improvement"] = Round(ev.ho_rel, 3);
+    h["significance"] = Round(std::min(ev.significance, 1e6), 2);
     h["accepted"] = ev.accepted;
     nlohmann::ordered_json params = nlohmann::ordered_json::object();
     size_t idx = prob.rows;

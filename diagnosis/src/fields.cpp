@@ -120,6 +120,7 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
   f.intensity_median = positive.empty() ? 1.0 : Median(positive);
   if (f.intensity_median <= 0) f.intensity_median = 1.0;
   f.intensity = raw / f.intensity_median;
+  if (bundle.map_validation.looks_truncated) f.quantum_raw = 1e-6;  // "%f": six decimals
 
   std::vector<double> sizes;
   double area_sum = 0, radius_sum = 0;
@@ -185,6 +186,48 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
     f.normal_i = Eigen::VectorXd::Zero(nf);
   }
 
+  // The circumferential-mean intensity profile along z and its logarithmic slope (profile shift).
+  if (nf > 0) {
+    const double zlo = map.z.minCoeff(), zhi = map.z.maxCoeff();
+    const double height = std::max(f.z_top - f.z_bottom, 1e-3);
+    const size_t nb = std::clamp<size_t>(static_cast<size_t>(nf) / 150, 4, 24);
+    const double bw = std::max((zhi - zlo) / static_cast<double>(nb), 1e-6);
+    std::vector<double> sa(nb, 0.0), si(nb, 0.0);
+    for (Eigen::Index i = 0; i < nf; ++i) {
+      const auto b = std::min(nb - 1, static_cast<size_t>(std::max(0.0, (map.z[i] - zlo) / bw)));
+      sa[b] += map.areas[i];
+      si[b] += map.areas[i] * f.intensity[i];
+    }
+    std::vector<double> zc, li;
+    for (size_t b = 0; b < nb; ++b) {
+      if (sa[b] <= 0) continue;
+      zc.push_back(zlo + (static_cast<double>(b) + 0.5) * bw);
+      li.push_back(std::log(std::max(si[b] / sa[b], 1e-3)));
+    }
+    if (zc.size() >= 3) {
+      // Smooth the log profile (3-point), then a centred slope over +-1 sample, per concave height.
+      std::vector<double> sm(li.size());
+      for (size_t k = 0; k < li.size(); ++k) {
+        const size_t a = k ? k - 1 : k, b = k + 1 < li.size() ? k + 1 : k;
+        sm[k] = (li[a] + li[k] + li[b]) / 3.0;
+      }
+      std::vector<double> d(zc.size());
+      for (size_t k = 0; k < zc.size(); ++k) {
+        const size_t a = k ? k - 1 : k, b = k + 1 < zc.size() ? k + 1 : k;
+        d[k] = std::clamp(-(sm[b] - sm[a]) / (zc[b] - zc[a]) * height, -10.0, 10.0);
+      }
+      f.profile_z = zc;
+      f.profile_shift_rel = d;
+      double num = 0, den = 0;
+      for (Eigen::Index i = 0; i < nf; ++i) {
+        num += map.areas[i] * f.intensity[i] * ProfileShiftRel(f, map.z[i]);
+        den += map.areas[i] * f.intensity[i];
+      }
+      const double mean = den > 0 ? num / den : 0.0;
+      for (double& v : f.profile_shift_rel) v -= mean;
+    }
+  }
+
   // The map's own noise: each face against the area-weighted mean of its neighbours.
   if (nf > 8) {
     UnwrappedIndex index(map, 2.5 * f.face_size_m, f.mean_radius_m);
@@ -206,9 +249,28 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
       const double med = Median(rel);
       for (double& r : rel) r = std::fabs(r - med);
       f.face_rel_noise = 1.4826 * Median(rel);
+      f.noise_estimated = true;
     }
   }
+  // Too few faces to compare each with its neighbours: assume a count-limited DEM's scatter.
+  if (!f.noise_estimated) f.face_rel_noise = kUnestimatedFaceNoise;
   return f;
+}
+
+double QuantisationRel(const MapFields& fields, double intensity) {
+  if (fields.quantum_raw <= 0 || intensity <= 0) return 0.0;
+  return std::min(1.0, fields.quantum_raw / std::sqrt(12.0) / (intensity * fields.intensity_median));
+}
+
+double ProfileShiftRel(const MapFields& fields, double z) {
+  const auto& zs = fields.profile_z;
+  const auto& v = fields.profile_shift_rel;
+  if (zs.empty()) return 0.0;
+  if (z <= zs.front()) return v.front();
+  if (z >= zs.back()) return v.back();
+  const size_t k = static_cast<size_t>(std::upper_bound(zs.begin(), zs.end(), z) - zs.begin());
+  const double t = (z - zs[k - 1]) / (zs[k] - zs[k - 1]);
+  return v[k - 1] + t * (v[k] - v[k - 1]);
 }
 
 PointField FieldAt(const core::WearMap& map, const MapFields& fields, double z, double theta_deg, double radius_m,
@@ -244,7 +306,7 @@ PointField FieldAt(const core::WearMap& map, const MapFields& fields, double z, 
     p.intensity /= sw;
     p.normal_tilde /= sw;
     p.normal_i /= sw;
-    p.rel_noise = fields.face_rel_noise * std::sqrt(sw2) / sw;
+    p.rel_noise = std::hypot(fields.face_rel_noise * std::sqrt(sw2) / sw, QuantisationRel(fields, p.intensity));
   }
   p.area = sw;
   p.faces = take;
@@ -297,7 +359,7 @@ CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t
     p.normal_tilde /= sw[c];
     p.normal_i /= sw[c];
     p.z = sz[c] / sw[c];
-    p.rel_noise = fields.face_rel_noise * std::sqrt(sw2[c]) / sw[c];
+    p.rel_noise = std::hypot(fields.face_rel_noise * std::sqrt(sw2[c]) / sw[c], QuantisationRel(fields, p.intensity));
     p.area = sw[c];
   }
   return g;
@@ -398,7 +460,7 @@ ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const C
     pf.normal_i /= sw[c];
     pf.z /= sw[c];
     pf.theta_deg = grid.cells[c].theta_deg;
-    pf.rel_noise = fields.face_rel_noise * std::sqrt(sw2[c]) / sw[c];
+    pf.rel_noise = std::hypot(fields.face_rel_noise * std::sqrt(sw2[c]) / sw[c], QuantisationRel(fields, pf.intensity));
     pf.area = sw[c];
   }
   return s;

@@ -9,6 +9,8 @@
 
 namespace lw::diagnosis::detail {
 
+inline constexpr double kUnestimatedFaceNoise = 0.25;
+
 struct MapFields {
   Eigen::VectorXd intensity;     ///< per face, raw / median (median face = 1)
   Eigen::VectorXd normal_tilde;  ///< per face, normal stress / robust max, clipped to [0, 1.5]; 1 when absent
@@ -16,13 +18,28 @@ struct MapFields {
   bool has_normal = false;
   double intensity_median = 1;   ///< raw intensity that maps to 1
   double face_rel_noise = 0;     ///< relative per-face noise of the map (face vs its neighbourhood)
+  bool noise_estimated = false;  ///< false: too few faces to estimate it; kUnestimatedFaceNoise assumed
   double face_size_m = 0.05;     ///< typical face edge
   double z_bottom = 0;           ///< concave extent along z (rows)
   double z_top = 1;
   double theta_lo_deg = 0;       ///< start of the covered angular range
   double theta_span_deg = 360;   ///< covered angular range
   double mean_radius_m = 1;
+  /// The map's circumferential-mean intensity profile along z: relative rate change per concave
+  /// height of upward translation, -(d ln I_mean / d zeta) minus its intensity-weighted liner mean
+  /// (the translated profile does the same total work). Sampled at profile_z.
+  /// Print resolution of the raw wear values when the map looks %f-truncated (else 0): intensities
+  /// of a few resolution steps are biased by rounding, in a spatially smooth, not random, way.
+  double quantum_raw = 0;
+  std::vector<double> profile_z;
+  std::vector<double> profile_shift_rel;
 };
+
+/// Relative intensity error from the print resolution at a (normalised) intensity; not reduced by
+/// averaging faces (neighbouring faces round the same way).
+double QuantisationRel(const MapFields& fields, double intensity);
+/// Relative rate change at height z when the map's profile moves up by one concave height.
+double ProfileShiftRel(const MapFields& fields, double z);
 
 /// What the wear model needs at one location (a sensor or a grid cell).
 struct PointField {

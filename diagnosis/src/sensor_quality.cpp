@@ -249,6 +249,25 @@ SensorAnalysis AnalyseSensor(std::vector<RawReading> readings, double thickness_
   }
   const double rho = a.rate_mm_per_day;
 
+  // A step spread over a few polls (loops breaking one after another as a piece breaks out) leaves
+  // brief intermediate levels: fold them into one step when the levels on either side are far
+  // further apart than the rate allows in the time between them.
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (size_t k = 1; k + 1 < segments.size(); ++k) {
+      const Segment& before = segments[k - 1];
+      const Segment& mid = segments[k];
+      const Segment& after = segments[k + 1];
+      const double delta = before.level - after.level;
+      const double gap = after.t_first - before.t_last;
+      if (mid.count <= 2 && delta >= 3.0 && delta - rho * gap >= 2.5 && rho * (mid.t_last - mid.t_first) < 0.5) {
+        segments.erase(segments.begin() + static_cast<std::ptrdiff_t>(k));
+        changed = true;
+        break;
+      }
+    }
+  }
+
   // Steps: a level change much faster than the rate allows. Stuck (flat before, then catches up),
   // crack (premature step, then flat until the wear catches up) or material loss (step, then wear
   // continues at the normal rate from the lower level).

@@ -13,8 +13,17 @@ const char* EffectName(Effect effect) {
     case Effect::kProfileEvolution: return "profile_evolution";
     case Effect::kFeedSegregation: return "feed_segregation";
     case Effect::kThroughputVariation: return "throughput_variation";
+    case Effect::kProfileShift: return "profile_evolution";
   }
   return "unknown";
+}
+
+const char* FormName(Effect effect) {
+  switch (effect) {
+    case Effect::kProfileEvolution: return "profile_evolution:tilt";
+    case Effect::kProfileShift: return "profile_evolution:shift";
+    default: return EffectName(effect);
+  }
 }
 
 std::vector<ParamSpec> EffectParams(Effect effect) {
@@ -39,6 +48,9 @@ std::vector<ParamSpec> EffectParams(Effect effect) {
     case Effect::kThroughputVariation:
       // phi: share of the wear rate that follows throughput x abrasiveness (1 = fully).
       return {{"phi", 0.0, 1.5, 0.5, 0.3}};
+    case Effect::kProfileShift:
+      // v: upward translation of the DEM wear profile, in concave heights per 100 days (negative: down).
+      return {{"v", -1.0, 1.0, 0.0, 0.05}};
   }
   return {};
 }
@@ -63,7 +75,7 @@ std::string ModelSpec::Name() const {
   std::string name;
   for (Effect e : effects) {
     if (!name.empty()) name += "+";
-    name += EffectName(e);
+    name += FormName(e);
   }
   return name;
 }
@@ -97,8 +109,8 @@ void ModelSpec::Bounds(Eigen::VectorXd& lower, Eigen::VectorXd& upper, Eigen::Ve
 namespace {
 
 struct Resolved {
-  bool wh = false, hg = false, sq = false, pe = false, fs = false, tv = false;
-  double h = 0, tau = 1, g = 0, d0 = 0, beta = 0, p = 0, a = 0, b = 0, phi = 0;
+  bool wh = false, hg = false, sq = false, pe = false, fs = false, tv = false, ps = false;
+  double h = 0, tau = 1, g = 0, d0 = 0, beta = 0, p = 0, a = 0, b = 0, phi = 0, v = 0;
 };
 
 Resolved Resolve(const ModelSpec& spec, const Eigen::VectorXd& x) {
@@ -131,6 +143,10 @@ Resolved Resolve(const ModelSpec& spec, const Eigen::VectorXd& x) {
     r.tv = true;
     r.phi = x[o];
   }
+  if ((o = spec.Offset(Effect::kProfileShift)) >= 0) {
+    r.ps = true;
+    r.v = x[o];
+  }
   return r;
 }
 
@@ -156,6 +172,7 @@ void IntegratePoint(const Resolved& r, const Eigen::VectorXd& x, const ModelPoin
     double f = base;
     if (r.wh) f *= std::max(0.05, 1.0 - r.h * pt.normal_tilde * hard[j]);
     if (r.pe) f *= std::max(0.05, 1.0 + r.p * pt.zn * (static_cast<double>(j) + 0.5) * dt / 100.0);
+    if (r.ps) f *= std::max(0.05, 1.0 + r.v * pt.shift_rel * (static_cast<double>(j) + 0.5) * dt / 100.0);
     if (r.tv) f *= std::max(0.0, 1.0 + r.phi * (grid.throughput[j] - 1.0));
     if (r.hg) {
       const double r1 = f * (1.0 + r.g * Ramp((w - onset) / width));

@@ -15,9 +15,13 @@ enum class Effect : int {
   kProfileEvolution,
   kFeedSegregation,
   kThroughputVariation,
+  kProfileShift,  ///< profile_evolution, second form: the DEM's own z-profile translating along the liner
 };
-inline constexpr int kEffectCount = 6;
+inline constexpr int kEffectCount = 7;
+/// Contract name of the effect (both profile forms are "profile_evolution").
 const char* EffectName(Effect effect);
+/// Name of the effect's form in the list of hypotheses ("profile_evolution:shift").
+const char* FormName(Effect effect);
 
 struct ParamSpec {
   std::string name;
@@ -34,6 +38,7 @@ struct ModelPoint {
   double normal_tilde = 1;  ///< normal stress / robust max (1 when the map has none)
   double normal_i = 0;      ///< normal stress in intensity units (squeeze wear)
   double zn = 0;            ///< (z - z_mid) / concave height, about [-0.5, 0.5]
+  double shift_rel = 0;     ///< relative rate change per concave height of upward profile shift (total kept)
   double cos_t = 1;
   double sin_t = 0;
   double half_thickness_mm = 50;

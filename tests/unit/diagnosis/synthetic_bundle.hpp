@@ -17,6 +17,13 @@ struct SyntheticSpec {
   bool with_scan = true;
   double scan_day = -1;         ///< day of the scan (default: the last day)
   bool with_normal_stress = true;
+  // How the DEM map is written. "vtk42": legacy VTK 4.2 with SCALARS; "liggghts": exactly as LIGGGHTS
+  // `dump mesh/vtk` writes it (VTK 5.1 POLYDATA, OFFSETS/CONNECTIVITY, points repeated per triangle,
+  // CELL_DATA as a FIELD).
+  std::string map_format = "vtk42";
+  double map_zero_fraction = 0;   ///< share of faces no particle hit in a short DEM run (wear 0)
+  double map_scale = 3.7e-4;      ///< raw wear value of unit intensity
+  bool map_printf_f = false;      ///< print wear with "%f" (6 decimals: small values are truncated)
   bool with_operations = false;
   double rate = 0.6;            ///< mm/day per unit of intensity
   // Effects (0 = absent).

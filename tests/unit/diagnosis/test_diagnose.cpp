@@ -175,3 +175,4 @@ TEST(Diagnose, JsonHasEveryContractKeyAndPrediction) {
   CHECK_TRUE(html.find("<script") == std::string::npos);
   CHECK_TRUE(html.find("work_hardening") != std::string::npos);
 }
+
