@@ -214,6 +214,7 @@ async function main() {
   await page.screenshot({ path: path.join(artifacts, '2-after-live-reading.png'), fullPage: true });
 
   // 6. token-protected server: the page asks for the token, then works
+  await page.context().close();
   await stop(server);
   const token = crypto.randomBytes(16).toString('hex');
   const tokensFile = path.join(work, 'tokens.json');

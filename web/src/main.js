@@ -160,11 +160,11 @@ async function crusherPage(crusherId, initialSensor) {
       h('div', { class: `card kpi${left != null && left < 10 ? ' alarm' : ''}`, 'data-testid': 'kpi-min' },
         h('div', { class: 'label' }, 'Thinnest point'),
         h('div', { class: 'value', 'data-value': w?.min_thickness_mm ?? '' }, w ? fmt(w.min_thickness_mm) : '–', ' ', h('small', {}, 'mm')),
-        h('div', { class: 'detail' }, w ? `${w.min.row}, z ${fmt(w.min.z_m, 2)} m, θ ${fmt(w.min.theta_deg, 0)}° · ${fmt(left)} mm above minimum` : 'no readings yet')),
+        h('div', { class: 'detail' }, w ? `${w.min.row}, z ${fmt(w.min.z_m, 2)} m, θ ${fmt(w.min.theta_deg, 0)}° · ${left >= 0 ? `${fmt(left)} mm above` : `${fmt(-left)} mm below`} the minimum` : 'no readings yet')),
       h('div', { class: 'card kpi', 'data-testid': 'kpi-reline' },
         h('div', { class: 'label' }, 'Next reline'),
         h('div', { class: 'value' }, next ? fmtDate(next.reach_date) : '–'),
-        h('div', { class: 'detail' }, next ? `${next.row}: band ${fmtDate(next.reach_earliest)} – ${fmtDate(next.reach_latest)} · ${fmt((parseTime(next.reach_date) - parseTime(f.time)) / 86400000, 0)} d after the latest reading` : 'no forecast yet')),
+        h('div', { class: 'detail' }, next ? `${next.row}: band ${fmtDate(next.reach_earliest)} – ${next.reach_latest ? fmtDate(next.reach_latest) : 'beyond forecast'} · ${fmt((parseTime(next.reach_date) - parseTime(f.time)) / 86400000, 0)} d after the latest reading` : 'no forecast yet')),
       h('div', { class: 'card kpi', 'data-testid': 'kpi-rate' },
         h('div', { class: 'label' }, 'Fastest wear'),
         h('div', { class: 'value' }, fastest ? fmt(fastest.rate_mm_per_day, 2) : '–', ' ', h('small', {}, 'mm/day')),
@@ -197,7 +197,7 @@ async function crusherPage(crusherId, initialSensor) {
         h('td', {}, r ? `z ${fmt(r.min_z_m, 2)} m, θ ${fmt(r.min_theta_deg, 0)}°` : '–'),
         h('td', { class: 'num' }, f ? `${fmt(f.rate_mm_per_day, 2)} mm/d` : '–', r ? h('div', { class: 'band' }, `worn ${fmt(r.mean_wear_mm)} mm mean`) : null),
         h('td', {}, f?.reach_date ? h('span', {}, h('b', {}, fmtDate(f.reach_date)),
-          h('div', { class: 'band' }, `${fmtDate(f.reach_earliest)} – ${fmtDate(f.reach_latest)}`),
+          h('div', { class: 'band' }, `${fmtDate(f.reach_earliest)} – ${f.reach_latest ? fmtDate(f.reach_latest) : 'beyond forecast'}`),
           h('div', { class: 'reline-bar', title: 'from the latest reading to the latest reline date of any row' },
             Number.isFinite(parseTime(f.reach_earliest)) ? h('span', { class: 'rng', style: { left: X(parseTime(f.reach_earliest)), width: `calc(${X(parseTime(f.reach_latest))} - ${X(parseTime(f.reach_earliest))})` } }) : null,
             h('span', { class: 'pt', style: { left: X(parseTime(f.reach_date)) } })))
@@ -235,7 +235,7 @@ async function crusherPage(crusherId, initialSensor) {
       h('span', {}, 'rate ', h('b', {}, fc ? `${fmt(fc.rate_mm_per_day, 2)} mm/day` : '–')),
       h('span', {}, 'reaches minimum ', h('b', {}, fc?.reach_date ? fmtDate(fc.reach_date) : '–'), fc?.reach_earliest ? ` (${fmtDate(fc.reach_earliest)} – ${fmtDate(fc.reach_latest)})` : ''),
       h('span', {}, `${readings.length} readings`),
-      fc?.note ? h('span', {}, `forecast: ${fc.note}`) : null);
+      ...(fc?.note ? [h('span', {}, `forecast: ${fc.note}`)] : []));
   }
 
   function selectSensor(id) {
