@@ -134,6 +134,12 @@ ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const Wea
 }
 
 Reconstruction Reconstruct(const ReconstructionPlan& plan, const std::vector<SensorWear>& sensor_wear) {
+  Reconstruction out;
+  ReconstructInto(plan, sensor_wear, &out);
+  return out;
+}
+
+void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWear>& sensor_wear, Reconstruction* result) {
   const CrusherConfig& crusher = *plan.crusher;
   const WearMap& map = *plan.map;
   const size_t nrows = crusher.rows.size();
@@ -186,15 +192,10 @@ Reconstruction Reconstruct(const ReconstructionPlan& plan, const std::vector<Sen
     }
     return knots.back().second;
   };
-  Reconstruction out;
+  Reconstruction& out = *result;
   const Eigen::Index n = static_cast<Eigen::Index>(map.face_count());
-  out.wear_mm.resize(n);
+  out.wear_mm.resize(n);  // no reallocation when `result` already holds arrays of this size
   out.remaining_mm.resize(n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const double w = std::max(0.0, plan.intensity[i] * scale_at(map.z[i], plan.face_row[static_cast<size_t>(i)]));
-    out.wear_mm[i] = w;
-    out.remaining_mm[i] = crusher.thickness_new_mm - w;
-  }
   out.min_thickness_mm = std::numeric_limits<double>::max();
   out.rows.resize(nrows);
   std::vector<double> wear_sum(nrows, 0.0), area_sum(nrows, 0.0);
@@ -204,28 +205,77 @@ Reconstruction Reconstruct(const ReconstructionPlan& plan, const std::vector<Sen
     out.rows[r].min_thickness_mm = std::numeric_limits<double>::max();
     out.rows[r].sensors_used = used[r];
   }
-  for (Eigen::Index i = 0; i < n; ++i) {
-    if (out.remaining_mm[i] < out.min_thickness_mm) {
-      out.min_thickness_mm = out.remaining_mm[i];
-      out.min_face = static_cast<size_t>(i);
+  // Per face scale: constant per row when stepping; piecewise linear in z between row centres
+  // otherwise (clamped outside the first and last knot). Precomputed per segment so the face loop
+  // is one pass with no search for the usual handful of rows.
+  std::vector<double> kz, k0, kslope;
+  if (plan.options.interpolate_between_rows) {
+    for (size_t k = 0; k < knots.size(); ++k) {
+      kz.push_back(knots[k].first);
+      k0.push_back(knots[k].second);
+      kslope.push_back(k + 1 < knots.size() && knots[k + 1].first > knots[k].first
+                           ? (knots[k + 1].second - knots[k].second) / (knots[k + 1].first - knots[k].first)
+                           : 0.0);
     }
-    const int r = plan.face_row[static_cast<size_t>(i)];
+  }
+  std::vector<double> step_scale(nrows + 1, 0.0);  // by row index + 1 (0: outside every row)
+  if (!plan.options.interpolate_between_rows) {
+    for (size_t r = 0; r < nrows; ++r) step_scale[r + 1] = scale_at(0.5 * (crusher.rows[r].z_min_m + crusher.rows[r].z_max_m), static_cast<int>(r));
+  }
+  const double new_mm = crusher.thickness_new_mm;
+  const double* intensity = plan.intensity.data();
+  const double* z = map.z.data();
+  const double* area = map.areas.data();
+  const int* face_row = plan.face_row.data();
+  double* wear_out = out.wear_mm.data();
+  double* remaining_out = out.remaining_mm.data();
+  const size_t nk = kz.size();
+  double min_all = std::numeric_limits<double>::max();
+  size_t min_face = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const int r = face_row[i];
+    double scale;
+    if (nk == 0) {
+      scale = plan.options.interpolate_between_rows ? 0.0
+              : (r >= 0 ? step_scale[static_cast<size_t>(r) + 1] : scale_at(z[i], r));
+    } else if (z[i] <= kz[0]) {
+      scale = k0[0];
+    } else {
+      size_t k = 0;
+      while (k + 1 < nk && z[i] > kz[k + 1]) ++k;
+      scale = k + 1 < nk ? k0[k] + (z[i] - kz[k]) * kslope[k] : k0[nk - 1];
+    }
+    const double w = std::max(0.0, intensity[i] * scale);
+    const double rem = new_mm - w;
+    wear_out[i] = w;
+    remaining_out[i] = rem;
+    if (rem < min_all) {
+      min_all = rem;
+      min_face = static_cast<size_t>(i);
+    }
     if (r < 0) continue;
-    auto& row = out.rows[static_cast<size_t>(r)];
-    wear_sum[static_cast<size_t>(r)] += map.areas[i] * out.wear_mm[i];
-    area_sum[static_cast<size_t>(r)] += map.areas[i];
-    if (out.remaining_mm[i] < row.min_thickness_mm) {
-      row.min_thickness_mm = out.remaining_mm[i];
+    const size_t ru = static_cast<size_t>(r);
+    wear_sum[ru] += area[i] * w;
+    area_sum[ru] += area[i];
+    RowSummary& row = out.rows[ru];
+    if (rem < row.min_thickness_mm) {
+      row.min_thickness_mm = rem;
       row.min_face = static_cast<size_t>(i);
-      row.min_z_m = map.z[i];
-      row.min_theta_deg = map.theta_deg[i];
+    }
+  }
+  out.min_thickness_mm = min_all;
+  out.min_face = min_face;
+  for (size_t r = 0; r < nrows; ++r) {
+    const size_t f = out.rows[r].min_face;
+    if (area_sum[r] > 0) {
+      out.rows[r].min_z_m = map.z[static_cast<Eigen::Index>(f)];
+      out.rows[r].min_theta_deg = map.theta_deg[static_cast<Eigen::Index>(f)];
     }
   }
   for (size_t r = 0; r < nrows; ++r) {
     out.rows[r].mean_wear_mm = area_sum[r] > 0 ? wear_sum[r] / area_sum[r] : 0.0;
     if (area_sum[r] == 0) out.rows[r].min_thickness_mm = crusher.thickness_new_mm;
   }
-  return out;
 }
 
 Reconstruction Reconstruct(const CrusherConfig& crusher, const WearMap& map, const std::vector<SensorWear>& sensor_wear,

@@ -53,6 +53,9 @@ struct ReconstructionPlan {
 ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const WearMap& map,
                                          const ReconstructionOptions& options = {});
 Reconstruction Reconstruct(const ReconstructionPlan& plan, const std::vector<SensorWear>& sensor_wear);
+/// The same, into `result`, reusing its per-face arrays when they already have the map's size
+/// (fresh 8 MB arrays per million faces cost more in page faults than the pass itself).
+void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWear>& sensor_wear, Reconstruction* result);
 
 /// Area-weighted mean of `values` over faces within `radius_m` (surface distance in z and arc
 /// length) of each face. Grid-bucketed: linear in the face count for a fixed radius.
