@@ -234,6 +234,10 @@ async function main() {
   await page2.locator(`[data-testid="crusher-card"][data-crusher="${crusher}"]`).click();
   await page2.waitForFunction(() => document.getElementById('live').dataset.state === 'live', null, { timeout: 15000 });
   check(true, 'live updates connect with the token (access_token)');
+  // A write-scope token may start a diagnosis from the page (its result is not waited for).
+  await page2.click('[data-testid="run-diagnosis"]');
+  await page2.waitForFunction(() => ['running', 'done'].includes(document.querySelector('[data-testid="diagnosis-status"]')?.dataset.status), null, { timeout: 15000 });
+  check(true, 'Run diagnosis started one with the write-scope token');
   await page2.screenshot({ path: path.join(artifacts, '4-with-token.png'), fullPage: true });
   check(page2.errors.length === 0, `no page errors (${page2.errors.join('; ')})`);
 }

@@ -88,9 +88,12 @@ export function renderDiagnosis(container, diag, { canWrite, onRun, runError }) 
   if (pred) container.append(pred);
 
   const mm = res.mismatch || {};
-  container.append(h('p', { class: 'sub' }, mm.detected
-    ? `Mismatch found in ${mm.regions?.length || 0} region(s), outlined on the map (purple: DEM predicts more wear than measured, green: less).`
-    : 'No significant mismatch between the DEM map and the sensors.'));
+  const nRegions = mm.regions?.length || 0;
+  container.append(h('p', { class: 'sub' }, !mm.detected
+    ? 'No significant mismatch between the DEM map and the sensors.'
+    : nRegions
+      ? `Mismatch found in ${nRegions} region(s), outlined on the map (purple: DEM predicts more wear than measured, green: less).`
+      : 'Mismatch detected across the sensors as a whole, not confined to one region.'));
   if (mm.regions?.length) {
     container.append(h('ul', { class: 'dq' }, mm.regions.map((r) =>
       h('li', {}, `${r.sign === 'over' ? 'over-predicted' : 'under-predicted'} by ${fmt(r.size_mm)} mm: z ${fmt(r.z_min_m, 2)}–${fmt(r.z_max_m, 2)} m, θ ${fmt(r.theta_min_deg, 0)}–${fmt(r.theta_max_deg, 0)}°, ${fmtDate(r.from)} to ${fmtDate(r.to)}`))));
