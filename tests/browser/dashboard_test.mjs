@@ -33,6 +33,7 @@ function check(cond, msg) {
 const work = fs.mkdtempSync(path.join(os.tmpdir(), 'lw-browser-'));
 const artifacts = path.resolve(opt.artifacts);
 fs.mkdirSync(artifacts, { recursive: true });
+for (const f of fs.readdirSync(artifacts)) if (/\.(png|log)$/.test(f)) fs.rmSync(path.join(artifacts, f));
 const children = [];
 let browser = null;
 const pages = [];
