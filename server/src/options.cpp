@@ -24,6 +24,7 @@ Usage: linerwatch-server --broker URI --db FILE --http HOST:PORT --crusher-dir D
   --web-dir DIR         dashboard files served at / (default: the installed dashboard)
   --wear-interval-ms N  publish global wear at most this often (default 1000)
   --batch-max N         readings committed per transaction at most (default 1000)
+  --commit-delay-ms N   group commit: wait up to N ms for more readings before committing (default 5)
   --clock-file PATH     simulation: read "now" (unix milliseconds) from PATH
   --config FILE         JSON object with any of the options above; flags override it
   --help                this text
@@ -48,6 +49,7 @@ ServerOptions ParseServerOptions(const std::vector<std::string>& args) {
     else if (name == "clock-file") o.clock_file = value;
     else if (name == "wear-interval-ms") o.wear_interval_ms = core::ParseWholeNumber(name, value);
     else if (name == "batch-max") o.batch_max = core::ParseWholeNumber(name, value);
+    else if (name == "commit-delay-ms") o.commit_delay_ms = core::ParseWholeNumber(name, value);
     else throw core::UsageError("unknown option --" + name + " (see --help)");
   });
   if (!go) {
@@ -67,6 +69,7 @@ ServerOptions ParseServerOptions(const std::vector<std::string>& args) {
   if (port < 0 || port > 65535) throw core::UsageError("--http port must be in [0, 65535]");
   if (o.wear_interval_ms < 0) throw core::UsageError("--wear-interval-ms must be >= 0");
   if (o.batch_max < 1) throw core::UsageError("--batch-max must be at least 1");
+  if (o.commit_delay_ms < 0 || o.commit_delay_ms > 1000) throw core::UsageError("--commit-delay-ms must be in [0, 1000]");
   if (o.client_id.empty() || o.topic_root.empty()) throw core::UsageError("--client-id and --topic-root must not be empty");
   return o;
 }

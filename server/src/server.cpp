@@ -154,6 +154,23 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
         batch.push_back({t->site, t->crusher, t->sensor, std::move(e.topic), std::move(e.payload)});
       }
     }
+    // Group commit: one fsync'ed transaction per batch, so when readings are arriving give the
+    // next few a moment (commit_delay_ms) to join this one instead of committing them one by one.
+    if (!batch.empty() && batch.size() < static_cast<size_t>(o.batch_max) && o.commit_delay_ms > 0) {
+      pollfd wait_fd{link.wake_fd(), POLLIN, 0};
+      ::poll(&wait_fd, 1, static_cast<int>(o.commit_delay_ms));
+      for (gateway::LinkEvent& e : link.Poll(WallMs())) {
+        if (e.kind != gateway::LinkEvent::Kind::kMessage) {
+          connected = e.kind == gateway::LinkEvent::Kind::kConnected;
+          log(connected ? "connected to " + o.broker : "broker: " + e.payload);
+          continue;
+        }
+        const auto t = ParseReadingTopic(e.topic, root);
+        if (!t) continue;
+        sites[t->crusher].insert(t->site);
+        batch.push_back({t->site, t->crusher, t->sensor, std::move(e.topic), std::move(e.payload)});
+      }
+    }
     for (size_t start = 0; start < batch.size(); start += static_cast<size_t>(o.batch_max)) {
       const size_t end = std::min(batch.size(), start + static_cast<size_t>(o.batch_max));
       const std::vector<Incoming> part(std::make_move_iterator(batch.begin() + static_cast<std::ptrdiff_t>(start)),

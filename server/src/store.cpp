@@ -84,7 +84,9 @@ struct Store::Impl {
                    " FROM readings WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4"
                    " AND (time>?5 OR (time=?5 AND seq>?6)) ORDER BY time, seq LIMIT ?7")
                       .c_str()),
-        all(db, (std::string("SELECT ") + kSelectColumns + " FROM readings WHERE crusher=?1 ORDER BY sensor, time, seq").c_str()),
+        // Everything but the raw payload: this feeds the wear and forecast computations.
+        all(db, "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, '' FROM readings"
+                " WHERE crusher=?1 ORDER BY sensor, time, seq"),
         count(db, "SELECT COUNT(*) FROM readings WHERE crusher=?1"),
         count_rejected(db, "SELECT COUNT(*) FROM rejected"),
         rejected_list(db, "SELECT received, topic, payload, reason FROM rejected ORDER BY id DESC LIMIT ?1"),

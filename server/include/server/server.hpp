@@ -24,6 +24,7 @@ struct ServerOptions {
   std::string clock_file;  ///< simulation: "now" (unix ms) is read from this file
   int64_t wear_interval_ms = 1000;
   int64_t batch_max = 1000;
+  int64_t commit_delay_ms = 5;  ///< group commit: wait this long for more readings before a commit
   bool help = false;
 };
 

@@ -67,7 +67,7 @@ class Store {
   Page Range(const std::string& crusher, const std::string& sensor, int64_t from_s, int64_t to_s, int limit,
              const std::string& cursor);
 
-  /// Every reading of `crusher`, ordered by sensor then time.
+  /// Every reading of `crusher`, ordered by sensor then time (payload left empty).
   std::vector<StoredReading> All(const std::string& crusher);
 
   int64_t CountReadings(const std::string& crusher);
