@@ -117,7 +117,12 @@ void HttpApi::Impl::Routes() {
     Error(res, 500, what);
   });
   svr.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
-    if (res.body.empty()) Error(res, res.status, res.status == 404 ? "no such resource: " + req.path : "request failed");
+    if (!res.body.empty()) return;
+    std::string what = "request failed";
+    if (res.status == 404) what = "no such resource: " + req.path;
+    else if (res.status == 413) what = "request body too large (send readings as Content-Type: application/json)";
+    else if (res.status == 400) what = "malformed HTTP request";
+    Error(res, res.status, what);
   });
 
   // Bearer tokens on /api: read scope for GET, write scope for everything else.
@@ -137,8 +142,19 @@ void HttpApi::Impl::Routes() {
     return httplib::Server::HandlerResponse::Unhandled;
   });
 
-  if (!ctx.web_dir.empty() && std::filesystem::is_directory(ctx.web_dir)) {
-    svr.set_mount_point("/", ctx.web_dir.string());
+  // The dashboard: index.html at / and its bundle under /assets, nothing else from the folder
+  // (in a build tree it also holds CMake's files).
+  if (!ctx.web_dir.empty() && std::filesystem::exists(ctx.web_dir / "index.html")) {
+    if (std::filesystem::is_directory(ctx.web_dir / "assets")) svr.set_mount_point("/assets", (ctx.web_dir / "assets").string());
+    const std::filesystem::path index = ctx.web_dir / "index.html";
+    svr.Get("/", [index](const httplib::Request&, httplib::Response& res) {
+      std::ifstream in(index, std::ios::binary);
+      std::stringstream ss;
+      ss << in.rdbuf();
+      if (!in) return Error(res, 503, "dashboard file " + index.string() + " is not readable");
+      res.set_header("Cache-Control", "no-cache");
+      res.set_content(ss.str(), "text/html; charset=utf-8");
+    });
   } else {
     svr.Get("/", [](const httplib::Request&, httplib::Response& res) {
       res.set_content(
@@ -147,6 +163,18 @@ void HttpApi::Impl::Routes() {
           "text/html");
     });
   }
+
+  // What the caller's token may do (the dashboard hides write actions for read-only tokens).
+  svr.Get("/api/v1/whoami", [this](const httplib::Request& req, httplib::Response& res) {
+    if (!ctx.tokens || !ctx.tokens->enabled()) {
+      return Reply(res, 200, {{"auth", false}, {"name", nullptr}, {"scopes", {"read", "write"}}});
+    }
+    const auto token = ctx.tokens->Check(BearerOf(req));  // the pre-routing check let it through
+    ordered_json scopes = ordered_json::array();
+    if (token && token->read) scopes.push_back("read");
+    if (token && token->write) scopes.push_back("write");
+    Reply(res, 200, {{"auth", true}, {"name", token ? token->name : ""}, {"scopes", scopes}});
+  });
 
   svr.Get("/healthz", [this](const httplib::Request&, httplib::Response& res) {
     ordered_json j = {{"status", "ok"}, {"version", "0.1.0"}};

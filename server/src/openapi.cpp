@@ -58,6 +58,7 @@ std::string OpenApiJson() {
          {c, QueryParam("access_token", "string", "the bearer token (EventSource cannot set headers)")});
   paths["/api/v1/rejected"]["get"] = Op("Quarantined messages that failed validation, newest first", "read",
                                         {QueryParam("limit", "integer", "1..1000, default 100")});
+  paths["/api/v1/whoami"]["get"] = Op("The caller's token name and scopes ({auth: false} on an open server)", "read");
   paths["/api/v1/openapi.json"]["get"] = Op("This document", "read");
   const ordered_json doc = {
       {"openapi", "3.0.3"},

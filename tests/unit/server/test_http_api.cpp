@@ -1,3 +1,5 @@
+#include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "core/wear_map.hpp"
@@ -35,7 +37,7 @@ struct Api {
   std::unique_ptr<HttpApi> api;
   int port = 0;
 
-  explicit Api(bool with_tokens) {
+  explicit Api(bool with_tokens, const std::string& web_dir = "") {
     std::vector<std::string> errors;
     registry = Registry::Load(Folder().crushers, &errors);
     ingestor = std::make_unique<Ingestor>(write, *registry, [] { return int64_t{4'000'000'000}; });
@@ -54,6 +56,7 @@ struct Api {
     ctx.events = &events;
     ctx.diagnosis = diagnosis.get();
     ctx.tokens = &tokens;
+    ctx.web_dir = web_dir;
     ctx.after_ingest = [this](const IngestResult& r) {
       for (const auto& s : r.new_readings) {
         wear->MarkChanged(s.crusher);
@@ -177,6 +180,10 @@ TEST(HttpApi, TokensAreRequiredAndScopesEnforced) {
   CHECK(json::parse(res->body)["error"].get<std::string>().find("write") != std::string::npos);
   res = writer.Post(a.Base() + "/readings", body, "application/json");
   LONGS_EQUAL(200, res->status);
+  const json me = Get(reader, "/api/v1/whoami");
+  STRCMP_EQUAL("reader", me["name"].get<std::string>().c_str());
+  CHECK(me["scopes"] == json::array({"read"}));
+  CHECK(Get(writer, "/api/v1/whoami")["scopes"] == json::array({"read", "write"}));
   // EventSource cannot set headers: the token may come as a query parameter.
   auto q = anon.Get("/api/v1/openapi.json?access_token=" + std::string(kReadToken));
   LONGS_EQUAL(200, q->status);
@@ -249,4 +256,23 @@ TEST(HttpApi, DiagnosisRunsOnTheStoredReadings) {
   STRCMP_EQUAL("done", j["status"].get<std::string>().c_str());
   CHECK(j["result"]["baseline"].contains("rmse_mm"));
   CHECK(j["result"]["mismatch"].contains("detected"));
+}
+
+TEST(HttpApi, ServesTheDashboardPageAndAssetsOnly) {
+  lw::test::TempDirectory web{"lw-web"};
+  std::filesystem::create_directories(web.File("assets"));
+  std::filesystem::create_directories(web.File("CMakeFiles"));
+  { std::ofstream(web.File("index.html")) << "<!doctype html><title>dash</title>"; }
+  { std::ofstream(web.File("assets/app.js")) << "console.log(1)"; }
+  { std::ofstream(web.File("CMakeFiles/secret.txt")) << "build paths"; }
+  Api a(true, web.path());
+  auto c = a.Client();  // no token: the page itself is public, the API is not
+  auto res = c.Get("/");
+  LONGS_EQUAL(200, res->status);
+  CHECK(res->body.find("<title>dash</title>") != std::string::npos);
+  res = c.Get("/assets/app.js");
+  LONGS_EQUAL(200, res->status);
+  STRCMP_EQUAL("console.log(1)", res->body.c_str());
+  LONGS_EQUAL(404, c.Get("/CMakeFiles/secret.txt")->status);
+  LONGS_EQUAL(401, c.Get("/api/v1/crushers")->status);
 }
