@@ -1,8 +1,13 @@
 #include "core/cmdline.hpp"
 #include "server/server.hpp"
 
+#include <filesystem>
+
 #ifndef LW_WEB_DIR
 #define LW_WEB_DIR ""
+#endif
+#ifndef LW_WEB_INSTALL_DIR
+#define LW_WEB_INSTALL_DIR ""
 #endif
 
 namespace lw::server {
@@ -33,7 +38,9 @@ Usage: linerwatch-server --broker URI --db FILE --http HOST:PORT --crusher-dir D
 
 ServerOptions ParseServerOptions(const std::vector<std::string>& args) {
   ServerOptions o;
-  o.web_dir = LW_WEB_DIR;
+  // The build tree's dashboard when running from a build, else the installed one.
+  std::error_code ec;
+  o.web_dir = std::filesystem::exists(std::filesystem::path(LW_WEB_DIR) / "index.html", ec) ? LW_WEB_DIR : LW_WEB_INSTALL_DIR;
   const bool go = core::ParseCommandLine(args, {}, [&o](const std::string& name, const std::string& value) {
     if (name == "broker") o.broker = value;
     else if (name == "db") o.db = value;
