@@ -67,6 +67,7 @@ class Statement {
     sqlite3_bind_int64(stmt_, i, v);
     return *this;
   }
+  Statement& Bind(int i, int v) { return Bind(i, static_cast<int64_t>(v)); }
   Statement& Bind(int i, double v) {
     sqlite3_bind_double(stmt_, i, v);
     return *this;
