@@ -107,6 +107,8 @@ ordered_json ForecastJson(const CrusherState& st) {
   j["crusher_id"] = c.config.crusher_id;
   j["time"] = core::FormatIsoTime(st.time);
   j["thickness_min_mm"] = c.config.thickness_min_mm;
+  j["map_sha256"] = c.map.sha256;
+  j["readings_used"] = WearJson(st, false)["readings_used"];
   ordered_json rows = ordered_json::array();
   for (const core::RowForecast& r : st.row_forecasts) {
     ordered_json o = {{"row", r.row},

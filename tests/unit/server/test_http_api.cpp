@@ -147,6 +147,8 @@ TEST(HttpApi, WearForecastMeshAndVtkDescribeTheSameLiner) {
   LONGS_EQUAL(3, wear["rows"].size());
   const json forecast = Get(c, a.Base() + "/forecast");
   LONGS_EQUAL(3, forecast["rows"].size());
+  CHECK(forecast["map_sha256"] == wear["map_sha256"]);
+  CHECK(forecast["readings_used"] == wear["readings_used"]);
   for (const auto& s : forecast["sensors"]) {
     CHECK_TRUE(s["ok"].get<bool>());
     CHECK(s["rate_mm_per_day"].get<double>() > 0);
