@@ -9,12 +9,13 @@
 // numbers are then a self-consistency check, not a test on an independent generator.
 //
 // usage: lw_bench_diagnosis [--generator test|sim] [--cases N] [--only TRUTH] [--level L] [--seed S] [--keep DIR]
-//                           [--json-dir DIR]
+//                           [--json-dir DIR] [--threads N]
 // --only keeps the cases whose truth label contains TRUTH (comma-separated list; "none", "fault",
 // "squeeze_wear", "+" for pairs);
 // --level keeps weak|moderate|strong single-effect cases (and drops the others). For quick iteration; the
 // reported results are from a run without filters.
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -22,8 +23,10 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "core/bundle.hpp"
@@ -135,6 +138,7 @@ double Median(std::vector<double> v) {
 
 int main(int argc, char** argv) {
   int max_cases = 1 << 30;
+  int threads = 1;
   unsigned seed0 = 1;
   std::string keep, generator = "test", only, level_filter, json_dir;
   for (int i = 1; i < argc; ++i) {
@@ -146,10 +150,11 @@ int main(int argc, char** argv) {
     else if (a == "--only" && i + 1 < argc) only = argv[++i];
     else if (a == "--level" && i + 1 < argc) level_filter = argv[++i];
     else if (a == "--json-dir" && i + 1 < argc) json_dir = argv[++i];
+    else if (a == "--threads" && i + 1 < argc) threads = std::stoi(argv[++i]);
     else {
       std::fprintf(stderr,
                    "usage: lw_bench_diagnosis [--generator test|sim] [--cases N] [--only TRUTH] [--level weak|moderate|strong] "
-                   "[--seed S] [--keep DIR] [--json-dir DIR]\n");
+                   "[--seed S] [--keep DIR] [--json-dir DIR] [--threads N]\n");
       return 2;
     }
   }
@@ -257,12 +262,20 @@ int main(int argc, char** argv) {
   std::vector<double> ratios;
   double seconds = 0;
   const auto tmp = keep.empty() ? lw::test::MakeTempDir("bench") : std::filesystem::path(keep);
+  const auto wall_start = std::chrono::steady_clock::now();
 
-  std::printf("%-45s %-9s %-22s %-6s %8s %8s\n", "truth", "level", "top finding", "conf", "base_mm", "impr_mm");
-  for (size_t k = 0; k < cases.size(); ++k) {
+  // Cases run on `threads` workers (Diagnose is re-entrant); results are printed in case order.
+  struct Outcome {
+    lw::diagnosis::DiagnosisResult result;
+    std::map<std::string, std::pair<lw::core::TimePoint, double>> truth_at;
+    double seconds = 0;
+  };
+  if (!json_dir.empty()) std::filesystem::create_directories(json_dir);
+  auto run_case = [&](size_t k) {
     const Case& c = cases[k];
     const auto dir = tmp / ("case_" + std::to_string(k));
-    std::map<std::string, std::pair<lw::core::TimePoint, double>> truth_at;
+    Outcome out_case;
+    auto& truth_at = out_case.truth_at;
     std::optional<lw::sim::Campaign> campaign;
     if (use_sim) {
       campaign.emplace(lw::sim::GenerateCampaign(c.sim, c.sim_seed));
@@ -289,14 +302,39 @@ int main(int argc, char** argv) {
     lw::diagnosis::DiagnoseOptions opt;
     opt.predict_at = t_pred;
     const auto start = std::chrono::steady_clock::now();
-    const auto r = lw::diagnosis::Diagnose(bundle, opt);
-    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    out_case.result = lw::diagnosis::Diagnose(bundle, opt);
+    const auto& r = out_case.result;
+    out_case.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (keep.empty()) std::filesystem::remove_all(dir);
     if (!json_dir.empty()) {
-      std::filesystem::create_directories(json_dir);
       std::ofstream out(std::filesystem::path(json_dir) / ("case_" + std::to_string(k) + ".json"));
       out << lw::diagnosis::ToJson(r).dump(1) << "\n";
     }
+    return out_case;
+  };
+  std::vector<Outcome> outcomes(cases.size());
+  {
+    std::atomic<size_t> next{0};
+    std::mutex io;
+    auto worker = [&] {
+      for (size_t k; (k = next++) < cases.size();) {
+        outcomes[k] = run_case(k);
+        const std::lock_guard<std::mutex> lock(io);
+        std::fprintf(stderr, "case %zu done (%s, %s)\n", k, cases[k].truth.c_str(), cases[k].level.c_str());
+      }
+    };
+    std::vector<std::thread> pool;
+    for (int t = 0; t < std::max(1, threads); ++t) pool.emplace_back(worker);
+    for (std::thread& t : pool) t.join();
+  }
+  const double wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+
+  std::printf("%-45s %-9s %-22s %-6s %8s %8s\n", "truth", "level", "top finding", "conf", "base_mm", "impr_mm");
+  for (size_t k = 0; k < cases.size(); ++k) {
+    const Case& c = cases[k];
+    const lw::diagnosis::DiagnosisResult& r = outcomes[k].result;
+    const auto& truth_at = outcomes[k].truth_at;
+    seconds += outcomes[k].seconds;
 
     const std::string top = r.findings.empty() ? "none" : r.findings[0].effect;
     std::string truth_label = c.truth;
@@ -349,8 +387,8 @@ int main(int argc, char** argv) {
   }
   if (keep.empty()) std::filesystem::remove_all(tmp);
 
-  std::printf("\n== %zu cases, %.1f s diagnosis time (%.2f s per case)\n", cases.size(), seconds,
-              seconds / std::max<size_t>(cases.size(), 1));
+  std::printf("\n== %zu cases, %.1f s diagnosis time (%.2f s per case; %d threads, %.1f s wall)\n", cases.size(), seconds,
+              seconds / std::max<size_t>(cases.size(), 1), threads, wall_seconds);
   std::printf("\nConfusion matrix (rows: truth, columns: top finding)\n");
   std::vector<std::string> cols = kEffects;
   cols.push_back("unexplained");

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <stdexcept>
 
 #include "diagnosis/diagnose.hpp"
@@ -107,6 +108,24 @@ double Interp(const Eigen::MatrixXd& w, const Obs& o) {
   return w(r, j) * (1.0 - o.frac) + w(r, j + 1) * o.frac;
 }
 
+// The per-sensor intensity error u minimising sum((pred (1 + u) - target)^2 / sigma^2) + u^2 prior_inv_var
+// over the sensor's observations in `mask`; nullopt when the mask holds none of them.
+std::optional<double> ProfiledU(const Problem& p, const Eigen::MatrixXd& w, size_t sensor, const Mask& mask, bool raw,
+                                double prior_inv_var) {
+  double num = 0, den = prior_inv_var;
+  bool any = false;
+  for (size_t i : p.sensor_obs[sensor]) {
+    if (!mask[i]) continue;
+    any = true;
+    const Obs& o = p.obs[i];
+    const double pred = Interp(w, o);
+    num += (pred - (raw ? o.raw : o.wear)) * pred / (o.sigma * o.sigma);
+    den += pred * pred / (o.sigma * o.sigma);
+  }
+  if (!any) return std::nullopt;
+  return den > 0 ? -num / den : 0.0;
+}
+
 struct EvalOptions {
   bool use_u = true;
   bool raw = false;  ///< fit the raw wear (the baseline does not know about material loss)
@@ -134,18 +153,10 @@ void Residuals(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x
   if (u_out) u_out->assign(p.sensor_obs.size(), 0.0);
   Eigen::Index k = 0;
   for (size_t s = 0; s < p.sensor_obs.size(); ++s) {
-    double num = 0, den = opt.use_u ? 1.0 / (p.sigma_u[s] * p.sigma_u[s]) : 0.0;
-    bool any = false;
-    for (size_t i : p.sensor_obs[s]) {
-      if (!train[i]) continue;
-      any = true;
-      const Obs& o = p.obs[i];
-      const double pred = Interp(w, o);
-      const double target = opt.raw ? o.raw : o.wear;
-      num += (pred - target) * pred / (o.sigma * o.sigma);
-      den += pred * pred / (o.sigma * o.sigma);
-    }
-    const double u = (opt.use_u && any && den > 0) ? -num / den : 0.0;
+    const std::optional<double> profiled =
+        opt.use_u ? ProfiledU(p, w, s, train, opt.raw, 1.0 / (p.sigma_u[s] * p.sigma_u[s])) : std::nullopt;
+    const bool any = profiled.has_value();
+    const double u = profiled.value_or(0.0);
     if (u_out) (*u_out)[s] = u;
     for (size_t i : p.sensor_obs[s]) {
       if (!train[i]) continue;
@@ -211,18 +222,9 @@ TestScore Score(const Problem& p, const FitResult& f, const Mask& test, const Ma
       if (train[i]) seen[k] = true;
   for (size_t k = 0; k < p.sensor_obs.size(); ++k) {
     if (seen[k]) continue;
-    double num = 0, den = 1.0 / (p.sigma_u[k] * p.sigma_u[k]);
-    bool any = false;
-    for (size_t i : p.sensor_obs[k]) {
-      if (!test[i]) continue;
-      any = true;
-      const Obs& o = p.obs[i];
-      const double pred = Interp(w, o);
-      num += (pred - (raw ? o.raw : o.wear)) * pred / (o.sigma * o.sigma);
-      den += pred * pred / (o.sigma * o.sigma);
-    }
-    if (!any) continue;
-    const double u = -num / den;
+    const std::optional<double> profiled = ProfiledU(p, w, k, test, raw, 1.0 / (p.sigma_u[k] * p.sigma_u[k]));
+    if (!profiled) continue;
+    const double u = *profiled;
     s.chi2 += u * u / (p.sigma_u[k] * p.sigma_u[k]);
     for (size_t i : p.sensor_obs[k]) {
       if (!test[i]) continue;

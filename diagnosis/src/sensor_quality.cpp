@@ -249,23 +249,28 @@ SensorAnalysis AnalyseSensor(std::vector<RawReading> readings, double thickness_
   }
   const double rho = a.rate_mm_per_day;
 
-  // A step spread over a few polls (loops breaking one after another as a piece breaks out) leaves
-  // brief intermediate levels: fold them into one step when the levels on either side are far
-  // further apart than the rate allows in the time between them.
-  for (bool changed = true; changed;) {
-    changed = false;
-    for (size_t k = 1; k + 1 < segments.size(); ++k) {
-      const Segment& before = segments[k - 1];
-      const Segment& mid = segments[k];
-      const Segment& after = segments[k + 1];
-      const double delta = before.level - after.level;
-      const double gap = after.t_first - before.t_last;
-      if (mid.count <= 2 && delta >= 3.0 && delta - rho * gap >= 2.5 && rho * (mid.t_last - mid.t_first) < 0.5) {
-        segments.erase(segments.begin() + static_cast<std::ptrdiff_t>(k));
-        changed = true;
-        break;
+  // A step spread over a few polls (loops breaking one after another as a piece breaks out: 93, 92,
+  // 91, 90, 89 within an hour) leaves brief intermediate levels: fold a run of them into one step
+  // when the levels on either side are far further apart than the rate allows in the time between.
+  {
+    auto brief = [&](const Segment& g) { return g.count <= 2 && rho * (g.t_last - g.t_first) < 0.5; };
+    std::vector<Segment> folded;
+    size_t k = 0;
+    while (k < segments.size()) {
+      folded.push_back(segments[k]);
+      size_t j = k + 1;
+      while (j + 1 < segments.size() && brief(segments[j])) ++j;  // segments k+1 .. j-1 are brief
+      if (j > k + 1 && j < segments.size()) {
+        const double delta = segments[k].level - segments[j].level;
+        const double gap = segments[j].t_first - segments[k].t_last;
+        if (delta >= 3.0 && delta - rho * gap >= 2.5) {
+          k = j;  // the brief levels in between are part of the step
+          continue;
+        }
       }
+      ++k;
     }
+    segments = std::move(folded);
   }
 
   // Steps: a level change much faster than the rate allows. Stuck (flat before, then catches up),
