@@ -837,6 +837,11 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
                             static_cast<double>(ev.full.spec.ParamCount() - evals[part].full.spec.ParamCount()) * log_n;
         if (gain < th.pair_delta_bic || ev.ho_chi2 > evals[part].ho_chi2) ev.accepted = false;
       }
+      // Parsimony: a pair that predicts held-out data worse than an accepted single effect is not
+      // preferred to it (two effects can mimic a third one in-sample: hardening + squeeze wear
+      // together look like a moving profile).
+      for (size_t m = 0; m < singles; ++m)
+        if (evals[m].accepted && ev.ho_chi2 > evals[m].ho_chi2) ev.accepted = false;
     }
   }
 
