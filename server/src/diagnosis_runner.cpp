@@ -11,8 +11,8 @@ DiagnosisRunner::DiagnosisRunner(const Registry& registry, Store& read, std::mut
     : registry_(registry), read_(read), read_mutex_(read_mutex) {}
 
 DiagnosisRunner::~DiagnosisRunner() {
-  for (auto& t : threads_) {
-    if (t.joinable()) t.join();
+  for (auto& j : jobs_) {
+    if (j.thread.joinable()) j.thread.join();
   }
 }
 
@@ -20,7 +20,21 @@ bool DiagnosisRunner::Start(const std::string& crusher) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (state_[crusher] == "running") return false;
   state_[crusher] = "running";
-  threads_.emplace_back([this, crusher] { Run(crusher); });
+  // Reap finished runs so their threads do not pile up over months.
+  for (auto it = jobs_.begin(); it != jobs_.end();) {
+    if (*it->done) {
+      it->thread.join();
+      it = jobs_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  auto done = std::make_shared<std::atomic<bool>>(false);
+  jobs_.push_back({std::thread([this, crusher, done] {
+                     Run(crusher);
+                     *done = true;
+                   }),
+                   done});
   return true;
 }
 

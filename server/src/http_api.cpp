@@ -1,7 +1,10 @@
 #include "server/http_api.hpp"
 
 #include <httplib.h>
+#include <stdlib.h>
 #include <unistd.h>
+
+#include <algorithm>
 
 #include <atomic>
 #include <fstream>
@@ -16,9 +19,11 @@ namespace {
 
 using nlohmann::ordered_json;
 
+/// Never throws: text that is not valid UTF-8 (a request path, a stored payload) is replaced, not
+/// allowed to abort the worker thread.
 void Reply(httplib::Response& res, int status, const ordered_json& body) {
   res.status = status;
-  res.set_content(body.dump(), "application/json");
+  res.set_content(body.dump(-1, ' ', false, ordered_json::error_handler_t::replace), "application/json");
 }
 
 void Error(httplib::Response& res, int status, const std::string& message) { Reply(res, status, {{"error", message}}); }
@@ -63,6 +68,10 @@ struct HttpApi::Impl {
   httplib::Server svr;
   std::thread thread;
   std::atomic<bool> stopping{false};
+  std::atomic<int> sse_clients{0};
+  /// Each event stream holds one worker thread for its lifetime: cap them below the pool size so
+  /// ordinary requests always find a thread.
+  static constexpr int kMaxEventStreams = 16;
 
   const Crusher* CrusherOr404(const httplib::Request& req, httplib::Response& res) {
     const std::string id = req.matches[1];
@@ -104,7 +113,7 @@ void HttpApi::Stop() {
 }
 
 void HttpApi::Impl::Routes() {
-  svr.new_task_queue = [] { return new httplib::ThreadPool(32); };
+  svr.new_task_queue = [] { return new httplib::ThreadPool(48); };
   svr.set_payload_max_length(64u << 20);
   svr.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
     std::string what = "internal error";
@@ -116,7 +125,7 @@ void HttpApi::Impl::Routes() {
     }
     Error(res, 500, what);
   });
-  svr.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
+  svr.set_error_handler([](const httplib::Request& req, httplib::Response& res) {  // runs outside httplib's try
     if (!res.body.empty()) return;
     std::string what = "request failed";
     if (res.status == 404) what = "no such resource: " + req.path;
@@ -303,6 +312,7 @@ void HttpApi::Impl::Routes() {
   svr.Post(R"(/api/v1/crushers/([^/]+)/readings)", [this](const httplib::Request& req, httplib::Response& res) {
     const Crusher* c = CrusherOr404(req, res);
     if (!c) return;
+    if (JsonNestingDepth(req.body) > kMaxJsonDepth + 2) return Error(res, 400, "body is nested too deeply");
     nlohmann::json body;
     try {
       body = nlohmann::json::parse(req.body);
@@ -314,7 +324,9 @@ void HttpApi::Impl::Routes() {
     }
     if (body["readings"].size() > 10000) return Error(res, 413, "at most 10000 readings per request");
     std::vector<Incoming> batch;
-    for (const auto& r : body["readings"]) batch.push_back({"", c->config.crusher_id, "", "", r.dump()});
+    for (const auto& r : body["readings"]) {
+      batch.push_back({"", c->config.crusher_id, "", "", r.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)});
+    }
     IngestResult result;
     try {
       result = ctx.ingestor->Ingest(batch);
@@ -355,19 +367,25 @@ void HttpApi::Impl::Routes() {
     if (!st || !st->has_wear) return Error(res, 404, "no readings yet for crusher " + c->config.crusher_id);
     const std::string format = req.has_param("format") ? req.get_param_value("format") : "json";
     if (format == "vtk") {
+      // A private directory (mkdtemp, mode 0700): nobody else can race a file name in it.
       char tmpl[] = "/tmp/linerwatch-wear-XXXXXX";
-      const int fd = mkstemp(tmpl);
-      if (fd < 0) return Error(res, 500, "cannot create a temporary file");
-      close(fd);
-      const std::filesystem::path path = std::string(tmpl) + ".vtk";
-      std::filesystem::remove(tmpl);
-      const Eigen::VectorXd& wear = st->reconstruction.wear_mm;
-      const Eigen::VectorXd& remaining = st->reconstruction.remaining_mm;
-      core::WriteWearMapVtk(path, c->map, {{"remaining_mm", &remaining}, {"wear_mm", &wear}, {"dem_wear", &c->map.wear}});
-      std::ifstream in(path, std::ios::binary);
+      if (!mkdtemp(tmpl)) return Error(res, 500, "cannot create a temporary directory");
+      const std::filesystem::path tmp_dir = tmpl;
+      const std::filesystem::path path = tmp_dir / "wear.vtk";
       std::stringstream ss;
-      ss << in.rdbuf();
-      std::filesystem::remove(path);
+      try {
+        const Eigen::VectorXd& wear = st->reconstruction.wear_mm;
+        const Eigen::VectorXd& remaining = st->reconstruction.remaining_mm;
+        core::WriteWearMapVtk(path, c->map, {{"remaining_mm", &remaining}, {"wear_mm", &wear}, {"dem_wear", &c->map.wear}});
+        std::ifstream in(path, std::ios::binary);
+        ss << in.rdbuf();
+      } catch (...) {
+        std::error_code ec;
+        std::filesystem::remove_all(tmp_dir, ec);
+        throw;
+      }
+      std::error_code ec;
+      std::filesystem::remove_all(tmp_dir, ec);
       res.set_header("Content-Disposition", "attachment; filename=\"" + c->config.crusher_id + "_wear.vtk\"");
       res.set_content(ss.str(), "application/octet-stream");
       return;
@@ -414,14 +432,22 @@ void HttpApi::Impl::Routes() {
   svr.Get(R"(/api/v1/crushers/([^/]+)/events)", [this](const httplib::Request& req, httplib::Response& res) {
     const Crusher* c = CrusherOr404(req, res);
     if (!c) return;
+    if (sse_clients.load() >= kMaxEventStreams) {
+      return Error(res, 503, "too many open event streams (" + std::to_string(kMaxEventStreams) + "); retry later");
+    }
     int64_t after = ctx.events->LastId();
     const std::string last = req.get_header_value("Last-Event-ID");
-    if (!last.empty()) after = std::atoll(last.c_str());
+    // A client reconnecting after a server restart carries an id from the previous run: ids start
+    // again at 1, so a larger one means "from now on", not "wait until the counter gets there".
+    if (!last.empty()) after = std::min(after, std::max<int64_t>(0, std::atoll(last.c_str())));
     const std::string crusher = c->config.crusher_id;
     res.set_header("Cache-Control", "no-cache");
     res.set_header("X-Accel-Buffering", "no");
     auto first = std::make_shared<bool>(true);
-    res.set_chunked_content_provider("text/event-stream", [this, crusher, after, first](size_t, httplib::DataSink& sink) mutable {
+    // Counts this stream while its provider exists (httplib destroys it when the stream ends).
+    auto slot = std::shared_ptr<void>(nullptr, [this](void*) { --sse_clients; });
+    ++sse_clients;
+    res.set_chunked_content_provider("text/event-stream", [this, crusher, after, first, slot](size_t, httplib::DataSink& sink) mutable {
       if (stopping || ctx.events->closed()) return false;
       std::string out;
       if (*first) {

@@ -60,10 +60,41 @@ std::optional<ReadingTopic> ParseReadingTopic(std::string_view topic, std::strin
   return ReadingTopic{std::string(parts[0]), std::string(parts[1]), std::string(parts[3])};
 }
 
-bool IsFaultReading(int64_t flags) { return (flags & ((1 << 3) | (1 << 4))) != 0; }
+bool IsFaultReading(int64_t flags, int64_t loops_intact) {
+  constexpr int64_t kAllOpen = 1 << 3, kSpiStuck = 1 << 4;
+  if (flags & kSpiStuck) return true;
+  return (flags & kAllOpen) && loops_intact > 0;
+}
+
+size_t JsonNestingDepth(std::string_view text) {
+  size_t depth = 0, deepest = 0;
+  bool in_string = false, escaped = false;
+  for (const char ch : text) {
+    if (in_string) {
+      if (escaped) escaped = false;
+      else if (ch == '\\') escaped = true;
+      else if (ch == '"') in_string = false;
+    } else if (ch == '"') {
+      in_string = true;
+    } else if (ch == '[' || ch == '{') {
+      deepest = std::max(deepest, ++depth);
+    } else if ((ch == ']' || ch == '}') && depth > 0) {
+      --depth;
+    }
+  }
+  return deepest;
+}
 
 Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t now_s) {
   Validation v;
+  if (in.payload.size() > kMaxPayloadBytes) {
+    v.error = "message of " + std::to_string(in.payload.size()) + " bytes (at most " + std::to_string(kMaxPayloadBytes) + ")";
+    return v;
+  }
+  if (JsonNestingDepth(in.payload) > kMaxJsonDepth) {
+    v.error = "JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels";
+    return v;
+  }
   json j;
   try {
     j = json::parse(in.payload);
@@ -207,6 +238,7 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
         break;
     }
     acks[{in.site, r.crusher, r.sensor}].insert(r.seq);
+    if (!in.site.empty()) result.sites.insert({r.crusher, in.site});
   }
   for (size_t i = 0; i < batch.size(); ++i) {
     const Validation& v = validations[i];

@@ -86,7 +86,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       if (!j.is_object()) j = nlohmann::json::object();
       j["sensor"] = s.sensor;
       j["time"] = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(s.time_s)));
-      events.Publish(s.crusher, "reading", j.dump());
+      events.Publish(s.crusher, "reading", j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
       changed.insert(s.crusher);
     }
     for (const auto& line : r.log) log(line);
@@ -150,7 +150,6 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       } else {
         const auto t = ParseReadingTopic(e.topic, root);
         if (!t) continue;
-        sites[t->crusher].insert(t->site);
         batch.push_back({t->site, t->crusher, t->sensor, std::move(e.topic), std::move(e.payload)});
       }
     }
@@ -167,7 +166,6 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
         }
         const auto t = ParseReadingTopic(e.topic, root);
         if (!t) continue;
-        sites[t->crusher].insert(t->site);
         batch.push_back({t->site, t->crusher, t->sensor, std::move(e.topic), std::move(e.payload)});
       }
     }
@@ -188,6 +186,9 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
         const nlohmann::json payload = {{"sensor", a.sensor}, {"seqs", a.seqs}, {"time", when}};
         link.Publish({root + a.site + "/" + a.crusher + "/sensors/" + a.sensor + "/committed", payload.dump(), 1, false});
       }
+      // Retained wear goes to the sites real readings came from (not to any topic a stray
+      // publisher made up).
+      for (const auto& [crusher, site] : r.sites) sites[crusher].insert(site);
       on_committed(r);
     }
     std::set<std::string> to_publish;

@@ -74,7 +74,10 @@ struct Store::Impl {
                "INSERT INTO readings(crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload)"
                " VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10) ON CONFLICT DO NOTHING"),
         existing(db, "SELECT time, thickness_mm FROM readings WHERE crusher=?1 AND sensor=?2 AND seq=?3"),
-        insert_rejected(db, "INSERT INTO rejected(received, topic, payload, reason) VALUES(?1,?2,?3,?4)"),
+        // A message resent by its publisher is quarantined once, not once per resend.
+        insert_rejected(db,
+                        "INSERT INTO rejected(received, topic, payload, reason) SELECT ?1,?2,?3,?4"
+                        " WHERE NOT EXISTS (SELECT 1 FROM rejected WHERE topic=?2 AND payload=?3)"),
         latest(db,
                "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload, n FROM ("
                " SELECT *, COUNT(*) OVER (PARTITION BY sensor) AS n,"
@@ -117,6 +120,7 @@ struct Store::Impl {
         "CREATE INDEX IF NOT EXISTS readings_by_time ON readings(crusher, sensor, time, seq);"
         "CREATE TABLE IF NOT EXISTS rejected (id INTEGER PRIMARY KEY AUTOINCREMENT, received INTEGER NOT NULL,"
         " topic TEXT NOT NULL, payload TEXT NOT NULL, reason TEXT NOT NULL);"
+        "CREATE INDEX IF NOT EXISTS rejected_by_topic ON rejected(topic);"
         "CREATE TABLE IF NOT EXISTS diagnoses (id INTEGER PRIMARY KEY AUTOINCREMENT, crusher TEXT NOT NULL,"
         " time INTEGER NOT NULL, json TEXT NOT NULL);"
         "PRAGMA user_version=1;");

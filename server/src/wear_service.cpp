@@ -30,7 +30,7 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   std::vector<core::Reading> usable;
   usable.reserve(readings.size());
   for (const StoredReading& r : readings) {
-    if (IsFaultReading(r.flags)) continue;
+    if (IsFaultReading(r.flags, r.loops_intact)) continue;
     core::Reading c;
     c.time = FromUnix(r.time_s);
     c.sensor_id = r.sensor;
@@ -44,7 +44,7 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   for (const core::SensorWear& w : st.sensor_wear) {
     const StoredReading* best = nullptr;
     for (const StoredReading& r : readings) {
-      if (r.sensor != w.sensor_id || IsFaultReading(r.flags)) continue;
+      if (r.sensor != w.sensor_id || IsFaultReading(r.flags, r.loops_intact)) continue;
       if (!best || r.time_s > best->time_s || (r.time_s == best->time_s && r.thickness_mm < best->thickness_mm)) best = &r;
     }
     if (best) st.used.push_back(*best);
@@ -161,17 +161,23 @@ void WearService::MarkChanged(const std::string& crusher) {
 std::shared_ptr<const CrusherState> WearService::Get(const std::string& crusher_id) {
   const Crusher* crusher = registry_.Find(crusher_id);
   if (!crusher) return nullptr;
-  std::lock_guard<std::mutex> lock(mutex_);  // one computation at a time; others wait for it
-  Entry& e = entries_[crusher_id];
-  if (e.state && e.state->version == e.version) return e.state;
+  std::lock_guard<std::mutex> compute(compute_mutex_);
+  int64_t version = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    Entry& e = entries_[crusher_id];
+    if (e.state && e.state->version == e.version) return e.state;
+    version = e.version;
+  }
   std::vector<StoredReading> readings;
   {
     std::lock_guard<std::mutex> rl(read_mutex_);
     readings = read_.All(crusher_id);
   }
   auto st = std::make_shared<CrusherState>(ComputeCrusherState(*crusher, readings));
-  st->version = e.version;
-  e.state = st;
+  st->version = version;  // readings committed after the version was read bump it again
+  std::lock_guard<std::mutex> lock(mutex_);
+  entries_[crusher_id].state = st;
   return st;
 }
 

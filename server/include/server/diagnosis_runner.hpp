@@ -2,7 +2,9 @@
 /// Runs `linerwatch diagnose` (the lw::diagnosis library) in the background on a crusher's stored
 /// readings, with its map, operations.csv and scans/ from the crusher folder. One run per crusher
 /// at a time; the result is kept in the database.
+#include <atomic>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -29,7 +31,11 @@ class DiagnosisRunner {
   std::mutex& read_mutex_;
   std::mutex mutex_;
   std::map<std::string, std::string> state_;  ///< "running" / "failed: ..." per crusher
-  std::vector<std::thread> threads_;
+  struct Job {
+    std::thread thread;
+    std::shared_ptr<std::atomic<bool>> done;
+  };
+  std::vector<Job> jobs_;
 };
 
 }  // namespace lw::server

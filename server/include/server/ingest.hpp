@@ -27,8 +27,15 @@ struct ReadingTopic {
 };
 std::optional<ReadingTopic> ParseReadingTopic(std::string_view topic, std::string_view root = "linerwatch/v1/");
 
-/// Fault flags whose readings are stored but not used for wear (every loop open, SPI stuck).
-bool IsFaultReading(int64_t flags);
+/// Readings stored but not used for wear: SPI stuck, or every loop open while the board still
+/// holds loops intact (a cut cable). Every loop open with none intact is a consumed sensor: real wear.
+bool IsFaultReading(int64_t flags, int64_t loops_intact);
+
+/// Deepest nesting of [ and { in a JSON text (outside strings); no parsing, no recursion.
+size_t JsonNestingDepth(std::string_view text);
+/// Reading messages nested deeper, or longer than kMaxPayloadBytes, are refused before parsing.
+inline constexpr size_t kMaxJsonDepth = 8;
+inline constexpr size_t kMaxPayloadBytes = 64 * 1024;
 
 struct Incoming {
   std::string site;
@@ -67,6 +74,7 @@ struct IngestResult {
   size_t rejected = 0;
   std::vector<Ack> acks;                   ///< grouped per (site, crusher, sensor), seqs ascending
   std::vector<StoredReading> new_readings;  ///< stored by this call (not duplicates)
+  std::set<std::pair<std::string, std::string>> sites;  ///< (crusher, site) of valid readings (MQTT)
   std::vector<std::string> log;             ///< one line per rejection or conflict
 };
 

@@ -50,7 +50,8 @@ class WearService {
   const Registry& registry_;
   Store& read_;
   std::mutex& read_mutex_;
-  std::mutex mutex_;
+  std::mutex compute_mutex_;  ///< one computation at a time (held while computing)
+  std::mutex mutex_;          ///< guards entries_ (held briefly: MarkChanged never waits for a computation)
   std::map<std::string, Entry> entries_;
 };
 

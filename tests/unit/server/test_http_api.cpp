@@ -278,3 +278,25 @@ TEST(HttpApi, ServesTheDashboardPageAndAssetsOnly) {
   LONGS_EQUAL(404, c.Get("/CMakeFiles/secret.txt")->status);
   LONGS_EQUAL(401, c.Get("/api/v1/crushers")->status);
 }
+
+TEST(HttpApi, HostileRequestsGetErrorsNotACrash) {
+  Api a(false);
+  auto c = a.Client();
+  // A path that is not valid UTF-8 once decoded: the error text must still be sendable.
+  auto res = c.Get("/%FF%FE");
+  CHECK(res);
+  LONGS_EQUAL(404, res->status);
+  CHECK(json::parse(res->body).contains("error"));
+  // JSON nested far deeper than any reading: refused before it is parsed or re-serialised.
+  const std::string deep = "{\"readings\":[" + std::string(100000, '[') + std::string(100000, ']') + "]}";
+  res = c.Post(a.Base() + "/readings", deep, "application/json");
+  CHECK(res);
+  LONGS_EQUAL(400, res->status);
+  // A reading with bytes that are not UTF-8 is quarantined, and listing it still works.
+  res = c.Post(a.Base() + "/readings", "{\"readings\":[{\"sensor\":\"1001\",\"seq\":1,\"time\":\"\xff\"}]}", "application/json");
+  CHECK(res);
+  CHECK(res->status == 400 || res->status == 422);
+  // The server is still up.
+  Get(c, "/healthz");
+  Get(c, "/api/v1/rejected");
+}

@@ -72,6 +72,8 @@ TEST(Ingest, RejectsBadInputNamingTheRule) {
             .find("\"flags\" 70000") != std::string::npos);
   CHECK(Reject(With(R"({"sensor":"1001","seq":5,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":0})"))
             .find("missing \"battery_mv\"") != std::string::npos);
+  CHECK(Reject(With("{\"a\":" + std::string(20, '[') + std::string(20, ']') + "}")).find("nested deeper") != std::string::npos);
+  CHECK(Reject(With(std::string(70 * 1024, ' ') + Reading(""))).find("bytes (at most") != std::string::npos);
   Incoming unknown = With(Reading(""));
   unknown.crusher = "nope";
   CHECK(Reject(unknown).find("unknown crusher 'nope'") != std::string::npos);
@@ -165,4 +167,14 @@ TEST(Ingest, FaultReadingsAreStoredButNotUsedForWear) {
   LONGS_EQUAL(1, r.stored);
   const double after = ComputeCrusherState(c, store.All(Folder().id())).reconstruction.min_thickness_mm;
   DOUBLES_EQUAL(before, after, 1e-12);
+}
+
+TEST(Ingest, AConsumedSensorIsWearACutCableIsNot) {
+  // every loop open with none intact: the ladder is worn through (firmware: "consumed")
+  CHECK_FALSE(IsFaultReading(1 << 3, 0));
+  // every loop open while the board still holds loops intact: a cut cable
+  CHECK_TRUE(IsFaultReading(1 << 3, 42));
+  CHECK_TRUE(IsFaultReading(1 << 4, 42));  // SPI stuck
+  CHECK_FALSE(IsFaultReading(1 << 0, 42)); // heartbeat
+  LONGS_EQUAL(3, JsonNestingDepth(R"({"a":[{"b":"[[[[{{"}]})"));
 }

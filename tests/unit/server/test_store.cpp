@@ -133,3 +133,10 @@ TEST(Store, AReaderConnectionSeesCommitsMadeAfterItsEarlierQueries) {
   LONGS_EQUAL(2, reader.LatestPerSensor("c1").size());
   LONGS_EQUAL(3, reader.All("c1").size());
 }
+
+TEST(Store, AResentBadMessageIsQuarantinedOnce) {
+  Store s(db());
+  s.Commit({}, {{1, "t/a", "garbage", "malformed JSON"}});
+  s.Commit({}, {{2, "t/a", "garbage", "malformed JSON"}, {2, "t/a", "other", "malformed JSON"}});
+  LONGS_EQUAL(2, s.CountRejected());
+}
