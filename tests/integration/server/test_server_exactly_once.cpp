@@ -139,14 +139,25 @@ TEST(ServerExactlyOnce, SigkillMidStreamStoresEveryReadingOnceAndWearMatchesOffl
   const auto& b = folder.bundle;
   const auto last = std::max_element(b.readings.begin(), b.readings.end(), [](const auto& x, const auto& y) { return x.time < y.time; })->time;
   const auto offline = lw::core::Reconstruct(b.crusher, b.map, lw::core::SensorWearAt(b.crusher, b.readings, last));
-  const int64_t wear_deadline = NowMs() + 10'000;
-  while (NowMs() < wear_deadline) {
-    if (!last_wear.empty() && json::parse(last_wear)["time"] == lw::core::FormatIsoTime(last)) break;
+  // Wait for the wear computed from every sensor's last reading: an earlier publication can
+  // already carry the final time (another sensor's last reading) with one sensor still behind.
+  std::map<std::string, int64_t> last_seq;
+  for (const auto& m : messages) last_seq[m.sensor] = std::max(last_seq[m.sensor], json::parse(m.payload)["seq"].get<int64_t>());
+  const auto complete = [&](const std::string& text) {
+    if (text.empty()) return false;
+    const json w = json::parse(text);
+    std::map<std::string, int64_t> used;
+    for (const auto& r : w["readings_used"]) used[r["sensor"].get<std::string>()] = r["seq"].get<int64_t>();
+    return used == last_seq;
+  };
+  const int64_t wear_deadline = NowMs() + 15'000;
+  while (NowMs() < wear_deadline && !complete(last_wear)) {
     mqtt::const_message_ptr msg;
     if (client.try_consume_message_for(&msg, std::chrono::milliseconds(100)) && msg && msg->get_topic() == root + "wear") {
       last_wear = msg->to_string();
     }
   }
+  CHECK_TEXT(complete(last_wear), ("no wear from every sensor's last reading; last: " + last_wear).c_str());
   CHECK_FALSE(last_wear.empty());
   const json wear = json::parse(last_wear);
   STRCMP_EQUAL(lw::core::FormatIsoTime(last).c_str(), wear["time"].get<std::string>().c_str());
