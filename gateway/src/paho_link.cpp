@@ -29,6 +29,8 @@ struct PahoLink::Impl {
   mqtt::token_ptr pending_connect;
   int64_t next_attempt_ms = 0;
   int64_t backoff_ms = 0;
+  int64_t last_connected_ms = -1;
+  int flaps = 0;  // connections lost within kFlapMs of being made, in a row
   WakeFd wake;
   mqtt::async_client client;
 
@@ -51,6 +53,12 @@ struct PahoLink::Impl {
 };
 
 namespace {
+/// A persistent session whose connections keep dropping within this long of being made (seen
+/// after a SIGKILL + restart with a broker restart in between) is reset: the next attempt uses a
+/// clean session once. Nothing is lost: the gateway resends every reading not yet committed.
+constexpr int64_t kFlapMs = 5000;
+constexpr int kFlapsBeforeReset = 2;
+
 bool IsTls(const std::string& uri) {
   return uri.rfind("ssl://", 0) == 0 || uri.rfind("mqtts://", 0) == 0 || uri.rfind("wss://", 0) == 0;
 }
@@ -134,6 +142,7 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
   }
   for (LinkEvent& e : queued) {
     if (e.kind == LinkEvent::Kind::kConnected) {
+      im.last_connected_ms = now_ms;
       im.backoff_ms = im.options.reconnect_min_ms;
       try {
         for (const std::string& filter : im.options.subscriptions) im.client.subscribe(filter, 1);
@@ -141,12 +150,23 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
         out.push_back({LinkEvent::Kind::kDisconnected, "", std::string("subscribe failed: ") + ex.what()});
       }
     } else if (e.kind == LinkEvent::Kind::kDisconnected) {
+      const bool flap = im.last_connected_ms >= 0 && now_ms - im.last_connected_ms < kFlapMs;
+      im.flaps = flap ? im.flaps + 1 : 0;
+      im.last_connected_ms = -1;
       im.next_attempt_ms = now_ms + im.backoff_ms;
       im.backoff_ms = std::min(im.backoff_ms * 2, im.options.reconnect_max_ms);
     }
     out.push_back(std::move(e));
   }
   if (!im.connected && !im.pending_connect && now_ms >= im.next_attempt_ms) {
+    const bool reset = !im.options.clean_session && im.flaps >= kFlapsBeforeReset;
+    im.connect_options.set_clean_session(im.options.clean_session || reset);
+    if (reset) {
+      im.flaps = 0;
+      out.push_back({LinkEvent::Kind::kDisconnected, "",
+                     "the persistent session keeps dropping right after connecting: connecting once with a clean "
+                     "session (readings queued at the broker are dropped; the gateway resends what is not committed)"});
+    }
     try {
       im.pending_connect = im.client.connect(im.connect_options);
     } catch (const mqtt::exception& ex) {
