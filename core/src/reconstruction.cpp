@@ -45,10 +45,12 @@ double LocalMean(const WearMap& map, const Eigen::VectorXd& values, double z, do
 Eigen::VectorXd SmoothOverSurface(const WearMap& map, const Eigen::VectorXd& values, double radius_m) {
   const Eigen::Index n = values.size();
   if (radius_m <= 0 || n == 0) return values;
-  // Buckets of size radius in z and in arc length at the mean radius.
-  const double mean_r = std::max(1e-6, map.radius.mean());
+  // Buckets of size radius in z and, in arc length, at least radius everywhere: sized at the
+  // smallest radius, so neighbours within `radius_m` are always in the adjacent buckets (sized at
+  // the mean radius, faces nearer the axis than the mean missed some of theirs).
+  const double min_r = std::max(1e-6, map.radius.minCoeff());
   const double zmin = map.z.minCoeff();
-  const double circumference = 2 * M_PI * mean_r;
+  const double circumference = 2 * M_PI * min_r;
   const auto n_arc = std::max<long>(1, static_cast<long>(circumference / radius_m));
   std::unordered_map<long long, std::vector<Eigen::Index>> grid;
   auto key = [&](long iz, long ia) { return (static_cast<long long>(iz) << 32) ^ static_cast<long long>((ia % n_arc + n_arc) % n_arc); };

@@ -8,14 +8,15 @@
 
 namespace lw::test {
 
-/// Cylinder of radius 1 m, z in [0, 2] m, nt x nz quads; wear = intensity(z) per face.
+/// Truncated cone, radius r0 at z = 0 to r1 at z = 2 m, nt x nz quads; wear = intensity(z) per face.
 template <typename F>
-core::WearMap CylinderMap(int nt, int nz, F intensity) {
+core::WearMap ConeMap(int nt, int nz, double r0, double r1, F intensity) {
   core::WearMap m;
   for (int k = 0; k <= nz; ++k) {
+    const double r = r0 + (r1 - r0) * k / nz;
     for (int j = 0; j < nt; ++j) {
       const double th = 2 * M_PI * j / nt;
-      m.points.emplace_back(std::cos(th), std::sin(th), 2.0 * k / nz);
+      m.points.emplace_back(r * std::cos(th), r * std::sin(th), 2.0 * k / nz);
     }
   }
   std::vector<double> w;
@@ -33,6 +34,12 @@ core::WearMap CylinderMap(int nt, int nz, F intensity) {
   m.wear = Eigen::Map<Eigen::VectorXd>(w.data(), static_cast<Eigen::Index>(w.size()));
   m.ComputeGeometry();
   return m;
+}
+
+/// Cylinder of radius 1 m, z in [0, 2] m, nt x nz quads; wear = intensity(z) per face.
+template <typename F>
+core::WearMap CylinderMap(int nt, int nz, F intensity) {
+  return ConeMap(nt, nz, 1.0, 1.0, intensity);
 }
 
 inline const char* kCrusherJson = R"({

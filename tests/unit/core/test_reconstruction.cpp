@@ -82,3 +82,28 @@ TEST(Reconstruction, SmoothingRemovesFaceNoiseButKeepsTheMean) {
   CHECK(max_dev < 0.05);
   DOUBLES_EQUAL(1.0, s.mean(), 0.01);
 }
+
+TEST(Reconstruction, SmoothingFindsEveryNeighbourWithinTheRadiusOnAStronglyTaperedCone) {
+  // Radius 0.4 m at the bottom to 2.4 m at the top: at the bottom the arc per degree is six times
+  // smaller than at the top. Compare with a brute-force area-weighted mean over all faces.
+  WearMap m = lw::test::ConeMap(90, 12, 0.4, 2.4, [](double z) { return 1.0 + z; });
+  for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] += 0.3 * std::sin(7.0 * static_cast<double>(i));
+  const double radius = 0.3;
+  const Eigen::VectorXd fast = SmoothOverSurface(m, m.wear, radius);
+  double worst = 0;
+  for (Eigen::Index i = 0; i < m.wear.size(); ++i) {
+    double sw = 0, swv = 0;
+    for (Eigen::Index j = 0; j < m.wear.size(); ++j) {
+      double dth = std::fabs(m.theta_deg[j] - m.theta_deg[i]);
+      dth = std::min(dth, 360.0 - dth);
+      const double arc = 0.5 * (m.radius[i] + m.radius[j]) * dth * M_PI / 180.0;
+      const double dz = m.z[j] - m.z[i];
+      if (dz * dz + arc * arc <= radius * radius) {
+        sw += m.areas[j];
+        swv += m.areas[j] * m.wear[j];
+      }
+    }
+    worst = std::max(worst, std::fabs(fast[i] - swv / sw));
+  }
+  DOUBLES_EQUAL(0.0, worst, 1e-9);
+}
