@@ -47,3 +47,36 @@ function(lw_add_unit_test)
     set_tests_properties(${T_NAME} PROPERTIES LABELS "${T_LABELS}")
   endif()
 endfunction()
+
+# An integration test against real programs and a real mosquitto on 127.0.0.1 (tests/support/
+# mosquitto_fixture). Each program target P becomes a build dependency and a compile definition
+# LW_<P without "linerwatch-", upper case>_BIN (linerwatch-server -> LW_SERVER_BIN); the broker
+# binary reaches the test as $LW_MOSQUITTO. Skipped (with a warning for mosquitto) when missing.
+#   lw_add_integration_test(NAME test_x SOURCES a.cpp LIBS l1 l2 PROGRAMS linerwatch-server [TIMEOUT s])
+function(lw_add_integration_test)
+  cmake_parse_arguments(T "" "NAME;TIMEOUT" "SOURCES;LIBS;PROGRAMS" ${ARGN})
+  foreach(program ${T_PROGRAMS})
+    if(NOT TARGET ${program})
+      return()
+    endif()
+  endforeach()
+  find_program(LW_MOSQUITTO mosquitto PATHS /usr/sbin /usr/local/sbin)
+  if(NOT LW_MOSQUITTO)
+    message(WARNING "mosquitto not found: ${T_NAME} is not built (scripts/install-deps)")
+    return()
+  endif()
+  if(NOT T_TIMEOUT)
+    set(T_TIMEOUT 300)
+  endif()
+  lw_add_unit_test(NAME ${T_NAME}
+    SOURCES ${T_SOURCES} ${PROJECT_SOURCE_DIR}/tests/support/mosquitto_fixture.cpp
+    LIBS ${T_LIBS} Threads::Threads LABELS integration TIMEOUT ${T_TIMEOUT})
+  foreach(program ${T_PROGRAMS})
+    string(REPLACE "linerwatch-" "" short ${program})
+    string(TOUPPER ${short} short)
+    target_compile_definitions(${T_NAME} PRIVATE LW_${short}_BIN="$<TARGET_FILE:${program}>")
+    add_dependencies(${T_NAME} ${program})
+  endforeach()
+  # mosquitto lives in /usr/sbin, which is not on every user's PATH (MosquittoFixture reads this).
+  set_tests_properties(${T_NAME} PROPERTIES ENVIRONMENT "LW_MOSQUITTO=${LW_MOSQUITTO}")
+endfunction()
