@@ -30,9 +30,10 @@ constexpr const char* kUsage =
     "      Compare the bundle's readings (and scans) with the Eq. 9 reconstruction of its DEM map, test\n"
     "      whether the mismatch is real, locate it, and name the physics the DEM left out.\n"
     "      Exit 0 when the diagnosis ran, whatever it found (see CONTRACTS.md section 4).\n"
-    "  reconstruct BUNDLE [--at TIME] [--json OUT.json] [--vtk OUT.vtk] [--config FILE]\n"
+    "  reconstruct BUNDLE [--at TIME] [--json OUT.json] [--vtk OUT.vtk] [--lower-bound] [--config FILE]\n"
     "      Eq. 9 global wear from the sensors' latest readings (at TIME, default: the last reading);\n"
-    "      prints a per-row summary.\n"
+    "      prints a per-row summary. A reading n means [n, n+1) mm: estimates use n + 0.5, as the\n"
+    "      server does; --lower-bound uses n (the thinnest the liner can be).\n"
     "\n"
     "options:\n"
     "  --config FILE   JSON object with the same options, e.g. {\"bundle\": \"b\", \"json\": \"out.json\",\n"
@@ -228,15 +229,16 @@ int Diagnose(const std::vector<std::string>& args, std::ostream& out) {
 }
 
 int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
-  const Options o = ParseOptions(args, 1, {"at", "json", "vtk"}, {});
+  const Options o = ParseOptions(args, 1, {"at", "json", "vtk"}, {"lower_bound"});
   if (o.Has("json")) CheckWritable(o.Get("json"), "json");
   if (o.Has("vtk")) CheckWritable(o.Get("vtk"), "vtk");
   std::optional<core::TimePoint> at;
   if (o.Has("at")) at = ParseTime(o.Get("at"), "at");
   const core::Bundle bundle = Load(o);
-  // Wear from each sensor's latest reading at or before `at` (the reading itself: its lower bound).
+  // Wear from each sensor's latest reading at or before `at`: a reading n means [n, n+1) mm, so the
+  // estimate is n + 0.5 as the server's (docs/bundle.md); --lower-bound uses n itself (thinner).
   const std::vector<core::SensorWear> wear = core::SensorWearAt(
-      bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), /*interval_centre=*/false);
+      bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), /*interval_centre=*/!o.Flag("lower_bound"));
   if (wear.empty()) throw BadInput(bundle.dir.string() + "/readings.csv: no reading at or before the requested time");
   const core::Reconstruction rec = core::Reconstruct(bundle.crusher, bundle.map, wear);
   char line[256];

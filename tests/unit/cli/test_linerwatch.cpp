@@ -8,6 +8,8 @@
 #include <vector>
 
 #include "cli/cli.hpp"
+#include "core/bundle.hpp"
+#include "core/reconstruction.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
 
 // CppUTest last: its leak-detector macros redefine new.
@@ -127,4 +129,20 @@ TEST(Linerwatch, DiagnoseWritesJsonHtmlAndPredictionVtkFromConfig) {
   CHECK_TRUE(Slurp(html).find("<svg") != std::string::npos);
   // No temporaries left next to the outputs.
   for (const auto& e : fs::directory_iterator(dir)) CHECK_TRUE(e.path().string().find(".tmp") == std::string::npos);
+}
+
+TEST(Linerwatch, ReconstructUsesTheIntervalCentreLikeTheServerAndLowerBoundOnRequest) {
+  const fs::path b = Bundle();
+  const lw::core::Bundle bundle = lw::core::LoadBundle(b);
+  const auto centre = lw::core::Reconstruct(
+      bundle.crusher, bundle.map, lw::core::SensorWearAt(bundle.crusher, bundle.readings, lw::core::TimePoint::max(), true));
+  const auto lower = lw::core::Reconstruct(
+      bundle.crusher, bundle.map, lw::core::SensorWearAt(bundle.crusher, bundle.readings, lw::core::TimePoint::max(), false));
+  const Run a = Cli({"reconstruct", b.string(), "--json", (dir / "a.json").string()});
+  const Run l = Cli({"reconstruct", b.string(), "--lower-bound", "--json", (dir / "l.json").string()});
+  LONGS_EQUAL(0, a.code);
+  LONGS_EQUAL(0, l.code);
+  DOUBLES_EQUAL(centre.min_thickness_mm, nlohmann::json::parse(Slurp(dir / "a.json"))["min_thickness_mm"].get<double>(), 1e-9);
+  DOUBLES_EQUAL(lower.min_thickness_mm, nlohmann::json::parse(Slurp(dir / "l.json"))["min_thickness_mm"].get<double>(), 1e-9);
+  CHECK(lower.min_thickness_mm < centre.min_thickness_mm);
 }
