@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/reconstruction.hpp"
+#include "unit/core/bundle_fixture.hpp"
 
 namespace {
 
@@ -22,30 +23,11 @@ double Median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-/// A truncated-cone concave (radius 1.6 -> 2.6 m over 3 m) with nt x nz quads split in two.
+/// A truncated-cone concave (radius 1.6 -> 2.6 m over 3 m), the reference profile with a mild
+/// ripple around.
 lw::core::WearMap Cone(int nt, int nz) {
-  lw::core::WearMap m;
-  for (int k = 0; k <= nz; ++k) {
-    const double z = 3.0 * k / nz, r = 1.6 + z / 3.0;
-    for (int j = 0; j < nt; ++j) {
-      const double th = 2 * M_PI * j / nt;
-      m.points.emplace_back(r * std::cos(th), r * std::sin(th), z);
-    }
-  }
-  for (int k = 0; k < nz; ++k) {
-    for (int j = 0; j < nt; ++j) {
-      const auto a = static_cast<uint32_t>(k * nt + j), b = static_cast<uint32_t>(k * nt + (j + 1) % nt);
-      const auto c = a + static_cast<uint32_t>(nt), d = b + static_cast<uint32_t>(nt);
-      m.faces.push_back({a, b, d});
-      m.faces.push_back({a, d, c});
-    }
-  }
-  m.ComputeGeometry();
-  m.wear.resize(static_cast<Eigen::Index>(m.faces.size()));
-  for (Eigen::Index i = 0; i < m.wear.size(); ++i) {
-    const double zeta = m.z[i] / 3.0;
-    m.wear[i] = (0.06 + std::pow(1 - zeta, 1.5)) * (1 + 0.05 * std::sin(7.0 * m.theta_deg[i] * M_PI / 180.0));
-  }
+  lw::core::WearMap m = lw::test::ConeMap(nt, nz, 1.6, 2.6, [](double z) { return 0.06 + std::pow(1 - z / 3.0, 1.5); }, 3.0);
+  for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] *= 1 + 0.05 * std::sin(7.0 * m.theta_deg[i] * M_PI / 180.0);
   return m;
 }
 

@@ -8,15 +8,15 @@
 
 namespace lw::test {
 
-/// Truncated cone, radius r0 at z = 0 to r1 at z = 2 m, nt x nz quads; wear = intensity(z) per face.
+/// Truncated cone, radius r0 at z = 0 to r1 at z = height, nt x nz quads; wear = intensity(z) per face.
 template <typename F>
-core::WearMap ConeMap(int nt, int nz, double r0, double r1, F intensity) {
+core::WearMap ConeMap(int nt, int nz, double r0, double r1, F intensity, double height = 2.0) {
   core::WearMap m;
   for (int k = 0; k <= nz; ++k) {
     const double r = r0 + (r1 - r0) * k / nz;
     for (int j = 0; j < nt; ++j) {
       const double th = 2 * M_PI * j / nt;
-      m.points.emplace_back(r * std::cos(th), r * std::sin(th), 2.0 * k / nz);
+      m.points.emplace_back(r * std::cos(th), r * std::sin(th), height * k / nz);
     }
   }
   std::vector<double> w;
@@ -26,7 +26,7 @@ core::WearMap ConeMap(int nt, int nz, double r0, double r1, F intensity) {
       const auto c = a + static_cast<uint32_t>(nt), d = b + static_cast<uint32_t>(nt);
       m.faces.push_back({a, d, b});
       m.faces.push_back({a, c, d});
-      const double zc = 2.0 * (k + 0.5) / nz;
+      const double zc = height * (k + 0.5) / nz;
       w.push_back(intensity(zc));
       w.push_back(intensity(zc));
     }
