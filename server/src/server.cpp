@@ -3,6 +3,8 @@
 #include <poll.h>
 
 #include <chrono>
+#include <condition_variable>
+#include <thread>
 #include <fstream>
 #include <map>
 #include <mutex>
@@ -78,7 +80,8 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   DiagnosisRunner diagnosis(*registry, read, read_mutex);
 
   std::mutex dirty_mutex;
-  std::set<std::string> dirty;
+  std::condition_variable dirty_cv;
+  std::set<std::string> dirty;  // crushers whose wear must be recomputed and published
   const auto on_committed = [&](const IngestResult& r) {
     std::set<std::string> changed;
     for (const StoredReading& s : r.new_readings) {
@@ -91,8 +94,11 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     }
     for (const auto& line : r.log) log(line);
     for (const auto& c : changed) wear.MarkChanged(c);
-    std::lock_guard<std::mutex> lock(dirty_mutex);
-    dirty.insert(changed.begin(), changed.end());
+    {
+      std::lock_guard<std::mutex> lock(dirty_mutex);
+      dirty.insert(changed.begin(), changed.end());
+    }
+    if (!changed.empty()) dirty_cv.notify_one();
   };
 
   gateway::LinkOptions lo;
@@ -133,8 +139,60 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       (o.web_dir.empty() ? std::string("not built") : o.web_dir) + ")");
   if (tokens.enabled()) log("bearer tokens required on /api");
 
+  // Wear is recomputed on its own thread (at most every --wear-interval-ms), so a large map or a
+  // long campaign never delays commit acks; this loop only publishes the summaries it hands back.
+  std::mutex computed_mutex;
+  std::vector<std::pair<std::string, std::string>> computed;  // (crusher, wear summary JSON)
+  std::atomic<bool> worker_stop{false};
+  std::thread wear_worker([&] {
+    int64_t last_ms = 0;
+    while (!worker_stop) {
+      std::set<std::string> work;
+      {
+        std::unique_lock<std::mutex> lock(dirty_mutex);
+        dirty_cv.wait_for(lock, std::chrono::milliseconds(200), [&] { return worker_stop || !dirty.empty(); });
+        if (worker_stop) break;
+        if (dirty.empty()) continue;
+        const int64_t wait_ms = last_ms + o.wear_interval_ms - WallMs();
+        if (wait_ms > 0) {
+          lock.unlock();
+          std::this_thread::sleep_for(std::chrono::milliseconds(std::min<int64_t>(wait_ms, 200)));
+          continue;
+        }
+        work.swap(dirty);
+      }
+      last_ms = WallMs();
+      for (const std::string& c : work) {
+        std::shared_ptr<const CrusherState> st;
+        try {
+          st = wear.Get(c);
+        } catch (const std::exception& e) {
+          log("crusher " + c + ": wear not computed: " + e.what());
+          continue;
+        }
+        if (!st || !st->has_wear) continue;
+        std::string summary = WearJson(*st, false).dump();
+        events.Publish(c, "wear", summary);
+        std::lock_guard<std::mutex> lock(computed_mutex);
+        computed.emplace_back(c, std::move(summary));
+      }
+    }
+  });
+
+  // Stops and joins the worker on every way out of this function (an exception too).
+  struct JoinWorker {
+    std::atomic<bool>& stop;
+    std::condition_variable& cv;
+    std::thread& thread;
+    ~JoinWorker() {
+      stop = true;
+      cv.notify_all();
+      if (thread.joinable()) thread.join();
+    }
+  } join_worker{worker_stop, dirty_cv, wear_worker};
+
   std::map<std::string, std::set<std::string>> sites;  // crusher -> sites it was heard from
-  int64_t last_wear_ms = 0, last_stats_ms = WallMs();
+  int64_t last_stats_ms = WallMs();
   IngestCounters last_counters;
   const std::string root = o.topic_root + "/";
   while (!stop) {
@@ -191,24 +249,13 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       for (const auto& [crusher, site] : r.sites) sites[crusher].insert(site);
       on_committed(r);
     }
-    std::set<std::string> to_publish;
-    if (now - last_wear_ms >= o.wear_interval_ms) {
-      std::lock_guard<std::mutex> lock(dirty_mutex);
-      to_publish.swap(dirty);
+    std::vector<std::pair<std::string, std::string>> ready;
+    {
+      std::lock_guard<std::mutex> lock(computed_mutex);
+      ready.swap(computed);
     }
-    for (const std::string& c : to_publish) {
-      last_wear_ms = now;
-      std::shared_ptr<const CrusherState> st;
-      try {
-        st = wear.Get(c);
-      } catch (const std::exception& e) {
-        log("crusher " + c + ": wear not computed: " + e.what());
-        continue;
-      }
-      if (!st || !st->has_wear) continue;
-      const std::string summary = WearJson(*st, false).dump();
+    for (const auto& [c, summary] : ready) {
       for (const std::string& site : sites[c]) link.Publish({root + site + "/" + c + "/wear", summary, 1, true});
-      events.Publish(c, "wear", summary);
     }
     if (now - last_stats_ms >= 60'000) {
       const IngestCounters c = ingestor.Counters();
@@ -220,11 +267,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       last_stats_ms = now;
     }
     pollfd pfd{link.wake_fd(), POLLIN, 0};
-    const bool pending = [&] {
-      std::lock_guard<std::mutex> lock(dirty_mutex);
-      return !dirty.empty();
-    }();
-    ::poll(&pfd, 1, pending ? 10 : 50);
+    ::poll(&pfd, 1, 20);
   }
   log("stopping");
   api.Stop();
