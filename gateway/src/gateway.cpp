@@ -212,19 +212,16 @@ void Gateway::SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, cons
     ack.count = static_cast<uint8_t>(n);
     uint8_t payload[protocol::kMaxRfPayload];
     size_t payload_len = 0;
-    uint8_t frame[protocol::kMaxFrameData];
-    size_t frame_len = 0;
     uint8_t wire[protocol::kMaxWireFrame];
     protocol::TransmitRequest req;
     req.frame_id = next_frame_id_;
-    next_frame_id_ = static_cast<uint8_t>(next_frame_id_ == 255 ? 1 : next_frame_id_ + 1);
+    next_frame_id_ = protocol::NextFrameId(next_frame_id_);
     req.dest64 = dest64;
     req.dest16 = dest16;
     if (protocol::EncodeAck(ack, payload, sizeof payload, &payload_len) != protocol::PayloadStatus::kOk) return;
     req.payload = payload;
     req.payload_len = payload_len;
-    if (protocol::BuildTransmitRequest(req, frame, sizeof frame, &frame_len) != protocol::Status::kOk) return;
-    const size_t wire_len = protocol::EncodeFrame(options_.api_mode, frame, frame_len, wire, sizeof wire);
+    const size_t wire_len = protocol::EncodeTransmitRequest(options_.api_mode, req, wire, sizeof wire);
     if (wire_len == 0 || !radio_.Write(wire, wire_len)) {
       ++counters_.ack_write_errors;
       LogLimited("ack_write", "serial: writing an ack to " + AddressHex(dest64) + " failed (the sensor retransmits)");

@@ -81,6 +81,13 @@ uint8_t Checksum(const uint8_t* frame_data, size_t len) {
   return static_cast<uint8_t>(0xFF - sum);
 }
 
+size_t EncodeTransmitRequest(ApiMode mode, const TransmitRequest& req, uint8_t* wire, size_t wire_cap) {
+  uint8_t frame[kMaxFrameData];
+  size_t len = 0;
+  if (BuildTransmitRequest(req, frame, sizeof frame, &len) != Status::kOk) return 0;
+  return EncodeFrame(mode, frame, len, wire, wire_cap);
+}
+
 size_t EncodeFrame(ApiMode mode, const uint8_t* frame_data, size_t len, uint8_t* out, size_t out_cap) {
   if (frame_data == nullptr || out == nullptr || len == 0 || len > kMaxFrameData) return 0;
   size_t n = 0;

@@ -185,16 +185,14 @@ void App::Transmit(uint32_t now) {
     size_t plen = 0;
     if (protocol::EncodeReadings(h, recs, n, payload, sizeof payload, &plen) != protocol::PayloadStatus::kOk) return;
     protocol::TransmitRequest req;
-    frame_id_ = static_cast<uint8_t>(frame_id_ == 0xFF ? 1 : frame_id_ + 1);
+    frame_id_ = protocol::NextFrameId(frame_id_);
     req.frame_id = frame_id_;
     req.dest64 = config_.coordinator_address64;
     req.payload = payload;
     req.payload_len = plen;
-    uint8_t frame[protocol::kMaxFrameData];
-    size_t flen = 0;
-    if (protocol::BuildTransmitRequest(req, frame, sizeof frame, &flen) != protocol::Status::kOk) return;
     uint8_t wire[protocol::kMaxWireFrame];
-    const size_t wlen = protocol::EncodeFrame(config_.api_mode, frame, flen, wire, sizeof wire);
+    const size_t wlen = protocol::EncodeTransmitRequest(config_.api_mode, req, wire, sizeof wire);
+    if (wlen == 0) return;
     board_.radio.Write(wire, wlen);
     ++stats_.frames_sent;
     DrainRadio();  // an ack may already be there; it frees queue slots

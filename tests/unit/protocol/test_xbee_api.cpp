@@ -179,3 +179,26 @@ TEST(XbeeApi, DeliveryStatusNamesCoverDocumentedCodes) {
   STRCMP_EQUAL("data_payload_too_large", DeliveryStatusName(0x74));
   STRCMP_EQUAL("unknown", DeliveryStatusName(0x99));
 }
+
+TEST(XbeeApi, EncodeTransmitRequestIsBuildThenEncode) {
+  uint8_t payload[10] = {0x7E, 0x7D, 0x11, 0x13, 1, 2, 3, 4, 5, 6};  // bytes that need escaping in mode 2
+  TransmitRequest req;
+  req.frame_id = 9;
+  req.dest64 = 0x0013A20040A1B2C3ull;
+  req.payload = payload;
+  req.payload_len = sizeof payload;
+  uint8_t data[kMaxFrameData];
+  size_t n = 0;
+  CHECK(BuildTransmitRequest(req, data, sizeof data, &n) == Status::kOk);
+  for (ApiMode mode : {ApiMode::kUnescaped, ApiMode::kEscaped}) {
+    uint8_t a[kMaxWireFrame], b[kMaxWireFrame];
+    const size_t la = EncodeFrame(mode, data, n, a, sizeof a);
+    const size_t lb = EncodeTransmitRequest(mode, req, b, sizeof b);
+    LONGS_EQUAL(la, lb);
+    MEMCMP_EQUAL(a, b, la);
+  }
+  uint8_t small[8];
+  LONGS_EQUAL(0, EncodeTransmitRequest(ApiMode::kEscaped, req, small, sizeof small));
+  LONGS_EQUAL(1, NextFrameId(255));
+  LONGS_EQUAL(2, NextFrameId(1));
+}

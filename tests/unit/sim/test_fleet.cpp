@@ -72,16 +72,14 @@ struct TestGateway {
       size_t plen = 0;
       CHECK(pr::EncodeAck(ack, payload, sizeof payload, &plen) == pr::PayloadStatus::kOk);
       pr::TransmitRequest req;
-      frame_id = static_cast<uint8_t>(frame_id == 0xFF ? 1 : frame_id + 1);
+      frame_id = pr::NextFrameId(frame_id);
       req.frame_id = frame_id;
       req.dest64 = rx.src64;
       req.payload = payload;
       req.payload_len = plen;
-      uint8_t frame[pr::kMaxFrameData];
-      size_t flen = 0;
-      CHECK(pr::BuildTransmitRequest(req, frame, sizeof frame, &flen) == pr::Status::kOk);
       uint8_t wire[pr::kMaxWireFrame];
-      const size_t w = pr::EncodeFrame(mode, frame, flen, wire, sizeof wire);
+      const size_t w = pr::EncodeTransmitRequest(mode, req, wire, sizeof wire);
+      CHECK(w > 0);
       reply.insert(reply.end(), wire, wire + w);
       ++acks_sent;
     }
