@@ -261,15 +261,20 @@ Bundle LoadBundle(const std::filesystem::path& dir) {
     }
   }
   if (std::filesystem::exists(dir / "operations.csv")) b.operations = LoadOperations(dir / "operations.csv");
-  if (std::filesystem::is_directory(dir / "scans")) {
-    std::vector<std::filesystem::path> files;
-    for (const auto& e : std::filesystem::directory_iterator(dir / "scans")) {
-      if (e.path().extension() == ".xyz") files.push_back(e.path());
-    }
-    std::sort(files.begin(), files.end());
-    for (const auto& f : files) b.scans.push_back(LoadScan(f));
-  }
+  b.scans = LoadScans(dir);
   return b;
+}
+
+std::vector<Scan> LoadScans(const std::filesystem::path& dir) {
+  std::vector<Scan> scans;
+  if (!std::filesystem::is_directory(dir / "scans")) return scans;
+  std::vector<std::filesystem::path> files;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "scans")) {
+    if (e.path().extension() == ".xyz") files.push_back(e.path());
+  }
+  std::sort(files.begin(), files.end());
+  for (const auto& f : files) scans.push_back(LoadScan(f));
+  return scans;
 }
 
 }  // namespace lw::core

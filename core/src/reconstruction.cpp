@@ -92,20 +92,31 @@ Eigen::VectorXd IntensityAtSensors(const CrusherConfig& crusher, const WearMap& 
   return out;
 }
 
+std::vector<size_t> LatestReadingIndices(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at) {
+  std::map<std::string, size_t> latest;
+  for (size_t i = 0; i < readings.size(); ++i) {
+    const Reading& r = readings[i];
+    if (r.time > at) continue;
+    const auto [it, fresh] = latest.try_emplace(r.sensor_id, i);
+    const Reading& l = readings[it->second];
+    // Same time twice (a duplicate): the thinner reading, since wear only goes one way.
+    if (!fresh && (r.time > l.time || (r.time == l.time && r.thickness_mm < l.thickness_mm))) it->second = i;
+  }
+  std::vector<size_t> out;
+  for (const auto& s : crusher.sensors) {
+    const auto it = latest.find(s.id);
+    if (it != latest.end()) out.push_back(it->second);
+  }
+  return out;
+}
+
 std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
                                      bool interval_centre) {
-  std::map<std::string, const Reading*> latest;
-  for (const auto& r : readings) {
-    if (r.time > at) continue;
-    auto& l = latest[r.sensor_id];
-    // Same time twice (a duplicate): the thinner reading, since wear only goes one way.
-    if (!l || r.time > l->time || (r.time == l->time && r.thickness_mm < l->thickness_mm)) l = &r;
-  }
   std::vector<SensorWear> out;
-  for (const auto& s : crusher.sensors) {
-    auto it = latest.find(s.id);
-    if (it == latest.end()) continue;
-    const double thickness = it->second->thickness_mm + (interval_centre ? 0.5 : 0.0);
+  for (const size_t i : LatestReadingIndices(crusher, readings, at)) {
+    const Reading& r = readings[i];
+    const SensorInfo& s = *crusher.FindSensor(r.sensor_id);
+    const double thickness = r.thickness_mm + (interval_centre ? 0.5 : 0.0);
     out.push_back({s.id, std::max(0.0, s.thickness_new_mm - thickness)});
   }
   return out;

@@ -61,14 +61,7 @@ void DiagnosisRunner::Run(const std::string& crusher_id) {
       b.readings.push_back(std::move(x));
     }
     if (std::filesystem::exists(c->dir / "operations.csv")) b.operations = core::LoadOperations(c->dir / "operations.csv");
-    if (std::filesystem::is_directory(c->dir / "scans")) {
-      std::vector<std::filesystem::path> files;
-      for (const auto& e : std::filesystem::directory_iterator(c->dir / "scans")) {
-        if (e.path().extension() == ".xyz") files.push_back(e.path());
-      }
-      std::sort(files.begin(), files.end());
-      for (const auto& f : files) b.scans.push_back(core::LoadScan(f));
-    }
+    b.scans = core::LoadScans(c->dir);
     const auto result = diagnosis::Diagnose(b);
     const auto now = std::chrono::floor<std::chrono::seconds>(std::chrono::system_clock::now());
     std::lock_guard<std::mutex> rl(read_mutex_);

@@ -195,37 +195,30 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   int64_t last_stats_ms = WallMs();
   IngestCounters last_counters;
   const std::string root = o.topic_root + "/";
-  while (!stop) {
-    const int64_t now = WallMs();
-    std::vector<Incoming> batch;
-    for (gateway::LinkEvent& e : link.Poll(now)) {
+  // Drains the link: connection events are logged, reading messages appended to `batch`.
+  const auto collect = [&](int64_t now_ms, std::vector<Incoming>* batch) {
+    for (gateway::LinkEvent& e : link.Poll(now_ms)) {
       if (e.kind == gateway::LinkEvent::Kind::kConnected) {
         connected = true;
-        log("connected to " + o.broker + " as " + o.client_id + " (persistent session)");
+        log("connected to " + o.broker + " as " + o.client_id);
       } else if (e.kind == gateway::LinkEvent::Kind::kDisconnected) {
         connected = false;
         log("broker: " + e.payload);
-      } else {
-        const auto t = ParseReadingTopic(e.topic, root);
-        if (!t) continue;
-        batch.push_back({t->site, t->crusher, t->sensor, std::move(e.topic), std::move(e.payload)});
+      } else if (const auto t = ParseReadingTopic(e.topic, root)) {
+        batch->push_back({t->site, t->crusher, t->sensor, std::move(e.topic), std::move(e.payload)});
       }
     }
+  };
+  while (!stop) {
+    const int64_t now = WallMs();
+    std::vector<Incoming> batch;
+    collect(now, &batch);
     // Group commit: one fsync'ed transaction per batch, so when readings are arriving give the
     // next few a moment (commit_delay_ms) to join this one instead of committing them one by one.
     if (!batch.empty() && batch.size() < static_cast<size_t>(o.batch_max) && o.commit_delay_ms > 0) {
       pollfd wait_fd{link.wake_fd(), POLLIN, 0};
       ::poll(&wait_fd, 1, static_cast<int>(o.commit_delay_ms));
-      for (gateway::LinkEvent& e : link.Poll(WallMs())) {
-        if (e.kind != gateway::LinkEvent::Kind::kMessage) {
-          connected = e.kind == gateway::LinkEvent::Kind::kConnected;
-          log(connected ? "connected to " + o.broker : "broker: " + e.payload);
-          continue;
-        }
-        const auto t = ParseReadingTopic(e.topic, root);
-        if (!t) continue;
-        batch.push_back({t->site, t->crusher, t->sensor, std::move(e.topic), std::move(e.payload)});
-      }
+      collect(WallMs(), &batch);
     }
     for (size_t start = 0; start < batch.size(); start += static_cast<size_t>(o.batch_max)) {
       const size_t end = std::min(batch.size(), start + static_cast<size_t>(o.batch_max));

@@ -28,7 +28,9 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   CrusherState st;
   st.crusher = &crusher;
   std::vector<core::Reading> usable;
+  std::vector<const StoredReading*> source;  // the stored reading behind each usable one
   usable.reserve(readings.size());
+  source.reserve(readings.size());
   for (const StoredReading& r : readings) {
     if (IsFaultReading(r.flags, r.loops_intact)) continue;
     core::Reading c;
@@ -36,19 +38,13 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
     c.sensor_id = r.sensor;
     c.thickness_mm = r.thickness_mm;
     usable.push_back(std::move(c));
+    source.push_back(&r);
     st.time = std::max(st.time, FromUnix(r.time_s));
   }
   if (usable.empty()) return st;
   st.sensor_wear = core::SensorWearAt(crusher.config, usable, st.time);
-  // The reading each sensor's wear came from (latest by time; the thinner of two at one time).
-  for (const core::SensorWear& w : st.sensor_wear) {
-    const StoredReading* best = nullptr;
-    for (const StoredReading& r : readings) {
-      if (r.sensor != w.sensor_id || IsFaultReading(r.flags, r.loops_intact)) continue;
-      if (!best || r.time_s > best->time_s || (r.time_s == best->time_s && r.thickness_mm < best->thickness_mm)) best = &r;
-    }
-    if (best) st.used.push_back(*best);
-  }
+  // The reading each sensor's wear came from: the same selection SensorWearAt makes.
+  for (const size_t i : core::LatestReadingIndices(crusher.config, usable, st.time)) st.used.push_back(*source[i]);
   st.reconstruction = core::Reconstruct(crusher.plan, st.sensor_wear);
   st.has_wear = true;
   for (const core::SensorInfo& s : crusher.config.sensors) {
@@ -57,6 +53,20 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   st.row_forecasts = core::ForecastRows(crusher.config, st.reconstruction, st.sensor_wear, st.sensor_forecasts, st.time);
   return st;
 }
+
+namespace {
+
+/// The reading each sensor contributed, named in every published result.
+ordered_json ReadingsUsedJson(const CrusherState& st) {
+  ordered_json used = ordered_json::array();
+  for (const StoredReading& r : st.used) {
+    used.push_back({{"sensor", r.sensor}, {"seq", r.seq}, {"time", core::FormatIsoTime(FromUnix(r.time_s))},
+                    {"thickness_mm", r.thickness_mm}});
+  }
+  return used;
+}
+
+}  // namespace
 
 ordered_json WearJson(const CrusherState& st, bool with_faces) {
   const Crusher& c = *st.crusher;
@@ -86,12 +96,7 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
                     {"sensors_used", r.sensors_used}});
   }
   j["rows"] = rows;
-  ordered_json used = ordered_json::array();
-  for (const StoredReading& r : st.used) {
-    used.push_back({{"sensor", r.sensor}, {"seq", r.seq}, {"time", core::FormatIsoTime(FromUnix(r.time_s))},
-                    {"thickness_mm", r.thickness_mm}});
-  }
-  j["readings_used"] = used;
+  j["readings_used"] = ReadingsUsedJson(st);
   j["note"] = "a reading n means thickness in [n, n+1) mm; estimates use n + 0.5";
   if (with_faces) {
     std::vector<double> remaining(static_cast<size_t>(rec.remaining_mm.size()));
@@ -108,7 +113,7 @@ ordered_json ForecastJson(const CrusherState& st) {
   j["time"] = core::FormatIsoTime(st.time);
   j["thickness_min_mm"] = c.config.thickness_min_mm;
   j["map_sha256"] = c.map.sha256;
-  j["readings_used"] = WearJson(st, false)["readings_used"];
+  j["readings_used"] = ReadingsUsedJson(st);
   ordered_json rows = ordered_json::array();
   for (const core::RowForecast& r : st.row_forecasts) {
     ordered_json o = {{"row", r.row},

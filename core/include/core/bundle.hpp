@@ -76,6 +76,8 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path);
 std::vector<Reading> LoadReadings(const std::filesystem::path& path);
 std::vector<OperationsSample> LoadOperations(const std::filesystem::path& path);
 Scan LoadScan(const std::filesystem::path& path);
+/// Every scans/*.xyz of a bundle or crusher folder, sorted by file name (none when there is no scans/).
+std::vector<Scan> LoadScans(const std::filesystem::path& dir);
 
 /// Loads and validates a whole bundle; readings naming unknown sensors are refused.
 Bundle LoadBundle(const std::filesystem::path& dir);

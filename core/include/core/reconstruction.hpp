@@ -61,6 +61,11 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
 /// length) of each face. Grid-bucketed: linear in the face count for a fixed radius.
 Eigen::VectorXd SmoothOverSurface(const WearMap& map, const Eigen::VectorXd& values, double radius_m);
 
+/// Index into `readings` of each sensor's latest reading up to `at` (the thinner of two at the
+/// same time, since wear only goes one way), in crusher.sensors order; sensors without readings
+/// are left out. The selection SensorWearAt uses.
+std::vector<size_t> LatestReadingIndices(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at);
+
 /// Current wear per sensor from readings up to `at` (latest reading of each sensor):
 /// wear = thickness_new - (reading + 0.5 when interval_centre). Sensors without readings are left out.
 std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings,
