@@ -158,7 +158,7 @@ nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::
   const size_t last = dump_t.size() - 1;
   const double span = first < dump_t.size() ? dump_t[last] - dump_t[first] : 0;
   const double gyration_s = 60.0 / spec.speed_rpm;
-  const double min_window_s = std::max(5 * gyration_s, spec.dump_interval_s);
+  const double min_window_s = std::max(3 * gyration_s, spec.dump_interval_s);
   const int requested = windows > 0 ? windows : spec.windows;
   int k = ChooseWindowCount(span, min_window_s, requested);
   if (k > 0 && static_cast<long>(last - first) < k) k = static_cast<int>(last - first);

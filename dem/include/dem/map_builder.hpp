@@ -22,7 +22,7 @@ struct MapFiles {
 /// Reads `case_dir` (case.json, mass.txt, post/concave_*.vtk, logs) and writes the three files into
 /// `out_dir`. `rows` name the liner rows for the summary (empty: thirds of the height named
 /// LDWN, LMID, LUP). `windows` > 0 asks for that many windows (else the spec's, else automatic:
-/// as many windows of >= 5 gyrations as fit, at most 8). Throws std::runtime_error naming the file
+/// as many windows of >= 3 gyrations as fit, at most 8). Throws std::runtime_error naming the file
 /// and the reason when the run is incomplete, never steady, or too short for 2 windows.
 /// Returns the summary that was written.
 nlohmann::json BuildMap(const ChamberSpec& spec, const std::filesystem::path& case_dir, std::vector<core::Row> rows,
