@@ -29,10 +29,10 @@ void WriteAtomically(const fs::path& path, const std::string& text) {
 }
 
 // Surface of revolution through `rings` (z, r), `n_theta` segments, as ASCII STL facets.
-void Revolve(std::ostringstream& out, const std::vector<std::pair<double, double>>& rings, int n_theta) {
+void Revolve(std::ostringstream& out, const std::vector<std::pair<double, double>>& rings, int n_theta, double x_offset) {
   char line[160];
   auto vertex = [&](double r, double a, double z) {
-    std::snprintf(line, sizeof line, "      vertex %.7f %.7f %.7f\n", r * std::cos(a), r * std::sin(a), z);
+    std::snprintf(line, sizeof line, "      vertex %.7f %.7f %.7f\n", x_offset + r * std::cos(a), r * std::sin(a), z);
     out << line;
   };
   for (size_t j = 0; j + 1 < rings.size(); ++j) {
@@ -50,10 +50,10 @@ void Revolve(std::ostringstream& out, const std::vector<std::pair<double, double
 }
 
 std::string Stl(const std::string& name, const std::vector<std::vector<std::pair<double, double>>>& parts,
-                const std::vector<int>& n_theta) {
+                const std::vector<int>& n_theta, double x_offset = 0.0) {
   std::ostringstream out;
   out << "solid " << name << "\n";
-  for (size_t k = 0; k < parts.size(); ++k) Revolve(out, parts[k], n_theta[k]);
+  for (size_t k = 0; k < parts.size(); ++k) Revolve(out, parts[k], n_theta[k], x_offset);
   out << "endsolid " << name << "\n";
   return out.str();
 }
@@ -94,7 +94,7 @@ long Prime(unsigned seed, int k) {
 std::string Script(const ChamberSpec& s, bool resume) {
   const Heights h = HeightsOf(s);
   const CaseSteps steps = StepsOf(s);
-  const double omega = 2 * kPi * s.speed_rpm / 60.0;
+  const double omega = steps.omega_rad_s;
   std::ostringstream o;
   o.precision(10);
   o << "# LIGGGHTS-PUBLIC 3.8 case written by `linerwatch dem` for chamber '" << s.name << "' (docs/dem.md).\n"
@@ -121,7 +121,8 @@ std::string Script(const ChamberSpec& s, bool resume) {
     << "pair_style gran model hertz tangential history rolling_friction epsd2\npair_coeff * *\n"
     << "timestep ${dt}\n"
     << "fix gravi all gravity 9.81 vector 0.0 0.0 -1.0\n"
-    << "# Concave: wear-tracked (Finnie). Mantle: gyrates as a circular translation. Hopper: keeps the choke feed.\n"
+    << "# Concave: wear-tracked (Finnie). Mantle: its STL has the axis at (+e, 0), phase 0 of a circular\n"
+    << "# translation of radius e about the crusher axis (velocity below). Hopper: keeps the choke feed.\n"
     << "fix concave all mesh/surface/stress file " << CaseLayout::kConcaveStl << " type 1 wear finnie\n"
     << "fix mantle all mesh/surface file " << CaseLayout::kMantleStl << " type 1 curvature_tolerant yes\n"
     << "fix hopper all mesh/surface file " << CaseLayout::kHopperStl << " type 1\n"
@@ -169,8 +170,11 @@ CaseSteps StepsOf(const ChamberSpec& s) {
   c.dump_every = std::max(1L, std::lround(s.dump_interval_s / s.timestep_s));
   c.total = std::lround(s.simulated_s / s.timestep_s);
   c.total = ((c.total + c.dump_every - 1) / c.dump_every) * c.dump_every;  // end on a dump
-  // A restart about every 2 s simulated (at least six per run), on a dump step.
-  c.restart_every = c.dump_every * std::max(1L, std::lround(std::min(2.0, s.simulated_s / 6.0) / s.dump_interval_s));
+  c.gyration = std::max(8L, std::lround(60.0 / s.speed_rpm / s.timestep_s));
+  c.omega_rad_s = 2 * kPi / (static_cast<double>(c.gyration) * s.timestep_s);
+  // A restart about every 2 s simulated (at least six per run), on a whole gyration.
+  const double period_s = static_cast<double>(c.gyration) * s.timestep_s;
+  c.restart_every = c.gyration * std::max(1L, std::lround(std::min(2.0, s.simulated_s / 6.0) / period_s));
   return c;
 }
 
@@ -189,7 +193,7 @@ void WriteCase(const ChamberSpec& s, const fs::path& dir) {
   cap.points = {{s.mantle.z_max(), s.mantle.points.back().second}, {h.mantle_apex, 0.06}};
   WriteAtomically(dir / CaseLayout::kMantleStl,
                   Stl("mantle", {Rings(s.mantle, s.mantle.z_min(), s.mantle.z_max(), mantle_bands), Rings(cap, cap.z_min(), cap.z_max(), 1)},
-                      {mantle_theta, 16}));
+                      {mantle_theta, 16}, s.eccentric_throw_m));  // at phase 0 of the gyration: axis at (+e, 0)
   const double r_top = s.concave.points.back().second;
   Profile hopper;
   hopper.points = {{s.height_m(), r_top}, {h.hopper_top, r_top}};
@@ -199,7 +203,8 @@ void WriteCase(const ChamberSpec& s, const fs::path& dir) {
   WriteAtomically(dir / CaseLayout::kResume, Script(s, true));
   nlohmann::json cj = {{"name", s.name}, {"chamber", ToJson(s)}};
   const CaseSteps st = StepsOf(s);
-  cj["steps"] = {{"total", st.total}, {"dump_every", st.dump_every}, {"restart_every", st.restart_every}};
+  cj["steps"] = {{"total", st.total}, {"dump_every", st.dump_every}, {"gyration", st.gyration}, {"restart_every", st.restart_every}};
+  cj["derived_speed_rpm"] = 60.0 * st.omega_rad_s / (2 * kPi);
   cj["derived"] = {{"closed_side_setting_m", s.closed_side_setting_m()}, {"open_side_setting_m", s.open_side_setting_m()},
                    {"rayleigh_time_s", s.rayleigh_time_s()}, {"concave_faces", 2 * s.mesh_n_theta * s.mesh_n_z}};
   WriteAtomically(dir / CaseLayout::kCaseJson, cj.dump(2) + "\n");

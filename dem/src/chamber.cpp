@@ -178,7 +178,7 @@ ChamberSpec ChamberFromCrusherJson(const nlohmann::json& crusher, const std::str
       Fail(file, "mantle", "touches the concave at z = " + std::to_string(z) + " m during gyration");
   }
   const double css = s.closed_side_setting_m();
-  if (css < 2.0 * s.max_radius_m() * 1.05)
+  if (css < 2.0 * s.max_radius_m() * 1.1)
     Fail(file, "psd", "the largest particle (" + std::to_string(2000 * s.max_radius_m()) + " mm) does not pass the closed side setting (" +
                           std::to_string(1000 * css) + " mm): with no breakage in LIGGGHTS-PUBLIC the chamber would jam; feed the product size range");
   if (s.timestep_s > 0.2 * s.rayleigh_time_s())

@@ -23,11 +23,16 @@ struct CaseLayout {
   static constexpr const char* kHostfile = "hostfile.example";
 };
 
-/// Steps of the whole run, of one dump interval and of one restart interval.
+/// Steps of the whole run, of one dump interval, of one gyration and of one restart interval.
+/// A gyration is a whole number of steps (the speed is rounded to it, by far under 1 %), and
+/// restarts fall on whole gyrations: at a restart the mantle is where its STL puts it, so a
+/// resumed run continues the gyration exactly whether or not LIGGGHTS restores mesh positions.
 struct CaseSteps {
   long total = 0;
   long dump_every = 0;
+  long gyration = 0;
   long restart_every = 0;
+  double omega_rad_s = 0;  ///< the gyration's angular speed as run
 };
 CaseSteps StepsOf(const ChamberSpec& spec);
 

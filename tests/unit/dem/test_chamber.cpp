@@ -101,6 +101,15 @@ TEST(CaseWriter, WritesMeshesScriptsAndClusterFiles) {
   const std::string concave = Read(dir.path() / L::kConcaveStl);
   LONGS_EQUAL(2 * 24 * 6, Count(concave, "facet normal"));
   CHECK(Count(Read(dir.path() / L::kMantleStl), "facet normal") > 100);
+  // The mantle starts at phase 0 of its gyration, its axis at (+throw, 0): the first vertex of the
+  // mantle (theta = 0, lowest ring) lies at x = throw + r(z_bottom).
+  {
+    const std::string mantle = Read(dir.path() / L::kMantleStl);
+    const size_t p = mantle.find("vertex ");
+    double x = 0, y = 0, z = 0;
+    std::istringstream(mantle.substr(p + 7)) >> x >> y >> z;
+    DOUBLES_EQUAL(s.eccentric_throw_m + s.mantle.RadiusAt(z), x, 1e-6);
+  }
   const std::string in = Read(dir.path() / L::kInput);
   CHECK(in.find("create_box") != std::string::npos);
   CHECK(in.find("mesh/surface/stress file concave.stl type 1 wear finnie") != std::string::npos);
@@ -126,6 +135,7 @@ TEST(CaseWriter, StepsEndOnADumpAndRestartOften) {
   const auto st = lw::dem::StepsOf(s);
   LONGS_EQUAL(0, st.total % st.dump_every);
   CHECK(static_cast<double>(st.total) * s.timestep_s >= 3.1 - 1e-9);
-  LONGS_EQUAL(0, st.restart_every % st.dump_every);
-  CHECK(st.total / st.restart_every >= 3);  // several chances to resume within one run
+  LONGS_EQUAL(0, st.restart_every % st.gyration);  // restarts on whole gyrations: the mantle at its STL position
+  CHECK(st.total / st.restart_every >= 3);          // several chances to resume within one run
+  DOUBLES_EQUAL(s.speed_rpm, 60 * st.omega_rad_s / (2 * 3.14159265358979), 0.01 * s.speed_rpm);
 }
