@@ -175,6 +175,9 @@ MosquittoFixture::MosquittoFixture(Options options)
   }
   if (!options_.username.empty()) {
     run({"mosquitto_passwd", "-b", "-c", dir_.File("passwords"), options_.username, options_.password});
+    for (const auto& [user, password] : options_.more_users) {
+      run({"mosquitto_passwd", "-b", dir_.File("passwords"), user, password});
+    }
     conf << "allow_anonymous false\npassword_file " << dir_.File("passwords") << "\n";
   } else {
     conf << "allow_anonymous true\n";
@@ -190,6 +193,7 @@ MosquittoFixture::MosquittoFixture(Options options)
   } else {
     conf << "persistence false\n";
   }
+  if (!options_.acl_file.empty()) conf << "acl_file " << options_.acl_file << "\n";
   conf << options_.extra_config << "\n";
 }
 

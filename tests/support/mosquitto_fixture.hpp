@@ -13,6 +13,7 @@
 
 #include <chrono>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace lw::test {
@@ -86,6 +87,10 @@ class MosquittoFixture {
     /// When set, clients must log in with these (password file made with mosquitto_passwd).
     std::string username;
     std::string password;
+    /// More accounts in the same password file (needs `username`): {user, password} pairs.
+    std::vector<std::pair<std::string, std::string>> more_users;
+    /// When set, mosquitto enforces this ACL file (e.g. packaging/mosquitto/linerwatch.acl).
+    std::string acl_file;
     std::string extra_config;   ///< appended to mosquitto.conf verbatim
   };
   MosquittoFixture() : MosquittoFixture(Options{}) {}

@@ -34,8 +34,24 @@ class FrameDecoder {
  public:
   explicit FrameDecoder(ApiMode mode) : mode_(mode) {}
 
-  /// Consumes one byte. After kFrame, frame_data()/frame_length() stay valid until the next Feed().
+  /// Consumes one byte and returns the first event it completes. One byte can complete more than
+  /// one frame (API mode 1: a frame cut short by a new delimiter is only noticed when its checksum
+  /// fails, and the bytes it swallowed are then decoded again): call Next() until it returns
+  /// kNone before the next Feed(), or use Feed(data, len, on_event), which does.
+  /// After kFrame, frame_data()/frame_length() stay valid until the next Feed() or Next().
   DecodeEvent Feed(uint8_t byte);
+
+  /// The next event from bytes already fed (kNone when there is none; always kNone in mode 2).
+  DecodeEvent Next();
+
+  /// Feeds `len` bytes and calls `on_event(DecodeEvent)` for every event in stream order
+  /// (frame_data() holds the frame during a kFrame call).
+  template <typename OnEvent>
+  void Feed(const uint8_t* data, size_t len, OnEvent&& on_event) {
+    for (size_t i = 0; i < len; ++i) {
+      for (DecodeEvent ev = Feed(data[i]); ev != DecodeEvent::kNone; ev = Next()) on_event(ev);
+    }
+  }
 
   /// Frame data of the last complete frame: API identifier first, without length and checksum.
   const uint8_t* frame_data() const { return buffer_; }
@@ -49,11 +65,14 @@ class FrameDecoder {
 
  private:
   enum class State : uint8_t { kIdle, kLengthHigh, kLengthLow, kData, kChecksum };
+  static constexpr size_t kRawCapacity = kMaxFrameData + 3;  // length (2), data, checksum
   DecodeEvent Accept(uint8_t byte);  // one unescaped byte
-  // API mode 1 only: after a checksum or length error the bytes of the failed frame may hold the
-  // start of the next frame (the failed one was truncated); re-scan them from the next 0x7E.
-  DecodeEvent Resync(DecodeEvent error);
+  DecodeEvent FeedEscaped(uint8_t byte);
   DecodeEvent FeedUnescaped(uint8_t byte);
+  // API mode 1 only: after a checksum or length error the bytes of the failed frame may hold the
+  // start of the next frame (the failed one was truncated); queue them again from the next 0x7E,
+  // ahead of anything still queued.
+  void Requeue();
 
   ApiMode mode_;
   State state_ = State::kIdle;
@@ -63,9 +82,12 @@ class FrameDecoder {
   size_t frame_length_ = 0;
   uint8_t sum_ = 0;
   uint8_t buffer_[kMaxFrameData] = {};
-  uint8_t raw_[kMaxFrameData + 3] = {};  // mode 1: bytes after the delimiter of the current frame
+  uint8_t raw_[kRawCapacity] = {};  // mode 1: bytes after the delimiter of the current frame
   size_t raw_length_ = 0;
-  bool replaying_ = false;
+  // Mode 1: bytes to decode again (never more than one frame's worth when Next() is drained).
+  uint8_t queue_[kRawCapacity] = {};
+  size_t queue_head_ = 0;
+  size_t queue_length_ = 0;
   DecoderCounters counters_;
 };
 
