@@ -2,6 +2,7 @@
 // behind the MPS2 RTC (hal/include/hal/port/).
 #include <atomic>
 #include <cstdint>
+#include <random>
 #include <thread>
 #include <vector>
 
@@ -10,6 +11,7 @@
 
 #include <CppUTest/TestHarness.h>
 
+using lw::hal::port::MillisToSeconds;
 using lw::hal::port::ReadTwice;
 using lw::hal::port::SpscRing;
 using lw::hal::port::TickCounter64;
@@ -169,4 +171,20 @@ TEST(TickCounter64, ReadWithoutInterruptsTakesOnePass) {
   const uint64_t v = ReadTwice([&] { ++loads; return 1u; }, [] { return 5u; });
   CHECK(v == ((1ull << 32) | 5u));
   LONGS_EQUAL(2, loads);
+}
+
+TEST(TickCounter64, SecondsWithoutA64BitDivisionMatchTheDivision) {
+  constexpr uint64_t kWrap = 1ull << 32;
+  const uint64_t edges[] = {0, 999, 1000, kWrap - 1, kWrap, kWrap + 703, kWrap + 704, 2 * kWrap - 1, 2 * kWrap,
+                            95ull * 86'400'000, 1000ull * kWrap + 123, 14'500'000ull * kWrap - 1};
+  for (uint64_t ms : edges) CHECK(MillisToSeconds(ms) == ms / 1000);
+  std::mt19937_64 rng(15);
+  for (int i = 0; i < 1'000'000; ++i) {
+    const uint64_t ms = rng() % (14'500'000ull << 32);
+    if (MillisToSeconds(ms) != ms / 1000) FAIL(("MillisToSeconds(" + std::to_string(ms) + ")").c_str());
+  }
+  TickCounter64 at_wrap(kWrap - 1);
+  CHECK(at_wrap.Seconds() == 4'294'967u);
+  at_wrap.Tick();
+  CHECK(at_wrap.Seconds() == 4'294'967u);  // 2^32 ms = 4 294 967.296 s
 }

@@ -23,6 +23,17 @@ uint64_t ReadTwice(LoadHigh&& load_high, LoadLow&& load_low) {
   }
 }
 
+/// Whole seconds of a millisecond count without a 64-bit division (on Armv7-M that pulls a
+/// 700-byte libgcc routine into the image): with ms = high * 2^32 + low and
+/// 2^32 = 4 294 967 * 1000 + 296, seconds = high * 4 294 967 + low / 1000 + (high * 296 +
+/// low % 1000) / 1000, all in 32-bit divisions. Exact for ms below 2^32 * 14 500 000 (about
+/// 2 million years).
+constexpr uint64_t MillisToSeconds(uint64_t ms) {
+  const auto high = static_cast<uint32_t>(ms >> 32);
+  const auto low = static_cast<uint32_t>(ms);
+  return static_cast<uint64_t>(high) * 4'294'967u + low / 1000u + (high * 296u + low % 1000u) / 1000u;
+}
+
 class TickCounter64 {
   static_assert(std::atomic<uint32_t>::is_always_lock_free, "TickCounter64 needs lock-free 32-bit atomics on this target");
 
@@ -43,6 +54,8 @@ class TickCounter64 {
     return ReadTwice([this] { return high_.load(std::memory_order_acquire); },
                      [this] { return low_.load(std::memory_order_acquire); });
   }
+  /// Read() / 1000 (MillisToSeconds).
+  uint64_t Seconds() const { return MillisToSeconds(Read()); }
 
  private:
   std::atomic<uint32_t> high_;

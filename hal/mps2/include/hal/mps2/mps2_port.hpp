@@ -75,7 +75,7 @@ class SysTickClock final : public Rtc, public Power {
   uint64_t millis() const { return ms_.Read(); }
 
  private:
-  uint32_t DoNowSeconds() override { return static_cast<uint32_t>(ms_.Read() / 1000u); }
+  uint32_t DoNowSeconds() override { return static_cast<uint32_t>(ms_.Seconds()); }
   void DoSetAlarm(uint32_t at_seconds) override { alarm_s_ = at_seconds; }
   void DoSleep() override;
   ResetCause DoLastResetCause() override { return ResetCause::kPowerOn; }
