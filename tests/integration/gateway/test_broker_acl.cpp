@@ -23,9 +23,8 @@
 #include <mqtt/async_client.h>
 #include <nlohmann/json.hpp>
 
-#include "protocol/sensor_payload.hpp"
-#include "protocol/xbee_api.hpp"
 #include "support/mosquitto_fixture.hpp"
+#include "unit/gateway/gateway_test_support.hpp"
 
 // CppUTest last: its new/delete macros break standard headers included after it.
 #include <CppUTest/TestHarness.h>
@@ -99,32 +98,6 @@ class Client {
   std::vector<Message> received_;
 };
 
-// One coordinator frame (API mode 2) carrying one reading of sensor 1001.
-std::string ReadingFrame() {
-  pr::ReadingsHeader h;
-  h.sensor_id = 1001;
-  h.ladder_loops = 100;
-  pr::SensorRecord r;
-  r.seq = 1;
-  r.thickness_dmm = 900;
-  r.loops_intact = 90;
-  r.battery_mv = 3600;
-  uint8_t payload[pr::kMaxRfPayload];
-  size_t payload_len = 0;
-  pr::EncodeReadings(h, &r, 1, payload, sizeof payload, &payload_len);
-  pr::ReceivePacket rx;
-  rx.src64 = 0x0013A20040000001ull;
-  rx.src16 = 0x2001;
-  rx.payload = payload;
-  rx.payload_len = payload_len;
-  uint8_t frame[pr::kMaxFrameData];
-  size_t frame_len = 0;
-  pr::BuildReceivePacket(rx, frame, sizeof frame, &frame_len);
-  uint8_t wire[pr::kMaxWireFrame];
-  const size_t n = pr::EncodeFrame(pr::ApiMode::kEscaped, frame, frame_len, wire, sizeof wire);
-  return std::string(reinterpret_cast<const char*>(wire), n);
-}
-
 }  // namespace
 
 TEST_GROUP(BrokerAcl){};
@@ -152,7 +125,10 @@ TEST(BrokerAcl, AGatewayAccountServesItsOwnSiteAndCannotForgeAcksOrOtherSites) {
   Client server(broker.uri(), "server", "linerwatch-server", "server-pass");
 
   // The real gateway with its site's account; its "serial port" is a file holding one frame.
-  std::ofstream(dir.File("serial"), std::ios::binary) << ReadingFrame();
+  const auto frame = lw::gateway::test::ReadingsFrame(pr::ApiMode::kEscaped, 0x0013A20040000001ull, 1001,
+                                                      {lw::gateway::test::MakeRecord(1)});
+  std::ofstream(dir.File("serial"), std::ios::binary).write(reinterpret_cast<const char*>(frame.data()),
+                                                            static_cast<std::streamsize>(frame.size()));
   lw::test::ChildProcess gateway;
   gateway.Start({LW_GATEWAY_BIN, "--serial", dir.File("serial"), "--broker", broker.uri(), "--site", "mine-a",
                  "--crusher", "cr1", "--spool", dir.File("spool.db"), "--gateway-id", "gw-a", "--username", "mine-a",

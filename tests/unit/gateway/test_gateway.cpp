@@ -64,6 +64,16 @@ TEST_GROUP(Gateway) {
     gateway = std::make_unique<gw::Gateway>(o, *spool, publisher, radio);
   }
   void Feed(const std::vector<uint8_t>& bytes) { gateway->OnBytes(bytes.data(), bytes.size(), now); }
+  // The gateway replaced by one on the same spool whose coordinator runs API mode 1.
+  gw::Gateway& ModeOneGateway(gw::test::FakeRadio& radio1) {
+    gw::GatewayOptions o;
+    o.site = "s1";
+    o.crusher = "c1";
+    o.api_mode = pr::ApiMode::kUnescaped;
+    o.log = [](const std::string&) {};
+    gateway = std::make_unique<gw::Gateway>(o, *spool, publisher, radio1);
+    return *gateway;
+  }
   std::vector<uint32_t> PublishedSeqs(uint32_t sensor) {
     std::vector<uint32_t> out;
     for (const auto& m : publisher.SentOn("sensors/" + std::to_string(sensor) + "/reading")) {
@@ -261,14 +271,8 @@ TEST(Gateway, StatsArePublishedPeriodicallyWithLatency) {
 }
 
 TEST(Gateway, ApiModeOneIsDecodedAndAckedInModeOne) {
-  gateway.reset();
   gw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
-  gw::GatewayOptions o;
-  o.site = "s1";
-  o.crusher = "c1";
-  o.api_mode = pr::ApiMode::kUnescaped;
-  o.log = [](const std::string&) {};
-  gw::Gateway g(o, *spool, publisher, radio1);
+  gw::Gateway& g = ModeOneGateway(radio1);
   const auto bytes = ReadingsFrame(pr::ApiMode::kUnescaped, 0x0013A2004011137Dull, 0x137D11, {MakeRecord(0x7E7D1113)});
   g.OnBytes(bytes.data(), bytes.size(), now);
   CHECK(radio1.AckedSeqs() == std::vector<uint32_t>{0x7E7D1113});
@@ -278,14 +282,8 @@ TEST(Gateway, ApiModeOneIsDecodedAndAckedInModeOne) {
 // cost the readings frames that follow it (before the fix only the last of them reached the
 // spool; the others were decoded, counted in frames_ok, and dropped).
 TEST(Gateway, ReadingsAfterATruncatedFrameInModeOneAreAllSpooledAndAcked) {
-  gateway.reset();
   gw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
-  gw::GatewayOptions o;
-  o.site = "s1";
-  o.crusher = "c1";
-  o.api_mode = pr::ApiMode::kUnescaped;
-  o.log = [](const std::string&) {};
-  gw::Gateway g(o, *spool, publisher, radio1);
+  gw::Gateway& g = ModeOneGateway(radio1);
   // A readings frame cut after its first 20 bytes: its declared length swallows the next two.
   auto cut = ReadingsFrame(pr::ApiMode::kUnescaped, kAddrA, 1001, {MakeRecord(1), MakeRecord(2), MakeRecord(3)});
   cut.resize(20);
@@ -298,7 +296,7 @@ TEST(Gateway, ReadingsAfterATruncatedFrameInModeOneAreAllSpooledAndAcked) {
   bytes.insert(bytes.end(), last.begin(), last.end());
   g.OnBytes(bytes.data(), bytes.size(), now);
   CHECK(radio1.AckedSeqs() == (std::vector<uint32_t>{10, 11, 12, 13}));
-  LONGS_EQUAL(4, g.spool_depth());
+  LONGS_EQUAL(4, spool->depth());
   LONGS_EQUAL(3, g.decoder_counters().frames_ok);
 }
 
