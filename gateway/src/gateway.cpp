@@ -296,19 +296,35 @@ void Gateway::OnMessage(std::string_view topic, std::string_view payload, int64_
     LogLimited("bad_commit", "mqtt: bad commit ack on " + std::string(topic) + ": " + error);
     return;
   }
+  // Only records this gateway published and is waiting for are released. The server acks what
+  // it received; anything else (a seq never published since the last connect, or not spooled)
+  // cannot be the server's answer to us, so a forged or stale ack cannot empty the backlog. A
+  // genuine late ack that is skipped costs one republication.
+  std::vector<uint32_t> awaited;
+  auto it = in_flight_.find(ack->sensor);
+  for (uint32_t seq : ack->seqs) {
+    if (it != in_flight_.end() && it->second.count(seq)) {
+      awaited.push_back(seq);
+    } else {
+      ++counters_.commit_acks_ignored;
+    }
+  }
+  if (awaited.size() < ack->seqs.size()) {
+    LogLimited("ack_ignored", "mqtt: commit ack on " + std::string(topic) + " names " +
+                                  std::to_string(ack->seqs.size() - awaited.size()) +
+                                  " seq(s) not published and awaiting an ack; ignored");
+  }
+  if (awaited.empty()) return;
   std::vector<int64_t> received;
   try {
-    received = spool_.Confirm(ack->sensor, ack->seqs);
+    received = spool_.Confirm(ack->sensor, awaited);
   } catch (const std::exception& e) {
     ++counters_.spool_errors;
     LogLimited("spool_error", std::string("spool: confirm failed (records kept, will be republished): ") + e.what());
     return;
   }
-  auto it = in_flight_.find(ack->sensor);
-  if (it != in_flight_.end()) {
-    for (uint32_t seq : ack->seqs) it->second.erase(seq);
-    if (it->second.empty()) in_flight_.erase(it);
-  }
+  for (uint32_t seq : awaited) it->second.erase(seq);
+  if (it->second.empty()) in_flight_.erase(it);
   for (int64_t r : received) {
     const int64_t latency = std::max<int64_t>(0, now_ms - r);
     ++counters_.committed;
@@ -445,6 +461,7 @@ std::string Gateway::StatsJson(int64_t now_ms) const {
       {"republished", counters_.republished},
       {"committed", counters_.committed},
       {"bad_commit_acks", counters_.bad_commit_acks},
+      {"commit_acks_ignored", counters_.commit_acks_ignored},
       {"devices", known_devices_.size()},
       {"max_devices", options_.max_devices},
       {"devices_refused", counters_.devices_refused},

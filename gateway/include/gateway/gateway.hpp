@@ -60,6 +60,7 @@ struct GatewayCounters {
   uint64_t republished = 0;         ///< publications after a reconnect or the republish timeout
   uint64_t committed = 0;           ///< records deleted after the server's commit ack
   uint64_t bad_commit_acks = 0;
+  uint64_t commit_acks_ignored = 0; ///< acked seqs that were not published and awaiting an ack
   uint64_t devices_refused = 0;     ///< new registry entries refused: registry full (max_devices)
   uint64_t connects = 0;
   int64_t latency_last_ms = -1;     ///< receive -> commit ack of the last committed record

@@ -185,7 +185,9 @@ TEST(Gateway, SpoolSurvivesARestartAndIsReplayed) {
   publisher.sent.clear();
   gateway->OnConnected(now);
   CHECK(PublishedSeqs(1001) == std::vector<uint32_t>{1});
-  gateway->OnMessage(Committed(1001), AckJson({1, 2}), now);
+  gateway->OnMessage(Committed(1001), AckJson({1}), now);
+  gateway->Pump(now);
+  gateway->OnMessage(Committed(1001), AckJson({2}), now);
   LONGS_EQUAL(0, gateway->spool_depth());
 }
 
@@ -304,6 +306,7 @@ TEST(Gateway, ReadingsAfterATruncatedFrameInModeOneAreAllSpooledAndAcked) {
 // and deletes nothing (it crashed the process before).
 TEST(Gateway, DeeplyNestedCommitAckIsCountedAndDeletesNothing) {
   Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));
+  gateway->Pump(now);
   const std::string deep = R"({"seqs": [1, )" + std::string(100000, '[') + std::string(100000, ']') + "]}";
   gateway->OnMessage(Committed(1001), deep, now);
   LONGS_EQUAL(1, gateway->counters().bad_commit_acks);
@@ -370,4 +373,28 @@ TEST(Gateway, TextFromTheRadioAndTheBrokerIsEscapedInTheLog) {
   }
   CHECK_TRUE(saw_node);
   CHECK_TRUE(saw_topic);
+}
+
+// Finding 9 of issue 15, the gateway's part: an ack releases only records this gateway published
+// and awaits. A forged ack naming the whole backlog (or records of another site's topic) deletes
+// nothing that was never sent to the server.
+TEST(Gateway, CommitAcksReleaseOnlyPublishedRecordsOfTheirOwnTopic) {
+  std::vector<pr::SensorRecord> records;
+  for (uint32_t seq = 1; seq <= 4; ++seq) records.push_back(MakeRecord(seq));
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, records));
+  gateway->Pump(now);
+  CHECK(PublishedSeqs(1001) == std::vector<uint32_t>{1});  // window 1: only seq 1 is out
+  gateway->OnMessage(Committed(1001), AckJson({2, 3, 4, 99}), now);
+  LONGS_EQUAL(4, gateway->spool_depth());
+  LONGS_EQUAL(4, gateway->counters().commit_acks_ignored);
+  gateway->OnMessage("linerwatch/v1/other-site/c1/sensors/1001/committed", AckJson({1}), now);
+  gateway->OnMessage("linerwatch/v1/s1/other-crusher/sensors/1001/committed", AckJson({1}), now);
+  gateway->OnMessage(Committed(2002), AckJson({1}), now);
+  LONGS_EQUAL(4, gateway->spool_depth());
+  gateway->OnMessage(Committed(1001), AckJson({1, 2}), now);  // the awaited one goes, 2 is not out yet
+  LONGS_EQUAL(3, gateway->spool_depth());
+  LONGS_EQUAL(1, gateway->counters().committed);
+  gateway->Pump(now);
+  CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2}));
+  LONGS_EQUAL(6, json::parse(gateway->StatsJson(now))["commit_acks_ignored"].get<int>());
 }
