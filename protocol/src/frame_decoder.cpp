@@ -94,13 +94,13 @@ void FrameDecoder::Requeue() {
   const size_t n = raw_length_ - start;
   raw_length_ = 0;
   if (n == 0) return;
-  counters_.bytes_discarded += static_cast<uint32_t>(start);
+  counters_.bytes_discarded += start;
   // New queue: raw_[start..] then what was queued. Never longer than one frame when the caller
   // drains Next() (the failed frame's bytes came from the queue or the queue was empty); a
   // caller that does not may lose the excess, counted as discarded.
   size_t keep = queue_length_;
   if (n + keep > sizeof(queue_)) {
-    counters_.bytes_discarded += static_cast<uint32_t>(n + keep - sizeof(queue_));
+    counters_.bytes_discarded += n + keep - sizeof(queue_);
     keep = sizeof(queue_) - n;
   }
   for (size_t i = 0; i < keep; ++i) queue_[i] = queue_[queue_head_ + i];  // to the front

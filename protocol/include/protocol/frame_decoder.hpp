@@ -10,15 +10,16 @@
 
 namespace lw::protocol {
 
-/// Per-kind error and traffic counters. Monotonic until Reset().
+/// Per-kind error and traffic counters. Monotonic until Reset(); 64-bit: noise on a serial line at
+/// 115200 Bd would wrap a 32-bit bytes_discarded within 5 days, inside a campaign.
 struct DecoderCounters {
-  uint32_t frames_ok = 0;
-  uint32_t bytes_discarded = 0;    ///< bytes outside any frame (garbage before a delimiter)
-  uint32_t checksum_errors = 0;
-  uint32_t escape_errors = 0;      ///< 0x7D followed by 0x7E, or an unescaped 0x7E inside a frame (mode 2)
-  uint32_t length_errors = 0;      ///< declared length 0 or above kMaxFrameData
-  uint32_t truncated_frames = 0;   ///< a new delimiter arrived before the frame was complete
-  uint32_t unknown_types = 0;      ///< valid frame whose API identifier is not a FrameType (still delivered)
+  uint64_t frames_ok = 0;
+  uint64_t bytes_discarded = 0;    ///< bytes outside any frame (garbage before a delimiter)
+  uint64_t checksum_errors = 0;
+  uint64_t escape_errors = 0;      ///< 0x7D followed by 0x7E, or an unescaped 0x7E inside a frame (mode 2)
+  uint64_t length_errors = 0;      ///< declared length 0 or above kMaxFrameData
+  uint64_t truncated_frames = 0;   ///< a new delimiter arrived before the frame was complete
+  uint64_t unknown_types = 0;      ///< valid frame whose API identifier is not a FrameType (still delivered)
 };
 
 enum class DecodeEvent : uint8_t {

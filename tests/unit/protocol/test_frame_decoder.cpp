@@ -1,4 +1,5 @@
 #include <random>
+#include <type_traits>
 #include <vector>
 
 #include "protocol/frame_decoder.hpp"
@@ -281,4 +282,19 @@ TEST(FrameDecoder, SurvivesRandomNoiseAndStillDecodesFramesAfterIt) {
     // in-band resync marker), but the great majority must decode.
     CHECK(good > 150);
   }
+}
+
+// Counters are 64-bit: at 115200 Bd a noisy line discards 2^32 bytes in under 5 days, well inside
+// one campaign, and a 32-bit bytes_discarded wrapped to a small number (a monitor saw a reset).
+// Feeding 2^32 bytes takes over 10 s here, so the width is checked at compile time, and the
+// counting itself below.
+TEST(FrameDecoder, CountersAreSixtyFourBitAndCountEveryDiscardedByte) {
+  static_assert(std::is_same_v<decltype(DecoderCounters::bytes_discarded), uint64_t>);
+  static_assert(std::is_same_v<decltype(DecoderCounters::frames_ok), uint64_t>);
+  static_assert(std::is_same_v<decltype(DecoderCounters::checksum_errors), uint64_t>);
+  static const std::vector<uint8_t> noise(1 << 20, 0x00);
+  FrameDecoder dec(ApiMode::kEscaped);
+  for (int i = 0; i < 8; ++i) dec.Feed(noise.data(), noise.size(), [](DecodeEvent) {});
+  CHECK(dec.counters().bytes_discarded == 8u << 20);
+  CHECK(FeedAll(dec, kDigiModem).frames.size() == 1);
 }
