@@ -346,8 +346,9 @@ void Gateway::Pump(int64_t now_ms) {
   next_republish_check_ms_ = std::min(next_republish_check_ms_, now_ms + options_.republish_after_ms);
   next_stats_ms_ = std::min(next_stats_ms_, now_ms + options_.stats_interval_ms);
   if (publisher_.IsConnected()) {
-    if (all_devices_dirty_ || !dirty_devices_.empty()) PublishDevices(now_ms);
+    // Readings first: a registry of many radios must not delay them.
     if (records_dirty_ || now_ms >= next_republish_check_ms_) PublishRecords(now_ms);
+    if (all_devices_dirty_ || !dirty_devices_.empty()) PublishDevices(now_ms);
   }
   if (options_.stats_interval_ms > 0 && now_ms >= next_stats_ms_) {
     next_stats_ms_ = now_ms + options_.stats_interval_ms;
@@ -365,16 +366,10 @@ void Gateway::PublishDevices(int64_t now_ms) {
   // message, not the whole registry (300 announced nodes made 4 MB when it was one message).
   try {
     if (all_devices_dirty_) {
-      std::map<std::string, std::vector<DeviceEntry>> by_address;
-      for (DeviceEntry& d : spool_.Devices()) by_address[d.address].push_back(std::move(d));
-      bool all_sent = true;
-      for (const auto& [address, entries] : by_address) all_sent &= PublishDevice(address, entries, now_ms);
-      if (all_sent) {
-        all_devices_dirty_ = false;
-        dirty_devices_.clear();
-      }
-      return;
+      for (const DeviceEntry& d : spool_.Devices()) dirty_devices_.insert(d.address);
+      all_devices_dirty_ = false;
     }
+    // Stops at the first refusal (client buffer full): the rest go on a later Pump, none twice.
     for (auto it = dirty_devices_.begin(); it != dirty_devices_.end();) {
       if (!PublishDevice(*it, spool_.Devices(*it), now_ms)) return;
       it = dirty_devices_.erase(it);

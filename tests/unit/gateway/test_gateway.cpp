@@ -398,3 +398,15 @@ TEST(Gateway, CommitAcksReleaseOnlyPublishedRecordsOfTheirOwnTopic) {
   CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2}));
   LONGS_EQUAL(6, json::parse(gateway->StatsJson(now))["commit_acks_ignored"].get<int>());
 }
+
+TEST(Gateway, RegistryMessagesRefusedByAFullClientBufferGoOutLaterOnceEach) {
+  for (uint64_t i = 0; i < 5; ++i) Feed(NodeIdFrame(0x0013A20050000000ull + i, "N"));
+  publisher.refuse = true;
+  gateway->OnConnected(now);
+  publisher.refuse = false;
+  gateway->Pump(now + 1);
+  gateway->Pump(now + 2);
+  size_t messages = 0;
+  for (const auto& m : publisher.sent) messages += m.topic.find("/gateway/devices/") != std::string::npos ? 1 : 0;
+  LONGS_EQUAL(5, messages);
+}
