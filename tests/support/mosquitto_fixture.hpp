@@ -87,14 +87,18 @@ class MosquittoFixture {
     /// When set, clients must log in with these (password file made with mosquitto_passwd).
     std::string username;
     std::string password;
-    /// More accounts in the same password file (needs `username`): {user, password} pairs.
+    std::string extra_config;   ///< appended to mosquitto.conf verbatim
+  };
+  /// Several accounts and an ACL (kept out of Options, which callers fill by designated
+  /// initializers).
+  struct Access {
+    /// More accounts in the same password file (needs Options::username): {user, password}.
     std::vector<std::pair<std::string, std::string>> more_users;
     /// When set, mosquitto enforces this ACL file (e.g. packaging/mosquitto/linerwatch.acl).
     std::string acl_file;
-    std::string extra_config;   ///< appended to mosquitto.conf verbatim
   };
   MosquittoFixture() : MosquittoFixture(Options{}) {}
-  explicit MosquittoFixture(Options options);
+  explicit MosquittoFixture(Options options, Access access = {});
   ~MosquittoFixture();
   MosquittoFixture(const MosquittoFixture&) = delete;
   MosquittoFixture& operator=(const MosquittoFixture&) = delete;

@@ -115,9 +115,10 @@ TEST(BrokerAcl, AGatewayAccountServesItsOwnSiteAndCannotForgeAcksOrOtherSites) {
   lw::test::MosquittoFixture::Options o;
   o.username = "linerwatch-server";
   o.password = "server-pass";
-  o.more_users = {{"mine-a", "a-pass"}, {"mine-b", "b-pass"}, {"observer", "o-pass"}};
-  o.acl_file = dir.File("acl");
-  lw::test::MosquittoFixture broker(o);
+  lw::test::MosquittoFixture::Access access;
+  access.more_users = {{"mine-a", "a-pass"}, {"mine-b", "b-pass"}, {"observer", "o-pass"}};
+  access.acl_file = dir.File("acl");
+  lw::test::MosquittoFixture broker(o, access);
   broker.Start();
 
   Client observer(broker.uri(), "observer", "observer", "o-pass");
