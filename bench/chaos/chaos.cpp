@@ -196,6 +196,9 @@ class Soak {
     const int http_port = lw::test::FreeLoopbackPort();
     const std::string data = o_.data_dir.empty() ? dir : o_.data_dir + "/round-" + std::to_string(round);
     fs::create_directories(data);
+    if (fs::exists(data + "/server.sqlite") || fs::exists(data + "/spool.db")) {
+      throw std::runtime_error(data + " holds a database of an earlier run: give an empty --data-dir / --out");
+    }
     const std::string clock = dir + "/clock", db = data + "/server.sqlite", ledger = dir + "/ledger.csv";
     const std::string filler = o_.data_dir + "/filler";
     Program server{"server", {}, {LW_SERVER_BIN, "--broker", broker.uri(), "--db", db, "--http",
