@@ -90,6 +90,10 @@ int ChildProcess::Stop(int signal, std::chrono::milliseconds timeout) {
 
 void ChildProcess::Kill() { Stop(SIGKILL); }
 
+void ChildProcess::Signal(int signal) {
+  if (pid_ > 0) kill(pid_, signal);
+}
+
 int ChildProcess::Wait(std::chrono::milliseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   while (Running()) {

@@ -48,6 +48,8 @@ class ChildProcess {
   int Stop(int signal, std::chrono::milliseconds timeout = std::chrono::seconds(5));
   /// SIGKILL and reap. No-op when not running.
   void Kill();
+  /// Sends `signal` and returns at once (no reaping): to hit several children at the same instant.
+  void Signal(int signal);
   /// Waits up to `timeout` for the child to exit by itself; returns its exit code, or -1 when it
   /// was killed (after the timeout) or died by a signal.
   int Wait(std::chrono::milliseconds timeout = std::chrono::seconds(30));
@@ -110,6 +112,8 @@ class MosquittoFixture {
   void Stop();
   /// SIGKILL: an abrupt broker death (nothing saved since the last autosave).
   void Kill();
+  /// Sends `signal` to the broker and returns at once (Kill() then reaps it).
+  void Signal(int signal) { process_.Signal(signal); }
   void Restart() {
     Stop();
     Start();

@@ -70,11 +70,23 @@ bool HostFlash::Spend() {
   return true;
 }
 
+uint8_t HostFlash::TearBits() {
+  tear_state_ ^= tear_state_ << 13;
+  tear_state_ ^= tear_state_ >> 17;
+  tear_state_ ^= tear_state_ << 5;
+  return static_cast<uint8_t>(tear_state_ >> 11);
+}
+
 bool HostFlash::DoErase(size_t page) {
   if (page >= pages_.size() || power_lost_) return false;
   ++erases_;
   for (auto& b : pages_[page]) {
-    if (!Spend()) return false;
+    if (!Spend()) {
+      if (tear_) {
+        for (auto& c : pages_[page]) c |= TearBits();  // every cell part-way to erased
+      }
+      return false;
+    }
     b = 0xFF;
   }
   return true;
@@ -83,7 +95,10 @@ bool HostFlash::DoErase(size_t page) {
 bool HostFlash::DoProgram(size_t page, size_t offset, const uint8_t* data, size_t len) {
   if (page >= pages_.size() || offset + len > page_size_ || power_lost_) return false;
   for (size_t i = 0; i < len; ++i) {
-    if (!Spend()) return false;
+    if (!Spend()) {
+      if (tear_) pages_[page][offset + i] &= static_cast<uint8_t>(data[i] | TearBits());  // some bits programmed
+      return false;
+    }
     pages_[page][offset + i] &= data[i];
   }
   return true;
