@@ -390,8 +390,8 @@ void GuardedServer::ReadHead(Conn& c) {
   }
   const bool body_method = method == "POST" || method == "PUT" || method == "PATCH";
   if (body_method && !has_length && !chunked) return Refuse(c, 411, "a " + method + " needs Content-Length or chunked encoding");
-  // Chunked: the raw bytes, framing included, may be a quarter more than the body cap.
-  c.body_allowance = has_length ? length : chunked ? limits_.max_body_bytes + limits_.max_body_bytes / 4 + 4096 : 0;
+  // Chunked: counted as received, framing included (64 KiB of it beyond the cap).
+  c.body_allowance = has_length ? length : chunked ? limits_.max_body_bytes + 64 * 1024 : 0;
   // A worker owns the connection now; it comes back through returned_ for keep-alive.
   conns_.erase(std::find(conns_.begin(), conns_.end(), &c));
   {
