@@ -487,7 +487,7 @@ void HttpApi::Impl::Routes() {
     for (const auto& r : ctx.read->RejectedMessages(limit)) {
       list.push_back({{"received", Iso(r.received_s)}, {"topic", r.topic}, {"payload", r.payload}, {"reason", r.reason}});
     }
-    Reply(res, 200, {{"total", ctx.read->CountRejected()}, {"rejected", list}});
+    Reply(res, 200, {{"total", ctx.read->CountRejected()}, {"evicted", ctx.read->RejectedEvicted()}, {"rejected", list}});
   });
 
   svr.Get(R"(/api/v1/crushers/([^/]+)/events)", [this](const httplib::Request& req, httplib::Response& res) {

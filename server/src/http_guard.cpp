@@ -209,6 +209,8 @@ GuardedServer::GuardedServer(const HttpLimits& limits) : limits_(limits) {
 
 GuardedServer::~GuardedServer() {
   Shutdown();
+  const socket_t listener = svr_sock_.exchange(INVALID_SOCKET);  // bound but never served
+  if (listener != INVALID_SOCKET) ::close(listener);
   ::close(wake_[0]);
   ::close(wake_[1]);
 }
@@ -225,7 +227,10 @@ void GuardedServer::Wake() {
 }
 
 void GuardedServer::Shutdown() {
-  stopping_ = true;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);  // so that no worker misses the wake-up below
+    stopping_ = true;
+  }
   Wake();
   jobs_cv_.notify_all();
   // Serve() joins the workers on its way out; wait for it to finish when it was started.
@@ -500,6 +505,10 @@ void GuardedServer::Serve() {
   }
   // Shutting down: no new connections; workers finish the request they serve (event streams end
   // when the bus closes), queued heads are dropped.
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;  // also when poll() failed
+  }
   const socket_t listener = svr_sock_.exchange(INVALID_SOCKET);
   if (listener != INVALID_SOCKET) ::close(listener);
   jobs_cv_.notify_all();
