@@ -84,6 +84,13 @@ void IdentifyDespiteOverflow(std::string_view payload, Validation* v) {
         const size_t after = at + token.size();
         const bool ends = after >= text.size() || std::strchr(",]} \t\r\n", text[after]) != nullptr;
         if ((prev == ':' || prev == ',' || prev == '[') && ends) {
+          // Never invent the identity itself: an overflowing "seq" or "sensor" identifies nothing.
+          if (prev == ':') {
+            const size_t quote = text.rfind('"', before - 1);
+            const size_t open = quote == std::string::npos || quote == 0 ? std::string::npos : text.rfind('"', quote - 1);
+            const std::string key = open == std::string::npos ? std::string() : text.substr(open + 1, quote - open - 1);
+            if (key == "seq" || key == "sensor") return;
+          }
           text.replace(at, token.size(), "0");
           replaced = true;
           break;

@@ -202,10 +202,14 @@ TEST(Ingest, AnOverflowingNumberQuarantinesThatMessageOnly) {
   bool acked = false;
   for (const Ack& a : r.acks) acked |= a.sensor == "1001" && std::count(a.seqs.begin(), a.seqs.end(), 777) == 1;
   CHECK_TRUE(acked);
+  // An overflowing seq identifies nothing: quarantined, but no seq (0 or other) is acknowledged.
+  r = ingestor.Ingest({With(R"({"sensor":"1001","seq":1e999,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":0,"battery_mv":3500})")});
+  LONGS_EQUAL(1, r.rejected);
+  LONGS_EQUAL(0, r.acks.size());
   const std::string reason = Reject(batch[10]);
   CHECK_TEXT(reason.find("\"flags\"") != std::string::npos, reason.c_str());
   CHECK(reason.find("1e999") != std::string::npos);
-  LONGS_EQUAL(1, store.CountRejected());
+  LONGS_EQUAL(2, store.CountRejected());
 }
 
 // Finding: readings were keyed (crusher, sensor, seq) and the topic's site ignored, so a reading
