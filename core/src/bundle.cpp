@@ -216,9 +216,13 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
 }
 
 void CheckCrusherAgainstMap(const CrusherConfig& config, const WearMap& map, const std::string& file) {
-  if (map.face_count() == 0) return;
-  const double lo = map.z.minCoeff(), hi = map.z.maxCoeff();
-  const double tol = 0.05 * (hi - lo) + 1e-3;  // centroids sit inside the surface's z extent
+  if (map.points.empty()) return;
+  double lo = map.points.front().z(), hi = lo;  // the surface's z extent (its vertices)
+  for (const auto& p : map.points) {
+    lo = std::min(lo, p.z());
+    hi = std::max(hi, p.z());
+  }
+  const double tol = 0.05 * (hi - lo) + 1e-3;
   char range[96];
   std::snprintf(range, sizeof range, "[%.3f, %.3f] m", lo, hi);
   for (const Row& r : config.rows) {
