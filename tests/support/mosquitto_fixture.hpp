@@ -13,6 +13,7 @@
 
 #include <chrono>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace lw::test {
@@ -88,8 +89,16 @@ class MosquittoFixture {
     std::string password;
     std::string extra_config;   ///< appended to mosquitto.conf verbatim
   };
+  /// Several accounts and an ACL (kept out of Options, which callers fill by designated
+  /// initializers).
+  struct Access {
+    /// More accounts in the same password file (needs Options::username): {user, password}.
+    std::vector<std::pair<std::string, std::string>> more_users;
+    /// When set, mosquitto enforces this ACL file (e.g. packaging/mosquitto/linerwatch.acl).
+    std::string acl_file;
+  };
   MosquittoFixture() : MosquittoFixture(Options{}) {}
-  explicit MosquittoFixture(Options options);
+  explicit MosquittoFixture(Options options, Access access = {});
   ~MosquittoFixture();
   MosquittoFixture(const MosquittoFixture&) = delete;
   MosquittoFixture& operator=(const MosquittoFixture&) = delete;

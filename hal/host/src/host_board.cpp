@@ -103,11 +103,11 @@ size_t HostRadio::DoWrite(const uint8_t* data, size_t len) {
     bytes_lost_to_brownout_ += len;
     return len;
   }
-  for (size_t i = 0; i < len; ++i) {
-    if (decoder_.Feed(data[i]) != protocol::DecodeEvent::kFrame) continue;
+  decoder_.Feed(data, len, [&](protocol::DecodeEvent event) {
+    if (event != protocol::DecodeEvent::kFrame) return;
     protocol::TransmitRequest req;
     if (protocol::ParseTransmitRequest(decoder_.frame_data(), decoder_.frame_length(), &req) != protocol::Status::kOk) {
-      continue;
+      return;
     }
     ++transmit_requests_;
     // Copy: delivering may inject frames, which must not disturb this request's bytes.
@@ -127,7 +127,7 @@ size_t HostRadio::DoWrite(const uint8_t* data, size_t len) {
       size_t n = 0;
       if (protocol::BuildTransmitStatus(st, frame, sizeof frame, &n) == protocol::Status::kOk) QueueFrame(frame, n);
     }
-  }
+  });
   return len;
 }
 
