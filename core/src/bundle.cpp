@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -97,6 +98,18 @@ T Get(const json& j, const char* key, const std::string& where, const std::strin
   }
 }
 
+/// Identifiers that become MQTT topic levels and are shown in the dashboard: 1-64 characters of
+/// letters, digits, '.', '_' and '-' (no '/', '+', '#', spaces, markup).
+void CheckIdentifier(const std::string& id, const std::string& what, const std::string& file) {
+  const bool ok = !id.empty() && id.size() <= 64 &&
+                  std::all_of(id.begin(), id.end(), [](char ch) {
+                    return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == '-';
+                  });
+  if (!ok) {
+    throw InputError(file, 0, what + " '" + id + "' must be 1-64 letters, digits, '.', '_' or '-' (it is an MQTT topic level)");
+  }
+}
+
 }  // namespace
 
 const SensorInfo* CrusherConfig::FindSensor(const std::string& id) const {
@@ -120,6 +133,8 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
   json j;
   try {
     j = json::parse(in);
+  } catch (const json::out_of_range& e) {
+    throw InputError(file, 0, std::string("a number does not fit a double: ") + e.what());
   } catch (const json::parse_error& e) {
     // nlohmann reports a byte offset; turn it into a line.
     std::ifstream again(path);
@@ -130,16 +145,20 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
   if (!j.is_object()) throw InputError(file, 0, "must hold a JSON object");
   CrusherConfig c;
   c.crusher_id = Get<std::string>(j, "crusher_id", "the top level", file);
-  if (c.crusher_id.empty() || c.crusher_id.find_first_of("/+# ") != std::string::npos) {
-    throw InputError(file, 0, "crusher_id '" + c.crusher_id + "' must be non-empty without '/', '+', '#' or spaces");
+  CheckIdentifier(c.crusher_id, "crusher_id", file);
+  if (j.contains("site")) {
+    c.site = Get<std::string>(j, "site", "the top level", file);
+    CheckIdentifier(c.site, "site", file);
   }
   c.installed_at = ParseTime(Get<std::string>(j, "installed_at", "the top level", file), file, 0, "installed_at");
   if (!j.contains("concave") || !j["concave"].is_object()) throw InputError(file, 0, "\"concave\" object is required");
   const json& cc = j["concave"];
   c.thickness_new_mm = Get<double>(cc, "thickness_new_mm", "concave", file);
   c.thickness_min_mm = Get<double>(cc, "thickness_min_mm", "concave", file);
-  if (!(c.thickness_new_mm > 0) || !(c.thickness_min_mm >= 0) || c.thickness_min_mm >= c.thickness_new_mm) {
-    throw InputError(file, 0, "concave thickness_min_mm must be >= 0 and below thickness_new_mm > 0");
+  if (!(c.thickness_new_mm > 0) || !(c.thickness_min_mm >= 0) || c.thickness_min_mm >= c.thickness_new_mm ||
+      c.thickness_new_mm > kMaxThicknessMm) {
+    throw InputError(file, 0, "concave thickness_min_mm must be >= 0 and below thickness_new_mm, which must be in (0, " +
+                                  std::to_string(static_cast<int>(kMaxThicknessMm)) + "] mm");
   }
   if (!cc.contains("rows") || !cc["rows"].is_array() || cc["rows"].empty()) throw InputError(file, 0, "concave.rows must be a non-empty array");
   for (const auto& r : cc["rows"]) {
@@ -148,7 +167,13 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
     row.z_min_m = Get<double>(r, "z_min_m", "row '" + row.name + "'", file);
     row.z_max_m = Get<double>(r, "z_max_m", "row '" + row.name + "'", file);
     if (!(row.z_max_m > row.z_min_m)) throw InputError(file, 0, "row '" + row.name + "': z_max_m must be above z_min_m");
+    if (row.name.empty() || row.name.size() > 64) throw InputError(file, 0, "row name '" + row.name + "' must be 1-64 characters");
     if (c.RowIndex(row.name) >= 0) throw InputError(file, 0, "row '" + row.name + "' is listed twice");
+    for (const Row& other : c.rows) {
+      if (row.z_min_m < other.z_max_m && other.z_min_m < row.z_max_m) {
+        throw InputError(file, 0, "row '" + row.name + "' overlaps row '" + other.name + "' in z (rows may touch, not overlap)");
+      }
+    }
     c.rows.push_back(row);
   }
   if (!j.contains("sensors") || !j["sensors"].is_array()) throw InputError(file, 0, "\"sensors\" array is required");
@@ -156,6 +181,7 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
     SensorInfo si;
     if (s.contains("id") && s["id"].is_number_integer()) si.id = std::to_string(s["id"].get<long long>());
     else si.id = Get<std::string>(s, "id", "a sensor", file);
+    CheckIdentifier(si.id, "sensor id", file);
     const std::string where = "sensor '" + si.id + "'";
     si.row = Get<std::string>(s, "row", where, file);
     si.z_m = Get<double>(s, "z_m", where, file);
@@ -173,10 +199,43 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
     }
     if (c.RowIndex(si.row) < 0) throw InputError(file, 0, where + " names row '" + si.row + "' that is not in concave.rows");
     if (c.FindSensor(si.id)) throw InputError(file, 0, where + " is listed twice");
-    if (!(si.thickness_new_mm > 0)) throw InputError(file, 0, where + " thickness_new_mm must be positive");
+    if (!(si.thickness_new_mm > 0) || si.thickness_new_mm > kMaxThicknessMm) {
+      throw InputError(file, 0, where + " thickness_new_mm must be in (0, " + std::to_string(static_cast<int>(kMaxThicknessMm)) + "]");
+    }
+    const Row& row = c.rows[static_cast<size_t>(c.RowIndex(si.row))];
+    if (si.z_m < row.z_min_m || si.z_m > row.z_max_m) {
+      throw InputError(file, 0, where + " z_m " + std::to_string(si.z_m) + " is outside its row '" + row.name + "' [" +
+                                    std::to_string(row.z_min_m) + ", " + std::to_string(row.z_max_m) + "] m");
+    }
+    if (!(si.theta_deg >= -360 && si.theta_deg <= 360)) {
+      throw InputError(file, 0, where + " theta_deg " + std::to_string(si.theta_deg) + " is outside [-360, 360]");
+    }
     c.sensors.push_back(si);
   }
   return c;
+}
+
+void CheckCrusherAgainstMap(const CrusherConfig& config, const WearMap& map, const std::string& file) {
+  if (map.points.empty()) return;
+  double lo = map.points.front().z(), hi = lo;  // the surface's z extent (its vertices)
+  for (const auto& p : map.points) {
+    lo = std::min(lo, p.z());
+    hi = std::max(hi, p.z());
+  }
+  const double tol = 0.05 * (hi - lo) + 1e-3;
+  char range[96];
+  std::snprintf(range, sizeof range, "[%.3f, %.3f] m", lo, hi);
+  for (const Row& r : config.rows) {
+    if (r.z_max_m < lo - tol || r.z_min_m > hi + tol) {
+      throw InputError(file, 0, "row '" + r.name + "' lies outside the wear map's z range " + range + " (wrong frame or units?)");
+    }
+  }
+  for (const SensorInfo& s : config.sensors) {
+    if (s.z_m < lo - tol || s.z_m > hi + tol) {
+      throw InputError(file, 0, "sensor '" + s.id + "' z_m " + std::to_string(s.z_m) + " is outside the wear map's z range " +
+                                    range + " (wrong frame or units?)");
+    }
+  }
 }
 
 std::vector<Reading> LoadReadings(const std::filesystem::path& path) {
@@ -253,6 +312,7 @@ Bundle LoadBundle(const std::filesystem::path& dir) {
   }
   b.crusher = LoadCrusherConfig(dir / "crusher.json");
   b.map = LoadWearMap(dir / "wear_map.vtk", &b.map_validation);
+  CheckCrusherAgainstMap(b.crusher, b.map, "crusher.json");
   b.readings = LoadReadings(dir / "readings.csv");
   // Every reading must name a known sensor.
   for (const auto& r : b.readings) {

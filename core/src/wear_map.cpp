@@ -67,6 +67,17 @@ class Tokens {
     }
   }
   bool done() const { return pos_ >= toks_.size(); }
+  /// Refuses a count that promises more values than the file holds (before anything is allocated).
+  size_t Count(const char* what, size_t per_item = 1) {
+    const size_t l = line();
+    const auto n = static_cast<unsigned long long>(Integer(what));
+    const size_t left = toks_.size() - pos_;
+    if (n > left / std::max<size_t>(per_item, 1)) {
+      throw InputError(file_, l, std::string(what) + " " + std::to_string(n) + " is more than the file holds (" +
+                                     std::to_string(left) + " values left)");
+    }
+    return static_cast<size_t>(n);
+  }
   size_t line() const { return pos_ < lines_.size() ? lines_[pos_] : (lines_.empty() ? 0 : lines_.back()); }
   const std::string& Peek() const {
     static const std::string kEmpty;
@@ -92,6 +103,7 @@ class Tokens {
     return static_cast<long long>(v);
   }
   InputError Error(const std::string& rule) const { return InputError(file_, line(), rule); }
+  size_t Remaining() const { return toks_.size() - pos_; }
   // Line of the token just consumed (for messages about it).
   size_t LastLine() const { return pos_ ? lines_[pos_ - 1] : 0; }
 
@@ -101,6 +113,22 @@ class Tokens {
   std::vector<size_t> lines_;
   size_t pos_ = 0;
 };
+
+/// A coordinate beyond this (m) is a units or export mistake (a gyratory concave is a few metres).
+constexpr double kMaxCoordinateM = 1000;
+
+std::string OutOfFrame(const Eigen::Vector3d& p) {
+  char b[160];
+  std::snprintf(b, sizeof b, "vertex (%g, %g, %g) is more than %g m from the crusher origin (metres, crusher frame?)", p.x(), p.y(),
+                p.z(), kMaxCoordinateM);
+  return b;
+}
+
+std::string NegativeWear(size_t face, double value) {
+  char b[128];
+  std::snprintf(b, sizeof b, "wear of face %zu is %g: wear intensity must be >= 0", face, value);
+  return b;
+}
 
 void Assign(WearMap& map, const std::string& name, Eigen::VectorXd values) {
   if (name == "wear") map.wear = std::move(values);
@@ -139,17 +167,18 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
     const size_t kw_line = t.line();
     const std::string kw = t.Next("keyword");
     if (kw == "POINTS") {
-      const auto n = static_cast<size_t>(t.Integer("point count"));
+      const size_t n = t.Count("point count", 3);
       t.Next("point type");
       map.points.resize(n);
       for (auto& p : map.points) {
         p.x() = t.Number("x");
         p.y() = t.Number("y");
         p.z() = t.Number("z");
+        if (p.cwiseAbs().maxCoeff() > kMaxCoordinateM) throw InputError(file, t.LastLine(), OutOfFrame(p));
       }
     } else if (kw == "POLYGONS" || kw == "VERTICES" || kw == "LINES" || kw == "TRIANGLE_STRIPS") {
-      const auto a = static_cast<size_t>(t.Integer("cell count"));
-      const auto b = static_cast<size_t>(t.Integer("cell size"));
+      const size_t a = t.Count("cell count");
+      const size_t b = t.Count("cell size");
       std::vector<std::array<uint32_t, 3>> faces;
       if (v5 && t.Peek() == "OFFSETS") {
         t.Next("OFFSETS");
@@ -161,6 +190,9 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
         std::vector<long long> conn(b);
         for (auto& c : conn) c = t.Integer("point index");
         for (size_t i = 0; i + 1 < a; ++i) {
+          if (offsets[i] > offsets[i + 1] || offsets[i + 1] > static_cast<long long>(b)) {
+            throw InputError(file, kw_line, "OFFSETS " + std::to_string(i + 1) + " is out of order or beyond the connectivity");
+          }
           const long long k = offsets[i + 1] - offsets[i];
           if (kw == "POLYGONS" && k != 3) throw InputError(file, kw_line, "polygon " + std::to_string(i) + " has " + std::to_string(k) + " vertices; only triangles are supported");
           if (kw == "POLYGONS") {
@@ -171,8 +203,8 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
       } else {
         for (size_t i = 0; i < a; ++i) {
           const size_t line = t.line();
-          const long long k = t.Integer("vertex count");
-          std::vector<uint32_t> idx(static_cast<size_t>(k));
+          const size_t k = t.Count("vertex count");
+          std::vector<uint32_t> idx(k);
           for (auto& v : idx) v = static_cast<uint32_t>(t.Integer("point index"));
           if (kw == "POLYGONS") {
             if (k != 3) throw InputError(file, line, "polygon with " + std::to_string(k) + " vertices; only triangles are supported");
@@ -182,11 +214,11 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
       }
       if (kw == "POLYGONS") map.faces = std::move(faces);
     } else if (kw == "CELL_DATA") {
-      cell_count = static_cast<size_t>(t.Integer("cell data count"));
+      cell_count = t.Count("cell data count");
       in_cell_data = true;
       in_point_data = false;
     } else if (kw == "POINT_DATA") {
-      point_data_count = static_cast<size_t>(t.Integer("point data count"));
+      point_data_count = t.Count("point data count");
       in_point_data = true;
       in_cell_data = false;
     } else if (kw == "SCALARS") {
@@ -197,8 +229,12 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
       if (t.Next("LOOKUP_TABLE") != "LOOKUP_TABLE") throw InputError(file, t.LastLine(), "expected LOOKUP_TABLE after SCALARS " + name);
       t.Next("lookup table name");
       const size_t n = (in_point_data ? point_data_count : cell_count) * static_cast<size_t>(ncomp);
+      if (ncomp < 1 || ncomp > 9) throw InputError(file, t.LastLine(), "SCALARS " + name + ": component count must be 1-9");
       Eigen::VectorXd v(static_cast<Eigen::Index>(n));
-      for (size_t i = 0; i < n; ++i) v[static_cast<Eigen::Index>(i)] = t.Number(name.c_str());
+      for (size_t i = 0; i < n; ++i) {
+        v[static_cast<Eigen::Index>(i)] = t.Number(name.c_str());
+        if (name == "wear" && v[static_cast<Eigen::Index>(i)] < 0) throw InputError(file, t.LastLine(), NegativeWear(i, v[static_cast<Eigen::Index>(i)]));
+      }
       if (in_cell_data && ncomp == 1) Assign(map, name, std::move(v));
     } else if (kw == "FIELD") {
       t.Next("field name");
@@ -206,20 +242,24 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
       for (long long a = 0; a < arrays; ++a) {
         const size_t line = t.line();
         const std::string name = t.Next("array name");
-        const auto ncomp = static_cast<size_t>(t.Integer("component count"));
-        const auto ntuples = static_cast<size_t>(t.Integer("tuple count"));
+        const size_t ncomp = t.Count("component count");
+        const size_t ntuples = t.Count("tuple count", std::max<size_t>(ncomp, 1));
         t.Next("data type");
         if (in_cell_data && ntuples != cell_count) {
           throw InputError(file, line, "array '" + name + "' has " + std::to_string(ntuples) + " tuples but CELL_DATA is " + std::to_string(cell_count));
         }
         Eigen::VectorXd v(static_cast<Eigen::Index>(ncomp * ntuples));
-        for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = t.Number(name.c_str());
+        for (Eigen::Index i = 0; i < v.size(); ++i) {
+          v[i] = t.Number(name.c_str());
+          if (name == "wear" && v[i] < 0) throw InputError(file, t.LastLine(), NegativeWear(static_cast<size_t>(i), v[i]));
+        }
         if (in_cell_data && ncomp == 1) Assign(map, name, std::move(v));
       }
     } else if (kw == "VECTORS" || kw == "NORMALS") {
       t.Next("array name");
       t.Next("data type");
       const size_t n = 3 * (in_point_data ? point_data_count : cell_count);
+      if (n > t.Remaining()) throw t.Error(kw + " promises more values than the file holds");
       for (size_t i = 0; i < n; ++i) t.Number(kw.c_str());
     } else if (kw == "METADATA") {
       // VTK 5.1 may add METADATA blocks (INFORMATION ...); skip to the next known keyword.
@@ -295,7 +335,13 @@ WearMap ParseCsv(const std::string& text, const std::string& file) {
     }
     if (v.size() != cols.size()) throw InputError(file, lineno, "has " + std::to_string(v.size()) + " columns, header has " + std::to_string(cols.size()));
     const auto base = static_cast<uint32_t>(map.points.size());
-    for (int p = 0; p < 3; ++p) map.points.emplace_back(v[coord_idx[3 * p]], v[coord_idx[3 * p + 1]], v[coord_idx[3 * p + 2]]);
+    for (int p = 0; p < 3; ++p) {
+      map.points.emplace_back(v[coord_idx[3 * p]], v[coord_idx[3 * p + 1]], v[coord_idx[3 * p + 2]]);
+      if (map.points.back().cwiseAbs().maxCoeff() > kMaxCoordinateM) throw InputError(file, lineno, OutOfFrame(map.points.back()));
+    }
+    if (v[static_cast<size_t>(wear_it - cols.begin())] < 0) {
+      throw InputError(file, lineno, NegativeWear(map.faces.size(), v[static_cast<size_t>(wear_it - cols.begin())]));
+    }
     map.faces.push_back({base, base + 1, base + 2});
     for (size_t a = 0; a < arrays.size(); ++a) values[a].push_back(v[arrays[a].second]);
   }
@@ -385,6 +431,7 @@ WearMap LoadWearMap(const std::filesystem::path& path, MapValidation* validation
     if (arr->size() != 0 && arr->size() != n) throw InputError(file, 0, "per-face array length differs from the face count");
   }
   if (map.wear.size() != n) throw InputError(file, 0, "'wear' has " + std::to_string(map.wear.size()) + " values for " + std::to_string(n) + " faces");
+  if (!(map.wear.maxCoeff() > 0)) throw InputError(file, 0, "every face has zero wear: the map cannot be scaled by the sensors");
   map.ComputeGeometry();
   map.sha256 = Sha256Hex(text);
   MapValidation v = Validate(map);

@@ -1,12 +1,16 @@
 #include "server/http_api.hpp"
 
-#include <httplib.h>
+#include "http_guard.hpp"  // cpp-httplib behind the connection guard
+
+#include <arpa/inet.h>
 #include <stdlib.h>
+#include <strings.h>
 #include <unistd.h>
 
 #include <algorithm>
 
 #include <atomic>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <thread>
@@ -54,24 +58,60 @@ bool TimeParam(const httplib::Request& req, httplib::Response& res, const char* 
   return true;
 }
 
+/// The event stream path: the only one that takes ?access_token= (EventSource cannot send headers).
+bool IsEventStream(const std::string& path) {
+  return path.rfind("/api/v1/crushers/", 0) == 0 && path.size() > 7 && path.compare(path.size() - 7, 7, "/events") == 0;
+}
+
 std::string BearerOf(const httplib::Request& req) {
   const std::string h = req.get_header_value("Authorization");
   if (h.rfind("Bearer ", 0) == 0) return h.substr(7);
-  if (req.has_param("access_token")) return req.get_param_value("access_token");
+  if (req.method == "GET" && IsEventStream(req.path) && req.has_param("access_token")) return req.get_param_value("access_token");
+  return {};
+}
+
+/// "http://host:port" -> "host:port"; empty when `origin` is not http(s)://.
+std::string OriginHost(const std::string& origin) {
+  for (const char* scheme : {"http://", "https://"}) {
+    if (origin.rfind(scheme, 0) == 0) return origin.substr(std::strlen(scheme));
+  }
   return {};
 }
 
 }  // namespace
 
+bool HostAllowed(const std::string& host_header, const std::vector<std::string>& allowed) {
+  std::string host = host_header;
+  if (!host.empty() && host[0] == '[') {  // [v6]:port
+    const size_t close = host.find(']');
+    if (close == std::string::npos) return false;
+    host = host.substr(1, close - 1);
+    in6_addr a6{};
+    return ::inet_pton(AF_INET6, host.c_str(), &a6) == 1;
+  }
+  const size_t colon = host.rfind(':');
+  if (colon != std::string::npos) host = host.substr(0, colon);
+  if (host.empty()) return false;
+  in_addr a4{};
+  if (::inet_pton(AF_INET, host.c_str(), &a4) == 1) return true;  // an address cannot be rebound
+  if (strcasecmp(host.c_str(), "localhost") == 0) return true;
+  for (const auto& name : allowed) {
+    if (strcasecmp(host.c_str(), name.c_str()) == 0) return true;
+  }
+  return false;
+}
+
 struct HttpApi::Impl {
   ApiContext ctx;
-  httplib::Server svr;
+  std::unique_ptr<GuardedServer> server;
+  GuardedServer& svr_ref() { return *server; }
   std::thread thread;
   std::atomic<bool> stopping{false};
   std::atomic<int> sse_clients{0};
-  /// Each event stream holds one worker thread for its lifetime: cap them below the pool size so
+  /// Each event stream holds one worker thread for its lifetime: at most half the workers, so
   /// ordinary requests always find a thread.
-  static constexpr int kMaxEventStreams = 16;
+  int max_event_streams = 16;
+  std::mutex post_mutex;  ///< one readings body parsed at a time (a parsed body is ~20x its bytes)
 
   const Crusher* CrusherOr404(const httplib::Request& req, httplib::Response& res) {
     const std::string id = req.matches[1];
@@ -85,6 +125,8 @@ struct HttpApi::Impl {
 
 HttpApi::HttpApi(ApiContext context) : impl_(std::make_unique<Impl>()) {
   impl_->ctx = std::move(context);
+  impl_->server = std::make_unique<GuardedServer>(impl_->ctx.limits);
+  impl_->max_event_streams = static_cast<int>(std::max<size_t>(1, impl_->ctx.limits.workers / 2));
   impl_->Routes();
 }
 
@@ -93,28 +135,28 @@ HttpApi::~HttpApi() { Stop(); }
 int HttpApi::Bind(const std::string& host, int port) {
   int bound = port;
   if (port == 0) {
-    bound = impl_->svr.bind_to_any_port(host);
+    bound = impl_->server->bind_to_any_port(host);
     if (bound <= 0) throw std::runtime_error("--http " + host + ":0: cannot bind");
-  } else if (!impl_->svr.bind_to_port(host, port)) {
+  } else if (!impl_->server->bind_to_port(host, port)) {
     throw std::runtime_error("--http " + host + ":" + std::to_string(port) + ": cannot bind (in use or not a local address)");
   }
   return bound;
 }
 
 void HttpApi::Start() {
-  impl_->thread = std::thread([this] { impl_->svr.listen_after_bind(); });
+  impl_->thread = std::thread([this] { impl_->server->Serve(); });
 }
 
 void HttpApi::Stop() {
   if (!impl_ || impl_->stopping.exchange(true)) return;
   if (impl_->ctx.events) impl_->ctx.events->Close();
-  impl_->svr.stop();
+  impl_->server->Shutdown();
   if (impl_->thread.joinable()) impl_->thread.join();
 }
 
 void HttpApi::Impl::Routes() {
-  svr.new_task_queue = [] { return new httplib::ThreadPool(48); };
-  svr.set_payload_max_length(64u << 20);
+  GuardedServer& svr = svr_ref();
+  svr.set_payload_max_length(static_cast<size_t>(ctx.limits.max_body_bytes));
   svr.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
     std::string what = "internal error";
     try {
@@ -125,17 +167,37 @@ void HttpApi::Impl::Routes() {
     }
     Error(res, 500, what);
   });
-  svr.set_error_handler([](const httplib::Request& req, httplib::Response& res) {  // runs outside httplib's try
+  svr.set_error_handler([this](const httplib::Request& req, httplib::Response& res) {  // runs outside httplib's try
     if (!res.body.empty()) return;
     std::string what = "request failed";
     if (res.status == 404) what = "no such resource: " + req.path;
-    else if (res.status == 413) what = "request body too large (send readings as Content-Type: application/json)";
+    else if (res.status == 413) what = "request body larger than " + std::to_string(ctx.limits.max_body_bytes) + " bytes";
     else if (res.status == 400) what = "malformed HTTP request";
     Error(res, res.status, what);
   });
 
-  // Bearer tokens on /api: read scope for GET, write scope for everything else.
+  // Before routing: the Host must be ours (DNS rebinding); a state-changing request must come from
+  // our own origin with a JSON body (cross-site forms and text/plain posts: CSRF); then bearer
+  // tokens on /api: read scope for GET, write scope for everything else.
   svr.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    const std::string host = req.get_header_value("Host");
+    if (req.has_header("Host") && !HostAllowed(host, ctx.allowed_hosts)) {
+      Error(res, 421, "Host '" + host + "' is not one this server answers to (see --allowed-hosts)");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    const bool write = req.method != "GET" && req.method != "HEAD";
+    if (write) {
+      const std::string origin = req.get_header_value("Origin");
+      if (req.has_header("Origin") && strcasecmp(OriginHost(origin).c_str(), host.c_str()) != 0) {
+        Error(res, 403, "cross-origin request from '" + origin + "' refused");
+        return httplib::Server::HandlerResponse::Handled;
+      }
+      const std::string type = req.get_header_value("Content-Type");
+      if (type.rfind("application/json", 0) != 0) {
+        Error(res, 415, "a " + req.method + " needs Content-Type: application/json");
+        return httplib::Server::HandlerResponse::Handled;
+      }
+    }
     if (!ctx.tokens || !ctx.tokens->enabled() || req.path.rfind("/api/", 0) != 0) return httplib::Server::HandlerResponse::Unhandled;
     const auto token = ctx.tokens->Check(BearerOf(req));
     if (!token) {
@@ -143,7 +205,6 @@ void HttpApi::Impl::Routes() {
       Error(res, 401, "missing or unknown bearer token");
       return httplib::Server::HandlerResponse::Handled;
     }
-    const bool write = req.method != "GET" && req.method != "HEAD";
     if ((write && !token->write) || (!write && !token->read)) {
       Error(res, 403, std::string("token '") + token->name + "' lacks the " + (write ? "write" : "read") + " scope");
       return httplib::Server::HandlerResponse::Handled;
@@ -317,11 +378,11 @@ void HttpApi::Impl::Routes() {
     const Crusher* c = CrusherOr404(req, res);
     if (!c) return;
     if (JsonNestingDepth(req.body) > kMaxJsonDepth + 2) return Error(res, 400, "body is nested too deeply");
+    std::lock_guard<std::mutex> one_at_a_time(post_mutex);
     nlohmann::json body;
-    try {
-      body = nlohmann::json::parse(req.body);
-    } catch (const nlohmann::json::parse_error&) {
-      return Error(res, 400, "body is not valid JSON");
+    std::string parse_error;
+    if (!ParseJsonNamingField(req.body, &body, &parse_error)) {
+      return Error(res, 400, parse_error == "malformed JSON" ? "body is not valid JSON" : "body: " + parse_error);
     }
     if (!body.is_object() || !body.contains("readings") || !body["readings"].is_array()) {
       return Error(res, 400, "body must be {\"readings\": [...]}");
@@ -430,14 +491,14 @@ void HttpApi::Impl::Routes() {
     for (const auto& r : ctx.read->RejectedMessages(limit)) {
       list.push_back({{"received", Iso(r.received_s)}, {"topic", r.topic}, {"payload", r.payload}, {"reason", r.reason}});
     }
-    Reply(res, 200, {{"total", ctx.read->CountRejected()}, {"rejected", list}});
+    Reply(res, 200, {{"total", ctx.read->CountRejected()}, {"evicted", ctx.read->RejectedEvicted()}, {"rejected", list}});
   });
 
   svr.Get(R"(/api/v1/crushers/([^/]+)/events)", [this](const httplib::Request& req, httplib::Response& res) {
     const Crusher* c = CrusherOr404(req, res);
     if (!c) return;
-    if (sse_clients.load() >= kMaxEventStreams) {
-      return Error(res, 503, "too many open event streams (" + std::to_string(kMaxEventStreams) + "); retry later");
+    if (sse_clients.load() >= max_event_streams) {
+      return Error(res, 503, "too many open event streams (" + std::to_string(max_event_streams) + "); retry later");
     }
     int64_t after = ctx.events->LastId();
     const std::string last = req.get_header_value("Last-Event-ID");
@@ -459,8 +520,14 @@ void HttpApi::Impl::Routes() {
         out = "retry: 3000\n: connected\n\n";
         return sink.write(out.data(), out.size());
       }
-      const auto events = ctx.events->WaitAfter(&after, crusher, std::chrono::milliseconds(15000));
-      if (stopping || ctx.events->closed()) return false;
+      // Wait up to 15 s for events (then a keepalive), but look every second whether the client
+      // is still there: a closed stream frees its slot and its worker at once.
+      std::vector<Event> events;
+      for (int waited = 0; waited < 15 && events.empty(); ++waited) {
+        events = ctx.events->WaitAfter(&after, crusher, std::chrono::milliseconds(1000));
+        if (stopping || ctx.events->closed()) return false;
+        if (events.empty() && sink.is_writable && !sink.is_writable()) return false;
+      }
       if (events.empty()) out = ": keepalive\n\n";
       for (const Event& e : events) out += "id: " + std::to_string(e.id) + "\nevent: " + e.name + "\ndata: " + e.data + "\n\n";
       return sink.write(out.data(), out.size());

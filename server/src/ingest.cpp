@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <tuple>
 
 #include "core/time.hpp"
@@ -50,7 +51,80 @@ std::optional<int64_t> IntField(const json& j, const char* name, int64_t lo, int
   return v;
 }
 
+/// The quoted token of a number overflow message ("... parsing '1e999'"), or empty.
+std::string OverflowToken(const std::string& what) {
+  const size_t a = what.find('\'');
+  const size_t b = a == std::string::npos ? a : what.find('\'', a + 1);
+  return b == std::string::npos ? std::string() : what.substr(a + 1, b - a - 1);
+}
+
+/// A message whose numbers overflow a double still names its sensor and seq: read them from a copy
+/// with each overflowing number replaced by 0 (at most 16), so the rejection can be acknowledged.
+void IdentifyDespiteOverflow(std::string_view payload, Validation* v) {
+  std::string text(payload);
+  for (int tries = 0; tries < 16; ++tries) {
+    try {
+      const json j = json::parse(text);
+      if (!j.is_object()) return;
+      const auto s = j.find("sensor");
+      if (s != j.end() && s->is_string()) v->sensor = s->get<std::string>();
+      else if (s != j.end() && s->is_number_integer()) v->sensor = std::to_string(s->get<int64_t>());
+      std::string ignored;
+      v->seq = IntField(j, "seq", 0, 0xFFFFFFFFLL, &ignored);
+      return;
+    } catch (const json::out_of_range& e) {
+      const std::string token = OverflowToken(e.what());
+      if (token.empty()) return;
+      bool replaced = false;
+      for (size_t at = text.find(token); at != std::string::npos; at = text.find(token, at + 1)) {
+        // Only a whole number token (after ':' ',' or '[' and optional spaces), not text in a string.
+        size_t before = at;
+        while (before > 0 && std::isspace(static_cast<unsigned char>(text[before - 1]))) --before;
+        const char prev = before > 0 ? text[before - 1] : '\0';
+        const size_t after = at + token.size();
+        const bool ends = after >= text.size() || std::strchr(",]} \t\r\n", text[after]) != nullptr;
+        if ((prev == ':' || prev == ',' || prev == '[') && ends) {
+          // Never invent the identity itself: an overflowing "seq" or "sensor" identifies nothing.
+          if (prev == ':') {
+            const size_t quote = text.rfind('"', before - 1);
+            const size_t open = quote == std::string::npos || quote == 0 ? std::string::npos : text.rfind('"', quote - 1);
+            const std::string key = open == std::string::npos ? std::string() : text.substr(open + 1, quote - open - 1);
+            if (key == "seq" || key == "sensor") return;
+          }
+          text.replace(at, token.size(), "0");
+          replaced = true;
+          break;
+        }
+      }
+      if (!replaced) return;
+    } catch (const json::exception&) {
+      return;
+    }
+  }
+}
+
 }  // namespace
+
+bool ParseJsonNamingField(std::string_view text, nlohmann::json* out, std::string* error) {
+  std::string key;  // the last object key seen: names the field a number overflow sits in
+  try {
+    *out = json::parse(text, [&key](int, json::parse_event_t event, json& parsed) {
+      if (event == json::parse_event_t::key && parsed.is_string()) key = parsed.get<std::string>();
+      return true;
+    });
+    return true;
+  } catch (const json::out_of_range& e) {
+    // nlohmann: "[json.exception.out_of_range.406] number overflow parsing '1e999'"
+    const std::string what = e.what();
+    const size_t q = what.find('\'');
+    const std::string number = q == std::string::npos ? std::string() : what.substr(q);
+    *error = (key.empty() ? std::string("a number") : "\"" + key + "\"") + (number.empty() ? "" : " " + number) +
+             " does not fit a double (number overflow)";
+  } catch (const json::exception&) {
+    *error = "malformed JSON";
+  }
+  return false;
+}
 
 std::optional<ReadingTopic> ParseReadingTopic(std::string_view topic, std::string_view root) {
   if (topic.substr(0, root.size()) != root) return std::nullopt;
@@ -96,10 +170,8 @@ Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t
     return v;
   }
   json j;
-  try {
-    j = json::parse(in.payload);
-  } catch (const json::parse_error&) {
-    v.error = "malformed JSON";
+  if (!ParseJsonNamingField(in.payload, &j, &v.error)) {
+    IdentifyDespiteOverflow(in.payload, &v);  // so that the quarantined message can be acknowledged
     return v;
   }
   if (!j.is_object()) {
@@ -187,7 +259,20 @@ Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t
 }
 
 Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s)
-    : store_(store), registry_(registry), now_s_(std::move(now_s)) {}
+    : store_(store), registry_(registry), now_s_(std::move(now_s)) {
+  for (const auto& [crusher, site] : store_.CrusherSites()) sites_[crusher] = site;
+  // crusher.json's "site" binds; it overrides a binding learnt from the first reading.
+  for (const Crusher* c : registry_.All()) {
+    if (!c->config.site.empty()) sites_[c->config.crusher_id] = c->config.site;
+  }
+}
+
+std::optional<std::string> Ingestor::SiteOf(const std::string& crusher) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = sites_.find(crusher);
+  if (it == sites_.end()) return std::nullopt;
+  return it->second;
+}
 
 IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
   std::lock_guard<std::mutex> lock(mutex_);
@@ -200,19 +285,46 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
   std::vector<size_t> reading_index;  // batch index of each reading
   std::vector<Rejected> rejected;
   std::vector<Validation> validations;
+  std::vector<bool> foreign_site(batch.size(), false);  // a known crusher heard under another site
+  std::map<std::string, std::string> new_sites;          // bound by this batch (first site heard)
   validations.reserve(batch.size());
   for (size_t i = 0; i < batch.size(); ++i) {
-    validations.push_back(ValidateReading(batch[i], registry_, now));
+    const Incoming& in = batch[i];
+    // A message must never fail the batch: whatever validation throws quarantines this one only.
+    try {
+      validations.push_back(ValidateReading(in, registry_, now));
+    } catch (const std::exception& e) {
+      validations.push_back({});
+      validations.back().error = std::string("cannot validate: ") + e.what();
+    }
     Validation& v = validations.back();
+    // Sites are identities: a crusher's readings count only under its own site's topics.
+    if (!in.site.empty() && registry_.Find(in.crusher)) {
+      auto bound = sites_.find(in.crusher);
+      auto pending = new_sites.find(in.crusher);
+      const std::string* site = bound != sites_.end() ? &bound->second : pending != new_sites.end() ? &pending->second : nullptr;
+      if (!site && v.reading) site = &new_sites.emplace(in.crusher, in.site).first->second;
+      if (site && *site != in.site) {
+        foreign_site[i] = true;
+        v.reading.reset();
+        v.error = "site '" + in.site + "' is not crusher " + in.crusher + "'s site '" + *site +
+                  "' (quarantined, not acknowledged)";
+      }
+    }
     if (v.reading) {
       v.reading->received_s = wall;
       readings.push_back(*v.reading);
       reading_index.push_back(i);
     } else {
-      rejected.push_back({wall, batch[i].topic, batch[i].payload, v.error});
+      rejected.push_back({wall, in.topic, in.payload, v.error});
     }
   }
-  const std::vector<InsertOutcome> outcomes = store_.Commit(readings, rejected);  // throws: nothing acked
+  const std::vector<InsertOutcome> outcomes = store_.Commit(readings, rejected, {new_sites.begin(), new_sites.end()});  // throws: nothing acked
+  for (const auto& [crusher, site] : new_sites) {
+    sites_[crusher] = site;
+    result.log.push_back("crusher " + crusher + " is now bound to site '" + site +
+                         "' (the first site it was heard from; set \"site\" in its crusher.json to choose)");
+  }
 
   std::map<std::tuple<std::string, std::string, std::string>, std::set<int64_t>> acks;
   auto& crusher_counters = per_crusher_;
@@ -238,7 +350,6 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
         break;
     }
     acks[{in.site, r.crusher, r.sensor}].insert(r.seq);
-    if (!in.site.empty()) result.sites.insert({r.crusher, in.site});
   }
   for (size_t i = 0; i < batch.size(); ++i) {
     const Validation& v = validations[i];
@@ -246,8 +357,9 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
     ++result.rejected;
     ++crusher_counters[batch[i].crusher].rejected;
     result.log.push_back("rejected " + (batch[i].topic.empty() ? std::string("REST reading") : batch[i].topic) + ": " + v.error);
-    // Quarantined in the database: the gateway may drop it (resending cannot make it valid).
-    if (v.seq && !v.sensor.empty() && (batch[i].sensor.empty() || batch[i].sensor == v.sensor)) {
+    // Quarantined in the database: the gateway may drop it (resending cannot make it valid). Not
+    // under a site the crusher does not belong to: that publisher is not its gateway.
+    if (!foreign_site[i] && v.seq && !v.sensor.empty() && (batch[i].sensor.empty() || batch[i].sensor == v.sensor)) {
       acks[{batch[i].site, batch[i].crusher, v.sensor}].insert(*v.seq);
     }
   }

@@ -22,6 +22,8 @@ Usage: linerwatch-server --broker URI --db FILE --http HOST:PORT --crusher-dir D
   --http HOST:PORT      REST API and dashboard (default 127.0.0.1:8080; port 0 picks a free one)
   --crusher-dir DIR     one sub-folder per crusher with crusher.json and wear_map.vtk (or .csv)
   --tokens FILE         bearer tokens (SHA-256 hashes, read/write scopes); without it the API is open
+  --allowed-hosts LIST  comma-separated host names the API answers to (Host header), besides IP
+                        addresses, localhost and --http's host; others get 421 (DNS rebinding)
   --username U --password P   broker credentials
   --tls-ca FILE         CA certificate for ssl:// brokers
   --client-id ID        MQTT client id of the persistent session (default linerwatch-server)
@@ -54,6 +56,17 @@ ServerOptions ParseServerOptions(const std::vector<std::string>& args) {
     else if (name == "topic-root") o.topic_root = value;
     else if (name == "web-dir") o.web_dir = value;
     else if (name == "clock-file") o.clock_file = value;
+    else if (name == "allowed-hosts") {
+      o.allowed_hosts.clear();
+      size_t start = 0;
+      while (start <= value.size()) {
+        const size_t comma = value.find(',', start);
+        const std::string h = value.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+        if (!h.empty()) o.allowed_hosts.push_back(h);
+        if (comma == std::string::npos) break;
+        start = comma + 1;
+      }
+    }
     else if (name == "wear-interval-ms") o.wear_interval_ms = core::ParseWholeNumber(name, value);
     else if (name == "batch-max") o.batch_max = core::ParseWholeNumber(name, value);
     else if (name == "commit-delay-ms") o.commit_delay_ms = core::ParseWholeNumber(name, value);

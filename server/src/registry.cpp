@@ -16,6 +16,7 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
     throw core::InputError("wear_map.vtk", 0, "missing in " + folder.string() + " (a crusher folder needs its DEM wear map)");
   }
   c->map = core::LoadWearMap(map_path, &c->validation);
+  core::CheckCrusherAgainstMap(c->config, c->map, "crusher.json");
   c->plan = core::PrepareReconstruction(c->config, c->map, options);
   const auto summary_path = folder / "dem_summary.json";
   if (std::filesystem::exists(summary_path)) {

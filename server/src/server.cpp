@@ -1,6 +1,7 @@
 #include "server/server.hpp"
 
 #include <poll.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <condition_variable>
@@ -55,6 +56,9 @@ class Logger {
 
 void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostream& log_stream) {
   Logger log(log_stream);
+  if (::geteuid() == 0) {
+    log("warning: running as root; run as an unprivileged user (packaging/systemd/linerwatch-server.service)");
+  }
   std::vector<std::string> errors;
   const auto registry = Registry::Load(o.crusher_dir, &errors);
   for (const auto& e : errors) log("crusher folder skipped: " + e);
@@ -131,8 +135,10 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
                                   {"crusher_errors", errors}};
   };
   ctx.after_ingest = on_committed;
-  HttpApi api(ctx);
   const size_t colon = o.http.rfind(':');
+  ctx.allowed_hosts = o.allowed_hosts;
+  ctx.allowed_hosts.push_back(o.http.substr(0, colon));  // the name it was told to listen on
+  HttpApi api(ctx);
   const int port = api.Bind(o.http.substr(0, colon), std::stoi(o.http.substr(colon + 1)));
   api.Start();
   log("listening on http://" + o.http.substr(0, colon) + ":" + std::to_string(port) + "/ (REST /api/v1, dashboard " +
@@ -191,7 +197,6 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     }
   } join_worker{worker_stop, dirty_cv, wear_worker};
 
-  std::map<std::string, std::set<std::string>> sites;  // crusher -> sites it was heard from
   int64_t last_stats_ms = WallMs();
   IngestCounters last_counters;
   const std::string root = o.topic_root + "/";
@@ -237,9 +242,6 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
         const nlohmann::json payload = {{"sensor", a.sensor}, {"seqs", a.seqs}, {"time", when}};
         link.Publish({root + a.site + "/" + a.crusher + "/sensors/" + a.sensor + "/committed", payload.dump(), 1, false});
       }
-      // Retained wear goes to the sites real readings came from (not to any topic a stray
-      // publisher made up).
-      for (const auto& [crusher, site] : r.sites) sites[crusher].insert(site);
       on_committed(r);
     }
     std::vector<std::pair<std::string, std::string>> ready;
@@ -248,7 +250,9 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       ready.swap(computed);
     }
     for (const auto& [c, summary] : ready) {
-      for (const std::string& site : sites[c]) link.Publish({root + site + "/" + c + "/wear", summary, 1, true});
+      // Retained wear goes only to the crusher's own site (crusher.json's "site" or the first site
+      // heard from), never to a site name a stray publisher made up.
+      if (const auto site = ingestor.SiteOf(c)) link.Publish({root + *site + "/" + c + "/wear", summary, 1, true});
     }
     if (now - last_stats_ms >= 60'000) {
       const IngestCounters c = ingestor.Counters();

@@ -1,7 +1,13 @@
 #include "server/store.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <stdexcept>
+
+#include "core/wear_map.hpp"
 
 #include "core/sqlite.hpp"
 
@@ -12,7 +18,7 @@ using Db = core::sqlite::Database<std::runtime_error>;
 using Stmt = core::sqlite::Statement<std::runtime_error>;
 using Tx = core::sqlite::Transaction<std::runtime_error>;
 
-constexpr int kSchemaVersion = 1;
+constexpr int kSchemaVersion = 2;
 
 const char* kSelectColumns =
     "crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload";
@@ -63,21 +69,28 @@ void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq) {
   }
 }
 
+/// Creates the database file readable by its owner only (0600) before SQLite opens it: SQLite gives
+/// its -wal and -shm files the database file's mode. An existing file keeps its mode.
+void CreatePrivate(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  if (fd >= 0) ::close(fd);
+}
+
 }  // namespace
 
 struct Store::Impl {
   Db db;
   Stmt insert, existing, insert_rejected, latest, range, all, count, count_rejected, rejected_list, save_diag, load_diag;
-  explicit Impl(const std::string& path)
-      : db(path, "database"),
+  Stmt rejected_seen, rejected_oldest, rejected_delete, rejected_totals, meta_get, meta_add, sites_list, site_bind;
+  RejectedLimits limits;
+  std::optional<std::pair<int64_t, int64_t>> rejected_size;  ///< (rows, bytes) of the rejected table
+  explicit Impl(const std::string& path, RejectedLimits l)
+      : db((CreatePrivate(path), path), "database"),
         insert((Init(db), db),
                "INSERT INTO readings(crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload)"
                " VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10) ON CONFLICT DO NOTHING"),
         existing(db, "SELECT time, thickness_mm FROM readings WHERE crusher=?1 AND sensor=?2 AND seq=?3"),
-        // A message resent by its publisher is quarantined once, not once per resend.
-        insert_rejected(db,
-                        "INSERT INTO rejected(received, topic, payload, reason) SELECT ?1,?2,?3,?4"
-                        " WHERE NOT EXISTS (SELECT 1 FROM rejected WHERE topic=?2 AND payload=?3)"),
+        insert_rejected(db, "INSERT INTO rejected(received, topic, payload, reason, digest, bytes) VALUES(?1,?2,?3,?4,?5,?6)"),
         latest(db,
                "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload, n FROM ("
                " SELECT *, COUNT(*) OVER (PARTITION BY sensor) AS n,"
@@ -94,7 +107,18 @@ struct Store::Impl {
         count_rejected(db, "SELECT COUNT(*) FROM rejected"),
         rejected_list(db, "SELECT received, topic, payload, reason FROM rejected ORDER BY id DESC LIMIT ?1"),
         save_diag(db, "INSERT INTO diagnoses(crusher, time, json) VALUES(?1,?2,?3)"),
-        load_diag(db, "SELECT time, json FROM diagnoses WHERE crusher=?1 ORDER BY id DESC LIMIT 1") {}
+        load_diag(db, "SELECT time, json FROM diagnoses WHERE crusher=?1 ORDER BY id DESC LIMIT 1"),
+        // A message resent by its publisher is quarantined once, not once per resend: an indexed
+        // look-up of the SHA-256 of topic and full payload (not a scan comparing payloads).
+        rejected_seen(db, "SELECT 1 FROM rejected WHERE digest=?1"),
+        rejected_oldest(db, "SELECT id, bytes FROM rejected ORDER BY id LIMIT 1"),
+        rejected_delete(db, "DELETE FROM rejected WHERE id=?1"),
+        rejected_totals(db, "SELECT COUNT(*), COALESCE(SUM(bytes), 0) FROM rejected"),
+        meta_get(db, "SELECT value FROM meta WHERE key=?1"),
+        meta_add(db, "INSERT INTO meta(key, value) VALUES(?1, ?2) ON CONFLICT(key) DO UPDATE SET value=value+?2"),
+        sites_list(db, "SELECT crusher, site FROM crusher_sites ORDER BY crusher"),
+        site_bind(db, "INSERT INTO crusher_sites(crusher, site) VALUES(?1, ?2) ON CONFLICT(crusher) DO UPDATE SET site=?2"),
+        limits(l) {}
 
   static void Init(const Db& db) {
     int64_t v = 0;
@@ -120,17 +144,36 @@ struct Store::Impl {
         "CREATE INDEX IF NOT EXISTS readings_by_time ON readings(crusher, sensor, time, seq);"
         "CREATE TABLE IF NOT EXISTS rejected (id INTEGER PRIMARY KEY AUTOINCREMENT, received INTEGER NOT NULL,"
         " topic TEXT NOT NULL, payload TEXT NOT NULL, reason TEXT NOT NULL);"
-        "CREATE INDEX IF NOT EXISTS rejected_by_topic ON rejected(topic);"
         "CREATE TABLE IF NOT EXISTS diagnoses (id INTEGER PRIMARY KEY AUTOINCREMENT, crusher TEXT NOT NULL,"
-        " time INTEGER NOT NULL, json TEXT NOT NULL);"
-        "PRAGMA user_version=1;");
+        " time INTEGER NOT NULL, json TEXT NOT NULL);");
+    if (v < 2) {
+      // Version 2: rejected rows carry a digest (indexed duplicate check) and their size (the cap);
+      // crushers are bound to their site; counters that outlive a restart.
+      Tx tx(db);
+      Stmt cols(db, "SELECT COUNT(*) FROM pragma_table_info('rejected') WHERE name='digest'");
+      cols.Step();
+      if (cols.Int(0) == 0) {
+        db.Exec("ALTER TABLE rejected ADD COLUMN digest TEXT; ALTER TABLE rejected ADD COLUMN bytes INTEGER NOT NULL DEFAULT 0;");
+      }
+      db.Exec(
+          "UPDATE rejected SET bytes=length(CAST(topic AS BLOB))+length(CAST(payload AS BLOB))+length(CAST(reason AS BLOB))"
+          " WHERE bytes=0;"
+          "DROP INDEX IF EXISTS rejected_by_topic;"
+          "CREATE INDEX IF NOT EXISTS rejected_by_digest ON rejected(digest);"
+          "CREATE TABLE IF NOT EXISTS crusher_sites (crusher TEXT PRIMARY KEY, site TEXT NOT NULL);"
+          "CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value INTEGER NOT NULL);"
+          "PRAGMA user_version=2;");
+      tx.Commit();
+    }
   }
 };
 
-Store::Store(const std::filesystem::path& path) : impl_(std::make_unique<Impl>(path.string())) {}
+Store::Store(const std::filesystem::path& path, RejectedLimits limits)
+    : impl_(std::make_unique<Impl>(path.string(), limits)) {}
 Store::~Store() = default;
 
-std::vector<InsertOutcome> Store::Commit(const std::vector<StoredReading>& readings, const std::vector<Rejected>& rejected) {
+std::vector<InsertOutcome> Store::Commit(const std::vector<StoredReading>& readings, const std::vector<Rejected>& rejected,
+                                         const std::vector<std::pair<std::string, std::string>>& new_sites) {
   Impl& im = *impl_;
   std::vector<InsertOutcome> out;
   out.reserve(readings.size());
@@ -150,12 +193,79 @@ std::vector<InsertOutcome> Store::Commit(const std::vector<StoredReading>& readi
                       std::fabs(im.existing.Real(1) - r.thickness_mm) < 1e-9;
     out.push_back(same ? InsertOutcome::kDuplicate : InsertOutcome::kConflict);
   }
-  for (const Rejected& r : rejected) {
-    InUse use_insert_rejected(im.insert_rejected);
-    im.insert_rejected.Bind(1, r.received_s).Bind(2, r.topic).Bind(3, r.payload).Bind(4, r.reason);
-    im.insert_rejected.Step();
+  for (const auto& [crusher, site] : new_sites) {
+    InUse use_bind(im.site_bind);
+    im.site_bind.Bind(1, crusher).Bind(2, site);
+    im.site_bind.Step();
+  }
+  if (!rejected.empty()) {
+    if (!im.rejected_size) {  // counted once; then kept up to date by this (the only writing) connection
+      InUse use_totals(im.rejected_totals);
+      im.rejected_totals.Step();
+      im.rejected_size = {im.rejected_totals.Int(0), im.rejected_totals.Int(1)};
+    }
+    int64_t rows = im.rejected_size->first, bytes = im.rejected_size->second, evicted = 0;
+    for (const Rejected& r : rejected) {
+      const std::string digest = core::Sha256Hex(r.topic + '\n' + r.payload);
+      {
+        InUse use_seen(im.rejected_seen);
+        im.rejected_seen.Bind(1, digest);
+        if (im.rejected_seen.Step()) continue;
+      }
+      // Only the start of a large payload is kept (its size and digest identify it).
+      std::string payload = r.payload;
+      if (payload.size() > im.limits.max_payload_bytes) {
+        payload.resize(im.limits.max_payload_bytes);
+        payload += "... [truncated: " + std::to_string(r.payload.size()) + " bytes]";
+      }
+      const auto size = static_cast<int64_t>(r.topic.size() + payload.size() + r.reason.size());
+      // The oldest rows make room (counted): the table stays within its row and byte caps.
+      while (rows > 0 && (rows + 1 > im.limits.max_rows || bytes + size > im.limits.max_bytes)) {
+        int64_t id = 0, b = 0;
+        {
+          InUse use_oldest(im.rejected_oldest);
+          if (!im.rejected_oldest.Step()) break;
+          id = im.rejected_oldest.Int(0);
+          b = im.rejected_oldest.Int(1);
+        }
+        InUse use_delete(im.rejected_delete);
+        im.rejected_delete.Bind(1, id);
+        im.rejected_delete.Step();
+        --rows;
+        bytes -= b;
+        ++evicted;
+      }
+      InUse use_insert_rejected(im.insert_rejected);
+      im.insert_rejected.Bind(1, r.received_s).Bind(2, r.topic).Bind(3, payload).Bind(4, r.reason).Bind(5, digest).Bind(6, size);
+      im.insert_rejected.Step();
+      ++rows;
+      bytes += size;
+    }
+    if (evicted > 0) {
+      InUse use_meta(im.meta_add);
+      im.meta_add.Bind(1, std::string("rejected_evicted")).Bind(2, evicted);
+      im.meta_add.Step();
+    }
+    tx.Commit();
+    im.rejected_size = {rows, bytes};
+    return out;
   }
   tx.Commit();
+  return out;
+}
+
+int64_t Store::RejectedEvicted() {
+  Impl& im = *impl_;
+  InUse use_meta(im.meta_get);
+  im.meta_get.Bind(1, std::string("rejected_evicted"));
+  return im.meta_get.Step() ? im.meta_get.Int(0) : 0;
+}
+
+std::vector<std::pair<std::string, std::string>> Store::CrusherSites() {
+  Impl& im = *impl_;
+  std::vector<std::pair<std::string, std::string>> out;
+  InUse use_sites(im.sites_list);
+  while (im.sites_list.Step()) out.emplace_back(im.sites_list.Text(0), im.sites_list.Text(1));
   return out;
 }
 

@@ -1,5 +1,5 @@
 // Unwrapped concave map: theta 0-360 deg across, z up, faces coloured by remaining thickness.
-import { thicknessColor, rgb, fmt, ticks, showTip, hideTip } from './util.js';
+import { thicknessColor, rgb, fmt, ticks, showTip, hideTip, h as node } from './util.js';
 
 const M = { left: 52, right: 64, top: 14, bottom: 34 };
 
@@ -264,7 +264,9 @@ export class UnwrappedMap {
     const sn = this.sensorAt(px, py);
     this.canvas.style.cursor = sn ? 'pointer' : 'crosshair';
     if (sn) {
-      showTip(ev, `<b>sensor ${sn.id}</b> (${sn.row})<br>${sn.thickness == null ? 'no reading' : `${sn.thickness} mm: in [${sn.thickness}, ${sn.thickness + 1}) mm`}<br>θ ${fmt(sn.theta_deg, 0)}°, z ${fmt(sn.z_m, 2)} m<br><i>click for its time series</i>`);
+      showTip(ev, node('b', {}, `sensor ${sn.id}`), ` (${sn.row})`, node('br'),
+        sn.thickness == null ? 'no reading' : `${sn.thickness} mm: in [${sn.thickness}, ${sn.thickness + 1}) mm`, node('br'),
+        `θ ${fmt(sn.theta_deg, 0)}°, z ${fmt(sn.z_m, 2)} m`, node('br'), node('i', {}, 'click for its time series'));
       return;
     }
     const th = this.L.th(px);
@@ -273,7 +275,8 @@ export class UnwrappedMap {
     const f = this.faceAt(th, z);
     if (f < 0) { hideTip(); return; }
     const rem = this.state.remaining ? this.state.remaining[f] : null;
-    showTip(ev, `θ ${fmt(th, 0)}°, z ${fmt(z, 2)} m<br>remaining <b>${fmt(rem)} mm</b>${rem != null ? ` (worn ${fmt(this.state.thicknessNew - rem)} mm)` : ''}`);
+    showTip(ev, `θ ${fmt(th, 0)}°, z ${fmt(z, 2)} m`, node('br'), 'remaining ', node('b', {}, `${fmt(rem)} mm`),
+      rem != null ? ` (worn ${fmt(this.state.thicknessNew - rem)} mm)` : '');
   }
 
   click(ev) {

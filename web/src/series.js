@@ -1,6 +1,6 @@
 // Sensor time series (SVG): readings as a step line with their [n, n+1) mm band, the forecast with
 // its band, the minimum-thickness line and the window in which the minimum is reached.
-import { s, fmt, fmtDate, fmtDateTime, parseTime, ticks, timeTicks, showTip, hideTip } from './util.js';
+import { s, h, fmt, fmtDate, fmtDateTime, parseTime, ticks, timeTicks, showTip, hideTip } from './util.js';
 
 const M = { left: 48, right: 16, top: 14, bottom: 30 };
 
@@ -94,15 +94,15 @@ export function renderSeries(container, { sensor, readings, forecast, thicknessM
     if (px < M.left || px > M.left + pw) { hideTip(); cursor.setAttribute('visibility', 'hidden'); return; }
     const t = t0 + ((px - M.left) / pw) * (t1 - t0);
     cursor.setAttribute('x1', px); cursor.setAttribute('x2', px); cursor.setAttribute('visibility', 'visible');
-    let html = fmtDateTime(t);
+    const tipText = [fmtDateTime(t)];
     const before = pts.filter((p) => p.t <= t);
     if (before.length && t <= pts[pts.length - 1].t + 86400000) {
       const p = before[before.length - 1];
-      html += `<br>reading <b>${p.v} mm</b> (in [${p.v}, ${p.v + 1}))`;
+      tipText.push(h('br'), 'reading ', h('b', {}, `${p.v} mm`), ` (in [${p.v}, ${p.v + 1}))`);
     }
     const c = curve.find((q) => q.t >= t);
-    if (c) html += `<br>forecast ${fmt(c.v)} mm (${fmt(c.lo)}–${fmt(c.hi)})`;
-    showTip(ev, html);
+    if (c) tipText.push(h('br'), `forecast ${fmt(c.v)} mm (${fmt(c.lo)}–${fmt(c.hi)})`);
+    showTip(ev, tipText);
   });
   svg.addEventListener('mouseleave', () => { hideTip(); cursor.setAttribute('visibility', 'hidden'); });
   container.append(svg);

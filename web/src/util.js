@@ -119,9 +119,12 @@ export function timeTicks(t0, t1, count = 6) {
 }
 
 const tip = () => document.getElementById('tooltip');
-export function showTip(ev, html) {
+// The tooltip's content is DOM nodes and strings (strings become text, never markup): sensor ids,
+// row names and anything else from the server are shown, not interpreted.
+export function showTip(ev, ...content) {
   const el = tip();
-  el.innerHTML = html;
+  el.replaceChildren(...content.flat().filter((c) => c != null && c !== false)
+    .map((c) => (c instanceof Node ? c : document.createTextNode(String(c)))));
   el.hidden = false;
   const x = Math.min(ev.clientX + 14, window.innerWidth - el.offsetWidth - 8);
   el.style.left = `${x}px`;

@@ -27,8 +27,12 @@ struct SensorInfo {
   std::optional<uint64_t> address;  ///< radio 64-bit address
 };
 
+/// Thicker than this (mm) is a units mistake, not a liner.
+inline constexpr double kMaxThicknessMm = 1000;
+
 struct CrusherConfig {
   std::string crusher_id;
+  std::string site;  ///< optional: the MQTT site level this crusher belongs to (empty: first heard)
   TimePoint installed_at{};
   double thickness_new_mm = 0;
   double thickness_min_mm = 0;
@@ -72,6 +76,8 @@ struct Bundle {
 
 /// Parses crusher.json. Throws InputError (file, line, rule).
 CrusherConfig LoadCrusherConfig(const std::filesystem::path& path);
+/// Refuses (InputError naming `file`) rows and sensors outside the wear map's z extent.
+void CheckCrusherAgainstMap(const CrusherConfig& config, const WearMap& map, const std::string& file);
 /// Parses readings.csv (header time,sensor_id,thickness_mm; extra columns ignored).
 std::vector<Reading> LoadReadings(const std::filesystem::path& path);
 std::vector<OperationsSample> LoadOperations(const std::filesystem::path& path);

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -30,6 +31,10 @@ std::optional<ReadingTopic> ParseReadingTopic(std::string_view topic, std::strin
 /// Readings stored but not used for wear: SPI stuck, or every loop open while the board still
 /// holds loops intact (a cut cable). Every loop open with none intact is a consumed sensor: real wear.
 bool IsFaultReading(int64_t flags, int64_t loops_intact);
+
+/// Parses `text`; false with *error set when it is not JSON. A number that overflows a double
+/// (`1e999`) is named by its field: `"flags" '1e999' does not fit a double (number overflow)`.
+bool ParseJsonNamingField(std::string_view text, nlohmann::json* out, std::string* error);
 
 /// Deepest nesting of [ and { in a JSON text (outside strings); no parsing, no recursion.
 size_t JsonNestingDepth(std::string_view text);
@@ -74,7 +79,6 @@ struct IngestResult {
   size_t rejected = 0;
   std::vector<Ack> acks;                   ///< grouped per (site, crusher, sensor), seqs ascending
   std::vector<StoredReading> new_readings;  ///< stored by this call (not duplicates)
-  std::set<std::pair<std::string, std::string>> sites;  ///< (crusher, site) of valid readings (MQTT)
   std::vector<std::string> log;             ///< one line per rejection or conflict
 };
 
@@ -82,7 +86,8 @@ struct IngestCounters {
   int64_t stored = 0, duplicates = 0, conflicts = 0, rejected = 0, batches = 0;
 };
 
-/// Thread-safe: the MQTT loop and REST handlers both call Ingest().
+/// Thread-safe: the MQTT loop and REST handlers both call Ingest(). A message that fails validation
+/// (or whose validation throws) is quarantined on its own: it never fails the rest of the batch.
 class Ingestor {
  public:
   Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s);
@@ -90,6 +95,10 @@ class Ingestor {
   /// failure (then nothing of the batch is stored and nothing may be acked).
   IngestResult Ingest(const std::vector<Incoming>& batch);
   IngestCounters Counters() const;
+  /// The site `crusher` belongs to: crusher.json's "site", else the first site a valid reading
+  /// was heard from (kept in the database). Readings, acks and wear go only to this site's topics;
+  /// a message for the crusher under any other site is quarantined and not acknowledged.
+  std::optional<std::string> SiteOf(const std::string& crusher) const;
   /// Per crusher: stored/duplicates/rejected since start.
   IngestCounters CrusherCounters(const std::string& crusher) const;
 
@@ -100,6 +109,7 @@ class Ingestor {
   mutable std::mutex mutex_;
   IngestCounters totals_;
   std::map<std::string, IngestCounters> per_crusher_;
+  std::map<std::string, std::string> sites_;  ///< crusher -> its site
 };
 
 }  // namespace lw::server

@@ -22,6 +22,7 @@ struct ServerOptions {
   std::string topic_root = "linerwatch/v1";
   std::string web_dir;     ///< default: the build's / installed dashboard folder
   std::string clock_file;  ///< simulation: "now" (unix ms) is read from this file
+  std::vector<std::string> allowed_hosts;  ///< host names the HTTP API answers to (besides addresses, localhost)
   int64_t wear_interval_ms = 1000;
   int64_t batch_max = 1000;
   int64_t commit_delay_ms = 5;  ///< group commit: wait this long for more readings before a commit

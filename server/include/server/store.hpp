@@ -37,6 +37,14 @@ enum class InsertOutcome {
   kConflict,   ///< the same key with different content: the first one is kept, this is logged
 };
 
+/// Caps on the `rejected` table: when a new row would exceed one, the oldest rows are deleted and
+/// counted (RejectedEvicted). Payloads longer than max_payload_bytes are stored truncated.
+struct RejectedLimits {
+  int64_t max_rows = 100'000;
+  int64_t max_bytes = 64LL << 20;
+  size_t max_payload_bytes = 4096;
+};
+
 struct Page {
   std::vector<StoredReading> readings;
   std::optional<std::string> next_cursor;
@@ -46,14 +54,21 @@ class Store {
  public:
   /// Opens (creating if needed) the database. Throws std::runtime_error naming the file on failure
   /// (unreadable, not a database, newer schema).
-  explicit Store(const std::filesystem::path& path);
+  /// A new database file is created with mode 0600.
+  explicit Store(const std::filesystem::path& path, RejectedLimits limits = {});
   ~Store();
   Store(const Store&) = delete;
   Store& operator=(const Store&) = delete;
 
-  /// Stores `readings` and `rejected` in ONE transaction; on any error nothing is committed and
+  /// Stores `readings`, `rejected` (each once: a message already quarantined is not stored again)
+  /// and new crusher -> site bindings in ONE transaction; on any error nothing is committed and
   /// std::runtime_error is thrown. Returns one outcome per reading, in order.
-  std::vector<InsertOutcome> Commit(const std::vector<StoredReading>& readings, const std::vector<Rejected>& rejected);
+  std::vector<InsertOutcome> Commit(const std::vector<StoredReading>& readings, const std::vector<Rejected>& rejected,
+                                    const std::vector<std::pair<std::string, std::string>>& new_sites = {});
+  /// Rejected rows deleted to stay within RejectedLimits, since the database was created.
+  int64_t RejectedEvicted();
+  /// (crusher, site) bindings learnt from the first site each crusher was heard from.
+  std::vector<std::pair<std::string, std::string>> CrusherSites();
 
   /// Latest reading (by time, then seq) of every sensor of `crusher` and its reading count.
   struct SensorSummary {

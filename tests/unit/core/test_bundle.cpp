@@ -88,3 +88,36 @@ TEST(Bundle, BadScansAndOperationsAreRefused) {
   dir.Write("operations.csv", "time,throughput_tph\n2026-01-01,lots\n");
   CHECK(ErrorOf(dir).find("operations.csv:2") != std::string::npos);
 }
+
+// crusher.json values that would load and then give wrong answers (or can never match a topic,
+// or put markup into the dashboard) are refused, naming the rule.
+TEST(Bundle, ImplausibleCrusherJsonIsRefused) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
+  auto with = [&](const std::string& from, const std::string& to) {
+    std::string j = lw::test::kCrusherJson;
+    const size_t at = j.find(from);
+    CHECK(at != std::string::npos);
+    dir.Write("crusher.json", j.replace(at, from.size(), to));
+    return ErrorOf(dir);
+  };
+  for (const char* id : {"\"\"", "\"+\"", "\"10/01\"", "\"<img src=x onerror=alert(1)>\"", "\"a b\""}) {
+    const std::string e = with("\"id\": \"1001\"", std::string("\"id\": ") + id);
+    CHECK_TEXT(e.find("sensor id") != std::string::npos, e.c_str());
+  }
+  CHECK(with("\"crusher_id\": \"cr1\"", "\"crusher_id\": \"c<b>\"").find("crusher_id") != std::string::npos);
+  CHECK(with("\"crusher_id\": \"cr1\"", "\"crusher_id\": \"cr1\", \"site\": \"a/b\"").find("site 'a/b'") != std::string::npos);
+  CHECK(with("\"z_m\": 0.5", "\"z_m\": 50").find("outside its row 'LDWN'") != std::string::npos);
+  CHECK(with("\"theta_deg\": 0", "\"theta_deg\": 9999").find("theta_deg") != std::string::npos);
+  CHECK(with("\"z_min_m\": 1.0, \"z_max_m\": 2.0", "\"z_min_m\": 0.5, \"z_max_m\": 2.0").find("overlaps row") != std::string::npos);
+  CHECK(with("\"thickness_new_mm\": 120", "\"thickness_new_mm\": 1e999").find("crusher.json") != std::string::npos);
+  CHECK(with("\"thickness_new_mm\": 120", "\"thickness_new_mm\": 120000").find("thickness") != std::string::npos);
+  // Rows and sensors must lie on the map (z in [0, 2] m here): a row at 40-50 m is a units mistake.
+  std::string j = lw::test::kCrusherJson;
+  j.replace(j.find("\"z_min_m\": 1.0, \"z_max_m\": 2.0"), 30, "\"z_min_m\": 40.0, \"z_max_m\": 50.0");
+  j.replace(j.find("\"z_m\": 1.5"), 10, "\"z_m\": 45");
+  dir.Write("crusher.json", j);
+  CHECK(ErrorOf(dir).find("outside the wear map's z range") != std::string::npos);
+  // A site given is kept.
+  with("\"crusher_id\": \"cr1\"", "\"crusher_id\": \"cr1\", \"site\": \"plant-2\"");
+  STRCMP_EQUAL("plant-2", LoadCrusherConfig(dir.path() / "crusher.json").site.c_str());
+}

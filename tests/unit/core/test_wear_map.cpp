@@ -30,6 +30,19 @@ WearMap Cone(int nt, int nz) {
   m.normal_stress = Eigen::VectorXd::Constant(static_cast<Eigen::Index>(m.faces.size()), 3.0);
   return m;
 }
+/// Writes `text` as `name` and loads it: the InputError's message, "" when it loaded, and any
+/// other exception named as such (a map must be refused with file, line and rule, not crash).
+std::string LoadError(const lw::test::ScratchDir& dir, const std::string& name, const std::string& text) {
+  dir.Write(name, text);
+  try {
+    LoadWearMap(dir.path() / name);
+  } catch (const InputError& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    return std::string("not an InputError: ") + e.what();
+  }
+  return "";
+}
 }  // namespace
 
 TEST_GROUP(WearMap) {};
@@ -94,15 +107,7 @@ TEST(WearMap, CsvExportReads) {
 
 TEST(WearMap, BadMapsNameFileLineAndRule) {
   lw::test::ScratchDir dir;
-  auto message = [&](const std::string& name, const std::string& text) -> std::string {
-    dir.Write(name, text);
-    try {
-      LoadWearMap(dir.path() / name);
-    } catch (const InputError& e) {
-      return e.what();
-    }
-    return "";
-  };
+  auto message = [&](const std::string& name, const std::string& text) { return LoadError(dir, name, text); };
   const std::string head = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n1 0 0 0 1 0 1 0 1 0 1 1\n";
   std::string m = message("quad.vtk", head + "POLYGONS 1 5\n4 0 1 3 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n1\n");
   CHECK(m.find("quad.vtk:8") != std::string::npos);
@@ -130,4 +135,30 @@ TEST(WearMap, ValidationFlagsZeroAndTruncatedMaps) {
   CHECK(v.zero_wear_fraction > 0.3);
   CHECK(v.looks_truncated);
   CHECK(v.warnings.size() >= 2);
+}
+
+// Maps that would load and then give plausible wrong answers are refused with file, line and rule.
+TEST(WearMap, ImplausibleMapsAreRefusedNotLoaded) {
+  lw::test::ScratchDir dir;
+  auto message = [&](const std::string& name, const std::string& text) { return LoadError(dir, name, text); };
+  const std::string head = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\n";
+  const std::string tri = "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n";
+  std::string m = message("neg.vtk", head + tri + "-0.5\n");
+  CHECK(m.find("neg.vtk:12") != std::string::npos);
+  CHECK(m.find(">= 0") != std::string::npos);
+  m = message("zero.vtk", head + tri + "0\n");
+  CHECK(m.find("zero.vtk") != std::string::npos);
+  CHECK(m.find("zero wear") != std::string::npos);
+  m = message("far.vtk", head + "POINTS 3 float\n1 0 0 0 1 0 1e308 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n1\n");
+  CHECK(m.find("far.vtk:6") != std::string::npos);
+  CHECK(m.find("from the crusher origin") != std::string::npos);
+  m = message("huge.vtk", head + "POINTS 4000000000000 float\n1 0 0\n");
+  CHECK(m.find("huge.vtk:5") != std::string::npos);
+  CHECK(m.find("more than the file holds") != std::string::npos);
+  m = message("cells.vtk", head + "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 99999999999 4\n3 0 1 2\n");
+  CHECK(m.find("more than the file holds") != std::string::npos);
+  m = message("neg.csv", "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,1,1\n1,0,0,0,1,0,1,0,1,-2\n");
+  CHECK(m.find("neg.csv:3") != std::string::npos);
+  m = message("far.csv", "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,5e3,1\n");
+  CHECK(m.find("far.csv:2") != std::string::npos);
 }

@@ -1,3 +1,6 @@
+#include <cstdio>
+#include <filesystem>
+
 #include "server/ingest.hpp"
 #include "server/wear_service.hpp"
 #include "unit/server/server_fixture.hpp"
@@ -177,4 +180,90 @@ TEST(Ingest, AConsumedSensorIsWearACutCableIsNot) {
   CHECK_TRUE(IsFaultReading(1 << 4, 42));  // SPI stuck
   CHECK_FALSE(IsFaultReading(1 << 0, 42)); // heartbeat
   LONGS_EQUAL(3, JsonNestingDepth(R"({"a":[{"b":"[[[[{{"}]})"));
+}
+
+// Finding: a number that overflows a double threw out of the JSON parser and failed the whole
+// batch (nothing stored, nothing acked). Now that message alone is quarantined and acked.
+TEST(Ingest, AnOverflowingNumberQuarantinesThatMessageOnly) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  Ingestor ingestor(store, *registry, [] { return Now(); });
+  const auto msgs = lw::test::Messages(Folder().bundle);
+  std::vector<Incoming> batch(msgs.begin(), msgs.begin() + 20);
+  batch.insert(batch.begin() + 10, With(R"({"sensor":"1001","seq":777,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":1e999,"battery_mv":3500})"));
+  IngestResult r;
+  try {
+    r = ingestor.Ingest(batch);
+  } catch (const std::exception& e) {
+    FAIL(e.what());
+  }
+  LONGS_EQUAL(20, r.stored);
+  LONGS_EQUAL(1, r.rejected);
+  bool acked = false;
+  for (const Ack& a : r.acks) acked |= a.sensor == "1001" && std::count(a.seqs.begin(), a.seqs.end(), 777) == 1;
+  CHECK_TRUE(acked);
+  // An overflowing seq identifies nothing: quarantined, but no seq (0 or other) is acknowledged.
+  r = ingestor.Ingest({With(R"({"sensor":"1001","seq":1e999,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":0,"battery_mv":3500})")});
+  LONGS_EQUAL(1, r.rejected);
+  LONGS_EQUAL(0, r.acks.size());
+  const std::string reason = Reject(batch[10]);
+  CHECK_TEXT(reason.find("\"flags\"") != std::string::npos, reason.c_str());
+  CHECK(reason.find("1e999") != std::string::npos);
+  LONGS_EQUAL(2, store.CountRejected());
+}
+
+// Finding: readings were keyed (crusher, sensor, seq) and the topic's site ignored, so a reading
+// forged under another site with a future seq was kept and the genuine one acked as a conflict
+// (and dropped from the gateway's spool). A crusher now belongs to one site.
+TEST(Ingest, AReadingUnderAnotherSiteIsQuarantinedNotAckedAndTheGenuineOneIsStored) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  const auto msgs = lw::test::Messages(Folder().bundle);
+  {
+    Store store(dir.File("db.sqlite"));
+    Ingestor ingestor(store, *registry, [] { return Now(); });
+    IngestResult r = ingestor.Ingest({msgs[0]});  // binds the crusher to site1, the first site heard
+    LONGS_EQUAL(1, r.stored);
+    CHECK(ingestor.SiteOf(Folder().id()) == std::optional<std::string>("site1"));
+  }
+  // After a restart (new Store and Ingestor on the same file) the binding holds.
+  Store store(dir.File("db.sqlite"));
+  Ingestor ingestor(store, *registry, [] { return Now(); });
+  CHECK(ingestor.SiteOf(Folder().id()) == std::optional<std::string>("site1"));
+  const Incoming genuine = msgs[1];
+  Incoming forged = lw::test::Messages(Folder().bundle, "evil")[1];
+  forged.payload.replace(forged.payload.find("\"thickness_mm\":"), 15, "\"thickness_mm\":1,\"x\":");
+  IngestResult r = ingestor.Ingest({forged});
+  LONGS_EQUAL(0, r.stored);
+  LONGS_EQUAL(1, r.rejected);
+  LONGS_EQUAL(0, r.acks.size());  // the forger's gateway is not told anything was committed
+  CHECK(r.log.at(0).find("is not crusher") != std::string::npos);
+  r = ingestor.Ingest({genuine});
+  LONGS_EQUAL(1, r.stored);
+  LONGS_EQUAL(0, r.conflicts);
+  LONGS_EQUAL(1, r.acks.size());
+  STRCMP_EQUAL("site1", r.acks[0].site.c_str());
+}
+
+TEST(Ingest, CrusherJsonSiteBindsBeforeAnyReading) {
+  lw::test::CrusherFolder folder(5, 3);
+  std::string json(std::filesystem::file_size(folder.folder + "/crusher.json"), '\0');
+  FILE* f = std::fopen((folder.folder + "/crusher.json").c_str(), "rb");
+  CHECK(f != nullptr && std::fread(json.data(), 1, json.size(), f) == json.size());
+  std::fclose(f);
+  json.insert(json.find('{') + 1, "\"site\": \"plant\", ");
+  f = std::fopen((folder.folder + "/crusher.json").c_str(), "wb");
+  std::fwrite(json.data(), 1, json.size(), f);
+  std::fclose(f);
+  std::vector<std::string> errors;
+  const auto reg = Registry::Load(folder.crushers, &errors);
+  CHECK_TEXT(errors.empty(), errors.empty() ? "" : errors[0].c_str());
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  Ingestor ingestor(store, *reg, [&] { return folder.bundle.readings.back().time.time_since_epoch().count(); });
+  IngestResult r = ingestor.Ingest({lw::test::Messages(folder.bundle, "site1")[0]});
+  LONGS_EQUAL(0, r.stored);
+  LONGS_EQUAL(0, r.acks.size());
+  r = ingestor.Ingest({lw::test::Messages(folder.bundle, "plant")[0]});
+  LONGS_EQUAL(1, r.stored);
+  STRCMP_EQUAL("plant", r.acks.at(0).site.c_str());
 }

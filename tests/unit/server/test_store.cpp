@@ -1,4 +1,7 @@
 #include <sqlite3.h>
+#include <sys/stat.h>
+
+#include <chrono>
 
 #include "server/store.hpp"
 #include "support/mosquitto_fixture.hpp"
@@ -139,4 +142,60 @@ TEST(Store, AResentBadMessageIsQuarantinedOnce) {
   s.Commit({}, {{1, "t/a", "garbage", "malformed JSON"}});
   s.Commit({}, {{2, "t/a", "garbage", "malformed JSON"}, {2, "t/a", "other", "malformed JSON"}});
   LONGS_EQUAL(2, s.CountRejected());
+}
+
+// Finding: the rejected table had no cap, kept payloads beyond the 64 KiB message limit, and its
+// duplicate check compared payloads row by row (10,000 rejected 6 kB readings took 212 s).
+TEST(Store, RejectedRowsAreCappedTruncatedAndEvictedOldestFirst) {
+  lw::server::RejectedLimits limits;
+  limits.max_rows = 50;
+  limits.max_bytes = 1 << 20;
+  limits.max_payload_bytes = 100;
+  Store s(db(), limits);
+  std::vector<lw::server::Rejected> batch;
+  for (int i = 0; i < 80; ++i) batch.push_back({i, "t", "payload " + std::to_string(i) + std::string(300, 'x'), "bad"});
+  s.Commit({}, batch);
+  LONGS_EQUAL(50, s.CountRejected());
+  LONGS_EQUAL(30, s.RejectedEvicted());
+  const auto newest = s.RejectedMessages(50);
+  CHECK(newest.front().payload.rfind("payload 79", 0) == 0);
+  CHECK(newest.back().payload.rfind("payload 30", 0) == 0);  // 0..29 went first
+  CHECK(newest.front().payload.size() < 160);
+  CHECK(newest.front().payload.find("[truncated: 310 bytes]") != std::string::npos);
+  // The byte cap holds too, and the eviction count survives a reopen.
+  limits.max_rows = 1000;
+  limits.max_bytes = 2000;
+  {
+    Store again(db(), limits);
+    again.Commit({}, {{100, "t", std::string(150, 'y'), "bad"}});
+    CHECK(again.CountRejected() <= 2000 / 100);
+    CHECK(again.RejectedEvicted() > 30);
+  }
+  // A resend of a truncated payload is still recognised (the digest covers the whole payload).
+  Store third(db(), limits);
+  const int64_t before = third.CountRejected();
+  third.Commit({}, {{101, "t", std::string(150, 'y'), "bad"}});
+  LONGS_EQUAL(before, third.CountRejected());
+}
+
+TEST(Store, TenThousandRejectedReadingsCommitInSeconds) {
+  Store s(db());
+  std::vector<lw::server::Rejected> batch;
+  for (int i = 0; i < 10000; ++i) batch.push_back({i, "", "{\"n\":" + std::to_string(i) + ",\"pad\":\"" + std::string(6000, 'z') + "\"}", "bad"});
+  const auto start = std::chrono::steady_clock::now();
+  s.Commit({}, batch);
+  s.Commit({}, batch);  // all duplicates: found through the index
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  LONGS_EQUAL(10000, s.CountRejected());
+  CHECK_TEXT(seconds < 60, std::to_string(seconds).c_str());  // generous: it was 212 s for one commit
+}
+
+TEST(Store, ANewDatabaseIsPrivateToItsOwner) {
+  Store s(db());
+  s.Commit({R("a", 1, 100, 90)}, {});
+  for (const std::string suffix : {"", "-wal", "-shm"}) {
+    struct stat st {};
+    CHECK_EQUAL(0, ::stat((db() + suffix).c_str(), &st));
+    LONGS_EQUAL(0, st.st_mode & 077);
+  }
 }
