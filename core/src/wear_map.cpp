@@ -88,8 +88,27 @@ class Tokens {
   long long Integer(const char* what) {
     const size_t l = line();
     const double v = Number(what);
-    if (v != std::floor(v) || v < 0) throw InputError(file_, l, std::string(what) + " must be a non-negative whole number");
+    // Counts and indices of a VTK file are 32-bit (VTK's own vtkIdType may be 64-bit, but no mesh
+    // linerwatch imports comes near 2^32 points).
+    if (v != std::floor(v) || v < 0 || v > 4294967295.0) {
+      throw InputError(file_, l, std::string(what) + " must be a whole number in [0, 4294967295]");
+    }
     return static_cast<long long>(v);
+  }
+  /// A count of items of `per_item` values each that must still be in the file: refuses counts the
+  /// file cannot hold before anything is allocated for them.
+  size_t Count(const char* what, size_t per_item) {
+    const size_t l = line();
+    const auto n = static_cast<size_t>(Integer(what));
+    NeedValues(n, per_item, what, l);
+    return n;
+  }
+  void NeedValues(size_t n, size_t per_item, const char* what, size_t l) const {
+    const size_t left = toks_.size() - pos_;
+    if (per_item != 0 && n > left / per_item) {
+      throw InputError(file_, l, std::string(what) + " " + std::to_string(n) + " needs " + std::to_string(per_item) +
+                                     " value(s) each but the file holds only " + std::to_string(left) + " more");
+    }
   }
   InputError Error(const std::string& rule) const { return InputError(file_, line(), rule); }
   // Line of the token just consumed (for messages about it).
@@ -139,7 +158,7 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
     const size_t kw_line = t.line();
     const std::string kw = t.Next("keyword");
     if (kw == "POINTS") {
-      const auto n = static_cast<size_t>(t.Integer("point count"));
+      const size_t n = t.Count("point count", 3);
       t.Next("point type");
       map.points.resize(n);
       for (auto& p : map.points) {
@@ -148,16 +167,23 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
         p.z() = t.Number("z");
       }
     } else if (kw == "POLYGONS" || kw == "VERTICES" || kw == "LINES" || kw == "TRIANGLE_STRIPS") {
-      const auto a = static_cast<size_t>(t.Integer("cell count"));
-      const auto b = static_cast<size_t>(t.Integer("cell size"));
+      const size_t a = t.Count("cell count", 1);
+      const size_t b = t.Count("cell size", 1);
       std::vector<std::array<uint32_t, 3>> faces;
       if (v5 && t.Peek() == "OFFSETS") {
         t.Next("OFFSETS");
         t.Next("offset type");
         std::vector<long long> offsets(a);
         for (auto& o : offsets) o = t.Integer("offset");
+        for (size_t i = 0; i < a; ++i) {
+          if (static_cast<size_t>(offsets[i]) > b || (i > 0 && offsets[i] < offsets[i - 1])) {
+            throw InputError(file, kw_line, "OFFSETS must not decrease nor exceed the CONNECTIVITY size " + std::to_string(b) +
+                                                " (offset " + std::to_string(i) + " is " + std::to_string(offsets[i]) + ")");
+          }
+        }
         if (t.Next("CONNECTIVITY") != "CONNECTIVITY") throw InputError(file, t.LastLine(), "expected CONNECTIVITY after OFFSETS");
         t.Next("connectivity type");
+        t.NeedValues(b, 1, "cell size", kw_line);
         std::vector<long long> conn(b);
         for (auto& c : conn) c = t.Integer("point index");
         for (size_t i = 0; i + 1 < a; ++i) {
@@ -171,7 +197,7 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
       } else {
         for (size_t i = 0; i < a; ++i) {
           const size_t line = t.line();
-          const long long k = t.Integer("vertex count");
+          const auto k = static_cast<long long>(t.Count("vertex count", 1));
           std::vector<uint32_t> idx(static_cast<size_t>(k));
           for (auto& v : idx) v = static_cast<uint32_t>(t.Integer("point index"));
           if (kw == "POLYGONS") {
@@ -192,11 +218,13 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
     } else if (kw == "SCALARS") {
       const std::string name = t.Next("array name");
       t.Next("data type");
-      int ncomp = 1;
-      if (t.Peek() != "LOOKUP_TABLE") ncomp = static_cast<int>(t.Integer("component count"));
+      size_t ncomp = 1;
+      if (t.Peek() != "LOOKUP_TABLE") ncomp = static_cast<size_t>(t.Integer("component count"));
       if (t.Next("LOOKUP_TABLE") != "LOOKUP_TABLE") throw InputError(file, t.LastLine(), "expected LOOKUP_TABLE after SCALARS " + name);
       t.Next("lookup table name");
-      const size_t n = (in_point_data ? point_data_count : cell_count) * static_cast<size_t>(ncomp);
+      const size_t tuples = in_point_data ? point_data_count : cell_count;
+      t.NeedValues(tuples, ncomp, name.c_str(), t.LastLine());
+      const size_t n = tuples * ncomp;
       Eigen::VectorXd v(static_cast<Eigen::Index>(n));
       for (size_t i = 0; i < n; ++i) v[static_cast<Eigen::Index>(i)] = t.Number(name.c_str());
       if (in_cell_data && ncomp == 1) Assign(map, name, std::move(v));
@@ -212,6 +240,7 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
         if (in_cell_data && ntuples != cell_count) {
           throw InputError(file, line, "array '" + name + "' has " + std::to_string(ntuples) + " tuples but CELL_DATA is " + std::to_string(cell_count));
         }
+        t.NeedValues(ntuples, ncomp, name.c_str(), line);
         Eigen::VectorXd v(static_cast<Eigen::Index>(ncomp * ntuples));
         for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = t.Number(name.c_str());
         if (in_cell_data && ncomp == 1) Assign(map, name, std::move(v));
@@ -372,14 +401,24 @@ void WearMap::ComputeGeometry() {
 }
 
 WearMap LoadWearMap(const std::filesystem::path& path, MapValidation* validation) {
-  const std::string text = ReadFile(path);
-  const std::string file = path.filename().string();
-  std::string ext = path.extension().string();
+  return ParseWearMap(ReadFile(path), path.filename().string(), validation);
+}
+
+WearMap ParseWearMap(const std::string& text, const std::string& file, MapValidation* validation) {
+  std::string ext = std::filesystem::path(file).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   WearMap map;
   if (ext == ".vtk") map = ParseVtk(text, file);
   else if (ext == ".csv") map = ParseCsv(text, file);
   else throw InputError(file, 0, "unknown map format '" + ext + "' (expected .vtk or .csv)");
+  // Metres in the crusher frame: a coordinate beyond 1000 km is a unit or export error, and would
+  // overflow the geometry (areas, normals) to infinity.
+  constexpr double kMaxCoordinateM = 1e6;
+  for (size_t i = 0; i < map.points.size(); ++i) {
+    if (map.points[i].cwiseAbs().maxCoeff() > kMaxCoordinateM) {
+      throw InputError(file, 0, "point " + std::to_string(i) + " has a coordinate beyond 1e6 m (the map must be in metres)");
+    }
+  }
   const auto n = static_cast<Eigen::Index>(map.faces.size());
   for (const auto* arr : {&map.normal_stress, &map.shear_stress}) {
     if (arr->size() != 0 && arr->size() != n) throw InputError(file, 0, "per-face array length differs from the face count");

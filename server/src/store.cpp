@@ -46,6 +46,8 @@ class InUse {
   Stmt& s_;
 };
 
+}  // namespace
+
 std::string MakeCursor(int64_t time_s, int64_t seq) { return "t" + std::to_string(time_s) + "s" + std::to_string(seq); }
 
 void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq) {
@@ -62,8 +64,6 @@ void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq) {
     throw std::invalid_argument("cursor '" + cursor + "' is not one this server issued");
   }
 }
-
-}  // namespace
 
 struct Store::Impl {
   Db db;
