@@ -9,6 +9,12 @@ namespace lw::gateway {
 
 using nlohmann::json;
 
+namespace {
+/// Text from the radio (NI strings) or the host is not always UTF-8: invalid bytes become U+FFFD
+/// instead of an exception that would lose the message.
+std::string Dump(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
+}  // namespace
+
 std::string IsoUtc(int64_t unix_ms) {
   int64_t secs = unix_ms / 1000;
   if (unix_ms < 0 && unix_ms % 1000 != 0) --secs;
@@ -64,11 +70,11 @@ std::string ReadingJson(const protocol::ReadingsHeader& header, const protocol::
       {"gateway", context.gateway_id},
       {"received", IsoUtc(context.received_ms)},
   };
-  return j.dump();
+  return Dump(j);
 }
 
 std::string StatusJson(bool online, const std::string& gateway_id, int64_t now_ms) {
-  return json{{"state", online ? "online" : "offline"}, {"gateway", gateway_id}, {"time", IsoUtc(now_ms)}}.dump();
+  return Dump({{"state", online ? "online" : "offline"}, {"gateway", gateway_id}, {"time", IsoUtc(now_ms)}});
 }
 
 std::string DevicesJson(const std::vector<DeviceEntry>& devices, const std::string& gateway_id, int64_t now_ms) {
@@ -80,7 +86,7 @@ std::string DevicesJson(const std::vector<DeviceEntry>& devices, const std::stri
     if (d.device_type >= 0) e["device_type"] = d.device_type;
     list.push_back(std::move(e));
   }
-  return json{{"gateway", gateway_id}, {"time", IsoUtc(now_ms)}, {"devices", std::move(list)}}.dump();
+  return Dump({{"gateway", gateway_id}, {"time", IsoUtc(now_ms)}, {"devices", std::move(list)}});
 }
 
 std::optional<CommitAck> ParseCommitAck(std::string_view payload, const std::string& topic_sensor, std::string* error) {

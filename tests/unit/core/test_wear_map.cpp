@@ -30,6 +30,16 @@ WearMap Cone(int nt, int nz) {
   m.normal_stress = Eigen::VectorXd::Constant(static_cast<Eigen::Index>(m.faces.size()), 3.0);
   return m;
 }
+/// The InputError message of loading `text` as the map file `name`; "" when it loads.
+std::string ErrorOf(const lw::test::ScratchDir& dir, const std::string& name, const std::string& text) {
+  dir.Write(name, text);
+  try {
+    LoadWearMap(dir.path() / name);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
 }  // namespace
 
 TEST_GROUP(WearMap) {};
@@ -94,15 +104,7 @@ TEST(WearMap, CsvExportReads) {
 
 TEST(WearMap, BadMapsNameFileLineAndRule) {
   lw::test::ScratchDir dir;
-  auto message = [&](const std::string& name, const std::string& text) -> std::string {
-    dir.Write(name, text);
-    try {
-      LoadWearMap(dir.path() / name);
-    } catch (const InputError& e) {
-      return e.what();
-    }
-    return "";
-  };
+  auto message = [&](const std::string& name, const std::string& text) { return ErrorOf(dir, name, text); };
   const std::string head = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n1 0 0 0 1 0 1 0 1 0 1 1\n";
   std::string m = message("quad.vtk", head + "POLYGONS 1 5\n4 0 1 3 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n1\n");
   CHECK(m.find("quad.vtk:8") != std::string::npos);
@@ -118,6 +120,54 @@ TEST(WearMap, BadMapsNameFileLineAndRule) {
   m = message("short.csv", "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,1\n");
   CHECK(m.find("short.csv:2") != std::string::npos);
   CHECK(message("m.stl", "solid").find("unknown map format") != std::string::npos);
+}
+
+// Found by fuzz/ (fuzz_wear_map_vtk): counts the file cannot hold were allocated before reading
+// (a 4e9-point header asked for 96 GB), counts above 2^63 were cast to integers (undefined
+// behaviour), VTK 5.1 OFFSETS past CONNECTIVITY were read out of bounds, and huge coordinates made
+// areas and normals infinite. Each must be a clear InputError naming the rule.
+TEST(WearMap, AbsurdCountsOffsetsAndCoordinatesAreInputErrors) {
+  lw::test::ScratchDir dir;
+  auto message = [&](const std::string& name, const std::string& text) { return ErrorOf(dir, name, text); };
+  const std::string v42 = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\n";
+  const std::string tail = "POLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n1\n";
+  std::string m = message("points.vtk", v42 + "POINTS 4000000000 float\n1 0 0 0 1 0 1 0 1\n" + tail);
+  CHECK_TEXT(m.find("points.vtk:5") != std::string::npos && m.find("point count 4000000000 needs 3") != std::string::npos, m.c_str());
+  m = message("cast.vtk", v42 + "POINTS 1e19 float\n1 0 0\n");
+  CHECK_TEXT(m.find("[0, 4294967295]") != std::string::npos, m.c_str());
+  m = message("cells.vtk", v42 + "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3000000000 0 1 2\n");
+  CHECK_TEXT(m.find("vertex count") != std::string::npos, m.c_str());
+  m = message("scalars.vtk", v42 + "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 3000000000\n"
+                                   "SCALARS wear float 3000000000\nLOOKUP_TABLE default\n1\n");
+  CHECK_TEXT(m.find("wear 3000000000 needs") != std::string::npos, m.c_str());
+  m = message("field.vtk", v42 + "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\n"
+                                 "FIELD FieldData 1\nwear 4000000000 1 double\n1\n");
+  CHECK_TEXT(m.find("wear 1 needs 4000000000") != std::string::npos, m.c_str());
+  const std::string v51 = "# vtk DataFile Version 5.1\nmap\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n1 0 0 0 1 0 1 0 1\n";
+  m = message("offsets.vtk", v51 + "POLYGONS 2 3\nOFFSETS vtktypeint64\n4000 4003\nCONNECTIVITY vtktypeint64\n0 1 2\n"
+                                   "CELL_DATA 1\nFIELD FieldData 1\nwear 1 1 double\n1\n");
+  CHECK_TEXT(m.find("OFFSETS") != std::string::npos, m.c_str());
+  m = message("far.vtk", v42 + "POINTS 3 float\n1e200 0 0 0 1e200 0 1 0 1e200\n" + tail);
+  CHECK_TEXT(m.find("point 0 has a coordinate beyond 1e6 m") != std::string::npos, m.c_str());
+  m = message("far.csv", "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,2e6,1\n");
+  CHECK_TEXT(m.find("point 2 has a coordinate beyond 1e6 m") != std::string::npos, m.c_str());
+}
+
+TEST(WearMap, ParsesFromMemoryLikeFromAFile) {
+  lw::test::ScratchDir dir;
+  const std::string csv = "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,1,0.5\n";
+  dir.Write("m.csv", csv);
+  const WearMap from_file = LoadWearMap(dir.path() / "m.csv");
+  const WearMap from_memory = ParseWearMap(csv, "m.csv");
+  CHECK_EQUAL(from_file.sha256, from_memory.sha256);
+  LONGS_EQUAL(1, from_memory.face_count());
+  DOUBLES_EQUAL(0.5, from_memory.wear[0], 0);
+  try {
+    ParseWearMap(csv, "m.stl");
+    FAIL("an unknown extension was accepted");
+  } catch (const InputError& e) {
+    CHECK_EQUAL(std::string("m.stl"), e.file());
+  }
 }
 
 TEST(WearMap, ValidationFlagsZeroAndTruncatedMaps) {
