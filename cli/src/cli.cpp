@@ -1,5 +1,6 @@
 #include "cli/cli.hpp"
 
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -14,6 +15,10 @@
 #include "core/reconstruction.hpp"
 #include "core/time.hpp"
 #include "core/wear_map.hpp"
+#include "dem/case_writer.hpp"
+#include "dem/chamber.hpp"
+#include "dem/map_builder.hpp"
+#include "dem/runner.hpp"
 #include "diagnosis/diagnose.hpp"
 
 namespace lw::cli {
@@ -34,6 +39,15 @@ constexpr const char* kUsage =
     "      Eq. 9 global wear from the sensors' latest readings (at TIME, default: the last reading);\n"
     "      prints a per-row summary. A reading n means [n, n+1) mm: estimates use n + 0.5, as the\n"
     "      server does; --lower-bound uses n (the thinnest the liner can be).\n"
+    "  dem CRUSHER_DIR [--work DIR] [--stage case|run|map|all] [--np N] [--windows K] [--install]\n"
+    "                  [--mpirun PATH] [--liggghts PATH] [--progress-every S] [--config FILE]\n"
+    "      Make the crusher's DEM wear map with LIGGGHTS from the \"chamber\" of its crusher.json\n"
+    "      (defaults: a 62-75 primary gyratory; docs/dem.md): write the case (STL meshes, input\n"
+    "      script, Slurm script, MPI hostfile example) into DIR (default CRUSHER_DIR/dem), run it with\n"
+    "      `mpirun -np N liggghts` (default N 2; after a stop it resumes from the newest restart\n"
+    "      file), and build DIR/wear_map.vtk (wear over the steady, choke-fed span; wear_stderr from\n"
+    "      K independent time windows; averaged stresses), wear_windows.vtk and dem_summary.json.\n"
+    "      --install then copies them into CRUSHER_DIR (replacing its wear_map.vtk).\n"
     "\n"
     "options:\n"
     "  --config FILE   JSON object with the same options, e.g. {\"bundle\": \"b\", \"json\": \"out.json\",\n"
@@ -289,6 +303,115 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   return 0;
 }
 
+extern "C" void OnStopSignal(int) { dem::RequestStop(); }
+
+void CopyAtomically(const fs::path& from, const fs::path& to) {
+  fs::path tmp = to;
+  tmp += ".tmp";
+  fs::copy_file(from, tmp, fs::copy_options::overwrite_existing);
+  fs::rename(tmp, to);
+}
+
+int Dem(const std::vector<std::string>& args, std::ostream& out) {
+  const Options o = ParseOptions(args, 1, {"work", "stage", "np", "windows", "mpirun", "liggghts", "progress_every"},
+                                 {"install"});
+  if (!o.Has("bundle")) throw UsageError("dem needs CRUSHER_DIR (a folder with crusher.json)");
+  const fs::path crusher_dir = o.Get("bundle");
+  const fs::path crusher_file = crusher_dir / "crusher.json";
+  std::error_code ec;
+  if (!fs::is_regular_file(crusher_file, ec)) throw BadInput(crusher_file.string() + ": missing (a crusher folder holds crusher.json)");
+  const std::string stage = o.Has("stage") ? o.Get("stage") : "all";
+  if (stage != "case" && stage != "run" && stage != "map" && stage != "all")
+    throw UsageError("--stage must be case, run, map or all (not '" + stage + "')");
+  auto whole = [&](const std::string& key, int lo, int hi) {
+    const std::string v = o.Get(key);
+    try {
+      size_t used = 0;
+      const int x = std::stoi(v, &used);
+      if (used != v.size() || x < lo || x > hi) throw std::out_of_range(key);
+      return x;
+    } catch (const std::exception&) {
+      throw UsageError("--" + key + " must be a whole number from " + std::to_string(lo) + " to " + std::to_string(hi) +
+                       " (not '" + v + "')");
+    }
+  };
+  dem::RunOptions run;
+  if (o.Has("np")) run.np = whole("np", 1, 4096);
+  if (o.Has("mpirun")) run.mpirun = o.Get("mpirun");
+  if (o.Has("liggghts")) run.liggghts = o.Get("liggghts");
+  if (o.Has("progress_every")) run.progress_every_s = whole("progress_every", 1, 3600);
+  const int windows = o.Has("windows") ? whole("windows", 2, 100) : 0;
+
+  nlohmann::json crusher_json;
+  {
+    std::ifstream in(crusher_file);
+    try {
+      crusher_json = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::exception& e) {
+      throw BadInput(crusher_file.string() + ": invalid JSON (" + std::string(e.what()) + ")");
+    }
+  }
+  const core::CrusherConfig crusher = core::LoadCrusherConfig(crusher_file);
+  dem::ChamberSpec spec;
+  try {
+    spec = dem::ChamberFromCrusherJson(crusher_json, crusher_file.string());
+  } catch (const std::invalid_argument& e) {
+    throw BadInput(e.what());
+  }
+  const fs::path work = o.Has("work") ? fs::path(o.Get("work")) : crusher_dir / "dem";
+
+  if (stage == "case" || stage == "all") {
+    dem::WriteCase(spec, work);
+    const dem::CaseSteps st = dem::StepsOf(spec);
+    out << "dem: case for '" << spec.name << "' in " << work.string() << ": " << 2 * spec.mesh_n_theta * spec.mesh_n_z
+        << " concave faces, CSS " << std::lround(1000 * spec.closed_side_setting_m()) << " mm, " << st.total << " steps of "
+        << spec.timestep_s << " s (" << spec.simulated_s << " s simulated), dumps every " << st.dump_every << " steps\n";
+  }
+  if (stage == "run" || stage == "all") {
+    if (!fs::is_regular_file(work / dem::CaseLayout::kInput, ec))
+      throw BadInput(work.string() + ": no case here (run with --stage case first)");
+    struct sigaction sa {};
+    sa.sa_handler = OnStopSignal;
+    sigemptyset(&sa.sa_mask);
+    struct sigaction old_int {}, old_term {};
+    sigaction(SIGINT, &sa, &old_int);
+    sigaction(SIGTERM, &sa, &old_term);
+    const dem::RunResult r = dem::RunCase(spec, work, run, out);
+    sigaction(SIGINT, &old_int, nullptr);
+    sigaction(SIGTERM, &old_term, nullptr);
+    if (!r.completed) throw BadInput(r.message);
+    out << "dem: run complete" << (r.wall_s > 0 ? " after " + std::to_string(std::lround(r.wall_s)) + " s of wall time" : std::string())
+        << "\n";
+  }
+  if (stage == "map" || stage == "all") {
+    nlohmann::json summary;
+    try {
+      summary = dem::BuildMap(spec, work, crusher.rows, work, windows);
+    } catch (const std::runtime_error& e) {
+      throw BadInput(e.what());
+    }
+    out << "dem: " << (work / dem::MapFiles::kMap).string() << ": " << summary["faces"].get<size_t>() << " faces, "
+        << summary["windows"]["count"].get<int>() << " windows of " << summary["windows"]["window_s"].get<double>()
+        << " s from t = " << summary["steady"]["from_s"].get<double>() << " s, median relative stderr "
+        << summary["median_rel_stderr"].get<double>() << "\n";
+    for (const auto& r : summary["rows"]) {
+      char line[200];
+      std::snprintf(line, sizeof line, "dem:   %-6s mean %.4g  ratio %.2f  CV %.2f  faces >10x mean %d\n",
+                    r["row"].get<std::string>().c_str(), r["mean_wear"].get<double>(), r["ratio"].get<double>(),
+                    r["cv"].get<double>(), r["faces_over_10x_mean"].get<int>());
+      out << line;
+    }
+    if (!summary["steady"]["note"].get<std::string>().empty()) out << "dem: caution: " << summary["steady"]["note"].get<std::string>() << "\n";
+    if (!summary["steady"]["choke_fed"].get<bool>()) out << "dem: caution: the hopper ran empty in the steady span (not choke fed)\n";
+    if (o.Flag("install")) {
+      for (const char* f : {dem::MapFiles::kMap, dem::MapFiles::kWindows, dem::MapFiles::kSummary})
+        CopyAtomically(work / f, crusher_dir / f);
+      out << "dem: installed wear_map.vtk, wear_windows.vtk and dem_summary.json into " << crusher_dir.string() << "\n";
+    }
+  }
+  return 0;
+}
+
 std::string OneLine(std::string s) {
   for (char& c : s)
     if (c == '\n' || c == '\r') c = ' ';
@@ -299,7 +422,7 @@ std::string OneLine(std::string s) {
 
 int RunCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   try {
-    if (args.empty()) throw UsageError("missing command (diagnose, reconstruct); see --help");
+    if (args.empty()) throw UsageError("missing command (diagnose, reconstruct, dem); see --help");
     const std::string& command = args[0];
     for (const auto& a : args) {
       if (a == "--help" || a == "-h") {
@@ -309,7 +432,8 @@ int RunCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     }
     if (command == "diagnose") return Diagnose(args, out);
     if (command == "reconstruct") return Reconstruct(args, out);
-    throw UsageError("unknown command '" + command + "' (diagnose, reconstruct); see --help");
+    if (command == "dem") return Dem(args, out);
+    throw UsageError("unknown command '" + command + "' (diagnose, reconstruct, dem); see --help");
   } catch (const UsageError& e) {
     err << "linerwatch: " << OneLine(e.what()) << "\n";
     return 2;

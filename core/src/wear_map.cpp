@@ -436,8 +436,11 @@ WearMap ParseWearMap(const std::string& text, const std::string& file, MapValida
 }
 
 void WriteWearMapVtk(const std::filesystem::path& path, const WearMap& map,
-                     const std::vector<std::pair<std::string, const Eigen::VectorXd*>>& cell_arrays) {
+                     const std::vector<std::pair<std::string, const Eigen::VectorXd*>>& cell_arrays,
+                     const std::string& title) {
   const auto n = map.face_count();
+  if (title.empty() || title.size() > 255 || title.find_first_of("\r\n") != std::string::npos)
+    throw std::invalid_argument("a VTK title is one line of 1 to 255 characters");
   for (const auto& [name, arr] : cell_arrays) {
     if (!arr || static_cast<size_t>(arr->size()) != n) throw std::invalid_argument("cell array '" + name + "' does not have one value per face");
     if (name.empty() || name.find_first_of(" \t\n") != std::string::npos) throw std::invalid_argument("cell array name '" + name + "' is not a VTK name");
@@ -448,7 +451,7 @@ void WriteWearMapVtk(const std::filesystem::path& path, const WearMap& map,
     std::ofstream out(tmp);
     if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
     out.precision(10);
-    out << "# vtk DataFile Version 4.2\nlinerwatch wear map\nASCII\nDATASET POLYDATA\n";
+    out << "# vtk DataFile Version 4.2\n" << title << "\nASCII\nDATASET POLYDATA\n";
     out << "POINTS " << map.points.size() << " double\n";
     for (const auto& p : map.points) out << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
     out << "POLYGONS " << n << ' ' << 4 * n << '\n';

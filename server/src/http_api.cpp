@@ -234,7 +234,11 @@ void HttpApi::Impl::Routes() {
            {"installed_at", core::FormatIsoTime(c->config.installed_at)},
            {"concave", {{"thickness_new_mm", c->config.thickness_new_mm}, {"thickness_min_mm", c->config.thickness_min_mm}, {"rows", rows}}},
            {"sensors", sensors},
-           {"map", {{"sha256", c->map.sha256}, {"face_count", c->map.face_count()}, {"warnings", c->validation.warnings}}},
+           {"map", {{"sha256", c->map.sha256},
+                    {"face_count", c->map.face_count()},
+                    {"warnings", c->validation.warnings},
+                    {"has_stderr", c->map.extra.count("wear_stderr") > 0},
+                    {"dem_summary", c->dem_summary}}},
            {"counters", {{"readings_stored", stored}, {"duplicates", cc.duplicates}, {"conflicts", cc.conflicts}, {"rejected", cc.rejected}}}});
   });
 

@@ -1,6 +1,7 @@
 #include "server/registry.hpp"
 
 #include <algorithm>
+#include <fstream>
 #include <stdexcept>
 
 namespace lw::server {
@@ -16,6 +17,17 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
   }
   c->map = core::LoadWearMap(map_path, &c->validation);
   c->plan = core::PrepareReconstruction(c->config, c->map, options);
+  const auto summary_path = folder / "dem_summary.json";
+  if (std::filesystem::exists(summary_path)) {
+    std::ifstream in(summary_path);
+    try {
+      c->dem_summary = nlohmann::json::parse(in);
+      if (!c->dem_summary.is_object()) throw std::runtime_error("not a JSON object");
+    } catch (const std::exception& e) {  // the map itself is fine: say so and go on without it
+      c->dem_summary = nullptr;
+      c->validation.warnings.push_back("dem_summary.json ignored: " + std::string(e.what()));
+    }
+  }
   return c;
 }
 

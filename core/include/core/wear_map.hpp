@@ -75,8 +75,9 @@ WearMap ParseWearMap(const std::string& text, const std::string& file, MapValida
 
 /// Writes a legacy VTK 4.2 ASCII POLYDATA with the given per-face arrays (name -> values, each of
 /// face_count() entries) as CELL_DATA SCALARS. Writes to a temporary file and renames, so no partial
-/// file is left on failure.
+/// file is left on failure. `title` is the VTK title line (one line, at most 255 characters).
 void WriteWearMapVtk(const std::filesystem::path& path, const WearMap& map,
-                     const std::vector<std::pair<std::string, const Eigen::VectorXd*>>& cell_arrays);
+                     const std::vector<std::pair<std::string, const Eigen::VectorXd*>>& cell_arrays,
+                     const std::string& title = "linerwatch wear map");
 
 }  // namespace lw::core

@@ -4,6 +4,7 @@
 /// export). Maps are validated and hashed on import; the reconstruction plan is prepared once.
 #include <filesystem>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <memory>
 #include <string>
 #include <vector>
@@ -20,6 +21,9 @@ struct Crusher {
   core::WearMap map;
   core::MapValidation validation;
   core::ReconstructionPlan plan;  ///< points into config and map (a Crusher never moves)
+  /// dem_summary.json of the folder when the map was made by `linerwatch dem` (docs/dem.md): its
+  /// validation summary, shown by GET /api/v1/crushers/{c}; null when absent.
+  nlohmann::json dem_summary;
 };
 
 class Registry {

@@ -1,0 +1,319 @@
+#include "dem/map_builder.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+
+#include "core/wear_map.hpp"
+#include "dem/case_writer.hpp"
+#include "dem/runner.hpp"
+#include "dem/series.hpp"
+
+namespace lw::dem {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Sample {
+  double t, n, m_chamber, m_hopper, m_total, m_inserted;
+};
+
+std::vector<Sample> ReadSeries(const fs::path& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error(file.string() + ": missing (was the case run?)");
+  std::vector<Sample> out;
+  std::string line;
+  size_t n = 0;
+  while (std::getline(in, line)) {
+    ++n;
+    if (line.empty() || !(std::isdigit(static_cast<unsigned char>(line[0])) || line[0] == '-')) continue;
+    std::istringstream ls(line);
+    Sample s{};
+    if (!(ls >> s.t >> s.n >> s.m_chamber >> s.m_hopper >> s.m_total >> s.m_inserted))
+      throw std::runtime_error(file.string() + ":" + std::to_string(n) + ": expected 6 numbers");
+    if (!out.empty() && s.t <= out.back().t) continue;  // a resumed run may repeat a sample
+    out.push_back(s);
+  }
+  return out;
+}
+
+// Index of each face of `m` in `ref`, matched by centroid (LIGGGHTS may gather faces in another
+// order from run to run, e.g. after a restart on another rank count).
+std::vector<size_t> MatchFaces(const core::WearMap& ref, const core::WearMap& m, const std::string& file) {
+  if (m.face_count() != ref.face_count())
+    throw std::runtime_error(file + ": " + std::to_string(m.face_count()) + " faces, the first dump has " +
+                             std::to_string(ref.face_count()));
+  std::vector<size_t> idx(m.face_count());
+  bool same = true;
+  for (size_t i = 0; i < m.face_count() && same; ++i) same = (m.centroids[i] - ref.centroids[i]).norm() < 1e-6;
+  if (same) {
+    for (size_t i = 0; i < idx.size(); ++i) idx[i] = i;
+    return idx;
+  }
+  auto key = [](const Eigen::Vector3d& c) {
+    std::ostringstream k;
+    k << std::llround(c.x() * 1e5) << ',' << std::llround(c.y() * 1e5) << ',' << std::llround(c.z() * 1e5);
+    return k.str();
+  };
+  std::map<std::string, size_t> where;
+  for (size_t i = 0; i < ref.face_count(); ++i) where[key(ref.centroids[i])] = i;
+  for (size_t i = 0; i < m.face_count(); ++i) {
+    auto it = where.find(key(m.centroids[i]));
+    if (it == where.end()) throw std::runtime_error(file + ": face " + std::to_string(i) + " is not a face of the first dump");
+    idx[i] = it->second;
+  }
+  return idx;
+}
+
+Eigen::VectorXd Reorder(const Eigen::VectorXd& v, const std::vector<size_t>& idx) {
+  Eigen::VectorXd out(v.size());
+  for (size_t i = 0; i < idx.size(); ++i) out[static_cast<Eigen::Index>(idx[i])] = v[static_cast<Eigen::Index>(i)];
+  return out;
+}
+
+// The dump's mesh with shared points (LIGGGHTS repeats each triangle's points).
+core::WearMap SharedPointMesh(const core::WearMap& dump) {
+  core::WearMap m;
+  std::map<std::tuple<long long, long long, long long>, uint32_t> ids;
+  for (const auto& f : dump.faces) {
+    std::array<uint32_t, 3> nf{};
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d& p = dump.points[f[static_cast<size_t>(k)]];
+      const auto key = std::make_tuple(std::llround(p.x() * 1e7), std::llround(p.y() * 1e7), std::llround(p.z() * 1e7));
+      auto it = ids.find(key);
+      if (it == ids.end()) {
+        it = ids.emplace(key, static_cast<uint32_t>(m.points.size())).first;
+        m.points.push_back(p);
+      }
+      nf[static_cast<size_t>(k)] = it->second;
+    }
+    m.faces.push_back(nf);
+  }
+  m.wear = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.faces.size()));
+  m.ComputeGeometry();
+  return m;
+}
+
+std::string LiggghtsVersion(const fs::path& case_dir) {
+  for (int a = 1; a < 100; ++a) {
+    std::ifstream in(case_dir / ("log." + std::to_string(a) + ".liggghts"));
+    if (!in) break;
+    std::string line;
+    std::getline(in, line);
+    const auto p = line.find("Version ");
+    if (p != std::string::npos) {
+      const auto e = line.find(',', p);
+      std::string v = line.substr(p + 8, e == std::string::npos ? std::string::npos : e - p - 8);
+      const auto d = v.rfind(' ');
+      return d == std::string::npos ? v : v.substr(d + 1);
+    }
+  }
+  return "unknown";
+}
+
+nlohmann::json Attempts(const fs::path& case_dir) {
+  nlohmann::json a = nlohmann::json::array();
+  std::ifstream in(case_dir / "attempts.txt");
+  int attempt = 0, np = 0;
+  long from = 0;
+  double wall = 0;
+  std::string state;
+  while (in >> attempt >> from >> wall >> np >> state)
+    a.push_back({{"attempt", attempt}, {"from_step", from}, {"wall_s", wall}, {"np", np}, {"state", state}});
+  return a;
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::vector<core::Row> rows, const fs::path& out_dir,
+                        int windows) {
+  const CaseSteps steps = StepsOf(spec);
+  const fs::path post = case_dir / CaseLayout::kDumpDir;
+  const auto dump_steps = StepsInFolder(post, "concave_", ".vtk");
+  if (dump_steps.empty() || dump_steps.back() < steps.total)
+    throw std::runtime_error(post.string() + ": the run is not complete (last dump at step " +
+                             std::to_string(dump_steps.empty() ? 0 : dump_steps.back()) + " of " + std::to_string(steps.total) +
+                             "); run `linerwatch dem` again to resume it");
+  const auto series = ReadSeries(case_dir / CaseLayout::kMassSeries);
+  std::vector<double> t, m;
+  for (const auto& s : series) t.push_back(s.t), m.push_back(s.m_chamber);
+  const SteadyWindow steady = DetectSteadyWindow(t, m);
+  if (!steady.found)
+    throw std::runtime_error((case_dir / CaseLayout::kMassSeries).string() + ": no steady, choke-fed span: " + steady.reason);
+
+  // Dumps inside the steady span (the first one at or after its start).
+  std::vector<double> dump_t;
+  for (long s : dump_steps) dump_t.push_back(static_cast<double>(s) * spec.timestep_s);
+  size_t first = 0;
+  while (first < dump_t.size() && dump_t[first] < steady.t_start - 1e-9) ++first;
+  const size_t last = dump_t.size() - 1;
+  const double span = first < dump_t.size() ? dump_t[last] - dump_t[first] : 0;
+  const double gyration_s = 60.0 / spec.speed_rpm;
+  const double min_window_s = std::max(3 * gyration_s, spec.dump_interval_s);
+  const int requested = windows > 0 ? windows : spec.windows;
+  int k = ChooseWindowCount(span, min_window_s, requested);
+  if (k > 0 && static_cast<long>(last - first) < k) k = static_cast<int>(last - first);
+  if (k < 2)
+    throw std::runtime_error(case_dir.string() + ": the steady span (" + std::to_string(span) + " s from t = " +
+                             std::to_string(steady.t_start) + " s) holds fewer than " +
+                             std::to_string(requested > 0 ? requested : 2) + " windows of " + std::to_string(min_window_s) +
+                             " s; raise chamber.simulated_s and run again (it resumes)");
+  const auto win = SplitWindows(first, last, k);
+
+  // Load the dumps of the span; wear is cumulative, stresses are per-dump averages.
+  const auto load = [&](size_t i) {
+    const fs::path f = post / ("concave_" + std::to_string(dump_steps[i]) + ".vtk");
+    return core::LoadWearMap(f);
+  };
+  const core::WearMap ref = load(first);
+  if (!ref.has_normal_stress() || !ref.has_shear_stress())
+    throw std::runtime_error(post.string() + ": dumps lack normal/shear stress (the case must dump `stress wear`)");
+  const auto n = static_cast<Eigen::Index>(ref.face_count());
+  std::vector<Eigen::VectorXd> cum(dump_t.size()), sn(dump_t.size()), ss(dump_t.size());
+  cum[first] = ref.wear, sn[first] = ref.normal_stress, ss[first] = ref.shear_stress;
+  for (size_t i = first + 1; i <= last; ++i) {
+    const core::WearMap d = load(i);
+    const auto idx = MatchFaces(ref, d, "concave_" + std::to_string(dump_steps[i]) + ".vtk");
+    cum[i] = Reorder(d.wear, idx), sn[i] = Reorder(d.normal_stress, idx), ss[i] = Reorder(d.shear_stress, idx);
+  }
+  std::vector<Eigen::VectorXd> w_inc, w_sn;
+  Eigen::VectorXd total = Eigen::VectorXd::Zero(n), sn_avg = Eigen::VectorXd::Zero(n), ss_avg = Eigen::VectorXd::Zero(n);
+  for (const auto& [b, e] : win) {
+    w_inc.push_back(cum[e] - cum[b]);
+    Eigen::VectorXd a = Eigen::VectorXd::Zero(n);
+    for (size_t i = b + 1; i <= e; ++i) a += sn[i];
+    w_sn.push_back(a / static_cast<double>(e - b));
+    total += w_inc.back();
+  }
+  for (size_t i = first + 1; i <= last; ++i) sn_avg += sn[i], ss_avg += ss[i];
+  sn_avg /= static_cast<double>(last - first), ss_avg /= static_cast<double>(last - first);
+  // Standard error of the total: sqrt(K) x the sample sd of the K window increments.
+  Eigen::VectorXd stderr_total = Eigen::VectorXd::Zero(n);
+  const Eigen::VectorXd mean_inc = total / k;
+  for (const auto& w : w_inc) stderr_total += (w - mean_inc).cwiseAbs2();
+  stderr_total = (stderr_total / (k - 1)).cwiseSqrt() * std::sqrt(static_cast<double>(k));
+
+  core::WearMap out = SharedPointMesh(ref);
+  out.wear = total;
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  char title[256];
+  std::snprintf(title, sizeof title, "linerwatch dem %s windows=%d window_s=%.3f steady_from_s=%.3f steady_to_s=%.3f liggghts=%s",
+                spec.name.c_str(), k, span / k, dump_t[first], dump_t[last], LiggghtsVersion(case_dir).c_str());
+  core::WriteWearMapVtk(out_dir / MapFiles::kMap, out,
+                        {{"wear", &total}, {"wear_stderr", &stderr_total}, {"normal_stress_average", &sn_avg},
+                         {"shear_stress_average", &ss_avg}},
+                        title);
+  std::vector<std::string> names;
+  std::vector<std::pair<std::string, const Eigen::VectorXd*>> arrays = {{"wear", &total}};  // loads as a map too
+  for (int i = 0; i < k; ++i) names.push_back("wear_w" + std::to_string(i + 1));
+  for (int i = 0; i < k; ++i) names.push_back("normal_stress_w" + std::to_string(i + 1));
+  for (int i = 0; i < k; ++i) arrays.push_back({names[static_cast<size_t>(i)], &w_inc[static_cast<size_t>(i)]});
+  for (int i = 0; i < k; ++i) arrays.push_back({names[static_cast<size_t>(k + i)], &w_sn[static_cast<size_t>(i)]});
+  core::WriteWearMapVtk(out_dir / MapFiles::kWindows, out, arrays, title);
+
+  // Validation summary.
+  if (rows.empty()) {
+    const double h = spec.height_m();
+    rows = {{"LDWN", 0, h / 3}, {"LMID", h / 3, 2 * h / 3}, {"LUP", 2 * h / 3, h}};
+  }
+  nlohmann::json summary;
+  summary["name"] = spec.name;
+  summary["liggghts"] = LiggghtsVersion(case_dir);
+  summary["faces"] = out.face_count();
+  summary["steps"] = steps.total;
+  summary["simulated_s"] = static_cast<double>(steps.total) * spec.timestep_s;
+  summary["attempts"] = Attempts(case_dir);
+  double wall = 0;
+  for (const auto& a : summary["attempts"]) wall += a["wall_s"].get<double>();
+  summary["runtime_s"] = wall;
+  // Steady span and flow.
+  double flow_tph = 0, hopper_min = 1e300;
+  {
+    const Sample* a = nullptr;
+    const Sample* b = nullptr;
+    for (const auto& s : series)
+      if (s.t >= dump_t[first] - 1e-9 && s.t <= dump_t[last] + 1e-9) {
+        if (!a) a = &s;
+        b = &s;
+        hopper_min = std::min(hopper_min, s.m_hopper);
+      }
+    if (a && b && b->t > a->t) flow_tph = ((b->m_inserted - b->m_total) - (a->m_inserted - a->m_total)) / (b->t - a->t) * 3.6;
+  }
+  summary["steady"] = {{"from_s", dump_t[first]}, {"to_s", dump_t[last]}, {"chamber_mass_t", steady.level / 1000.0},
+                       {"band_t", steady.band / 1000.0}, {"drift", steady.drift}, {"note", steady.reason},
+                       {"mass_flow_tph", flow_tph}, {"hopper_min_t", hopper_min / 1000.0},
+                       {"choke_fed", hopper_min > 0.05 * steady.level}};
+  summary["windows"] = {{"count", k}, {"window_s", span / k}, {"min_window_s", min_window_s}};
+  // Rows: area-weighted mean intensity, spread, zero faces, edge outliers, noise.
+  nlohmann::json jrows = nlohmann::json::array();
+  std::vector<double> means;
+  size_t zero_faces = 0, outliers = 0, edge_outliers = 0;
+  const double band_h = spec.height_m() / spec.mesh_n_z;
+  for (Eigen::Index i = 0; i < n; ++i) zero_faces += total[i] <= 0 ? 1 : 0;
+  for (const auto& row : rows) {
+    double aw = 0, a = 0;
+    std::vector<double> vals, rel_se;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (out.z[i] < row.z_min_m || out.z[i] >= row.z_max_m) continue;
+      aw += out.areas[i] * total[i], a += out.areas[i];
+      vals.push_back(total[i]);
+      if (total[i] > 0) rel_se.push_back(stderr_total[i] / total[i]);
+    }
+    const double mean = a > 0 ? aw / a : 0;
+    double var = 0;
+    for (double v : vals) var += (v - mean) * (v - mean);
+    const double cv = vals.size() > 1 && mean > 0 ? std::sqrt(var / static_cast<double>(vals.size() - 1)) / mean : 0;
+    size_t row_out = 0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (out.z[i] < row.z_min_m || out.z[i] >= row.z_max_m || mean <= 0) continue;
+      if (total[i] > 10 * mean) {
+        ++row_out;
+        const bool edge = out.z[i] < band_h || out.z[i] > spec.height_m() - band_h;
+        edge_outliers += edge ? 1 : 0;
+      }
+    }
+    outliers += row_out;
+    means.push_back(mean);
+    jrows.push_back({{"row", row.name}, {"z_min_m", row.z_min_m}, {"z_max_m", row.z_max_m}, {"faces", vals.size()},
+                     {"mean_wear", mean}, {"cv", cv}, {"median_rel_stderr", Median(rel_se)}, {"faces_over_10x_mean", row_out}});
+  }
+  const double lowest = *std::min_element(means.begin(), means.end());
+  for (size_t r = 0; r < jrows.size(); ++r) jrows[r]["ratio"] = lowest > 0 ? means[r] / lowest : 0.0;
+  summary["rows"] = jrows;
+  std::vector<double> rel;
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (total[i] > 0) rel.push_back(stderr_total[i] / total[i]);
+  summary["faces_zero"] = zero_faces;
+  summary["faces_zero_fraction"] = static_cast<double>(zero_faces) / static_cast<double>(n);
+  summary["faces_over_10x_row_mean"] = outliers;
+  summary["edge_faces_over_10x_row_mean"] = edge_outliers;
+  summary["median_rel_stderr"] = Median(rel);
+  // Correlation of wear with normal stress across faces (shared sampling noise shows here too).
+  {
+    const double mw = total.mean(), ms = sn_avg.mean();
+    const double cov = ((total.array() - mw) * (sn_avg.array() - ms)).sum();
+    const double den = std::sqrt((total.array() - mw).square().sum() * (sn_avg.array() - ms).square().sum());
+    summary["corr_wear_normal_stress"] = den > 0 ? cov / den : 0.0;
+  }
+  summary["chamber"] = ToJson(spec);
+  const fs::path tmp = out_dir / (std::string(MapFiles::kSummary) + ".tmp");
+  {
+    std::ofstream o(tmp);
+    o << summary.dump(2) << "\n";
+    if (!o) throw std::runtime_error("cannot write " + tmp.string());
+  }
+  fs::rename(tmp, out_dir / MapFiles::kSummary);
+  return summary;
+}
+
+}  // namespace lw::dem
