@@ -35,6 +35,7 @@ constexpr Option kOptions[] = {
     {"gateway-id", Kind::kString, "gateway id in messages and MQTT client id (default gw-HOSTNAME)"},
     {"spool-max-records", Kind::kPositiveInt, "spool capacity in records (default 1000000)"},
     {"window", Kind::kPositiveInt, "records per sensor awaiting a commit ack (default 1: strict order)"},
+    {"max-devices", Kind::kPositiveInt, "device registry entries at most; new radios beyond are not registered (default 1000)"},
     {"republish-after", Kind::kSeconds, "seconds before an unconfirmed record is republished (default 30)"},
     {"stats-interval", Kind::kSeconds, "seconds between gateway/stats messages (default 60)"},
     {"reconnect-min", Kind::kSeconds, "first reconnect delay, seconds (default 1)"},
@@ -91,6 +92,7 @@ void Assign(Config* c, const std::string& name, const std::string& text, const s
   else if (n == "gateway-id") c->gateway_id = text;
   else if (n == "spool-max-records") c->spool_max_records = static_cast<size_t>(integer);
   else if (n == "window") c->window = static_cast<size_t>(integer);
+  else if (n == "max-devices") c->max_devices = static_cast<size_t>(integer);
   else if (n == "republish-after") c->republish_after_s = seconds;
   else if (n == "stats-interval") c->stats_interval_s = seconds;
   else if (n == "reconnect-min") c->reconnect_min_s = seconds;

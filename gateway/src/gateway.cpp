@@ -36,10 +36,13 @@ Gateway::Gateway(GatewayOptions options, Spool& spool, Publisher& publisher, Byt
 }
 
 void Gateway::Log(const std::string& line) const {
+  // Lines carry node identifiers, topics and message text from the radio and the broker: escape
+  // control characters so that nothing can forge or garble a log line.
+  const std::string safe = SanitizeForLog(line);
   if (options_.log) {
-    options_.log(line);
+    options_.log(safe);
   } else {
-    std::fprintf(stderr, "%s\n", line.c_str());
+    std::fprintf(stderr, "%s\n", safe.c_str());
   }
 }
 
@@ -49,8 +52,8 @@ void Gateway::LogLimited(const std::string& kind, const std::string& line) {
 }
 
 void Gateway::OnBytes(const uint8_t* data, size_t len, int64_t now_ms) {
-  for (size_t i = 0; i < len; ++i) {
-    switch (decoder_.Feed(data[i])) {
+  decoder_.Feed(data, len, [&](protocol::DecodeEvent event) {
+    switch (event) {
       case protocol::DecodeEvent::kNone:
         break;
       case protocol::DecodeEvent::kFrame:
@@ -69,7 +72,7 @@ void Gateway::OnBytes(const uint8_t* data, size_t len, int64_t now_ms) {
         LogLimited("truncated", "serial: truncated frame dropped");
         break;
     }
-  }
+  });
 }
 
 void Gateway::OnFrame(const uint8_t* frame, size_t len, int64_t now_ms) {
@@ -234,7 +237,15 @@ void Gateway::SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, cons
 void Gateway::NoteDevice(const DeviceEntry& device) {
   const std::string key = device.address + "/" + device.sensor;
   // Sensors are checked in memory on every frame; the database is touched only for news.
-  if (!device.sensor.empty() && known_devices_.count(key)) return;
+  const bool known = known_devices_.count(key) != 0;
+  if (!device.sensor.empty() && known) return;
+  if (!known && known_devices_.size() >= options_.max_devices) {
+    ++counters_.devices_refused;
+    LogLimited("registry_full", "registry: full (" + std::to_string(known_devices_.size()) + " entries, --max-devices); " +
+                                    (device.sensor.empty() ? std::string("node") : "sensor " + device.sensor) + " at " +
+                                    device.address + " not registered (its readings are still spooled)");
+    return;
+  }
   bool changed = false;
   try {
     changed = spool_.RecordDevice(device);
@@ -245,9 +256,16 @@ void Gateway::NoteDevice(const DeviceEntry& device) {
   }
   known_devices_.insert(key);
   if (!changed) return;
-  Log("registry: " + (device.sensor.empty() ? std::string("node") : "sensor " + device.sensor) + " at " + device.address +
-      (device.node_identifier.empty() ? "" : " \"" + device.node_identifier + "\""));
-  devices_dirty_ = true;
+  // New entries are logged each (at most --max-devices lines); changes of a known node's
+  // identification are rate limited (a radio can send them without end).
+  const std::string line = "registry: " + (device.sensor.empty() ? std::string("node") : "sensor " + device.sensor) + " at " +
+                           device.address + (device.node_identifier.empty() ? "" : " \"" + device.node_identifier + "\"");
+  if (known) {
+    LogLimited("registry_update", line);
+  } else {
+    Log(line);
+  }
+  dirty_devices_.insert(device.address);
 }
 
 void Gateway::OnConnected(int64_t now_ms) {
@@ -256,7 +274,7 @@ void Gateway::OnConnected(int64_t now_ms) {
   // every sensor's queue over, in order.
   in_flight_.clear();
   records_dirty_ = true;
-  devices_dirty_ = true;
+  all_devices_dirty_ = true;
   publisher_.Publish({StatusTopic(), StatusJson(true, options_.gateway_id, now_ms), 1, true});
   Pump(now_ms);
 }
@@ -278,19 +296,35 @@ void Gateway::OnMessage(std::string_view topic, std::string_view payload, int64_
     LogLimited("bad_commit", "mqtt: bad commit ack on " + std::string(topic) + ": " + error);
     return;
   }
+  // Only records this gateway published and is waiting for are released. The server acks what
+  // it received; anything else (a seq never published since the last connect, or not spooled)
+  // cannot be the server's answer to us, so a forged or stale ack cannot empty the backlog. A
+  // genuine late ack that is skipped costs one republication.
+  std::vector<uint32_t> awaited;
+  auto it = in_flight_.find(ack->sensor);
+  for (uint32_t seq : ack->seqs) {
+    if (it != in_flight_.end() && it->second.count(seq)) {
+      awaited.push_back(seq);
+    } else {
+      ++counters_.commit_acks_ignored;
+    }
+  }
+  if (awaited.size() < ack->seqs.size()) {
+    LogLimited("ack_ignored", "mqtt: commit ack on " + std::string(topic) + " names " +
+                                  std::to_string(ack->seqs.size() - awaited.size()) +
+                                  " seq(s) not published and awaiting an ack; ignored");
+  }
+  if (awaited.empty()) return;
   std::vector<int64_t> received;
   try {
-    received = spool_.Confirm(ack->sensor, ack->seqs);
+    received = spool_.Confirm(ack->sensor, awaited);
   } catch (const std::exception& e) {
     ++counters_.spool_errors;
     LogLimited("spool_error", std::string("spool: confirm failed (records kept, will be republished): ") + e.what());
     return;
   }
-  auto it = in_flight_.find(ack->sensor);
-  if (it != in_flight_.end()) {
-    for (uint32_t seq : ack->seqs) it->second.erase(seq);
-    if (it->second.empty()) in_flight_.erase(it);
-  }
+  for (uint32_t seq : awaited) it->second.erase(seq);
+  if (it->second.empty()) in_flight_.erase(it);
   for (int64_t r : received) {
     const int64_t latency = std::max<int64_t>(0, now_ms - r);
     ++counters_.committed;
@@ -312,8 +346,9 @@ void Gateway::Pump(int64_t now_ms) {
   next_republish_check_ms_ = std::min(next_republish_check_ms_, now_ms + options_.republish_after_ms);
   next_stats_ms_ = std::min(next_stats_ms_, now_ms + options_.stats_interval_ms);
   if (publisher_.IsConnected()) {
-    if (devices_dirty_) PublishDevices(now_ms);
+    // Readings first: a registry of many radios must not delay them.
     if (records_dirty_ || now_ms >= next_republish_check_ms_) PublishRecords(now_ms);
+    if (all_devices_dirty_ || !dirty_devices_.empty()) PublishDevices(now_ms);
   }
   if (options_.stats_interval_ms > 0 && now_ms >= next_stats_ms_) {
     next_stats_ms_ = now_ms + options_.stats_interval_ms;
@@ -321,10 +356,24 @@ void Gateway::Pump(int64_t now_ms) {
   }
 }
 
+bool Gateway::PublishDevice(const std::string& address, const std::vector<DeviceEntry>& entries, int64_t now_ms) {
+  if (entries.empty()) return true;
+  return publisher_.Publish({DeviceTopic(address), DeviceJson(entries, options_.gateway_id, now_ms), 1, true});
+}
+
 void Gateway::PublishDevices(int64_t now_ms) {
+  // One small retained message per radio, and only for what changed: a new address costs one
+  // message, not the whole registry (300 announced nodes made 4 MB when it was one message).
   try {
-    const std::string payload = DevicesJson(spool_.Devices(), options_.gateway_id, now_ms);
-    if (publisher_.Publish({DevicesTopic(), payload, 1, true})) devices_dirty_ = false;
+    if (all_devices_dirty_) {
+      for (const DeviceEntry& d : spool_.Devices()) dirty_devices_.insert(d.address);
+      all_devices_dirty_ = false;
+    }
+    // Stops at the first refusal (client buffer full): the rest go on a later Pump, none twice.
+    for (auto it = dirty_devices_.begin(); it != dirty_devices_.end();) {
+      if (!PublishDevice(*it, spool_.Devices(*it), now_ms)) return;
+      it = dirty_devices_.erase(it);
+    }
   } catch (const std::exception& e) {
     ++counters_.spool_errors;
     LogLimited("spool_error", std::string("spool: reading the device registry: ") + e.what());
@@ -407,6 +456,10 @@ std::string Gateway::StatsJson(int64_t now_ms) const {
       {"republished", counters_.republished},
       {"committed", counters_.committed},
       {"bad_commit_acks", counters_.bad_commit_acks},
+      {"commit_acks_ignored", counters_.commit_acks_ignored},
+      {"devices", known_devices_.size()},
+      {"max_devices", options_.max_devices},
+      {"devices_refused", counters_.devices_refused},
       {"connects", counters_.connects},
       {"publish_latency_ms", latency},
   };

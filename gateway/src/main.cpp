@@ -33,7 +33,8 @@ int64_t NowMs() {
 }
 
 void Log(const std::string& line) {
-  std::fprintf(stderr, "linerwatch-gateway: %s\n", line.c_str());
+  // Lines carry text from the radio and the broker: control characters are escaped.
+  std::fprintf(stderr, "linerwatch-gateway: %s\n", lw::gateway::SanitizeForLog(line).c_str());
   std::fflush(stderr);
 }
 
@@ -67,6 +68,7 @@ int Run(const lw::gateway::Config& config) {
   options.gateway_id = config.gateway_id;
   options.api_mode = config.api_mode == 1 ? lw::protocol::ApiMode::kUnescaped : lw::protocol::ApiMode::kEscaped;
   options.window = config.window;
+  options.max_devices = config.max_devices;
   options.republish_after_ms = static_cast<int64_t>(config.republish_after_s * 1000);
   options.stats_interval_ms = static_cast<int64_t>(config.stats_interval_s * 1000);
   options.log = Log;

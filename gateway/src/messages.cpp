@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <ctime>
 
@@ -77,21 +78,115 @@ std::string StatusJson(bool online, const std::string& gateway_id, int64_t now_m
   return Dump({{"state", online ? "online" : "offline"}, {"gateway", gateway_id}, {"time", IsoUtc(now_ms)}});
 }
 
-std::string DevicesJson(const std::vector<DeviceEntry>& devices, const std::string& gateway_id, int64_t now_ms) {
-  json list = json::array();
-  for (const DeviceEntry& d : devices) {
-    json e = {{"address", d.address}, {"first_seen", IsoUtc(d.first_seen_ms)}};
-    if (!d.sensor.empty()) e["sensor"] = d.sensor;
-    if (!d.node_identifier.empty()) e["node_identifier"] = d.node_identifier;
-    if (d.device_type >= 0) e["device_type"] = d.device_type;
-    list.push_back(std::move(e));
+std::string DeviceJson(const std::vector<DeviceEntry>& entries, const std::string& gateway_id, int64_t now_ms) {
+  json j = {{"gateway", gateway_id}, {"time", IsoUtc(now_ms)}};
+  json sensors = json::array();
+  int64_t first_seen = 0;
+  for (const DeviceEntry& d : entries) {
+    j["address"] = d.address;
+    if (first_seen == 0 || d.first_seen_ms < first_seen) first_seen = d.first_seen_ms;
+    if (!d.sensor.empty()) sensors.push_back(d.sensor);
+    if (!d.node_identifier.empty()) j["node_identifier"] = d.node_identifier;
+    if (d.device_type >= 0) j["device_type"] = d.device_type;
   }
-  return Dump({{"gateway", gateway_id}, {"time", IsoUtc(now_ms)}, {"devices", std::move(list)}});
+  j["first_seen"] = IsoUtc(first_seen);
+  j["sensors"] = std::move(sensors);
+  // Node identifiers come from the radio: never let a byte that is not UTF-8 stop the message.
+  return Dump(j);
 }
 
+std::string SanitizeForLog(std::string_view text, size_t max_bytes) {
+  static constexpr char kHex[] = "0123456789ABCDEF";
+  std::string out;
+  const size_t n = std::min(text.size(), max_bytes);
+  out.reserve(n + 16);
+  for (size_t i = 0; i < n; ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if (c == '\\') {
+      out += "\\\\";
+    } else if (c < 0x20 || c >= 0x7F) {
+      out += "\\x";
+      out.push_back(kHex[c >> 4]);
+      out.push_back(kHex[c & 0xF]);
+    } else {
+      out.push_back(static_cast<char>(c));
+    }
+  }
+  if (text.size() > n) out += "... (" + std::to_string(text.size()) + " bytes)";
+  return out;
+}
+
+namespace {
+
+// SAX pass that only measures nesting and stops at the first level beyond the limit, so that a
+// hostile message (`[[[[...` 100 000 deep) is refused without building a tree or recursing.
+class DepthLimit {
+ public:
+  explicit DepthLimit(size_t max_depth) : max_depth_(max_depth) {}
+  bool too_deep() const { return too_deep_; }
+  bool null() { return true; }
+  bool boolean(bool) { return true; }
+  bool number_integer(json::number_integer_t) { return true; }
+  bool number_unsigned(json::number_unsigned_t) { return true; }
+  bool number_float(json::number_float_t, const json::string_t&) { return true; }
+  bool string(json::string_t&) { return true; }
+  bool binary(json::binary_t&) { return true; }
+  bool key(json::string_t&) { return true; }
+  bool start_object(std::size_t) { return Enter(); }
+  bool start_array(std::size_t) { return Enter(); }
+  bool end_object() { return Leave(); }
+  bool end_array() { return Leave(); }
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) { return false; }
+
+ private:
+  bool Enter() {
+    if (++depth_ > max_depth_) too_deep_ = true;
+    return !too_deep_;
+  }
+  bool Leave() {
+    --depth_;
+    return true;
+  }
+  size_t max_depth_;
+  size_t depth_ = 0;
+  bool too_deep_ = false;
+};
+
+// Describes a JSON value for an error message without serialising it (a nested value may be
+// arbitrarily large): numbers and short strings as they are, anything else by its type.
+std::string Describe(const json& v) {
+  if (v.is_number() || v.is_boolean() || v.is_null()) return v.dump();
+  if (v.is_string() && v.get_ref<const std::string&>().size() <= 32) return v.dump();
+  const std::string type = v.type_name();
+  return (v.is_object() || v.is_array() ? "an " : "a ") + type;
+}
+
+// Size and nesting checked before a tree is built.
+std::optional<json> ParseBoundedJson(std::string_view text, size_t max_bytes, size_t max_depth, std::string* error) {
+  if (text.size() > max_bytes) {
+    *error = "message of " + std::to_string(text.size()) + " bytes (at most " + std::to_string(max_bytes) + ")";
+    return std::nullopt;
+  }
+  DepthLimit limit(max_depth);
+  if (!json::sax_parse(text, &limit, json::input_format_t::json, /*strict=*/true, /*ignore_comments=*/false)) {
+    *error = limit.too_deep() ? "JSON nested deeper than " + std::to_string(max_depth) + " levels" : "not JSON";
+    return std::nullopt;
+  }
+  json j = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) {
+    *error = "not JSON";
+    return std::nullopt;
+  }
+  return j;
+}
+
+}  // namespace
+
 std::optional<CommitAck> ParseCommitAck(std::string_view payload, const std::string& topic_sensor, std::string* error) {
-  const json j = json::parse(payload, nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded() || !j.is_object()) {
+  auto parsed = ParseBoundedJson(payload, kMaxCommitAckBytes, kMaxCommitAckDepth, error);
+  if (!parsed) return std::nullopt;
+  const json& j = *parsed;
+  if (!j.is_object()) {
     *error = "not a JSON object";
     return std::nullopt;
   }
@@ -118,9 +213,14 @@ std::optional<CommitAck> ParseCommitAck(std::string_view payload, const std::str
     *error = "\"seqs\" must be an array of sequence numbers";
     return std::nullopt;
   }
+  if (seqs->size() > kMaxCommitAckSeqs) {
+    *error = "\"seqs\" holds " + std::to_string(seqs->size()) + " sequence numbers (at most " +
+             std::to_string(kMaxCommitAckSeqs) + ")";
+    return std::nullopt;
+  }
   for (const json& s : *seqs) {
     if (!s.is_number_unsigned() || s.get<uint64_t>() > 0xFFFFFFFFull) {
-      *error = "\"seqs\" holds " + s.dump() + ", not a 32-bit unsigned sequence number";
+      *error = "\"seqs\" holds " + Describe(s) + ", not a 32-bit unsigned sequence number";
       return std::nullopt;
     }
     ack.seqs.push_back(static_cast<uint32_t>(s.get<uint64_t>()));

@@ -151,10 +151,12 @@ bool Spool::RecordDevice(const DeviceEntry& device) {
   return !known || sqlite3_changes(db_->database.get()) > 0;
 }
 
-std::vector<DeviceEntry> Spool::Devices() const {
+std::vector<DeviceEntry> Spool::Devices(const std::string& address) const {
   std::vector<DeviceEntry> out;
   Stmt all(db_->database,
-           "SELECT address, sensor, node_identifier, device_type, first_seen_ms FROM devices ORDER BY first_seen_ms, address");
+           "SELECT address, sensor, node_identifier, device_type, first_seen_ms FROM devices"
+           " WHERE ?1 = '' OR address = ?1 ORDER BY first_seen_ms, address");
+  all.Bind(1, address);
   while (all.Step()) {
     DeviceEntry d;
     d.address = all.Text(0);

@@ -23,13 +23,16 @@ class TemplateAdc final : public Adc {
 };
 
 class TemplateUart final : public Uart {
-  // TX: copy into a ring buffer drained by the TX-empty interrupt. RX: the RX interrupt fills a
-  // ring buffer; DoRead drains it with interrupts briefly masked.
+  // TX: copy into a ring buffer drained by the TX-empty interrupt. RX: the RX interrupt pushes
+  // into a hal::port::SpscRing (hal/port/spsc_ring.hpp: acquire/release indices, overrun count,
+  // no masking needed where 32-bit atomics are lock-free); DoRead pops from it.
   size_t DoWrite(const uint8_t*, size_t) override { return 0; }
   size_t DoRead(uint8_t*, size_t) override { return 0; }
 };
 
 class TemplateRtc final : public Rtc {
+  // A hardware RTC counts seconds itself. A port that derives time from a millisecond tick uses
+  // hal::port::TickCounter64 (hal/port/tick_counter.hpp): a uint32 ms count wraps in 49.7 days.
   uint32_t DoNowSeconds() override { return 0; }
   void DoSetAlarm(uint32_t) override {}
 };

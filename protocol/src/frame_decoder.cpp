@@ -16,41 +16,63 @@ bool IsKnownType(uint8_t t) {
 }  // namespace
 
 DecodeEvent FrameDecoder::Feed(uint8_t byte) {
-  // A start delimiter always begins a new frame: in mode 2 it can never appear escaped, and in
-  // mode 1 a 0x7E inside a frame is only legal as data, so only treat it as a restart while idle
-  // (mode 1) or anywhere (mode 2).
-  if (mode_ == ApiMode::kEscaped) {
-    if (byte == kStartDelimiter) {
-      DecodeEvent ev = DecodeEvent::kNone;
-      if (escape_next_) {
-        ++counters_.escape_errors;
-        ev = DecodeEvent::kEscapeError;
-      } else if (state_ != State::kIdle) {
-        ++counters_.truncated_frames;
-        ev = DecodeEvent::kTruncated;
-      }
-      escape_next_ = false;
-      state_ = State::kLengthHigh;
-      return ev;
-    }
-    if (state_ == State::kIdle) {
-      ++counters_.bytes_discarded;
-      return DecodeEvent::kNone;
-    }
-    if (escape_next_) {
-      escape_next_ = false;
-      return Accept(static_cast<uint8_t>(byte ^ kEscapeXor));
-    }
-    if (byte == kEscape) {
-      escape_next_ = true;
-      return DecodeEvent::kNone;
-    }
-    return Accept(byte);
+  if (mode_ == ApiMode::kEscaped) return FeedEscaped(byte);
+  if (queue_length_ == 0) return FeedUnescaped(byte);
+  // The caller did not drain Next(): keep stream order by queueing the byte behind the others.
+  if (queue_head_ + queue_length_ == sizeof(queue_)) {
+    for (size_t i = 0; i < queue_length_; ++i) queue_[i] = queue_[queue_head_ + i];
+    queue_head_ = 0;
   }
-  return FeedUnescaped(byte);
+  if (queue_length_ < sizeof(queue_)) {
+    queue_[queue_head_ + queue_length_++] = byte;
+  } else {
+    ++counters_.bytes_discarded;
+  }
+  return Next();
+}
+
+DecodeEvent FrameDecoder::Next() {
+  while (queue_length_ > 0) {
+    const uint8_t byte = queue_[queue_head_++];
+    if (--queue_length_ == 0) queue_head_ = 0;
+    const DecodeEvent ev = FeedUnescaped(byte);
+    if (ev != DecodeEvent::kNone) return ev;
+  }
+  return DecodeEvent::kNone;
+}
+
+DecodeEvent FrameDecoder::FeedEscaped(uint8_t byte) {
+  // In mode 2 a start delimiter is never escaped, so an unescaped 0x7E always begins a new frame.
+  if (byte == kStartDelimiter) {
+    DecodeEvent ev = DecodeEvent::kNone;
+    if (escape_next_) {
+      ++counters_.escape_errors;
+      ev = DecodeEvent::kEscapeError;
+    } else if (state_ != State::kIdle) {
+      ++counters_.truncated_frames;
+      ev = DecodeEvent::kTruncated;
+    }
+    escape_next_ = false;
+    state_ = State::kLengthHigh;
+    return ev;
+  }
+  if (state_ == State::kIdle) {
+    ++counters_.bytes_discarded;
+    return DecodeEvent::kNone;
+  }
+  if (escape_next_) {
+    escape_next_ = false;
+    return Accept(static_cast<uint8_t>(byte ^ kEscapeXor));
+  }
+  if (byte == kEscape) {
+    escape_next_ = true;
+    return DecodeEvent::kNone;
+  }
+  return Accept(byte);
 }
 
 DecodeEvent FrameDecoder::FeedUnescaped(uint8_t byte) {
+  // In mode 1 a 0x7E inside a frame is legal data: only an idle decoder starts a frame on it.
   if (state_ == State::kIdle) {
     if (byte == kStartDelimiter) {
       state_ = State::kLengthHigh;
@@ -62,29 +84,30 @@ DecodeEvent FrameDecoder::FeedUnescaped(uint8_t byte) {
   }
   if (raw_length_ < sizeof(raw_)) raw_[raw_length_++] = byte;
   const DecodeEvent ev = Accept(byte);
-  if ((ev == DecodeEvent::kChecksumError || ev == DecodeEvent::kLengthError) && !replaying_) {
-    return Resync(ev);
-  }
+  if (ev == DecodeEvent::kChecksumError || ev == DecodeEvent::kLengthError) Requeue();
   return ev;
 }
 
-DecodeEvent FrameDecoder::Resync(DecodeEvent error) {
-  // Copy out: replaying refills raw_.
-  uint8_t pending[sizeof(raw_)];
-  const size_t n = raw_length_;
-  for (size_t i = 0; i < n; ++i) pending[i] = raw_[i];
+void FrameDecoder::Requeue() {
   size_t start = 0;
-  while (start < n && pending[start] != kStartDelimiter) ++start;
-  if (start == n) return error;
-  counters_.bytes_discarded += static_cast<uint32_t>(start);
-  replaying_ = true;
-  DecodeEvent last = error;
-  for (size_t i = start; i < n; ++i) {
-    const DecodeEvent ev = FeedUnescaped(pending[i]);
-    if (ev == DecodeEvent::kFrame && i + 1 == n) last = ev;
+  while (start < raw_length_ && raw_[start] != kStartDelimiter) ++start;
+  const size_t n = raw_length_ - start;
+  raw_length_ = 0;
+  if (n == 0) return;
+  counters_.bytes_discarded += start;
+  // New queue: raw_[start..] then what was queued. Never longer than one frame when the caller
+  // drains Next() (the failed frame's bytes came from the queue or the queue was empty); a
+  // caller that does not may lose the excess, counted as discarded.
+  size_t keep = queue_length_;
+  if (n + keep > sizeof(queue_)) {
+    counters_.bytes_discarded += n + keep - sizeof(queue_);
+    keep = sizeof(queue_) - n;
   }
-  replaying_ = false;
-  return last;
+  for (size_t i = 0; i < keep; ++i) queue_[i] = queue_[queue_head_ + i];  // to the front
+  for (size_t i = keep; i-- > 0;) queue_[i + n] = queue_[i];                // make room
+  for (size_t i = 0; i < n; ++i) queue_[i] = raw_[start + i];
+  queue_head_ = 0;
+  queue_length_ = n + keep;
 }
 
 DecodeEvent FrameDecoder::Accept(uint8_t byte) {

@@ -161,8 +161,9 @@ Status BuildNodeIdentification(const NodeIdentification& ni, uint8_t* out, size_
   size_t ni_len = 0;
   while (ni_len < sizeof(ni.node_identifier) - 1 && ni.node_identifier[ni_len] != '\0') ++ni_len;
   // 0x95 | src64(8) | src16(2) | opts | remote16(2) | remote64(8) | NI.. 0x00 | parent16(2) |
-  // device type | source event | profile(2) | manufacturer(2)
-  const size_t needed = 1 + 8 + 2 + 1 + 2 + 8 + ni_len + 1 + 2 + 1 + 1 + 2 + 2;
+  // device type | source event | profile(2) | manufacturer(2) [| DD(4)] [| RSSI]
+  const size_t needed = 1 + 8 + 2 + 1 + 2 + 8 + ni_len + 1 + 2 + 1 + 1 + 2 + 2 +
+                        (ni.has_device_type_identifier ? 4 : 0) + (ni.has_rssi ? 1 : 0);
   if (Finish(needed, out_cap, written) != Status::kOk || out == nullptr) return Status::kBufferTooSmall;
   uint8_t* p = out;
   *p++ = static_cast<uint8_t>(FrameType::kNodeIdentification);
@@ -177,7 +178,11 @@ Status BuildNodeIdentification(const NodeIdentification& ni, uint8_t* out, size_
   *p++ = ni.device_type;
   *p++ = ni.source_event;
   Put16(p, ni.profile_id); p += 2;
-  Put16(p, ni.manufacturer_id);
+  Put16(p, ni.manufacturer_id); p += 2;
+  if (ni.has_device_type_identifier) {
+    for (int i = 3; i >= 0; --i) *p++ = static_cast<uint8_t>(ni.device_type_identifier >> (8 * i));
+  }
+  if (ni.has_rssi) *p = ni.rssi;
   return Status::kOk;
 }
 
@@ -248,7 +253,18 @@ Status ParseNodeIdentification(const uint8_t* data, size_t len, NodeIdentificati
   out->device_type = *p++;
   out->source_event = *p++;
   out->profile_id = Get16(p); p += 2;
-  out->manufacturer_id = Get16(p);
+  out->manufacturer_id = Get16(p); p += 2;
+  // Optional fields (NO setting of the receiving radio): none, RSSI (1), DD (4) or DD + RSSI (5).
+  const size_t rest = static_cast<size_t>(end - p);
+  if (rest == 2 || rest == 3) return Status::kTruncated;
+  if (rest > 5) return Status::kPayloadTooLarge;
+  out->has_device_type_identifier = rest >= 4;
+  out->device_type_identifier = 0;
+  if (out->has_device_type_identifier) {
+    for (int i = 0; i < 4; ++i) out->device_type_identifier = (out->device_type_identifier << 8) | *p++;
+  }
+  out->has_rssi = rest == 1 || rest == 5;
+  out->rssi = out->has_rssi ? *p : 0;
   return Status::kOk;
 }
 

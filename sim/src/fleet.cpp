@@ -208,12 +208,12 @@ std::vector<uint8_t> Fleet::TakeSerialOutput() {
 }
 
 void Fleet::OnSerialInput(const uint8_t* data, size_t len) {
-  for (size_t i = 0; i < len; ++i) {
-    if (serial_in_.Feed(data[i]) != protocol::DecodeEvent::kFrame) continue;
+  serial_in_.Feed(data, len, [&](protocol::DecodeEvent event) {
+    if (event != protocol::DecodeEvent::kFrame) return;
     protocol::TransmitRequest req;
     if (protocol::ParseTransmitRequest(serial_in_.frame_data(), serial_in_.frame_length(), &req) != protocol::Status::kOk) {
       ++counters_.serial_bad_frames;
-      continue;
+      return;
     }
     ++counters_.acks_from_gateway;
     protocol::Ack ack;
@@ -228,7 +228,7 @@ void Fleet::OnSerialInput(const uint8_t* data, size_t len) {
     } else {
       ++counters_.serial_bad_frames;
     }
-    if (req.frame_id == 0) continue;
+    if (req.frame_id == 0) return;
     protocol::TransmitStatus st;
     st.frame_id = req.frame_id;
     st.dest16 = it != by_address_.end() ? it->second->src16 : protocol::kUnknownAddress16;
@@ -238,7 +238,7 @@ void Fleet::OnSerialInput(const uint8_t* data, size_t len) {
     if (protocol::BuildTransmitStatus(st, frame, sizeof frame, &n) == protocol::Status::kOk) {
       AppendFrame(options_.serial_mode, frame, n, &serial_out_);
     }
-  }
+  });
 }
 
 size_t Fleet::queued_records() const {

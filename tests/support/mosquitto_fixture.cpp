@@ -90,6 +90,10 @@ int ChildProcess::Stop(int signal, std::chrono::milliseconds timeout) {
 
 void ChildProcess::Kill() { Stop(SIGKILL); }
 
+void ChildProcess::Signal(int signal) {
+  if (pid_ > 0) kill(pid_, signal);
+}
+
 int ChildProcess::Wait(std::chrono::milliseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   while (Running()) {
@@ -152,7 +156,7 @@ std::string MosquittoBinary() {
   return "mosquitto";
 }
 
-MosquittoFixture::MosquittoFixture(Options options)
+MosquittoFixture::MosquittoFixture(Options options, Access access)
     : options_(std::move(options)), dir_("lw-mosquitto"), port_(FreeLoopbackPort()) {
   const std::string setup_log = dir_.File("setup.log");
   auto run = [&](const std::vector<std::string>& argv) {
@@ -175,6 +179,9 @@ MosquittoFixture::MosquittoFixture(Options options)
   }
   if (!options_.username.empty()) {
     run({"mosquitto_passwd", "-b", "-c", dir_.File("passwords"), options_.username, options_.password});
+    for (const auto& [user, password] : access.more_users) {
+      run({"mosquitto_passwd", "-b", dir_.File("passwords"), user, password});
+    }
     conf << "allow_anonymous false\npassword_file " << dir_.File("passwords") << "\n";
   } else {
     conf << "allow_anonymous true\n";
@@ -190,6 +197,7 @@ MosquittoFixture::MosquittoFixture(Options options)
   } else {
     conf << "persistence false\n";
   }
+  if (!access.acl_file.empty()) conf << "acl_file " << access.acl_file << "\n";
   conf << options_.extra_config << "\n";
 }
 

@@ -13,6 +13,7 @@
 
 #include <chrono>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace lw::test {
@@ -47,6 +48,8 @@ class ChildProcess {
   int Stop(int signal, std::chrono::milliseconds timeout = std::chrono::seconds(5));
   /// SIGKILL and reap. No-op when not running.
   void Kill();
+  /// Sends `signal` and returns at once (no reaping): to hit several children at the same instant.
+  void Signal(int signal);
   /// Waits up to `timeout` for the child to exit by itself; returns its exit code, or -1 when it
   /// was killed (after the timeout) or died by a signal.
   int Wait(std::chrono::milliseconds timeout = std::chrono::seconds(30));
@@ -88,8 +91,16 @@ class MosquittoFixture {
     std::string password;
     std::string extra_config;   ///< appended to mosquitto.conf verbatim
   };
+  /// Several accounts and an ACL (kept out of Options, which callers fill by designated
+  /// initializers).
+  struct Access {
+    /// More accounts in the same password file (needs Options::username): {user, password}.
+    std::vector<std::pair<std::string, std::string>> more_users;
+    /// When set, mosquitto enforces this ACL file (e.g. packaging/mosquitto/linerwatch.acl).
+    std::string acl_file;
+  };
   MosquittoFixture() : MosquittoFixture(Options{}) {}
-  explicit MosquittoFixture(Options options);
+  explicit MosquittoFixture(Options options, Access access = {});
   ~MosquittoFixture();
   MosquittoFixture(const MosquittoFixture&) = delete;
   MosquittoFixture& operator=(const MosquittoFixture&) = delete;
@@ -101,6 +112,8 @@ class MosquittoFixture {
   void Stop();
   /// SIGKILL: an abrupt broker death (nothing saved since the last autosave).
   void Kill();
+  /// Sends `signal` to the broker and returns at once (Kill() then reaps it).
+  void Signal(int signal) { process_.Signal(signal); }
   void Restart() {
     Stop();
     Start();

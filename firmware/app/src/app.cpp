@@ -222,9 +222,9 @@ void App::DrainRadio() {
   for (;;) {
     const size_t n = board_.radio.Read(buf, sizeof buf);
     if (n == 0) return;
-    for (size_t i = 0; i < n; ++i) {
-      if (decoder_.Feed(buf[i]) == protocol::DecodeEvent::kFrame) HandleFrame();
-    }
+    decoder_.Feed(buf, n, [this](protocol::DecodeEvent event) {
+      if (event == protocol::DecodeEvent::kFrame) HandleFrame();
+    });
   }
 }
 

@@ -26,6 +26,10 @@ struct GatewayOptions {
   /// Records of one sensor published and awaiting the server's commit ack at a time. 1 keeps the
   /// server's first sight of a sensor's records in seq order whatever the broker loses.
   size_t window = 1;
+  /// Device registry entries (address, sensor) at most: a radio network can announce any number
+  /// of addresses. Beyond it new devices are not registered (counted, logged); their readings
+  /// are still spooled and acked.
+  size_t max_devices = 1000;
   /// A published record without a commit ack after this long is published again.
   int64_t republish_after_ms = 30'000;
   /// Period of `gateway/stats` (0: never).
@@ -56,6 +60,8 @@ struct GatewayCounters {
   uint64_t republished = 0;         ///< publications after a reconnect or the republish timeout
   uint64_t committed = 0;           ///< records deleted after the server's commit ack
   uint64_t bad_commit_acks = 0;
+  uint64_t commit_acks_ignored = 0; ///< acked seqs that were not published and awaiting an ack
+  uint64_t devices_refused = 0;     ///< new registry entries refused: registry full (max_devices)
   uint64_t connects = 0;
   int64_t latency_last_ms = -1;     ///< receive -> commit ack of the last committed record
   int64_t latency_max_ms = -1;
@@ -85,7 +91,8 @@ class Gateway {
   std::string CommittedFilter() const { return root_ + "sensors/+/committed"; }
   std::string StatusTopic() const { return root_ + "gateway/status"; }
   std::string StatsTopic() const { return root_ + "gateway/stats"; }
-  std::string DevicesTopic() const { return root_ + "gateway/devices"; }
+  /// Retained registry message of one radio: `{root}gateway/devices/{address}`.
+  std::string DeviceTopic(const std::string& address) const { return root_ + "gateway/devices/" + address; }
 
   /// The stats message (docs/gateway.md lists the fields).
   std::string StatsJson(int64_t now_ms) const;
@@ -102,6 +109,7 @@ class Gateway {
   void NoteDevice(const DeviceEntry& device);
   void PublishRecords(int64_t now_ms);
   void PublishDevices(int64_t now_ms);
+  bool PublishDevice(const std::string& address, const std::vector<DeviceEntry>& entries, int64_t now_ms);
   /// Logs the first few events of a kind, then every 1000th, so a noisy radio cannot fill the disk.
   void LogLimited(const std::string& kind, const std::string& line);
   void Log(const std::string& line) const;
@@ -118,7 +126,8 @@ class Gateway {
   std::set<std::string> known_devices_;  // "address/sensor" already in the registry
   std::map<std::string, uint64_t> log_counts_;
   bool records_dirty_ = true;
-  bool devices_dirty_ = true;
+  bool all_devices_dirty_ = true;            // after a connect: every device's message
+  std::set<std::string> dirty_devices_;      // addresses whose message changed
   int64_t next_republish_check_ms_ = 0;
   int64_t next_stats_ms_ = 0;
   uint8_t next_frame_id_ = 1;

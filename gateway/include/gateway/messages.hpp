@@ -35,9 +35,14 @@ std::string ReadingJson(const protocol::ReadingsHeader& header, const protocol::
 /// `{"state": "online"|"offline", "gateway": ID, "time": ISO}`.
 std::string StatusJson(bool online, const std::string& gateway_id, int64_t now_ms);
 
-/// `{"gateway": ID, "time": ISO, "devices": [{"address", "sensor", "node_identifier",
-/// "device_type", "first_seen"}]}`.
-std::string DevicesJson(const std::vector<DeviceEntry>& devices, const std::string& gateway_id, int64_t now_ms);
+/// The retained message of one radio on `gateway/devices/{address}`: `{"gateway": ID, "time": ISO,
+/// "address", "first_seen", "sensors": [ids], "node_identifier"?, "device_type"?}` from the
+/// registry entries of that address (`entries` all have the same address).
+std::string DeviceJson(const std::vector<DeviceEntry>& entries, const std::string& gateway_id, int64_t now_ms);
+
+/// `text` made safe for a one-line log: control characters (newline, ESC, ...), DEL, bytes above
+/// 0x7E and backslash as `\xNN` / `\\`; longer than `max_bytes`: cut, with the length noted.
+std::string SanitizeForLog(std::string_view text, size_t max_bytes = 2048);
 
 /// A parsed commit acknowledgement.
 struct CommitAck {
@@ -45,9 +50,16 @@ struct CommitAck {
   std::vector<uint32_t> seqs;
 };
 
+/// Limits on a commit ack, checked before it is parsed into a tree: the server sends at most one
+/// transaction's readings (`--batch-max`, default 1000) in one ack, two levels deep.
+inline constexpr size_t kMaxCommitAckBytes = 64 * 1024;
+inline constexpr size_t kMaxCommitAckDepth = 8;
+inline constexpr size_t kMaxCommitAckSeqs = 10000;
+
 /// Parses `{"sensor": "1001", "seqs": [41, 42]}` received on `.../sensors/{sensor}/committed`.
 /// `topic_sensor` is the {sensor} level of the topic; a payload naming another sensor is refused.
-/// Returns nullopt and sets `*error` when the message is malformed.
+/// Returns nullopt and sets `*error` when the message is malformed, over kMaxCommitAckBytes,
+/// nested deeper than kMaxCommitAckDepth or holds more than kMaxCommitAckSeqs seqs.
 std::optional<CommitAck> ParseCommitAck(std::string_view payload, const std::string& topic_sensor, std::string* error);
 
 }  // namespace lw::gateway

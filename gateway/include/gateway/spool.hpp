@@ -71,7 +71,8 @@ class Spool {
 
   /// Records a device; returns true when this (address, sensor) pair was new.
   bool RecordDevice(const DeviceEntry& device);
-  std::vector<DeviceEntry> Devices() const;
+  /// Registry entries, oldest first; only those of `address` when it is not empty.
+  std::vector<DeviceEntry> Devices(const std::string& address = "") const;
 
  private:
   struct Db;

@@ -70,11 +70,23 @@ bool HostFlash::Spend() {
   return true;
 }
 
+uint8_t HostFlash::TearBits() {
+  tear_state_ ^= tear_state_ << 13;
+  tear_state_ ^= tear_state_ >> 17;
+  tear_state_ ^= tear_state_ << 5;
+  return static_cast<uint8_t>(tear_state_ >> 11);
+}
+
 bool HostFlash::DoErase(size_t page) {
   if (page >= pages_.size() || power_lost_) return false;
   ++erases_;
   for (auto& b : pages_[page]) {
-    if (!Spend()) return false;
+    if (!Spend()) {
+      if (tear_) {
+        for (auto& c : pages_[page]) c |= TearBits();  // every cell part-way to erased
+      }
+      return false;
+    }
     b = 0xFF;
   }
   return true;
@@ -83,7 +95,10 @@ bool HostFlash::DoErase(size_t page) {
 bool HostFlash::DoProgram(size_t page, size_t offset, const uint8_t* data, size_t len) {
   if (page >= pages_.size() || offset + len > page_size_ || power_lost_) return false;
   for (size_t i = 0; i < len; ++i) {
-    if (!Spend()) return false;
+    if (!Spend()) {
+      if (tear_) pages_[page][offset + i] &= static_cast<uint8_t>(data[i] | TearBits());  // some bits programmed
+      return false;
+    }
     pages_[page][offset + i] &= data[i];
   }
   return true;
@@ -103,11 +118,11 @@ size_t HostRadio::DoWrite(const uint8_t* data, size_t len) {
     bytes_lost_to_brownout_ += len;
     return len;
   }
-  for (size_t i = 0; i < len; ++i) {
-    if (decoder_.Feed(data[i]) != protocol::DecodeEvent::kFrame) continue;
+  decoder_.Feed(data, len, [&](protocol::DecodeEvent event) {
+    if (event != protocol::DecodeEvent::kFrame) return;
     protocol::TransmitRequest req;
     if (protocol::ParseTransmitRequest(decoder_.frame_data(), decoder_.frame_length(), &req) != protocol::Status::kOk) {
-      continue;
+      return;
     }
     ++transmit_requests_;
     // Copy: delivering may inject frames, which must not disturb this request's bytes.
@@ -127,7 +142,7 @@ size_t HostRadio::DoWrite(const uint8_t* data, size_t len) {
       size_t n = 0;
       if (protocol::BuildTransmitStatus(st, frame, sizeof frame, &n) == protocol::Status::kOk) QueueFrame(frame, n);
     }
-  }
+  });
   return len;
 }
 

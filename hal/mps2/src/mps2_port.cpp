@@ -97,7 +97,7 @@ void SysTickClock::Init(uint32_t core_hz) {
 }
 
 void SysTickClock::DoSleep() {
-  while (ms_ / 1000u < alarm_s_) {
+  while (ms_.Seconds() < alarm_s_) {
     __asm volatile("wfi");
   }
 }

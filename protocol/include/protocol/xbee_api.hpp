@@ -136,6 +136,13 @@ struct NodeIdentification {
   uint8_t source_event = 0;
   uint16_t profile_id = 0;
   uint16_t manufacturer_id = 0;
+  /// Optional trailing fields, present when the receiving radio's NO (node discovery options)
+  /// setting asks for them: the sender's DD device type identifier (4 bytes) and the RSSI of the
+  /// last hop (1 byte), in that order.
+  bool has_device_type_identifier = false;
+  uint32_t device_type_identifier = 0;
+  bool has_rssi = false;
+  uint8_t rssi = 0;
 };
 
 /// Checksum over frame data: 0xFF minus the low byte of the sum of all bytes.

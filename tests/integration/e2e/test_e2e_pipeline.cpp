@@ -29,8 +29,8 @@
 #include "core/time.hpp"
 #include "server/store.hpp"
 #include "support/mosquitto_fixture.hpp"
+#include "support/pipeline_ledger.hpp"
 
-#include <httplib.h>  // after Eigen (<resolv.h> defines _res)
 
 #include <CppUTest/TestHarness.h>  // last
 
@@ -49,34 +49,6 @@ int64_t WallMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-// One line of the simulator's ledger: a reading a virtual sensor produced.
-struct Produced {
-  std::string sensor;
-  int64_t seq = 0;
-  lw::core::TimePoint time{};
-  double thickness_mm = 0;
-};
-
-std::vector<Produced> LoadLedger(const std::string& path) {
-  std::ifstream in(path);
-  std::string line;
-  std::getline(in, line);
-  STRCMP_EQUAL("sensor_id,seq,time,thickness_mm", line.c_str());
-  std::vector<Produced> out;
-  while (std::getline(in, line)) {
-    std::istringstream fields(line);
-    std::string sensor, seq, time, mm;
-    std::getline(fields, sensor, ',');
-    std::getline(fields, seq, ',');
-    std::getline(fields, time, ',');
-    std::getline(fields, mm);
-    const auto t = lw::core::ParseIsoTime(time);
-    CHECK_TEXT(t.has_value(), line.c_str());
-    out.push_back({sensor, std::stoll(seq), *t, std::stod(mm)});
-  }
-  return out;
-}
-
 // A program of the pipeline that the test kills and starts again with the same arguments.
 struct Program {
   lw::test::ChildProcess process;
@@ -84,24 +56,6 @@ struct Program {
   std::string log;
   void Start() { process.Start(argv, log); }
 };
-
-// Virtual days since installation, from the simulator's clock file (-1 before it exists).
-double VirtualDay(const std::string& clock_file, lw::core::TimePoint installed_at) {
-  std::ifstream in(clock_file);
-  long long ms = 0;
-  if (!(in >> ms)) return -1;
-  return lw::core::DaysBetween(installed_at, lw::core::TimePoint(std::chrono::seconds(ms / 1000)));
-}
-
-long StoredCount(httplib::Client& http, const std::string& crusher) {
-  auto res = http.Get("/api/v1/crushers/" + crusher + "/sensors");
-  if (!res || res->status != 200) return -1;
-  const json j = json::parse(res->body, nullptr, false);
-  if (j.is_discarded()) return -1;
-  long total = 0;
-  for (const auto& s : j["sensors"]) total += s.value("reading_count", 0L);
-  return total;
-}
 
 }  // namespace
 
@@ -175,7 +129,7 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
   std::string done;
   size_t next = 0;
   while (sim.process.Running()) {
-    if (next < faults.size() && VirtualDay(clock, crusher_folder.crusher.installed_at) >= faults[next].first) {
+    if (next < faults.size() && lw::test::VirtualDay(clock, crusher_folder.crusher.installed_at) >= faults[next].first) {
       const std::string& what = faults[next].second;
       if (what == "kill gateway") {
         gateway.process.Kill();
@@ -198,7 +152,7 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
                    (context + lw::test::FileTail(sim.log)).c_str());
   LONGS_EQUAL_TEXT(faults.size(), next, (context + "the campaign ended before every fault happened").c_str());
 
-  const std::vector<Produced> ledger = LoadLedger(dir.File("ledger.csv"));
+  const std::vector<lw::test::Produced> ledger = lw::test::LoadLedger(dir.File("ledger.csv"));
   CHECK_TEXT(ledger.size() > static_cast<size_t>(10 * kDays * 4), context.c_str());  // ten sensors, at least the 6-hourly heartbeats
   // The radio lost and duplicated packets on the way (the simulator's last progress line).
   const std::string sim_log = lw::test::FileTail(sim.log, 100000);
@@ -209,10 +163,9 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
              last_line.c_str());
 
   // The gateway publishes what the sensors handed over until the server has committed it all.
-  httplib::Client http("127.0.0.1", http_port);
   long stored = -1;
   for (const int64_t deadline = WallMs() + 60'000; WallMs() < deadline; SleepMs(200)) {
-    stored = StoredCount(http, crusher);
+    stored = lw::test::StoredCount(http_port, crusher);
     if (stored >= static_cast<long>(ledger.size())) break;
   }
   LONGS_EQUAL_TEXT(ledger.size(), stored, (context + lw::test::FileTail(gateway.log)).c_str());
@@ -221,7 +174,7 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
   // server has not yet published the last change), once it is made of each sensor's latest reading.
   const auto last = std::max_element(ledger.begin(), ledger.end(), [](const auto& a, const auto& b) { return a.time < b.time; })->time;
   std::map<std::string, std::string> latest;  // sensor -> time of its latest reading
-  for (const Produced& p : ledger) latest[p.sensor] = std::max(latest[p.sensor], lw::core::FormatIsoTime(p.time));
+  for (const lw::test::Produced& p : ledger) latest[p.sensor] = std::max(latest[p.sensor], lw::core::FormatIsoTime(p.time));
   auto from_latest_readings = [&latest](const json& w) {
     if (!w.is_object() || !w.contains("readings_used") || w["readings_used"].size() != latest.size()) return false;
     for (const auto& u : w["readings_used"]) {
@@ -257,23 +210,14 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
   // Stored exactly once: one row per ledger reading, with its time and thickness.
   {
     lw::server::Store store(db);
-    const auto rows = store.All(crusher);
-    std::map<std::pair<std::string, int64_t>, const lw::server::StoredReading*> by_key;
-    for (const auto& r : rows) by_key[{r.sensor, r.seq}] = &r;
-    LONGS_EQUAL_TEXT(rows.size(), by_key.size(), context.c_str());
-    LONGS_EQUAL_TEXT(ledger.size(), rows.size(), context.c_str());
-    for (const Produced& p : ledger) {
-      const auto it = by_key.find({p.sensor, p.seq});
-      const std::string key = context + p.sensor + "/" + std::to_string(p.seq);
-      CHECK_TEXT(it != by_key.end(), ("not stored: " + key).c_str());
-      LONGS_EQUAL_TEXT(p.time.time_since_epoch().count(), it->second->time_s, key.c_str());
-      DOUBLES_EQUAL(p.thickness_mm, it->second->thickness_mm, 0);
-    }
+    const lw::test::LedgerCheck check = lw::test::CompareLedger(ledger, store.All(crusher));
+    LONGS_EQUAL_TEXT(ledger.size(), check.stored, context.c_str());
+    CHECK_TEXT(check.exactly_once(), (context + check.first_problem).c_str());
   }
 
   // The retained wear equals Eq. 9 computed offline from the ledger's readings.
   std::vector<lw::core::Reading> readings;
-  for (const Produced& p : ledger) readings.push_back({p.time, p.sensor, p.thickness_mm, 0});
+  for (const lw::test::Produced& p : ledger) readings.push_back({p.time, p.sensor, p.thickness_mm, 0});
   const lw::core::Reconstruction offline = lw::core::Reconstruct(
       crusher_folder.crusher, crusher_folder.map, lw::core::SensorWearAt(crusher_folder.crusher, readings, last));
   STRCMP_EQUAL(crusher_folder.map.sha256.c_str(), wear["map_sha256"].get<std::string>().c_str());

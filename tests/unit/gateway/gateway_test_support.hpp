@@ -129,8 +129,8 @@ class FakeRadio : public ByteSink {
   bool Write(const uint8_t* data, size_t len) override {
     if (on_write) on_write();
     if (fail) return false;
-    for (size_t i = 0; i < len; ++i) {
-      if (decoder_.Feed(data[i]) != protocol::DecodeEvent::kFrame) continue;
+    decoder_.Feed(data, len, [&](protocol::DecodeEvent event) {
+      if (event != protocol::DecodeEvent::kFrame) return;
       protocol::TransmitRequest req;
       SentAck a;
       if (protocol::ParseTransmitRequest(decoder_.frame_data(), decoder_.frame_length(), &req) == protocol::Status::kOk &&
@@ -140,7 +140,7 @@ class FakeRadio : public ByteSink {
       } else {
         ++other_frames;
       }
-    }
+    });
     return true;
   }
 

@@ -23,6 +23,18 @@ constexpr uint64_t kAddrB = 0x0013A20040FFEE01ull;
 constexpr auto kMode = pr::ApiMode::kEscaped;
 std::string Committed(uint32_t sensor) { return "linerwatch/v1/s1/c1/sensors/" + std::to_string(sensor) + "/committed"; }
 std::string AckJson(const std::vector<uint32_t>& seqs) { return json{{"seqs", seqs}}.dump(); }
+std::vector<uint8_t> NodeIdFrame(uint64_t address, const char* node_identifier) {
+  pr::NodeIdentification ni;
+  ni.remote64 = address;
+  ni.sender64 = address;
+  ni.device_type = 2;
+  std::snprintf(ni.node_identifier, sizeof ni.node_identifier, "%s", node_identifier);
+  std::vector<uint8_t> frame(pr::kMaxFrameData);
+  size_t len = 0;
+  if (pr::BuildNodeIdentification(ni, frame.data(), frame.size(), &len) != pr::Status::kOk) return {};
+  frame.resize(len);
+  return gw::test::Wire(kMode, frame);
+}
 }  // namespace
 
 TEST_GROUP(Gateway) {
@@ -35,7 +47,7 @@ TEST_GROUP(Gateway) {
   int64_t now = 1'000'000;
 
   void setup() override { Start(1'000); }
-  void Start(size_t capacity, size_t window = 1) {
+  void Start(size_t capacity, size_t window = 1, size_t max_devices = 1000) {
     gateway.reset();
     spool.reset();
     spool = std::make_unique<gw::Spool>(dir.File("spool.db"), capacity);
@@ -45,6 +57,7 @@ TEST_GROUP(Gateway) {
     o.gateway_id = "gw-test";
     o.api_mode = kMode;
     o.window = window;
+    o.max_devices = max_devices;
     o.republish_after_ms = 10'000;
     o.stats_interval_ms = 60'000;
     o.log = [this](const std::string& line) { log.push_back(line); };
@@ -63,6 +76,16 @@ TEST_GROUP(Gateway) {
     CHECK(pr::BuildNodeIdentification(ni, frame.data(), frame.size(), &len) == pr::Status::kOk);
     frame.resize(len);
     Feed(gw::test::Wire(kMode, frame));
+  }
+  // The gateway replaced by one on the same spool whose coordinator runs API mode 1.
+  gw::Gateway& ModeOneGateway(gw::test::FakeRadio& radio1) {
+    gw::GatewayOptions o;
+    o.site = "s1";
+    o.crusher = "c1";
+    o.api_mode = pr::ApiMode::kUnescaped;
+    o.log = [](const std::string&) {};
+    gateway = std::make_unique<gw::Gateway>(o, *spool, publisher, radio1);
+    return *gateway;
   }
   std::vector<uint32_t> PublishedSeqs(uint32_t sensor) {
     std::vector<uint32_t> out;
@@ -163,7 +186,10 @@ TEST(Gateway, ReconnectPublishesRetainedStatusAndReplaysInOrder) {
   CHECK_TRUE(status[0].retained);
   STRCMP_EQUAL("online", json::parse(status[0].payload)["state"].get<std::string>().c_str());
   CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 1}));  // replay starts at the oldest unconfirmed
-  CHECK_TRUE(json::parse(publisher.SentOn("gateway/devices").at(0).payload)["devices"].size() == 1);
+  const auto device = publisher.SentOn("gateway/devices/0013A20040A1B2C3");
+  LONGS_EQUAL(2, device.size());  // when first seen, and again after the reconnect
+  CHECK_TRUE(device[1].retained);
+  CHECK(json::parse(device[1].payload)["sensors"] == json({"1001"}));
 }
 
 TEST(Gateway, SpoolSurvivesARestartAndIsReplayed) {
@@ -172,7 +198,9 @@ TEST(Gateway, SpoolSurvivesARestartAndIsReplayed) {
   publisher.sent.clear();
   gateway->OnConnected(now);
   CHECK(PublishedSeqs(1001) == std::vector<uint32_t>{1});
-  gateway->OnMessage(Committed(1001), AckJson({1, 2}), now);
+  gateway->OnMessage(Committed(1001), AckJson({1}), now);
+  gateway->Pump(now);
+  gateway->OnMessage(Committed(1001), AckJson({2}), now);
   LONGS_EQUAL(0, gateway->spool_depth());
 }
 
@@ -216,24 +244,24 @@ TEST(Gateway, GarbageAndMalformedFramesAreCountedNotFatal) {
 TEST(Gateway, NodeIdentificationEntersTheRegistry) {
   FeedNodeIdentification("ROW1-S3");
   gateway->Pump(now);
-  const auto devices = publisher.SentOn("gateway/devices");
+  const auto devices = publisher.SentOn("gateway/devices/0013A20040FFEE01");
   LONGS_EQUAL(1, devices.size());
   CHECK_TRUE(devices[0].retained);
-  const json d = json::parse(devices[0].payload)["devices"][0];
+  const json d = json::parse(devices[0].payload);
   STRCMP_EQUAL("0013A20040FFEE01", d["address"].get<std::string>().c_str());
   STRCMP_EQUAL("ROW1-S3", d["node_identifier"].get<std::string>().c_str());
 }
 
-// Found by fuzz/ (fuzz_gateway_serial): a node whose NI string is not UTF-8 (the radio sends any
-// bytes) made every devices message throw in json::dump; it was counted as a spool error and the
-// retained device registry was never published again (the node stays in the spool).
+// Found by fuzz/ (fuzz_gateway_serial; DeviceJson's own test covers the message): a node whose NI
+// string is not UTF-8 (the radio sends any bytes) made the devices message throw in json::dump; it
+// was counted as a spool error and the retained registry was never published again.
 TEST(Gateway, NodeIdentifierThatIsNotUtf8StillPublishesTheRegistry) {
   FeedNodeIdentification("ROW1-\xfe\xff");
   gateway->Pump(now);
   LONGS_EQUAL(0, gateway->counters().spool_errors);
-  const auto devices = publisher.SentOn("gateway/devices");
+  const auto devices = publisher.SentOn("gateway/devices/0013A20040FFEE01");
   LONGS_EQUAL(1, devices.size());
-  const json d = json::parse(devices[0].payload)["devices"][0];
+  const json d = json::parse(devices[0].payload);
   STRCMP_EQUAL("ROW1-\xef\xbf\xbd\xef\xbf\xbd", d["node_identifier"].get<std::string>().c_str());  // U+FFFD twice
 }
 
@@ -262,15 +290,140 @@ TEST(Gateway, StatsArePublishedPeriodicallyWithLatency) {
 }
 
 TEST(Gateway, ApiModeOneIsDecodedAndAckedInModeOne) {
-  gateway.reset();
   gw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
-  gw::GatewayOptions o;
-  o.site = "s1";
-  o.crusher = "c1";
-  o.api_mode = pr::ApiMode::kUnescaped;
-  o.log = [](const std::string&) {};
-  gw::Gateway g(o, *spool, publisher, radio1);
+  gw::Gateway& g = ModeOneGateway(radio1);
   const auto bytes = ReadingsFrame(pr::ApiMode::kUnescaped, 0x0013A2004011137Dull, 0x137D11, {MakeRecord(0x7E7D1113)});
   g.OnBytes(bytes.data(), bytes.size(), now);
   CHECK(radio1.AckedSeqs() == std::vector<uint32_t>{0x7E7D1113});
+}
+
+// The decoder fix seen from the gateway: a coordinator frame cut short in API mode 1 must not
+// cost the readings frames that follow it (before the fix only the last of them reached the
+// spool; the others were decoded, counted in frames_ok, and dropped).
+TEST(Gateway, ReadingsAfterATruncatedFrameInModeOneAreAllSpooledAndAcked) {
+  gw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
+  gw::Gateway& g = ModeOneGateway(radio1);
+  // A readings frame cut after its first 20 bytes: its declared length swallows the next two.
+  auto cut = ReadingsFrame(pr::ApiMode::kUnescaped, kAddrA, 1001, {MakeRecord(1), MakeRecord(2), MakeRecord(3)});
+  cut.resize(20);
+  std::vector<uint8_t> bytes = cut;
+  for (uint32_t seq : {10u, 11u}) {
+    const auto f = ReadingsFrame(pr::ApiMode::kUnescaped, kAddrB, 2002, {MakeRecord(seq)});
+    bytes.insert(bytes.end(), f.begin(), f.end());
+  }
+  const auto last = ReadingsFrame(pr::ApiMode::kUnescaped, kAddrB, 2002, {MakeRecord(12), MakeRecord(13)});
+  bytes.insert(bytes.end(), last.begin(), last.end());
+  g.OnBytes(bytes.data(), bytes.size(), now);
+  CHECK(radio1.AckedSeqs() == (std::vector<uint32_t>{10, 11, 12, 13}));
+  LONGS_EQUAL(4, spool->depth());
+  LONGS_EQUAL(3, g.decoder_counters().frames_ok);
+}
+
+// Finding 1 of issue 15 through the gateway: a commit ack nested 100 000 deep is counted as bad
+// and deletes nothing (it crashed the process before).
+TEST(Gateway, DeeplyNestedCommitAckIsCountedAndDeletesNothing) {
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));
+  gateway->Pump(now);
+  const std::string deep = R"({"seqs": [1, )" + std::string(100000, '[') + std::string(100000, ']') + "]}";
+  gateway->OnMessage(Committed(1001), deep, now);
+  LONGS_EQUAL(1, gateway->counters().bad_commit_acks);
+  LONGS_EQUAL(1, gateway->spool_depth());
+  gateway->OnMessage(Committed(1001), AckJson({1}), now);
+  LONGS_EQUAL(0, gateway->spool_depth());
+}
+
+// Finding 13/14 of issue 15: every new radio address republished the whole retained registry
+// (300 announced nodes: about 4 MB in total). Now each address has its own small retained
+// message and only the changed one goes out.
+TEST(Gateway, EachNewRadioPublishesOnlyItsOwnSmallRegistryMessage) {
+  size_t bytes = 0, messages = 0;
+  for (uint64_t i = 0; i < 300; ++i) {
+    Feed(NodeIdFrame(0x0013A20050000000ull + i, "FAKE-NODE-NAME-XYZ01"));
+    gateway->Pump(now);
+  }
+  for (const auto& m : publisher.sent) {
+    if (m.topic.find("/gateway/devices") == std::string::npos) continue;
+    bytes += m.payload.size();
+    ++messages;
+  }
+  LONGS_EQUAL(300, messages);
+  CHECK(bytes < 300 * 300);  // each well under 300 bytes
+}
+
+TEST(Gateway, RegistryIsBoundedAndRefusalsAreCountedAndLogged) {
+  Start(1'000, 1, 5);
+  for (uint64_t i = 0; i < 300; ++i) Feed(NodeIdFrame(0x0013A20050000000ull + i, "N"));
+  // A sensor that is not registered any more still has its readings spooled and acked.
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));
+  gateway->Pump(now);
+  LONGS_EQUAL(5, spool->Devices().size());
+  LONGS_EQUAL(296, gateway->counters().devices_refused);
+  LONGS_EQUAL(1, gateway->spool_depth());
+  CHECK(radio.AckedSeqs() == std::vector<uint32_t>{1});
+  const json stats = json::parse(gateway->StatsJson(now));
+  LONGS_EQUAL(5, stats["devices"].get<int>());
+  LONGS_EQUAL(296, stats["devices_refused"].get<int>());
+  size_t full_lines = 0;
+  for (const auto& line : log) full_lines += line.find("registry: full") != std::string::npos ? 1 : 0;
+  LONGS_EQUAL(10, full_lines);  // rate limited: the first 10 (then every 1000th)
+  // A known node may still update its identification.
+  Feed(NodeIdFrame(0x0013A20050000000ull, "RENAMED"));
+  gateway->Pump(now);
+  const auto renamed = publisher.SentOn("gateway/devices/0013A20050000000");
+  STRCMP_EQUAL("RENAMED", json::parse(renamed.back().payload)["node_identifier"].get<std::string>().c_str());
+  // After a restart on the same spool the bound still holds (entries are counted from the file).
+  Start(1'000, 1, 5);
+  Feed(NodeIdFrame(0x0013A200600000FFull, "LATE"));
+  LONGS_EQUAL(1, gateway->counters().devices_refused);
+}
+
+// Finding 11/12 of issue 15: a node identifier with ESC and a newline wrote raw terminal escapes
+// and a forged second line into the log.
+TEST(Gateway, TextFromTheRadioAndTheBrokerIsEscapedInTheLog) {
+  Feed(NodeIdFrame(kAddrB, "A\x1B[2J\nFAKE: ok"));
+  gateway->OnMessage("linerwatch/v1/s1/c1/sensors/1\n2\x1B/committed", "{oops", now);
+  bool saw_node = false, saw_topic = false;
+  for (const auto& line : log) {
+    for (char c : line) CHECK_FALSE(static_cast<unsigned char>(c) < 0x20 || c == 0x7F);
+    saw_node |= line.find("A\\x1B[2J\\x0AFAKE: ok") != std::string::npos;
+    saw_topic |= line.find("sensors/1\\x0A2\\x1B/committed") != std::string::npos;
+  }
+  CHECK_TRUE(saw_node);
+  CHECK_TRUE(saw_topic);
+}
+
+// Finding 9 of issue 15, the gateway's part: an ack releases only records this gateway published
+// and awaits. A forged ack naming the whole backlog (or records of another site's topic) deletes
+// nothing that was never sent to the server.
+TEST(Gateway, CommitAcksReleaseOnlyPublishedRecordsOfTheirOwnTopic) {
+  std::vector<pr::SensorRecord> records;
+  for (uint32_t seq = 1; seq <= 4; ++seq) records.push_back(MakeRecord(seq));
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, records));
+  gateway->Pump(now);
+  CHECK(PublishedSeqs(1001) == std::vector<uint32_t>{1});  // window 1: only seq 1 is out
+  gateway->OnMessage(Committed(1001), AckJson({2, 3, 4, 99}), now);
+  LONGS_EQUAL(4, gateway->spool_depth());
+  LONGS_EQUAL(4, gateway->counters().commit_acks_ignored);
+  gateway->OnMessage("linerwatch/v1/other-site/c1/sensors/1001/committed", AckJson({1}), now);
+  gateway->OnMessage("linerwatch/v1/s1/other-crusher/sensors/1001/committed", AckJson({1}), now);
+  gateway->OnMessage(Committed(2002), AckJson({1}), now);
+  LONGS_EQUAL(4, gateway->spool_depth());
+  gateway->OnMessage(Committed(1001), AckJson({1, 2}), now);  // the awaited one goes, 2 is not out yet
+  LONGS_EQUAL(3, gateway->spool_depth());
+  LONGS_EQUAL(1, gateway->counters().committed);
+  gateway->Pump(now);
+  CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2}));
+  LONGS_EQUAL(6, json::parse(gateway->StatsJson(now))["commit_acks_ignored"].get<int>());
+}
+
+TEST(Gateway, RegistryMessagesRefusedByAFullClientBufferGoOutLaterOnceEach) {
+  for (uint64_t i = 0; i < 5; ++i) Feed(NodeIdFrame(0x0013A20050000000ull + i, "N"));
+  publisher.refuse = true;
+  gateway->OnConnected(now);
+  publisher.refuse = false;
+  gateway->Pump(now + 1);
+  gateway->Pump(now + 2);
+  size_t messages = 0;
+  for (const auto& m : publisher.sent) messages += m.topic.find("/gateway/devices/") != std::string::npos ? 1 : 0;
+  LONGS_EQUAL(5, messages);
 }

@@ -78,6 +78,44 @@ TEST(HostBoard, FlashIsNorAndLosesPowerAtTheChosenByte) {
   CHECK_FALSE(f.Program(0, 15, data, 2));
 }
 
+// Torn operations: the programmed byte at the cut has only some of its bits programmed, and an
+// interrupted erase leaves every byte of the page part-way (old bits, some set), as on real NOR.
+TEST(HostBoard, FlashTearsTheByteAndThePageThatPowerLossInterrupts) {
+  const uint8_t zeros[16] = {};
+  int torn_bytes = 0, half_erased_pages = 0;
+  for (uint32_t seed = 1; seed <= 64; ++seed) {
+    HostFlash flash(16, 1);
+    FlashPages& f = flash;
+    flash.TearAtPowerLoss(seed);
+    flash.LosePowerAfter(3);  // bytes 0..2 programmed, byte 3 torn, 4.. untouched
+    CHECK_FALSE(f.Program(0, 0, zeros, 16));
+    uint8_t out[16];
+    CHECK(f.Read(0, 0, out, 16));
+    LONGS_EQUAL(0x00, out[2]);
+    LONGS_EQUAL(0xFF, out[4]);
+    if (out[3] != 0x00 && out[3] != 0xFF) ++torn_bytes;
+    flash.PowerRestored();
+    CHECK(f.Program(0, 0, zeros, 16));  // all zeros now
+    flash.LosePowerAfter(8);            // the erase stops half way
+    CHECK_FALSE(f.Erase(0));
+    CHECK(f.Read(0, 0, out, 16));
+    int partial = 0;  // of the bytes the erase had not reached: neither kept (0x00) nor erased
+    for (int i = 8; i < 16; ++i) partial += (out[i] != 0x00 && out[i] != 0xFF) ? 1 : 0;
+    for (int i = 0; i < 8; ++i) LONGS_EQUAL(0xFF, out[i]);
+    if (partial >= 5) ++half_erased_pages;
+  }
+  CHECK(torn_bytes > 40);          // most seeds leave a part-programmed byte
+  CHECK(half_erased_pages > 40);   // and a page of part-erased bytes
+  // Without tearing the cut is clean (the existing model).
+  HostFlash clean(16, 1);
+  FlashPages& c = clean;
+  clean.LosePowerAfter(3);
+  CHECK_FALSE(c.Program(0, 0, zeros, 16));
+  uint8_t out[16];
+  CHECK(c.Read(0, 0, out, 16));
+  LONGS_EQUAL(0xFF, out[3]);
+}
+
 TEST(HostBoard, RadioDeliversTransmitRequestsAndAnswersWithStatus) {
   HostRadio radio(0x0013A20000000001ull, lw::protocol::ApiMode::kEscaped);
   std::vector<uint8_t> got;

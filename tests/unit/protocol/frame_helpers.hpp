@@ -34,14 +34,13 @@ struct Decoded {
 
 inline Decoded FeedAll(FrameDecoder& decoder, const std::vector<uint8_t>& bytes) {
   Decoded d;
-  for (uint8_t b : bytes) {
-    const DecodeEvent ev = decoder.Feed(b);
+  decoder.Feed(bytes.data(), bytes.size(), [&](DecodeEvent ev) {
     if (ev == DecodeEvent::kFrame) {
       d.frames.emplace_back(decoder.frame_data(), decoder.frame_data() + decoder.frame_length());
-    } else if (ev != DecodeEvent::kNone) {
+    } else {
       d.errors.push_back(ev);
     }
-  }
+  });
   return d;
 }
 

@@ -1,4 +1,5 @@
 #include <random>
+#include <type_traits>
 #include <vector>
 
 #include "protocol/frame_decoder.hpp"
@@ -95,14 +96,141 @@ TEST(FrameDecoder, BadChecksumIsCountedAndNextFrameDecodes) {
   }
 }
 
+namespace {
+std::vector<uint8_t> Data(const std::vector<uint8_t>& wire_mode1) { return {wire_mode1.begin() + 3, wire_mode1.end() - 1}; }
+}  // namespace
+
 TEST(FrameDecoder, TruncatedFrameDoesNotSwallowTheNextInMode1) {
-  // First frame cut after 5 bytes: the decoder must still find the next frame.
+  // First frame cut after 6 data bytes: the decoder must still deliver both following frames.
   std::vector<uint8_t> cut(kDigiTx.begin(), kDigiTx.begin() + 9);
   FrameDecoder dec(ApiMode::kUnescaped);
   const Decoded d = FeedAll(dec, Concat({cut, kDigiRx, kDigiModem}));
-  CHECK(d.frames.size() >= 1);
-  CHECK(d.frames.back() == Hex("8A 06"));
-  CHECK(dec.counters().checksum_errors + dec.counters().truncated_frames >= 1);
+  LONGS_EQUAL(2, d.frames.size());
+  CHECK(d.frames[0] == Data(kDigiRx));
+  CHECK(d.frames[1] == Hex("8A 06"));
+  LONGS_EQUAL(1, dec.counters().checksum_errors);
+}
+
+// Found by running other projects' XBee suites against protocol/: in mode 1 the frames that a
+// truncated frame swallowed were decoded again (frames_ok counted them) but only one that ended
+// on the very last swallowed byte was handed to the caller.
+TEST(FrameDecoder, FramesSwallowedByATruncatedFrameAreAllDeliveredInMode1) {
+  // The cut 0x10 declares 22 data bytes and has 6: the next 16 bytes and a "checksum" complete
+  // it: both modem status frames and 5 bytes of the receive packet.
+  std::vector<uint8_t> cut(kDigiTx.begin(), kDigiTx.begin() + 9);
+  const auto joined = Encode(ApiMode::kUnescaped, Hex("8A 02"));
+  FrameDecoder dec(ApiMode::kUnescaped);
+  const Decoded d = FeedAll(dec, Concat({cut, kDigiModem, joined, kDigiRx}));
+  LONGS_EQUAL(3, d.frames.size());
+  CHECK(d.frames[0] == Hex("8A 06"));
+  CHECK(d.frames[1] == Hex("8A 02"));
+  CHECK(d.frames[2] == Data(kDigiRx));
+  LONGS_EQUAL(3, dec.counters().frames_ok);
+  LONGS_EQUAL(1, d.errors.size());
+  CHECK(d.errors[0] == DecodeEvent::kChecksumError);
+}
+
+TEST(FrameDecoder, SwallowedFramesEndingBeforeTheFailureAreDeliveredAtOnceInMode1) {
+  // Everything after the cut frame is swallowed and no byte follows: the frames must come out
+  // with the byte that failed the checksum, not wait for more input.
+  std::vector<uint8_t> cut(kDigiTx.begin(), kDigiTx.begin() + 9);
+  std::vector<uint8_t> tail;
+  for (int i = 0; i < 3; ++i) tail = Concat({tail, Encode(ApiMode::kUnescaped, Hex("8A 0" + std::to_string(i)))});
+  FrameDecoder dec(ApiMode::kUnescaped);
+  const Decoded d = FeedAll(dec, Concat({cut, tail}));  // 18 bytes: 16 data + checksum + 1
+  LONGS_EQUAL(1, d.errors.size());
+  LONGS_EQUAL(3, d.frames.size());
+  for (int i = 0; i < 3; ++i) CHECK(d.frames[i] == Hex("8A 0" + std::to_string(i)));
+}
+
+TEST(FrameDecoder, NestedTruncationsInMode1LoseNothingAfterTheLastCut) {
+  // A cut frame inside the bytes a first cut frame swallowed: re-decoding hits a second failure.
+  const std::vector<uint8_t> long_tx = Encode(ApiMode::kUnescaped, std::vector<uint8_t>(60, 0x10));
+  const std::vector<uint8_t> cut1(long_tx.begin(), long_tx.begin() + 5);
+  const std::vector<uint8_t> cut2(kDigiTx.begin(), kDigiTx.begin() + 7);
+  std::vector<uint8_t> frames;
+  std::vector<std::vector<uint8_t>> sent;
+  for (int i = 0; i < 12; ++i) {
+    sent.push_back({0x8A, static_cast<uint8_t>(0x20 + i)});
+    frames = Concat({frames, Encode(ApiMode::kUnescaped, sent.back())});
+  }
+  FrameDecoder dec(ApiMode::kUnescaped);
+  const Decoded d = FeedAll(dec, Concat({cut1, cut2, frames}));
+  CHECK(d.frames == sent);
+  LONGS_EQUAL(12, dec.counters().frames_ok);
+}
+
+TEST(FrameDecoder, RandomCutsInMode1DeliverEveryWholeFrameInOrder) {
+  std::mt19937 rng(20261123);
+  size_t delivered = 0, whole = 0, collisions = 0;
+  constexpr int kRounds = 300;
+  for (int round = 0; round < kRounds; ++round) {
+    std::vector<uint8_t> stream;
+    std::vector<std::vector<uint8_t>> sent;
+    for (int k = 0; k < 6; ++k) {
+      std::vector<uint8_t> data(1 + rng() % 40);
+      data[0] = 0x90;
+      for (size_t i = 1; i < data.size(); ++i) data[i] = static_cast<uint8_t>(rng());
+      auto wire = Encode(ApiMode::kUnescaped, data);
+      if (rng() % 3 == 0) {
+        wire.resize(1 + rng() % (wire.size() - 1));  // cut short, the next delimiter follows
+      } else {
+        sent.push_back(data);
+      }
+      stream = Concat({stream, wire});
+    }
+    // Line noise after the last frame: in mode 1 a cut frame still waiting for its declared
+    // length can only fail (and give back what it swallowed) once enough bytes arrive.
+    stream = Concat({stream, std::vector<uint8_t>(kMaxFrameData + 3, 0x00)});
+    FrameDecoder dec(ApiMode::kUnescaped);
+    const Decoded d = FeedAll(dec, stream);
+    size_t j = 0, bogus = 0;
+    for (const auto& f : d.frames) {
+      if (j < sent.size() && f == sent[j]) {
+        ++j;
+      } else {
+        ++bogus;
+      }
+    }
+    delivered += j;
+    whole += sent.size();
+    // Mode 1 cannot tell a cut frame whose swallowed bytes happen to sum to a valid checksum
+    // (about 1 cut in 256) from a real frame: that bogus frame takes the bytes it swallowed.
+    // Any loss must come with such a frame.
+    if (j != sent.size()) {
+      CHECK(bogus > 0);
+      ++collisions;
+    }
+  }
+  CHECK(collisions <= kRounds / 50);
+  CHECK(delivered + 6 * collisions >= whole);
+}
+
+TEST(FrameDecoder, TruncatedFrameFollowedByEscapedFrameInMode2) {
+  // Mode 2 sees the unescaped delimiter at once; the next frame's escaped bytes decode.
+  const std::vector<uint8_t> data = Hex("90 00 13 A2 00 40 52 2B AA 7D 84 01 7E 7D 11 13 20");
+  const auto full = Encode(ApiMode::kEscaped, data);
+  std::vector<uint8_t> cut(full.begin(), full.begin() + 14);
+  FrameDecoder dec(ApiMode::kEscaped);
+  const Decoded d = FeedAll(dec, Concat({cut, full, kDigiModem}));
+  LONGS_EQUAL(2, d.frames.size());
+  CHECK(d.frames[0] == data);
+  CHECK(d.frames[1] == Hex("8A 06"));
+  LONGS_EQUAL(1, dec.counters().truncated_frames);
+}
+
+TEST(FrameDecoder, ByteByByteFeedWithNextDrainsTheSameFrames) {
+  std::vector<uint8_t> cut(kDigiTx.begin(), kDigiTx.begin() + 9);
+  const auto stream = Concat({cut, kDigiModem, Encode(ApiMode::kUnescaped, Hex("8A 02")), kDigiRx});
+  FrameDecoder dec(ApiMode::kUnescaped);
+  std::vector<std::vector<uint8_t>> frames;
+  for (uint8_t b : stream) {
+    for (DecodeEvent ev = dec.Feed(b); ev != DecodeEvent::kNone; ev = dec.Next()) {
+      if (ev == DecodeEvent::kFrame) frames.emplace_back(dec.frame_data(), dec.frame_data() + dec.frame_length());
+    }
+  }
+  LONGS_EQUAL(3, frames.size());
+  CHECK(frames[2] == Data(kDigiRx));
 }
 
 TEST(FrameDecoder, TruncatedFrameIsCountedInMode2) {
@@ -154,4 +282,19 @@ TEST(FrameDecoder, SurvivesRandomNoiseAndStillDecodesFramesAfterIt) {
     // in-band resync marker), but the great majority must decode.
     CHECK(good > 150);
   }
+}
+
+// Counters are 64-bit: at 115200 Bd a noisy line discards 2^32 bytes in under 5 days, well inside
+// one campaign, and a 32-bit bytes_discarded wrapped to a small number (a monitor saw a reset).
+// Feeding 2^32 bytes takes over 10 s here, so the width is checked at compile time, and the
+// counting itself below.
+TEST(FrameDecoder, CountersAreSixtyFourBitAndCountEveryDiscardedByte) {
+  static_assert(std::is_same_v<decltype(DecoderCounters::bytes_discarded), uint64_t>);
+  static_assert(std::is_same_v<decltype(DecoderCounters::frames_ok), uint64_t>);
+  static_assert(std::is_same_v<decltype(DecoderCounters::checksum_errors), uint64_t>);
+  static const std::vector<uint8_t> noise(1 << 20, 0x00);
+  FrameDecoder dec(ApiMode::kEscaped);
+  for (int i = 0; i < 8; ++i) dec.Feed(noise.data(), noise.size(), [](DecodeEvent) {});
+  CHECK(dec.counters().bytes_discarded == 8u << 20);
+  CHECK(FeedAll(dec, kDigiModem).frames.size() == 1);
 }

@@ -136,6 +136,68 @@ TEST(XbeeApi, NodeIdentificationRoundTrips) {
   }
 }
 
+namespace {
+// Parses a wire frame (mode 1) as a 0x95 and re-encodes it; the two wires must be equal.
+std::vector<uint8_t> ReencodeNodeIdentification(const std::vector<uint8_t>& wire, NodeIdentification* ni) {
+  const std::vector<uint8_t> data(wire.begin() + 3, wire.end() - 1);
+  CHECK(ParseNodeIdentification(data.data(), data.size(), ni) == Status::kOk);
+  uint8_t built[kMaxFrameData];
+  size_t n = 0;
+  CHECK(BuildNodeIdentification(*ni, built, sizeof built, &n) == Status::kOk);
+  std::vector<uint8_t> out(kMaxWireFrame);
+  out.resize(EncodeFrame(ApiMode::kUnescaped, built, n, out.data(), out.size()));
+  return out;
+}
+}  // namespace
+
+// Real-world 0x95 frames keep their optional trailing fields (DD device type identifier, RSSI)
+// through parse and build. Vectors: Digi's XBee-PRO 900HP/XSC manual (DD + RSSI, NO set), a
+// DD-only frame from another project's XBee test suite, Digi's Zigbee manual (no optional field).
+TEST(XbeeApi, NodeIdentificationKeepsOptionalFieldsOnReencode) {
+  const auto digi_dd_rssi = Hex(
+      "7E 00 25 95 00 13 A2 00 40 74 02 AC FF FE C2 FF FE 00 13 A2 00 40 74 02 AC 20 00 FF FE 01 01 C1 05 10 1E"
+      " 00 0C 00 00 2E 33");
+  NodeIdentification ni;
+  CHECK(ReencodeNodeIdentification(digi_dd_rssi, &ni) == digi_dd_rssi);
+  CHECK(ni.remote64 == 0x0013A200407402ACull);
+  STRCMP_EQUAL(" ", ni.node_identifier);
+  LONGS_EQUAL(1, ni.device_type);
+  LONGS_EQUAL(0xC105, ni.profile_id);
+  CHECK_TRUE(ni.has_device_type_identifier);
+  LONGS_EQUAL(0x000C0000, ni.device_type_identifier);
+  CHECK_TRUE(ni.has_rssi);
+  LONGS_EQUAL(0x2E, ni.rssi);
+
+  const auto dd_only = Hex(
+      "7E 00 27 95 00 13 A2 00 12 34 56 78 FF FE C2 FF FE 00 13 A2 00 12 34 56 78 4C 48 37 35 00 FF FE 01 01 C1 05"
+      " 10 1E 00 14 00 08 0D");
+  CHECK(ReencodeNodeIdentification(dd_only, &ni) == dd_only);
+  STRCMP_EQUAL("LH75", ni.node_identifier);
+  CHECK_TRUE(ni.has_device_type_identifier);
+  LONGS_EQUAL(0x00140008, ni.device_type_identifier);
+  CHECK_FALSE(ni.has_rssi);
+
+  const auto zigbee_plain = Hex(
+      "7E 00 20 95 00 13 A2 00 40 52 2B AA 7D 84 02 7D 84 00 13 A2 00 40 52 2B AA 20 00 FF FE 01 01 C1 05 10 1E 1B");
+  CHECK(ReencodeNodeIdentification(zigbee_plain, &ni) == zigbee_plain);
+  LONGS_EQUAL(0x7D84, ni.remote16);
+  CHECK_FALSE(ni.has_device_type_identifier);
+  CHECK_FALSE(ni.has_rssi);
+
+  // RSSI alone (NO asks for RSSI only): one byte after the manufacturer id.
+  std::vector<uint8_t> data(zigbee_plain.begin() + 3, zigbee_plain.end() - 1);
+  data.push_back(0x40);
+  CHECK(ParseNodeIdentification(data.data(), data.size(), &ni) == Status::kOk);
+  CHECK_TRUE(ni.has_rssi);
+  CHECK_FALSE(ni.has_device_type_identifier);
+  LONGS_EQUAL(0x40, ni.rssi);
+  // Two or three trailing bytes are a cut DD field; more than five is not a 0x95 we know.
+  data.push_back(0x41);
+  CHECK(ParseNodeIdentification(data.data(), data.size(), &ni) == Status::kTruncated);
+  data.insert(data.end(), {1, 2, 3, 4});
+  CHECK(ParseNodeIdentification(data.data(), data.size(), &ni) == Status::kPayloadTooLarge);
+}
+
 TEST(XbeeApi, ParsersRejectWrongTypeAndTruncation) {
   const auto ms = Hex("8A 06");
   ReceivePacket rx;

@@ -138,11 +138,21 @@ class HostWatchdog final : public Watchdog {
 /// NOR flash: erase sets 0xFF, program clears bits. Power loss can be injected at any byte of
 /// erase or program work: that byte and everything after it in the operation does not happen
 /// (an erase proceeds byte by byte), and every later call fails until PowerRestored().
+/// With TearAtPowerLoss(seed) the interruption is as ragged as on real NOR flash: the byte being
+/// programmed keeps a pseudo-random part of its bits programmed, and an interrupted erase (a
+/// sector erase works on every cell at once) leaves every byte of the page half erased (its old
+/// value with pseudo-random bits set).
 class HostFlash final : public FlashPages {
  public:
   HostFlash(size_t page_size, size_t page_count);
   /// After `bytes` more bytes of erase/program work, power is lost. -1 disables.
   void LosePowerAfter(long bytes) { budget_ = bytes; }
+  /// Tear the operation that power loss interrupts (see the class comment); the bits come from a
+  /// xorshift32 seeded with `seed` (0 is taken as 1), so a seed gives the same damage.
+  void TearAtPowerLoss(uint32_t seed) {
+    tear_ = true;
+    tear_state_ = seed ? seed : 1;
+  }
   bool power_lost() const { return power_lost_; }
   void PowerRestored() {
     power_lost_ = false;
@@ -159,12 +169,15 @@ class HostFlash final : public FlashPages {
   bool DoProgram(size_t page, size_t offset, const uint8_t* data, size_t len) override;
   bool DoRead(size_t page, size_t offset, uint8_t* data, size_t len) override;
   bool Spend();  // one byte of work; false when power is lost at it
+  uint8_t TearBits();
   size_t page_size_;
   std::vector<std::vector<uint8_t>> pages_;
   long budget_ = -1;
   bool power_lost_ = false;
   uint64_t work_bytes_ = 0;
   uint32_t erases_ = 0;
+  bool tear_ = false;
+  uint32_t tear_state_ = 1;
 };
 
 /// The XBee module as seen from the MCU's UART, plus the radio link beyond it. It decodes the

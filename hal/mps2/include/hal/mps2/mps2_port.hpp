@@ -7,7 +7,8 @@
 /// - UART1 (0x40005000): the test path standing in for the SPI ladder. The host sends frames
 ///   `0x55, n, n bytes` (the shift registers' image, loop i = bit i%8 of byte i/8); Transfer()
 ///   returns the latest image followed by the chain's signature byte.
-/// - SysTick at 1 kHz: the RTC (seconds since boot) and the wake-up alarm; Sleep() is WFI.
+/// - SysTick at 1 kHz: the RTC (seconds since boot, from a 64-bit millisecond count) and the
+///   wake-up alarm; Sleep() is WFI.
 /// - CMSDK watchdog (0x40008000): resets the core when not kicked.
 /// - Flash: the AN386 has no flash controller (code runs from SSRAM), so the page store is two
 ///   RAM pages; a production port programs the MCU's own flash here.
@@ -16,36 +17,10 @@
 #include <cstdint>
 
 #include "hal/board.hpp"
+#include "hal/port/spsc_ring.hpp"
+#include "hal/port/tick_counter.hpp"
 
 namespace lw::hal::mps2 {
-
-/// Byte ring filled from an ISR and drained by the task loop (single producer, single consumer).
-template <size_t N>
-class IsrRing {
- public:
-  void Push(uint8_t b) {
-    const size_t next = (head_ + 1) % N;
-    if (next == tail_) {
-      overruns_ = overruns_ + 1;
-      return;
-    }
-    buf_[head_] = b;
-    head_ = next;
-  }
-  bool Pop(uint8_t* b) {
-    if (tail_ == head_) return false;
-    *b = buf_[tail_];
-    tail_ = (tail_ + 1) % N;
-    return true;
-  }
-  uint32_t overruns() const { return overruns_; }
-
- private:
-  uint8_t buf_[N] = {};
-  volatile size_t head_ = 0;
-  volatile size_t tail_ = 0;
-  volatile uint32_t overruns_ = 0;
-};
 
 class CmsdkUart final : public Uart {
  public:
@@ -54,12 +29,14 @@ class CmsdkUart final : public Uart {
   void Init(uint32_t baud_div);
   /// Called from the RX interrupt handler.
   void OnRxInterrupt();
+  /// Received bytes dropped because the task loop did not drain the ring in time.
+  uint32_t rx_overruns() const { return rx_.overruns(); }
 
  private:
   size_t DoWrite(const uint8_t* data, size_t len) override;
   size_t DoRead(uint8_t* out, size_t cap) override;
   uintptr_t base_;
-  IsrRing<256> rx_;
+  port::SpscRing<256> rx_;
 };
 
 class UartLadder final : public Spi {
@@ -92,15 +69,17 @@ class SysTickClock final : public Rtc, public Power {
  public:
   /// Starts SysTick at 1 kHz from a `core_hz` clock.
   void Init(uint32_t core_hz);
-  void OnTick() { ms_ = ms_ + 1; }
-  uint32_t millis() const { return ms_; }
+  /// SysTick interrupt only.
+  void OnTick() { ms_.Tick(); }
+  /// Milliseconds since boot, 64-bit: no wrap in a campaign (a uint32 wrapped after 49.7 days).
+  uint64_t millis() const { return ms_.Read(); }
 
  private:
-  uint32_t DoNowSeconds() override { return ms_ / 1000u; }
+  uint32_t DoNowSeconds() override { return static_cast<uint32_t>(ms_.Seconds()); }
   void DoSetAlarm(uint32_t at_seconds) override { alarm_s_ = at_seconds; }
   void DoSleep() override;
   ResetCause DoLastResetCause() override { return ResetCause::kPowerOn; }
-  volatile uint32_t ms_ = 0;
+  port::TickCounter64 ms_;
   uint32_t alarm_s_ = 0;
 };
 

@@ -1,0 +1,178 @@
+// The broker accounts of docs/gateway.md with a real mosquitto on 127.0.0.1 enforcing
+// packaging/mosquitto/linerwatch.acl (plus a read-only observer, as scripts/demo adds one):
+// - the real linerwatch-gateway, logged in with its site's account, works: its retained status,
+//   its readings and its stats get through, and the server's commit ack reaches it;
+// - the same account cannot forge a commit ack (issue 15, finding 9: it would delete spooled
+//   records the server never stored), cannot publish the wear, and cannot publish readings or
+//   retained status for another site or read another site's commit acks (finding 16).
+// LW_IT_ACL=FILE runs the same checks against another ACL file (to see an older ACL fail).
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <mqtt/async_client.h>
+#include <nlohmann/json.hpp>
+
+#include "support/mosquitto_fixture.hpp"
+#include "unit/gateway/gateway_test_support.hpp"
+
+// CppUTest last: its new/delete macros break standard headers included after it.
+#include <CppUTest/TestHarness.h>
+
+namespace pr = lw::protocol;
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+namespace {
+
+const std::string kA = "linerwatch/v1/mine-a/cr1/";
+const std::string kB = "linerwatch/v1/mine-b/cr1/";
+
+// A Paho client that records every message it receives.
+class Client {
+ public:
+  Client(const std::string& uri, const std::string& id, const std::string& user, const std::string& password)
+      : client_(uri, id, nullptr) {
+    client_.set_message_callback([this](mqtt::const_message_ptr m) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      received_.push_back({m->get_topic(), m->to_string(), m->is_retained()});
+    });
+    mqtt::connect_options opts;
+    opts.set_clean_session(true);
+    opts.set_user_name(user);
+    opts.set_password(password);
+    client_.connect(opts)->wait_for(5s);
+  }
+  ~Client() {
+    try {
+      client_.disconnect()->wait_for(2s);
+    } catch (const std::exception&) {
+    }
+  }
+  void Subscribe(const std::string& filter) {
+    try {
+      client_.subscribe(filter, 1)->wait_for(5s);
+    } catch (const std::exception&) {
+      // A refused subscription: nothing will arrive on it, which is what the checks look at.
+    }
+  }
+  void Publish(const std::string& topic, const std::string& payload, bool retained = false) {
+    client_.publish(topic, payload, 1, retained)->wait_for(5s);
+  }
+  struct Message {
+    std::string topic, payload;
+    bool retained;
+  };
+  std::vector<Message> received() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return received_;
+  }
+  bool Saw(const std::string& topic, const std::string& needle = "") {
+    for (const Message& m : received()) {
+      if (m.topic == topic && m.payload.find(needle) != std::string::npos) return true;
+    }
+    return false;
+  }
+  bool WaitFor(const std::string& topic, const std::string& needle = "", std::chrono::milliseconds timeout = 10s) {
+    const auto until = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < until) {
+      if (Saw(topic, needle)) return true;
+      std::this_thread::sleep_for(20ms);
+    }
+    return false;
+  }
+
+ private:
+  mqtt::async_client client_;
+  std::mutex mutex_;
+  std::vector<Message> received_;
+};
+
+}  // namespace
+
+TEST_GROUP(BrokerAcl){};
+
+TEST(BrokerAcl, AGatewayAccountServesItsOwnSiteAndCannotForgeAcksOrOtherSites) {
+  lw::test::TempDirectory dir("lw-acl-it");
+  const char* acl_override = std::getenv("LW_IT_ACL");
+  const std::string acl_source = acl_override && *acl_override ? acl_override : LW_BROKER_ACL;
+  {
+    std::ifstream in(acl_source);
+    CHECK_TRUE(in.good());
+    std::ofstream out(dir.File("acl"));
+    out << in.rdbuf() << "\nuser observer\ntopic read linerwatch/#\n";
+  }
+  lw::test::MosquittoFixture::Options o;
+  o.username = "linerwatch-server";
+  o.password = "server-pass";
+  lw::test::MosquittoFixture::Access access;
+  access.more_users = {{"mine-a", "a-pass"}, {"mine-b", "b-pass"}, {"observer", "o-pass"}};
+  access.acl_file = dir.File("acl");
+  lw::test::MosquittoFixture broker(o, access);
+  broker.Start();
+
+  Client observer(broker.uri(), "observer", "observer", "o-pass");
+  observer.Subscribe("linerwatch/#");
+  Client server(broker.uri(), "server", "linerwatch-server", "server-pass");
+
+  // The real gateway with its site's account; its "serial port" is a file holding one frame.
+  const auto frame = lw::gateway::test::ReadingsFrame(pr::ApiMode::kEscaped, 0x0013A20040000001ull, 1001,
+                                                      {lw::gateway::test::MakeRecord(1)});
+  std::ofstream(dir.File("serial"), std::ios::binary).write(reinterpret_cast<const char*>(frame.data()),
+                                                            static_cast<std::streamsize>(frame.size()));
+  lw::test::ChildProcess gateway;
+  gateway.Start({LW_GATEWAY_BIN, "--serial", dir.File("serial"), "--broker", broker.uri(), "--site", "mine-a",
+                 "--crusher", "cr1", "--spool", dir.File("spool.db"), "--gateway-id", "gw-a", "--username", "mine-a",
+                 "--password", "a-pass", "--stats-interval", "0.3", "--republish-after", "1"},
+                dir.File("gateway.log"));
+  const bool online = observer.WaitFor(kA + "gateway/status", "online");
+  const bool reading = observer.WaitFor(kA + "sensors/1001/reading", "\"seq\":1");
+  const bool registry = observer.WaitFor(kA + "gateway/devices/0013A20040000001", "1001");
+  if (!online || !reading || !registry) FAIL(("gateway log: " + lw::test::FileTail(dir.File("gateway.log"))).c_str());
+  // The server's commit ack reaches the gateway (its subscription is allowed): the spool drains.
+  server.Publish(kA + "sensors/1001/committed", R"({"sensor": "1001", "seqs": [1]})");
+  CHECK_TRUE(observer.WaitFor(kA + "gateway/stats", "\"spool_depth\":0"));
+  CHECK_TRUE(observer.WaitFor(kA + "gateway/stats", "\"committed\":1"));
+
+  // The same account, used by anyone who has the gateway's password.
+  Client attacker(broker.uri(), "attacker", "mine-a", "a-pass");
+  attacker.Publish(kA + "sensors/1001/committed", R"({"sensor": "1001", "seqs": [2, 3, 4]})");
+  attacker.Publish(kA + "wear", R"({"forged": true})", true);
+  attacker.Publish(kB + "sensors/2001/reading", R"({"sensor": "2001", "seq": 1, "forged": true})");
+  attacker.Publish(kB + "gateway/status", R"({"state": "offline", "forged": true})", true);
+  attacker.Publish(kB + "gateway/devices/0013A20099999999", R"({"forged": true})", true);
+  attacker.Publish(kA + "gateway/stats", "control");  // allowed: arrives after all of the above
+  CHECK_TRUE(observer.WaitFor(kA + "gateway/stats", "control"));
+  CHECK_FALSE(observer.Saw(kA + "sensors/1001/committed", "[2, 3, 4]"));
+  CHECK_FALSE(observer.Saw(kA + "wear", "forged"));
+  CHECK_FALSE(observer.Saw(kB + "sensors/2001/reading", "forged"));
+  CHECK_FALSE(observer.Saw(kB + "gateway/status", "forged"));
+  CHECK_FALSE(observer.Saw(kB + "gateway/devices/0013A20099999999", "forged"));
+  // Nothing forged was retained either: a new subscriber gets no retained message of site B.
+  Client late(broker.uri(), "late", "observer", "o-pass");
+  late.Subscribe("linerwatch/v1/mine-b/#");
+  late.Subscribe(kA + "wear");
+  std::this_thread::sleep_for(500ms);
+  LONGS_EQUAL(0, late.received().size());
+
+  // Another site's commit acks are not readable with site A's account; its own are.
+  attacker.Subscribe(kB + "sensors/+/committed");
+  attacker.Subscribe(kA + "sensors/+/committed");
+  server.Publish(kB + "sensors/2001/committed", R"({"sensor": "2001", "seqs": [9]})");
+  server.Publish(kA + "sensors/1001/committed", R"({"sensor": "1001", "seqs": [8]})");
+  CHECK_TRUE(attacker.WaitFor(kA + "sensors/1001/committed", "[8]"));
+  CHECK_FALSE(attacker.Saw(kB + "sensors/2001/committed"));
+
+  gateway.Stop(SIGTERM);
+  CHECK_TRUE(observer.WaitFor(kA + "gateway/status", "offline"));
+}
