@@ -141,6 +141,8 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
     std::string text((std::istreambuf_iterator<char>(again)), std::istreambuf_iterator<char>());
     const size_t line = 1 + static_cast<size_t>(std::count(text.begin(), text.begin() + static_cast<long>(std::min(e.byte, text.size())), '\n'));
     throw InputError(file, line, std::string("not valid JSON: ") + e.what());
+  } catch (const json::exception& e) {  // a number out of range (1e999) is not a parse_error
+    throw InputError(file, 0, std::string("not valid JSON: ") + e.what());
   }
   if (!j.is_object()) throw InputError(file, 0, "must hold a JSON object");
   CrusherConfig c;

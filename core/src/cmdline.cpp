@@ -22,6 +22,8 @@ void ApplyConfigFile(const std::string& path, const std::function<void(const std
     j = nlohmann::json::parse(in);
   } catch (const nlohmann::json::parse_error& e) {
     throw UsageError("--config '" + path + "': not valid JSON: " + e.what());
+  } catch (const nlohmann::json::exception& e) {  // a number out of range (1e999) is not a parse_error
+    throw UsageError("--config '" + path + "': not valid JSON: " + e.what());
   }
   if (!j.is_object()) throw UsageError("--config '" + path + "': must hold a JSON object");
   for (const auto& [key, value] : j.items()) {

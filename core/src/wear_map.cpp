@@ -67,17 +67,6 @@ class Tokens {
     }
   }
   bool done() const { return pos_ >= toks_.size(); }
-  /// Refuses a count that promises more values than the file holds (before anything is allocated).
-  size_t Count(const char* what, size_t per_item = 1) {
-    const size_t l = line();
-    const auto n = static_cast<unsigned long long>(Integer(what));
-    const size_t left = toks_.size() - pos_;
-    if (n > left / std::max<size_t>(per_item, 1)) {
-      throw InputError(file_, l, std::string(what) + " " + std::to_string(n) + " is more than the file holds (" +
-                                     std::to_string(left) + " values left)");
-    }
-    return static_cast<size_t>(n);
-  }
   size_t line() const { return pos_ < lines_.size() ? lines_[pos_] : (lines_.empty() ? 0 : lines_.back()); }
   const std::string& Peek() const {
     static const std::string kEmpty;
@@ -99,8 +88,27 @@ class Tokens {
   long long Integer(const char* what) {
     const size_t l = line();
     const double v = Number(what);
-    if (v != std::floor(v) || v < 0) throw InputError(file_, l, std::string(what) + " must be a non-negative whole number");
+    // Counts and indices of a VTK file are 32-bit (VTK's own vtkIdType may be 64-bit, but no mesh
+    // linerwatch imports comes near 2^32 points).
+    if (v != std::floor(v) || v < 0 || v > 4294967295.0) {
+      throw InputError(file_, l, std::string(what) + " must be a whole number in [0, 4294967295]");
+    }
     return static_cast<long long>(v);
+  }
+  /// A count of items of `per_item` values each that must still be in the file: refuses counts the
+  /// file cannot hold before anything is allocated for them.
+  size_t Count(const char* what, size_t per_item = 1) {
+    const size_t l = line();
+    const auto n = static_cast<size_t>(Integer(what));
+    NeedValues(n, per_item, what, l);
+    return n;
+  }
+  void NeedValues(size_t n, size_t per_item, const char* what, size_t l) const {
+    const size_t left = toks_.size() - pos_;
+    if (per_item != 0 && n > left / per_item) {
+      throw InputError(file_, l, std::string(what) + " " + std::to_string(n) + " needs " + std::to_string(per_item) +
+                                     " value(s) each but the file holds only " + std::to_string(left) + " more");
+    }
   }
   InputError Error(const std::string& rule) const { return InputError(file_, line(), rule); }
   size_t Remaining() const { return toks_.size() - pos_; }
@@ -177,16 +185,23 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
         if (p.cwiseAbs().maxCoeff() > kMaxCoordinateM) throw InputError(file, t.LastLine(), OutOfFrame(p));
       }
     } else if (kw == "POLYGONS" || kw == "VERTICES" || kw == "LINES" || kw == "TRIANGLE_STRIPS") {
-      const size_t a = t.Count("cell count");
-      const size_t b = t.Count("cell size");
+      const size_t a = t.Count("cell count", 1);
+      const size_t b = t.Count("cell size", 1);
       std::vector<std::array<uint32_t, 3>> faces;
       if (v5 && t.Peek() == "OFFSETS") {
         t.Next("OFFSETS");
         t.Next("offset type");
         std::vector<long long> offsets(a);
         for (auto& o : offsets) o = t.Integer("offset");
+        for (size_t i = 0; i < a; ++i) {
+          if (static_cast<size_t>(offsets[i]) > b || (i > 0 && offsets[i] < offsets[i - 1])) {
+            throw InputError(file, kw_line, "OFFSETS must not decrease nor exceed the CONNECTIVITY size " + std::to_string(b) +
+                                                " (offset " + std::to_string(i) + " is " + std::to_string(offsets[i]) + ")");
+          }
+        }
         if (t.Next("CONNECTIVITY") != "CONNECTIVITY") throw InputError(file, t.LastLine(), "expected CONNECTIVITY after OFFSETS");
         t.Next("connectivity type");
+        t.NeedValues(b, 1, "cell size", kw_line);
         std::vector<long long> conn(b);
         for (auto& c : conn) c = t.Integer("point index");
         for (size_t i = 0; i + 1 < a; ++i) {
@@ -203,7 +218,7 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
       } else {
         for (size_t i = 0; i < a; ++i) {
           const size_t line = t.line();
-          const size_t k = t.Count("vertex count");
+          const size_t k = t.Count("vertex count", 1);
           std::vector<uint32_t> idx(k);
           for (auto& v : idx) v = static_cast<uint32_t>(t.Integer("point index"));
           if (kw == "POLYGONS") {
@@ -224,12 +239,14 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
     } else if (kw == "SCALARS") {
       const std::string name = t.Next("array name");
       t.Next("data type");
-      int ncomp = 1;
-      if (t.Peek() != "LOOKUP_TABLE") ncomp = static_cast<int>(t.Integer("component count"));
+      size_t ncomp = 1;
+      if (t.Peek() != "LOOKUP_TABLE") ncomp = static_cast<size_t>(t.Integer("component count"));
       if (t.Next("LOOKUP_TABLE") != "LOOKUP_TABLE") throw InputError(file, t.LastLine(), "expected LOOKUP_TABLE after SCALARS " + name);
       t.Next("lookup table name");
-      const size_t n = (in_point_data ? point_data_count : cell_count) * static_cast<size_t>(ncomp);
       if (ncomp < 1 || ncomp > 9) throw InputError(file, t.LastLine(), "SCALARS " + name + ": component count must be 1-9");
+      const size_t tuples = in_point_data ? point_data_count : cell_count;
+      t.NeedValues(tuples, ncomp, name.c_str(), t.LastLine());
+      const size_t n = tuples * ncomp;
       Eigen::VectorXd v(static_cast<Eigen::Index>(n));
       for (size_t i = 0; i < n; ++i) {
         v[static_cast<Eigen::Index>(i)] = t.Number(name.c_str());
@@ -248,6 +265,7 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
         if (in_cell_data && ntuples != cell_count) {
           throw InputError(file, line, "array '" + name + "' has " + std::to_string(ntuples) + " tuples but CELL_DATA is " + std::to_string(cell_count));
         }
+        t.NeedValues(ntuples, ncomp, name.c_str(), line);
         Eigen::VectorXd v(static_cast<Eigen::Index>(ncomp * ntuples));
         for (Eigen::Index i = 0; i < v.size(); ++i) {
           v[i] = t.Number(name.c_str());
@@ -418,14 +436,17 @@ void WearMap::ComputeGeometry() {
 }
 
 WearMap LoadWearMap(const std::filesystem::path& path, MapValidation* validation) {
-  const std::string text = ReadFile(path);
-  const std::string file = path.filename().string();
-  std::string ext = path.extension().string();
+  return ParseWearMap(ReadFile(path), path.filename().string(), validation);
+}
+
+WearMap ParseWearMap(const std::string& text, const std::string& file, MapValidation* validation) {
+  std::string ext = std::filesystem::path(file).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   WearMap map;
   if (ext == ".vtk") map = ParseVtk(text, file);
   else if (ext == ".csv") map = ParseCsv(text, file);
   else throw InputError(file, 0, "unknown map format '" + ext + "' (expected .vtk or .csv)");
+  // Coordinates beyond kMaxCoordinateM were refused, with their line, while parsing.
   const auto n = static_cast<Eigen::Index>(map.faces.size());
   for (const auto* arr : {&map.normal_stress, &map.shear_stress}) {
     if (arr->size() != 0 && arr->size() != n) throw InputError(file, 0, "per-face array length differs from the face count");

@@ -110,6 +110,8 @@ void LoadFile(const std::string& path, std::map<std::string, std::string>* value
     j = json::parse(text.str());
   } catch (const json::parse_error& e) {
     throw ConfigError("config " + path + ": invalid JSON: " + e.what());
+  } catch (const json::exception& e) {  // a number out of range (1e999) is not a parse_error
+    throw ConfigError("config " + path + ": invalid JSON: " + e.what());
   }
   if (!j.is_object()) throw ConfigError("config " + path + ": must be a JSON object of option names to values");
   for (const auto& [key, value] : j.items()) {

@@ -463,7 +463,7 @@ std::string Gateway::StatsJson(int64_t now_ms) const {
       {"connects", counters_.connects},
       {"publish_latency_ms", latency},
   };
-  return j.dump();
+  return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);  // gateway_id may not be UTF-8
 }
 
 }  // namespace lw::gateway

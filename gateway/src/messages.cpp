@@ -10,6 +10,12 @@ namespace lw::gateway {
 
 using nlohmann::json;
 
+namespace {
+/// Text from the radio (NI strings) or the host is not always UTF-8: invalid bytes become U+FFFD
+/// instead of an exception that would lose the message.
+std::string Dump(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
+}  // namespace
+
 std::string IsoUtc(int64_t unix_ms) {
   int64_t secs = unix_ms / 1000;
   if (unix_ms < 0 && unix_ms % 1000 != 0) --secs;
@@ -65,11 +71,11 @@ std::string ReadingJson(const protocol::ReadingsHeader& header, const protocol::
       {"gateway", context.gateway_id},
       {"received", IsoUtc(context.received_ms)},
   };
-  return j.dump();
+  return Dump(j);
 }
 
 std::string StatusJson(bool online, const std::string& gateway_id, int64_t now_ms) {
-  return json{{"state", online ? "online" : "offline"}, {"gateway", gateway_id}, {"time", IsoUtc(now_ms)}}.dump();
+  return Dump({{"state", online ? "online" : "offline"}, {"gateway", gateway_id}, {"time", IsoUtc(now_ms)}});
 }
 
 std::string DeviceJson(const std::vector<DeviceEntry>& entries, const std::string& gateway_id, int64_t now_ms) {
@@ -86,7 +92,7 @@ std::string DeviceJson(const std::vector<DeviceEntry>& entries, const std::strin
   j["first_seen"] = IsoUtc(first_seen);
   j["sensors"] = std::move(sensors);
   // Node identifiers come from the radio: never let a byte that is not UTF-8 stop the message.
-  return j.dump(-1, ' ', false, json::error_handler_t::replace);
+  return Dump(j);
 }
 
 std::string SanitizeForLog(std::string_view text, size_t max_bytes) {

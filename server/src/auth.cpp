@@ -17,6 +17,8 @@ TokenStore TokenStore::Load(const std::filesystem::path& path) {
     j = nlohmann::json::parse(in);
   } catch (const nlohmann::json::parse_error& e) {
     throw std::runtime_error(where + "not valid JSON: " + e.what());
+  } catch (const nlohmann::json::exception& e) {  // a number out of range (1e999) is not a parse_error
+    throw std::runtime_error(where + "not valid JSON: " + e.what());
   }
   if (!j.is_object() || !j.contains("tokens") || !j["tokens"].is_array()) {
     throw std::runtime_error(where + "must hold {\"tokens\": [...]}");

@@ -17,6 +17,7 @@
 
 #include "core/time.hpp"
 #include "server/openapi.hpp"
+#include "server/query.hpp"
 
 namespace lw::server {
 namespace {
@@ -43,19 +44,6 @@ ordered_json ReadingJson(const StoredReading& r) {
           {"flags", r.flags},
           {"battery_mv", r.battery_mv},
           {"received", Iso(r.received_s)}};
-}
-
-/// Optional time query parameter; false (and a 400 reply) when malformed.
-bool TimeParam(const httplib::Request& req, httplib::Response& res, const char* name, int64_t* out) {
-  if (!req.has_param(name)) return true;
-  const std::string v = req.get_param_value(name);
-  const auto t = core::ParseIsoTime(v);
-  if (!t) {
-    Error(res, 400, std::string(name) + "='" + v + "' is not an ISO-8601 time (YYYY-MM-DDTHH:MM:SSZ)");
-    return false;
-  }
-  *out = t->time_since_epoch().count();
-  return true;
 }
 
 /// The event stream path: the only one that takes ?access_token= (EventSource cannot send headers).
@@ -344,24 +332,13 @@ void HttpApi::Impl::Routes() {
     if (!c) return;
     const std::string sensor = req.matches[2];
     if (!c->config.FindSensor(sensor)) return Error(res, 404, "unknown sensor '" + sensor + "' on crusher " + c->config.crusher_id);
-    int64_t from = INT64_MIN, to = INT64_MAX;
-    if (!TimeParam(req, res, "from", &from) || !TimeParam(req, res, "to", &to)) return;
-    int limit = 500;
-    if (req.has_param("limit")) {
-      const std::string v = req.get_param_value("limit");
-      try {
-        size_t used = 0;
-        limit = std::stoi(v, &used);
-        if (used != v.size()) throw std::invalid_argument("");
-      } catch (const std::exception&) {
-        return Error(res, 400, "limit='" + v + "' is not a whole number");
-      }
-      if (limit < 1 || limit > 5000) return Error(res, 400, "limit must be in [1, 5000]");
-    }
+    std::string error;
+    const auto query = ParseReadingsQuery(req.params, &error);
+    if (!query) return Error(res, 400, error);
     Page page;
     try {
       std::lock_guard<std::mutex> lock(*ctx.read_mutex);
-      page = ctx.read->Range(c->config.crusher_id, sensor, from, to, limit, req.get_param_value("cursor"));
+      page = ctx.read->Range(c->config.crusher_id, sensor, query->from_s, query->to_s, query->limit, query->cursor);
     } catch (const std::invalid_argument& e) {
       return Error(res, 400, e.what());
     }

@@ -258,6 +258,11 @@ Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t
   return v;
 }
 
+std::string CommitAckJson(const Ack& ack, const std::string& time) {
+  const json payload = {{"sensor", ack.sensor}, {"seqs", ack.seqs}, {"time", time}};
+  return payload.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
 Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s)
     : store_(store), registry_(registry), now_s_(std::move(now_s)) {
   for (const auto& [crusher, site] : store_.CrusherSites()) sites_[crusher] = site;

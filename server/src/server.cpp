@@ -239,8 +239,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       }
       const std::string when = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(NowSeconds(o.clock_file))));
       for (const Ack& a : r.acks) {
-        const nlohmann::json payload = {{"sensor", a.sensor}, {"seqs", a.seqs}, {"time", when}};
-        link.Publish({root + a.site + "/" + a.crusher + "/sensors/" + a.sensor + "/committed", payload.dump(), 1, false});
+        link.Publish({root + a.site + "/" + a.crusher + "/sensors/" + a.sensor + "/committed", CommitAckJson(a, when), 1, false});
       }
       on_committed(r);
     }

@@ -52,6 +52,8 @@ class InUse {
   Stmt& s_;
 };
 
+}  // namespace
+
 std::string MakeCursor(int64_t time_s, int64_t seq) { return "t" + std::to_string(time_s) + "s" + std::to_string(seq); }
 
 void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq) {
@@ -68,6 +70,8 @@ void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq) {
     throw std::invalid_argument("cursor '" + cursor + "' is not one this server issued");
   }
 }
+
+namespace {
 
 /// Creates the database file readable by its owner only (0600) before SQLite opens it: SQLite gives
 /// its -wal and -shm files the database file's mode. An existing file keeps its mode.

@@ -69,6 +69,9 @@ struct MapValidation {
 /// Loads a map by extension: .vtk (legacy VTK) or .csv (per-face CSV, see docs/server.md).
 /// Throws InputError naming file, line and rule on malformed input.
 WearMap LoadWearMap(const std::filesystem::path& path, MapValidation* validation = nullptr);
+/// The same on bytes already in memory: `file` (a file name) selects the format by its extension
+/// and names the file in errors.
+WearMap ParseWearMap(const std::string& text, const std::string& file, MapValidation* validation = nullptr);
 
 /// Writes a legacy VTK 4.2 ASCII POLYDATA with the given per-face arrays (name -> values, each of
 /// face_count() entries) as CELL_DATA SCALARS. Writes to a temporary file and renames, so no partial

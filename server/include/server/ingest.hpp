@@ -72,6 +72,10 @@ struct Ack {
   std::vector<int64_t> seqs;
 };
 
+/// The commit acknowledgement of docs/mqtt.md: `{"sensor": S, "seqs": [...], "time": ISO}`
+/// (what the gateway's ParseCommitAck reads). Text that is not UTF-8 is replaced, never thrown on.
+std::string CommitAckJson(const Ack& ack, const std::string& time);
+
 struct IngestResult {
   size_t stored = 0;
   size_t duplicates = 0;

@@ -50,6 +50,11 @@ struct Page {
   std::optional<std::string> next_cursor;
 };
 
+/// The paging cursor of Store::Range: "t<time_s>s<seq>" of the last reading of a page.
+std::string MakeCursor(int64_t time_s, int64_t seq);
+/// Reads a cursor back; throws std::invalid_argument ("cursor '...' is not one this server issued").
+void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq);
+
 class Store {
  public:
   /// Opens (creating if needed) the database. Throws std::runtime_error naming the file on failure

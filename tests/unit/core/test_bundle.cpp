@@ -77,6 +77,17 @@ TEST(Bundle, BadCrusherJsonIsRefusedWithTheRule) {
   CHECK(ErrorOf(dir).find("wear_map.vtk") != std::string::npos);
 }
 
+// Found by fuzz/ (fuzz_bundle): nlohmann::json throws out_of_range, not parse_error, for a number
+// beyond double range, and it escaped LoadBundle instead of an InputError naming the file.
+TEST(Bundle, NumberBeyondDoubleRangeInCrusherJsonIsAnInputError) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
+  std::string j = lw::test::kCrusherJson;
+  const size_t at = j.find("\"crusher_id\"");
+  dir.Write("crusher.json", j.insert(at, "\"scale\": 1e999, "));
+  const std::string e = ErrorOf(dir);
+  CHECK_TEXT(e.find("crusher.json") != std::string::npos && e.find("not valid JSON") != std::string::npos, e.c_str());
+}
+
 TEST(Bundle, BadScansAndOperationsAreRefused) {
   lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
   dir.Write("scans/scan_2026-02-01.xyz", "1 2\n");

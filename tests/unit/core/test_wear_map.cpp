@@ -125,6 +125,54 @@ TEST(WearMap, BadMapsNameFileLineAndRule) {
   CHECK(message("m.stl", "solid").find("unknown map format") != std::string::npos);
 }
 
+// Found by fuzz/ (fuzz_wear_map_vtk): counts the file cannot hold were allocated before reading
+// (a 4e9-point header asked for 96 GB), counts above 2^63 were cast to integers (undefined
+// behaviour), VTK 5.1 OFFSETS past CONNECTIVITY were read out of bounds, and huge coordinates made
+// areas and normals infinite. Each must be a clear InputError naming the rule.
+TEST(WearMap, AbsurdCountsOffsetsAndCoordinatesAreInputErrors) {
+  lw::test::ScratchDir dir;
+  auto message = [&](const std::string& name, const std::string& text) { return LoadError(dir, name, text); };
+  const std::string v42 = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\n";
+  const std::string tail = "POLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n1\n";
+  std::string m = message("points.vtk", v42 + "POINTS 4000000000 float\n1 0 0 0 1 0 1 0 1\n" + tail);
+  CHECK_TEXT(m.find("points.vtk:5") != std::string::npos && m.find("point count 4000000000 needs 3") != std::string::npos, m.c_str());
+  m = message("cast.vtk", v42 + "POINTS 1e19 float\n1 0 0\n");
+  CHECK_TEXT(m.find("[0, 4294967295]") != std::string::npos, m.c_str());
+  m = message("cells.vtk", v42 + "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3000000000 0 1 2\n");
+  CHECK_TEXT(m.find("vertex count") != std::string::npos, m.c_str());
+  m = message("scalars.vtk", v42 + "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 3000000000\n"
+                                   "SCALARS wear float 3000000000\nLOOKUP_TABLE default\n1\n");
+  CHECK_TEXT(m.find("wear 3000000000 needs") != std::string::npos, m.c_str());
+  m = message("field.vtk", v42 + "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\n"
+                                 "FIELD FieldData 1\nwear 4000000000 1 double\n1\n");
+  CHECK_TEXT(m.find("wear 1 needs 4000000000") != std::string::npos, m.c_str());
+  const std::string v51 = "# vtk DataFile Version 5.1\nmap\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n1 0 0 0 1 0 1 0 1\n";
+  m = message("offsets.vtk", v51 + "POLYGONS 2 3\nOFFSETS vtktypeint64\n4000 4003\nCONNECTIVITY vtktypeint64\n0 1 2\n"
+                                   "CELL_DATA 1\nFIELD FieldData 1\nwear 1 1 double\n1\n");
+  CHECK_TEXT(m.find("OFFSETS") != std::string::npos, m.c_str());
+  m = message("far.vtk", v42 + "POINTS 3 float\n1e200 0 0 0 1e200 0 1 0 1e200\n" + tail);
+  CHECK_TEXT(m.find("far.vtk:5: vertex (1e+200, 0, 0) is more than 1000 m") != std::string::npos, m.c_str());
+  m = message("far.csv", "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,2e6,1\n");
+  CHECK_TEXT(m.find("is more than 1000 m from the crusher origin") != std::string::npos, m.c_str());
+}
+
+TEST(WearMap, ParsesFromMemoryLikeFromAFile) {
+  lw::test::ScratchDir dir;
+  const std::string csv = "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,1,0.5\n";
+  dir.Write("m.csv", csv);
+  const WearMap from_file = LoadWearMap(dir.path() / "m.csv");
+  const WearMap from_memory = ParseWearMap(csv, "m.csv");
+  CHECK_EQUAL(from_file.sha256, from_memory.sha256);
+  LONGS_EQUAL(1, from_memory.face_count());
+  DOUBLES_EQUAL(0.5, from_memory.wear[0], 0);
+  try {
+    ParseWearMap(csv, "m.stl");
+    FAIL("an unknown extension was accepted");
+  } catch (const InputError& e) {
+    CHECK_EQUAL(std::string("m.stl"), e.file());
+  }
+}
+
 TEST(WearMap, ValidationFlagsZeroAndTruncatedMaps) {
   lw::test::ScratchDir dir;
   WearMap m = Cone(12, 5);

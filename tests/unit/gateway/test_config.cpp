@@ -116,3 +116,12 @@ TEST(Config, BadJsonFilesAreNamed) {
   CHECK(Contains(ErrorOf({"linerwatch-gateway", "--config", file}), "invalid JSON"));
   CHECK(Contains(ErrorOf({"linerwatch-gateway", "--config", dir.File("none.json")}), "cannot be read"));
 }
+
+// Found by fuzz/ (fuzz_config): a number beyond double range made nlohmann::json throw
+// out_of_range (not parse_error), which escaped as an unnamed exception instead of a ConfigError.
+TEST(Config, NumberBeyondDoubleRangeInJsonFileIsNamed) {
+  const std::string file = dir.File("huge.json");
+  std::ofstream(file) << R"({"serial": "/dev/ttyS1", "republish-after": 1e999})";
+  const std::string e = ErrorOf({"linerwatch-gateway", "--config", file});
+  CHECK_TEXT(Contains(e, file) && Contains(e, "invalid JSON"), e.c_str());
+}

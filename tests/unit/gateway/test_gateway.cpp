@@ -64,6 +64,19 @@ TEST_GROUP(Gateway) {
     gateway = std::make_unique<gw::Gateway>(o, *spool, publisher, radio);
   }
   void Feed(const std::vector<uint8_t>& bytes) { gateway->OnBytes(bytes.data(), bytes.size(), now); }
+  /// A 0x95 Node Identification of kAddrB (an end device) with NI string `ni_string`.
+  void FeedNodeIdentification(const char* ni_string) {
+    pr::NodeIdentification ni;
+    ni.remote64 = kAddrB;
+    ni.sender64 = kAddrB;
+    ni.device_type = 2;
+    std::snprintf(ni.node_identifier, sizeof ni.node_identifier, "%s", ni_string);
+    std::vector<uint8_t> frame(pr::kMaxFrameData);
+    size_t len = 0;
+    CHECK(pr::BuildNodeIdentification(ni, frame.data(), frame.size(), &len) == pr::Status::kOk);
+    frame.resize(len);
+    Feed(gw::test::Wire(kMode, frame));
+  }
   // The gateway replaced by one on the same spool whose coordinator runs API mode 1.
   gw::Gateway& ModeOneGateway(gw::test::FakeRadio& radio1) {
     gw::GatewayOptions o;
@@ -229,16 +242,7 @@ TEST(Gateway, GarbageAndMalformedFramesAreCountedNotFatal) {
 }
 
 TEST(Gateway, NodeIdentificationEntersTheRegistry) {
-  pr::NodeIdentification ni;
-  ni.remote64 = kAddrB;
-  ni.sender64 = kAddrB;
-  ni.device_type = 2;
-  std::snprintf(ni.node_identifier, sizeof ni.node_identifier, "ROW1-S3");
-  std::vector<uint8_t> frame(pr::kMaxFrameData);
-  size_t len = 0;
-  CHECK(pr::BuildNodeIdentification(ni, frame.data(), frame.size(), &len) == pr::Status::kOk);
-  frame.resize(len);
-  Feed(gw::test::Wire(kMode, frame));
+  FeedNodeIdentification("ROW1-S3");
   gateway->Pump(now);
   const auto devices = publisher.SentOn("gateway/devices/0013A20040FFEE01");
   LONGS_EQUAL(1, devices.size());
@@ -246,6 +250,19 @@ TEST(Gateway, NodeIdentificationEntersTheRegistry) {
   const json d = json::parse(devices[0].payload);
   STRCMP_EQUAL("0013A20040FFEE01", d["address"].get<std::string>().c_str());
   STRCMP_EQUAL("ROW1-S3", d["node_identifier"].get<std::string>().c_str());
+}
+
+// Found by fuzz/ (fuzz_gateway_serial; DeviceJson's own test covers the message): a node whose NI
+// string is not UTF-8 (the radio sends any bytes) made the devices message throw in json::dump; it
+// was counted as a spool error and the retained registry was never published again.
+TEST(Gateway, NodeIdentifierThatIsNotUtf8StillPublishesTheRegistry) {
+  FeedNodeIdentification("ROW1-\xfe\xff");
+  gateway->Pump(now);
+  LONGS_EQUAL(0, gateway->counters().spool_errors);
+  const auto devices = publisher.SentOn("gateway/devices/0013A20040FFEE01");
+  LONGS_EQUAL(1, devices.size());
+  const json d = json::parse(devices[0].payload);
+  STRCMP_EQUAL("ROW1-\xef\xbf\xbd\xef\xbf\xbd", d["node_identifier"].get<std::string>().c_str());  // U+FFFD twice
 }
 
 TEST(Gateway, BadCommitAcksAreCountedAndKeepTheRecord) {
