@@ -106,6 +106,7 @@ void Assign(WearMap& map, const std::string& name, Eigen::VectorXd values) {
   if (name == "wear") map.wear = std::move(values);
   else if (name == "normal_stress_average") map.normal_stress = std::move(values);
   else if (name == "shear_stress_average") map.shear_stress = std::move(values);
+  else if (name == "wear_stderr") map.wear_stderr = std::move(values);
   else map.extra[name] = std::move(values);
 }
 
@@ -129,6 +130,13 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
   Tokens t(std::string(3, '\n') + text.substr(offset), file);
 
   WearMap map;
+  map.title = trim(l2);
+  // "linerwatch dem <case> windows=K ...": the number of independent time windows `wear` sums.
+  if (const size_t at = map.title.find("windows="); at != std::string::npos) {
+    const long k = std::strtol(map.title.c_str() + at + 8, nullptr, 10);
+    if (k < 0 || k > 100000) throw InputError(file, 2, "title's windows=" + std::to_string(k) + " is not a window count");
+    map.windows = static_cast<int>(k);
+  }
   if (t.Next("DATASET") != "DATASET" || t.Next("POLYDATA") != "POLYDATA") {
     throw InputError(file, t.LastLine(), "expected 'DATASET POLYDATA'");
   }
@@ -381,8 +389,11 @@ WearMap LoadWearMap(const std::filesystem::path& path, MapValidation* validation
   else if (ext == ".csv") map = ParseCsv(text, file);
   else throw InputError(file, 0, "unknown map format '" + ext + "' (expected .vtk or .csv)");
   const auto n = static_cast<Eigen::Index>(map.faces.size());
-  for (const auto* arr : {&map.normal_stress, &map.shear_stress}) {
+  for (const auto* arr : {&map.normal_stress, &map.shear_stress, &map.wear_stderr}) {
     if (arr->size() != 0 && arr->size() != n) throw InputError(file, 0, "per-face array length differs from the face count");
+  }
+  if (map.has_wear_stderr() && (map.wear_stderr.array() < 0).any()) {
+    throw InputError(file, 0, "'wear_stderr' has negative values (a standard error is >= 0)");
   }
   if (map.wear.size() != n) throw InputError(file, 0, "'wear' has " + std::to_string(map.wear.size()) + " values for " + std::to_string(n) + " faces");
   map.ComputeGeometry();
@@ -409,7 +420,10 @@ void WriteWearMapVtk(const std::filesystem::path& path, const WearMap& map,
     std::ofstream out(tmp);
     if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
     out.precision(10);
-    out << "# vtk DataFile Version 4.2\nlinerwatch wear map\nASCII\nDATASET POLYDATA\n";
+    std::string title = map.title.empty() ? std::string("linerwatch wear map") : map.title.substr(0, 250);
+    for (char& ch : title)
+      if (ch == '\n' || ch == '\r') ch = ' ';
+    out << "# vtk DataFile Version 4.2\n" << title << "\nASCII\nDATASET POLYDATA\n";
     out << "POINTS " << map.points.size() << " double\n";
     for (const auto& p : map.points) out << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
     out << "POLYGONS " << n << ' ' << 4 * n << '\n';
