@@ -407,7 +407,7 @@ int main(int argc, char** argv) {
     double band_lo = 0, band_hi = 0, truth_min = 0;
     double low_only_thin = 0;                 // thinnest point with only the lowest row reporting
     std::string low_only_status;
-    double bandwidth = 0;
+    double bandwidth = 0, bandwidth_arc = 0;
   };
   struct Outcome {
     lw::diagnosis::DiagnosisResult result;
@@ -464,6 +464,7 @@ int main(int argc, char** argv) {
       lv.band_hi = rec.min_thickness_hi_mm;
       lv.in_band = lv.truth_min >= rec.min_thickness_lo_mm && lv.truth_min <= rec.min_thickness_hi_mm;
       lv.bandwidth = plan.model.bandwidth_m;
+      lv.bandwidth_arc = plan.model.bandwidth_arc_m;
       std::string low_row;
       double low_z = std::numeric_limits<double>::max();
       for (const auto& r : bundle.crusher.rows)
@@ -534,7 +535,7 @@ int main(int argc, char** argv) {
     std::vector<double> e, ep, rm, rmp, ratio;
     int in_band = 0, n = 0, low_neg = 0;
     std::printf("\nLive wear at the inspection day (nulls; thinnest point estimate - truth, per-face RMSE, mm):\n");
-    std::printf("%-6s %-22s %9s %9s %9s %9s %9s %17s %9s %s\n", "case", "run", "bw_m", "thin_err", "plain", "rmse",
+    std::printf("%-6s %-22s %11s %9s %9s %9s %9s %17s %9s %s\n", "case", "run", "bw_z/arc_m", "thin_err", "plain", "rmse",
                 "plain", "band", "truth", "lowest-row-only");
     for (size_t k = 0; k < cases.size(); ++k) {
       const Live& lv = outcomes[k].live;
@@ -547,8 +548,8 @@ int main(int argc, char** argv) {
       ratio.push_back(lv.rmse / lv.rmse_plain);
       in_band += lv.in_band;
       low_neg += !(lv.low_only_thin >= 0);
-      std::printf("%-6zu %-22s %9.3f %9.2f %9.2f %9.2f %9.2f %8.1f..%-8.1f %9.2f %.1f (%s)\n", k, runs[cases[k].run].name.c_str(),
-                  lv.bandwidth, lv.thin_err, lv.thin_err_plain, lv.rmse, lv.rmse_plain, lv.band_lo, lv.band_hi, lv.truth_min,
+      std::printf("%-6zu %-22s %5.2f/%-5.2f %9.2f %9.2f %9.2f %9.2f %8.1f..%-8.1f %9.2f %.1f (%s)\n", k, runs[cases[k].run].name.c_str(),
+                  lv.bandwidth, lv.bandwidth_arc, lv.thin_err, lv.thin_err_plain, lv.rmse, lv.rmse_plain, lv.band_lo, lv.band_hi, lv.truth_min,
                   lv.low_only_thin, lv.low_only_status.c_str());
     }
     if (n) {

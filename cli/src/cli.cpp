@@ -246,8 +246,8 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   const core::MapModel& model = plan.model;
   char line[320];
   std::snprintf(line, sizeof line,
-                "map model: smoothing %.3f m (%s), per-face noise %.0f %% (%s), smoothing error %.1f %%, %zu outlier faces capped\n",
-                model.bandwidth_m, model.bandwidth_method.c_str(), 100.0 * model.face_cv, model.noise_source.c_str(),
+                "map model: smoothing %.3f m along z, %.3f m around (%s), per-face noise %.0f %% (%s), smoothing error %.1f %%, %zu outlier faces capped\n",
+                model.bandwidth_m, model.bandwidth_arc_m, model.bandwidth_method.c_str(), 100.0 * model.face_cv, model.noise_source.c_str(),
                 100.0 * model.smoothing_error_rel, model.outlier_faces);
   out << line;
   out << "row        scale_mm/unit  mean_wear_mm  min_thickness_mm  band_mm (+/-2 sd)  at_z_m  at_theta_deg  sensors\n";
@@ -280,6 +280,8 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
     j["min_face"] = rec.min_face;
     j["worn_through_faces"] = rec.worn_through_faces;
     j["map_model"] = {{"bandwidth_m", model.bandwidth_m},
+                      {"bandwidth_arc_m", model.bandwidth_arc_m},
+                      {"local_linear", model.local_linear},
                       {"bandwidth_method", model.bandwidth_method},
                       {"noise_source", model.noise_source},
                       {"face_relative_noise", model.face_cv},

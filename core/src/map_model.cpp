@@ -55,46 +55,67 @@ struct Sums {
   }
 };
 
+/// Gaussian kernel on the unwrapped surface, sd h along z and ha around the circumference (a
+/// gyratory chamber varies much faster along z than around), cut at kCutoff sd.
 struct Kernel {
   const WearMap& map;
   const Eigen::VectorXd& y;
   const Eigen::VectorXd* normal;
   double h;
+  double ha;
   bool linear = true;
   std::shared_ptr<const SurfaceIndex> owned;
   const SurfaceIndex& index;
-  Kernel(const WearMap& m, const Eigen::VectorXd& values, const Eigen::VectorXd* n, double bandwidth,
+  Kernel(const WearMap& m, const Eigen::VectorXd& values, const Eigen::VectorXd* n, double bandwidth, double bandwidth_arc = 0,
          std::shared_ptr<const SurfaceIndex> idx = nullptr)
       : map(m),
         y(values),
         normal(n),
         h(bandwidth),
-        owned(idx ? std::move(idx) : std::make_shared<const SurfaceIndex>(m, kCutoff * bandwidth)),
+        ha(bandwidth_arc > 0 ? bandwidth_arc : bandwidth),
+        owned(idx ? std::move(idx) : std::make_shared<const SurfaceIndex>(m, kCutoff * std::max(bandwidth, ha))),
         index(*owned) {}
 
-  double W(uint32_t j, double d2) const { return map.areas[static_cast<Eigen::Index>(j)] * std::exp(-0.5 * d2 / (h * h)); }
+  /// Weight of face j at offset (dz, arc); 0 beyond the cut.
+  double W(uint32_t j, double dz, double arc) const {
+    const double q = dz * dz / (h * h) + arc * arc / (ha * ha);
+    if (q > kCutoff * kCutoff) return 0.0;
+    return map.areas[static_cast<Eigen::Index>(j)] * std::exp(-0.5 * q);
+  }
 
   /// Sums at (z, theta) over faces except `skip` (-1: none).
   Sums At(double z, double theta, double radius, long skip) const {
     Sums s;
     s.linear = linear;
-    index.ForEachWithin(z, theta, radius, [&](uint32_t j, double d2) {
+    index.Visit(z, theta, radius, [&](uint32_t j, double dz, double arc) {
       if (static_cast<long>(j) == skip) return;
+      const double w = W(j, dz, arc);
+      if (w <= 0) return;
       const auto jj = static_cast<Eigen::Index>(j);
-      s.Add(W(j, d2), map.z[jj] - z, y[jj], normal ? (*normal)[jj] : 0.0);
+      s.Add(w, dz, y[jj], normal ? (*normal)[jj] : 0.0);
     });
     return s;
   }
   /// Variance of Value() given per-face variances.
   double Variance(const Sums& s, double z, double theta, double radius, long skip, const Eigen::VectorXd& var) const {
     double v = 0;
-    index.ForEachWithin(z, theta, radius, [&](uint32_t j, double d2) {
+    index.Visit(z, theta, radius, [&](uint32_t j, double dz, double arc) {
       if (static_cast<long>(j) == skip) return;
-      const auto jj = static_cast<Eigen::Index>(j);
-      const double l = s.Weight(W(j, d2), map.z[jj] - z);
-      v += l * l * var[jj];
+      const double w = W(j, dz, arc);
+      if (w <= 0) return;
+      const double l = s.Weight(w, dz);
+      v += l * l * var[static_cast<Eigen::Index>(j)];
     });
     return v;
+  }
+  double EffectiveFaces(double z, double theta) const {
+    double s0 = 0, s2 = 0;
+    index.Visit(z, theta, -1, [&](uint32_t j, double dz, double arc) {
+      const double w = W(j, dz, arc);
+      s0 += w;
+      s2 += w * w;
+    });
+    return s2 > 0 ? s0 * s0 / s2 : 0;
   }
 };
 
@@ -113,16 +134,19 @@ MapModel::Point MapModel::At(double z, double theta_deg) const {
   const WearMap& m = *map;
   if (bandwidth_m > 0) {
     const Eigen::VectorXd* nrm = normal_stress.size() ? &m.normal_stress : nullptr;
-    Kernel k(m, clean, nrm, bandwidth_m, index);
+    Kernel k(m, clean, nrm, bandwidth_m, bandwidth_arc_m, index);
     k.linear = local_linear;
     const Sums s = k.At(z, theta_deg, -1, -1);
     if (s.s0 > 0) {
       p.intensity = std::max(0.0, s.Value());
       p.sd = std::sqrt(k.Variance(s, z, theta_deg, -1, -1, face_var) + std::pow(smoothing_error_rel * p.intensity, 2));
-      p.normal_stress = nrm ? s.n0 / s.s0 : 0.0;
-      double sw2 = 0;
-      k.index.ForEachWithin(z, theta_deg, -1, [&](uint32_t j, double d2) { sw2 += std::pow(k.W(j, d2), 2); });
-      p.faces = sw2 > 0 ? s.s0 * s.s0 / sw2 : 0;
+      if (nrm && normal_index) {
+        Kernel kn(m, *nrm, nullptr, normal_bandwidth_m, 3.0 * bandwidth_arc_m, normal_index);
+        kn.linear = false;
+        const Sums sn = kn.At(z, theta_deg, -1, -1);
+        p.normal_stress = sn.s0 > 0 ? sn.t0 / sn.s0 : 0.0;
+      }
+      p.faces = k.EffectiveFaces(z, theta_deg);
       return p;
     }
   }
@@ -169,9 +193,10 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     const Kernel k(map, model.clean, nullptr, 1.5 * model.face_size_m);
     for (Eigen::Index i = 0; i < n; ++i) {
       double s0 = 0, sy = 0, s2 = 0;
-      k.index.ForEachWithin(map.z[i], map.theta_deg[i], map.radius[i], [&](uint32_t j, double d2) {
+      k.index.Visit(map.z[i], map.theta_deg[i], map.radius[i], [&](uint32_t j, double dz, double arc) {
         if (static_cast<Eigen::Index>(j) == i) return;
-        const double w = k.W(j, d2);
+        const double w = k.W(j, dz, arc);
+        if (w <= 0) return;
         s0 += w;
         sy += w * model.clean[static_cast<Eigen::Index>(j)];
         s2 += w * w;
@@ -181,44 +206,21 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     }
   }
 
-  // 2. Noise law var = phi m^p.
-  if (map.has_wear_stderr() && map.wear_stderr.size() == n && map.wear_stderr.maxCoeff() > 0) {
-    std::vector<double> lx, ly;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      if (pilot[i] > 0 && map.wear_stderr[i] > 0) {
-        lx.push_back(std::log(pilot[i]));
-        ly.push_back(2.0 * std::log(map.wear_stderr[i]));
-      }
-    }
-    double p = 1.0;
-    if (lx.size() >= 10) {
-      const double mx = std::accumulate(lx.begin(), lx.end(), 0.0) / static_cast<double>(lx.size());
-      const double my = std::accumulate(ly.begin(), ly.end(), 0.0) / static_cast<double>(ly.size());
-      double sxy = 0, sxx = 0;
-      for (size_t k = 0; k < lx.size(); ++k) {
-        sxy += (lx[k] - mx) * (ly[k] - my);
-        sxx += (lx[k] - mx) * (lx[k] - mx);
-      }
-      if (sxx > 0) p = std::clamp(sxy / sxx, 0.5, 2.0);
-    }
-    // Scale from the means (the log fit is biased by the few windows behind each stderr).
-    double num = 0, den = 0;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      if (pilot[i] <= 0) continue;
-      num += map.wear_stderr[i] * map.wear_stderr[i];
-      den += std::pow(pilot[i], p);
-    }
-    model.noise_power = p;
-    model.noise_phi = den > 0 ? num / den : 0.0;
-    model.noise_source = "wear_stderr (" + (map.windows > 0 ? std::to_string(map.windows) + " windows" : std::string("windows not stated")) + ")";
-  } else {
-    // Count-like noise (a face's wear sums contact energies): var proportional to the local mean.
-    // phi from each face's difference from its neighbourhood, the top 2 % trimmed (spikes).
+  // 2. Noise law var = phi m: a face's wear sums the energies of the contacts it received, so its
+  //    variance grows like its mean (compound Poisson). phi from wear_stderr (the spread of the
+  //    run's windows) when the map has it, else from each face against its neighbours; the top 2 %
+  //    of ratios trimmed either way (spikes).
+  {
+    const bool use_stderr = map.has_wear_stderr() && map.wear_stderr.size() == n && map.wear_stderr.maxCoeff() > 0;
     std::vector<double> ratio;
     for (Eigen::Index i = 0; i < n; ++i) {
-      if (pilot[i] <= 0 || pilot_neff[i] <= 0) continue;
-      const double d = model.clean[i] - pilot[i];
-      ratio.push_back(d * d / (pilot[i] * (1.0 + 1.0 / pilot_neff[i])));
+      if (pilot[i] <= 0) continue;
+      if (use_stderr) {
+        ratio.push_back(map.wear_stderr[i] * map.wear_stderr[i] / pilot[i]);
+      } else if (pilot_neff[i] > 0) {
+        const double d = model.clean[i] - pilot[i];
+        ratio.push_back(d * d / (pilot[i] * (1.0 + 1.0 / pilot_neff[i])));
+      }
     }
     std::sort(ratio.begin(), ratio.end());
     const size_t keep = ratio.size() - ratio.size() / 50;
@@ -226,7 +228,8 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     for (size_t k = 0; k < keep; ++k) sum += ratio[k];
     model.noise_power = 1.0;
     model.noise_phi = keep ? sum / static_cast<double>(keep) : 0.0;
-    model.noise_source = "neighbour differences";
+    model.noise_source = use_stderr ? "wear_stderr (" + (map.windows > 0 ? std::to_string(map.windows) + " windows" : std::string("windows not stated")) + ")"
+                                    : "neighbour differences";
   }
 
   // 3. Outliers: a face far above its neighbourhood is capped (one-sided: DEM spikes are faces a
@@ -242,20 +245,25 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     }
   }
 
-  // 4. Bandwidth.
-  std::vector<double> candidates;
+  // 4. Bandwidth: along z, and around the circumference 1, 3 or 8 times that (a gyratory chamber's
+  //    wear changes much faster along z than around; the data decide how much).
+  std::vector<std::pair<double, double>> candidates;  // (along z, around)
   if (options.bandwidth_m > 0) {
-    candidates.push_back(options.bandwidth_m);
+    candidates.push_back({options.bandwidth_m, options.bandwidth_m});
     model.bandwidth_method = "fixed";
   } else if (options.bandwidth_m < 0) {
     const double mean_area = map.areas.sum() / static_cast<double>(n);
+    const double half_circumference = M_PI * std::max(1e-3, map.radius.mean());
     for (double h = model.face_size_m; h <= 0.2 * extent + 1e-12; h *= 1.4) {
-      // Work bound: faces x kernel neighbours.
-      const double neighbours = M_PI * std::pow(kCutoff * h, 2) / std::max(mean_area, 1e-12);
-      // (smoothing every face at the chosen scale: about 2e9 kernel terms at most, a minute on a busy
-      // machine; a million-face map keeps to a few face sizes).
-      if (neighbours * static_cast<double>(n) > 2e9 && !candidates.empty()) break;
-      candidates.push_back(h);
+      for (double ratio : {1.0, 3.0, 8.0}) {
+        const double ha = std::min(ratio * h, half_circumference);
+        if (ratio > 1.0 && ha <= h * 1.01) continue;
+        // Work bound: faces visited per face (the kernel's bounding disc) x faces: about 2e9 terms
+        // at most for the final smoothing (a million-face map keeps to a few face sizes).
+        const double visits = M_PI * std::pow(kCutoff * std::max(h, ha), 2) / std::max(mean_area, 1e-12);
+        if (visits * static_cast<double>(n) > 2e9 && !candidates.empty()) continue;
+        candidates.push_back({h, ha});
+      }
     }
     model.bandwidth_method = "cross-validation";
   }
@@ -281,7 +289,7 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   std::vector<std::vector<double>> loo(nc, std::vector<double>(eval.size(), std::numeric_limits<double>::quiet_NaN()));
   std::vector<std::vector<double>> loo_var(nc, std::vector<double>(eval.size(), 0.0));
   for (size_t c = 0; c < nh; ++c) {
-    Kernel k(map, model.clean, nullptr, candidates[c]);
+    Kernel k(map, model.clean, nullptr, candidates[c].first, candidates[c].second);
     for (int form = 0; form < 2; ++form) {
       k.linear = form == 1;
       const size_t cc = 2 * c + static_cast<size_t>(form);
@@ -303,15 +311,19 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     const double a = map.areas[eval[e]];
     area_sum += a;
     noise_sum += a * pilot_var[eval[e]];
-    for (size_t c = 0; c < nc; ++c) score[c] += a * std::pow(model.clean[eval[e]] - loo[c][e], 2);
+    // Squared error, clipped at 3 noise standard deviations (Huber-like): a few spike faces must
+    // not choose the scale for the whole liner.
+    const double clip2 = 9.0 * std::max(pilot_var[eval[e]], 1e-300);
+    for (size_t c = 0; c < nc; ++c) score[c] += a * std::min(clip2, std::pow(model.clean[eval[e]] - loo[c][e], 2));
   }
   size_t best = 0;
   for (size_t c = 1; c < nc; ++c)
     if (score[c] < score[best]) best = c;
-  model.bandwidth_m = candidates[best / 2];
+  model.bandwidth_m = candidates[best / 2].first;
+  model.bandwidth_arc_m = candidates[best / 2].second;
   model.local_linear = best % 2 == 1;
   for (size_t c = 0; c < nh; ++c)
-    model.cv_curve.push_back({candidates[c], score[best] > 0 ? std::min(score[2 * c], score[2 * c + 1]) / score[best] : 1.0});
+    model.cv_curve.push_back({candidates[c].first, score[best] > 0 ? std::min(score[2 * c], score[2 * c + 1]) / score[best] : 1.0});
   // The smoothing's own error: what the cross-validated error holds beyond the faces' noise and the
   // noise of the prediction, relative to the field's mean square.
   if (area_sum > 0) {
@@ -330,14 +342,27 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
 
   // 5. The field at the chosen bandwidth, and its standard error.
   {
-    Kernel k(map, model.clean, nrm, model.bandwidth_m);
+    Kernel k(map, model.clean, nrm, model.bandwidth_m, model.bandwidth_arc_m);
     k.linear = model.local_linear;
     std::vector<Sums> sums(static_cast<size_t>(n));
     for (Eigen::Index i = 0; i < n; ++i) {
       sums[static_cast<size_t>(i)] = k.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
       const Sums& s = sums[static_cast<size_t>(i)];
       model.intensity[i] = s.s0 > 0 ? std::max(0.0, s.Value()) : model.clean[i];
-      if (nrm) model.normal_stress[i] = s.s0 > 0 ? s.n0 / s.s0 : (*nrm)[i];
+    }
+    // Normal stress at three times the wear's scale: its sampling noise is shared with the wear's
+    // (the same contacts), and at the wear's own scale it would carry the wear map's error into
+    // every stress-based hypothesis (a map over-predicting where it happened to sample more
+    // contacts would look like work hardening). The stress field's real pattern is broad.
+    if (nrm) {
+      model.normal_bandwidth_m = 3.0 * model.bandwidth_m;
+      Kernel kn(map, *nrm, nullptr, model.normal_bandwidth_m, 3.0 * model.bandwidth_arc_m);
+      kn.linear = false;
+      model.normal_index = kn.owned;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const Sums sn = kn.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
+        model.normal_stress[i] = sn.s0 > 0 ? sn.t0 / sn.s0 : (*nrm)[i];
+      }
     }
     Eigen::VectorXd& var = model.face_var;
     var.resize(n);

@@ -415,6 +415,8 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   {
     const core::MapModel& m = fields.model;
     result.noise["map_model"] = {{"bandwidth_m", Round(m.bandwidth_m, 4)},
+                                 {"bandwidth_arc_m", Round(m.bandwidth_arc_m, 4)},
+                                 {"local_linear", m.local_linear},
                                  {"bandwidth_method", m.bandwidth_method},
                                  {"noise_source", m.noise_source},
                                  {"face_relative_noise", Round(m.face_cv, 3)},
@@ -422,10 +424,10 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
                                  {"outlier_faces_capped", m.outlier_faces},
                                  {"windows", bundle.map.windows}};
     if (fields.noise_estimated) {
-      result.notes.push_back(Fmt("map model: per-face noise %.0f %% (%s), smoothed over %.3f m (%s), smoothing error "
+      result.notes.push_back(Fmt("map model: per-face noise %.0f %% (%s), smoothed over %.3f m along z (%.3f m around, %s), smoothing error "
                                  "%.1f %%, %zu outlier faces capped; every intensity (sensors, scan cells, faces) is "
                                  "the smoothed one with its standard error",
-                                 100.0 * m.face_cv, m.noise_source.c_str(), m.bandwidth_m, m.bandwidth_method.c_str(),
+                                 100.0 * m.face_cv, m.noise_source.c_str(), m.bandwidth_m, m.bandwidth_arc_m, m.bandwidth_method.c_str(),
                                  100.0 * m.smoothing_error_rel, m.outlier_faces));
     }
   }
@@ -636,7 +638,16 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   const EvalOptions eq9_opt{false, true};
   const FitResult eq9 = Fit(prob, base_spec, sensors_only, eq9_opt, {k_init}, 30, k_scale);
 
-  // Scan-cell noise: points + map noise on the predicted wear + floors.
+  // Scan-cell noise: points + map noise on the predicted wear + floors. The smoothed map's error is
+  // correlated over the kernel (about (2 h)^2 pi): cells closer than that share it and are not
+  // independent evidence, so the map-noise term counts once per correlation area, not per cell.
+  double corr_cells = 1.0;
+  {
+    const double cell_area = grid.dz * grid.dt_deg * kPi / 180.0 * fields.mean_radius_m;
+    const double h = fields.model.bandwidth_m, ha = fields.model.bandwidth_arc_m;
+    if (cell_area > 0 && h > 0) corr_cells = std::max(1.0, kPi * 4.0 * h * std::max(h, ha) / cell_area);
+    result.noise["scan_cells_per_map_error_area"] = Round(corr_cells, 2);
+  }
   {
     Eigen::MatrixXd w;
     detail::Simulate(base_spec, eq9.x, prob.points, prob.grid, w);
@@ -645,7 +656,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       const detail::ScanCells& sc = scans[static_cast<size_t>(o.scan)];
       const double pred = std::max(Interp(w, o), 0.0);
       const double rel = sc.fields[static_cast<size_t>(o.cell)].rel_noise;
-      o.sigma = std::sqrt(std::pow(sc.sigma_mm[static_cast<size_t>(o.cell)], 2) + std::pow(rel * pred, 2) +
+      o.sigma = std::sqrt(std::pow(sc.sigma_mm[static_cast<size_t>(o.cell)], 2) + corr_cells * std::pow(rel * pred, 2) +
                           th.scan_floor_mm * th.scan_floor_mm + std::pow(th.model_floor_rel * pred, 2));
     }
   }

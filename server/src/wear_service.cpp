@@ -116,6 +116,8 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
   j["rows"] = rows;
   const core::MapModel& m = c.plan.model;
   j["map_model"] = {{"bandwidth_m", Round(m.bandwidth_m, 1e-4)},
+                    {"bandwidth_arc_m", Round(m.bandwidth_arc_m, 1e-4)},
+                    {"local_linear", m.local_linear},
                     {"bandwidth_method", m.bandwidth_method},
                     {"noise_source", m.noise_source},
                     {"face_relative_noise", Round(m.face_cv, 1e-3)},

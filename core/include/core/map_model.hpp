@@ -41,8 +41,17 @@ class SurfaceIndex {
   /// length uses the mean of the point's and the face's radius (the face's when radius_m <= 0).
   template <typename Fn>
   void ForEachWithin(double z, double theta_deg, double radius_m, Fn&& fn) const {
-    const long iz = BucketZ(z), ia = BucketA(theta_deg);
     const double r2 = reach_ * reach_;
+    Visit(z, theta_deg, radius_m, [&](uint32_t j, double dz, double arc) {
+      const double d2 = dz * dz + arc * arc;
+      if (d2 <= r2) fn(j, d2);
+    });
+  }
+  /// Calls fn(face, dz, arc) for the faces of the buckets around (z, theta) (a superset of those
+  /// within reach(); dz = face z - z, arc = signed arc length from the point to the face).
+  template <typename Fn>
+  void Visit(double z, double theta_deg, double radius_m, Fn&& fn) const {
+    const long iz = BucketZ(z), ia = BucketA(theta_deg);
     for (long dz = -1; dz <= 1; ++dz) {
       for (long da = -1; da <= 1; ++da) {
         if (n_arc_ < 3 && da != 0) continue;
@@ -50,14 +59,11 @@ class SurfaceIndex {
         if (it == buckets_.end()) continue;
         for (const uint32_t j : it->second) {
           const auto jj = static_cast<Eigen::Index>(j);
-          const double ddz = map_.z[jj] - z;
           double dth = std::fmod(map_.theta_deg[jj] - theta_deg, 360.0);
           if (dth > 180.0) dth -= 360.0;
           if (dth < -180.0) dth += 360.0;
           const double r = radius_m > 0 ? 0.5 * (radius_m + map_.radius[jj]) : map_.radius[jj];
-          const double arc = r * dth * 0.017453292519943295;
-          const double d2 = ddz * ddz + arc * arc;
-          if (d2 <= r2) fn(j, d2);
+          fn(j, map_.z[jj] - z, r * dth * 0.017453292519943295);
         }
       }
     }
@@ -80,8 +86,8 @@ class SurfaceIndex {
 };
 
 struct MapModelOptions {
-  /// Gaussian kernel standard deviation on the surface (m): < 0 chosen from the data (leave-one-out
-  /// cross-validation), 0 no smoothing, > 0 fixed.
+  /// Gaussian kernel standard deviation along z (m): < 0 chosen from the data (leave-one-out
+  /// cross-validation, with the circumferential scale), 0 no smoothing, > 0 fixed (isotropic).
   double bandwidth_m = -1;
   /// Cap faces above their neighbourhood's mean + outlier_z noise standard deviations.
   bool robust = true;
@@ -92,7 +98,8 @@ struct MapModelOptions {
 
 struct MapModel {
   const WearMap* map = nullptr;
-  double bandwidth_m = 0;          ///< Gaussian kernel sd, m (0: none)
+  double bandwidth_m = 0;          ///< Gaussian kernel sd along z, m (0: none)
+  double bandwidth_arc_m = 0;      ///< Gaussian kernel sd around the circumference (arc length), m
   std::string bandwidth_method;    ///< "cross-validation", "fixed", "none"
   bool local_linear = false;       ///< local-linear in z (chosen by the CV with the bandwidth), else a kernel mean
   /// Candidate bandwidths and their leave-one-out mean squared error relative to the chosen one.
@@ -107,7 +114,8 @@ struct MapModel {
   double smoothing_error_rel = 0;  ///< relative rms error of the smoothing itself (bias), from the CV
   Eigen::VectorXd intensity;       ///< per face, smoothed (map units)
   Eigen::VectorXd intensity_sd;    ///< per face, standard error of `intensity`
-  Eigen::VectorXd normal_stress;   ///< per face, smoothed with the same kernel; size 0 when absent
+  Eigen::VectorXd normal_stress;   ///< per face, smoothed at normal_bandwidth_m; size 0 when absent
+  double normal_bandwidth_m = 0;   ///< 3 x bandwidth_m: stress noise shared with the wear's averaged out
 
   /// The model at a point: kernel-weighted like the faces (with the point's own surroundings).
   struct Point {
@@ -123,6 +131,7 @@ struct MapModel {
   double FaceVariance(double m) const;
   Eigen::VectorXd face_var;                     ///< FaceVariance(intensity) per face
   std::shared_ptr<const SurfaceIndex> index;    ///< kernel-support index (bandwidth > 0)
+  std::shared_ptr<const SurfaceIndex> normal_index;  ///< the same for the stress kernel
 };
 
 MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options = {});
