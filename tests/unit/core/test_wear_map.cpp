@@ -1,4 +1,5 @@
 #include <cmath>
+#include <fstream>
 
 #include "core/wear_map.hpp"
 #include "unit/core/temp_dir.hpp"
@@ -130,4 +131,17 @@ TEST(WearMap, ValidationFlagsZeroAndTruncatedMaps) {
   CHECK(v.zero_wear_fraction > 0.3);
   CHECK(v.looks_truncated);
   CHECK(v.warnings.size() >= 2);
+}
+
+TEST(WearMap, WearStderrAndTheTitlesWindowCountAreRead) {
+  const lw::test::ScratchDir dir;
+  std::ofstream(dir.path() / "m.vtk") << "# vtk DataFile Version 4.2\nlinerwatch dem c1 windows=5 window_s=1.4\nASCII\n"
+                                         "DATASET POLYDATA\nPOINTS 3 double\n0 1 0\n1 1 0\n0 1 1\nPOLYGONS 1 4\n3 0 1 2\n"
+                                         "CELL_DATA 1\nSCALARS wear double 1\nLOOKUP_TABLE default\n2.5\n"
+                                         "SCALARS wear_stderr double 1\nLOOKUP_TABLE default\n0.7\n";
+  const WearMap m = LoadWearMap(dir.path() / "m.vtk");
+  LONGS_EQUAL(5, m.windows);
+  CHECK(m.has_wear_stderr());
+  DOUBLES_EQUAL(0.7, m.wear_stderr[0], 1e-12);
+  CHECK(m.extra.count("wear_stderr") == 0);
 }
