@@ -30,7 +30,9 @@
 #include <vector>
 
 #include "core/bundle.hpp"
+#include "core/reconstruction.hpp"
 #include "diagnosis/diagnose.hpp"
+#include "realdem.hpp"
 #include "sim/campaign.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
 
@@ -48,7 +50,28 @@ struct Case {
   lw::sim::CampaignSpec sim;
   uint64_t sim_seed = 0;
   std::string stuck_sensor;
+  // --generator realdem: a run of the DEM library and how it is split and loaded with effects.
+  lw::bench::RealDemSpec rd;
+  size_t run = 0;
+  std::string variant;  // realdem nulls: "" or "lowest_row_only" (live figures with one row reporting)
 };
+
+// The test forward model's effect settings carried over to the real-map generator (the same
+// documented forms; the map, its noise and the chamber are real).
+void ToRealDem(const lw::test::SyntheticSpec& s, lw::bench::RealDemSpec& r) {
+  r.hardening_h = s.hardening_h;
+  r.hardening_tau_days = s.hardening_tau_days;
+  r.gradient_g = s.gradient_g;
+  r.gradient_onset_mm = 10.0 + 2.0 * s.gradient_onset_mm;
+  r.squeeze_beta = s.squeeze_beta;
+  r.profile_p = s.profile_p;
+  r.feed_amplitude = s.feed_amplitude;
+  r.feed_theta_deg = s.feed_theta_deg;
+  r.throughput_phi = s.throughput_phi;
+  r.with_operations = r.with_operations || s.with_operations;
+  r.loss_day = s.loss_day;
+  r.loss_mm = s.loss_mm;
+}
 
 void ApplySim(const std::string& effect, int level, uint64_t seed, lw::sim::CampaignSpec& s, double& param) {
   static const std::map<std::string, std::vector<double>> kLevels = {
@@ -140,7 +163,9 @@ int main(int argc, char** argv) {
   int max_cases = 1 << 30;
   int threads = 1;
   unsigned seed0 = 1;
-  std::string keep, generator = "test", only, level_filter, json_dir;
+  std::string keep, generator = "test", only, level_filter, json_dir, dem_dir;
+  double truth_radius = 0.12;
+  bool live_only = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--generator" && i + 1 < argc) generator = argv[++i];
@@ -151,19 +176,42 @@ int main(int argc, char** argv) {
     else if (a == "--level" && i + 1 < argc) level_filter = argv[++i];
     else if (a == "--json-dir" && i + 1 < argc) json_dir = argv[++i];
     else if (a == "--threads" && i + 1 < argc) threads = std::stoi(argv[++i]);
+    else if (a == "--dem-dir" && i + 1 < argc) dem_dir = argv[++i];
+    else if (a == "--truth-radius" && i + 1 < argc) truth_radius = std::stod(argv[++i]);
+    else if (a == "--live-only") live_only = true;
     else {
       std::fprintf(stderr,
-                   "usage: lw_bench_diagnosis [--generator test|sim] [--cases N] [--only TRUTH] [--level weak|moderate|strong] "
-                   "[--seed S] [--keep DIR] [--json-dir DIR] [--threads N]\n");
+                   "usage: lw_bench_diagnosis [--generator test|sim|realdem] [--dem-dir DIR] [--truth-radius F] [--live-only] "
+                   "[--cases N] [--only TRUTH] [--level weak|moderate|strong] [--seed S] [--keep DIR] [--json-dir DIR] [--threads N]\n");
       return 2;
     }
   }
-  if (generator != "test" && generator != "sim") {
-    std::fprintf(stderr, "lw_bench_diagnosis: --generator must be test or sim\n");
+  if (generator != "test" && generator != "sim" && generator != "realdem") {
+    std::fprintf(stderr, "lw_bench_diagnosis: --generator must be test, sim or realdem\n");
+    return 2;
+  }
+  if (generator == "realdem" && dem_dir.empty()) {
+    std::fprintf(stderr, "lw_bench_diagnosis: --generator realdem needs --dem-dir DIR (folders with wear_windows.vtk and crusher.json)\n");
     return 2;
   }
   const bool use_sim = generator == "sim";
-  std::printf("generator: %s\n", use_sim ? "sim (independent campaign generator, sim/)" : "test forward model (the diagnosis' own forms)");
+  const bool use_real = generator == "realdem";
+  std::vector<lw::bench::DemRun> runs;
+  if (use_real) {
+    runs = lw::bench::LoadDemRuns(dem_dir);
+    if (runs.empty()) {
+      std::fprintf(stderr, "lw_bench_diagnosis: no run folders in %s\n", dem_dir.c_str());
+      return 2;
+    }
+    std::printf("generator: realdem (%zu runs in %s; map from half of each run's windows, truth from the other half "
+                "smoothed over %.2f x the concave height; effects in the diagnosis' forms)\n",
+                runs.size(), dem_dir.c_str(), truth_radius);
+    for (const auto& r : runs)
+      std::printf("  run %-24s %zu faces, %zu windows%s\n", r.name.c_str(), r.mesh.face_count(), r.wear_w.size(),
+                  r.normal_w.empty() ? " (no per-window normal stress)" : "");
+  } else {
+    std::printf("generator: %s\n", use_sim ? "sim (independent campaign generator, sim/)" : "test forward model (the diagnosis' own forms)");
+  }
 
   // Case list.
   std::vector<Case> cases;
@@ -233,6 +281,92 @@ int main(int argc, char** argv) {
     c.sim.faults.push_back({c.stuck_sensor, "stuck", c.spec.stuck_from_day, 0});
     cases.push_back(c);
   }
+  if (use_real) {
+    // Real maps: fewer repetitions per effect (each case is a different split of a real run), the
+    // same structure. Sensor ids come from the run's crusher.json.
+    cases.clear();
+    unsigned rs = seed0 * 1000 + 1;
+    size_t run_k = 0;
+    auto next_run = [&] { return (run_k++) % runs.size(); };
+    // A sensor of the run: of its lowest row (material loss: where wear is fastest), or any.
+    auto sensor_of = [&](size_t run, unsigned k, bool low) {
+      const auto& cr = runs[run].crusher;
+      std::string low_row;
+      double low_z = std::numeric_limits<double>::max();
+      for (const auto& r : cr.rows)
+        if (r.z_min_m < low_z) {
+          low_z = r.z_min_m;
+          low_row = r.name;
+        }
+      std::vector<std::string> ids;
+      for (const auto& sn : cr.sensors)
+        if (!low || sn.row == low_row) ids.push_back(sn.id);
+      if (ids.empty())
+        for (const auto& sn : cr.sensors) ids.push_back(sn.id);
+      return ids[k % ids.size()];
+    };
+    if (!live_only) {
+      for (const std::string& e : kEffects) {
+        for (int level = 0; level < 3; ++level) {
+          for (int rep = 0; rep < 3; ++rep) {
+            Case c;
+            c.truth = e;
+            c.level = level_names[level];
+            c.spec.seed = rs;
+            c.rd.seed = rs++;
+            c.run = next_run();
+            c.rd.with_scan = rep != 2;
+            Apply(e, level, c.spec, c.param);
+            ToRealDem(c.spec, c.rd);
+            if (e == "material_loss") c.rd.loss_sensor = sensor_of(c.run, rs, true);
+            if (e == "hardness_gradient") c.param = c.spec.gradient_g;
+            cases.push_back(c);
+          }
+        }
+      }
+      for (const auto& p : pairs) {
+        for (int rep = 0; rep < 2; ++rep) {
+          Case c;
+          c.truth = p.first + "+" + p.second;
+          c.level = "moderate";
+          c.spec.seed = rs;
+          c.rd.seed = rs++;
+          c.run = next_run();
+          double dummy;
+          Apply(p.first, 1, c.spec, c.param);
+          Apply(p.second, 1, c.spec, dummy);
+          ToRealDem(c.spec, c.rd);
+          cases.push_back(c);
+        }
+      }
+    }
+    for (int rep = 0; rep < 30; ++rep) {
+      Case c;
+      c.truth = "none";
+      c.level = "-";
+      c.rd.seed = rs++;
+      c.run = next_run();
+      c.rd.with_scan = rep % 4 != 3;
+      c.rd.with_operations = rep % 2 == 0;
+      c.rd.with_normal = rep % 5 != 4;
+      c.rd.truth_radius_frac = truth_radius;
+      cases.push_back(c);
+    }
+    if (!live_only) {
+      for (int rep = 0; rep < 10; ++rep) {
+        Case c;
+        c.truth = "fault";
+        c.level = "-";
+        c.rd.seed = rs++;
+        c.run = next_run();
+        c.stuck_sensor = sensor_of(c.run, static_cast<unsigned>(rep), false);
+        c.rd.stuck_sensor = c.stuck_sensor;
+        c.rd.stuck_from_day = 25.0 + 3.0 * (rep % 10);
+        cases.push_back(c);
+      }
+    }
+    for (Case& c : cases) c.rd.truth_radius_frac = truth_radius;
+  }
   if (!only.empty()) {
     std::vector<std::string> wanted;
     for (size_t from = 0; from <= only.size();) {
@@ -265,10 +399,21 @@ int main(int argc, char** argv) {
   const auto wall_start = std::chrono::steady_clock::now();
 
   // Cases run on `threads` workers (Diagnose is re-entrant); results are printed in case order.
+  struct Live {
+    bool done = false;
+    double thin_err = 0, thin_err_plain = 0;  // estimate - truth of the thinnest point, mm
+    double rmse = 0, rmse_plain = 0;          // per face against the truth, mm
+    bool in_band = false;
+    double band_lo = 0, band_hi = 0, truth_min = 0;
+    double low_only_thin = 0;                 // thinnest point with only the lowest row reporting
+    std::string low_only_status;
+    double bandwidth = 0, bandwidth_arc = 0;
+  };
   struct Outcome {
     lw::diagnosis::DiagnosisResult result;
     std::map<std::string, std::pair<lw::core::TimePoint, double>> truth_at;
     double seconds = 0;
+    Live live;
   };
   if (!json_dir.empty()) std::filesystem::create_directories(json_dir);
   auto run_case = [&](size_t k) {
@@ -277,7 +422,11 @@ int main(int argc, char** argv) {
     Outcome out_case;
     auto& truth_at = out_case.truth_at;
     std::optional<lw::sim::Campaign> campaign;
-    if (use_sim) {
+    std::optional<lw::bench::RealDemCampaign> real;
+    if (use_real) {
+      real.emplace(runs[c.run], c.rd);
+      real->WriteBundle(dir);
+    } else if (use_sim) {
       campaign.emplace(lw::sim::GenerateCampaign(c.sim, c.sim_seed));
       campaign->WriteBundle(dir);
     } else {
@@ -286,7 +435,55 @@ int main(int argc, char** argv) {
     lw::core::Bundle bundle = lw::core::LoadBundle(dir);
     const auto t_cut = lw::core::AddDays(bundle.crusher.installed_at, withheld_after_days);
     const auto t_pred = lw::core::AddDays(bundle.crusher.installed_at, predict_day);
-    if (campaign) {
+    if (real && c.truth == "none") {
+      // Live wear at the inspection (scan) day, readings up to then: the map model against a plain
+      // top-hat smoothing (0.15 m, the previous method) of the same map, both against the truth.
+      Live& lv = out_case.live;
+      const double day = c.rd.scan_day;
+      const auto t_live = lw::core::AddDays(bundle.crusher.installed_at, day);
+      const auto wear = lw::core::SensorWearAt(bundle.crusher, bundle.readings, t_live);
+      const lw::core::ReconstructionPlan plan = lw::core::PrepareReconstruction(bundle.crusher, bundle.map);
+      const lw::core::Reconstruction rec = lw::core::Reconstruct(plan, wear);
+      lw::core::ReconstructionOptions plain_opt;
+      plain_opt.map_model.bandwidth_m = 0;
+      plain_opt.map_model.robust = false;
+      lw::core::ReconstructionPlan plain = lw::core::PrepareReconstruction(bundle.crusher, bundle.map, plain_opt);
+      plain.intensity = lw::core::SmoothOverSurface(bundle.map, bundle.map.wear, 0.15);
+      plain.sensor_intensity = lw::core::IntensityAtSensors(bundle.crusher, bundle.map, 0.15);
+      const lw::core::Reconstruction prec = lw::core::Reconstruct(plain, wear);
+      const Eigen::VectorXd tw = real->TrueFaceWear(day);
+      const double new_mm = bundle.crusher.thickness_new_mm;
+      lv.truth_min = new_mm - tw.maxCoeff();
+      if (std::getenv("LW_DEBUG")) { Eigen::Index im; tw.maxCoeff(&im); std::fprintf(stderr, "truth max wear %.2f at face %ld z %.3f mean %.2f\n", tw.maxCoeff(), (long)im, bundle.map.z[im], tw.mean()); }
+      const Eigen::VectorXd truth_rem = (new_mm - tw.array()).matrix();
+      lv.thin_err = rec.min_thickness_mm - lv.truth_min;
+      lv.thin_err_plain = prec.min_thickness_mm - lv.truth_min;
+      lv.rmse = std::sqrt((rec.remaining_mm - truth_rem).squaredNorm() / static_cast<double>(tw.size()));
+      lv.rmse_plain = std::sqrt((prec.remaining_mm - truth_rem).squaredNorm() / static_cast<double>(tw.size()));
+      lv.band_lo = rec.min_thickness_lo_mm;
+      lv.band_hi = rec.min_thickness_hi_mm;
+      lv.in_band = lv.truth_min >= rec.min_thickness_lo_mm && lv.truth_min <= rec.min_thickness_hi_mm;
+      lv.bandwidth = plan.model.bandwidth_m;
+      lv.bandwidth_arc = plan.model.bandwidth_arc_m;
+      std::string low_row;
+      double low_z = std::numeric_limits<double>::max();
+      for (const auto& r : bundle.crusher.rows)
+        if (r.z_min_m < low_z) {
+          low_z = r.z_min_m;
+          low_row = r.name;
+        }
+      std::vector<lw::core::SensorWear> low;
+      for (const auto& w : wear)
+        if (bundle.crusher.FindSensor(w.sensor_id)->row == low_row) low.push_back(w);
+      const lw::core::Reconstruction lrec = lw::core::Reconstruct(plan, low);
+      lv.low_only_thin = lrec.min_thickness_mm;
+      lv.low_only_status = lrec.status;
+      lv.done = true;
+    }
+    if (real) {
+      for (size_t i = 0; i < bundle.crusher.sensors.size(); ++i)
+        truth_at[bundle.crusher.sensors[i].id] = {t_pred, real->TrueSensorThickness(i, predict_day)};
+    } else if (campaign) {
       // Truth at the withheld date from the generator itself.
       for (size_t i = 0; i < bundle.crusher.sensors.size(); ++i)
         truth_at[bundle.crusher.sensors[i].id] = {t_pred, campaign->TrueSensorThickness(i, predict_day)};
@@ -299,6 +496,10 @@ int main(int argc, char** argv) {
     std::erase_if(bundle.readings, [&](const lw::core::Reading& r) { return r.time > t_cut; });
     std::erase_if(bundle.operations, [&](const lw::core::OperationsSample& o) { return o.time > t_pred; });
 
+    if (live_only) {
+      if (keep.empty()) std::filesystem::remove_all(dir);
+      return out_case;
+    }
     lw::diagnosis::DiagnoseOptions opt;
     opt.predict_at = t_pred;
     const auto start = std::chrono::steady_clock::now();
@@ -329,7 +530,42 @@ int main(int argc, char** argv) {
   }
   const double wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
 
+  if (use_real) {
+    // Live wear on the nulls (item 5 of issue 14): the map model vs a plain top-hat smoothing.
+    std::vector<double> e, ep, rm, rmp, ratio;
+    int in_band = 0, n = 0, low_neg = 0;
+    std::printf("\nLive wear at the inspection day (nulls; thinnest point estimate - truth, per-face RMSE, mm):\n");
+    std::printf("%-6s %-22s %11s %9s %9s %9s %9s %17s %9s %s\n", "case", "run", "bw_z/arc_m", "thin_err", "plain", "rmse",
+                "plain", "band", "truth", "lowest-row-only");
+    for (size_t k = 0; k < cases.size(); ++k) {
+      const Live& lv = outcomes[k].live;
+      if (!lv.done) continue;
+      ++n;
+      e.push_back(std::fabs(lv.thin_err));
+      ep.push_back(std::fabs(lv.thin_err_plain));
+      rm.push_back(lv.rmse);
+      rmp.push_back(lv.rmse_plain);
+      ratio.push_back(lv.rmse / lv.rmse_plain);
+      in_band += lv.in_band;
+      low_neg += !(lv.low_only_thin >= 0);
+      std::printf("%-6zu %-22s %5.2f/%-5.2f %9.2f %9.2f %9.2f %9.2f %8.1f..%-8.1f %9.2f %.1f (%s)\n", k, runs[cases[k].run].name.c_str(),
+                  lv.bandwidth, lv.bandwidth_arc, lv.thin_err, lv.thin_err_plain, lv.rmse, lv.rmse_plain, lv.band_lo, lv.band_hi, lv.truth_min,
+                  lv.low_only_thin, lv.low_only_status.c_str());
+    }
+    if (n) {
+      std::sort(e.begin(), e.end());
+      std::sort(ep.begin(), ep.end());
+      std::printf("thinnest-point |error|: median %.2f mm, worst %.2f mm (plain smoothing: median %.2f, worst %.2f)\n",
+                  Median(e), e.back(), Median(ep), ep.back());
+      std::printf("per-face RMSE: median %.2f mm (plain smoothing %.2f mm); ratio model / plain median %.3f, worst %.3f\n",
+                  Median(rm), Median(rmp), Median(ratio), *std::max_element(ratio.begin(), ratio.end()));
+      std::printf("truth's thinnest point inside the +/-2 sd band: %d / %d; lowest-row-only thinnest negative or NaN: %d / %d\n",
+                  in_band, n, low_neg, n);
+    }
+    if (live_only) return 0;
+  }
   std::printf("%-45s %-9s %-22s %-6s %8s %8s\n", "truth", "level", "top finding", "conf", "base_mm", "impr_mm");
+  int effect_cases = 0, effect_better = 0, null_pred = 0, null_not_worse = 0;
   for (size_t k = 0; k < cases.size(); ++k) {
     const Case& c = cases[k];
     const lw::diagnosis::DiagnosisResult& r = outcomes[k].result;
@@ -355,6 +591,13 @@ int main(int argc, char** argv) {
                 r.findings.empty() ? 0.0 : r.findings[0].confidence, base_rmse, impr_rmse);
     std::fflush(stdout);
 
+    if (c.truth == "none" || c.truth == "fault") {
+      ++null_pred;
+      if (impr_rmse <= base_rmse * 1.0001 + 1e-9) ++null_not_worse;
+    } else if (std::isfinite(base_rmse)) {
+      ++effect_cases;
+      if (impr_rmse < base_rmse) ++effect_better;
+    }
     if (c.truth == "none") {
       ++null_total;
       if (!r.findings.empty()) ++null_with_finding;
@@ -421,5 +664,7 @@ int main(int argc, char** argv) {
   std::printf("Prediction error at the withheld date (day %.0f, readings after day %.0f withheld):\n", predict_day,
               withheld_after_days);
   std::printf("  median ratio improved / baseline over effect cases: %.3f (n = %zu)\n", Median(ratios), ratios.size());
+  std::printf("  improved better than the baseline: %d / %d effect cases; not worse on %d / %d nulls and fault-only cases\n",
+              effect_better, effect_cases, null_not_worse, null_pred);
   return 0;
 }

@@ -1,5 +1,6 @@
 #include "cli/cli.hpp"
 
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -254,35 +255,64 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   const std::vector<core::SensorWear> wear = core::SensorWearAt(
       bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), /*interval_centre=*/!o.Flag("lower_bound"));
   if (wear.empty()) throw BadInput(bundle.dir.string() + "/readings.csv: no reading at or before the requested time");
-  const core::Reconstruction rec = core::Reconstruct(bundle.crusher, bundle.map, wear);
-  char line[256];
-  out << "row        scale_mm/unit  mean_wear_mm  min_thickness_mm  at_z_m  at_theta_deg  sensors\n";
+  const core::ReconstructionPlan plan = core::PrepareReconstruction(bundle.crusher, bundle.map);
+  const core::Reconstruction rec = core::Reconstruct(plan, wear);
+  const core::MapModel& model = plan.model;
+  char line[320];
+  std::snprintf(line, sizeof line,
+                "map model: smoothing %.3f m along z, %.3f m around (%s), per-face noise %.0f %% (%s), smoothing error %.1f %%, %zu outlier faces capped\n",
+                model.bandwidth_m, model.bandwidth_arc_m, model.bandwidth_method.c_str(), 100.0 * model.face_cv, model.noise_source.c_str(),
+                100.0 * model.smoothing_error_rel, model.outlier_faces);
+  out << line;
+  out << "row        scale_mm/unit  mean_wear_mm  min_thickness_mm  band_mm (+/-2 sd)  at_z_m  at_theta_deg  sensors\n";
   for (const core::RowSummary& r : rec.rows) {
-    std::snprintf(line, sizeof line, "%-10s %13.4f %13.2f %17.2f %7.3f %13.1f %8zu\n", r.row.c_str(),
-                  r.scale_mm_per_unit, r.mean_wear_mm, r.min_thickness_mm, r.min_z_m, r.min_theta_deg,
-                  r.sensors_used);
+    std::snprintf(line, sizeof line, "%-10s %13.4f %13.2f %17.2f  %7.2f..%-7.2f  %7.3f %13.1f %8zu\n", r.row.c_str(),
+                  r.scale_mm_per_unit, r.mean_wear_mm, r.min_thickness_mm, r.min_thickness_lo_mm, r.min_thickness_hi_mm,
+                  r.min_z_m, r.min_theta_deg, r.sensors_used);
     out << line;
   }
-  std::snprintf(line, sizeof line, "minimum remaining thickness %.2f mm (face %zu)\n", rec.min_thickness_mm,
-                rec.min_face);
-  out << line;
+  if (rec.status == core::kStatusNoSensors) {
+    out << "minimum remaining thickness: not supported (" << rec.status_detail << ")\n";
+  } else {
+    std::snprintf(line, sizeof line, "minimum remaining thickness %.2f mm (band %.2f..%.2f mm, face %zu)%s%s\n",
+                  rec.min_thickness_mm, rec.min_thickness_lo_mm, rec.min_thickness_hi_mm, rec.min_face,
+                  rec.status == core::kStatusOk ? "" : ": ", rec.status == core::kStatusOk ? "" : rec.status_detail.c_str());
+    out << line;
+    if (rec.worn_through_faces) out << rec.worn_through_faces << " face(s) estimated worn through\n";
+  }
 
   OutputSet outputs;
   if (o.Has("json")) {
+    auto num = [](double v) { return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr); };
     nlohmann::ordered_json j;
     j["crusher_id"] = bundle.crusher.crusher_id;
     if (at) j["at"] = core::FormatIsoTime(*at);
-    j["min_thickness_mm"] = rec.min_thickness_mm;
+    j["status"] = rec.status;
+    if (!rec.status_detail.empty()) j["status_detail"] = rec.status_detail;
+    j["min_thickness_mm"] = num(rec.min_thickness_mm);
+    j["min_thickness_band_mm"] = {num(rec.min_thickness_lo_mm), num(rec.min_thickness_hi_mm)};
     j["min_face"] = rec.min_face;
+    j["worn_through_faces"] = rec.worn_through_faces;
+    j["map_model"] = {{"bandwidth_m", model.bandwidth_m},
+                      {"bandwidth_arc_m", model.bandwidth_arc_m},
+                      {"local_linear", model.local_linear},
+                      {"bandwidth_method", model.bandwidth_method},
+                      {"noise_source", model.noise_source},
+                      {"face_relative_noise", model.face_cv},
+                      {"smoothing_error_relative", model.smoothing_error_rel},
+                      {"outlier_faces_capped", model.outlier_faces}};
     j["rows"] = nlohmann::ordered_json::array();
     for (const core::RowSummary& r : rec.rows) {
       nlohmann::ordered_json x;
       x["row"] = r.row;
-      x["scale_mm_per_unit"] = r.scale_mm_per_unit;
-      x["mean_wear_mm"] = r.mean_wear_mm;
-      x["min_thickness_mm"] = r.min_thickness_mm;
+      x["scale_mm_per_unit"] = num(r.scale_mm_per_unit);
+      x["scale_sd"] = num(r.scale_sd);
+      x["mean_wear_mm"] = num(r.mean_wear_mm);
+      x["min_thickness_mm"] = num(r.min_thickness_mm);
+      x["min_thickness_band_mm"] = {num(r.min_thickness_lo_mm), num(r.min_thickness_hi_mm)};
       x["min_z_m"] = r.min_z_m;
       x["min_theta_deg"] = r.min_theta_deg;
+      x["worn_through_faces"] = r.worn_through_faces;
       x["sensors_used"] = r.sensors_used;
       j["rows"].push_back(x);
     }
@@ -291,7 +321,8 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
     outputs.Add(o.Get("json"), j.dump(2) + "\n");
   }
   if (o.Has("vtk")) {
-    core::WriteWearMapVtk(o.Get("vtk"), bundle.map, {{"wear_mm", &rec.wear_mm}, {"remaining_mm", &rec.remaining_mm}});
+    core::WriteWearMapVtk(o.Get("vtk"), bundle.map,
+                          {{"wear_mm", &rec.wear_mm}, {"remaining_mm", &rec.remaining_mm}, {"remaining_sd_mm", &rec.remaining_sd_mm}});
   }
   try {
     outputs.Commit();

@@ -173,6 +173,13 @@ std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const Recons
     RowForecast rf;
     rf.row = rs.row;
     rf.min_thickness_mm = rs.min_thickness_mm;
+    rf.min_thickness_lo_mm = rs.min_thickness_lo_mm;
+    rf.min_thickness_hi_mm = rs.min_thickness_hi_mm;
+    if (!std::isfinite(rs.min_thickness_mm)) {
+      rf.note = "no wear estimate for this row (no row scale)";
+      out.push_back(rf);
+      continue;
+    }
     std::vector<const SensorForecast*> members;
     double mean_wear = 0;
     for (const SensorInfo& s : crusher.sensors) {
@@ -189,32 +196,39 @@ std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const Recons
       continue;
     }
     mean_wear /= static_cast<double>(members.size());
-    const double face_wear = crusher.thickness_new_mm - rs.min_thickness_mm;
     if (mean_wear <= 0.0) {
       rf.note = "no measurable wear yet";
       out.push_back(rf);
       continue;
     }
-    const double ratio = face_wear / mean_wear;
+    // The thinnest face wears `ratio` times the row's mean sensor wear; at the band's thin edge it
+    // has worn (new - lo) and wears proportionally faster, at the thick edge (new - hi).
+    const auto ratio_for = [&](double remaining) { return (crusher.thickness_new_mm - remaining) / mean_wear; };
+    const double ratio = ratio_for(rs.min_thickness_mm);
     const double n = static_cast<double>(members.size());
     // Each sensor's curve is anchored at its own last reading; the row curve is the mean of the
     // sensors' wear increments after `now`, scaled by the ratio of the thinnest face.
-    const auto increment = [&](double t, double sigmas) {
+    const auto increment = [&](double t, double sigmas, double r) {
       double inc = 0, sd = 0;
       for (const SensorForecast* f : members) {
         inc += f->curve.Wear(t) - f->curve.Wear(f->curve.t_ref_days);  // wear after its last reading
         sd += f->curve.Sd(t);
       }
-      return ratio * (inc + sigmas * sd) / n;
+      return r * (inc + sigmas * sd) / n;
     };
     double rate = 0;
     for (const SensorForecast* f : members) rate += f->curve.RateMmPerDay(t_now);
     rf.rate_mm_per_day = ratio * rate / n;
-    const double limit = rs.min_thickness_mm - crusher.thickness_min_mm;  // wear left at that face
     const double k = options.band_sigmas;
-    rf.reach = ToTime(crusher, FirstReach([&](double t) { return increment(t, 0.0); }, t_now, options.horizon_days, limit));
-    rf.reach_earliest = ToTime(crusher, FirstReach([&](double t) { return increment(t, k); }, t_now, options.horizon_days, limit));
-    rf.reach_latest = ToTime(crusher, FirstReach([&](double t) { return increment(t, -k); }, t_now, options.horizon_days, limit));
+    const double lim = crusher.thickness_min_mm;
+    const double lo = std::min(rs.min_thickness_lo_mm, rs.min_thickness_mm);
+    const double hi = std::max(rs.min_thickness_hi_mm, rs.min_thickness_mm);
+    rf.reach = ToTime(crusher, FirstReach([&](double t) { return increment(t, 0.0, ratio); }, t_now, options.horizon_days,
+                                          rs.min_thickness_mm - lim));
+    rf.reach_earliest = ToTime(crusher, FirstReach([&](double t) { return increment(t, k, ratio_for(lo)); }, t_now,
+                                                   options.horizon_days, lo - lim));
+    rf.reach_latest = ToTime(crusher, FirstReach([&](double t) { return increment(t, -k, ratio_for(hi)); }, t_now,
+                                                 options.horizon_days, hi - lim));
     rf.ok = true;
     out.push_back(rf);
   }

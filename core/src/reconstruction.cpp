@@ -1,6 +1,8 @@
 #include "core/reconstruction.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <tuple>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -45,40 +47,14 @@ double LocalMean(const WearMap& map, const Eigen::VectorXd& values, double z, do
 Eigen::VectorXd SmoothOverSurface(const WearMap& map, const Eigen::VectorXd& values, double radius_m) {
   const Eigen::Index n = values.size();
   if (radius_m <= 0 || n == 0) return values;
-  // Buckets of size radius in z and, in arc length, at least radius everywhere: sized at the
-  // smallest radius, so neighbours within `radius_m` are always in the adjacent buckets (sized at
-  // the mean radius, faces nearer the axis than the mean missed some of theirs).
-  const double min_r = std::max(1e-6, map.radius.minCoeff());
-  const double zmin = map.z.minCoeff();
-  const double circumference = 2 * M_PI * min_r;
-  const auto n_arc = std::max<long>(1, static_cast<long>(circumference / radius_m));
-  std::unordered_map<long long, std::vector<Eigen::Index>> grid;
-  auto key = [&](long iz, long ia) { return (static_cast<long long>(iz) << 32) ^ static_cast<long long>((ia % n_arc + n_arc) % n_arc); };
-  std::vector<long> cz(static_cast<size_t>(n)), ca(static_cast<size_t>(n));
-  for (Eigen::Index i = 0; i < n; ++i) {
-    cz[static_cast<size_t>(i)] = static_cast<long>((map.z[i] - zmin) / radius_m);
-    ca[static_cast<size_t>(i)] = static_cast<long>(map.theta_deg[i] / 360.0 * static_cast<double>(n_arc));
-    grid[key(cz[static_cast<size_t>(i)], ca[static_cast<size_t>(i)])].push_back(i);
-  }
+  const SurfaceIndex index(map, radius_m);
   Eigen::VectorXd out(n);
   for (Eigen::Index i = 0; i < n; ++i) {
     double sw = 0, swv = 0;
-    const long iz = cz[static_cast<size_t>(i)], ia = ca[static_cast<size_t>(i)];
-    for (long dz = -1; dz <= 1; ++dz) {
-      for (long da = -1; da <= 1; ++da) {
-        if (n_arc < 3 && da != 0) continue;
-        auto it = grid.find(key(iz + dz, ia + da));
-        if (it == grid.end()) continue;
-        for (Eigen::Index j : it->second) {
-          const double ddz = map.z[j] - map.z[i];
-          const double arc = 0.5 * (map.radius[i] + map.radius[j]) * AngleDiffDeg(map.theta_deg[j], map.theta_deg[i]) * kDegToRad;
-          if (ddz * ddz + arc * arc <= radius_m * radius_m) {
-            sw += map.areas[j];
-            swv += map.areas[j] * values[j];
-          }
-        }
-      }
-    }
+    index.ForEachWithin(map.z[i], map.theta_deg[i], map.radius[i], [&](uint32_t j, double) {
+      sw += map.areas[static_cast<Eigen::Index>(j)];
+      swv += map.areas[static_cast<Eigen::Index>(j)] * values[static_cast<Eigen::Index>(j)];
+    });
     out[i] = sw > 0 ? swv / sw : values[i];
   }
   return out;
@@ -123,15 +99,27 @@ std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::ve
 }
 
 ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const WearMap& map, const ReconstructionOptions& options) {
+  return PrepareReconstruction(crusher, map, BuildMapModel(map, options.map_model), options);
+}
+
+ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const WearMap& map, MapModel model,
+                                         const ReconstructionOptions& options) {
   ReconstructionPlan p;
   p.crusher = &crusher;
   p.map = &map;
   p.options = options;
-  p.intensity = SmoothOverSurface(map, map.wear, options.smoothing_radius_m);
+  p.model = std::move(model);
+  p.model.map = &map;
+  p.intensity = p.model.intensity;
+  p.intensity_rel_sd.resize(p.intensity.size());
+  for (Eigen::Index i = 0; i < p.intensity.size(); ++i) p.intensity_rel_sd[i] = p.model.RelSd(i);
   p.sensor_intensity.resize(static_cast<Eigen::Index>(crusher.sensors.size()));
-  const double r = std::max(0.05, options.smoothing_radius_m);
+  p.sensor_intensity_sd.resize(static_cast<Eigen::Index>(crusher.sensors.size()));
   for (size_t s = 0; s < crusher.sensors.size(); ++s) {
-    p.sensor_intensity[static_cast<Eigen::Index>(s)] = LocalMean(map, p.intensity, crusher.sensors[s].z_m, crusher.sensors[s].theta_deg, r);
+    // The same kernel as the faces: Eq. 9's W_i0 is the intensity the faces around the sensor get.
+    const MapModel::Point at = p.model.At(crusher.sensors[s].z_m, crusher.sensors[s].theta_deg);
+    p.sensor_intensity[static_cast<Eigen::Index>(s)] = at.intensity;
+    p.sensor_intensity_sd[static_cast<Eigen::Index>(s)] = at.sd;
   }
   p.face_row.assign(map.face_count(), -1);
   for (Eigen::Index i = 0; i < map.z.size(); ++i) {
@@ -156,31 +144,63 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
   const CrusherConfig& crusher = *plan.crusher;
   const WearMap& map = *plan.map;
   const size_t nrows = crusher.rows.size();
+  constexpr double kQuantisationVar = 1.0 / 12.0;  // a reading n: thickness uniform in [n, n+1)
+  constexpr double kUnmeasuredRowRel = 0.3;        // a row without sensors borrows its neighbours' scale
   // Eq. 9 per row: least-squares scale through the origin over the row's sensors,
   // s = sum(I_j w_j) / sum(I_j^2); with one sensor this is W_s0 / W_i0 exactly.
   std::vector<double> num(nrows, 0.0), den(nrows, 0.0);
   std::vector<size_t> used(nrows, 0);
+  std::vector<size_t> without_intensity;
+  struct Member {
+    size_t row;
+    double I, sd, w;
+  };
+  std::vector<Member> members;
   for (const auto& sw : sensor_wear) {
     for (size_t s = 0; s < crusher.sensors.size(); ++s) {
       if (crusher.sensors[s].id != sw.sensor_id) continue;
       const int row = crusher.RowIndex(crusher.sensors[s].row);
       const double I = plan.sensor_intensity[static_cast<Eigen::Index>(s)];
+      if (row >= 0 && !(I > 0)) without_intensity.push_back(s);
       if (row < 0 || !(I > 0)) break;
       num[static_cast<size_t>(row)] += I * sw.wear_mm;
       den[static_cast<size_t>(row)] += I * I;
       ++used[static_cast<size_t>(row)];
+      members.push_back({static_cast<size_t>(row), I, plan.sensor_intensity_sd[static_cast<Eigen::Index>(s)], sw.wear_mm});
       break;
     }
   }
   std::vector<std::pair<double, double>> knots;  // (z centre, scale) of rows with sensors
-  std::vector<double> row_scale(nrows, std::numeric_limits<double>::quiet_NaN());
+  std::vector<double> knot_var;
+  std::vector<double> row_scale(nrows, std::numeric_limits<double>::quiet_NaN()), row_var(nrows, 0.0);
   for (size_t r = 0; r < nrows; ++r) {
-    if (den[r] > 0) {
-      row_scale[r] = num[r] / den[r];
-      knots.emplace_back(0.5 * (crusher.rows[r].z_min_m + crusher.rows[r].z_max_m), row_scale[r]);
+    if (den[r] > 0) row_scale[r] = num[r] / den[r];
+  }
+  // Scale variance: quantisation of each reading and the map's error at each sensor, or the
+  // sensors' own scatter about the row's line when that is larger (>= 2 sensors).
+  for (size_t r = 0; r < nrows; ++r) {
+    if (!(den[r] > 0)) continue;
+    const double k = row_scale[r];
+    double v = 0, rss = 0;
+    for (const Member& m : members) {
+      if (m.row != r) continue;
+      v += m.I * m.I * (kQuantisationVar + k * k * m.sd * m.sd);
+      rss += std::pow(m.w - k * m.I, 2);
+    }
+    v /= den[r] * den[r];
+    if (used[r] >= 2) v = std::max(v, rss / static_cast<double>(used[r] - 1) / den[r]);
+    row_var[r] = v;
+  }
+  {
+    std::vector<std::tuple<double, double, double>> k3;
+    for (size_t r = 0; r < nrows; ++r)
+      if (den[r] > 0) k3.emplace_back(0.5 * (crusher.rows[r].z_min_m + crusher.rows[r].z_max_m), row_scale[r], row_var[r]);
+    std::sort(k3.begin(), k3.end());
+    for (const auto& [z, k, v] : k3) {
+      knots.emplace_back(z, k);
+      knot_var.push_back(v);
     }
   }
-  std::sort(knots.begin(), knots.end());
   auto scale_at = [&](double z, int row) -> double {
     if (knots.empty()) return 0.0;
     if (!plan.options.interpolate_between_rows) {
@@ -205,22 +225,68 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
     }
     return knots.back().second;
   };
+  // Variance of the scale at z: interpolation weights on the knots' variances; beyond the rows with
+  // sensors (or stepping into a row without them) the borrowed scale carries kUnmeasuredRowRel more.
+  auto scale_var_at = [&](double z, int row, double scale) -> double {
+    if (knots.empty()) return 0.0;
+    double v;
+    bool borrowed = row >= 0 && std::isnan(row_scale[static_cast<size_t>(row)]);
+    if (!plan.options.interpolate_between_rows && row >= 0 && !borrowed) {
+      v = row_var[static_cast<size_t>(row)];
+    } else if (z <= knots.front().first) {
+      v = knot_var.front();
+    } else if (z >= knots.back().first) {
+      v = knot_var.back();
+    } else {
+      size_t k = 1;
+      while (k < knots.size() && z > knots[k].first) ++k;
+      const double f = (z - knots[k - 1].first) / (knots[k].first - knots[k - 1].first);
+      v = (1 - f) * (1 - f) * knot_var[k - 1] + f * f * knot_var[k];
+    }
+    if (borrowed) v += std::pow(kUnmeasuredRowRel * scale, 2);
+    return v;
+  };
   Reconstruction& out = *result;
   const Eigen::Index n = static_cast<Eigen::Index>(map.face_count());
   out.wear_mm.resize(n);  // no reallocation when `result` already holds arrays of this size
   out.remaining_mm.resize(n);
+  out.remaining_sd_mm.resize(n);
   out.min_thickness_mm = std::numeric_limits<double>::max();
   out.rows.resize(nrows);
+  out.status = kStatusOk;
+  out.status_detail.clear();
+  out.worn_through_faces = 0;
+  out.maybe_worn_through_faces = 0;
   std::vector<double> wear_sum(nrows, 0.0), area_sum(nrows, 0.0);
   for (size_t r = 0; r < nrows; ++r) {
+    const double zc = 0.5 * (crusher.rows[r].z_min_m + crusher.rows[r].z_max_m);
     out.rows[r].row = crusher.rows[r].name;
-    out.rows[r].scale_mm_per_unit = std::isnan(row_scale[r]) ? scale_at(0.5 * (crusher.rows[r].z_min_m + crusher.rows[r].z_max_m), static_cast<int>(r)) : row_scale[r];
+    out.rows[r].scale_mm_per_unit = std::isnan(row_scale[r]) ? scale_at(zc, static_cast<int>(r)) : row_scale[r];
+    out.rows[r].scale_sd = std::sqrt(scale_var_at(zc, static_cast<int>(r), out.rows[r].scale_mm_per_unit));
     out.rows[r].min_thickness_mm = std::numeric_limits<double>::max();
+    out.rows[r].min_thickness_lo_mm = std::numeric_limits<double>::max();
+    out.rows[r].min_thickness_hi_mm = std::numeric_limits<double>::max();
     out.rows[r].sensors_used = used[r];
+    out.rows[r].worn_through_faces = 0;
+  }
+  const double new_mm = crusher.thickness_new_mm;
+  if (knots.empty()) {
+    // No row scale: the map alone says nothing in mm.
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    out.wear_mm.setConstant(nan);
+    out.remaining_mm.setConstant(nan);
+    out.remaining_sd_mm.setConstant(nan);
+    out.min_thickness_mm = out.min_thickness_lo_mm = out.min_thickness_hi_mm = nan;
+    out.min_face = 0;
+    for (auto& r : out.rows) r.min_thickness_mm = r.min_thickness_lo_mm = r.min_thickness_hi_mm = r.mean_wear_mm = nan;
+    out.status = kStatusNoSensors;
+    out.status_detail = without_intensity.empty()
+                            ? "no sensor reading in any row: the map's intensity cannot be scaled into mm"
+                            : "the sensors that report sit where the map has no wear intensity: no row scale";
+    return;
   }
   // Per face scale: constant per row when stepping; piecewise linear in z between row centres
-  // otherwise (clamped outside the first and last knot). Precomputed per segment so the face loop
-  // is one pass with no search for the usual handful of rows.
+  // otherwise (clamped outside the first and last knot).
   std::vector<double> kz, k0, kslope;
   if (plan.options.interpolate_between_rows) {
     for (size_t k = 0; k < knots.size(); ++k) {
@@ -231,53 +297,89 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
                            : 0.0);
     }
   }
-  std::vector<double> step_scale(nrows + 1, 0.0);  // by row index + 1 (0: outside every row)
+  std::vector<double> step_scale(nrows + 1, 0.0), step_var(nrows + 1, 0.0);  // by row index + 1
   if (!plan.options.interpolate_between_rows) {
-    for (size_t r = 0; r < nrows; ++r) step_scale[r + 1] = scale_at(0.5 * (crusher.rows[r].z_min_m + crusher.rows[r].z_max_m), static_cast<int>(r));
+    for (size_t r = 0; r < nrows; ++r) {
+      step_scale[r + 1] = out.rows[r].scale_mm_per_unit;
+      step_var[r + 1] = out.rows[r].scale_sd * out.rows[r].scale_sd;
+    }
   }
-  const double new_mm = crusher.thickness_new_mm;
+  // Rows without sensors (their faces borrow a scale: extra variance).
+  std::vector<char> borrowed(nrows + 1, 0);
+  for (size_t r = 0; r < nrows; ++r) borrowed[r + 1] = std::isnan(row_scale[r]) ? 1 : 0;
+  const double band = plan.options.band_sigmas;
   const double* intensity = plan.intensity.data();
+  const double* rel_sd = plan.intensity_rel_sd.data();
   const double* z = map.z.data();
   const double* area = map.areas.data();
   const int* face_row = plan.face_row.data();
   double* wear_out = out.wear_mm.data();
   double* remaining_out = out.remaining_mm.data();
+  double* sd_out = out.remaining_sd_mm.data();
   const size_t nk = kz.size();
-  double min_all = std::numeric_limits<double>::max();
+  double min_all = std::numeric_limits<double>::max(), lo_all = min_all, hi_all = min_all;
   size_t min_face = 0;
   for (Eigen::Index i = 0; i < n; ++i) {
     const int r = face_row[i];
-    double scale;
+    double scale, svar;
     if (nk == 0) {
-      scale = plan.options.interpolate_between_rows ? 0.0
-              : (r >= 0 ? step_scale[static_cast<size_t>(r) + 1] : scale_at(z[i], r));
+      if (r >= 0) {
+        scale = step_scale[static_cast<size_t>(r) + 1];
+        svar = step_var[static_cast<size_t>(r) + 1];
+      } else {
+        scale = scale_at(z[i], r);
+        svar = scale_var_at(z[i], r, scale);
+      }
     } else if (z[i] <= kz[0]) {
       scale = k0[0];
+      svar = knot_var[0];
     } else {
       size_t k = 0;
       while (k + 1 < nk && z[i] > kz[k + 1]) ++k;
-      scale = k + 1 < nk ? k0[k] + (z[i] - kz[k]) * kslope[k] : k0[nk - 1];
+      if (k + 1 < nk) {
+        const double f = (z[i] - kz[k]) / (kz[k + 1] - kz[k]);
+        scale = k0[k] + (z[i] - kz[k]) * kslope[k];
+        svar = (1 - f) * (1 - f) * knot_var[k] + f * f * knot_var[k + 1];
+      } else {
+        scale = k0[nk - 1];
+        svar = knot_var[nk - 1];
+      }
     }
-    const double w = std::max(0.0, intensity[i] * scale);
+    if (nk != 0 && borrowed[static_cast<size_t>(r + 1)]) svar += kUnmeasuredRowRel * kUnmeasuredRowRel * scale * scale;
+    const double w_est = std::max(0.0, intensity[i] * scale);
+    const double sd = std::sqrt(w_est * w_est * rel_sd[i] * rel_sd[i] + intensity[i] * intensity[i] * svar);
+    // Physical: wear within [0, new]; a face whose estimate reaches the as-new thickness is worn through.
+    const double w = std::min(w_est, new_mm);
     const double rem = new_mm - w;
     wear_out[i] = w;
     remaining_out[i] = rem;
+    sd_out[i] = sd;
+    const double lo = std::max(0.0, rem - band * sd), hi = std::min(new_mm, rem + band * sd);
+    if (w_est >= new_mm) ++out.worn_through_faces;
+    if (lo <= 0.0) ++out.maybe_worn_through_faces;
     if (rem < min_all) {
       min_all = rem;
       min_face = static_cast<size_t>(i);
     }
+    lo_all = std::min(lo_all, lo);
+    hi_all = std::min(hi_all, hi);
     if (r < 0) continue;
     const size_t ru = static_cast<size_t>(r);
     wear_sum[ru] += area[i] * w;
     area_sum[ru] += area[i];
     RowSummary& row = out.rows[ru];
+    if (w_est >= new_mm) ++row.worn_through_faces;
     if (rem < row.min_thickness_mm) {
       row.min_thickness_mm = rem;
       row.min_face = static_cast<size_t>(i);
     }
+    row.min_thickness_lo_mm = std::min(row.min_thickness_lo_mm, lo);
+    row.min_thickness_hi_mm = std::min(row.min_thickness_hi_mm, hi);
   }
   out.min_thickness_mm = min_all;
   out.min_face = min_face;
+  out.min_thickness_lo_mm = lo_all;
+  out.min_thickness_hi_mm = hi_all;
   for (size_t r = 0; r < nrows; ++r) {
     const size_t f = out.rows[r].min_face;
     if (area_sum[r] > 0) {
@@ -287,7 +389,19 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
   }
   for (size_t r = 0; r < nrows; ++r) {
     out.rows[r].mean_wear_mm = area_sum[r] > 0 ? wear_sum[r] / area_sum[r] : 0.0;
-    if (area_sum[r] == 0) out.rows[r].min_thickness_mm = crusher.thickness_new_mm;
+    if (area_sum[r] == 0) out.rows[r].min_thickness_mm = out.rows[r].min_thickness_lo_mm = out.rows[r].min_thickness_hi_mm = crusher.thickness_new_mm;
+  }
+  // Can the map and sensors support the thinnest-point number?
+  if (n > 0) {
+    const double wear_min = new_mm - min_all;
+    const double sd_min = out.remaining_sd_mm[static_cast<Eigen::Index>(min_face)];
+    if (wear_min > 0 && sd_min / wear_min > plan.options.max_rel_sd) {
+      out.status = kStatusUnsupported;
+      char b[200];
+      std::snprintf(b, sizeof b, "the thinnest point's wear has a %.0f %% standard error (map noise, sensor quantisation, row scale): band only",
+                    100.0 * sd_min / wear_min);
+      out.status_detail = b;
+    }
   }
 }
 

@@ -142,6 +142,7 @@ void Assign(WearMap& map, const std::string& name, Eigen::VectorXd values) {
   if (name == "wear") map.wear = std::move(values);
   else if (name == "normal_stress_average") map.normal_stress = std::move(values);
   else if (name == "shear_stress_average") map.shear_stress = std::move(values);
+  else if (name == "wear_stderr") map.wear_stderr = std::move(values);
   else map.extra[name] = std::move(values);
 }
 
@@ -165,6 +166,13 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
   Tokens t(std::string(3, '\n') + text.substr(offset), file);
 
   WearMap map;
+  map.title = trim(l2);
+  // "linerwatch dem <case> windows=K ...": the number of independent time windows `wear` sums.
+  if (const size_t at = map.title.find("windows="); at != std::string::npos) {
+    const long k = std::strtol(map.title.c_str() + at + 8, nullptr, 10);
+    if (k < 0 || k > 100000) throw InputError(file, 2, "title's windows=" + std::to_string(k) + " is not a window count");
+    map.windows = static_cast<int>(k);
+  }
   if (t.Next("DATASET") != "DATASET" || t.Next("POLYDATA") != "POLYDATA") {
     throw InputError(file, t.LastLine(), "expected 'DATASET POLYDATA'");
   }
@@ -448,8 +456,11 @@ WearMap ParseWearMap(const std::string& text, const std::string& file, MapValida
   else throw InputError(file, 0, "unknown map format '" + ext + "' (expected .vtk or .csv)");
   // Coordinates beyond kMaxCoordinateM were refused, with their line, while parsing.
   const auto n = static_cast<Eigen::Index>(map.faces.size());
-  for (const auto* arr : {&map.normal_stress, &map.shear_stress}) {
+  for (const auto* arr : {&map.normal_stress, &map.shear_stress, &map.wear_stderr}) {
     if (arr->size() != 0 && arr->size() != n) throw InputError(file, 0, "per-face array length differs from the face count");
+  }
+  if (map.has_wear_stderr() && (map.wear_stderr.array() < 0).any()) {
+    throw InputError(file, 0, "'wear_stderr' has negative values (a standard error is >= 0)");
   }
   if (map.wear.size() != n) throw InputError(file, 0, "'wear' has " + std::to_string(map.wear.size()) + " values for " + std::to_string(n) + " faces");
   if (!(map.wear.maxCoeff() > 0)) throw InputError(file, 0, "every face has zero wear: the map cannot be scaled by the sensors");
@@ -466,10 +477,10 @@ WearMap ParseWearMap(const std::string& text, const std::string& file, MapValida
 
 void WriteWearMapVtk(const std::filesystem::path& path, const WearMap& map,
                      const std::vector<std::pair<std::string, const Eigen::VectorXd*>>& cell_arrays,
-                     const std::string& title) {
+                     const std::string& title_arg) {
   const auto n = map.face_count();
-  if (title.empty() || title.size() > 255 || title.find_first_of("\r\n") != std::string::npos)
-    throw std::invalid_argument("a VTK title is one line of 1 to 255 characters");
+  if (title_arg.size() > 255 || title_arg.find_first_of("\r\n") != std::string::npos)
+    throw std::invalid_argument("a VTK title is one line of at most 255 characters");
   for (const auto& [name, arr] : cell_arrays) {
     if (!arr || static_cast<size_t>(arr->size()) != n) throw std::invalid_argument("cell array '" + name + "' does not have one value per face");
     if (name.empty() || name.find_first_of(" \t\n") != std::string::npos) throw std::invalid_argument("cell array name '" + name + "' is not a VTK name");
@@ -480,6 +491,10 @@ void WriteWearMapVtk(const std::filesystem::path& path, const WearMap& map,
     std::ofstream out(tmp);
     if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
     out.precision(10);
+    // The given title, else the map's own (a re-written map keeps e.g. its windows=K), else a default.
+    std::string title = !title_arg.empty() ? title_arg : map.title.empty() ? std::string("linerwatch wear map") : map.title.substr(0, 250);
+    for (char& ch : title)
+      if (ch == '\n' || ch == '\r') ch = ' ';
     out << "# vtk DataFile Version 4.2\n" << title << "\nASCII\nDATASET POLYDATA\n";
     out << "POINTS " << map.points.size() << " double\n";
     for (const auto& p : map.points) out << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';

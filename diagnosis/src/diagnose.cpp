@@ -412,22 +412,24 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     result.notes.push_back(Fmt("map has too few faces (%zu) to estimate its own noise: %.0f %% per face assumed",
                                bundle.map.face_count(), 100.0 * fields.face_rel_noise));
   }
-  // A noisy (patchy, count-limited or %f-truncated) map is averaged over more faces around each sensor,
-  // enough to bring the relative noise of the sensor's intensity to about 5 %, but over at most a
-  // tenth of the concave height (beyond that the map's real gradients would be smoothed away).
-  size_t sensor_faces = 3;
   {
-    const double target = 0.05;
-    const double wanted = std::pow(fields.face_rel_noise / target, 2);
-    const double height_m = std::max(fields.z_top - fields.z_bottom, 1e-3);
-    const double cap_faces = std::pow(0.1 * height_m / std::max(fields.face_size_m, 1e-4), 2) * 3.14159;
-    sensor_faces = static_cast<size_t>(std::clamp(wanted, 3.0, std::max(3.0, cap_faces)));
-    if (sensor_faces > 3) {
-      result.notes.push_back(Fmt("map per-face noise %.0f %%: each sensor's DEM intensity is averaged over its %zu "
-                                 "nearest faces",
-                                 100.0 * fields.face_rel_noise, sensor_faces));
+    const core::MapModel& m = fields.model;
+    result.noise["map_model"] = {{"bandwidth_m", Round(m.bandwidth_m, 4)},
+                                 {"bandwidth_arc_m", Round(m.bandwidth_arc_m, 4)},
+                                 {"local_linear", m.local_linear},
+                                 {"bandwidth_method", m.bandwidth_method},
+                                 {"noise_source", m.noise_source},
+                                 {"face_relative_noise", Round(m.face_cv, 3)},
+                                 {"smoothing_error_relative", Round(m.smoothing_error_rel, 3)},
+                                 {"outlier_faces_capped", m.outlier_faces},
+                                 {"windows", bundle.map.windows}};
+    if (fields.noise_estimated) {
+      result.notes.push_back(Fmt("map model: per-face noise %.0f %% (%s), smoothed over %.3f m along z (%.3f m around, %s), smoothing error "
+                                 "%.1f %%, %zu outlier faces capped; every intensity (sensors, scan cells, faces) is "
+                                 "the smoothed one with its standard error",
+                                 100.0 * m.face_cv, m.noise_source.c_str(), m.bandwidth_m, m.bandwidth_arc_m, m.bandwidth_method.c_str(),
+                                 100.0 * m.smoothing_error_rel, m.outlier_faces));
     }
-    result.noise["sensor_intensity_faces"] = sensor_faces;
   }
 
   // --- Sensors: data quality and crossing events ---------------------------------------------
@@ -449,8 +451,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       result.data_quality.push_back({s.id, q.issue, to_time(q.from_days), to_time(q.to_days), q.detail});
     if (s.analysis.readings.empty())
       result.data_quality.push_back({s.id, "no_readings", t0, t0, "the sensor never reported"});
-    s.field = detail::FieldAt(bundle.map, fields, s.z, s.theta, std::max(0.05, 1.5 * fields.face_size_m),
-                              sensor_faces);
+    s.field = detail::FieldAt(bundle.map, fields, s.z, s.theta);
     s.usable = s.analysis.events.size() >= 2 && s.field.intensity > 1e-6;
     s.sigma_u = std::sqrt(s.field.rel_noise * s.field.rel_noise + th.u_floor_rel * th.u_floor_rel);
     sensors.push_back(std::move(s));
@@ -637,7 +638,16 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   const EvalOptions eq9_opt{false, true};
   const FitResult eq9 = Fit(prob, base_spec, sensors_only, eq9_opt, {k_init}, 30, k_scale);
 
-  // Scan-cell noise: points + map noise on the predicted wear + floors.
+  // Scan-cell noise: points + map noise on the predicted wear + floors. The smoothed map's error is
+  // correlated over the kernel (about (2 h)^2 pi): cells closer than that share it and are not
+  // independent evidence, so the map-noise term counts once per correlation area, not per cell.
+  double corr_cells = 1.0;
+  {
+    const double cell_area = grid.dz * grid.dt_deg * kPi / 180.0 * fields.mean_radius_m;
+    const double h = fields.model.bandwidth_m, ha = fields.model.bandwidth_arc_m;
+    if (cell_area > 0 && h > 0) corr_cells = std::max(1.0, kPi * 4.0 * h * std::max(h, ha) / cell_area);
+    result.noise["scan_cells_per_map_error_area"] = Round(corr_cells, 2);
+  }
   {
     Eigen::MatrixXd w;
     detail::Simulate(base_spec, eq9.x, prob.points, prob.grid, w);
@@ -646,7 +656,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       const detail::ScanCells& sc = scans[static_cast<size_t>(o.scan)];
       const double pred = std::max(Interp(w, o), 0.0);
       const double rel = sc.fields[static_cast<size_t>(o.cell)].rel_noise;
-      o.sigma = std::sqrt(std::pow(sc.sigma_mm[static_cast<size_t>(o.cell)], 2) + std::pow(rel * pred, 2) +
+      o.sigma = std::sqrt(std::pow(sc.sigma_mm[static_cast<size_t>(o.cell)], 2) + corr_cells * std::pow(rel * pred, 2) +
                           th.scan_floor_mm * th.scan_floor_mm + std::pow(th.model_floor_rel * pred, 2));
     }
   }
@@ -1347,8 +1357,9 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     for (size_t i = 0; i < sensors.size(); ++i) {
       const SensorData& s = sensors[i];
       const auto r = static_cast<Eigen::Index>(i);
-      pred.sensors.push_back({s.id, s.thickness - wb[r],
-                              s.thickness - wi[r] * (1.0 + sensor_u(s)) - (use_improved ? loss_offset(s, t) : 0.0)});
+      pred.sensors.push_back(
+          {s.id, std::max(0.0, s.thickness - wb[r]),
+           std::max(0.0, s.thickness - wi[r] * (1.0 + sensor_u(s)) - (use_improved ? loss_offset(s, t) : 0.0))});
     }
     std::vector<ModelPoint> face_points;
     const auto nf = static_cast<Eigen::Index>(bundle.map.face_count());
@@ -1362,8 +1373,12 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       pf.normal_i = fields.normal_i[f];
       face_points.push_back(make_point(pf, 0.5 * crusher.thickness_new_mm));
     }
-    const Eigen::VectorXd fb = detail::SimulateAt(base_spec, eq9.x, face_points, prob.grid, t);
-    const Eigen::VectorXd fi = detail::SimulateAt(model_fit.spec, model_fit.x, face_points, prob.grid, t);
+    // Physical: a face's wear is at most the as-new thickness (worn through).
+    const Eigen::VectorXd fb =
+        detail::SimulateAt(base_spec, eq9.x, face_points, prob.grid, t).cwiseMax(0.0).cwiseMin(crusher.thickness_new_mm);
+    const Eigen::VectorXd fi = detail::SimulateAt(model_fit.spec, model_fit.x, face_points, prob.grid, t)
+                                   .cwiseMax(0.0)
+                                   .cwiseMin(crusher.thickness_new_mm);
     pred.face_wear_baseline_mm.assign(fb.data(), fb.data() + fb.size());
     pred.face_wear_improved_mm.assign(fi.data(), fi.data() + fi.size());
     result.prediction = std::move(pred);

@@ -113,13 +113,16 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
   const core::WearMap& map = bundle.map;
   const auto nf = static_cast<Eigen::Index>(map.face_count());
   MapFields f;
-  Eigen::VectorXd raw = map.wear.cwiseMax(0.0);
+  f.model = core::BuildMapModel(map);
+  const Eigen::VectorXd& raw = f.model.intensity;
   std::vector<double> positive;
   for (Eigen::Index i = 0; i < nf; ++i)
     if (raw[i] > 0) positive.push_back(raw[i]);
   f.intensity_median = positive.empty() ? 1.0 : Median(positive);
   if (f.intensity_median <= 0) f.intensity_median = 1.0;
   f.intensity = raw / f.intensity_median;
+  f.rel_sd.resize(nf);
+  for (Eigen::Index i = 0; i < nf; ++i) f.rel_sd[i] = std::min(1.0, f.model.RelSd(i));
   if (bundle.map_validation.looks_truncated) f.quantum_raw = 1e-6;  // "%f": six decimals
 
   std::vector<double> sizes;
@@ -167,9 +170,12 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
     if (f.z_top <= f.z_bottom) f.z_top = f.z_bottom + 1.0;
   }
 
-  f.has_normal = map.has_normal_stress() && map.normal_stress.size() == nf && map.normal_stress.maxCoeff() > 0;
+  f.has_normal = map.has_normal_stress() && map.normal_stress.size() == nf && map.normal_stress.maxCoeff() > 0 &&
+                 f.model.normal_stress.size() == nf;
   if (f.has_normal) {
-    Eigen::VectorXd n = map.normal_stress.cwiseMax(0.0);
+    // Normal stress smoothed with the same kernel as the wear (its sampling noise is shared with
+    // the wear's: both come from the same contacts).
+    Eigen::VectorXd n = f.model.normal_stress.cwiseMax(0.0);
     std::vector<std::pair<double, double>> vw;
     double n_mean = 0, i_mean = 0;
     for (Eigen::Index i = 0; i < nf; ++i) {
@@ -179,8 +185,10 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
     }
     double robust_max = WeightedQuantile(vw, 0.95);
     if (robust_max <= 0) robust_max = n.maxCoeff();
+    f.normal_robust_max = robust_max;
+    f.normal_to_intensity = n_mean > 0 ? i_mean / n_mean : 0.0;
     f.normal_tilde = (n / robust_max).cwiseMin(1.5);
-    f.normal_i = n * (n_mean > 0 ? i_mean / n_mean : 0.0);
+    f.normal_i = n * f.normal_to_intensity;
   } else {
     f.normal_tilde = Eigen::VectorXd::Ones(nf);
     f.normal_i = Eigen::VectorXd::Zero(nf);
@@ -228,32 +236,10 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
     }
   }
 
-  // The map's own noise: each face against the area-weighted mean of its neighbours.
-  if (nf > 8) {
-    UnwrappedIndex index(map, 2.5 * f.face_size_m, f.mean_radius_m);
-    const Eigen::Index step = std::max<Eigen::Index>(1, nf / 4000);
-    std::vector<double> rel;
-    for (Eigen::Index i = 0; i < nf; i += step) {
-      double sw = 0, swi = 0;
-      index.Visit(map.z[i], map.theta_deg[i], 1, [&](size_t face, double d) {
-        if (static_cast<Eigen::Index>(face) == i || d > 2.5 * f.face_size_m) return;
-        const auto fi = static_cast<Eigen::Index>(face);
-        sw += map.areas[fi];
-        swi += map.areas[fi] * f.intensity[fi];
-      });
-      if (sw <= 0) continue;
-      const double mean = swi / sw;
-      if (mean > 0.1) rel.push_back(f.intensity[i] / mean - 1.0);
-    }
-    if (rel.size() >= 8) {
-      const double med = Median(rel);
-      for (double& r : rel) r = std::fabs(r - med);
-      f.face_rel_noise = 1.4826 * Median(rel);
-      f.noise_estimated = true;
-    }
-  }
-  // Too few faces to compare each with its neighbours: assume a count-limited DEM's scatter.
-  if (!f.noise_estimated) f.face_rel_noise = kUnestimatedFaceNoise;
+  // The map's own noise: the model's noise law (from wear_stderr or neighbour differences).
+  f.noise_estimated = nf > 8 && f.model.noise_phi > 0;
+  f.face_rel_noise = f.noise_estimated ? f.model.face_cv : kUnestimatedFaceNoise;
+  if (!f.noise_estimated) f.rel_sd.setConstant(kUnestimatedFaceNoise);
   return f;
 }
 
@@ -273,43 +259,25 @@ double ProfileShiftRel(const MapFields& fields, double z) {
   return v[k - 1] + t * (v[k] - v[k - 1]);
 }
 
-PointField FieldAt(const core::WearMap& map, const MapFields& fields, double z, double theta_deg, double radius_m,
-                   size_t min_faces) {
-  const auto nf = static_cast<Eigen::Index>(map.face_count());
-  std::vector<std::pair<double, Eigen::Index>> dist;
-  dist.reserve(static_cast<size_t>(nf));
-  for (Eigen::Index i = 0; i < nf; ++i) {
-    const double dz = map.z[i] - z;
-    const double arc = AngleDiffDeg(map.theta_deg[i], theta_deg) * kPi / 180.0 * map.radius[i];
-    dist.push_back({dz * dz + arc * arc, i});
-  }
-  size_t take = 0;
-  for (const auto& d : dist)
-    if (d.first <= radius_m * radius_m) ++take;
-  take = std::min(std::max(take, min_faces), dist.size());
-  std::partial_sort(dist.begin(), dist.begin() + static_cast<std::ptrdiff_t>(take), dist.end());
+PointField FieldAt(const core::WearMap& map, const MapFields& fields, double z, double theta_deg) {
   PointField p;
   p.z = z;
   p.theta_deg = theta_deg;
-  p.normal_tilde = 0;
-  double sw = 0, sw2 = 0;
-  for (size_t k = 0; k < take; ++k) {
-    const Eigen::Index i = dist[k].second;
-    const double a = std::max(map.areas[i], 1e-12);
-    sw += a;
-    sw2 += a * a;
-    p.intensity += a * fields.intensity[i];
-    p.normal_tilde += a * fields.normal_tilde[i];
-    p.normal_i += a * fields.normal_i[i];
+  if (map.face_count() == 0) return p;
+  const core::MapModel::Point at = fields.model.At(z, theta_deg);
+  p.intensity = at.intensity / fields.intensity_median;
+  const double rel = fields.noise_estimated ? (at.intensity > 0 ? std::min(1.0, at.sd / at.intensity) : 1.0)
+                                            : kUnestimatedFaceNoise;
+  p.rel_noise = std::hypot(rel, QuantisationRel(fields, p.intensity));
+  if (fields.has_normal) {
+    p.normal_tilde = std::min(1.5, std::max(0.0, at.normal_stress) / fields.normal_robust_max);
+    p.normal_i = std::max(0.0, at.normal_stress) * fields.normal_to_intensity;
+  } else {
+    p.normal_tilde = 1;
+    p.normal_i = 0;
   }
-  if (sw > 0) {
-    p.intensity /= sw;
-    p.normal_tilde /= sw;
-    p.normal_i /= sw;
-    p.rel_noise = std::hypot(fields.face_rel_noise * std::sqrt(sw2) / sw, QuantisationRel(fields, p.intensity));
-  }
-  p.area = sw;
-  p.faces = take;
+  p.faces = static_cast<size_t>(std::lround(at.faces));
+  p.area = 0;
   return p;
 }
 
@@ -333,7 +301,7 @@ CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t
   g.dt_deg = fields.theta_span_deg / static_cast<double>(g.nt);
   g.cells.assign(g.nz * g.nt, PointField{});
   g.face_cell.assign(static_cast<size_t>(nf), -1);
-  std::vector<double> sw(g.cells.size(), 0.0), sw2(g.cells.size(), 0.0), sz(g.cells.size(), 0.0);
+  std::vector<double> sw(g.cells.size(), 0.0), sz(g.cells.size(), 0.0), ssd(g.cells.size(), 0.0);
   for (auto& c : g.cells) c.normal_tilde = 0;
   for (Eigen::Index i = 0; i < nf; ++i) {
     const int c = g.CellOf(map.z[i], map.theta_deg[i]);
@@ -342,8 +310,8 @@ CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t
     const auto ci = static_cast<size_t>(c);
     const double a = std::max(map.areas[i], 1e-12);
     sw[ci] += a;
-    sw2[ci] += a * a;
     sz[ci] += a * map.z[i];
+    ssd[ci] += a * fields.intensity[i] * fields.rel_sd[i];
     g.cells[ci].intensity += a * fields.intensity[i];
     g.cells[ci].normal_tilde += a * fields.normal_tilde[i];
     g.cells[ci].normal_i += a * fields.normal_i[i];
@@ -359,7 +327,8 @@ CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t
     p.normal_tilde /= sw[c];
     p.normal_i /= sw[c];
     p.z = sz[c] / sw[c];
-    p.rel_noise = std::hypot(fields.face_rel_noise * std::sqrt(sw2[c]) / sw[c], QuantisationRel(fields, p.intensity));
+    // Smoothed faces share their errors: the cell's relative error is their mean, not reduced.
+    p.rel_noise = std::hypot(p.intensity > 0 ? ssd[c] / sw[c] / p.intensity : 1.0, QuantisationRel(fields, p.intensity));
     p.area = sw[c];
   }
   return g;
@@ -423,7 +392,7 @@ ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const C
   }
   s.point_noise_mm = dev.size() >= 10 ? 1.4826 * Median(dev) : 0.5;
   s.point_noise_mm = std::max(s.point_noise_mm, 0.05);
-  std::vector<double> sw(nc, 0.0), swv(nc, 0.0), svar(nc, 0.0), sw2(nc, 0.0);
+  std::vector<double> sw(nc, 0.0), swv(nc, 0.0), svar(nc, 0.0), ssd(nc, 0.0);
   s.fields.assign(nc, PointField{});
   for (auto& pf : s.fields) pf.normal_tilde = 0;
   for (size_t f = 0; f < nf; ++f) {
@@ -439,10 +408,10 @@ ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const C
     const auto ci = static_cast<size_t>(c);
     const double a = std::max(map.areas[static_cast<Eigen::Index>(f)], 1e-12);
     sw[ci] += a;
-    sw2[ci] += a * a;
     swv[ci] += a * value;
     const auto fi = static_cast<Eigen::Index>(f);
     s.fields[ci].intensity += a * fields.intensity[fi];
+    ssd[ci] += a * fields.intensity[fi] * fields.rel_sd[fi];
     s.fields[ci].normal_tilde += a * fields.normal_tilde[fi];
     s.fields[ci].normal_i += a * fields.normal_i[fi];
     s.fields[ci].z += a * map.z[fi];
@@ -460,7 +429,7 @@ ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const C
     pf.normal_i /= sw[c];
     pf.z /= sw[c];
     pf.theta_deg = grid.cells[c].theta_deg;
-    pf.rel_noise = std::hypot(fields.face_rel_noise * std::sqrt(sw2[c]) / sw[c], QuantisationRel(fields, pf.intensity));
+    pf.rel_noise = std::hypot(pf.intensity > 0 ? ssd[c] / sw[c] / pf.intensity : 1.0, QuantisationRel(fields, pf.intensity));
     pf.area = sw[c];
   }
   return s;

@@ -6,18 +6,25 @@
 #include <vector>
 
 #include "core/bundle.hpp"
+#include "core/map_model.hpp"
 
 namespace lw::diagnosis::detail {
 
 inline constexpr double kUnestimatedFaceNoise = 0.25;
 
 struct MapFields {
-  Eigen::VectorXd intensity;     ///< per face, raw / median (median face = 1)
+  /// The map model (core/map_model.hpp) every intensity here comes from: smoothed at the
+  /// data-chosen scale, with a standard error per face.
+  core::MapModel model;
+  Eigen::VectorXd intensity;     ///< per face, model intensity / median (median face = 1)
+  Eigen::VectorXd rel_sd;        ///< per face, relative standard error of `intensity` (map noise + smoothing error)
+  double normal_robust_max = 1;  ///< normal stress that maps to normal_tilde = 1
+  double normal_to_intensity = 0;  ///< normal_i = normal stress x this
   Eigen::VectorXd normal_tilde;  ///< per face, normal stress / robust max, clipped to [0, 1.5]; 1 when absent
   Eigen::VectorXd normal_i;      ///< per face, normal stress in intensity units (same area-weighted mean)
   bool has_normal = false;
   double intensity_median = 1;   ///< raw intensity that maps to 1
-  double face_rel_noise = 0;     ///< relative per-face noise of the map (face vs its neighbourhood)
+  double face_rel_noise = 0;     ///< relative noise of one raw face (the model's noise law), for notes
   bool noise_estimated = false;  ///< false: too few faces to estimate it; kUnestimatedFaceNoise assumed
   double face_size_m = 0.05;     ///< typical face edge
   double z_bottom = 0;           ///< concave extent along z (rows)
@@ -80,9 +87,8 @@ struct ScanCells {
 };
 
 MapFields ComputeMapFields(const core::Bundle& bundle);
-/// Neighbourhood average around (z, theta) within radius (m), at least `min_faces` nearest faces.
-PointField FieldAt(const core::WearMap& map, const MapFields& fields, double z, double theta_deg, double radius_m,
-                   size_t min_faces);
+/// The map model at (z, theta): the same kernel as the faces (Eq. 9 at a sensor sees what the faces see).
+PointField FieldAt(const core::WearMap& map, const MapFields& fields, double z, double theta_deg);
 CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t target_cells);
 ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const CellGrid& grid, const core::Scan& scan,
                       double t_days, double thickness_new_mm);

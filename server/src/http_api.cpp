@@ -3,6 +3,7 @@
 #include "http_guard.hpp"  // cpp-httplib behind the connection guard
 
 #include <arpa/inet.h>
+#include <cmath>
 #include <stdlib.h>
 #include <strings.h>
 #include <unistd.h>
@@ -270,7 +271,9 @@ void HttpApi::Impl::Routes() {
                       {"map_sha256", c->map.sha256},
                       {"face_count", c->map.face_count()},
                       {"latest_reading_time", st && st->has_wear ? ordered_json(core::FormatIsoTime(st->time)) : ordered_json(nullptr)},
-                      {"min_thickness_mm", st && st->has_wear ? ordered_json(st->reconstruction.min_thickness_mm) : ordered_json(nullptr)}});
+                      {"min_thickness_mm", st && st->has_wear && std::isfinite(st->reconstruction.min_thickness_mm)
+                                               ? ordered_json(st->reconstruction.min_thickness_mm) : ordered_json(nullptr)},
+                      {"wear_status", st && st->has_wear ? ordered_json(st->reconstruction.status) : ordered_json(nullptr)}});
     }
     Reply(res, 200, {{"crushers", list}});
   });
@@ -298,7 +301,7 @@ void HttpApi::Impl::Routes() {
            {"map", {{"sha256", c->map.sha256},
                     {"face_count", c->map.face_count()},
                     {"warnings", c->validation.warnings},
-                    {"has_stderr", c->map.extra.count("wear_stderr") > 0},
+                    {"has_stderr", c->map.has_wear_stderr()}, {"windows", c->map.windows},
                     {"dem_summary", c->dem_summary}}},
            {"counters", {{"readings_stored", stored}, {"duplicates", cc.duplicates}, {"conflicts", cc.conflicts}, {"rejected", cc.rejected}}}});
   });
@@ -418,7 +421,9 @@ void HttpApi::Impl::Routes() {
       try {
         const Eigen::VectorXd& wear = st->reconstruction.wear_mm;
         const Eigen::VectorXd& remaining = st->reconstruction.remaining_mm;
-        core::WriteWearMapVtk(path, c->map, {{"remaining_mm", &remaining}, {"wear_mm", &wear}, {"dem_wear", &c->map.wear}});
+        const Eigen::VectorXd& sd = st->reconstruction.remaining_sd_mm;
+        core::WriteWearMapVtk(path, c->map, {{"remaining_mm", &remaining}, {"remaining_sd_mm", &sd}, {"wear_mm", &wear},
+                                             {"dem_wear", &c->map.wear}, {"dem_intensity_smoothed", &c->plan.intensity}});
         std::ifstream in(path, std::ios::binary);
         ss << in.rdbuf();
       } catch (...) {

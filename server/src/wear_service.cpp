@@ -22,6 +22,9 @@ double Round(double v, double step) {
   return std::round(v * inv) / inv;
 }
 
+/// A number, or null when there is none (NaN: the map or sensors cannot support it).
+ordered_json Num(double v, double step) { return std::isfinite(v) ? ordered_json(Round(v, step)) : ordered_json(nullptr); }
+
 }  // namespace
 
 CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<StoredReading>& readings) {
@@ -77,31 +80,65 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
   j["map_sha256"] = c.map.sha256;
   j["thickness_new_mm"] = c.config.thickness_new_mm;
   j["thickness_min_mm"] = c.config.thickness_min_mm;
-  j["min_thickness_mm"] = Round(rec.min_thickness_mm, 0.001);
+  const bool supported = rec.status != core::kStatusNoSensors;
+  j["status"] = rec.status;
+  if (!rec.status_detail.empty()) j["status_detail"] = rec.status_detail;
+  j["min_thickness_mm"] = Num(rec.min_thickness_mm, 0.001);
+  j["min_thickness_band_mm"] = supported ? ordered_json::array({Num(rec.min_thickness_lo_mm, 0.001), Num(rec.min_thickness_hi_mm, 0.001)})
+                                         : ordered_json(nullptr);
+  j["worn_through_faces"] = rec.worn_through_faces;
+  j["maybe_worn_through_faces"] = rec.maybe_worn_through_faces;
   const size_t f = rec.min_face;
   std::string min_row;
   if (f < c.plan.face_row.size() && c.plan.face_row[f] >= 0) min_row = c.config.rows[static_cast<size_t>(c.plan.face_row[f])].name;
-  j["min"] = {{"face", f},
-              {"z_m", f < c.map.face_count() ? Round(c.map.z[static_cast<Eigen::Index>(f)], 1e-4) : 0.0},
-              {"theta_deg", f < c.map.face_count() ? Round(c.map.theta_deg[static_cast<Eigen::Index>(f)], 0.01) : 0.0},
-              {"row", min_row}};
+  if (supported) {
+    j["min"] = {{"face", f},
+                {"z_m", f < c.map.face_count() ? Round(c.map.z[static_cast<Eigen::Index>(f)], 1e-4) : 0.0},
+                {"theta_deg", f < c.map.face_count() ? Round(c.map.theta_deg[static_cast<Eigen::Index>(f)], 0.01) : 0.0},
+                {"row", min_row}};
+  } else {
+    j["min"] = nullptr;
+  }
   ordered_json rows = ordered_json::array();
   for (const core::RowSummary& r : rec.rows) {
     rows.push_back({{"row", r.row},
-                    {"scale_mm_per_unit", r.scale_mm_per_unit},
-                    {"min_thickness_mm", Round(r.min_thickness_mm, 0.001)},
+                    {"scale_mm_per_unit", Num(r.scale_mm_per_unit, 1e-9)},
+                    {"scale_sd", Num(r.scale_sd, 1e-9)},
+                    {"min_thickness_mm", Num(r.min_thickness_mm, 0.001)},
+                    {"min_thickness_band_mm", supported ? ordered_json::array({Num(r.min_thickness_lo_mm, 0.001), Num(r.min_thickness_hi_mm, 0.001)})
+                                                        : ordered_json(nullptr)},
                     {"min_z_m", Round(r.min_z_m, 1e-4)},
                     {"min_theta_deg", Round(r.min_theta_deg, 0.01)},
-                    {"mean_wear_mm", Round(r.mean_wear_mm, 0.001)},
+                    {"mean_wear_mm", Num(r.mean_wear_mm, 0.001)},
+                    {"worn_through_faces", r.worn_through_faces},
                     {"sensors_used", r.sensors_used}});
   }
   j["rows"] = rows;
+  const core::MapModel& m = c.plan.model;
+  j["map_model"] = {{"bandwidth_m", Round(m.bandwidth_m, 1e-4)},
+                    {"bandwidth_arc_m", Round(m.bandwidth_arc_m, 1e-4)},
+                    {"local_linear", m.local_linear},
+                    {"bandwidth_method", m.bandwidth_method},
+                    {"noise_source", m.noise_source},
+                    {"face_relative_noise", Round(m.face_cv, 1e-3)},
+                    {"smoothing_error_relative", Round(m.smoothing_error_rel, 1e-3)},
+                    {"outlier_faces_capped", m.outlier_faces},
+                    {"windows", c.map.windows}};
   j["readings_used"] = ReadingsUsedJson(st);
-  j["note"] = "a reading n means thickness in [n, n+1) mm; estimates use n + 0.5";
+  j["note"] = "a reading n means thickness in [n, n+1) mm; estimates use n + 0.5; bands are +/-2 sd (map noise, "
+              "sensor quantisation, row scale); remaining thickness is never below 0 (worn through)";
   if (with_faces) {
-    std::vector<double> remaining(static_cast<size_t>(rec.remaining_mm.size()));
-    for (Eigen::Index i = 0; i < rec.remaining_mm.size(); ++i) remaining[static_cast<size_t>(i)] = Round(rec.remaining_mm[i], 0.001);
-    j["remaining_mm"] = remaining;
+    if (supported) {
+      std::vector<double> remaining(static_cast<size_t>(rec.remaining_mm.size())), sd(remaining.size());
+      for (Eigen::Index i = 0; i < rec.remaining_mm.size(); ++i) {
+        remaining[static_cast<size_t>(i)] = Round(rec.remaining_mm[i], 0.001);
+        sd[static_cast<size_t>(i)] = Round(rec.remaining_sd_mm[i], 0.001);
+      }
+      j["remaining_mm"] = remaining;
+      j["remaining_sd_mm"] = sd;
+    } else {
+      j["remaining_mm"] = nullptr;
+    }
   }
   return j;
 }
@@ -117,7 +154,8 @@ ordered_json ForecastJson(const CrusherState& st) {
   ordered_json rows = ordered_json::array();
   for (const core::RowForecast& r : st.row_forecasts) {
     ordered_json o = {{"row", r.row},
-                      {"min_thickness_mm", Round(r.min_thickness_mm, 0.001)},
+                      {"min_thickness_mm", Num(r.min_thickness_mm, 0.001)},
+                      {"min_thickness_band_mm", ordered_json::array({Num(r.min_thickness_lo_mm, 0.001), Num(r.min_thickness_hi_mm, 0.001)})},
                       {"rate_mm_per_day", Round(r.rate_mm_per_day, 1e-4)},
                       {"reach_date", OptTime(r.reach)},
                       {"reach_earliest", OptTime(r.reach_earliest)},
@@ -151,7 +189,8 @@ ordered_json ForecastJson(const CrusherState& st) {
     sensors.push_back(o);
   }
   j["sensors"] = sensors;
-  j["note"] = "a reading n means thickness in [n, n+1) mm; fits use n + 0.5; bands are +/-2 sd";
+  j["note"] = "a reading n means thickness in [n, n+1) mm; fits use n + 0.5; bands are +/-2 sd; a row's earliest "
+              "date starts from the thin edge of its thinnest point's band";
   return j;
 }
 

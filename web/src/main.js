@@ -155,12 +155,19 @@ async function crusherPage(crusherId, initialSensor) {
     const next = rowsWithDate[0];
     const fastest = (f?.rows || []).reduce((m, r) => (r.rate_mm_per_day > (m?.rate_mm_per_day ?? -Infinity) ? r : m), null);
     const latest = st.sensors.map((x) => x.latest?.time).filter(Boolean).sort().pop();
-    const left = w ? w.min_thickness_mm - concave.thickness_min_mm : null;
+    // The server says when the map or the sensors cannot support a number (status), and gives the
+    // thinnest point with a +/-2 sd band (map noise, sensor quantisation, row scale).
+    const supported = w && w.min_thickness_mm != null && w.status !== 'no_sensors';
+    const band = supported && Array.isArray(w.min_thickness_band_mm) ? w.min_thickness_band_mm : null;
+    const left = supported ? (band ? band[0] : w.min_thickness_mm) - concave.thickness_min_mm : null;
+    const worn = w?.worn_through_faces ? ` · ${w.worn_through_faces} face(s) worn through` : '';
     kpis.replaceChildren(
       h('div', { class: `card kpi${left != null && left < 10 ? ' alarm' : ''}`, 'data-testid': 'kpi-min' },
         h('div', { class: 'label' }, 'Thinnest point'),
-        h('div', { class: 'value', 'data-value': w?.min_thickness_mm ?? '' }, w ? fmt(w.min_thickness_mm) : '–', ' ', h('small', {}, 'mm')),
-        h('div', { class: 'detail' }, w ? `${w.min.row}, z ${fmt(w.min.z_m, 2)} m, θ ${fmt(w.min.theta_deg, 0)}° · ${left >= 0 ? `${fmt(left)} mm above` : `${fmt(-left)} mm below`} the minimum` : 'no readings yet')),
+        h('div', { class: 'value', 'data-value': supported ? w.min_thickness_mm : '' }, supported ? fmt(w.min_thickness_mm) : '–', ' ', h('small', {}, 'mm')),
+        h('div', { class: 'detail', 'data-testid': 'kpi-min-band' }, !w ? 'no readings yet'
+          : !supported ? `cannot be estimated: ${w.status_detail || 'no row scale'}`
+          : `${band ? `band ${fmt(band[0])}–${fmt(band[1])} mm · ` : ''}${w.min.row}, z ${fmt(w.min.z_m, 2)} m, θ ${fmt(w.min.theta_deg, 0)}° · ${left >= 0 ? `${fmt(left)} mm above` : `${fmt(-left)} mm below`} the minimum${worn}${w.status === 'unsupported' ? ' · band only: ' + (w.status_detail || '') : ''}`)),
       h('div', { class: 'card kpi', 'data-testid': 'kpi-reline' },
         h('div', { class: 'label' }, 'Next reline'),
         h('div', { class: 'value' }, next ? fmtDate(next.reach_date) : '–'),
@@ -192,8 +199,10 @@ async function crusherPage(crusherId, initialSensor) {
       const pct = r ? (r.min_thickness_mm / concave.thickness_new_mm) * 100 : 0;
       return h('tr', { class: r && r === worst ? 'worst' : null, 'data-row': name },
         h('td', {}, h('b', {}, name)),
-        h('td', { class: 'num', 'data-testid': `row-min-${name}` }, r ? fmt(r.min_thickness_mm) : '–',
-          h('span', { class: 'minbar' }, h('span', { style: { width: `${pct}%`, background: colour } }))),
+        h('td', { class: 'num', 'data-testid': `row-min-${name}` }, r && r.min_thickness_mm != null ? fmt(r.min_thickness_mm) : '–',
+          h('span', { class: 'minbar' }, h('span', { style: { width: `${pct}%`, background: colour } })),
+          r && Array.isArray(r.min_thickness_band_mm) && r.min_thickness_band_mm[0] != null
+            ? h('div', { class: 'band' }, `${fmt(r.min_thickness_band_mm[0])}–${fmt(r.min_thickness_band_mm[1])} mm${r.worn_through_faces ? ` · ${r.worn_through_faces} worn through` : ''}`) : null),
         h('td', {}, r ? `z ${fmt(r.min_z_m, 2)} m, θ ${fmt(r.min_theta_deg, 0)}°` : '–'),
         h('td', { class: 'num' }, f ? `${fmt(f.rate_mm_per_day, 2)} mm/d` : '–', r ? h('div', { class: 'band' }, `worn ${fmt(r.mean_wear_mm)} mm mean`) : null),
         h('td', {}, f?.reach_date ? h('span', {}, h('b', {}, fmtDate(f.reach_date)),

@@ -67,12 +67,16 @@ struct RowForecast {
   bool ok = false;
   std::string note;
   double min_thickness_mm = 0;  ///< thinnest face now (reconstruction)
+  double min_thickness_lo_mm = 0;  ///< its band (reconstruction: map noise, quantisation, row scale)
+  double min_thickness_hi_mm = 0;
   double rate_mm_per_day = 0;   ///< thinning rate of that face
   std::optional<TimePoint> reach, reach_earliest, reach_latest;
 };
 
 /// Per row: the thinnest face wears `k` times its row's mean sensor wear (Eq. 9), so its curve is
 /// k x the mean of the row's sensor curves. `now` is the reconstruction time (latest reading used).
+/// The dates' band uses the thinnest point's band as well as the curves': "earliest" starts from
+/// the thin edge of the band and wears at its rate, "latest" from the thick edge.
 std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const Reconstruction& reconstruction,
                                       const std::vector<SensorWear>& sensor_wear,
                                       const std::vector<SensorForecast>& sensors, TimePoint now,

@@ -1,11 +1,17 @@
 #pragma once
 /// Global wear reconstruction, seed paper Eq. 9: W(x) = W_i(x) * W_s0 / W_i0 per row, with the
-/// row scale interpolated along z between row centres (not stepped) and DEM per-face noise smoothed.
+/// row scale interpolated along z between row centres (not stepped). W_i is the map model's
+/// smoothed intensity (core/map_model.hpp: noise law, outliers capped, data-chosen kernel), the
+/// same at the faces and at the sensors, so at a row's sensor the reconstruction equals the sensor.
+/// Outputs are physical: remaining thickness in [0, new] (a face worn through is counted as such),
+/// the thinnest point with a band from map noise, sensor quantisation and the row scale, and a
+/// status that says when the map or the sensors cannot support a number.
 #include <Eigen/Core>
 #include <string>
 #include <vector>
 
 #include "core/bundle.hpp"
+#include "core/map_model.hpp"
 
 namespace lw::core {
 
@@ -23,20 +29,41 @@ struct RowSummary {
   double min_theta_deg = 0;
   double mean_wear_mm = 0;
   size_t sensors_used = 0;
+  double scale_sd = 0;            ///< standard error of scale_mm_per_unit
+  double min_thickness_lo_mm = 0;  ///< band of the row's thinnest point (band_sigmas sd), in [0, new]
+  double min_thickness_hi_mm = 0;
+  size_t worn_through_faces = 0;   ///< faces whose estimated wear reaches the as-new thickness
 };
 
 struct ReconstructionOptions {
   bool interpolate_between_rows = true;
-  double smoothing_radius_m = 0.15;  ///< DEM per-face noise: area-weighted mean within this radius (0 = off)
+  MapModelOptions map_model;         ///< smoothing scale (default: chosen from the map's own noise), outliers
   bool interval_centre = true;      ///< use thickness + 0.5 mm (centre of [n, n+1)) as the estimate
+  double band_sigmas = 2.0;         ///< half-width of the thinnest-point band in standard deviations
+  /// Above this relative standard error of the thinnest point's wear the number is not supported
+  /// (status "unsupported"): the band is still given.
+  double max_rel_sd = 0.5;
 };
 
+/// Whether a reconstruction supports a number: "ok"; "unsupported" (the band is wider than the
+/// map and sensors can support, or the map has no intensity where sensors are); "no_sensors".
+inline constexpr const char* kStatusOk = "ok";
+inline constexpr const char* kStatusUnsupported = "unsupported";
+inline constexpr const char* kStatusNoSensors = "no_sensors";
+
 struct Reconstruction {
-  Eigen::VectorXd wear_mm;       ///< per face
-  Eigen::VectorXd remaining_mm;  ///< per face: thickness_new - wear
+  Eigen::VectorXd wear_mm;       ///< per face, in [0, thickness_new]
+  Eigen::VectorXd remaining_mm;  ///< per face: thickness_new - wear, never negative
+  Eigen::VectorXd remaining_sd_mm;  ///< per face: standard error of remaining_mm
   std::vector<RowSummary> rows;
   double min_thickness_mm = 0;
   size_t min_face = 0;
+  double min_thickness_lo_mm = 0;  ///< band of the thinnest point: the true thinnest point lies in
+  double min_thickness_hi_mm = 0;  ///< [lo, hi] when every face is within band_sigmas sd
+  size_t worn_through_faces = 0;   ///< estimated wear >= thickness_new
+  size_t maybe_worn_through_faces = 0;  ///< band reaches 0
+  std::string status = kStatusOk;  ///< kStatusOk, kStatusUnsupported, kStatusNoSensors
+  std::string status_detail;       ///< why, in words (empty when ok)
 };
 
 /// Everything about a map and crusher that does not depend on the readings, computed once
@@ -45,12 +72,18 @@ struct ReconstructionPlan {
   const CrusherConfig* crusher = nullptr;
   const WearMap* map = nullptr;
   ReconstructionOptions options;
-  Eigen::VectorXd intensity;           ///< per face, smoothed when options.smoothing_radius_m > 0
-  Eigen::VectorXd sensor_intensity;    ///< per sensor (crusher order), from the smoothed intensity
+  MapModel model;                      ///< the map as data with its uncertainty
+  Eigen::VectorXd intensity;           ///< per face: model.intensity
+  Eigen::VectorXd intensity_rel_sd;    ///< per face: relative standard error of `intensity`
+  Eigen::VectorXd sensor_intensity;    ///< per sensor (crusher order): the model at the sensor, same kernel
+  Eigen::VectorXd sensor_intensity_sd; ///< per sensor: its standard error
   std::vector<int> face_row;           ///< row index of each face by z (-1 outside every row)
 };
 
 ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const WearMap& map,
+                                         const ReconstructionOptions& options = {});
+/// The same with a map model built elsewhere (the diagnosis builds one per bundle).
+ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const WearMap& map, MapModel model,
                                          const ReconstructionOptions& options = {});
 Reconstruction Reconstruct(const ReconstructionPlan& plan, const std::vector<SensorWear>& sensor_wear);
 /// The same, into `result`, reusing its per-face arrays when they already have the map's size
@@ -58,7 +91,7 @@ Reconstruction Reconstruct(const ReconstructionPlan& plan, const std::vector<Sen
 void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWear>& sensor_wear, Reconstruction* result);
 
 /// Area-weighted mean of `values` over faces within `radius_m` (surface distance in z and arc
-/// length) of each face. Grid-bucketed: linear in the face count for a fixed radius.
+/// length) of each face (a top-hat; the map model uses a Gaussian kernel). Linear in the face count.
 Eigen::VectorXd SmoothOverSurface(const WearMap& map, const Eigen::VectorXd& values, double radius_m);
 
 /// Index into `readings` of each sensor's latest reading up to `at` (the thinner of two at the
@@ -71,8 +104,9 @@ std::vector<size_t> LatestReadingIndices(const CrusherConfig& crusher, const std
 std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings,
                                      TimePoint at, bool interval_centre = true);
 
-/// Map-intensity at each sensor position (area-weighted over faces within `radius_m` of it, or the
-/// nearest face when none is that close). Same order as crusher.sensors.
+/// Raw map intensity at each sensor position (area-weighted over faces within `radius_m` of it, or
+/// the nearest face when none is that close). Same order as crusher.sensors. (The reconstruction
+/// uses the map model instead; this is the simulator's truth model.)
 Eigen::VectorXd IntensityAtSensors(const CrusherConfig& crusher, const WearMap& map, double radius_m = 0.05);
 
 /// Eq. 9 reconstruction from each sensor's current wear.

@@ -36,6 +36,12 @@ struct WearMap {
   Eigen::VectorXd wear;                          ///< per face, relative intensity (required)
   Eigen::VectorXd normal_stress;                 ///< per face; size 0 when absent
   Eigen::VectorXd shear_stress;                  ///< per face; size 0 when absent
+  /// Standard error of `wear` per face (same units), from the spread of the DEM run's K steady
+  /// time windows (`wear_stderr`, docs/diagnosis.md "map model"); size 0 when the map has none.
+  Eigen::VectorXd wear_stderr;
+  /// K, the number of independent time windows `wear` sums (title `... windows=K ...`); 0 unknown.
+  int windows = 0;
+  std::string title;  ///< the VTK title line (free text); empty for CSV maps
   std::map<std::string, Eigen::VectorXd> extra;  ///< any other per-face arrays found
 
   // Derived by ComputeGeometry() (LoadWearMap calls it):
@@ -51,6 +57,7 @@ struct WearMap {
   size_t face_count() const { return faces.size(); }
   bool has_normal_stress() const { return normal_stress.size() > 0; }
   bool has_shear_stress() const { return shear_stress.size() > 0; }
+  bool has_wear_stderr() const { return wear_stderr.size() > 0; }
   void ComputeGeometry();
   /// Faces whose winding pointed away from the axis (their normals were flipped inward).
   size_t flipped_faces = 0;
@@ -75,9 +82,10 @@ WearMap ParseWearMap(const std::string& text, const std::string& file, MapValida
 
 /// Writes a legacy VTK 4.2 ASCII POLYDATA with the given per-face arrays (name -> values, each of
 /// face_count() entries) as CELL_DATA SCALARS. Writes to a temporary file and renames, so no partial
-/// file is left on failure. `title` is the VTK title line (one line, at most 255 characters).
+/// file is left on failure. `title` is the VTK title line (one line, at most 255 characters; empty:
+/// the map's own title, else "linerwatch wear map").
 void WriteWearMapVtk(const std::filesystem::path& path, const WearMap& map,
                      const std::vector<std::pair<std::string, const Eigen::VectorXd*>>& cell_arrays,
-                     const std::string& title = "linerwatch wear map");
+                     const std::string& title = "");
 
 }  // namespace lw::core

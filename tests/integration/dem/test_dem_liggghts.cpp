@@ -99,9 +99,8 @@ TEST(DemLiggghts, CaseRunStopResumeMap) {
   CHECK(map.has_shear_stress());
   CHECK(map.wear.sum() > 0);
   CHECK(map.wear.minCoeff() >= 0);
-  const auto se = map.extra.find("wear_stderr");
-  CHECK(se != map.extra.end());
-  CHECK(se->second.maxCoeff() > 0);
+  CHECK(map.has_wear_stderr());
+  CHECK(map.wear_stderr.maxCoeff() > 0);
   DOUBLES_EQUAL(0.0, map.z.minCoeff(), 0.06);  // crusher frame: z = 0 at the discharge edge
   DOUBLES_EQUAL(0.6, map.z.maxCoeff(), 0.06);
 

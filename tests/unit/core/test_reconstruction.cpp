@@ -107,3 +107,37 @@ TEST(Reconstruction, SmoothingFindsEveryNeighbourWithinTheRadiusOnAStronglyTaper
   }
   DOUBLES_EQUAL(0.0, worst, 1e-9);
 }
+
+// Issue 14: a count-limited map (noise ~ its mean, one edge spike) is smoothed at a scale the data
+// choose, Eq. 9 at the sensor equals the sensor, outputs stay physical, and no sensor means no number.
+TEST(Reconstruction, NoisyMapIsSmoothedAtADataChosenScaleAndOutputsArePhysical) {
+  const CrusherConfig c = TwoRows();
+  WearMap m = lw::test::CylinderMap(72, 40, [](double z) { return 2.0 - 0.5 * z; });
+  uint64_t state = 12345;
+  auto uniform = [&] {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return static_cast<double>(state >> 11) / 9007199254740992.0;
+  };
+  for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] *= 0.2 + 1.6 * uniform();  // CV about 0.46
+  m.wear[5] *= 40;  // a discharge-edge spike
+  const ReconstructionPlan plan = PrepareReconstruction(c, m);
+  CHECK(plan.model.bandwidth_m > 0.05);  // smoothed, not left at face size
+  CHECK(plan.model.outlier_faces >= 1);
+  CHECK(plan.model.face_cv > 0.2 && plan.model.face_cv < 0.8);
+  const Reconstruction r = Reconstruct(plan, {{"1001", 35.0}, {"1002", 12.5}});
+  // At the lower sensor the reconstruction equals the sensor (same kernel at faces and sensor).
+  const MapModel::Point at = plan.model.At(0.5, 0.0);
+  DOUBLES_EQUAL(35.0, at.intensity * r.rows[0].scale_mm_per_unit, 1e-6);
+  CHECK(r.min_thickness_mm >= 0.0);
+  CHECK(r.min_thickness_lo_mm <= r.min_thickness_mm && r.min_thickness_mm <= r.min_thickness_hi_mm);
+  // Without the smoothing the spike would put the thinnest point at 120 - 40 * 2 * 20 < 0.
+  CHECK(r.min_thickness_mm > 60.0);
+  // Extreme wear: clamped at 0, counted as worn through, never negative.
+  const Reconstruction worn = Reconstruct(plan, {{"1001", 119.0}, {"1002", 119.0}});
+  CHECK(worn.worn_through_faces > 0);
+  CHECK(worn.remaining_mm.minCoeff() >= 0.0);
+  // No sensor: no number.
+  const Reconstruction none = Reconstruct(plan, {});
+  STRCMP_EQUAL(kStatusNoSensors, none.status.c_str());
+  CHECK(std::isnan(none.min_thickness_mm));
+}

@@ -1,4 +1,5 @@
 #include <cmath>
+#include <fstream>
 
 #include "core/wear_map.hpp"
 #include "unit/core/temp_dir.hpp"
@@ -202,11 +203,24 @@ TEST(WearMap, ImplausibleMapsAreRefusedNotLoaded) {
   CHECK(m.find("from the crusher origin") != std::string::npos);
   m = message("huge.vtk", head + "POINTS 4000000000000 float\n1 0 0\n");
   CHECK(m.find("huge.vtk:5") != std::string::npos);
-  CHECK(m.find("more than the file holds") != std::string::npos);
+  CHECK(m.find("the file holds only") != std::string::npos);
   m = message("cells.vtk", head + "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 99999999999 4\n3 0 1 2\n");
-  CHECK(m.find("more than the file holds") != std::string::npos);
+  CHECK(m.find("the file holds only") != std::string::npos);
   m = message("neg.csv", "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,1,1\n1,0,0,0,1,0,1,0,1,-2\n");
   CHECK(m.find("neg.csv:3") != std::string::npos);
   m = message("far.csv", "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,5e3,1\n");
   CHECK(m.find("far.csv:2") != std::string::npos);
+}
+
+TEST(WearMap, WearStderrAndTheTitlesWindowCountAreRead) {
+  const lw::test::ScratchDir dir;
+  std::ofstream(dir.path() / "m.vtk") << "# vtk DataFile Version 4.2\nlinerwatch dem c1 windows=5 window_s=1.4\nASCII\n"
+                                         "DATASET POLYDATA\nPOINTS 3 double\n0 1 0\n1 1 0\n0 1 1\nPOLYGONS 1 4\n3 0 1 2\n"
+                                         "CELL_DATA 1\nSCALARS wear double 1\nLOOKUP_TABLE default\n2.5\n"
+                                         "SCALARS wear_stderr double 1\nLOOKUP_TABLE default\n0.7\n";
+  const WearMap m = LoadWearMap(dir.path() / "m.vtk");
+  LONGS_EQUAL(5, m.windows);
+  CHECK(m.has_wear_stderr());
+  DOUBLES_EQUAL(0.7, m.wear_stderr[0], 1e-12);
+  CHECK(m.extra.count("wear_stderr") == 0);
 }

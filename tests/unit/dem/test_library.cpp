@@ -28,9 +28,9 @@ TEST(DemLibrary, EveryCaseLoadsAndMatchesItsSummary) {
     const lw::core::WearMap map = lw::core::LoadWearMap(e.path() / "wear_map.vtk", &v);
     LONGS_EQUAL_TEXT(0, v.degenerate_faces, name.c_str());
     CHECK_TEXT(map.has_normal_stress() && map.has_shear_stress(), name.c_str());
-    const auto se = map.extra.find("wear_stderr");
-    CHECK_TEXT(se != map.extra.end(), name.c_str());
-    CHECK_TEXT(se->second.minCoeff() >= 0 && se->second.maxCoeff() > 0, name.c_str());
+    CHECK_TEXT(map.has_wear_stderr(), name.c_str());
+    CHECK_TEXT(map.wear_stderr.minCoeff() >= 0 && map.wear_stderr.maxCoeff() > 0, name.c_str());
+    CHECK_TEXT(map.windows >= 4, name.c_str());
 
     std::ifstream in(e.path() / "wear_map.vtk");
     std::string header, title;

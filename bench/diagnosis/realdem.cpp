@@ -1,0 +1,308 @@
+#include "realdem.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <numeric>
+#include <random>
+#include <stdexcept>
+
+#include "core/reconstruction.hpp"
+
+namespace lw::bench {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::string Iso(const core::TimePoint& t0, double days) { return core::FormatIsoTime(core::AddDays(t0, days)); }
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+double Quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())))];
+}
+
+// CELL_DATA SCALARS arrays of a legacy ASCII VTK (name -> values), each of `faces` values.
+std::map<std::string, Eigen::VectorXd> ReadCellScalars(const std::filesystem::path& path, size_t faces) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot open " + path.string());
+  std::map<std::string, Eigen::VectorXd> out;
+  std::string tok;
+  bool cell = false;
+  while (in >> tok) {
+    if (tok == "CELL_DATA") {
+      size_t n = 0;
+      in >> n;
+      if (n != faces) throw std::runtime_error(path.string() + ": CELL_DATA " + std::to_string(n) + " != " + std::to_string(faces) + " faces of wear_map.vtk");
+      cell = true;
+    } else if (tok == "POINT_DATA") {
+      cell = false;
+    } else if (tok == "SCALARS" && cell) {
+      std::string name, type, lut, lut_name;
+      in >> name >> type >> lut;
+      if (lut != "LOOKUP_TABLE") in >> lut;  // component count given
+      in >> lut_name;
+      Eigen::VectorXd v(static_cast<Eigen::Index>(faces));
+      for (size_t i = 0; i < faces; ++i)
+        if (!(in >> v[static_cast<Eigen::Index>(i)])) throw std::runtime_error(path.string() + ": array " + name + " is short");
+      out[name] = v;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<DemRun> LoadDemRuns(const std::filesystem::path& dir) {
+  std::vector<std::filesystem::path> folders;
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    if (e.is_directory() && std::filesystem::exists(e.path() / "wear_windows.vtk") &&
+        std::filesystem::exists(e.path() / "crusher.json"))
+      folders.push_back(e.path());
+  std::sort(folders.begin(), folders.end());
+  std::vector<DemRun> runs;
+  for (const auto& f : folders) {
+    DemRun r;
+    r.name = f.filename().string();
+    r.dir = f;
+    r.crusher = core::LoadCrusherConfig(f / "crusher.json");
+    // Geometry from wear_map.vtk (the same mesh); the per-window arrays from wear_windows.vtk (no
+    // `wear` array there, so not a map core's importer accepts: read its CELL_DATA SCALARS here).
+    r.mesh = core::LoadWearMap(f / "wear_map.vtk");
+    const auto arrays = ReadCellScalars(f / "wear_windows.vtk", r.mesh.face_count());
+    for (int k = 1;; ++k) {
+      const auto w = arrays.find("wear_w" + std::to_string(k));
+      if (w == arrays.end()) break;
+      r.wear_w.push_back(w->second);
+      const auto n = arrays.find("normal_stress_w" + std::to_string(k));
+      if (n != arrays.end()) r.normal_w.push_back(n->second);
+    }
+    if (r.normal_w.size() != r.wear_w.size()) r.normal_w.clear();
+    if (r.wear_w.size() < 4) throw std::runtime_error(f.string() + ": fewer than 4 wear windows");
+    runs.push_back(std::move(r));
+  }
+  return runs;
+}
+
+RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : run_(run), spec_(spec) {
+  const size_t K = run.wear_w.size();
+  std::vector<int> order(K);
+  std::iota(order.begin(), order.end(), 0);
+  std::mt19937_64 rng(spec.seed);
+  std::shuffle(order.begin(), order.end(), rng);
+  map_windows.assign(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(K / 2));
+  truth_windows.assign(order.begin() + static_cast<std::ptrdiff_t>(K / 2), order.end());
+  std::sort(map_windows.begin(), map_windows.end());
+  std::sort(truth_windows.begin(), truth_windows.end());
+
+  // The bundle's map: the sum of the map windows, their spread, their mean normal stress.
+  map_.points = run.mesh.points;
+  map_.faces = run.mesh.faces;
+  const Eigen::Index n = static_cast<Eigen::Index>(map_.faces.size());
+  const double a = static_cast<double>(map_windows.size());
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(n), sum2 = Eigen::VectorXd::Zero(n), nsum = Eigen::VectorXd::Zero(n);
+  for (int w : map_windows) {
+    sum += run.wear_w[static_cast<size_t>(w)];
+    sum2 += run.wear_w[static_cast<size_t>(w)].cwiseAbs2();
+    if (!run.normal_w.empty()) nsum += run.normal_w[static_cast<size_t>(w)];
+  }
+  map_.wear = sum;
+  const Eigen::VectorXd mean = sum / a;
+  map_.wear_stderr = (std::sqrt(a) * ((sum2 / a - mean.cwiseAbs2()).cwiseMax(0.0) * a / (a - 1)).cwiseSqrt()).eval();
+  if (spec.with_normal && !run.normal_w.empty()) {
+    map_.normal_stress = nsum / a;
+    map_.shear_stress = 0.3 * map_.normal_stress;
+  }
+  map_.windows = static_cast<int>(map_windows.size());
+  map_.title = "linerwatch dem " + run.name + " windows=" + std::to_string(map_windows.size()) + " (benchmark split)";
+  map_.ComputeGeometry();
+
+  // The truth: the other windows' mean, smoothed heavily (top-hat, not the map model's kernel).
+  core::WearMap tm = run.mesh;
+  Eigen::VectorXd tsum = Eigen::VectorXd::Zero(n), tn = Eigen::VectorXd::Zero(n);
+  for (int w : truth_windows) {
+    tsum += run.wear_w[static_cast<size_t>(w)];
+    if (!run.normal_w.empty()) tn += run.normal_w[static_cast<size_t>(w)];
+  }
+  double zlo = std::numeric_limits<double>::max(), zhi = std::numeric_limits<double>::lowest();
+  for (const auto& r : run.crusher.rows) {
+    zlo = std::min(zlo, r.z_min_m);
+    zhi = std::max(zhi, r.z_max_m);
+  }
+  const double height = std::max(zhi - zlo, 1e-3);
+  const double radius = spec.truth_radius_frac * height;
+  const Eigen::VectorXd T = core::SmoothOverSurface(tm, tsum.cwiseMax(0.0), radius);
+  const Eigen::VectorXd N = run.normal_w.empty() ? Eigen::VectorXd::Ones(n) : core::SmoothOverSurface(tm, tn, radius);
+  std::vector<double> pos, nv;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (T[i] > 0) pos.push_back(T[i]);
+    nv.push_back(N[i]);
+  }
+  const double med = std::max(Median(pos), 1e-300);
+  const double nmax = std::max(Quantile(nv, 0.95), 1e-300);
+  double i_mean = 0, n_mean = 0, asum = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    i_mean += tm.areas[i] * T[i] / med;
+    n_mean += tm.areas[i] * N[i];
+    asum += tm.areas[i];
+  }
+  const double n_to_i = n_mean > 0 ? i_mean / n_mean : 0;
+  const double z_mid = 0.5 * (zlo + zhi);
+  auto make = [&](Eigen::Index i) {
+    Point p;
+    p.intensity = T[i] / med;
+    p.normal_tilde = std::min(1.5, N[i] / nmax);
+    p.normal_i = N[i] * n_to_i;
+    p.zn = (tm.z[i] - z_mid) / height;
+    p.theta = tm.theta_deg[i] * kPi / 180.0;
+    return p;
+  };
+  for (Eigen::Index i = 0; i < n; ++i) faces_.push_back(make(i));
+  for (const auto& s : run.crusher.sensors) {
+    // The truth is smooth: the nearest face's value.
+    Eigen::Index best = 0;
+    double bd = std::numeric_limits<double>::max();
+    for (Eigen::Index i = 0; i < n; ++i) {
+      double dth = std::fmod(tm.theta_deg[i] - s.theta_deg + 540.0, 360.0) - 180.0;
+      const double arc = tm.radius[i] * dth * kPi / 180.0, dz = tm.z[i] - s.z_m;
+      if (dz * dz + arc * arc < bd) {
+        bd = dz * dz + arc * arc;
+        best = i;
+      }
+    }
+    Point p = make(best);
+    p.zn = (s.z_m - z_mid) / height;
+    p.theta = s.theta_deg * kPi / 180.0;
+    sensors_.push_back(p);
+  }
+  // Rate: without effects, the truth's most worn face reaches 85 % of (new - minimum) at `days`
+  // (the liner near its end: the thinnest point matters).
+  double i_max = 0;
+  for (const Point& p : faces_) i_max = std::max(i_max, p.intensity);
+  rate_ = 0.85 * (run.crusher.thickness_new_mm - run.crusher.thickness_min_mm) / (std::max(i_max, 1e-6) * spec.days);
+  double qs = 0;
+  int qn = 0;
+  for (double t = 0.125; t < spec.days; t += 0.25) {
+    qs += Throughput(t);
+    ++qn;
+  }
+  q_mean_ = qs / qn;
+}
+
+double RealDemCampaign::Throughput(double t) const {
+  if (t >= 30 && t < 36) return 0.05;
+  return 1.0 + 0.35 * std::sin(2 * kPi * t / 23.0);
+}
+
+double RealDemCampaign::Wear(const Point& p, double day, double new_mm) const {
+  const RealDemSpec& s = spec_;
+  double base = rate_ * (p.intensity + s.squeeze_beta * p.normal_i);
+  base *= 1.0 + s.feed_amplitude * std::cos(p.theta - s.feed_theta_deg * kPi / 180.0);
+  const double dt = 0.25;
+  double w = 0;
+  for (double t = 0; t < day - 1e-12; t += dt) {
+    const double step = std::min(dt, day - t), tm = t + 0.5 * step;
+    double f = base;
+    if (s.hardening_h > 0) f *= 1.0 - s.hardening_h * p.normal_tilde * (1.0 - std::exp(-tm / s.hardening_tau_days));
+    if (s.profile_p != 0) f *= std::max(0.05, 1.0 + s.profile_p * p.zn * tm / 100.0);
+    if (s.throughput_phi > 0) f *= 1.0 + s.throughput_phi * (Throughput(tm) / q_mean_ - 1.0);
+    if (s.gradient_g > 0) {
+      const double x = std::clamp((w - s.gradient_onset_mm) / (new_mm / 2 - s.gradient_onset_mm), 0.0, 1.0);
+      f *= 1.0 + s.gradient_g * x;
+    }
+    w += step * f;
+  }
+  return std::min(w, new_mm);
+}
+
+double RealDemCampaign::TrueSensorThickness(size_t index, double day) const {
+  const auto& s = run_.crusher.sensors[index];
+  const double new_mm = s.thickness_new_mm > 0 ? s.thickness_new_mm : run_.crusher.thickness_new_mm;
+  double w = Wear(sensors_[index], day, new_mm);
+  if (s.id == spec_.loss_sensor && day >= spec_.loss_day) w += spec_.loss_mm;
+  return std::max(0.0, new_mm - w);
+}
+
+Eigen::VectorXd RealDemCampaign::TrueFaceWear(double day) const {
+  Eigen::VectorXd w(static_cast<Eigen::Index>(faces_.size()));
+  for (size_t i = 0; i < faces_.size(); ++i) w[static_cast<Eigen::Index>(i)] = Wear(faces_[i], day, run_.crusher.thickness_new_mm);
+  return w;
+}
+
+void RealDemCampaign::WriteBundle(const std::filesystem::path& dir) const {
+  std::filesystem::create_directories(dir);
+  std::filesystem::copy_file(run_.dir / "crusher.json", dir / "crusher.json", std::filesystem::copy_options::overwrite_existing);
+  std::vector<std::pair<std::string, const Eigen::VectorXd*>> arrays = {{"wear", &map_.wear}, {"wear_stderr", &map_.wear_stderr}};
+  if (map_.has_normal_stress()) {
+    arrays.push_back({"normal_stress_average", &map_.normal_stress});
+    arrays.push_back({"shear_stress_average", &map_.shear_stress});
+  }
+  core::WriteWearMapVtk(dir / "wear_map.vtk", map_, arrays);
+  const core::TimePoint t0 = run_.crusher.installed_at;
+  std::mt19937_64 rng(spec_.seed * 7919 + 17);
+  {
+    std::ofstream r(dir / "readings.csv");
+    r << "time,sensor_id,thickness_mm\n";
+    const double step = spec_.report_hours / 24.0;
+    for (size_t i = 0; i < run_.crusher.sensors.size(); ++i) {
+      const auto& sn = run_.crusher.sensors[i];
+      double stuck = -1;
+      // Tabulated truth (0.25-day steps), interpolated.
+      std::vector<double> tab;
+      for (double t = 0; t <= spec_.days + 0.5; t += 0.25) tab.push_back(TrueSensorThickness(i, t));
+      for (double t = step; t <= spec_.days + 1e-9; t += step) {
+        const double x = t / 0.25;
+        const auto j = static_cast<size_t>(x);
+        const double f = x - static_cast<double>(j);
+        double th = j + 1 < tab.size() ? tab[j] * (1 - f) + tab[j + 1] * f : tab.back();
+        double value = std::max(0.0, std::floor(th));
+        if (sn.id == spec_.stuck_sensor && t >= spec_.stuck_from_day) {
+          if (stuck < 0) stuck = value;
+          value = stuck;
+        }
+        r << Iso(t0, t) << "," << sn.id << "," << value << "\n";
+      }
+    }
+  }
+  if (spec_.with_operations) {
+    std::ofstream o(dir / "operations.csv");
+    o << "time,throughput_tph\n";
+    for (double t = 0; t <= spec_.days; t += 1.0) o << Iso(t0, t) << "," << 3500.0 * Throughput(t + 0.5) << "\n";
+  }
+  if (spec_.with_scan) {
+    std::filesystem::create_directories(dir / "scans");
+    const Eigen::VectorXd w = TrueFaceWear(spec_.scan_day);
+    std::ofstream sc(dir / "scans" / ("scan_" + Iso(t0, spec_.scan_day).substr(0, 10) + ".xyz"));
+    std::uniform_real_distribution<double> uni(0.0, 1.0);
+    std::normal_distribution<double> gauss(0.0, 1.0);
+    for (size_t f = 0; f < map_.faces.size(); ++f) {
+      const auto& fc = map_.faces[f];
+      for (int k = 0; k < 4; ++k) {
+        double a = uni(rng), b = uni(rng);
+        if (a + b > 1) {
+          a = 1 - a;
+          b = 1 - b;
+        }
+        const Eigen::Vector3d p0 = map_.points[fc[0]], p1 = map_.points[fc[1]], p2 = map_.points[fc[2]];
+        const Eigen::Vector3d p = p0 + a * (p1 - p0) + b * (p2 - p0);
+        const double depth = (w[static_cast<Eigen::Index>(f)] + spec_.scan_noise_mm * gauss(rng)) / 1000.0;
+        const Eigen::Vector3d q = p - map_.normals[f] * depth;  // behind the as-new face
+        char line[96];
+        std::snprintf(line, sizeof line, "%.6f %.6f %.6f\n", q.x(), q.y(), q.z());
+        sc << line;
+      }
+    }
+  }
+}
+
+}  // namespace lw::bench

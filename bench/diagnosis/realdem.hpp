@@ -1,0 +1,80 @@
+#pragma once
+// Benchmark generator on real DEM maps (the library of data/dem/, docs/diagnosis.md "map model"):
+// each run's K steady time windows are split in two. The bundle's map is built from one part
+// (wear = their sum, wear_stderr from their spread, normal stress their mean), the truth from the
+// other part (independent sampling noise, the same chamber): the mean of those windows, smoothed
+// heavily (a top-hat of truth_radius_frac x the concave height), is the "noise-free" wear field
+// the sensors, the scan and the true wear are made from; effects go on top in the diagnosis'
+// documented forms. The truth is the generator's, not the map model's (a different kernel).
+#include <Eigen/Core>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/bundle.hpp"
+
+namespace lw::bench {
+
+struct DemRun {
+  std::string name;
+  std::filesystem::path dir;
+  core::CrusherConfig crusher;
+  core::WearMap mesh;                     ///< wear_windows.vtk (geometry)
+  std::vector<Eigen::VectorXd> wear_w;    ///< per window
+  std::vector<Eigen::VectorXd> normal_w;  ///< per window (may be empty)
+};
+
+/// Every sub-folder of `dir` with wear_windows.vtk and crusher.json (sorted by name).
+std::vector<DemRun> LoadDemRuns(const std::filesystem::path& dir);
+
+struct RealDemSpec {
+  uint64_t seed = 1;
+  double days = 90;
+  double scan_day = 70;
+  double report_hours = 6;
+  double truth_radius_frac = 0.12;  ///< truth smoothing radius / concave height
+  bool with_scan = true;
+  bool with_normal = true;
+  bool with_operations = false;
+  double scan_noise_mm = 0.3;
+  // Effects (0 = absent), forms as documented in docs/diagnosis.md.
+  double hardening_h = 0, hardening_tau_days = 6;
+  double gradient_g = 0, gradient_onset_mm = 15;
+  double squeeze_beta = 0;
+  double profile_p = 0;
+  double feed_amplitude = 0, feed_theta_deg = 60;
+  double throughput_phi = 0;
+  std::string stuck_sensor;
+  double stuck_from_day = 0;
+  std::string loss_sensor;
+  double loss_day = 0, loss_mm = 0;
+};
+
+class RealDemCampaign {
+ public:
+  RealDemCampaign(const DemRun& run, const RealDemSpec& spec);
+  /// crusher.json, wear_map.vtk, readings.csv, operations.csv (when asked), scans/.
+  void WriteBundle(const std::filesystem::path& dir) const;
+  double TrueSensorThickness(size_t index, double day) const;
+  /// True wear (mm) per face at `day`, in [0, new].
+  Eigen::VectorXd TrueFaceWear(double day) const;
+  const core::WearMap& map() const { return map_; }
+  const core::CrusherConfig& crusher() const { return run_.crusher; }
+  std::vector<int> map_windows, truth_windows;
+
+ private:
+  struct Point {
+    double intensity = 0, normal_tilde = 0, normal_i = 0, zn = 0, theta = 0;
+  };
+  double Wear(const Point& p, double day, double new_mm) const;
+  double Throughput(double t) const;
+  const DemRun& run_;
+  RealDemSpec spec_;
+  core::WearMap map_;
+  std::vector<Point> faces_, sensors_;
+  double rate_ = 1;
+  double q_mean_ = 1;
+};
+
+}  // namespace lw::bench
