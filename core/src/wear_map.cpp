@@ -237,11 +237,11 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
       }
       if (kw == "POLYGONS") map.faces = std::move(faces);
     } else if (kw == "CELL_DATA") {
-      cell_count = t.Count("cell data count");
+      cell_count = t.Count("cell data count", 0);  // checked per array (NeedValues)
       in_cell_data = true;
       in_point_data = false;
     } else if (kw == "POINT_DATA") {
-      point_data_count = t.Count("point data count");
+      point_data_count = t.Count("point data count", 0);
       in_point_data = true;
       in_cell_data = false;
     } else if (kw == "SCALARS") {

@@ -136,6 +136,8 @@ TEST(FirmwareToGateway, ReadingsReachMqttAndGatewayAcksReachTheFirmware) {
     }
   };
   set_ladder(84);
+  // The emulated boot can take many seconds on a loaded machine: wait for the first frame first.
+  for (int i = 0; i < 120 && fw_frames == 0; ++i) pump(0.5, nullptr);
   pump(4.0, nullptr);
   for (int loops = 83; loops >= 81; --loops) {
     set_ladder(loops);

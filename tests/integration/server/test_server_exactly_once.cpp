@@ -34,7 +34,8 @@ struct ServerProcess {
   int http_port = 0;
   void Start() {
     process.Start(argv, log);
-    for (int i = 0; i < 100 && !lw::test::PortAccepts(http_port); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    // Up to 60 s: the map model is built at start-up, slow on a loaded machine.
+    for (int i = 0; i < 1200 && !lw::test::PortAccepts(http_port); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
     if (!lw::test::PortAccepts(http_port)) FAIL(("server did not come up: " + lw::test::FileTail(log)).c_str());
   }
 };
