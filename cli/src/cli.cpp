@@ -140,7 +140,7 @@ Options ParseOptions(const std::vector<std::string>& args, size_t first, const s
     nlohmann::json j;
     try {
       j = nlohmann::json::parse(in);
-    } catch (const nlohmann::json::parse_error& e) {
+    } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for 1e999
       throw BadInput(*config + ": invalid JSON (" + std::string(e.what()) + ")");
     }
     if (!j.is_object()) throw BadInput(*config + ": rule: the config must be a JSON object");

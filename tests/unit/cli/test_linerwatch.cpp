@@ -71,6 +71,17 @@ TEST(Linerwatch, MissingBundleIsOneLineErrorAndNoOutput) {
   CHECK_FALSE(fs::exists(out));
 }
 
+// Found by fuzz/ in the other programs' config readers: nlohmann throws out_of_range, not
+// parse_error, for a number beyond double range; it must be a one-line bad-input error here too.
+TEST(Linerwatch, ConfigNumberBeyondDoubleRangeIsOneLineError) {
+  const fs::path cfg = dir / "overflow.json";
+  std::ofstream(cfg) << "{\"windows\": 1e999}";
+  const Run r = Cli({"dem", (dir / "nope").string(), "--config", cfg.string()});
+  LONGS_EQUAL(1, r.code);
+  CHECK_TRUE(OneLine(r.err));
+  CHECK_TEXT(r.err.find("overflow.json: invalid JSON") != std::string::npos, r.err.c_str());
+}
+
 TEST(Linerwatch, BadReadingNamesFileAndLineAndWritesNothing) {
   const fs::path b = Bundle();
   {
