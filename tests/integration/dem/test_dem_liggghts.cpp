@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cli/cli.hpp"
+#include "unit/cli/run_cli.hpp"
 #include "core/wear_map.hpp"
 #include "dem/runner.hpp"
 #include "unit/core/temp_dir.hpp"
@@ -22,19 +23,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Run {
-  int code = 0;
-  std::string out, err;
-};
-
-Run Cli(const std::vector<std::string>& args) {
-  std::ostringstream out, err;
-  Run r;
-  r.code = lw::cli::RunCli(args, out, err);
-  r.out = out.str();
-  r.err = err.str();
-  return r;
-}
+using Run = lw::test::CliRun;
+Run Cli(const std::vector<std::string>& args) { return lw::test::RunLinerwatch(args); }
 
 }  // namespace
 

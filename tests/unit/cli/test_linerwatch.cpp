@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "cli/cli.hpp"
+#include "unit/cli/run_cli.hpp"
 #include "core/bundle.hpp"
 #include "core/reconstruction.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
@@ -19,19 +20,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Run {
-  int code = 0;
-  std::string out, err;
-};
-
-Run Cli(const std::vector<std::string>& args) {
-  std::ostringstream out, err;
-  Run r;
-  r.code = lw::cli::RunCli(args, out, err);
-  r.out = out.str();
-  r.err = err.str();
-  return r;
-}
+using Run = lw::test::CliRun;
+Run Cli(const std::vector<std::string>& args) { return lw::test::RunLinerwatch(args); }
 
 bool OneLine(const std::string& s) { return !s.empty() && s.find('\n') == s.size() - 1; }
 
