@@ -96,12 +96,13 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
   server.argv = {LW_SERVER_BIN, "--broker", broker.uri(), "--db", db, "--http", "127.0.0.1:" + std::to_string(http_port),
                  "--crusher-dir", crushers, "--username", kUser, "--password", kPassword, "--clock-file", clock,
                  "--wear-interval-ms", "200", "--web-dir", ""};
-  auto start_server = [&] {
-    server.Start();
-    for (int i = 0; i < 200 && !lw::test::PortAccepts(http_port); ++i) SleepMs(50);
+  // Up to 60 s: the server builds each crusher's map model before it listens (seconds on a loaded machine).
+  auto wait_for_server = [&] {
+    for (int i = 0; i < 1200 && !lw::test::PortAccepts(http_port); ++i) SleepMs(50);
     CHECK_TEXT(lw::test::PortAccepts(http_port), ("server did not come up: " + lw::test::FileTail(server.log)).c_str());
   };
-  start_server();
+  server.Start();
+  wait_for_server();
 
   Program sim;
   sim.log = dir.File("sim.log");
@@ -140,7 +141,7 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
       } else {
         server.process.Kill();
         SleepMs(static_cast<int>(rng() % 1000));
-        start_server();
+        server.Start();  // not waited for here: the campaign (and the other faults) go on meanwhile
       }
       done += what + " at day " + std::to_string(faults[next].first) + "; ";
       ++next;
@@ -151,6 +152,7 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
   LONGS_EQUAL_TEXT(0, WIFEXITED(sim.process.status()) ? WEXITSTATUS(sim.process.status()) : -1,
                    (context + lw::test::FileTail(sim.log)).c_str());
   LONGS_EQUAL_TEXT(faults.size(), next, (context + "the campaign ended before every fault happened").c_str());
+  wait_for_server();
 
   const std::vector<lw::test::Produced> ledger = lw::test::LoadLedger(dir.File("ledger.csv"));
   CHECK_TEXT(ledger.size() > static_cast<size_t>(10 * kDays * 4), context.c_str());  // ten sensors, at least the 6-hourly heartbeats
