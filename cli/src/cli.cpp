@@ -35,7 +35,7 @@ constexpr const char* kUsage =
     "                  [--no-pairs] [--config FILE]\n"
     "      Compare the bundle's readings (and scans) with the Eq. 9 reconstruction of its DEM map, test\n"
     "      whether the mismatch is real, locate it, and name the physics the DEM left out.\n"
-    "      Exit 0 when the diagnosis ran, whatever it found (see CONTRACTS.md section 4).\n"
+    "      Exit 0 when the diagnosis ran, whatever it found (docs/diagnosis.md, section Output).\n"
     "  reconstruct BUNDLE [--at TIME] [--json OUT.json] [--vtk OUT.vtk] [--lower-bound] [--config FILE]\n"
     "      Eq. 9 global wear from the sensors' latest readings (at TIME, default: the last reading);\n"
     "      prints a per-row summary. A reading n means [n, n+1) mm: estimates use n + 0.5, as the\n"

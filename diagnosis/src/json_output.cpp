@@ -1,4 +1,4 @@
-// CONTRACTS.md §4 JSON document.
+// The diagnosis JSON document (docs/diagnosis.md, "Output").
 #include <cmath>
 
 #include "diagnosis/diagnose.hpp"

@@ -1,5 +1,5 @@
 #pragma once
-/// Campaign bundle (CONTRACTS.md §3): crusher.json, wear_map.vtk, readings.csv, operations.csv,
+/// Campaign bundle (docs/bundle.md): crusher.json, wear_map.vtk, readings.csv, operations.csv,
 /// scans/scan_YYYY-MM-DD.xyz.
 #include <Eigen/Core>
 #include <filesystem>

@@ -1,5 +1,5 @@
 #pragma once
-/// Simulation-versus-recording diagnosis (CONTRACTS.md §4): compares a campaign's sensor readings
+/// Simulation-versus-recording diagnosis (docs/diagnosis.md, "Output"): compares a campaign's sensor readings
 /// (and laser scans, if any) with the Eq. 9 reconstruction of the DEM wear map, tests whether the
 /// mismatch is real, locates it, and names the physics the DEM left out by fitting a library of
 /// physically parameterised wear-model changes.
@@ -17,7 +17,7 @@
 
 namespace lw::diagnosis {
 
-/// Effect names, exactly as CONTRACTS.md §4 spells them.
+/// Effect names, exactly as docs/diagnosis.md ("Output") spells them.
 inline constexpr const char* kWorkHardening = "work_hardening";
 inline constexpr const char* kHardnessGradient = "hardness_gradient";
 inline constexpr const char* kSqueezeWear = "squeeze_wear";
