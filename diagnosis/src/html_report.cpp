@@ -274,6 +274,7 @@ struct Marker {
   double theta = 0, z = 0;
   std::string fill = "#fff";
   std::string title;
+  std::string value;  ///< shown after the id (sensor residuals when there is no scan)
 };
 
 // `ids` numbers the clip paths of one document (unique ids).
@@ -350,15 +351,17 @@ std::string LinerMap(int& ids, const LinerReport& L, const MapFrame& f, const st
     s << "<circle cx='" << Num(x, 1) << "' cy='" << Num(y, 1) << "' r='4.5' fill='" << m.fill
       << "' stroke='#000' stroke-width='1.2'><title>" << Esc(m.id) << (m.title.empty() ? "" : ": ") << Esc(m.title)
       << "</title></circle><text x='" << Num(x + 6, 1) << "' y='" << Num(y - 5, 1)
-      << "' font-size='10' class='halo'>" << Esc(m.id) << "</text>";
+      << "' font-size='10' class='halo'>" << Esc(m.id) << (m.value.empty() ? "" : ": ") << Esc(m.value) << "</text>";
   }
   if (thinnest) {
     const double x = f.X(thinnest->theta_deg), y = f.Y(thinnest->z_m);
     s << "<g stroke='#000' stroke-width='2.5'><line x1='" << Num(x - 7, 1) << "' y1='" << Num(y - 7, 1) << "' x2='"
       << Num(x + 7, 1) << "' y2='" << Num(y + 7, 1) << "'/><line x1='" << Num(x - 7, 1) << "' y1='" << Num(y + 7, 1)
-      << "' x2='" << Num(x + 7, 1) << "' y2='" << Num(y - 7, 1) << "'/></g><text x='" << Num(x + 9, 1) << "' y='"
-      << Num(y + 14, 1) << "' font-size='11' font-weight='bold' class='halo'>thinnest " << Num(thinnest->thickness_mm, 1)
-      << " mm</text>";
+      << "' x2='" << Num(x + 7, 1) << "' y2='" << Num(y - 7, 1) << "'/></g>";
+    const bool left = x > f.ml + 0.7 * f.w, below = y < f.mt + 0.5 * f.h;
+    s << "<text x='" << Num(left ? x - 9 : x + 9, 1) << "' y='" << Num(below ? y + 18 : y - 10, 1)
+      << "' text-anchor='" << (left ? "end" : "start") << "' font-size='11' font-weight='bold' class='halo'>thinnest "
+      << Num(thinnest->thickness_mm, 1) << " mm</text>";
   }
   s << "</svg>";
   return s.str();
@@ -376,10 +379,12 @@ std::string Legend(const std::function<std::string(double)>& colour, double lo, 
       << colour(v) << "'/>";
   }
   s << "<rect x='" << x0 << "' y='4' width='" << w << "' height='12' fill='none' stroke='#666'/>";
+  const double range = hi - lo;
+  const int digits = range >= 20 ? 0 : range >= 2 ? 1 : 2;
   for (int k = 0; k <= 4; ++k) {
-    const double v = lo + (hi - lo) * k / 4.0;
+    const double v = lo + range * k / 4.0;
     s << "<text x='" << Num(x0 + w * k / 4.0, 1) << "' y='28' font-size='10' text-anchor='middle'>"
-      << (v > 0 && lo < 0 ? "+" : "") << Sig(v) << "</text>";
+      << (v > 1e-9 && lo < 0 ? "+" : "") << (std::fabs(v) < 1e-9 ? std::string("0") : Num(v, digits)) << "</text>";
   }
   s << "<text x='" << x0 << "' y='42' font-size='10'>" << caption << "</text></svg>";
   return s.str();
@@ -439,7 +444,7 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
   auto div = [scale](double v) { return Diverging(v / scale); };
   for (const SensorCurve& c : r.curves) {
     const SensorResidual sr = ResidualAt(c, day);
-    Marker m{c.sensor_id, c.theta_deg, c.z_m, "#fff", ""};
+    Marker m{c.sensor_id, c.theta_deg, c.z_m, "#fff", "", ""};
     m.title = std::isfinite(sr.day) ? "reading " + Num(sr.reading, 0) + " mm on day " + Num(sr.day, 1) : "no reading used";
     Marker m2 = m;
     if (std::isfinite(sr.before)) {
@@ -447,6 +452,10 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
       m.title += ", measured - predicted wear " + Num(-sr.before, 2) + " mm";
       m2.fill = div(-sr.after);
       m2.title += ", measured - predicted wear " + Num(-sr.after, 2) + " mm";
+      if (!scan) {
+        m.value = (sr.before < 0 ? "+" : "") + Num(-sr.before, 1);
+        m2.value = (sr.after < 0 ? "+" : "") + Num(-sr.after, 1);
+      }
     }
     mb.push_back(m);
     ma.push_back(m2);
@@ -470,7 +479,7 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
       << ")</h3>";
     h << "<p class='caption'>This campaign has no laser scan, so residuals are known <b>only at the sensors</b>. "
          "Background: the wear each model predicts at the latest reading (mm, pale = little, dark = much). Circles: "
-         "the sensors, filled with <b>measured minus predicted wear</b> at their latest reading (<span "
+         "the sensors, labelled and filled with <b>measured minus predicted wear</b> (mm) at their latest reading (<span "
          "class='red'>red</span> = wore more than predicted, <span class='blue'>blue</span> = less; same scale, "
          "&plusmn;" << Sig(scale) << " mm). Left: baseline (plain Eq. 9); right: the model with the findings. "
          "Dashed circles: sensors whose readings ran away from the baseline (mismatch regions).</p>";
@@ -561,14 +570,19 @@ std::string ThinnestSection(int& ids, const DiagnosisResult& r, const MapFrame& 
   }
   if (!L.remaining_now_mm.empty()) {
     const ThinnestPoint& p = L.thinnest.front();
-    const double top = NiceCeil(std::max(1.0, L.thickness_new_mm));
-    auto seq = [top](double v) { return Sequential(1.0 - v / top); };
+    // Colour range: from the thinnest face (rounded down to 5 mm) to as new, so the pattern shows.
+    double thin = L.thickness_new_mm;
+    for (double v : L.remaining_now_mm)
+      if (std::isfinite(v)) thin = std::min(thin, v);
+    const double top = std::max(L.thickness_new_mm, 1.0);
+    const double bottom = std::clamp(5.0 * std::floor(thin / 5.0), 0.0, top - 1.0);
+    auto seq = [top, bottom](double v) { return Sequential((top - v) / (top - bottom)); };
     std::vector<Marker> markers;
-    for (const SensorCurve& c : r.curves) markers.push_back({c.sensor_id, c.theta_deg, c.z_m, "#fff", c.row});
+    for (const SensorCurve& c : r.curves) markers.push_back({c.sensor_id, c.theta_deg, c.z_m, "#fff", c.row, ""});
     h << "<div class='maps'>"
       << LinerMap(ids, L, frame, L.remaining_now_mm, seq, "Remaining thickness on " + Date(L.now) + " (live reconstruction)",
                   "mm remaining", markers, {}, &p)
-      << Legend(seq, 0, top, "remaining thickness (mm): dark = thin") << "</div>";
+      << Legend(seq, bottom, top, "remaining thickness (mm): dark = thin") << "</div>";
   }
   return h.str();
 }
