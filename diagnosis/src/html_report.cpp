@@ -371,7 +371,7 @@ std::string LinerMap(int& ids, const LinerReport& L, const MapFrame& f, const st
 std::string Legend(const std::function<std::string(double)>& colour, double lo, double hi, const std::string& caption) {
   const double w = 300, x0 = 20;
   std::ostringstream s;
-  s << "<svg xmlns='http://www.w3.org/2000/svg' class='legend' width='" << w + 2 * x0 + 20 << "' height='46'>";
+  s << "<svg xmlns='http://www.w3.org/2000/svg' class='legend' width='" << w + 2 * x0 + 140 << "' height='46'>";
   const int n = 60;
   for (int k = 0; k < n; ++k) {
     const double v = lo + (hi - lo) * (k + 0.5) / n;
