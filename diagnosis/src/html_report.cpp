@@ -240,7 +240,7 @@ std::string ModelWords(const std::string& model) {
 
 struct MapFrame {
   double theta_lo = 0, theta_hi = 360, z_lo = 0, z_hi = 1;
-  double w = 560, h = 250;                 // plot area, px
+  double w = 500, h = 240;                 // plot area, px
   double ml = 46, mr = 10, mt = 22, mb = 34;  // margins
   double X(double theta) const { return ml + w * (theta - theta_lo) / (theta_hi - theta_lo); }
   double Y(double z) const { return mt + h * (z_hi - z) / (z_hi - z_lo); }
@@ -484,7 +484,7 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
          "&plusmn;" << Sig(scale) << " mm). Left: baseline (plain Eq. 9); right: the model with the findings. "
          "Dashed circles: sensors whose readings ran away from the baseline (mismatch regions).</p>";
   }
-  h << "<div class='maps'>";
+  h << "<div class='maps pair'>";
   if (scan) {
     h << LinerMap(ids, L, frame, before, div, "BEFORE: baseline (plain Eq. 9)", "mm", mb, regions, nullptr);
     h << LinerMap(ids, L, frame, after, div, "AFTER: improved model (findings)", "mm", ma, regions, nullptr);
@@ -503,6 +503,7 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
     h << "</div><div class='maps'>"
       << Legend(seq, 0, wmax, "background: predicted wear (mm)");
   }
+  if (scan) h << "</div><div class='maps'>";
   h << Legend(div, -scale, scale,
               "measured - predicted wear (mm): <tspan fill='#b2182b'>+ wore more than predicted</tspan>, "
               "<tspan fill='#2166ac'>- less</tspan>");
@@ -731,7 +732,7 @@ std::string RenderHtml(const DiagnosisResult& r) {
        "collapse;margin:8px 0}td,th{border:1px solid #ccc;padding:3px 8px;font-size:13px;vertical-align:top;"
        "text-align:left}th{background:#f3f3f3}td.num{text-align:right;white-space:nowrap}.params td:nth-child(5){"
        "max-width:520px}.plots svg{margin:4px;border:1px solid #eee}.maps{display:flex;flex-wrap:wrap;gap:12px;"
-       "align-items:flex-start}.maps svg.map{border:1px solid #ddd}.caption{font-size:13px;color:#444;max-width:"
+       "align-items:flex-start}.maps svg.map{border:1px solid #ddd}.pair{flex-wrap:nowrap;overflow-x:auto}.caption{font-size:13px;color:#444;max-width:"
        "1150px}.good{color:#2e7d32}.bad{color:#c62828}.red{color:#b2182b;font-weight:bold}.blue{color:#2166ac;"
        "font-weight:bold}.summary{background:#f7f7f7;border:1px solid #ddd;padding:8px 14px;max-width:1150px}"
        ".halo{paint-order:stroke;stroke:#fff;stroke-width:3px}h3{margin-bottom:4px}</style></head><body>";
