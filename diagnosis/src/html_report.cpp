@@ -36,6 +36,7 @@ std::string Num(double v, int digits = 2) {
   if (!std::isfinite(v)) return "-";
   char b[64];
   std::snprintf(b, sizeof b, "%.*f", digits, v);
+  if (b[0] == '-' && std::string(b + 1).find_first_not_of("0.") == std::string::npos) return b + 1;  // no "-0.0"
   return b;
 }
 
@@ -175,7 +176,8 @@ std::string ParameterTable(const nlohmann::ordered_json& params) {
         se = "&plusmn; " + Sig(jt.value().get<double>());
     }
     const ParamInfo* info = FindParam(key);
-    s << "<tr><td>" << (info ? info->name : Esc(key).c_str()) << " <code>" << Esc(key) << "</code></td><td class='num'>"
+    const bool same = info && key == info->name;
+    s << "<tr><td>" << (info ? info->name : "") << (same ? "" : " <code>" + Esc(key) + "</code>") << "</td><td class='num'>"
       << JsonValue(it.value()) << "</td><td>" << (info ? info->unit : "") << "</td><td class='num'>" << se
       << "</td><td>" << (info ? info->meaning : "") << "</td></tr>";
   }
@@ -782,7 +784,7 @@ std::string RenderHtml(const DiagnosisResult& r) {
   h << ThinnestSection(ids, r, frame);
 
   // --- Findings with their parameters ---
-  h << "<h2>Findings</h2>";
+  h << "<h2 id='findings'>Findings</h2>";
   if (r.findings.empty()) {
     h << "<p>No finding: the DEM-based reconstruction agrees with the recordings within the noise.</p>";
   } else {
@@ -836,7 +838,7 @@ std::string RenderHtml(const DiagnosisResult& r) {
   }
 
   // --- Hypotheses, ranked ---
-  h << "<h2>Hypotheses tried, ranked</h2><p class='caption'>Every physical change of the wear law that was "
+  h << "<h2 id='hypotheses'>Hypotheses tried, ranked</h2><p class='caption'>Every physical change of the wear law that was "
        "fitted, best supported first. A model is accepted when &Delta;BIC > 10, the held-out &chi;&sup2; improves "
        "by more than 4 and 3 %, and every effect's size is more than 2 standard errors from zero and not at the "
        "limit of its physical range (docs/diagnosis.md, section 5). Parameters in physical units.</p>";
