@@ -71,7 +71,7 @@ void ReplaceAll(std::string& s, const std::string& from, const std::string& to) 
 class LinkRelay {
  public:
   explicit LinkRelay(int target) : target_(target) {
-    listener_ = socket(AF_INET, SOCK_STREAM, 0);
+    listener_ = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
     const int one = 1;
     setsockopt(listener_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
     sockaddr_in a{};
@@ -95,19 +95,28 @@ class LinkRelay {
     close(listener_);
   }
   int port() const { return port_; }
-  void Cut() { cut_ = true; }
+  /// Returns once every connection is closed (nothing is forwarded after it).
+  void Cut() {
+    cut_done_ = false;
+    cut_ = true;
+    while (!cut_done_) std::this_thread::sleep_for(5ms);
+  }
   void Restore() { cut_ = false; }
 
  private:
   void Run() {
     char buf[16384];
     while (!stop_) {
-      if (cut_ && !pairs_.empty()) {
+      if (cut_) {
+        // shutdown, not only close: a child forked meanwhile may hold a copy of a descriptor.
         for (auto& [a, b] : pairs_) {
+          shutdown(a, SHUT_RDWR);
+          shutdown(b, SHUT_RDWR);
           close(a);
           close(b);
         }
         pairs_.clear();
+        cut_done_ = true;
       }
       std::vector<pollfd> fds{{listener_, POLLIN, 0}};
       for (auto& [a, b] : pairs_) {
@@ -116,11 +125,11 @@ class LinkRelay {
       }
       if (poll(fds.data(), fds.size(), 50) <= 0) continue;
       if (fds[0].revents & POLLIN) {
-        const int c = accept(listener_, nullptr, nullptr);
+        const int c = accept4(listener_, nullptr, nullptr, SOCK_CLOEXEC);
         if (c >= 0 && cut_) {
           close(c);
         } else if (c >= 0) {
-          const int u = socket(AF_INET, SOCK_STREAM, 0);
+          const int u = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
           sockaddr_in a{};
           a.sin_family = AF_INET;
           a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
@@ -166,6 +175,7 @@ class LinkRelay {
   int port_ = 0;
   std::atomic<bool> stop_{false};
   std::atomic<bool> cut_{false};
+  std::atomic<bool> cut_done_{false};
   std::vector<std::pair<int, int>> pairs_;
   std::thread thread_;
 };
@@ -334,6 +344,9 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
     ReplaceAll(conf, "central.example.com:8883", "127.0.0.1:" + std::to_string(port));
     ReplaceAll(conf, "/etc/mosquitto/certs/linerwatch-ca.pem", central.ca_file());
     ReplaceAll(conf, "CHANGE-ME", s.password);
+    // The example's reconnect backoff grows to 60 s while a link is down; the test waits less.
+    CHECK_TRUE(conf.find("restart_timeout 2 60") != std::string::npos);
+    ReplaceAll(conf, "restart_timeout 2 60", "restart_timeout 1 3");
     return conf;
   };
   auto site_broker = [&](const Site& s, int link_port) {
@@ -399,9 +412,13 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   httplib::Client http("127.0.0.1", http_port);
   auto stored = [&](const Site& s) -> long {
     auto res = http.Get("/api/v1/crushers/" + s.crusher + "/sensors");
-    if (!res || res->status != 200) return -1;
+    if (!res || res->status != 200) {
+      if (std::getenv("LW_IT_VERBOSE")) std::printf("GET sensors: %s\n", res ? (std::to_string(res->status) + " " + res->body).c_str() : httplib::to_string(res.error()).c_str());
+      return -1;
+    }
     long total = 0;
-    for (const auto& x : json::parse(res->body)["sensors"]) total += x.value("reading_count", 0L);
+    const json body = json::parse(res->body);
+    for (const auto& x : body["sensors"]) total += x.value("reading_count", 0L);
     return total;
   };
   auto wait_stored = [&](const Site& s, long n, std::chrono::seconds timeout) {
