@@ -57,7 +57,7 @@ class Logger {
 void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostream& log_stream) {
   Logger log(log_stream);
   if (::geteuid() == 0) {
-    log("warning: running as root; run as an unprivileged user (packaging/systemd/linerwatch-server.service)");
+    log("warning: running as root; run as an unprivileged user (the linerwatch-server package does; docs/deploy.md)");
   }
   std::vector<std::string> errors;
   const auto registry = Registry::Load(o.crusher_dir, &errors);
