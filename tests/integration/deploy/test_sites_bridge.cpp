@@ -10,12 +10,9 @@
 // publishes as site B is refused by the site broker (nothing of it reaches the centre or the
 // database, its spool never drains); site A's account on the central broker cannot read site B.
 // LW_IT_VERBOSE=1 prints the logs at the end.
-#include <fcntl.h>
 #include <netinet/in.h>
 #include <poll.h>
-#include <pty.h>
 #include <sys/socket.h>
-#include <termios.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -38,6 +35,8 @@
 #include "server/store.hpp"
 #include "sim/campaign.hpp"
 #include "support/mosquitto_fixture.hpp"
+#include "support/mqtt_recorder.hpp"
+#include "support/raw_pty.hpp"
 #include "unit/gateway/gateway_test_support.hpp"
 
 #include <httplib.h>  // after Eigen (<resolv.h> defines _res)
@@ -184,95 +183,26 @@ class LinkRelay {
 // and thrown away (the records are sent once each: the gateway spools what it reads).
 class Coordinator {
  public:
-  Coordinator() {
-    char name[128];
-    if (openpty(&master_, &slave_, name, nullptr, nullptr) != 0) throw std::runtime_error("openpty failed");
-    slave_name_ = name;
-    termios tio{};
-    tcgetattr(slave_, &tio);
-    cfmakeraw(&tio);
-    tcsetattr(slave_, TCSANOW, &tio);
-    fcntl(master_, F_SETFL, fcntl(master_, F_GETFL) | O_NONBLOCK);
-  }
-  ~Coordinator() {
-    close(master_);
-    close(slave_);
-  }
-  const std::string& path() const { return slave_name_; }
+  const std::string& path() const { return pty_.slave_name(); }
   void Send(uint32_t sensor, uint32_t seq) {
     Drain();
     const auto frame = lw::gateway::test::ReadingsFrame(pr::ApiMode::kEscaped, 0x0013A20040000000ull + sensor, sensor,
                                                         {lw::gateway::test::MakeRecord(seq, static_cast<uint16_t>(1190 - seq))});
-    if (write(master_, frame.data(), frame.size()) != static_cast<ssize_t>(frame.size())) {
+    if (write(pty_.master(), frame.data(), frame.size()) != static_cast<ssize_t>(frame.size())) {
       throw std::runtime_error("Coordinator: the pty took only part of a frame");
     }
   }
   void Drain() {
     char buf[4096];
-    while (read(master_, buf, sizeof buf) > 0) {
+    while (read(pty_.master(), buf, sizeof buf) > 0) {
     }
   }
 
  private:
-  int master_ = -1, slave_ = -1;
-  std::string slave_name_;
+  lw::test::RawPty pty_;
 };
 
-// A Paho client recording what it receives.
-class Observer {
- public:
-  Observer(const std::string& uri, const std::string& id, const std::string& user, const std::string& password,
-           const std::string& ca = "")
-      : client_(uri, id, nullptr) {
-    client_.set_message_callback([this](mqtt::const_message_ptr m) {
-      std::lock_guard<std::mutex> lock(mutex_);
-      received_.emplace_back(m->get_topic(), m->to_string());
-    });
-    mqtt::connect_options opts;
-    opts.set_clean_session(true);
-    opts.set_user_name(user);
-    opts.set_password(password);
-    if (!ca.empty()) {
-      mqtt::ssl_options ssl;
-      ssl.set_trust_store(ca);
-      opts.set_ssl(ssl);
-    }
-    client_.connect(opts)->wait_for(10s);
-  }
-  ~Observer() {
-    try {
-      client_.disconnect()->wait_for(2s);
-    } catch (const std::exception&) {
-    }
-  }
-  void Subscribe(const std::string& filter) {
-    try {
-      client_.subscribe(filter, 1)->wait_for(5s);
-    } catch (const std::exception&) {
-    }
-  }
-  size_t Count(const std::string& topic_part, const std::string& needle = "") {
-    std::lock_guard<std::mutex> lock(mutex_);
-    size_t n = 0;
-    for (const auto& [t, p] : received_) {
-      if (t.find(topic_part) != std::string::npos && p.find(needle) != std::string::npos) ++n;
-    }
-    return n;
-  }
-  bool WaitFor(const std::string& topic_part, const std::string& needle, std::chrono::milliseconds timeout) {
-    const auto until = std::chrono::steady_clock::now() + timeout;
-    while (std::chrono::steady_clock::now() < until) {
-      if (Count(topic_part, needle) > 0) return true;
-      std::this_thread::sleep_for(50ms);
-    }
-    return false;
-  }
-
- private:
-  mqtt::async_client client_;
-  std::mutex mutex_;
-  std::vector<std::pair<std::string, std::string>> received_;
-};
+using Observer = lw::test::MqttRecorder;
 
 // A crusher folder for one site: a small generated campaign, crusher.json bound to the site.
 std::vector<uint32_t> MakeCrusher(const std::string& dir, const std::string& id, const std::string& site, uint64_t seed) {
@@ -467,8 +397,8 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   LONGS_EQUAL_TEXT(32, got_a, logs().c_str());
 
   // Commit acks flowed back over both bridges: both spools drain.
-  CHECK_TEXT(site_a_obs.WaitFor("/" + a.crusher + "/gateway/stats", "\"spool_depth\":0,", 30s), logs().c_str());
-  CHECK_TEXT(site_b_obs.WaitFor("/" + b.crusher + "/gateway/stats", "\"spool_depth\":0,", 30s), logs().c_str());
+  CHECK_TEXT(site_a_obs.WaitFor("linerwatch/v1/" + a.id + "/" + a.crusher + "/gateway/stats", "\"spool_depth\":0,", 30s), logs().c_str());
+  CHECK_TEXT(site_b_obs.WaitFor("linerwatch/v1/" + b.id + "/" + b.crusher + "/gateway/stats", "\"spool_depth\":0,", 30s), logs().c_str());
   CHECK(site_a_obs.Count("/sensors/", "\"seqs\"") > 0);
 
   // 4. A gateway of site A (site A's account, on site A's broker) publishing as site B.
