@@ -8,7 +8,8 @@
 // the commit acks flow back (both spools drain); while site A's link is cut its new readings wait
 // and site B's go on, and after the link is restored nothing is lost; a gateway of site A that
 // publishes as site B is refused by the site broker (nothing of it reaches the centre or the
-// database, its spool never drains); site A's account on the central broker cannot read site B.
+// database, its spool never drains), and so is site A's account publishing a site B reading
+// straight at the central broker; site A's account on the central broker cannot read site B.
 // LW_IT_VERBOSE=1 prints the logs at the end.
 #include <netinet/in.h>
 #include <poll.h>
@@ -423,6 +424,17 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   LONGS_EQUAL(32, got_b);
   LONGS_EQUAL(0, site_a_obs.Count("/" + b.crusher + "/gateway/stats"));  // not even its status or stats
 
+  // The central broker refuses it too: site A's account (a bridge's credentials) publishing a
+  // reading of site B directly at the centre gets nowhere (a control publication of its own
+  // site's gateway stats, which the ACL allows, arrives after it).
+  const std::string b_sensor = std::to_string(b.sensors[0]);
+  snoop.Publish("linerwatch/v1/" + b.id + "/" + b.crusher + "/sensors/" + b_sensor + "/reading",
+                R"({"sensor": ")" + b_sensor + R"(", "seq": 9002, "time": "2026-11-01T00:00:00Z", "thickness_mm": 100,
+                    "loops_intact": 100, "flags": 0, "battery_mv": 3550})");
+  snoop.Publish("linerwatch/v1/" + a.id + "/" + a.crusher + "/gateway/stats", "control");
+  CHECK_TRUE(central_obs.WaitFor("linerwatch/v1/" + a.id + "/" + a.crusher + "/gateway/stats", "control", 10s));
+  LONGS_EQUAL(0, central_obs.Count("/sensors/", "\"seq\": 9002"));
+
   // Site A's account read nothing of site B at the centre, though site B's traffic passed there.
   CHECK(central_obs.Count("linerwatch/v1/" + b.id + "/") > 0);
   LONGS_EQUAL(0, snoop.Count("linerwatch/v1/" + b.id + "/"));
@@ -441,7 +453,7 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
     LONGS_EQUAL(sent[s->crusher].size(), rows.size());
     CHECK_TRUE(keys == sent[s->crusher]);
   }
-  std::printf("  database: %zu + %zu readings, each stored once, none of the impostor's\n", sent[a.crusher].size(),
+  std::printf("  database: %zu + %zu readings, each stored once, none of the impostors'\n", sent[a.crusher].size(),
               sent[b.crusher].size());
   if (verbose) std::printf("%s\n", logs().c_str());
 }
