@@ -198,7 +198,7 @@ struct DiagnosisResult {
 /// reported); throws std::invalid_argument only when nothing can be diagnosed (no usable sensor).
 DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& options = {});
 
-/// The CONTRACTS §4 JSON document (plus optional extra keys).
+/// The JSON document of docs/diagnosis.md "Output" (plus optional extra keys).
 nlohmann::ordered_json ToJson(const DiagnosisResult& result);
 
 /// Self-contained HTML report (inline SVG, no scripts).
