@@ -8,15 +8,6 @@
 
 namespace lw::core {
 
-SurfaceIndex::SurfaceIndex(const WearMap& map, double reach_m) : map_(map), reach_(std::max(reach_m, 1e-9)) {
-  const Eigen::Index n = map.z.size();
-  if (n == 0) return;
-  zmin_ = map.z.minCoeff();
-  const double min_r = std::max(1e-6, map.radius.minCoeff());
-  n_arc_ = std::max<long>(1, static_cast<long>(2.0 * M_PI * min_r / reach_));
-  for (Eigen::Index i = 0; i < n; ++i) buckets_[Key(BucketZ(map.z[i]), BucketA(map.theta_deg[i]))].push_back(static_cast<uint32_t>(i));
-}
-
 namespace {
 
 constexpr double kCutoff = 2.5;  // kernel support in bandwidths
@@ -73,7 +64,7 @@ struct Kernel {
         normal(n),
         h(bandwidth),
         ha(bandwidth_arc > 0 ? bandwidth_arc : bandwidth),
-        owned(idx ? std::move(idx) : std::make_shared<const SurfaceIndex>(m, kCutoff * std::max(bandwidth, ha))),
+        owned(idx ? std::move(idx) : std::make_shared<const SurfaceIndex>(m, kCutoff * bandwidth, kCutoff * ha)),
         index(*owned) {}
 
   /// Weight of face j at offset (dz, arc); 0 beyond the cut.
@@ -99,14 +90,35 @@ struct Kernel {
   /// Variance of Value() given per-face variances.
   double Variance(const Sums& s, double z, double theta, double radius, long skip, const Eigen::VectorXd& var) const {
     double v = 0;
+    // Sums::Weight(), its divisions done once.
+    const bool lin = s.Linear();
+    const double inv = lin ? 1.0 / (s.s0 * s.s2 - s.s1 * s.s1) : 1.0 / s.s0;
     index.Visit(z, theta, radius, [&](uint32_t j, double dz, double arc) {
       if (static_cast<long>(j) == skip) return;
       const double w = W(j, dz, arc);
       if (w <= 0) return;
-      const double l = s.Weight(w, dz);
+      const double l = lin ? w * (s.s2 - s.s1 * dz) * inv : w * inv;
       v += l * l * var[static_cast<Eigen::Index>(j)];
     });
     return v;
+  }
+  /// Variance() for both forms at once (one visit): first the local-constant, then the local-linear.
+  std::pair<double, double> Variances(const Sums& s, double z, double theta, double radius, long skip, const Eigen::VectorXd& var) const {
+    Sums sl = s;
+    sl.linear = true;
+    // Sums::Weight() of either form, its divisions done once.
+    const bool lin = sl.Linear();
+    const double inv_s0 = 1.0 / s.s0, inv_det = lin ? 1.0 / (s.s0 * s.s2 - s.s1 * s.s1) : 0.0;
+    double vc = 0, vl = 0;
+    index.Visit(z, theta, radius, [&](uint32_t j, double dz, double arc) {
+      if (static_cast<long>(j) == skip) return;
+      const double w = W(j, dz, arc);
+      if (w <= 0) return;
+      const double v = var[static_cast<Eigen::Index>(j)], lc = w * inv_s0, ll = lin ? w * (s.s2 - s.s1 * dz) * inv_det : lc;
+      vc += lc * lc * v;
+      vl += ll * ll * v;
+    });
+    return {vc, vl};
   }
   double EffectiveFaces(double z, double theta) const {
     double s0 = 0, s2 = 0;

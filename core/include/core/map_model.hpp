@@ -22,68 +22,14 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
-#include <unordered_map>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "core/surface_index.hpp"
 #include "core/wear_map.hpp"
 
 namespace lw::core {
-
-/// Bucket index of face centroids on the unwrapped surface (z, arc length). Arc buckets are sized at
-/// the smallest radius, so every face within `reach_m` of a point is in the adjacent buckets.
-class SurfaceIndex {
- public:
-  SurfaceIndex(const WearMap& map, double reach_m);
-  double reach() const { return reach_; }
-  /// Calls fn(face, squared surface distance) for every face within reach() of (z, theta); the arc
-  /// length uses the mean of the point's and the face's radius (the face's when radius_m <= 0).
-  template <typename Fn>
-  void ForEachWithin(double z, double theta_deg, double radius_m, Fn&& fn) const {
-    const double r2 = reach_ * reach_;
-    Visit(z, theta_deg, radius_m, [&](uint32_t j, double dz, double arc) {
-      const double d2 = dz * dz + arc * arc;
-      if (d2 <= r2) fn(j, d2);
-    });
-  }
-  /// Calls fn(face, dz, arc) for the faces of the buckets around (z, theta) (a superset of those
-  /// within reach(); dz = face z - z, arc = signed arc length from the point to the face).
-  template <typename Fn>
-  void Visit(double z, double theta_deg, double radius_m, Fn&& fn) const {
-    const long iz = BucketZ(z), ia = BucketA(theta_deg);
-    for (long dz = -1; dz <= 1; ++dz) {
-      for (long da = -1; da <= 1; ++da) {
-        if (n_arc_ < 3 && da != 0) continue;
-        const auto it = buckets_.find(Key(iz + dz, ia + da));
-        if (it == buckets_.end()) continue;
-        for (const uint32_t j : it->second) {
-          const auto jj = static_cast<Eigen::Index>(j);
-          double dth = std::fmod(map_.theta_deg[jj] - theta_deg, 360.0);
-          if (dth > 180.0) dth -= 360.0;
-          if (dth < -180.0) dth += 360.0;
-          const double r = radius_m > 0 ? 0.5 * (radius_m + map_.radius[jj]) : map_.radius[jj];
-          fn(j, map_.z[jj] - z, r * dth * 0.017453292519943295);
-        }
-      }
-    }
-  }
-
- private:
-  long BucketZ(double z) const { return static_cast<long>(std::floor((z - zmin_) / reach_)); }
-  long BucketA(double theta_deg) const {
-    const long a = static_cast<long>(std::floor(theta_deg / 360.0 * static_cast<double>(n_arc_)));
-    return ((a % n_arc_) + n_arc_) % n_arc_;
-  }
-  long long Key(long iz, long ia) const {
-    return (static_cast<long long>(iz) << 32) ^ static_cast<long long>(((ia % n_arc_) + n_arc_) % n_arc_);
-  }
-  const WearMap& map_;
-  double reach_;
-  double zmin_ = 0;
-  long n_arc_ = 1;
-  std::unordered_map<long long, std::vector<uint32_t>> buckets_;
-};
 
 struct MapModelOptions {
   /// Gaussian kernel standard deviation along z (m): < 0 chosen from the data (leave-one-out
