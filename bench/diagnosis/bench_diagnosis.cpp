@@ -31,6 +31,7 @@
 
 #include "core/bundle.hpp"
 #include "core/reconstruction.hpp"
+#include "core/scan_correction.hpp"
 #include "diagnosis/diagnose.hpp"
 #include "realdem.hpp"
 #include "sim/campaign.hpp"
@@ -408,6 +409,9 @@ int main(int argc, char** argv) {
     double low_only_thin = 0;                 // thinnest point with only the lowest row reporting
     std::string low_only_status;
     double bandwidth = 0, bandwidth_arc = 0;
+    // With a scan (day scan_day), 15 days later: the live map with and without the scan applied.
+    bool scan_done = false;
+    double scan_thin_err = 0, noscan_thin_err = 0, scan_rmse = 0, noscan_rmse = 0;
   };
   struct Outcome {
     lw::diagnosis::DiagnosisResult result;
@@ -479,6 +483,24 @@ int main(int argc, char** argv) {
       lv.low_only_thin = lrec.min_thickness_mm;
       lv.low_only_status = lrec.status;
       lv.done = true;
+      if (!bundle.scans.empty()) {
+        const double later = day + 15;
+        const auto t_later = lw::core::AddDays(bundle.crusher.installed_at, later);
+        const auto wear_later = lw::core::SensorWearAt(bundle.crusher, bundle.readings, t_later);
+        lw::core::ReconstructionPlan scanned = plan;
+        const auto sf = lw::core::ProjectScanToFaces(bundle.map, bundle.scans.back());
+        lw::core::ApplyScan(scanned, sf, lw::core::SensorWearAt(bundle.crusher, bundle.readings, bundle.scans.back().date));
+        const lw::core::Reconstruction with = lw::core::Reconstruct(scanned, wear_later);
+        const lw::core::Reconstruction without = lw::core::Reconstruct(plan, wear_later);
+        const Eigen::VectorXd tl = real->TrueFaceWear(later);
+        const Eigen::VectorXd rem_l = (new_mm - tl.array()).matrix();
+        const double tmin = new_mm - tl.maxCoeff();
+        lv.scan_thin_err = with.min_thickness_mm - tmin;
+        lv.noscan_thin_err = without.min_thickness_mm - tmin;
+        lv.scan_rmse = std::sqrt((with.remaining_mm - rem_l).squaredNorm() / static_cast<double>(tl.size()));
+        lv.noscan_rmse = std::sqrt((without.remaining_mm - rem_l).squaredNorm() / static_cast<double>(tl.size()));
+        lv.scan_done = true;
+      }
     }
     if (real) {
       for (size_t i = 0; i < bundle.crusher.sensors.size(); ++i)
@@ -561,6 +583,22 @@ int main(int argc, char** argv) {
                   Median(rm), Median(rmp), Median(ratio), *std::max_element(ratio.begin(), ratio.end()));
       std::printf("truth's thinnest point inside the +/-2 sd band: %d / %d; lowest-row-only thinnest negative or NaN: %d / %d\n",
                   in_band, n, low_neg, n);
+    }
+    std::vector<double> se, sn, sr, snr;
+    for (size_t k = 0; k < cases.size(); ++k) {
+      const Live& lv = outcomes[k].live;
+      if (!lv.scan_done) continue;
+      se.push_back(std::fabs(lv.scan_thin_err));
+      sn.push_back(std::fabs(lv.noscan_thin_err));
+      sr.push_back(lv.scan_rmse);
+      snr.push_back(lv.noscan_rmse);
+    }
+    if (!se.empty()) {
+      std::sort(se.begin(), se.end());
+      std::sort(sn.begin(), sn.end());
+      std::printf("with the day-%.0f scan applied, 15 days later (%zu nulls with a scan): thinnest-point |error| median %.2f mm, worst %.2f "
+                  "(without the scan %.2f / %.2f); per-face RMSE median %.2f mm (without %.2f)\n",
+                  cases.empty() ? 0.0 : cases[0].rd.scan_day, se.size(), Median(se), se.back(), Median(sn), sn.back(), Median(sr), Median(snr));
     }
     if (live_only) return 0;
   }

@@ -14,6 +14,7 @@
 
 #include "core/bundle.hpp"
 #include "core/reconstruction.hpp"
+#include "core/scan_correction.hpp"
 #include "core/time.hpp"
 #include "core/wear_map.hpp"
 #include "dem/case_writer.hpp"
@@ -36,10 +37,11 @@ constexpr const char* kUsage =
     "      Compare the bundle's readings (and scans) with the Eq. 9 reconstruction of its DEM map, test\n"
     "      whether the mismatch is real, locate it, and name the physics the DEM left out.\n"
     "      Exit 0 when the diagnosis ran, whatever it found (docs/diagnosis.md, section Output).\n"
-    "  reconstruct BUNDLE [--at TIME] [--json OUT.json] [--vtk OUT.vtk] [--lower-bound] [--config FILE]\n"
+    "  reconstruct BUNDLE [--at TIME] [--json OUT.json] [--vtk OUT.vtk] [--lower-bound] [--no-scan] [--config FILE]\n"
     "      Eq. 9 global wear from the sensors' latest readings (at TIME, default: the last reading);\n"
     "      prints a per-row summary. A reading n means [n, n+1) mm: estimates use n + 0.5, as the\n"
-    "      server does; --lower-bound uses n (the thinnest the liner can be).\n"
+    "      server does; --lower-bound uses n (the thinnest the liner can be). The latest scan at or\n"
+    "      before TIME corrects the map between the sensors (--no-scan: the map alone).\n"
     "  dem CRUSHER_DIR [--work DIR] [--stage case|run|map|all] [--np N] [--windows K] [--install]\n"
     "                  [--mpirun PATH] [--liggghts PATH] [--progress-every S] [--config FILE]\n"
     "      Make the crusher's DEM wear map with LIGGGHTS from the \"chamber\" of its crusher.json\n"
@@ -244,7 +246,7 @@ int Diagnose(const std::vector<std::string>& args, std::ostream& out) {
 }
 
 int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
-  const Options o = ParseOptions(args, 1, {"at", "json", "vtk"}, {"lower_bound"});
+  const Options o = ParseOptions(args, 1, {"at", "json", "vtk"}, {"lower_bound", "no_scan"});
   if (o.Has("json")) CheckWritable(o.Get("json"), "json");
   if (o.Has("vtk")) CheckWritable(o.Get("vtk"), "vtk");
   std::optional<core::TimePoint> at;
@@ -255,7 +257,27 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   const std::vector<core::SensorWear> wear = core::SensorWearAt(
       bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), /*interval_centre=*/!o.Flag("lower_bound"));
   if (wear.empty()) throw BadInput(bundle.dir.string() + "/readings.csv: no reading at or before the requested time");
-  const core::ReconstructionPlan plan = core::PrepareReconstruction(bundle.crusher, bundle.map);
+  core::ReconstructionPlan plan = core::PrepareReconstruction(bundle.crusher, bundle.map);
+  // The latest scan at or before `at` corrects the map between the sensors (docs/diagnosis.md).
+  std::string scan_line;
+  if (!o.Flag("no_scan")) {
+    const core::Scan* latest = nullptr;
+    for (const core::Scan& sc : bundle.scans)
+      if (sc.date <= at.value_or(core::TimePoint::max())) latest = &sc;
+    if (latest) {
+      const core::ScanFaces sf = core::ProjectScanToFaces(bundle.map, *latest);
+      const core::ScanCorrection c = core::ApplyScan(
+          plan, sf, core::SensorWearAt(bundle.crusher, bundle.readings, latest->date, /*interval_centre=*/!o.Flag("lower_bound")));
+      char buf[320];
+      if (c.detail.empty())
+        std::snprintf(buf, sizeof buf, "scan %s (%s): %zu of %zu points on the map, %zu faces corrected, median corrected/map intensity %.2f\n",
+                      latest->file.c_str(), core::FormatIsoTime(latest->date).c_str(), sf.points_used, sf.points_total, c.faces_corrected,
+                      c.median_ratio);
+      else
+        std::snprintf(buf, sizeof buf, "scan %s not applied: %s\n", latest->file.c_str(), c.detail.c_str());
+      scan_line = buf;
+    }
+  }
   const core::Reconstruction rec = core::Reconstruct(plan, wear);
   const core::MapModel& model = plan.model;
   char line[320];
@@ -263,7 +285,7 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
                 "map model: smoothing %.3f m along z, %.3f m around (%s), per-face noise %.0f %% (%s), smoothing error %.1f %%, %zu outlier faces capped\n",
                 model.bandwidth_m, model.bandwidth_arc_m, model.bandwidth_method.c_str(), 100.0 * model.face_cv, model.noise_source.c_str(),
                 100.0 * model.smoothing_error_rel, model.outlier_faces);
-  out << line;
+  out << line << scan_line;
   out << "row        scale_mm/unit  mean_wear_mm  min_thickness_mm  band_mm (+/-2 sd)  at_z_m  at_theta_deg  sensors\n";
   for (const core::RowSummary& r : rec.rows) {
     std::snprintf(line, sizeof line, "%-10s %13.4f %13.2f %17.2f  %7.2f..%-7.2f  %7.3f %13.1f %8zu\n", r.row.c_str(),

@@ -1,0 +1,170 @@
+#include "core/scan_correction.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+
+#include "core/surface_index.hpp"
+
+namespace lw::core {
+namespace {
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  return v[mid];
+}
+
+}  // namespace
+
+ScanFaces ProjectScanToFaces(const WearMap& map, const Scan& scan, double floor_mm) {
+  const Eigen::Index n = static_cast<Eigen::Index>(map.face_count());
+  ScanFaces out;
+  out.wear_mm = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
+  out.sd_mm = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
+  out.points.assign(static_cast<size_t>(n), 0);
+  out.points_total = scan.points.size();
+  if (n == 0) return out;
+  std::vector<double> sizes;
+  for (Eigen::Index i = 0; i < n; ++i) sizes.push_back(std::sqrt(2.0 * std::max(map.areas[i], 0.0)));
+  const double face = std::max(Median(sizes), 1e-4);
+  const SurfaceIndex index(map, 2.0 * face);
+  std::vector<std::vector<double>> depth(static_cast<size_t>(n));
+  for (const Eigen::Vector3d& q : scan.points) {
+    if (!q.allFinite()) continue;
+    const double r = std::hypot(q.x(), q.y());
+    double theta = std::atan2(q.y(), q.x()) * 180.0 / M_PI;
+    if (theta < 0) theta += 360.0;
+    long best = -1;
+    double best_d2 = std::numeric_limits<double>::max();
+    index.ForEachWithin(q.z(), theta, r, [&](uint32_t j, double d2) {
+      if (d2 < best_d2) {
+        best_d2 = d2;
+        best = static_cast<long>(j);
+      }
+    });
+    if (best < 0) continue;
+    const auto j = static_cast<size_t>(best);
+    depth[j].push_back(1000.0 * (map.centroids[j] - q).dot(map.normals[j]));
+    ++out.points_used;
+  }
+  for (Eigen::Index i = 0; i < n; ++i) {
+    auto& d = depth[static_cast<size_t>(i)];
+    if (d.empty()) continue;
+    const double m = Median(d);
+    double ss = 0;
+    for (double x : d) ss += (x - m) * (x - m);
+    // One point: its scatter is unknown, counted as 1 mm; more: the sample sd / sqrt(n).
+    const double se = d.size() > 1 ? std::sqrt(ss / static_cast<double>(d.size() - 1) / static_cast<double>(d.size())) : 1.0;
+    out.wear_mm[i] = m;
+    out.sd_mm[i] = std::sqrt(se * se + floor_mm * floor_mm);
+    out.points[static_cast<size_t>(i)] = static_cast<int>(d.size());
+  }
+  return out;
+}
+
+ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const std::vector<SensorWear>& wear_at_scan) {
+  ScanCorrection out;
+  if (!plan.map || !plan.crusher) {
+    out.detail = "no map";
+    return out;
+  }
+  const WearMap& map = *plan.map;
+  const CrusherConfig& crusher = *plan.crusher;
+  const Eigen::Index n = plan.intensity.size();
+  if (scan.wear_mm.size() != n) {
+    out.detail = "the scan was projected on another map";
+    return out;
+  }
+  // Row scales at the scan's date (Eq. 9 with the uncorrected map).
+  const Reconstruction at_scan = Reconstruct(plan, wear_at_scan);
+  std::map<std::string, std::pair<double, double>> scale;  // row -> (scale, sd)
+  for (const RowSummary& r : at_scan.rows)
+    if (r.sensors_used > 0 && r.scale_mm_per_unit > 0) scale[r.row] = {r.scale_mm_per_unit, r.scale_sd};
+  if (scale.empty()) {
+    out.detail = "no row has a sensor reading at the scan's date";
+    return out;
+  }
+  // Per face: the map model's intensity and error, the scan's intensity and error.
+  struct Face {
+    Eigen::Index i;
+    double i_m, sd_m, i_s, sd_s;
+  };
+  std::vector<Face> faces;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const int row = plan.face_row[static_cast<size_t>(i)];
+    if (row < 0 || !std::isfinite(scan.wear_mm[i]) || !(scan.sd_mm[i] > 0)) continue;
+    const auto it = scale.find(crusher.rows[static_cast<size_t>(row)].name);
+    if (it == scale.end()) continue;
+    // The scan's intensity: its wear over the face's scale at the scan's date (Eq. 9's predicted wear
+    // there over the intensity: the row scale, interpolated along z as Reconstruct does). Its error
+    // is the scan's alone: the scale's error is shared by the row and cancels, because the sensors'
+    // intensities are corrected from the same scan below (later wear = scan wear x the sensors'
+    // wear since then over their wear at the scan, whatever the scale was).
+    const double i_m = plan.intensity[i], pred = at_scan.wear_mm[i];
+    if (!(i_m > 0) || !(pred > 0) || !(pred < crusher.thickness_new_mm)) continue;
+    const double k = pred / i_m;
+    faces.push_back({i, i_m, plan.intensity_rel_sd[i] * i_m, std::max(scan.wear_mm[i], 0.0) / k, scan.sd_mm[i] / k});
+  }
+  // The map's own model error: a DEM map's pattern can be wrong beyond its sampling noise (the
+  // physics it left out, the chamber it assumed). Its relative variance tau^2 is what the scan's
+  // differences from the map hold beyond both noises (moment estimate, top 2 % trimmed, >= 0).
+  {
+    std::vector<double> excess;
+    for (const Face& f : faces)
+      if (f.i_m > 0) excess.push_back((std::pow(f.i_s - f.i_m, 2) - f.sd_m * f.sd_m - f.sd_s * f.sd_s) / (f.i_m * f.i_m));
+    std::sort(excess.begin(), excess.end());
+    const size_t keep = excess.size() - excess.size() / 50;
+    double sum = 0;
+    for (size_t k = 0; k < keep; ++k) sum += excess[k];
+    out.map_model_error_rel = keep ? std::sqrt(std::max(0.0, sum / static_cast<double>(keep))) : 0.0;
+  }
+  Eigen::VectorXd ratio = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
+  std::vector<double> ratios;
+  for (const Face& f : faces) {
+    const double var_m = f.sd_m * f.sd_m + std::pow(out.map_model_error_rel * f.i_m, 2);
+    const double wm = var_m > 0 ? 1.0 / var_m : 0.0, ws = 1.0 / (f.sd_s * f.sd_s);
+    const double i_new = wm > 0 ? (wm * f.i_m + ws * f.i_s) / (wm + ws) : f.i_s;
+    const double sd_new = std::sqrt(1.0 / (wm + ws));
+    if (f.i_m > 0) {
+      ratio[f.i] = i_new / f.i_m;
+      ratios.push_back(ratio[f.i]);
+    }
+    plan.intensity[f.i] = i_new;
+    plan.intensity_rel_sd[f.i] = i_new > 0 ? sd_new / i_new : 1.0;
+    ++out.faces_corrected;
+  }
+  if (out.faces_corrected == 0) {
+    out.detail = "the scan covers no face of a row with sensors";
+    return out;
+  }
+  out.median_ratio = Median(ratios);
+  // Sensors: their intensity corrected by the mean ratio of the corrected faces around them (the
+  // kernel the faces were smoothed with, up to the map's face size), so the row scale after the
+  // scan divides the sensors' wear by the intensity the scan measured there.
+  std::vector<double> sizes;
+  for (Eigen::Index i = 0; i < n; ++i) sizes.push_back(std::sqrt(2.0 * std::max(map.areas[i], 0.0)));
+  const double face = std::max(Median(sizes), 1e-4);
+  const SurfaceIndex index(map, 1.5 * face);
+  for (size_t s = 0; s < crusher.sensors.size(); ++s) {
+    const auto& sn = crusher.sensors[s];
+    double sw = 0, sr = 0, s_rel2 = 0;
+    index.ForEachWithin(sn.z_m, sn.theta_deg, -1, [&](uint32_t j, double d2) {
+      const auto jj = static_cast<Eigen::Index>(j);
+      if (!std::isfinite(ratio[jj])) return;
+      const double w = map.areas[jj] * std::exp(-0.5 * d2 / (face * face));
+      sw += w;
+      sr += w * ratio[jj];
+      s_rel2 += w * plan.intensity_rel_sd[jj] * plan.intensity_rel_sd[jj];
+    });
+    if (!(sw > 0)) continue;
+    const auto ss = static_cast<Eigen::Index>(s);
+    plan.sensor_intensity[ss] *= sr / sw;
+    plan.sensor_intensity_sd[ss] = std::min(plan.sensor_intensity_sd[ss], std::sqrt(s_rel2 / sw) * plan.sensor_intensity[ss]);
+  }
+  return out;
+}
+
+}  // namespace lw::core

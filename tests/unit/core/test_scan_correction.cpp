@@ -1,0 +1,98 @@
+// A laser scan corrects the live map between the sensors (core/scan_correction.hpp): the DEM map's
+// pattern is wrong, the scan measured the right one, and Eq. 9 after the scan follows the scan.
+#include <cmath>
+#include <random>
+
+#include "core/reconstruction.hpp"
+#include "core/scan_correction.hpp"
+#include "unit/core/bundle_fixture.hpp"
+
+#include <CppUTest/TestHarness.h>
+
+using namespace lw::core;
+
+namespace {
+
+CrusherConfig TwoRows() {
+  CrusherConfig c;
+  c.crusher_id = "cr1";
+  c.thickness_new_mm = 120;
+  c.thickness_min_mm = 30;
+  c.rows = {{"LDWN", 0.0, 1.0}, {"LUP", 1.0, 2.0}};
+  c.sensors = {{"1001", "LDWN", 0.5, 0.0, 120, {}}, {"1002", "LUP", 1.5, 90.0, 120, {}}};
+  return c;
+}
+
+// True wear (mm) at height z after `days`: the DEM map (uniform) missed that wear doubles towards
+// the discharge edge.
+double TrueWear(double z, double days) { return 0.4 * days * (2.0 - 0.5 * z) * (1.0 + 0.5 * std::max(0.0, 0.6 - z)); }
+
+Scan MakeScan(const WearMap& m, double days, double noise_mm, unsigned seed) {
+  Scan s;
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> g(0.0, noise_mm);
+  for (size_t f = 0; f < m.faces.size(); ++f) {
+    const double w = TrueWear(m.z[static_cast<Eigen::Index>(f)], days);
+    for (int k = 0; k < 3; ++k) s.points.push_back(m.centroids[f] - m.normals[f] * (w + g(rng)) / 1000.0);
+  }
+  return s;
+}
+
+std::vector<SensorWear> SensorsAt(const CrusherConfig& c, double days) {
+  std::vector<SensorWear> out;
+  for (const auto& s : c.sensors) out.push_back({s.id, TrueWear(s.z_m, days)});
+  return out;
+}
+
+double Rms(const Reconstruction& r, const WearMap& m, double days) {
+  double ss = 0;
+  for (Eigen::Index i = 0; i < m.z.size(); ++i) ss += std::pow(r.wear_mm[i] - TrueWear(m.z[i], days), 2);
+  return std::sqrt(ss / static_cast<double>(m.z.size()));
+}
+
+}  // namespace
+
+TEST_GROUP(ScanCorrection) {};
+
+TEST(ScanCorrection, ProjectionRecoversEachFacesDepth) {
+  const WearMap m = lw::test::CylinderMap(36, 40, [](double) { return 1.0; });
+  const Scan s = MakeScan(m, 50, 0.0, 1);
+  const ScanFaces f = ProjectScanToFaces(m, s);
+  LONGS_EQUAL(s.points.size(), f.points_used);
+  for (Eigen::Index i = 0; i < m.z.size(); i += 37) {
+    DOUBLES_EQUAL(TrueWear(m.z[i], 50), f.wear_mm[i], 1e-6);
+    LONGS_EQUAL(3, f.points[static_cast<size_t>(i)]);
+  }
+}
+
+TEST(ScanCorrection, LaterLiveWearFollowsTheScannedPatternNotTheMaps) {
+  const CrusherConfig c = TwoRows();
+  const WearMap m = lw::test::CylinderMap(36, 40, [](double) { return 1.0; });
+  ReconstructionPlan plan = PrepareReconstruction(c, m);
+  const Reconstruction before = Reconstruct(plan, SensorsAt(c, 80));
+  const ScanFaces f = ProjectScanToFaces(m, MakeScan(m, 50, 0.3, 2));
+  const ScanCorrection corr = ApplyScan(plan, f, SensorsAt(c, 50));
+  CHECK(corr.detail.empty());
+  LONGS_EQUAL(m.face_count(), corr.faces_corrected);
+  const Reconstruction after = Reconstruct(plan, SensorsAt(c, 80));
+  // The uniform map puts the same wear on every face of a row; the scan's pattern is right.
+  const double truth_min = 120.0 - TrueWear(m.z.minCoeff(), 80);
+  CHECK(std::fabs(before.min_thickness_mm - truth_min) > 10.0);
+  DOUBLES_EQUAL(truth_min, after.min_thickness_mm, 1.5);
+  const double rms_before = Rms(before, m, 80), rms_after = Rms(after, m, 80);
+  CHECK_TEXT(rms_after < 0.25 * rms_before, (std::to_string(rms_after) + " vs " + std::to_string(rms_before)).c_str());
+  CHECK(after.min_thickness_lo_mm <= truth_min && truth_min <= after.min_thickness_hi_mm);
+}
+
+TEST(ScanCorrection, ScanOfAnotherMapOrWithoutSensorReadingsLeavesThePlanAlone) {
+  const CrusherConfig c = TwoRows();
+  const WearMap m = lw::test::CylinderMap(36, 40, [](double) { return 1.0; });
+  const WearMap other = lw::test::CylinderMap(12, 10, [](double) { return 1.0; });
+  ReconstructionPlan plan = PrepareReconstruction(c, m);
+  const Eigen::VectorXd before = plan.intensity;
+  const ScanCorrection a = ApplyScan(plan, ProjectScanToFaces(other, MakeScan(other, 50, 0.3, 3)), SensorsAt(c, 50));
+  CHECK(!a.detail.empty());
+  const ScanCorrection b = ApplyScan(plan, ProjectScanToFaces(m, MakeScan(m, 50, 0.3, 4)), {});
+  CHECK(!b.detail.empty());
+  CHECK((plan.intensity - before).cwiseAbs().maxCoeff() == 0.0);
+}
