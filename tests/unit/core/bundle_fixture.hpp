@@ -3,10 +3,22 @@
 #include <cmath>
 #include <string>
 
+#include "core/bundle.hpp"
 #include "core/wear_map.hpp"
 #include "unit/core/temp_dir.hpp"
 
 namespace lw::test {
+
+/// Two rows (LDWN 0-1 m, LUP 1-2 m), one sensor each (1001 at z 0.5, theta 0; 1002 at z 1.5, theta 90).
+inline core::CrusherConfig TwoRows() {
+  core::CrusherConfig c;
+  c.crusher_id = "cr1";
+  c.thickness_new_mm = 120;
+  c.thickness_min_mm = 30;
+  c.rows = {{"LDWN", 0.0, 1.0}, {"LUP", 1.0, 2.0}};
+  c.sensors = {{"1001", "LDWN", 0.5, 0.0, 120, {}}, {"1002", "LUP", 1.5, 90.0, 120, {}}};
+  return c;
+}
 
 /// Truncated cone, radius r0 at z = 0 to r1 at z = height, nt x nz quads; wear = intensity(z) per face.
 template <typename F>

@@ -6,18 +6,7 @@
 #include <CppUTest/TestHarness.h>
 
 using namespace lw::core;
-
-namespace {
-CrusherConfig TwoRows() {
-  CrusherConfig c;
-  c.crusher_id = "cr1";
-  c.thickness_new_mm = 120;
-  c.thickness_min_mm = 30;
-  c.rows = {{"LDWN", 0.0, 1.0}, {"LUP", 1.0, 2.0}};
-  c.sensors = {{"1001", "LDWN", 0.5, 0.0, 120, {}}, {"1002", "LUP", 1.5, 90.0, 120, {}}};
-  return c;
-}
-}  // namespace
+using lw::test::TwoRows;
 
 TEST_GROUP(Reconstruction) {};
 

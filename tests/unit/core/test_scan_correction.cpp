@@ -10,18 +10,9 @@
 #include <CppUTest/TestHarness.h>
 
 using namespace lw::core;
+using lw::test::TwoRows;
 
 namespace {
-
-CrusherConfig TwoRows() {
-  CrusherConfig c;
-  c.crusher_id = "cr1";
-  c.thickness_new_mm = 120;
-  c.thickness_min_mm = 30;
-  c.rows = {{"LDWN", 0.0, 1.0}, {"LUP", 1.0, 2.0}};
-  c.sensors = {{"1001", "LDWN", 0.5, 0.0, 120, {}}, {"1002", "LUP", 1.5, 90.0, 120, {}}};
-  return c;
-}
 
 // True wear (mm) at height z after `days`: the DEM map (uniform) missed that wear doubles towards
 // the discharge edge.
