@@ -239,7 +239,9 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       }
       const std::string when = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(NowSeconds(o.clock_file))));
       for (const Ack& a : r.acks) {
-        link.Publish({root + a.site + "/" + a.crusher + "/sensors/" + a.sensor + "/committed", CommitAckJson(a, when), 1, false});
+        for (std::string& m : CommitAckMessages(a, when)) {
+          link.Publish({root + a.site + "/" + a.crusher + "/sensors/" + a.sensor + "/committed", std::move(m), 1, false});
+        }
       }
       on_committed(r);
     }

@@ -76,6 +76,7 @@ namespace {
 /// Creates the database file readable by its owner only (0600) before SQLite opens it: SQLite gives
 /// its -wal and -shm files the database file's mode. An existing file keeps its mode.
 void CreatePrivate(const std::string& path) {
+  if (path.empty() || path == ":memory:" || path.rfind("file:", 0) == 0) return;  // not a file name
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
   if (fd >= 0) ::close(fd);
 }

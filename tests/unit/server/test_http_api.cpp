@@ -235,6 +235,26 @@ TEST(HttpApi, BadRequestsGetJsonErrorsAndNothingStoredIsLost) {
   CHECK(doc["paths"].contains("/api/v1/crushers/{crusher}/forecast"));
 }
 
+// /rejected?limit= went through atoi and a clamp: "abc" listed 1 message, 4294967297 (atoi's
+// undefined overflow) whatever it wrapped to. It is now checked like the readings query's limit.
+TEST(HttpApi, RejectedLimitIsAWholeNumberInRange) {
+  Api a(false);
+  a.LoadAll();
+  auto c = a.Client();
+  auto res = c.Post(a.Base() + "/readings", R"({"readings":[{"sensor":"1001","seq":1,"time":"2099-01-01T00:00:00Z"}]})",
+                    "application/json");
+  LONGS_EQUAL(422, res->status);
+  STRCMP_EQUAL("limit='abc' is not a whole number in [1, 1000]",
+               Get(c, "/api/v1/rejected?limit=abc", 400)["error"].get<std::string>().c_str());
+  STRCMP_EQUAL("limit=0 must be in [1, 1000]", Get(c, "/api/v1/rejected?limit=0", 400)["error"].get<std::string>().c_str());
+  STRCMP_EQUAL("limit=4294967297 must be in [1, 1000]",
+               Get(c, "/api/v1/rejected?limit=4294967297", 400)["error"].get<std::string>().c_str());
+  Get(c, "/api/v1/rejected?limit=1001", 400);
+  Get(c, "/api/v1/rejected?limit=1.5", 400);
+  LONGS_EQUAL(1, Get(c, "/api/v1/rejected?limit=1")["rejected"].size());
+  LONGS_EQUAL(1, Get(c, "/api/v1/rejected?limit=1000")["rejected"].size());
+}
+
 namespace {
 /// Opens /events (optionally resuming from `last_event_id`), posts one reading once the stream is
 /// open, and returns what the stream carried until a `reading` event arrived (or 10 s passed).
