@@ -70,6 +70,31 @@ std::string DiskFull(const std::string& db, int64_t free) {
          std::to_string(kMinFreeBytes >> 20) + " MB)";
 }
 
+/// The REST API's context over these parts (both the normal and the read-only start use it).
+ApiContext MakeApiContext(const ServerOptions& o, const Registry& registry, Store& read, std::mutex& read_mutex, WearService& wear,
+                          Ingestor& ingestor, EventBus& events, const TokenStore& tokens) {
+  ApiContext ctx;
+  ctx.registry = &registry;
+  ctx.read = &read;
+  ctx.read_mutex = &read_mutex;
+  ctx.wear = &wear;
+  ctx.ingestor = &ingestor;
+  ctx.events = &events;
+  ctx.tokens = &tokens;
+  ctx.web_dir = o.web_dir;
+  ctx.allowed_hosts = o.allowed_hosts;
+  ctx.allowed_hosts.push_back(o.http.substr(0, o.http.rfind(':')));  // the name it was told to listen on
+  return ctx;
+}
+
+/// Binds --http and starts serving; returns "http://host:port/" (port 0: the one picked).
+std::string StartApi(HttpApi& api, const ServerOptions& o) {
+  const size_t colon = o.http.rfind(':');
+  const int port = api.Bind(o.http.substr(0, colon), std::stoi(o.http.substr(colon + 1)));
+  api.Start();
+  return "http://" + o.http.substr(0, colon) + ":" + std::to_string(port) + "/";
+}
+
 /// A database that cannot be opened for writing because its file system is full: instead of exiting
 /// (and being restarted in a loop), serve what is stored read-only, report /healthz "degraded" with
 /// the reason, take nothing from the broker (readings wait there and in the gateways' spools, none is
@@ -99,26 +124,13 @@ bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& st
   WearService wear(registry, *read, read_mutex);
   EventBus events;
   std::mutex reason_mutex;
-  ApiContext ctx;
-  ctx.registry = &registry;
-  ctx.read = read.get();
-  ctx.read_mutex = &read_mutex;
-  ctx.wear = &wear;
-  ctx.ingestor = &refusing;
-  ctx.events = &events;
-  ctx.tokens = &tokens;
-  ctx.web_dir = o.web_dir;
+  ApiContext ctx = MakeApiContext(o, registry, *read, read_mutex, wear, refusing, events, tokens);
   ctx.health = [&] {
     std::lock_guard<std::mutex> lock(reason_mutex);
     return nlohmann::ordered_json{{"status", "degraded"}, {"reason", reason}, {"broker", "not subscribed (disk full)"}};
   };
-  const size_t colon = o.http.rfind(':');
-  ctx.allowed_hosts = o.allowed_hosts;
-  ctx.allowed_hosts.push_back(o.http.substr(0, colon));
   HttpApi api(ctx);
-  const int port = api.Bind(o.http.substr(0, colon), std::stoi(o.http.substr(colon + 1)));
-  api.Start();
-  log("listening on http://" + o.http.substr(0, colon) + ":" + std::to_string(port) + "/ (read-only: " + reason + ")");
+  log("listening on " + StartApi(api, o) + " (read-only: " + reason + ")");
   for (int tick = 0; !stop; ++tick) {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
     if (tick % 25 != 24) continue;  // every 5 s
@@ -199,16 +211,8 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   gateway::PahoLink link(lo);
   std::atomic<bool> connected{false};
 
-  ApiContext ctx;
-  ctx.registry = registry.get();
-  ctx.read = &read;
-  ctx.read_mutex = &read_mutex;
-  ctx.wear = &wear;
-  ctx.ingestor = &ingestor;
-  ctx.events = &events;
+  ApiContext ctx = MakeApiContext(o, *registry, read, read_mutex, wear, ingestor, events, tokens);
   ctx.diagnosis = &diagnosis;
-  ctx.tokens = &tokens;
-  ctx.web_dir = o.web_dir;
   ctx.health = [&] {
     const IngestCounters c = ingestor.Counters();
     nlohmann::ordered_json j{{"broker", connected ? "connected" : "disconnected"},
@@ -224,14 +228,8 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     return j;
   };
   ctx.after_ingest = on_committed;
-  const size_t colon = o.http.rfind(':');
-  ctx.allowed_hosts = o.allowed_hosts;
-  ctx.allowed_hosts.push_back(o.http.substr(0, colon));  // the name it was told to listen on
   HttpApi api(ctx);
-  const int port = api.Bind(o.http.substr(0, colon), std::stoi(o.http.substr(colon + 1)));
-  api.Start();
-  log("listening on http://" + o.http.substr(0, colon) + ":" + std::to_string(port) + "/ (REST /api/v1, dashboard " +
-      (o.web_dir.empty() ? std::string("not built") : o.web_dir) + ")");
+  log("listening on " + StartApi(api, o) + " (REST /api/v1, dashboard " + (o.web_dir.empty() ? std::string("not built") : o.web_dir) + ")");
   if (tokens.enabled()) log("bearer tokens required on /api");
 
   // Wear is recomputed on its own thread (at most every --wear-interval-ms), so a large map or a
