@@ -119,6 +119,76 @@ struct Kernel {
   }
 };
 
+/// Intersection of confidence intervals over a ladder of kernels (increasing scale along z): the
+/// estimate of the largest kernel whose confidence interval still intersects those of every smaller
+/// one (Goldenshluger-Nemirovski / Katkovnik). Where the field is flat the noise decides and the
+/// largest kernel wins; where it changes faster than a kernel's scale (the discharge-edge band of
+/// a real DEM map) the larger kernels' estimates leave the smaller ones' intervals and the scale
+/// stops there: a local bandwidth without a global trade-off between noise and edge bias.
+struct IciResult {
+  double value = std::numeric_limits<double>::quiet_NaN();
+  double var = 0;
+  size_t level = 0;
+};
+/// All steps of the ladder in one pass over the neighbours of (z, theta): the steps share the
+/// circumferential scale `ha` and the top step's index covers them all; per step the kernel sums
+/// and the sums that give the estimate's variance (for the local-linear form too).
+IciResult Ici(const WearMap& map, const Eigen::VectorXd& y, const std::vector<double>& ladder, double ha, bool linear,
+              const SurfaceIndex& index, double z, double theta, double radius, long skip, const Eigen::VectorXd& var, double gamma) {
+  const size_t nk = ladder.size();
+  struct Acc {
+    Sums s;
+    double v0 = 0, v1 = 0, v2 = 0;  // sum w^2 var, w^2 var dz, w^2 var dz^2
+  };
+  std::vector<Acc> acc(nk);
+  std::vector<double> inv_h2(nk);
+  for (size_t k = 0; k < nk; ++k) {
+    inv_h2[k] = 1.0 / (ladder[k] * ladder[k]);
+    acc[k].s.linear = linear;
+  }
+  const double cut2 = kCutoff * kCutoff, inv_ha2 = 1.0 / (ha * ha);
+  index.Visit(z, theta, radius, [&](uint32_t j, double dz, double arc) {
+    if (static_cast<long>(j) == skip) return;
+    const double qa = arc * arc * inv_ha2;
+    if (qa > cut2) return;
+    const auto jj = static_cast<Eigen::Index>(j);
+    const double base = map.areas[jj] * std::exp(-0.5 * qa), yj = y[jj], vj = var[jj], dz2 = dz * dz;
+    for (size_t k = nk; k-- > 0;) {
+      const double qz = dz2 * inv_h2[k];
+      if (qz + qa > cut2) break;  // smaller steps are narrower still
+      const double w = base * std::exp(-0.5 * qz);
+      Acc& a = acc[k];
+      a.s.Add(w, dz, yj, 0.0);
+      const double w2v = w * w * vj;
+      a.v0 += w2v;
+      a.v1 += w2v * dz;
+      a.v2 += w2v * dz2;
+    }
+  });
+  IciResult out;
+  double lo = -std::numeric_limits<double>::max(), hi = std::numeric_limits<double>::max();
+  for (size_t k = 0; k < nk; ++k) {
+    const Acc& a = acc[k];
+    if (!(a.s.s0 > 0)) continue;
+    const double v = a.s.Value();
+    double vv;
+    if (a.s.Linear()) {
+      const double d = a.s.s0 * a.s.s2 - a.s.s1 * a.s.s1;
+      vv = (a.s.s2 * a.s.s2 * a.v0 - 2.0 * a.s.s2 * a.s.s1 * a.v1 + a.s.s1 * a.s.s1 * a.v2) / (d * d);
+    } else {
+      vv = a.v0 / (a.s.s0 * a.s.s0);
+    }
+    const double sd = std::sqrt(std::max(vv, 0.0));
+    lo = std::max(lo, v - gamma * sd);
+    hi = std::min(hi, v + gamma * sd);
+    if (lo > hi && std::isfinite(out.value)) break;
+    out.value = v;
+    out.var = vv;
+    out.level = k;
+  }
+  return out;
+}
+
 }  // namespace
 
 double MapModel::FaceVariance(double m) const { return noise_phi * std::pow(std::max(m, 0.0), noise_power); }
@@ -140,6 +210,14 @@ MapModel::Point MapModel::At(double z, double theta_deg) const {
     if (s.s0 > 0) {
       p.intensity = std::max(0.0, s.Value());
       p.sd = std::sqrt(k.Variance(s, z, theta_deg, -1, -1, face_var) + std::pow(smoothing_error_rel * p.intensity, 2));
+      if (local_ladder_m.size() > 1 && index) {
+        // The same local scale as the faces get (Eq. 9's row scale sees the faces' averaging).
+        const IciResult r = Ici(m, clean, local_ladder_m, bandwidth_arc_m, local_linear, *index, z, theta_deg, -1, -1, ref_var, local_gamma);
+        if (std::isfinite(r.value) && r.level + 1 < local_ladder_m.size()) {
+          p.intensity = std::max(0.0, r.value);
+          p.sd = std::sqrt(2.0 * r.var);
+        }
+      }
       if (nrm && normal_index) {
         Kernel kn(m, *nrm, nullptr, normal_bandwidth_m, 3.0 * bandwidth_arc_m, normal_index);
         kn.linear = false;
@@ -190,7 +268,7 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   // 1. Pilot: each face predicted from its nearest neighbours (leave-one-out, 1.5 face sizes).
   Eigen::VectorXd pilot(n), pilot_neff(n);
   {
-    const Kernel k(map, model.clean, nullptr, 1.5 * model.face_size_m);
+    const Kernel k(map, model.clean, nullptr, 0.5 * model.face_size_m, 3.0 * model.face_size_m);
     for (Eigen::Index i = 0; i < n; ++i) {
       double s0 = 0, sy = 0, s2 = 0;
       k.index.Visit(map.z[i], map.theta_deg[i], map.radius[i], [&](uint32_t j, double dz, double arc) {
@@ -206,27 +284,56 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     }
   }
 
-  // 2. Noise law var = phi m: a face's wear sums the energies of the contacts it received, so its
-  //    variance grows like its mean (compound Poisson). phi from wear_stderr (the spread of the
-  //    run's windows) when the map has it, else from each face against its neighbours; the top 2 %
-  //    of ratios trimmed either way (spikes).
+  // 2. Noise law var = phi m^p: a face's wear sums the energies of the contacts it received, so its
+  //    variance grows like its mean (compound Poisson, p = 1) when contacts are independent, and
+  //    like its square (p = 2, a constant relative scatter) when they come in bursts (a few heavy
+  //    particles, the same rock hitting again): real LIGGGHTS maps are close to p = 2, with a face's
+  //    relative scatter about the same everywhere. p is fitted (log-log, in [1, 2]) and phi then,
+  //    from wear_stderr (the spread of the run's windows) when the map has it, else from each face
+  //    against its neighbours; the top 2 % of ratios trimmed either way (spikes).
   {
     const bool use_stderr = map.has_wear_stderr() && map.wear_stderr.size() == n && map.wear_stderr.maxCoeff() > 0;
-    std::vector<double> ratio;
+    std::vector<std::pair<double, double>> obs;  // (mean, squared deviation)
     for (Eigen::Index i = 0; i < n; ++i) {
       if (pilot[i] <= 0) continue;
       if (use_stderr) {
-        ratio.push_back(map.wear_stderr[i] * map.wear_stderr[i] / pilot[i]);
+        obs.push_back({pilot[i], map.wear_stderr[i] * map.wear_stderr[i]});
       } else if (pilot_neff[i] > 0) {
         const double d = model.clean[i] - pilot[i];
-        ratio.push_back(d * d / (pilot[i] * (1.0 + 1.0 / pilot_neff[i])));
+        obs.push_back({pilot[i], d * d / (1.0 + 1.0 / pilot_neff[i])});
       }
     }
+    // p from the slope of log E[d^2] against log m over ten bins of m (bin means, not logs of
+    // single squares: those are biased by the chi-square's skew).
+    double p = 1.0;
+    if (obs.size() >= 50) {
+      std::sort(obs.begin(), obs.end());
+      const size_t bins = 10, per = obs.size() / bins;
+      double sx = 0, sy = 0, sxx = 0, sxy = 0, nb = 0;
+      for (size_t b = 0; b < bins; ++b) {
+        double m = 0, v = 0;
+        for (size_t k = b * per; k < (b + 1) * per; ++k) {
+          m += obs[k].first;
+          v += obs[k].second;
+        }
+        if (!(m > 0 && v > 0)) continue;
+        const double x = std::log(m / static_cast<double>(per)), y = std::log(v / static_cast<double>(per));
+        sx += x;
+        sy += y;
+        sxx += x * x;
+        sxy += x * y;
+        nb += 1;
+      }
+      const double den = nb * sxx - sx * sx;
+      if (nb >= 3 && den > 1e-12) p = std::clamp((nb * sxy - sx * sy) / den, 1.0, 2.0);
+    }
+    std::vector<double> ratio;
+    for (const auto& [m, d2] : obs) ratio.push_back(d2 / std::pow(m, p));
     std::sort(ratio.begin(), ratio.end());
     const size_t keep = ratio.size() - ratio.size() / 50;
     double sum = 0;
     for (size_t k = 0; k < keep; ++k) sum += ratio[k];
-    model.noise_power = 1.0;
+    model.noise_power = p;
     model.noise_phi = keep ? sum / static_cast<double>(keep) : 0.0;
     model.noise_source = use_stderr ? "wear_stderr (" + (map.windows > 0 ? std::to_string(map.windows) + " windows" : std::string("windows not stated")) + ")"
                                     : "neighbour differences";
@@ -255,9 +362,10 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     const double mean_area = map.areas.sum() / static_cast<double>(n);
     const double half_circumference = M_PI * std::max(1e-3, map.radius.mean());
     for (double h = model.face_size_m; h <= 0.2 * extent + 1e-12; h *= 1.4) {
-      for (double ratio : {1.0, 3.0, 8.0}) {
+      for (double ratio : {1.0, 3.0, 8.0, 24.0, 1e9}) {
         const double ha = std::min(ratio * h, half_circumference);
         if (ratio > 1.0 && ha <= h * 1.01) continue;
+        if (ratio > 8.0 && !candidates.empty() && candidates.back().first == h && candidates.back().second >= ha * 0.99) continue;
         // Work bound: faces visited per face (the kernel's bounding disc) x faces: about 2e9 terms
         // at most for the final smoothing (a million-face map keeps to a few face sizes).
         const double visits = M_PI * std::pow(kCutoff * std::max(h, ha), 2) / std::max(mean_area, 1e-12);
@@ -290,15 +398,14 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   std::vector<std::vector<double>> loo_var(nc, std::vector<double>(eval.size(), 0.0));
   for (size_t c = 0; c < nh; ++c) {
     Kernel k(map, model.clean, nullptr, candidates[c].first, candidates[c].second);
-    for (int form = 0; form < 2; ++form) {
-      k.linear = form == 1;
-      const size_t cc = 2 * c + static_cast<size_t>(form);
-      for (size_t e = 0; e < eval.size(); ++e) {
-        const Eigen::Index i = eval[e];
-        const Sums s = k.At(map.z[i], map.theta_deg[i], map.radius[i], static_cast<long>(i));
-        if (!(s.s0 > 0)) continue;
-        loo[cc][e] = std::max(0.0, s.Value());
-        loo_var[cc][e] = k.Variance(s, map.z[i], map.theta_deg[i], map.radius[i], static_cast<long>(i), pilot_var);
+    // Both forms from the same sums (one pass over the neighbours).
+    for (size_t e = 0; e < eval.size(); ++e) {
+      const Eigen::Index i = eval[e];
+      Sums s = k.At(map.z[i], map.theta_deg[i], map.radius[i], static_cast<long>(i));
+      if (!(s.s0 > 0)) continue;
+      for (int form = 0; form < 2; ++form) {
+        s.linear = form == 1;
+        loo[2 * c + static_cast<size_t>(form)][e] = std::max(0.0, s.Value());
       }
     }
   }
@@ -327,6 +434,15 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   // The smoothing's own error: what the cross-validated error holds beyond the faces' noise and the
   // noise of the prediction, relative to the field's mean square.
   if (area_sum > 0) {
+    // The prediction noise of the chosen candidate only (the others' is not needed).
+    Kernel k(map, model.clean, nullptr, candidates[best / 2].first, candidates[best / 2].second);
+    k.linear = best % 2 == 1;
+    for (size_t e = 0; e < eval.size(); ++e) {
+      const Eigen::Index i = eval[e];
+      if (!std::isfinite(loo[best][e])) continue;
+      const Sums s = k.At(map.z[i], map.theta_deg[i], map.radius[i], static_cast<long>(i));
+      loo_var[best][e] = k.Variance(s, map.z[i], map.theta_deg[i], map.radius[i], static_cast<long>(i), pilot_var);
+    }
     double var_pred = 0;
     for (size_t e = 0; e < eval.size(); ++e) {
       if (!std::isfinite(loo[best][e])) continue;
@@ -372,6 +488,32 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
       const double v = k.Variance(sums[static_cast<size_t>(i)], map.z[i], map.theta_deg[i], map.radius[i], -1, var);
       model.intensity_sd[i] = std::sqrt(v + std::pow(model.smoothing_error_rel * model.intensity[i], 2));
     }
+  }
+
+  // 6. Local scale along z (ICI): the cross-validated scale is right on average over the liner, and
+  //    the average is dominated by the many faces where the field is flat; where it changes within
+  //    a kernel (a real map's discharge-edge band holds several times the wear of the band above),
+  //    a smaller scale is used, as small as the data show the change to be real.
+  if (model.bandwidth_method == "cross-validation" && options.local_scale) {
+    for (double h = 0.25 * model.face_size_m; h < model.bandwidth_m * 0.999; h *= 1.4) model.local_ladder_m.push_back(h);
+    model.local_ladder_m.push_back(model.bandwidth_m);
+  }
+  if (model.local_ladder_m.size() > 1) {
+    model.local_gamma = options.local_gamma;
+    model.ref_var = model.face_var;
+    model.local_bandwidth_m.resize(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const IciResult r = Ici(map, model.clean, model.local_ladder_m, model.bandwidth_arc_m, model.local_linear, *model.index, map.z[i],
+                              map.theta_deg[i], map.radius[i], -1, model.ref_var, model.local_gamma);
+      if (!std::isfinite(r.value)) continue;
+      model.local_bandwidth_m[i] = model.local_ladder_m[r.level];
+      if (r.level + 1 == model.local_ladder_m.size()) continue;  // the global scale: value and error as above
+      model.intensity[i] = std::max(0.0, r.value);
+      // Stopped below the top: the estimate's bias is bounded by about its own sd (that is where
+      // the intervals stop intersecting), so its error is counted twice.
+      model.intensity_sd[i] = std::sqrt(2.0 * r.var);
+    }
+    for (Eigen::Index i = 0; i < n; ++i) model.face_var[i] = model.FaceVariance(model.intensity[i]);
   }
   std::vector<double> cv;
   for (Eigen::Index i = 0; i < n; ++i)

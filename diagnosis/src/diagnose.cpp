@@ -13,6 +13,7 @@
 #include "diagnosis/diagnose.hpp"
 #include "fields.hpp"
 #include "levenberg_marquardt.hpp"
+#include "report_maps.hpp"
 #include "sensor_quality.hpp"
 #include "wear_model.hpp"
 
@@ -1347,6 +1348,19 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     result.grids.push_back(std::move(g));
   }
 
+  // Model points of every map face (the prediction and the report's liner maps).
+  std::vector<ModelPoint> face_points;
+  face_points.reserve(bundle.map.face_count());
+  for (Eigen::Index f = 0; f < static_cast<Eigen::Index>(bundle.map.face_count()); ++f) {
+    PointField pf;
+    pf.z = bundle.map.z[f];
+    pf.theta_deg = bundle.map.theta_deg[f];
+    pf.intensity = fields.intensity[f];
+    pf.normal_tilde = fields.normal_tilde[f];
+    pf.normal_i = fields.normal_i[f];
+    face_points.push_back(make_point(pf, 0.5 * crusher.thickness_new_mm));
+  }
+
   // --- Prediction ---------------------------------------------------------------------------------
   if (options.predict_at) {
     Prediction pred;
@@ -1361,18 +1375,6 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
           {s.id, std::max(0.0, s.thickness - wb[r]),
            std::max(0.0, s.thickness - wi[r] * (1.0 + sensor_u(s)) - (use_improved ? loss_offset(s, t) : 0.0))});
     }
-    std::vector<ModelPoint> face_points;
-    const auto nf = static_cast<Eigen::Index>(bundle.map.face_count());
-    face_points.reserve(static_cast<size_t>(nf));
-    for (Eigen::Index f = 0; f < nf; ++f) {
-      PointField pf;
-      pf.z = bundle.map.z[f];
-      pf.theta_deg = bundle.map.theta_deg[f];
-      pf.intensity = fields.intensity[f];
-      pf.normal_tilde = fields.normal_tilde[f];
-      pf.normal_i = fields.normal_i[f];
-      face_points.push_back(make_point(pf, 0.5 * crusher.thickness_new_mm));
-    }
     // Physical: a face's wear is at most the as-new thickness (worn through).
     const Eigen::VectorXd fb =
         detail::SimulateAt(base_spec, eq9.x, face_points, prob.grid, t).cwiseMax(0.0).cwiseMin(crusher.thickness_new_mm);
@@ -1383,6 +1385,13 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     pred.face_wear_improved_mm.assign(fi.data(), fi.data() + fi.size());
     result.prediction = std::move(pred);
   }
+
+  // --- Unwrapped-liner maps and thinnest points for the HTML report (report_maps.cpp) -------------
+  detail::FillLinerReport(bundle, fields, scans, [&](bool improved, double t) {
+    const Eigen::VectorXd w = improved ? detail::SimulateAt(model_fit.spec, model_fit.x, face_points, prob.grid, t)
+                                       : detail::SimulateAt(base_spec, eq9.x, face_points, prob.grid, t);
+    return Eigen::VectorXd(w.cwiseMax(0.0).cwiseMin(crusher.thickness_new_mm));
+  }, result);
 
   std::stable_sort(result.data_quality.begin(), result.data_quality.end(),
                    [](const DataQualityIssue& a, const DataQualityIssue& b) {

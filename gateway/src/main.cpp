@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "core/sd_notify.hpp"
 #include "gateway/clock_file.hpp"
 #include "gateway/config.hpp"
 #include "gateway/gateway.hpp"
@@ -97,6 +98,10 @@ int Run(const lw::gateway::Config& config) {
   link_options.subscriptions = {root + "sensors/+/committed"};
   auto link = std::make_unique<PahoLink>(link_options);
   Gateway gateway(options, spool, *link, serial);
+
+  // Ready for systemd (Type=notify): the spool is open and locked; serial port and broker are
+  // (re)opened by the loop below.
+  lw::core::SdNotify("READY=1");
 
   std::string error;
   int64_t next_open_ms = 0;

@@ -1,5 +1,7 @@
 #include "server/server.hpp"
 
+#include "core/sd_notify.hpp"
+
 #include <poll.h>
 #include <sys/statvfs.h>
 #include <unistd.h>
@@ -151,7 +153,7 @@ bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& st
 void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostream& log_stream) {
   Logger log(log_stream);
   if (::geteuid() == 0) {
-    log("warning: running as root; run as an unprivileged user (packaging/systemd/linerwatch-server.service)");
+    log("warning: running as root; run as an unprivileged user (the linerwatch-server package does; docs/deploy.md)");
   }
   std::vector<std::string> errors;
   const auto registry = Registry::Load(o.crusher_dir, &errors);
@@ -231,6 +233,9 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   HttpApi api(ctx);
   log("listening on " + StartApi(api, o) + " (REST /api/v1, dashboard " + (o.web_dir.empty() ? std::string("not built") : o.web_dir) + ")");
   if (tokens.enabled()) log("bearer tokens required on /api");
+  // Ready for systemd (Type=notify): database open, crushers loaded, HTTP serving. The broker is
+  // connected (and reconnected) by the loop below.
+  core::SdNotify("READY=1");
 
   // Wear is recomputed on its own thread (at most every --wear-interval-ms), so a large map or a
   // long campaign never delays commit acks; this loop only publishes the summaries it hands back.
@@ -355,6 +360,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     ::poll(&pfd, 1, 20);
   }
   log("stopping");
+  core::SdNotify("STOPPING=1");
   api.Stop();
   link.Shutdown({}, 2000);
 }

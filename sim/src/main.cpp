@@ -18,7 +18,7 @@ const char* kHelp = R"(linerwatch-sim: host-side simulator for linerwatch.
 Usage: linerwatch-sim <command> [options]     (linerwatch-sim <command> --help for details)
 
 Commands:
-  campaign   generate a synthetic campaign bundle (CONTRACTS §3) with a known truth
+  campaign   generate a synthetic campaign bundle (docs/bundle.md) with a known truth
   run        virtual sensor boards (real firmware) and XBee network feeding a gateway through a pty
 )";
 

@@ -94,6 +94,9 @@ struct MapModelOptions {
   double outlier_z = 5.0;
   /// Faces scored per candidate bandwidth (a spread-out subset on large maps).
   size_t max_cv_faces = 4000;
+  /// Local scale along z by intersection of confidence intervals (bandwidth_m < 0 only).
+  bool local_scale = true;
+  double local_gamma = 2.5;
 };
 
 struct MapModel {
@@ -130,6 +133,14 @@ struct MapModel {
   /// Noise variance of one face at local mean m (map units).
   double FaceVariance(double m) const;
   Eigen::VectorXd face_var;                     ///< FaceVariance(intensity) per face
+  /// Local scale along z (intersection of confidence intervals, "ICI"): the candidate kernels
+  /// from the face size up to bandwidth_m (around: bandwidth_arc_m); at each face (and point) the
+  /// largest one whose estimate stays inside the confidence intervals of every smaller one. Empty
+  /// when the model is not cross-validated (fixed or no smoothing).
+  std::vector<double> local_ladder_m;
+  double local_gamma = 0;                       ///< confidence-interval half width, in sd
+  Eigen::VectorXd local_bandwidth_m;            ///< per face: the scale along z chosen there
+  Eigen::VectorXd ref_var;                      ///< per-face noise variance the intervals are built on
   std::shared_ptr<const SurfaceIndex> index;    ///< kernel-support index (bandwidth > 0)
   std::shared_ptr<const SurfaceIndex> normal_index;  ///< the same for the stress kernel
 };

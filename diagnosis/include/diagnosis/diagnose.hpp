@@ -79,6 +79,8 @@ struct DataQualityIssue {
 struct SensorCurve {
   std::string sensor_id;
   std::string row;
+  double z_m = 0;         ///< position on the liner (crusher.json)
+  double theta_deg = 0;
   double thickness_new_mm = 0;
   std::vector<double> reading_days;     ///< days since installation
   std::vector<double> reading_mm;       ///< raw readings
@@ -102,6 +104,62 @@ struct ResidualGrid {
   std::vector<double> measured_mm;  ///< nz * ntheta, row-major in z
   std::vector<double> before_mm;    ///< baseline (row scales refit on all data) minus measured
   std::vector<double> after_mm;     ///< improved model minus measured
+};
+
+/// One tile of the unwrapped liner for the report's maps: a map triangle, or (maps of more than
+/// kMaxLinerTiles faces) a cell of a regular theta x z raster. Corners in (theta, z); a tile across
+/// theta = 0 has corners above 360 (drawn twice).
+struct LinerTile {
+  double theta_deg[4] = {0, 0, 0, 0};
+  double z_m[4] = {0, 0, 0, 0};
+  int corners = 3;
+};
+inline constexpr size_t kMaxLinerTiles = 20000;
+
+/// Wear per tile at one time (mm; NaN where unknown): measured (a scan, else empty) and predicted by
+/// the baseline (plain Eq. 9, the JSON `baseline`) and by the improved model (with the findings).
+struct LinerSnapshot {
+  core::TimePoint time{};
+  std::string source;  ///< "scan:<file>", or "sensors" (latest reading, no scan: sensor residuals only)
+  std::vector<double> measured_mm;
+  std::vector<double> baseline_mm;
+  std::vector<double> improved_mm;
+};
+
+/// A thinnest point on the liner: remaining thickness with its band, where, and when.
+struct ThinnestPoint {
+  std::string label;         ///< what it comes from, in words
+  core::TimePoint time{};
+  double thickness_mm = 0;
+  double lo_mm = 0;          ///< band (2 sd); lo == hi == thickness when no band is known
+  double hi_mm = 0;
+  double z_m = 0;
+  double theta_deg = 0;
+  std::string row;           ///< crusher row at z (empty outside every row)
+  std::string status;        ///< reconstruction status ("ok", "unsupported", ...), empty for models
+  std::string status_detail;
+};
+
+/// Per row: when its thinnest point reaches the minimum thickness (core forecast, as the live
+/// dashboard shows it).
+struct RelineDate {
+  std::string row;
+  bool ok = false;
+  std::string note;
+  std::optional<core::TimePoint> reach, earliest, latest;
+};
+
+/// What the HTML report draws besides the curves (docs/diagnosis.md, "Reading the report").
+struct LinerReport {
+  double thickness_new_mm = 0;
+  double thickness_min_mm = 0;
+  std::vector<LinerTile> tiles;
+  bool tiles_are_faces = true;            ///< false: raster cells (large map)
+  std::vector<LinerSnapshot> snapshots;   ///< one per scan, else one at the latest reading
+  core::TimePoint now{};                  ///< latest reading the diagnosis used
+  std::vector<double> remaining_now_mm;   ///< per tile: the live reconstruction's remaining thickness at `now`
+  std::vector<ThinnestPoint> thinnest;    ///< now (reconstruction), models now, models at predict_at
+  std::vector<RelineDate> reline;
 };
 
 struct SensorPrediction {
@@ -133,13 +191,14 @@ struct DiagnosisResult {
   nlohmann::ordered_json hypotheses = nlohmann::ordered_json::array();  ///< every model tried
   std::vector<SensorCurve> curves;
   std::vector<ResidualGrid> grids;
+  LinerReport liner;  ///< unwrapped-liner maps and the thinnest point (report only, not in the JSON)
 };
 
 /// Runs the whole diagnosis on a loaded bundle. Never throws on physically odd data (faults are
 /// reported); throws std::invalid_argument only when nothing can be diagnosed (no usable sensor).
 DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& options = {});
 
-/// The CONTRACTS §4 JSON document (plus optional extra keys).
+/// The JSON document of docs/diagnosis.md "Output" (plus optional extra keys).
 nlohmann::ordered_json ToJson(const DiagnosisResult& result);
 
 /// Self-contained HTML report (inline SVG, no scripts).

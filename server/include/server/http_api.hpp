@@ -1,5 +1,5 @@
 #pragma once
-/// REST API (CONTRACTS §6, docs/server.md) and the dashboard's static files, on cpp-httplib.
+/// REST API (docs/server.md) and the dashboard's static files, on cpp-httplib.
 #include <filesystem>
 #include <functional>
 #include <memory>

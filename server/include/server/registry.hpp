@@ -1,6 +1,6 @@
 #pragma once
 /// The crushers this server knows: one sub-folder of --crusher-dir per crusher, with crusher.json
-/// (CONTRACTS §3) and its DEM wear map (wear_map.vtk, or wear_map.csv as an EDEM-style per-face
+/// (docs/bundle.md) and its DEM wear map (wear_map.vtk, or wear_map.csv as an EDEM-style per-face
 /// export). Maps are validated and hashed on import; the reconstruction plan is prepared once.
 #include <filesystem>
 #include <map>

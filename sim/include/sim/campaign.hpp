@@ -1,6 +1,6 @@
 #pragma once
 /// Campaign generator: a synthetic crusher liner campaign with a known truth, written as a bundle
-/// (CONTRACTS §3). The DEM-like map comes from a reduced-order chamber model (docs/sim.md); the
+/// (docs/bundle.md). The DEM-like map comes from a reduced-order chamber model (docs/sim.md); the
 /// truth is that map's underlying intensity with any of the physical effects DEM leaves out, plus
 /// operations, sensor readings with realistic faults, and a laser scan. Deterministic per seed.
 #include <Eigen/Core>

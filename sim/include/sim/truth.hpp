@@ -59,7 +59,7 @@ class MapTruth final : public TruthModel {
   double min_mm_ = 0;
 };
 
-/// A crusher folder (CONTRACTS §3: crusher.json + wear_map.vtk) ready to simulate.
+/// A crusher folder (docs/bundle.md: crusher.json + wear_map.vtk) ready to simulate.
 struct CrusherFolder {
   std::filesystem::path dir;
   core::CrusherConfig crusher;

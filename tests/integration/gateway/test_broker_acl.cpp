@@ -24,6 +24,7 @@
 #include <nlohmann/json.hpp>
 
 #include "support/mosquitto_fixture.hpp"
+#include "support/mqtt_recorder.hpp"
 #include "unit/gateway/gateway_test_support.hpp"
 
 // CppUTest last: its new/delete macros break standard headers included after it.
@@ -38,65 +39,7 @@ namespace {
 const std::string kA = "linerwatch/v1/mine-a/cr1/";
 const std::string kB = "linerwatch/v1/mine-b/cr1/";
 
-// A Paho client that records every message it receives.
-class Client {
- public:
-  Client(const std::string& uri, const std::string& id, const std::string& user, const std::string& password)
-      : client_(uri, id, nullptr) {
-    client_.set_message_callback([this](mqtt::const_message_ptr m) {
-      std::lock_guard<std::mutex> lock(mutex_);
-      received_.push_back({m->get_topic(), m->to_string(), m->is_retained()});
-    });
-    mqtt::connect_options opts;
-    opts.set_clean_session(true);
-    opts.set_user_name(user);
-    opts.set_password(password);
-    client_.connect(opts)->wait_for(5s);
-  }
-  ~Client() {
-    try {
-      client_.disconnect()->wait_for(2s);
-    } catch (const std::exception&) {
-    }
-  }
-  void Subscribe(const std::string& filter) {
-    try {
-      client_.subscribe(filter, 1)->wait_for(5s);
-    } catch (const std::exception&) {
-      // A refused subscription: nothing will arrive on it, which is what the checks look at.
-    }
-  }
-  void Publish(const std::string& topic, const std::string& payload, bool retained = false) {
-    client_.publish(topic, payload, 1, retained)->wait_for(5s);
-  }
-  struct Message {
-    std::string topic, payload;
-    bool retained;
-  };
-  std::vector<Message> received() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return received_;
-  }
-  bool Saw(const std::string& topic, const std::string& needle = "") {
-    for (const Message& m : received()) {
-      if (m.topic == topic && m.payload.find(needle) != std::string::npos) return true;
-    }
-    return false;
-  }
-  bool WaitFor(const std::string& topic, const std::string& needle = "", std::chrono::milliseconds timeout = 10s) {
-    const auto until = std::chrono::steady_clock::now() + timeout;
-    while (std::chrono::steady_clock::now() < until) {
-      if (Saw(topic, needle)) return true;
-      std::this_thread::sleep_for(20ms);
-    }
-    return false;
-  }
-
- private:
-  mqtt::async_client client_;
-  std::mutex mutex_;
-  std::vector<Message> received_;
-};
+using Client = lw::test::MqttRecorder;
 
 }  // namespace
 

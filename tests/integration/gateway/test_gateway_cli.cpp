@@ -1,4 +1,4 @@
-// The linerwatch-gateway program's command-line contract (CONTRACTS §2): --help, a non-zero exit
+// The linerwatch-gateway program's command-line contract (docs/gateway.md): --help, a non-zero exit
 // with one line naming what was wrong, and no spool file left behind on bad input.
 #include <sys/wait.h>
 #include <unistd.h>

@@ -32,6 +32,7 @@
 #include "protocol/sensor_payload.hpp"
 #include "protocol/xbee_api.hpp"
 #include "support/mosquitto_fixture.hpp"
+#include "support/raw_pty.hpp"
 
 // CppUTest last: its new/delete macros break standard headers included after it.
 #include <CppUTest/TestHarness.h>
@@ -57,23 +58,11 @@ constexpr int64_t kRetransmitMs = 300;
 class SensorSite {
  public:
   SensorSite() {
-    char name[128];
-    if (openpty(&master_, &slave_, name, nullptr, nullptr) != 0) throw std::runtime_error("openpty failed");
-    slave_name_ = name;
-    termios tio{};
-    tcgetattr(slave_, &tio);
-    cfmakeraw(&tio);
-    tcsetattr(slave_, TCSANOW, &tio);
-    fcntl(master_, F_SETFL, fcntl(master_, F_GETFL) | O_NONBLOCK);
     for (int i = 0; i < kSensors; ++i) {
       sensors_.push_back(Sensor{1001u + static_cast<uint32_t>(i), 0x0013A20040000000ull + static_cast<uint64_t>(i) * 0x1111, 0, {}, false, 0});
     }
   }
-  ~SensorSite() {
-    close(master_);
-    close(slave_);  // held so that a killed gateway does not hang up the pty
-  }
-  const std::string& slave_name() const { return slave_name_; }
+  const std::string& slave_name() const { return pty_.slave_name(); }
 
   void Tick(int64_t now) {
     ReadAcks();
@@ -132,7 +121,7 @@ class SensorSite {
     pr::BuildReceivePacket(rx, frame, sizeof frame, &frame_len);
     uint8_t wire[pr::kMaxWireFrame];
     const size_t wire_len = pr::EncodeFrame(pr::ApiMode::kEscaped, frame, frame_len, wire, sizeof wire);
-    const ssize_t written = write(master_, wire, wire_len);
+    const ssize_t written = write(pty_.master(), wire, wire_len);
     (void)written;  // a full pty buffer loses the frame: the sensor retransmits, as over radio
     s.awaiting = true;
     s.last_send_ms = now;
@@ -141,7 +130,7 @@ class SensorSite {
   void ReadAcks() {
     uint8_t buf[1024];
     for (;;) {
-      const ssize_t n = read(master_, buf, sizeof buf);
+      const ssize_t n = read(pty_.master(), buf, sizeof buf);
       if (n <= 0) return;
       for (ssize_t i = 0; i < n; ++i) {
         if (decoder_.Feed(buf[i]) != pr::DecodeEvent::kFrame) continue;
@@ -166,9 +155,7 @@ class SensorSite {
     }
   }
 
-  int master_ = -1;
-  int slave_ = -1;
-  std::string slave_name_;
+  lw::test::RawPty pty_;  // the coordinator's serial line
   std::vector<Sensor> sensors_;
   pr::FrameDecoder decoder_{pr::ApiMode::kEscaped};
   int64_t start_ms_ = 0;
