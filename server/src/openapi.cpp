@@ -51,7 +51,7 @@ std::string OpenApiJson() {
           QueryParam("faces", "boolean", "false: leave out the per-face array")});
   paths["/api/v1/crushers/{crusher}/forecast"]["get"] =
       Op("Per row and sensor: the date the minimum thickness is reached, with a band", "read", {c});
-  paths["/api/v1/crushers/{crusher}/diagnosis"]["get"] = Op("Latest diagnosis (docs/diagnosis.md "Output") and its status", "read", {c});
+  paths["/api/v1/crushers/{crusher}/diagnosis"]["get"] = Op("Latest diagnosis (docs/diagnosis.md, Output) and its status", "read", {c});
   paths["/api/v1/crushers/{crusher}/diagnosis"]["post"] = Op("Start a diagnosis on the stored readings", "write", {c}, "202");
   paths["/api/v1/crushers/{crusher}/events"]["get"] =
       Op("Server-Sent Events: `reading` and `wear` as they are committed", "read",
