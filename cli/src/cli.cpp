@@ -13,6 +13,7 @@
 #include <system_error>
 
 #include "core/bundle.hpp"
+#include "core/cmdline.hpp"
 #include "core/reconstruction.hpp"
 #include "core/scan_correction.hpp"
 #include "core/time.hpp"
@@ -377,15 +378,12 @@ int Dem(const std::vector<std::string>& args, std::ostream& out) {
   if (stage != "case" && stage != "run" && stage != "map" && stage != "all")
     throw UsageError("--stage must be case, run, map or all (not '" + stage + "')");
   auto whole = [&](const std::string& key, int lo, int hi) {
-    const std::string v = o.Get(key);
+    std::string flag = key;
+    for (char& c : flag) c = c == '_' ? '-' : c;
     try {
-      size_t used = 0;
-      const int x = std::stoi(v, &used);
-      if (used != v.size() || x < lo || x > hi) throw std::out_of_range(key);
-      return x;
-    } catch (const std::exception&) {
-      throw UsageError("--" + key + " must be a whole number from " + std::to_string(lo) + " to " + std::to_string(hi) +
-                       " (not '" + v + "')");
+      return core::ParseInteger<int>(flag, o.Get(key), lo, hi);
+    } catch (const core::UsageError& e) {
+      throw UsageError(e.what());
     }
   };
   dem::RunOptions run;

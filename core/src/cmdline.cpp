@@ -1,5 +1,6 @@
 #include "core/cmdline.hpp"
 
+#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -72,15 +73,41 @@ bool ParseCommandLine(const std::vector<std::string>& args, const std::set<std::
   return true;
 }
 
-int64_t ParseWholeNumber(const std::string& name, const std::string& value) {
-  try {
-    size_t used = 0;
-    const long long v = std::stoll(value, &used);
-    if (used != value.size()) throw std::invalid_argument("trailing");
-    return v;
-  } catch (const std::exception&) {
-    throw UsageError("--" + name + " '" + value + "' is not a whole number");
+namespace {
+
+std::string Range(const std::string& lo, const std::string& hi) { return "[" + lo + ", " + hi + "]"; }
+
+// Whole decimal digits with an optional sign, no spaces: what std::stoll would also take after
+// leading blanks or before trailing junk is refused here.
+template <typename T>
+T ParseChecked(const std::string& name, const std::string& value, T min, T max) {
+  const std::string allowed = "allowed: " + Range(std::to_string(min), std::to_string(max));
+  const char* first = value.data();
+  const char* last = value.data() + value.size();
+  if (last - first > 1 && *first == '+' && first[1] != '-') ++first;  // from_chars takes no '+'
+  T v{};
+  const auto [end, ec] = std::from_chars(first, last, v);
+  if (ec == std::errc::result_out_of_range && end == last) {
+    throw UsageError("--" + name + " " + value + " is out of range (" + allowed + ")");
   }
+  if (value.empty() || ec != std::errc() || end != last || first == last) {
+    throw UsageError("--" + name + " '" + value + "' is not a whole number (" + allowed + ")");
+  }
+  if (v < min || v > max) throw UsageError("--" + name + " " + value + " is out of range (" + allowed + ")");
+  return v;
+}
+
+}  // namespace
+
+int64_t ParseWholeNumber(const std::string& name, const std::string& value, int64_t min, int64_t max) {
+  return ParseChecked<int64_t>(name, value, min, max);
+}
+
+uint64_t ParseUnsignedNumber(const std::string& name, const std::string& value, uint64_t min, uint64_t max) {
+  if (!value.empty() && value[0] == '-') {
+    throw UsageError("--" + name + " " + value + " is out of range (allowed: " + Range(std::to_string(min), std::to_string(max)) + ")");
+  }
+  return ParseChecked<uint64_t>(name, value, min, max);
 }
 
 double ParseNumber(const std::string& name, const std::string& value) {

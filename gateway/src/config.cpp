@@ -1,5 +1,8 @@
 #include "gateway/config.hpp"
 
+#include "core/cmdline.hpp"
+#include "gateway/messages.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <cmath>
@@ -13,18 +16,19 @@ namespace {
 
 using nlohmann::json;
 
-enum class Kind { kString, kInt, kPositiveInt, kSeconds };
+enum class Kind { kString, kInt, kSeconds };
 
 struct Option {
   const char* name;
   Kind kind;
   const char* help;
+  int64_t min = 0, max = 0;  ///< kInt: the allowed range
 };
 
 constexpr Option kOptions[] = {
     {"serial", Kind::kString, "coordinator serial port, pty or path (required)"},
-    {"baud", Kind::kInt, "serial baud rate (default 9600)"},
-    {"api-mode", Kind::kInt, "XBee API mode of the coordinator, 1 or 2 (default 2)"},
+    {"baud", Kind::kInt, "serial baud rate (default 9600)", 1200, 921600},
+    {"api-mode", Kind::kInt, "XBee API mode of the coordinator, 1 or 2 (default 2)", 1, 2},
     {"broker", Kind::kString, "MQTT broker URI, tcp://host:1883 or ssl://host:8883 (required)"},
     {"site", Kind::kString, "site id, topic level (required)"},
     {"crusher", Kind::kString, "crusher id, topic level (required)"},
@@ -33,9 +37,9 @@ constexpr Option kOptions[] = {
     {"password", Kind::kString, "MQTT password (requires --username)"},
     {"tls-ca", Kind::kString, "CA certificate file for ssl:// brokers"},
     {"gateway-id", Kind::kString, "gateway id in messages and MQTT client id (default gw-HOSTNAME)"},
-    {"spool-max-records", Kind::kPositiveInt, "spool capacity in records (default 1000000)"},
-    {"window", Kind::kPositiveInt, "records per sensor awaiting a commit ack (default 1: strict order)"},
-    {"max-devices", Kind::kPositiveInt, "device registry entries at most; new radios beyond are not registered (default 1000)"},
+    {"spool-max-records", Kind::kInt, "spool capacity in records (default 1000000)", 1, 1'000'000'000},
+    {"window", Kind::kInt, "records per sensor awaiting a commit ack (default 1: strict order)", 1, static_cast<int64_t>(kMaxCommitAckSeqs)},
+    {"max-devices", Kind::kInt, "device registry entries at most; new radios beyond are not registered (default 1000)", 1, 1'000'000},
     {"republish-after", Kind::kSeconds, "seconds before an unconfirmed record is republished (default 30)"},
     {"stats-interval", Kind::kSeconds, "seconds between gateway/stats messages (default 60)"},
     {"reconnect-min", Kind::kSeconds, "first reconnect delay, seconds (default 1)"},
@@ -56,17 +60,14 @@ const Option* FindOption(std::string name) {
 void Assign(Config* c, const std::string& name, const std::string& text, const std::string& where) {
   const Option* opt = FindOption(name);
   if (!opt) throw ConfigError(where + ": unknown option '" + name + "' (see --help)");
-  long long integer = 0;
+  int64_t integer = 0;
   double seconds = 0;
-  if (opt->kind == Kind::kInt || opt->kind == Kind::kPositiveInt) {
-    size_t used = 0;
+  if (opt->kind == Kind::kInt) {
     try {
-      integer = std::stoll(text, &used);
-    } catch (const std::exception&) {
-      used = 0;
+      integer = core::ParseWholeNumber(opt->name, text, opt->min, opt->max);  // never truncated into range
+    } catch (const core::UsageError& e) {
+      throw ConfigError(where.rfind("--", 0) == 0 ? std::string(e.what()) : where + ": " + e.what());
     }
-    if (used == 0 || used != text.size()) throw ConfigError(where + ": '" + opt->name + "' must be an integer, got '" + text + "'");
-    if (opt->kind == Kind::kPositiveInt && integer < 1) throw ConfigError(where + ": '" + opt->name + "' must be at least 1, got " + text);
   } else if (opt->kind == Kind::kSeconds) {
     size_t used = 0;
     try {

@@ -467,7 +467,8 @@ void HttpApi::Impl::Routes() {
 
   svr.Get("/api/v1/rejected", [this](const httplib::Request& req, httplib::Response& res) {
     int limit = 100;
-    if (req.has_param("limit")) limit = std::clamp(std::atoi(req.get_param_value("limit").c_str()), 1, 1000);
+    std::string error;
+    if (!WholeNumberParam(req.params, "limit", 1, 1000, &limit, &error)) return Error(res, 400, error);
     ordered_json list = ordered_json::array();
     std::lock_guard<std::mutex> lock(*ctx.read_mutex);
     for (const auto& r : ctx.read->RejectedMessages(limit)) {

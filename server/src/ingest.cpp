@@ -8,6 +8,7 @@
 #include <tuple>
 
 #include "core/time.hpp"
+#include "gateway/messages.hpp"
 
 namespace lw::server {
 namespace {
@@ -261,6 +262,26 @@ Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t
 std::string CommitAckJson(const Ack& ack, const std::string& time) {
   const json payload = {{"sensor", ack.sensor}, {"seqs", ack.seqs}, {"time", time}};
   return payload.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+std::vector<std::string> CommitAckMessages(const Ack& ack, const std::string& time) {
+  std::vector<std::string> out;
+  Ack part{ack.site, ack.crusher, ack.sensor, {}};
+  const size_t empty = CommitAckJson(part, time).size();
+  if (empty + 10 > gateway::kMaxCommitAckBytes) return out;  // not even one seq fits
+  size_t bytes = empty;
+  for (const int64_t seq : ack.seqs) {
+    const size_t add = std::to_string(seq).size() + (part.seqs.empty() ? 0 : 1);  // digits and a comma
+    if (part.seqs.size() == gateway::kMaxCommitAckSeqs || bytes + add > gateway::kMaxCommitAckBytes) {
+      out.push_back(CommitAckJson(part, time));
+      part.seqs.clear();
+      bytes = empty;
+    }
+    bytes += std::to_string(seq).size() + (part.seqs.empty() ? 0 : 1);
+    part.seqs.push_back(seq);
+  }
+  if (!part.seqs.empty() || out.empty()) out.push_back(CommitAckJson(part, time));
+  return out;
 }
 
 Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s)

@@ -11,6 +11,11 @@
 #endif
 
 namespace lw::server {
+namespace {
+constexpr int64_t kMaxWearIntervalMs = 86'400'000;  // a day
+constexpr int64_t kMaxBatch = 1'000'000;
+constexpr int64_t kMaxCommitDelayMs = 1000;
+}  // namespace
 
 std::string ServerHelp() {
   return R"(linerwatch-server: readings over MQTT -> SQLite -> live global wear, forecasts, REST, dashboard.
@@ -67,9 +72,9 @@ ServerOptions ParseServerOptions(const std::vector<std::string>& args) {
         start = comma + 1;
       }
     }
-    else if (name == "wear-interval-ms") o.wear_interval_ms = core::ParseWholeNumber(name, value);
-    else if (name == "batch-max") o.batch_max = core::ParseWholeNumber(name, value);
-    else if (name == "commit-delay-ms") o.commit_delay_ms = core::ParseWholeNumber(name, value);
+    else if (name == "wear-interval-ms") o.wear_interval_ms = core::ParseWholeNumber(name, value, 0, kMaxWearIntervalMs);
+    else if (name == "batch-max") o.batch_max = core::ParseWholeNumber(name, value, 1, kMaxBatch);
+    else if (name == "commit-delay-ms") o.commit_delay_ms = core::ParseWholeNumber(name, value, 0, kMaxCommitDelayMs);
     else throw core::UsageError("unknown option --" + name + " (see --help)");
   });
   if (!go) {
@@ -85,11 +90,7 @@ ServerOptions ParseServerOptions(const std::vector<std::string>& args) {
   }
   const size_t colon = o.http.rfind(':');
   if (colon == std::string::npos || colon == 0) throw core::UsageError("--http '" + o.http + "' must be HOST:PORT");
-  const int64_t port = core::ParseWholeNumber("http", o.http.substr(colon + 1));
-  if (port < 0 || port > 65535) throw core::UsageError("--http port must be in [0, 65535]");
-  if (o.wear_interval_ms < 0) throw core::UsageError("--wear-interval-ms must be >= 0");
-  if (o.batch_max < 1) throw core::UsageError("--batch-max must be at least 1");
-  if (o.commit_delay_ms < 0 || o.commit_delay_ms > 1000) throw core::UsageError("--commit-delay-ms must be in [0, 1000]");
+  (void)core::ParseWholeNumber("http", o.http.substr(colon + 1), 0, 65535);  // the port
   if (o.client_id.empty() || o.topic_root.empty()) throw core::UsageError("--client-id and --topic-root must not be empty");
   return o;
 }

@@ -1,5 +1,6 @@
 #include "server/query.hpp"
 
+#include <charconv>
 #include <stdexcept>
 
 #include "core/time.hpp"
@@ -27,23 +28,29 @@ bool TimeParam(const QueryParams& params, const char* name, int64_t* out, std::s
 
 }  // namespace
 
+bool WholeNumberParam(const QueryParams& params, const char* name, int min, int max, int* out, std::string* error) {
+  const std::string* v = Param(params, name);
+  if (!v) return true;
+  const std::string range = "[" + std::to_string(min) + ", " + std::to_string(max) + "]";
+  int x = 0;
+  const char* end = v->data() + v->size();
+  const auto [ptr, ec] = std::from_chars(v->data(), end, x);
+  if (v->empty() || ptr != end || (ec != std::errc() && ec != std::errc::result_out_of_range)) {
+    *error = std::string(name) + "='" + *v + "' is not a whole number in " + range;
+    return false;
+  }
+  if (ec == std::errc::result_out_of_range || x < min || x > max) {
+    *error = std::string(name) + "=" + *v + " must be in " + range;
+    return false;
+  }
+  *out = x;
+  return true;
+}
+
 std::optional<ReadingsQuery> ParseReadingsQuery(const QueryParams& params, std::string* error) {
   ReadingsQuery q;
   if (!TimeParam(params, "from", &q.from_s, error) || !TimeParam(params, "to", &q.to_s, error)) return std::nullopt;
-  if (const std::string* v = Param(params, "limit")) {
-    try {
-      size_t used = 0;
-      q.limit = std::stoi(*v, &used);
-      if (used != v->size()) throw std::invalid_argument("");
-    } catch (const std::exception&) {
-      *error = "limit='" + *v + "' is not a whole number";
-      return std::nullopt;
-    }
-    if (q.limit < 1 || q.limit > 5000) {
-      *error = "limit must be in [1, 5000]";
-      return std::nullopt;
-    }
-  }
+  if (!WholeNumberParam(params, "limit", 1, 5000, &q.limit, error)) return std::nullopt;
   if (const std::string* v = Param(params, "cursor")) q.cursor = *v;
   if (!q.cursor.empty()) {
     try {

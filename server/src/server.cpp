@@ -3,10 +3,12 @@
 #include "core/sd_notify.hpp"
 
 #include <poll.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <condition_variable>
+#include <filesystem>
 #include <thread>
 #include <fstream>
 #include <map>
@@ -54,6 +56,98 @@ class Logger {
   std::mutex mutex_;
 };
 
+constexpr int64_t kMinFreeBytes = 8 << 20;  // SQLite's WAL grows to ~4 MB; docs/server.md
+
+/// Bytes an unprivileged writer may still use on the database's file system; -1 when unknown.
+int64_t FreeBytes(const std::string& db) {
+  std::filesystem::path dir = std::filesystem::path(db).parent_path();
+  if (dir.empty()) dir = ".";
+  struct statvfs v {};
+  if (::statvfs(dir.c_str(), &v) != 0) return -1;
+  return static_cast<int64_t>(v.f_bavail) * static_cast<int64_t>(v.f_frsize);
+}
+
+std::string DiskFull(const std::string& db, int64_t free) {
+  return "disk full: " + std::to_string(free) + " bytes free for " + db + " (the server needs at least " +
+         std::to_string(kMinFreeBytes >> 20) + " MB)";
+}
+
+/// The REST API's context over these parts (both the normal and the read-only start use it).
+ApiContext MakeApiContext(const ServerOptions& o, const Registry& registry, Store& read, std::mutex& read_mutex, WearService& wear,
+                          Ingestor& ingestor, EventBus& events, const TokenStore& tokens) {
+  ApiContext ctx;
+  ctx.registry = &registry;
+  ctx.read = &read;
+  ctx.read_mutex = &read_mutex;
+  ctx.wear = &wear;
+  ctx.ingestor = &ingestor;
+  ctx.events = &events;
+  ctx.tokens = &tokens;
+  ctx.web_dir = o.web_dir;
+  ctx.allowed_hosts = o.allowed_hosts;
+  ctx.allowed_hosts.push_back(o.http.substr(0, o.http.rfind(':')));  // the name it was told to listen on
+  return ctx;
+}
+
+/// Binds --http and starts serving; returns "http://host:port/" (port 0: the one picked).
+std::string StartApi(HttpApi& api, const ServerOptions& o) {
+  const size_t colon = o.http.rfind(':');
+  const int port = api.Bind(o.http.substr(0, colon), std::stoi(o.http.substr(colon + 1)));
+  api.Start();
+  return "http://" + o.http.substr(0, colon) + ":" + std::to_string(port) + "/";
+}
+
+/// A database that cannot be opened for writing because its file system is full: instead of exiting
+/// (and being restarted in a loop), serve what is stored read-only, report /healthz "degraded" with
+/// the reason, take nothing from the broker (readings wait there and in the gateways' spools, none is
+/// acknowledged; REST writes get 503) and retry every few seconds. Returns true once the database
+/// opens for writing, false when stopped first. Any other failure to open is thrown as before.
+bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& stop, Logger& log, const Registry& registry,
+                             const TokenStore& tokens) {
+  std::string reason;
+  try {
+    Store probe(o.db);
+    return true;
+  } catch (const std::exception& e) {
+    const int64_t free = FreeBytes(o.db);
+    if (free < 0 || free >= kMinFreeBytes) throw;
+    reason = DiskFull(o.db, free);
+    log(reason + ": " + e.what() + "; serving stored data read-only and taking no readings until space returns");
+  }
+  std::unique_ptr<Store> read;
+  try {
+    read = Store::OpenReadOnly(o.db);
+  } catch (const std::exception& e) {
+    log("read-only: " + std::string(e.what()) + "; serving no stored data");
+    read = std::make_unique<Store>(":memory:");  // empty, in memory: the API answers, nothing on disk
+  }
+  std::mutex read_mutex;
+  Ingestor refusing(*read, registry, [] { return WallMs() / 1000; });  // its Commit throws: 503, not stored
+  WearService wear(registry, *read, read_mutex);
+  EventBus events;
+  std::mutex reason_mutex;
+  ApiContext ctx = MakeApiContext(o, registry, *read, read_mutex, wear, refusing, events, tokens);
+  ctx.health = [&] {
+    std::lock_guard<std::mutex> lock(reason_mutex);
+    return nlohmann::ordered_json{{"status", "degraded"}, {"reason", reason}, {"broker", "not subscribed (disk full)"}};
+  };
+  HttpApi api(ctx);
+  log("listening on " + StartApi(api, o) + " (read-only: " + reason + ")");
+  for (int tick = 0; !stop; ++tick) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    if (tick % 25 != 24) continue;  // every 5 s
+    try {
+      Store probe(o.db);
+      log("database " + o.db + " writable again: leaving read-only mode");
+      return true;
+    } catch (const std::exception&) {
+      std::lock_guard<std::mutex> lock(reason_mutex);
+      reason = DiskFull(o.db, FreeBytes(o.db));
+    }
+  }
+  return false;
+}
+
 }  // namespace
 
 void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostream& log_stream) {
@@ -76,6 +170,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   TokenStore tokens;
   if (!o.tokens.empty()) tokens = TokenStore::Load(o.tokens);
 
+  if (!WaitForWritableDatabase(o, stop, log, *registry, tokens)) return;
   Store write(o.db);
   Store read(o.db);
   std::mutex read_mutex;
@@ -118,33 +213,25 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   gateway::PahoLink link(lo);
   std::atomic<bool> connected{false};
 
-  ApiContext ctx;
-  ctx.registry = registry.get();
-  ctx.read = &read;
-  ctx.read_mutex = &read_mutex;
-  ctx.wear = &wear;
-  ctx.ingestor = &ingestor;
-  ctx.events = &events;
+  ApiContext ctx = MakeApiContext(o, *registry, read, read_mutex, wear, ingestor, events, tokens);
   ctx.diagnosis = &diagnosis;
-  ctx.tokens = &tokens;
-  ctx.web_dir = o.web_dir;
   ctx.health = [&] {
     const IngestCounters c = ingestor.Counters();
-    return nlohmann::ordered_json{{"broker", connected ? "connected" : "disconnected"},
-                                  {"readings_stored", c.stored},
-                                  {"duplicates", c.duplicates},
-                                  {"rejected", c.rejected},
-                                  {"crusher_errors", errors}};
+    nlohmann::ordered_json j{{"broker", connected ? "connected" : "disconnected"},
+                             {"readings_stored", c.stored},
+                             {"duplicates", c.duplicates},
+                             {"rejected", c.rejected},
+                             {"crusher_errors", errors}};
+    // Batches fail (and are not acked) once the disk fills: say why before the gateways' spools grow.
+    if (const int64_t free = FreeBytes(o.db); free >= 0 && free < kMinFreeBytes) {
+      j["status"] = "degraded";
+      j["reason"] = DiskFull(o.db, free);
+    }
+    return j;
   };
   ctx.after_ingest = on_committed;
-  const size_t colon = o.http.rfind(':');
-  ctx.allowed_hosts = o.allowed_hosts;
-  ctx.allowed_hosts.push_back(o.http.substr(0, colon));  // the name it was told to listen on
   HttpApi api(ctx);
-  const int port = api.Bind(o.http.substr(0, colon), std::stoi(o.http.substr(colon + 1)));
-  api.Start();
-  log("listening on http://" + o.http.substr(0, colon) + ":" + std::to_string(port) + "/ (REST /api/v1, dashboard " +
-      (o.web_dir.empty() ? std::string("not built") : o.web_dir) + ")");
+  log("listening on " + StartApi(api, o) + " (REST /api/v1, dashboard " + (o.web_dir.empty() ? std::string("not built") : o.web_dir) + ")");
   if (tokens.enabled()) log("bearer tokens required on /api");
   // Ready for systemd (Type=notify): database open, crushers loaded, HTTP serving. The broker is
   // connected (and reconnected) by the loop below.
@@ -244,7 +331,9 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       }
       const std::string when = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(NowSeconds(o.clock_file))));
       for (const Ack& a : r.acks) {
-        link.Publish({root + a.site + "/" + a.crusher + "/sensors/" + a.sensor + "/committed", CommitAckJson(a, when), 1, false});
+        for (std::string& m : CommitAckMessages(a, when)) {
+          link.Publish({root + a.site + "/" + a.crusher + "/sensors/" + a.sensor + "/committed", std::move(m), 1, false});
+        }
       }
       on_committed(r);
     }

@@ -75,7 +75,24 @@ namespace {
 
 /// Creates the database file readable by its owner only (0600) before SQLite opens it: SQLite gives
 /// its -wal and -shm files the database file's mode. An existing file keeps its mode.
+/// `path` as an SQLite URI opening it read-only and immutable (no -wal/-shm written, no locks).
+std::string ImmutableUri(const std::string& path) {
+  std::string uri = "file:";
+  for (const char c : path) {
+    if (c == '%' || c == '?' || c == '#') {
+      static const char* kHex = "0123456789ABCDEF";
+      uri += '%';
+      uri += kHex[static_cast<unsigned char>(c) >> 4];
+      uri += kHex[static_cast<unsigned char>(c) & 15];
+    } else {
+      uri += c;
+    }
+  }
+  return uri + "?immutable=1";
+}
+
 void CreatePrivate(const std::string& path) {
+  if (path.empty() || path == ":memory:" || path.rfind("file:", 0) == 0) return;  // not a file name
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
   if (fd >= 0) ::close(fd);
 }
@@ -88,9 +105,10 @@ struct Store::Impl {
   Stmt rejected_seen, rejected_oldest, rejected_delete, rejected_totals, meta_get, meta_add, sites_list, site_bind;
   RejectedLimits limits;
   std::optional<std::pair<int64_t, int64_t>> rejected_size;  ///< (rows, bytes) of the rejected table
-  explicit Impl(const std::string& path, RejectedLimits l)
-      : db((CreatePrivate(path), path), "database"),
-        insert((Init(db), db),
+  Impl(const std::string& path, RejectedLimits l, bool read_only = false)
+      : db(read_only ? ImmutableUri(path) : (CreatePrivate(path), path), "database",
+           read_only ? SQLITE_OPEN_READONLY | SQLITE_OPEN_URI : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE),
+        insert((read_only ? CheckVersion(db) : Init(db), db),
                "INSERT INTO readings(crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload)"
                " VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10) ON CONFLICT DO NOTHING"),
         existing(db, "SELECT time, thickness_mm FROM readings WHERE crusher=?1 AND sensor=?2 AND seq=?3"),
@@ -123,6 +141,15 @@ struct Store::Impl {
         sites_list(db, "SELECT crusher, site FROM crusher_sites ORDER BY crusher"),
         site_bind(db, "INSERT INTO crusher_sites(crusher, site) VALUES(?1, ?2) ON CONFLICT(crusher) DO UPDATE SET site=?2"),
         limits(l) {}
+
+  static void CheckVersion(const Db& db) {
+    Stmt version(db, "PRAGMA user_version");
+    version.Step();
+    if (version.Int(0) != kSchemaVersion) {
+      throw std::runtime_error("database " + db.path() + ": schema version " + std::to_string(version.Int(0)) +
+                               ", not this server's (" + std::to_string(kSchemaVersion) + "): cannot be read without upgrading it");
+    }
+  }
 
   static void Init(const Db& db) {
     int64_t v = 0;
@@ -174,6 +201,10 @@ struct Store::Impl {
 
 Store::Store(const std::filesystem::path& path, RejectedLimits limits)
     : impl_(std::make_unique<Impl>(path.string(), limits)) {}
+Store::Store(const std::filesystem::path& path, ReadOnlyTag) : impl_(std::make_unique<Impl>(path.string(), RejectedLimits{}, true)) {}
+std::unique_ptr<Store> Store::OpenReadOnly(const std::filesystem::path& path) {
+  return std::unique_ptr<Store>(new Store(path, ReadOnlyTag{}));
+}
 Store::~Store() = default;
 
 std::vector<InsertOutcome> Store::Commit(const std::vector<StoredReading>& readings, const std::vector<Rejected>& rejected,

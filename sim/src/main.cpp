@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/cmdline.hpp"
 #include "run.hpp"
 #include "sim/campaign.hpp"
 
@@ -82,7 +83,7 @@ int Campaign(const std::vector<std::string>& args) {
         for (const auto& [k, val] : j.items()) {
           if (k == "out") out = val.get<std::string>();
           else if (k == "truth") truth = val.get<std::string>();
-          else if (k == "seed") seed = val.get<uint64_t>();
+          else if (k == "seed") seed = lw::core::ParseInteger<uint64_t>("seed", val.is_number() ? val.dump() : val.get<std::string>());
           else if (k == "preset") preset = val.get<std::string>();
           else if (k == "effect") for (const auto& e : val) effects.push_back(ParseEffect(e.get<std::string>()));
           else if (k == "fault") for (const auto& f : val) faults.push_back(ParseFault(f.get<std::string>()));
@@ -90,12 +91,12 @@ int Campaign(const std::vector<std::string>& args) {
         }
       } else if (a == "--out") out = v;
       else if (a == "--truth") truth = v;
-      else if (a == "--seed") seed = std::stoull(v);
-      else if (a == "--days") config["days"] = std::stod(v);
+      else if (a == "--seed") seed = lw::core::ParseInteger<uint64_t>("seed", v);
+      else if (a == "--days") config["days"] = lw::core::ParseNumber("days", v);
       else if (a == "--preset") preset = v;
       else if (a == "--effect") effects.push_back(ParseEffect(v));
       else if (a == "--fault") faults.push_back(ParseFault(v));
-      else if (a == "--scan-day") config["scan_day"] = std::stod(v);
+      else if (a == "--scan-day") config["scan_day"] = lw::core::ParseNumber("scan-day", v);
       else return Fail("campaign: unknown option " + a + " (see --help)");
     }
     if (out.empty()) return Fail("campaign: --out DIR is required");

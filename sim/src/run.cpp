@@ -116,9 +116,7 @@ void Assign(RunOptions* o, std::string name, const std::string& v) {
     o->latency_ms = Number(name, v);
     if (!(o->latency_ms >= 0 && o->latency_ms <= 60000)) throw UsageError("--latency-ms: must be 0..60000, got " + v);
   } else if (name == "seed") {
-    const double s = Number(name, v);
-    if (s < 0 || s != std::floor(s)) throw UsageError("--seed: must be a whole number, got " + v);
-    o->seed = static_cast<uint64_t>(s);
+    o->seed = core::ParseInteger<uint64_t>(name, v);
   } else if (name == "ack-wait") {
     o->ack_wait_s = Number(name, v);
     if (!(o->ack_wait_s > 0 && o->ack_wait_s <= 60)) throw UsageError("--ack-wait: must be in (0, 60], got " + v);

@@ -76,6 +76,11 @@ struct Ack {
 /// (what the gateway's ParseCommitAck reads). Text that is not UTF-8 is replaced, never thrown on.
 std::string CommitAckJson(const Ack& ack, const std::string& time);
 
+/// The commit ack as the messages the gateway accepts (docs/mqtt.md: at most 10,000 seqs and
+/// 64 KiB each): one CommitAckJson per slice of `ack.seqs`, in order. Empty when the sensor name
+/// alone makes a message too long (a topic level no gateway publishes: nothing it spooled to ack).
+std::vector<std::string> CommitAckMessages(const Ack& ack, const std::string& time);
+
 struct IngestResult {
   size_t stored = 0;
   size_t duplicates = 0;

@@ -11,6 +11,10 @@ namespace lw::server {
 /// Decoded query parameters, name -> value (cpp-httplib's Params); the first value of a name counts.
 using QueryParams = std::multimap<std::string, std::string>;
 
+/// Query parameter `name` as a whole number in [min, max]; `*out` is left alone when it is absent.
+/// Returns false and sets `*error` (the 400 message: the parameter, its value, the range) otherwise.
+bool WholeNumberParam(const QueryParams& params, const char* name, int min, int max, int* out, std::string* error);
+
 /// GET /api/v1/crushers/{id}/sensors/{sensor}/readings?from=&to=&limit=&cursor=
 struct ReadingsQuery {
   int64_t from_s = std::numeric_limits<int64_t>::min();

@@ -61,6 +61,10 @@ class Store {
   /// (unreadable, not a database, newer schema).
   /// A new database file is created with mode 0600.
   explicit Store(const std::filesystem::path& path, RejectedLimits limits = {});
+  /// Opens an existing database read-only, writing nothing, not even SQLite's -wal/-shm files (it
+  /// is opened immutable: what the database file holds, without a -wal file left by a crash). For
+  /// serving reads while the disk is full; every write throws.
+  static std::unique_ptr<Store> OpenReadOnly(const std::filesystem::path& path);
   ~Store();
   Store(const Store&) = delete;
   Store& operator=(const Store&) = delete;
@@ -99,6 +103,8 @@ class Store {
   std::optional<std::pair<int64_t, std::string>> LatestDiagnosis(const std::string& crusher);
 
  private:
+  struct ReadOnlyTag {};
+  Store(const std::filesystem::path& path, ReadOnlyTag);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -230,6 +230,17 @@ TEST(HttpApi, BadRequestsGetJsonErrorsAndNothingStoredIsLost) {
   LONGS_EQUAL(before, Get(c, a.Base())["counters"]["readings_stored"].get<long>());
   const json rejected = Get(c, "/api/v1/rejected");
   LONGS_EQUAL(1, rejected["total"].get<long>());
+  // /rejected?limit= went through atoi and a clamp: "abc" listed 1 message, 4294967297 (atoi's
+  // undefined overflow) whatever it wrapped to. It is checked like the readings query's limit.
+  STRCMP_EQUAL("limit='abc' is not a whole number in [1, 1000]",
+               Get(c, "/api/v1/rejected?limit=abc", 400)["error"].get<std::string>().c_str());
+  STRCMP_EQUAL("limit=0 must be in [1, 1000]", Get(c, "/api/v1/rejected?limit=0", 400)["error"].get<std::string>().c_str());
+  STRCMP_EQUAL("limit=4294967297 must be in [1, 1000]",
+               Get(c, "/api/v1/rejected?limit=4294967297", 400)["error"].get<std::string>().c_str());
+  Get(c, "/api/v1/rejected?limit=1001", 400);
+  Get(c, "/api/v1/rejected?limit=1.5", 400);
+  LONGS_EQUAL(1, Get(c, "/api/v1/rejected?limit=1")["rejected"].size());
+  LONGS_EQUAL(1, Get(c, "/api/v1/rejected?limit=1000")["rejected"].size());
   const json doc = Get(c, "/api/v1/openapi.json");
   STRCMP_EQUAL("3.0.3", doc["openapi"].get<std::string>().c_str());
   CHECK(doc["paths"].contains("/api/v1/crushers/{crusher}/forecast"));

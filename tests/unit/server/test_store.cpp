@@ -62,6 +62,29 @@ TEST(Store, SurvivesReopenAndKeepsRejectedMessages) {
   STRCMP_EQUAL("malformed JSON", rej.at(0).reason.c_str());
 }
 
+// A server started on a full disk serves what it has from a read-only Store (docs/server.md, "Disk
+// full"): it reads the stored rows, writes nothing (no -wal/-shm file appears), every write throws.
+TEST(Store, ReadOnlyOpenReadsWhatIsStoredAndWritesNothing) {
+  {
+    Store s(db());
+    s.Commit({R("a", 1, 100, 90), R("a", 2, 200, 89)}, {{7, "t/x", "garbage", "malformed JSON"}});
+  }
+  std::error_code ec;
+  CHECK(!std::filesystem::exists(db() + "-wal", ec) && !std::filesystem::exists(db() + "-shm", ec));
+  const auto size = std::filesystem::file_size(db());
+  const auto s = Store::OpenReadOnly(db());
+  LONGS_EQUAL(2, s->CountReadings("c1"));
+  LONGS_EQUAL(1, s->CountRejected());
+  LONGS_EQUAL(2, s->Range("c1", "a", 0, 1000, 10, "").readings.size());
+  CHECK_THROWS(std::runtime_error, s->Commit({R("a", 3, 300, 88)}, {}));
+  LONGS_EQUAL(2, s->CountReadings("c1"));
+  CHECK(!std::filesystem::exists(db() + "-wal", ec) && !std::filesystem::exists(db() + "-shm", ec));
+  CHECK(std::filesystem::file_size(db()) == size);
+  // A file that is not there is not created.
+  CHECK_THROWS(std::runtime_error, Store::OpenReadOnly(dir.File("none.sqlite")));
+  CHECK(!std::filesystem::exists(dir.File("none.sqlite"), ec));
+}
+
 TEST(Store, PagesThroughARangeWithCursorsWithoutGapsOrRepeats) {
   Store s(db());
   std::vector<StoredReading> rs;
