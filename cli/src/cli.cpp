@@ -262,10 +262,7 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   // The latest scan at or before `at` corrects the map between the sensors (docs/diagnosis.md).
   std::string scan_line;
   if (!o.Flag("no_scan")) {
-    const core::Scan* latest = nullptr;
-    for (const core::Scan& sc : bundle.scans)
-      if (sc.date <= at.value_or(core::TimePoint::max())) latest = &sc;
-    if (latest) {
+    if (const core::Scan* latest = core::LatestScanAt(bundle.scans, at.value_or(core::TimePoint::max()))) {
       const core::ScanFaces sf = core::ProjectScanToFaces(bundle.map, *latest);
       const core::ScanCorrection c = core::ApplyScan(
           plan, sf, core::SensorWearAt(bundle.crusher, bundle.readings, latest->date, /*interval_centre=*/!o.Flag("lower_bound")));

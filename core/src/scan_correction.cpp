@@ -19,6 +19,13 @@ double Median(std::vector<double> v) {
 
 }  // namespace
 
+const Scan* LatestScanAt(const std::vector<Scan>& scans, TimePoint at) {
+  const Scan* latest = nullptr;
+  for (const Scan& s : scans)
+    if (s.date <= at && (!latest || s.date >= latest->date)) latest = &s;
+  return latest;
+}
+
 ScanFaces ProjectScanToFaces(const WearMap& map, const Scan& scan, double floor_mm) {
   const Eigen::Index n = static_cast<Eigen::Index>(map.face_count());
   ScanFaces out;

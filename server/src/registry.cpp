@@ -29,7 +29,61 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
       c->validation.warnings.push_back("dem_summary.json ignored: " + std::string(e.what()));
     }
   }
+  // Laser scans: each projected onto the map once. A scan that does not load is a warning (live wear
+  // goes on from the map and the sensors); one mostly off the map is applied where it covers.
+  if (std::filesystem::is_directory(folder / "scans")) {
+    std::vector<std::filesystem::path> files;
+    for (const auto& e : std::filesystem::directory_iterator(folder / "scans"))
+      if (e.path().extension() == ".xyz") files.push_back(e.path());
+    std::sort(files.begin(), files.end());
+    for (const auto& f : files) {
+      try {
+        CrusherScan s;
+        s.scan = core::LoadScan(f);
+        s.faces = core::ProjectScanToFaces(c->map, s.scan);
+        if (s.faces.points_used < s.faces.points_total / 2) {
+          c->validation.warnings.push_back(s.scan.file + ": only " + std::to_string(s.faces.points_used) + " of " +
+                                           std::to_string(s.faces.points_total) + " points lie on the mapped surface");
+        }
+        s.scan.points.clear();
+        s.scan.points.shrink_to_fit();
+        c->scans.push_back(std::move(s));
+      } catch (const core::InputError& e) {  // names the file, the line and the rule
+        c->validation.warnings.push_back(std::string(e.what()) + " (scan ignored)");
+      } catch (const std::exception& e) {
+        c->validation.warnings.push_back("scans/" + f.filename().string() + ": " + e.what() + " (scan ignored)");
+      }
+    }
+    std::stable_sort(c->scans.begin(), c->scans.end(), [](const CrusherScan& a, const CrusherScan& b) { return a.scan.date < b.scan.date; });
+  }
   return c;
+}
+
+std::shared_ptr<const ScannedPlan> Crusher::PlanWithScan(const std::vector<core::Reading>& readings, core::TimePoint at) const {
+  const CrusherScan* latest = nullptr;
+  size_t index = 0;
+  for (size_t k = 0; k < scans.size(); ++k)
+    if (scans[k].scan.date <= at) {
+      latest = &scans[k];
+      index = k;
+    }
+  if (!latest) return nullptr;
+  std::vector<core::SensorWear> wear = core::SensorWearAt(config, readings, latest->scan.date);
+  std::lock_guard<std::mutex> lock(scan_mutex_);
+  const auto same = [&](const ScannedPlan& p) {
+    if (p.scan != index || p.wear_at_scan.size() != wear.size()) return false;
+    for (size_t k = 0; k < wear.size(); ++k)
+      if (p.wear_at_scan[k].sensor_id != wear[k].sensor_id || p.wear_at_scan[k].wear_mm != wear[k].wear_mm) return false;
+    return true;
+  };
+  if (scanned_ && same(*scanned_)) return scanned_;
+  auto p = std::make_shared<ScannedPlan>();
+  p->scan = index;
+  p->plan = plan;
+  p->correction = core::ApplyScan(p->plan, latest->faces, wear);
+  p->wear_at_scan = std::move(wear);
+  scanned_ = p;
+  return p;
 }
 
 std::unique_ptr<Registry> Registry::Load(const std::filesystem::path& dir, std::vector<std::string>* errors) {

@@ -48,7 +48,10 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   st.sensor_wear = core::SensorWearAt(crusher.config, usable, st.time);
   // The reading each sensor's wear came from: the same selection SensorWearAt makes.
   for (const size_t i : core::LatestReadingIndices(crusher.config, usable, st.time)) st.used.push_back(*source[i]);
-  st.reconstruction = core::Reconstruct(crusher.plan, st.sensor_wear);
+  // The crusher's newest laser scan corrects the map between the sensors (even when it is dated after
+  // the latest reading: readings arrive late, a scan is the newest measurement of the pattern).
+  st.scan = crusher.PlanWithScan(usable, core::TimePoint::max());
+  st.reconstruction = core::Reconstruct(st.scan && st.scan->correction.detail.empty() ? st.scan->plan : crusher.plan, st.sensor_wear);
   st.has_wear = true;
   for (const core::SensorInfo& s : crusher.config.sensors) {
     st.sensor_forecasts.push_back(core::ForecastSensor(crusher.config, s, usable));
@@ -124,6 +127,25 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
                     {"smoothing_error_relative", Round(m.smoothing_error_rel, 1e-3)},
                     {"outlier_faces_capped", m.outlier_faces},
                     {"windows", c.map.windows}};
+  if (st.scan) {
+    const CrusherScan& sc = c.scans[st.scan->scan];
+    const core::ScanCorrection& k = st.scan->correction;
+    ordered_json scan = {{"file", sc.scan.file},
+                         {"date", core::FormatIsoTime(sc.scan.date)},
+                         {"points_used", sc.faces.points_used},
+                         {"points_total", sc.faces.points_total},
+                         {"applied", k.detail.empty()}};
+    if (k.detail.empty()) {
+      scan["faces_corrected"] = k.faces_corrected;
+      scan["median_ratio"] = Num(k.median_ratio, 1e-3);
+      scan["map_model_error_relative"] = Num(k.map_model_error_rel, 1e-3);
+    } else {
+      scan["detail"] = k.detail;
+    }
+    j["scan"] = scan;
+  } else {
+    j["scan"] = nullptr;
+  }
   j["readings_used"] = ReadingsUsedJson(st);
   j["note"] = "a reading n means thickness in [n, n+1) mm; estimates use n + 0.5; bands are +/-2 sd (map noise, "
               "sensor quantisation, row scale); remaining thickness is never below 0 (worn through)";

@@ -37,6 +37,10 @@ struct ScanCorrection {
   std::string detail;       ///< why nothing was done (empty when applied)
 };
 
+/// The latest scan at or before `at` of `scans` (sorted by date, as LoadScans returns them); nullptr
+/// when there is none.
+const Scan* LatestScanAt(const std::vector<Scan>& scans, TimePoint at);
+
 /// Corrects `plan` (its per-face and per-sensor intensities and their errors) with a scan, given
 /// the sensors' wear at the scan's date (SensorWearAt(crusher, readings, scan.date)).
 ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const std::vector<SensorWear>& wear_at_scan);

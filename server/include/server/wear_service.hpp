@@ -21,6 +21,7 @@ struct CrusherState {
   std::vector<StoredReading> used;           ///< the reading each sensor's wear came from
   std::vector<core::SensorWear> sensor_wear;
   core::Reconstruction reconstruction;
+  std::shared_ptr<const ScannedPlan> scan;   ///< the scan applied (nullptr: the map alone)
   std::vector<core::SensorForecast> sensor_forecasts;
   std::vector<core::RowForecast> row_forecasts;
   int64_t version = 0;

@@ -2,6 +2,7 @@
 #include <filesystem>
 
 #include "gateway/messages.hpp"
+#include "core/scan_correction.hpp"
 #include "server/ingest.hpp"
 #include "server/wear_service.hpp"
 #include "unit/server/server_fixture.hpp"
@@ -141,7 +142,13 @@ TEST(Ingest, WearFromStoredReadingsEqualsTheOfflineReconstruction) {
   Store store(dir.File("db.sqlite"));
   Ingestor ingestor(store, *registry, [] { return Now(); });
   ingestor.Ingest(lw::test::Messages(Folder().bundle));
-  const Crusher& c = *registry->Find(Folder().id());
+  // The same crusher folder without its scan: the map alone.
+  const std::filesystem::path plain = dir.File("plain");
+  std::filesystem::create_directories(plain);
+  for (const char* f : {"crusher.json", "wear_map.vtk"}) std::filesystem::copy_file(Folder().folder + "/" + f, plain / f);
+  const auto crusher = Registry::LoadCrusher(plain);
+  const Crusher& c = *crusher;
+  CHECK_TRUE(c.scans.empty());
   const CrusherState st = ComputeCrusherState(c, store.All(Folder().id()));
   CHECK_TRUE(st.has_wear);
   const auto& b = Folder().bundle;
@@ -151,10 +158,46 @@ TEST(Ingest, WearFromStoredReadingsEqualsTheOfflineReconstruction) {
   DOUBLES_EQUAL(offline.min_thickness_mm, st.reconstruction.min_thickness_mm, 1e-9);
   LONGS_EQUAL(offline.remaining_mm.size(), st.reconstruction.remaining_mm.size());
   DOUBLES_EQUAL(0, (offline.remaining_mm - st.reconstruction.remaining_mm).cwiseAbs().maxCoeff(), 1e-9);
+  CHECK(st.scan == nullptr);
   const auto j = WearJson(st, false);
+  CHECK_TRUE(j["scan"].is_null());
   STRCMP_EQUAL(c.map.sha256.c_str(), j["map_sha256"].get<std::string>().c_str());
   LONGS_EQUAL(b.crusher.sensors.size(), j["readings_used"].size());
   CHECK_FALSE(j.contains("remaining_mm"));
+}
+
+// The crusher folder's laser scan (scans/) corrects live wear between the sensors, as
+// `linerwatch reconstruct` does: the same plan, the same numbers; the wear JSON names the scan.
+TEST(Ingest, LiveWearAppliesTheLatestScanAsReconstructDoes) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  Ingestor ingestor(store, *registry, [] { return Now(); });
+  ingestor.Ingest(lw::test::Messages(Folder().bundle));
+  const Crusher& c = *registry->Find(Folder().id());
+  const auto& b = Folder().bundle;
+  CHECK_FALSE(b.scans.empty());
+  LONGS_EQUAL(b.scans.size(), c.scans.size());
+  const CrusherState st = ComputeCrusherState(c, store.All(Folder().id()));
+  CHECK(st.scan != nullptr);
+  CHECK_TRUE(st.scan->correction.detail.empty());
+  CHECK(st.scan->correction.faces_corrected > 0);
+  const auto last = std::max_element(b.readings.begin(), b.readings.end(),
+                                     [](const auto& x, const auto& y) { return x.time < y.time; })->time;
+  const lw::core::Scan* scan = lw::core::LatestScanAt(b.scans, lw::core::TimePoint::max());
+  CHECK(scan != nullptr);
+  lw::core::ReconstructionPlan plan = lw::core::PrepareReconstruction(b.crusher, b.map);
+  const lw::core::Reconstruction unscanned = lw::core::Reconstruct(plan, lw::core::SensorWearAt(b.crusher, b.readings, last));
+  lw::core::ApplyScan(plan, lw::core::ProjectScanToFaces(b.map, *scan), lw::core::SensorWearAt(b.crusher, b.readings, scan->date));
+  const lw::core::Reconstruction scanned = lw::core::Reconstruct(plan, lw::core::SensorWearAt(b.crusher, b.readings, last));
+  DOUBLES_EQUAL(scanned.min_thickness_mm, st.reconstruction.min_thickness_mm, 1e-9);
+  DOUBLES_EQUAL(0, (scanned.remaining_mm - st.reconstruction.remaining_mm).cwiseAbs().maxCoeff(), 1e-9);
+  // The scan moved the live map (else this test could not tell the two apart).
+  CHECK((unscanned.remaining_mm - st.reconstruction.remaining_mm).cwiseAbs().maxCoeff() > 0.5);
+  const auto j = WearJson(st, false);
+  STRCMP_EQUAL(scan->file.c_str(), j["scan"]["file"].get<std::string>().c_str());
+  CHECK_TRUE(j["scan"]["applied"].get<bool>());
+  // Cached: the same readings give the same corrected plan, not a new one.
+  CHECK(ComputeCrusherState(c, store.All(Folder().id())).scan == st.scan);
 }
 
 TEST(Ingest, FaultReadingsAreStoredButNotUsedForWear) {

@@ -33,3 +33,27 @@ TEST(Registry, BrokenDemSummaryIsAWarning) {
   for (const auto& w : c->validation.warnings) warned |= w.find("dem_summary.json ignored") != std::string::npos;
   CHECK(warned);
 }
+
+// Laser scans in scans/ are projected onto the map at load; a scan that does not load is a warning
+// naming the file and the rule, and the crusher is served without it.
+TEST(Registry, ScansAreLoadedSortedByDateAndABrokenOneIsAWarning) {
+  lw::test::CrusherFolder f(5, 3);
+  const auto good = Registry::LoadCrusher(f.folder);
+  LONGS_EQUAL(f.bundle.scans.size(), good->scans.size());
+  CHECK(!good->scans.empty());
+  CHECK(good->scans[0].faces.points_used > 0);
+  CHECK(good->scans[0].scan.points.empty());  // projected, not kept
+  std::ofstream(f.folder + "/scans/scan_2020-01-01.xyz") << "0.1 0.2\n";
+  std::ofstream(f.folder + "/scans/notes.txt") << "not a scan\n";
+  const auto c = Registry::LoadCrusher(f.folder);
+  LONGS_EQUAL(good->scans.size(), c->scans.size());
+  bool warned = false;
+  for (const auto& w : c->validation.warnings)
+    warned |= w.find("scans/scan_2020-01-01.xyz:1: expected three") != std::string::npos && w.find("scan ignored") != std::string::npos;
+  CHECK_TEXT(warned, "no warning naming the broken scan and its line");
+  // A later scan is the one live wear applies (sorted by date).
+  std::filesystem::copy_file(f.folder + "/" + f.bundle.scans.back().file, f.folder + "/scans/scan_2099-01-01.xyz");
+  const auto later = Registry::LoadCrusher(f.folder);
+  LONGS_EQUAL(good->scans.size() + 1, later->scans.size());
+  STRCMP_EQUAL("scans/scan_2099-01-01.xyz", later->scans.back().scan.file.c_str());
+}
