@@ -221,13 +221,16 @@ MapModel::Point MapModel::At(double z, double theta_deg) const {
     const Sums s = k.At(z, theta_deg, -1, -1);
     if (s.s0 > 0) {
       p.intensity = std::max(0.0, s.Value());
-      p.sd = std::sqrt(k.Variance(s, z, theta_deg, -1, -1, face_var) + std::pow(smoothing_error_rel * p.intensity, 2));
+      const double v = k.Variance(s, z, theta_deg, -1, -1, face_var);
+      p.sd = std::sqrt(v + std::pow(smoothing_error_rel * p.intensity, 2));
+      p.noise_sd = std::sqrt(v);
       if (local_ladder_m.size() > 1 && index) {
         // The same local scale as the faces get (Eq. 9's row scale sees the faces' averaging).
         const IciResult r = Ici(m, clean, local_ladder_m, bandwidth_arc_m, local_linear, *index, z, theta_deg, -1, -1, ref_var, local_gamma);
         if (std::isfinite(r.value) && r.level + 1 < local_ladder_m.size()) {
           p.intensity = std::max(0.0, r.value);
           p.sd = std::sqrt(2.0 * r.var);
+          p.noise_sd = std::sqrt(r.var);
         }
       }
       if (nrm && normal_index) {
@@ -256,6 +259,7 @@ MapModel::Point MapModel::At(double z, double theta_deg) const {
   }
   p.intensity = intensity[best];
   p.sd = intensity_sd[best];
+  p.noise_sd = intensity_noise_sd.size() == intensity_sd.size() ? intensity_noise_sd[best] : p.sd;
   p.normal_stress = normal_stress.size() ? normal_stress[best] : 0.0;
   p.faces = 1;
   return p;
@@ -268,6 +272,7 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   model.clean = map.wear.size() == n ? Eigen::VectorXd(map.wear.cwiseMax(0.0)) : Eigen::VectorXd::Zero(n);
   model.intensity = model.clean;
   model.intensity_sd = Eigen::VectorXd::Zero(n);
+  model.intensity_noise_sd = Eigen::VectorXd::Zero(n);
   if (map.has_normal_stress() && map.normal_stress.size() == n) model.normal_stress = map.normal_stress;
   if (n == 0) return model;
   const Eigen::VectorXd* nrm = model.normal_stress.size() ? &map.normal_stress : nullptr;
@@ -391,6 +396,7 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     model.bandwidth_m = 0;
     model.bandwidth_method = "none";
     for (Eigen::Index i = 0; i < n; ++i) model.intensity_sd[i] = std::sqrt(model.FaceVariance(pilot[i]));
+    model.intensity_noise_sd = model.intensity_sd;
     std::vector<double> cv;
     for (Eigen::Index i = 0; i < n; ++i)
       if (pilot[i] > 0) cv.push_back(std::sqrt(model.FaceVariance(pilot[i])) / pilot[i]);
@@ -499,6 +505,7 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     for (Eigen::Index i = 0; i < n; ++i) {
       const double v = k.Variance(sums[static_cast<size_t>(i)], map.z[i], map.theta_deg[i], map.radius[i], -1, var);
       model.intensity_sd[i] = std::sqrt(v + std::pow(model.smoothing_error_rel * model.intensity[i], 2));
+      model.intensity_noise_sd[i] = std::sqrt(v);
     }
   }
 
@@ -524,6 +531,7 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
       // Stopped below the top: the estimate's bias is bounded by about its own sd (that is where
       // the intervals stop intersecting), so its error is counted twice.
       model.intensity_sd[i] = std::sqrt(2.0 * r.var);
+      model.intensity_noise_sd[i] = std::sqrt(r.var);
     }
     for (Eigen::Index i = 0; i < n; ++i) model.face_var[i] = model.FaceVariance(model.intensity[i]);
   }

@@ -123,6 +123,11 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
   f.intensity = raw / f.intensity_median;
   f.rel_sd.resize(nf);
   for (Eigen::Index i = 0; i < nf; ++i) f.rel_sd[i] = std::min(1.0, f.model.RelSd(i));
+  f.rel_noise_sd.resize(nf);
+  for (Eigen::Index i = 0; i < nf; ++i) {
+    const double v = f.model.intensity[i];
+    f.rel_noise_sd[i] = v > 0 && f.model.intensity_noise_sd.size() == nf ? std::min(1.0, f.model.intensity_noise_sd[i] / v) : f.rel_sd[i];
+  }
   if (bundle.map_validation.looks_truncated) f.quantum_raw = 1e-6;  // "%f": six decimals
 
   std::vector<double> sizes;
@@ -239,7 +244,10 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
   // The map's own noise: the model's noise law (from wear_stderr or neighbour differences).
   f.noise_estimated = nf > 8 && f.model.noise_phi > 0;
   f.face_rel_noise = f.noise_estimated ? f.model.face_cv : kUnestimatedFaceNoise;
-  if (!f.noise_estimated) f.rel_sd.setConstant(kUnestimatedFaceNoise);
+  if (!f.noise_estimated) {
+    f.rel_sd.setConstant(kUnestimatedFaceNoise);
+    f.rel_noise_sd.setConstant(kUnestimatedFaceNoise);
+  }
   return f;
 }
 
@@ -269,6 +277,8 @@ PointField FieldAt(const core::WearMap& map, const MapFields& fields, double z, 
   const double rel = fields.noise_estimated ? (at.intensity > 0 ? std::min(1.0, at.sd / at.intensity) : 1.0)
                                             : kUnestimatedFaceNoise;
   p.rel_noise = std::hypot(rel, QuantisationRel(fields, p.intensity));
+  const double rel_s = fields.noise_estimated ? (at.intensity > 0 ? std::min(1.0, at.noise_sd / at.intensity) : 1.0) : kUnestimatedFaceNoise;
+  p.rel_sampling = std::hypot(rel_s, QuantisationRel(fields, p.intensity));
   if (fields.has_normal) {
     p.normal_tilde = std::min(1.5, std::max(0.0, at.normal_stress) / fields.normal_robust_max);
     p.normal_i = std::max(0.0, at.normal_stress) * fields.normal_to_intensity;
@@ -301,7 +311,7 @@ CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t
   g.dt_deg = fields.theta_span_deg / static_cast<double>(g.nt);
   g.cells.assign(g.nz * g.nt, PointField{});
   g.face_cell.assign(static_cast<size_t>(nf), -1);
-  std::vector<double> sw(g.cells.size(), 0.0), sz(g.cells.size(), 0.0), ssd(g.cells.size(), 0.0);
+  std::vector<double> sw(g.cells.size(), 0.0), sz(g.cells.size(), 0.0), ssd(g.cells.size(), 0.0), ssn(g.cells.size(), 0.0);
   for (auto& c : g.cells) c.normal_tilde = 0;
   for (Eigen::Index i = 0; i < nf; ++i) {
     const int c = g.CellOf(map.z[i], map.theta_deg[i]);
@@ -312,6 +322,7 @@ CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t
     sw[ci] += a;
     sz[ci] += a * map.z[i];
     ssd[ci] += a * fields.intensity[i] * fields.rel_sd[i];
+    ssn[ci] += a * fields.intensity[i] * fields.rel_noise_sd[i];
     g.cells[ci].intensity += a * fields.intensity[i];
     g.cells[ci].normal_tilde += a * fields.normal_tilde[i];
     g.cells[ci].normal_i += a * fields.normal_i[i];
@@ -329,6 +340,7 @@ CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t
     p.z = sz[c] / sw[c];
     // Smoothed faces share their errors: the cell's relative error is their mean, not reduced.
     p.rel_noise = std::hypot(p.intensity > 0 ? ssd[c] / sw[c] / p.intensity : 1.0, QuantisationRel(fields, p.intensity));
+    p.rel_sampling = std::hypot(p.intensity > 0 ? ssn[c] / sw[c] / p.intensity : 1.0, QuantisationRel(fields, p.intensity));
     p.area = sw[c];
   }
   return g;
@@ -392,7 +404,7 @@ ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const C
   }
   s.point_noise_mm = dev.size() >= 10 ? 1.4826 * Median(dev) : 0.5;
   s.point_noise_mm = std::max(s.point_noise_mm, 0.05);
-  std::vector<double> sw(nc, 0.0), swv(nc, 0.0), svar(nc, 0.0), ssd(nc, 0.0);
+  std::vector<double> sw(nc, 0.0), swv(nc, 0.0), svar(nc, 0.0), ssd(nc, 0.0), ssn(nc, 0.0);
   s.fields.assign(nc, PointField{});
   for (auto& pf : s.fields) pf.normal_tilde = 0;
   for (size_t f = 0; f < nf; ++f) {
@@ -412,6 +424,7 @@ ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const C
     const auto fi = static_cast<Eigen::Index>(f);
     s.fields[ci].intensity += a * fields.intensity[fi];
     ssd[ci] += a * fields.intensity[fi] * fields.rel_sd[fi];
+    ssn[ci] += a * fields.intensity[fi] * fields.rel_noise_sd[fi];
     s.fields[ci].normal_tilde += a * fields.normal_tilde[fi];
     s.fields[ci].normal_i += a * fields.normal_i[fi];
     s.fields[ci].z += a * map.z[fi];
@@ -430,6 +443,7 @@ ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const C
     pf.z /= sw[c];
     pf.theta_deg = grid.cells[c].theta_deg;
     pf.rel_noise = std::hypot(pf.intensity > 0 ? ssd[c] / sw[c] / pf.intensity : 1.0, QuantisationRel(fields, pf.intensity));
+    pf.rel_sampling = std::hypot(pf.intensity > 0 ? ssn[c] / sw[c] / pf.intensity : 1.0, QuantisationRel(fields, pf.intensity));
     pf.area = sw[c];
   }
   return s;

@@ -18,6 +18,7 @@ struct MapFields {
   core::MapModel model;
   Eigen::VectorXd intensity;     ///< per face, model intensity / median (median face = 1)
   Eigen::VectorXd rel_sd;        ///< per face, relative standard error of `intensity` (map noise + smoothing error)
+  Eigen::VectorXd rel_noise_sd;  ///< per face, its sampling-noise part only (the kernel-averaged face noise)
   double normal_robust_max = 1;  ///< normal stress that maps to normal_tilde = 1
   double normal_to_intensity = 0;  ///< normal_i = normal stress x this
   Eigen::VectorXd normal_tilde;  ///< per face, normal stress / robust max, clipped to [0, 1.5]; 1 when absent
@@ -56,6 +57,7 @@ struct PointField {
   double normal_tilde = 1;
   double normal_i = 0;
   double rel_noise = 0;     ///< relative noise of `intensity` from the map's per-face noise
+  double rel_sampling = 0;  ///< its sampling-noise part (without the smoothing's error), with quantisation
   double area = 0;
   size_t faces = 0;
 };

@@ -63,6 +63,10 @@ struct MapModel {
   double smoothing_error_rel = 0;  ///< relative rms error of the smoothing itself (bias), from the CV
   Eigen::VectorXd intensity;       ///< per face, smoothed (map units)
   Eigen::VectorXd intensity_sd;    ///< per face, standard error of `intensity`
+  /// Per face, the part of intensity_sd that is the faces' sampling noise averaged by the kernel
+  /// (without the smoothing's own error): what an independent measurement of the pattern, such as
+  /// a scan, cannot tell from the map's pattern error.
+  Eigen::VectorXd intensity_noise_sd;
   Eigen::VectorXd normal_stress;   ///< per face, smoothed at normal_bandwidth_m; size 0 when absent
   double normal_bandwidth_m = 0;   ///< 3 x bandwidth_m: stress noise shared with the wear's averaged out
 
@@ -70,6 +74,7 @@ struct MapModel {
   struct Point {
     double intensity = 0;
     double sd = 0;
+    double noise_sd = 0;  ///< the sampling-noise part of sd (as intensity_noise_sd)
     double normal_stress = 0;
     double faces = 0;  ///< effective number of faces in the kernel
   };

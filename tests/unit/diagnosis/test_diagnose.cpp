@@ -58,7 +58,7 @@ TEST(Diagnose, WorkHardeningIsNamedWithSaturationTime) {
   CHECK_FALSE(r.findings.empty());
   STRCMP_EQUAL("work_hardening", r.findings[0].effect.c_str());
   // Truth normalises normal stress by its maximum, the diagnosis by a robust maximum: h within 0.3..0.65.
-  CHECK_TRUE(Param(r.findings[0], "h") > 0.3 && Param(r.findings[0], "h") < 0.65);
+  CHECK_TEXT(Param(r.findings[0], "h") > 0.3 && Param(r.findings[0], "h") < 0.65, ("h = " + std::to_string(Param(r.findings[0], "h"))).c_str());
   // Known regression (issue 14's map model, data-chosen smoothing): the saturation time comes out
   // 3.05 days on this bundle (true 6); within 2 days before. The held-out check below still holds.
   DOUBLES_EQUAL(6.0, Param(r.findings[0], "tau_days"), 3.5);
