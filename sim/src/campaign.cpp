@@ -46,7 +46,6 @@ double SmoothStep(double x) {
   return x * x * (3.0 - 2.0 * x);
 }
 
-std::string Iso(const core::TimePoint& t0, double day) { return core::FormatIsoTime(core::AddDays(t0, day)); }
 
 }  // namespace
 
@@ -585,53 +584,17 @@ Eigen::VectorXd Campaign::TrueFaceWear(double day) const {
 // Output
 
 void Campaign::WriteBundle(const std::filesystem::path& dir) const {
-  namespace fs = std::filesystem;
-  if (fs::exists(dir) && !(fs::is_directory(dir) && fs::is_empty(dir))) {
-    throw std::runtime_error("output '" + dir.string() + "' exists and is not an empty directory");
+  core::Bundle b;
+  b.crusher = crusher_;
+  b.map = map_;
+  b.readings = readings_;
+  if (spec_.write_operations) b.operations = operations_;
+  if (spec_.write_scan && !scan_.empty()) {
+    const double day = spec_.scan_day < 0 ? spec_.days : spec_.scan_day;
+    b.scans.push_back({core::AddDays(crusher_.installed_at, day), "", scan_});
   }
-  const fs::path tmp = dir.string() + ".partial-" + std::to_string(seed_);
-  fs::remove_all(tmp);
-  fs::create_directories(tmp);
-  try {
-    nlohmann::json cj = {{"crusher_id", crusher_.crusher_id}, {"installed_at", core::FormatIsoTime(crusher_.installed_at)}};
-    cj["concave"] = {{"thickness_new_mm", crusher_.thickness_new_mm}, {"thickness_min_mm", crusher_.thickness_min_mm}, {"rows", nlohmann::json::array()}};
-    for (const auto& r : crusher_.rows) cj["concave"]["rows"].push_back({{"name", r.name}, {"z_min_m", r.z_min_m}, {"z_max_m", r.z_max_m}});
-    cj["sensors"] = nlohmann::json::array();
-    for (const auto& x : crusher_.sensors) {
-      cj["sensors"].push_back({{"id", x.id}, {"row", x.row}, {"z_m", x.z_m}, {"theta_deg", x.theta_deg}, {"thickness_new_mm", x.thickness_new_mm}});
-    }
-    std::ofstream(tmp / "crusher.json") << cj.dump(2) << "\n";
-    // Marks the folder as generated: `linerwatch-sim run` regenerates this truth from it.
-    std::ofstream(tmp / "campaign.json") << nlohmann::json{{"generator", "linerwatch-sim campaign"}, {"seed", seed_}, {"spec", spec_.ToJson()}}.dump(1) << "\n";
-    core::WriteWearMapVtk(tmp / "wear_map.vtk", map_,
-                          {{"wear", &map_.wear}, {"normal_stress_average", &map_.normal_stress}, {"shear_stress_average", &map_.shear_stress}});
-    {
-      std::ofstream r(tmp / "readings.csv");
-      r << "time,sensor_id,thickness_mm\n";
-      for (const auto& x : readings_) r << core::FormatIsoTime(x.time) << ',' << x.sensor_id << ',' << x.thickness_mm << '\n';
-    }
-    if (spec_.write_operations) {
-      std::ofstream o(tmp / "operations.csv");
-      o << "time,throughput_tph,power_kw,ore_ai\n";
-      o.setf(std::ios::fixed);
-      o.precision(2);
-      for (const auto& x : operations_) o << core::FormatIsoTime(x.time) << ',' << x.throughput_tph << ',' << *x.power_kw << ',' << *x.ore_ai << '\n';
-    }
-    if (spec_.write_scan && !scan_.empty()) {
-      fs::create_directories(tmp / "scans");
-      const double day = spec_.scan_day < 0 ? spec_.days : spec_.scan_day;
-      const std::string date = Iso(crusher_.installed_at, day).substr(0, 10);
-      std::ofstream sc(tmp / "scans" / ("scan_" + date + ".xyz"));
-      sc.setf(std::ios::fixed);
-      sc.precision(5);
-      for (const auto& p : scan_) sc << p.x() << ' ' << p.y() << ' ' << p.z() << '\n';
-    }
-  } catch (...) {
-    fs::remove_all(tmp);
-    throw;
-  }
-  if (fs::exists(dir)) fs::remove(dir);
-  fs::rename(tmp, dir);
+  // campaign.json marks the folder as generated: `linerwatch-sim run` regenerates this truth from it.
+  core::WriteBundle(b, dir, {{"campaign.json", nlohmann::json{{"generator", "linerwatch-sim campaign"}, {"seed", seed_}, {"spec", spec_.ToJson()}}.dump(1) + "\n"}});
 }
 
 nlohmann::json Campaign::TruthJson() const {

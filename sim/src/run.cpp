@@ -26,6 +26,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/atomic_file.hpp"
+#include "core/bundle.hpp"
 #include "core/cmdline.hpp"
 #include "core/time.hpp"
 #include "sim/fleet.hpp"
@@ -192,26 +193,19 @@ void WriteBundle(const fs::path& out, const CrusherFolder& folder, const Fleet& 
     if (fs::exists(folder.dir / kCampaignMarker)) fs::copy_file(folder.dir / kCampaignMarker, tmp / kCampaignMarker);
     std::vector<LedgerEntry> sorted = fleet.ledger();
     std::stable_sort(sorted.begin(), sorted.end(), [](const LedgerEntry& a, const LedgerEntry& b) { return a.time_s < b.time_s; });
-    std::string readings = "time,sensor_id,thickness_mm\n";
-    for (const LedgerEntry& e : sorted) readings += Iso(e.time_s) + "," + e.sensor_id + "," + Mm(e.thickness_mm) + "\n";
-    lw::core::WriteFileAtomically(tmp / "readings.csv", readings);
-    std::ostringstream ops;
-    ops.setf(std::ios::fixed);
-    ops.precision(2);
+    std::vector<core::Reading> readings;
+    for (const LedgerEntry& e : sorted) readings.push_back({core::TimePoint(std::chrono::seconds(e.time_s)), e.sensor_id, e.thickness_mm});
+    lw::core::WriteFileAtomically(tmp / "readings.csv", core::ReadingsCsv(readings));
+    std::vector<core::OperationsSample> ops;
     const auto truth_ops = folder.truth->Operations();
-    if (!truth_ops.empty()) {
-      ops << "time,throughput_tph,power_kw,ore_ai\n";
-      for (const auto& x : truth_ops) {
-        if (x.time.time_since_epoch().count() > end_s) break;
-        ops << core::FormatIsoTime(x.time) << ',' << x.throughput_tph << ',' << x.power_kw.value_or(0) << ','
-            << x.ore_ai.value_or(0) << '\n';
-      }
-    } else {
-      // The map model wears at a constant rate: constant nominal tonnage, daily.
-      ops << "time,throughput_tph\n";
-      for (int64_t t = fleet.start_s(); t <= end_s; t += 86400) ops << Iso(t) << ",3500.00\n";
+    for (const auto& x : truth_ops) {
+      if (x.time.time_since_epoch().count() > end_s) break;
+      ops.push_back(x);
     }
-    lw::core::WriteFileAtomically(tmp / "operations.csv", ops.str());
+    // The map model wears at a constant rate: constant nominal tonnage, daily.
+    if (truth_ops.empty())
+      for (int64_t t = fleet.start_s(); t <= end_s; t += 86400) ops.push_back({core::TimePoint(std::chrono::seconds(t)), 3500.0, {}, {}});
+    lw::core::WriteFileAtomically(tmp / "operations.csv", core::OperationsCsv(ops));
   } catch (...) {
     std::error_code ec;
     fs::remove_all(tmp, ec);

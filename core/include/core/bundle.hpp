@@ -88,4 +88,28 @@ std::vector<Scan> LoadScans(const std::filesystem::path& dir);
 /// Loads and validates a whole bundle; readings naming unknown sensors are refused.
 Bundle LoadBundle(const std::filesystem::path& dir);
 
+// Writing: the inverse of the loaders above (docs/bundle.md). Each file is written atomically
+// (core/atomic_file.hpp); what the writers write, the loaders read back.
+
+/// crusher.json's text (site and radio addresses only when set).
+std::string CrusherConfigJson(const CrusherConfig& config);
+/// readings.csv: `time,sensor_id,thickness_mm`, in the order given.
+std::string ReadingsCsv(const std::vector<Reading>& readings);
+/// operations.csv: `time,throughput_tph` and `power_kw`, `ore_ai` when any sample has them.
+std::string OperationsCsv(const std::vector<OperationsSample>& operations);
+/// A scan file: one `x y z` line per point (metres, 0.01 mm resolution).
+std::string ScanXyz(const Scan& scan);
+/// `scan_YYYY-MM-DD.xyz`, the name the loaders date a scan by.
+std::string ScanFileName(TimePoint date);
+/// The map as wear_map.vtk with every per-face array it has (wear, stresses, wear_stderr).
+void WriteBundleMap(const std::filesystem::path& path, const WearMap& map);
+
+/// Writes a whole bundle (crusher.json, wear_map.vtk, readings.csv; operations.csv when there are
+/// operations; scans/ when there are scans, each under ScanFileName of its date) and any `extra`
+/// files (name, text) into `dir`, which must not exist or be an empty folder. The files go into a
+/// temporary sibling folder renamed at the end: a reader never sees half a bundle. Throws
+/// std::runtime_error naming the folder.
+void WriteBundle(const Bundle& bundle, const std::filesystem::path& dir,
+                 const std::vector<std::pair<std::string, std::string>>& extra = {});
+
 }  // namespace lw::core

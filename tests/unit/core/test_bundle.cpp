@@ -132,3 +132,50 @@ TEST(Bundle, ImplausibleCrusherJsonIsRefused) {
   with("\"crusher_id\": \"cr1\"", "\"crusher_id\": \"cr1\", \"site\": \"plant-2\"");
   STRCMP_EQUAL("plant-2", LoadCrusherConfig(dir.path() / "crusher.json").site.c_str());
 }
+
+// core::WriteBundle is the inverse of LoadBundle: what it writes loads back the same (site, radio
+// addresses, readings, operations with a missing value, scans, the map's arrays), and the output
+// folder must be new or empty.
+TEST(Bundle, WrittenBundleLoadsBackTheSame) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n2026-01-02T00:00:00Z,1001,119\n2026-01-03T00:00:00Z,1002,118.5\n");
+  dir.Write("operations.csv", "time,throughput_tph,ore_ai\n2026-01-01T00:00:00Z,3500,\n2026-01-02T00:00:00Z,3400,0.3\n");
+  dir.Write("scans/scan_2026-02-01.xyz", "1.01 0 0.5\n0 1.02 1.5\n");
+  Bundle a = LoadBundle(dir.path());
+  a.crusher.site = "north-pit";
+  a.crusher.sensors[1].address = 0x0013A20040FFEE01ull;
+  a.map.wear_stderr = a.map.wear * 0.1;
+  lw::test::TempDirectory out("lw-bundle-out");
+  const auto target = out.path() / "copy";
+  WriteBundle(a, target, {{"notes.txt", "kept\n"}});
+  const Bundle b = LoadBundle(target);
+  STRCMP_EQUAL("north-pit", b.crusher.site.c_str());
+  CHECK(b.crusher.installed_at == a.crusher.installed_at);
+  LONGS_EQUAL(a.crusher.rows.size(), b.crusher.rows.size());
+  STRCMP_EQUAL(a.crusher.rows[1].name.c_str(), b.crusher.rows[1].name.c_str());
+  CHECK_FALSE(b.crusher.sensors[0].address.has_value());
+  CHECK(b.crusher.sensors[1].address == a.crusher.sensors[1].address);
+  LONGS_EQUAL(a.readings.size(), b.readings.size());
+  for (size_t i = 0; i < a.readings.size(); ++i) {
+    STRCMP_EQUAL(a.readings[i].sensor_id.c_str(), b.readings[i].sensor_id.c_str());
+    CHECK(a.readings[i].time == b.readings[i].time);
+    DOUBLES_EQUAL(a.readings[i].thickness_mm, b.readings[i].thickness_mm, 0);
+  }
+  LONGS_EQUAL(2, b.operations.size());
+  CHECK_FALSE(b.operations[0].ore_ai.has_value());
+  DOUBLES_EQUAL(0.3, *b.operations[1].ore_ai, 1e-12);
+  CHECK_FALSE(b.operations[1].power_kw.has_value());
+  LONGS_EQUAL(1, b.scans.size());
+  CHECK(b.scans[0].date == a.scans[0].date);
+  LONGS_EQUAL(2, b.scans[0].points.size());
+  DOUBLES_EQUAL(1.02, b.scans[0].points[1].y(), 1e-9);
+  LONGS_EQUAL(a.map.face_count(), b.map.face_count());
+  CHECK(b.map.wear.isApprox(a.map.wear, 1e-9));
+  CHECK(b.map.has_wear_stderr());
+  CHECK(b.map.wear_stderr.isApprox(a.map.wear_stderr, 1e-9));
+  CHECK_TRUE(std::filesystem::exists(target / "notes.txt"));
+  // Only the bundle is left: no temporary folder beside it.
+  LONGS_EQUAL(1, std::distance(std::filesystem::directory_iterator(out.path()), std::filesystem::directory_iterator()));
+  // A folder that holds something is never written into.
+  CHECK_THROWS(std::runtime_error, WriteBundle(a, target));
+  CHECK_TRUE(std::filesystem::exists(target / "notes.txt"));
+}
