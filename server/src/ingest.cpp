@@ -284,8 +284,8 @@ std::vector<std::string> CommitAckMessages(const Ack& ack, const std::string& ti
   return out;
 }
 
-Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s)
-    : store_(store), registry_(registry), now_s_(std::move(now_s)) {
+Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s, LiveState* live)
+    : store_(store), registry_(registry), live_(live), now_s_(std::move(now_s)) {
   for (const auto& [crusher, site] : store_.CrusherSites()) sites_[crusher] = site;
   // crusher.json's "site" binds; it overrides a binding learnt from the first reading.
   for (const Crusher* c : registry_.All()) {
@@ -377,6 +377,7 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
     }
     acks[{in.site, r.crusher, r.sensor}].insert(r.seq);
   }
+  if (live_) live_->Add(result.new_readings);
   for (size_t i = 0; i < batch.size(); ++i) {
     const Validation& v = validations[i];
     if (v.reading) continue;

@@ -20,6 +20,7 @@
 #include "server/diagnosis_runner.hpp"
 #include "server/http_api.hpp"
 #include "server/ingest.hpp"
+#include "server/live_state.hpp"
 #include "server/registry.hpp"
 #include "server/store.hpp"
 #include "server/wear_service.hpp"
@@ -74,8 +75,9 @@ std::string DiskFull(const std::string& db, int64_t free) {
 
 /// The REST API's context over these parts (both the normal and the read-only start use it).
 ApiContext MakeApiContext(const ServerOptions& o, const Registry& registry, Store& read, std::mutex& read_mutex, WearService& wear,
-                          Ingestor& ingestor, EventBus& events, const TokenStore& tokens) {
+                          const LiveState& live, Ingestor& ingestor, EventBus& events, const TokenStore& tokens) {
   ApiContext ctx;
+  ctx.live = &live;
   ctx.registry = &registry;
   ctx.read = &read;
   ctx.read_mutex = &read_mutex;
@@ -122,11 +124,13 @@ bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& st
     read = std::make_unique<Store>(":memory:");  // empty, in memory: the API answers, nothing on disk
   }
   std::mutex read_mutex;
+  LiveState live(registry);
+  live.Rebuild(*read);
   Ingestor refusing(*read, registry, [] { return WallMs() / 1000; });  // its Commit throws: 503, not stored
-  WearService wear(registry, *read, read_mutex);
+  WearService wear(registry, live);
   EventBus events;
   std::mutex reason_mutex;
-  ApiContext ctx = MakeApiContext(o, registry, *read, read_mutex, wear, refusing, events, tokens);
+  ApiContext ctx = MakeApiContext(o, registry, *read, read_mutex, wear, live, refusing, events, tokens);
   ctx.health = [&] {
     std::lock_guard<std::mutex> lock(reason_mutex);
     return nlohmann::ordered_json{{"status", "degraded"}, {"reason", reason}, {"broker", "not subscribed (disk full)"}};
@@ -174,11 +178,20 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   Store write(o.db);
   Store read(o.db);
   std::mutex read_mutex;
+  // Per-crusher state (counts, latest readings, wear and forecast inputs), loaded once here and kept
+  // up to date by the ingestor as it commits: no request or recompute reads all of a crusher's readings.
+  const int64_t rebuild_start_ms = WallMs();
+  LiveState live(*registry);
+  live.Rebuild(read);
+  log("per-crusher state loaded in " + std::to_string(WallMs() - rebuild_start_ms) + " ms");
   const std::string clock_file = o.clock_file;
-  Ingestor ingestor(write, *registry, [clock_file] { return NowSeconds(clock_file); });
-  WearService wear(*registry, read, read_mutex);
+  Ingestor ingestor(write, *registry, [clock_file] { return NowSeconds(clock_file); }, &live);
+  WearService wear(*registry, live);
   EventBus events;
-  DiagnosisRunner diagnosis(*registry, read, read_mutex);
+  // The diagnosis loads every reading of a crusher: on its own connection, so REST reads do not wait for it.
+  Store diagnosis_read(o.db);
+  std::mutex diagnosis_mutex;
+  DiagnosisRunner diagnosis(*registry, diagnosis_read, diagnosis_mutex);
 
   std::mutex dirty_mutex;
   std::condition_variable dirty_cv;
@@ -213,7 +226,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   gateway::PahoLink link(lo);
   std::atomic<bool> connected{false};
 
-  ApiContext ctx = MakeApiContext(o, *registry, read, read_mutex, wear, ingestor, events, tokens);
+  ApiContext ctx = MakeApiContext(o, *registry, read, read_mutex, wear, live, ingestor, events, tokens);
   ctx.diagnosis = &diagnosis;
   ctx.health = [&] {
     const IngestCounters c = ingestor.Counters();
@@ -243,6 +256,16 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   std::vector<std::pair<std::string, std::string>> computed;  // (crusher, wear summary JSON)
   std::atomic<bool> worker_stop{false};
   std::thread wear_worker([&] {
+    // Once at startup, every crusher's wear and forecast (not published: nothing changed), so the
+    // first requests find them computed.
+    for (const Crusher* c : registry->All()) {
+      if (worker_stop) return;
+      try {
+        wear.Get(c->config.crusher_id);
+      } catch (const std::exception& e) {
+        log("crusher " + c->config.crusher_id + ": wear not computed: " + e.what());
+      }
+    }
     int64_t last_ms = 0;
     while (!worker_stop) {
       std::set<std::string> work;

@@ -103,6 +103,7 @@ struct Store::Impl {
   Db db;
   Stmt insert, existing, insert_rejected, latest, range, all, count, count_rejected, rejected_list, save_diag, load_diag;
   Stmt rejected_seen, rejected_oldest, rejected_delete, rejected_totals, meta_get, meta_add, sites_list, site_bind;
+  Stmt count_sensor, next_sensor, walk_up, walk_down;
   RejectedLimits limits;
   std::optional<std::pair<int64_t, int64_t>> rejected_size;  ///< (rows, bytes) of the rejected table
   Impl(const std::string& path, RejectedLimits l, bool read_only = false)
@@ -140,6 +141,12 @@ struct Store::Impl {
         meta_add(db, "INSERT INTO meta(key, value) VALUES(?1, ?2) ON CONFLICT(key) DO UPDATE SET value=value+?2"),
         sites_list(db, "SELECT crusher, site FROM crusher_sites ORDER BY crusher"),
         site_bind(db, "INSERT INTO crusher_sites(crusher, site) VALUES(?1, ?2) ON CONFLICT(crusher) DO UPDATE SET site=?2"),
+        count_sensor(db, "SELECT COUNT(*) FROM readings WHERE crusher=?1 AND sensor=?2"),
+        next_sensor(db, "SELECT sensor FROM readings WHERE crusher=?1 AND sensor>?2 ORDER BY sensor LIMIT 1"),
+        walk_up(db, "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, '' FROM readings"
+                    " WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4 ORDER BY time, seq"),
+        walk_down(db, "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, '' FROM readings"
+                      " WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4 ORDER BY time DESC, seq DESC"),
         limits(l) {}
 
   static void CheckVersion(const Db& db) {
@@ -345,6 +352,39 @@ int64_t Store::CountReadings(const std::string& crusher) {
   im.count.Bind(1, crusher);
   im.count.Step();
   return im.count.Int(0);
+}
+
+int64_t Store::CountReadings(const std::string& crusher, const std::string& sensor) {
+  Impl& im = *impl_;
+  InUse use_count(im.count_sensor);
+  im.count_sensor.Bind(1, crusher).Bind(2, sensor);
+  im.count_sensor.Step();
+  return im.count_sensor.Int(0);
+}
+
+std::vector<std::string> Store::SensorsOf(const std::string& crusher) {
+  Impl& im = *impl_;
+  std::vector<std::string> out;
+  std::string after;  // "" sorts before every sensor id (ids are not empty)
+  while (true) {
+    InUse use_next(im.next_sensor);
+    im.next_sensor.Bind(1, crusher).Bind(2, after);
+    if (!im.next_sensor.Step()) break;
+    after = im.next_sensor.Text(0);
+    out.push_back(after);
+  }
+  return out;
+}
+
+void Store::Walk(const std::string& crusher, const std::string& sensor, int64_t from_s, int64_t to_s, bool newest_first,
+                 const std::function<bool(const StoredReading&)>& visit) {
+  Impl& im = *impl_;
+  Stmt& s = newest_first ? im.walk_down : im.walk_up;
+  InUse use_walk(s);
+  s.Bind(1, crusher).Bind(2, sensor).Bind(3, from_s).Bind(4, to_s);
+  while (s.Step()) {
+    if (!visit(Row(s))) break;
+  }
 }
 
 int64_t Store::CountRejected() {

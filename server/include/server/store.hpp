@@ -4,6 +4,7 @@
 /// diagnosis per crusher. WAL journal, prepared statements, one transaction per batch.
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -95,6 +96,14 @@ class Store {
   std::vector<StoredReading> All(const std::string& crusher);
 
   int64_t CountReadings(const std::string& crusher);
+  /// Readings of one sensor of `crusher` (an index range count).
+  int64_t CountReadings(const std::string& crusher, const std::string& sensor);
+  /// The sensors `crusher` has readings of, in order (one index seek each, not a scan).
+  std::vector<std::string> SensorsOf(const std::string& crusher);
+  /// Visits the readings of one sensor with time in [from_s, to_s] through the time index, oldest
+  /// first (newest first when `newest_first`), payload left empty, until `visit` returns false.
+  void Walk(const std::string& crusher, const std::string& sensor, int64_t from_s, int64_t to_s, bool newest_first,
+            const std::function<bool(const StoredReading&)>& visit);
   int64_t CountRejected();
   std::vector<Rejected> RejectedMessages(int limit);
 
