@@ -11,9 +11,6 @@
 // Also the startup time on that database (process start -> HTTP answers, -> every crusher's wear
 // computed) and the crusher list while readings are being posted to every crusher.
 //   lw_bench_server [--readings N] [--crushers C] [--requests R] [--db FILE (kept; reused when it exists)]
-#include <httplib.h>
-#include <sqlite3.h>
-
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -36,6 +33,9 @@
 #include "server/store.hpp"
 #include "sim/campaign.hpp"
 #include "support/mosquitto_fixture.hpp"
+
+#include <httplib.h>  // after Eigen (through core/): its macros would clash
+#include <sqlite3.h>
 
 namespace {
 
@@ -230,10 +230,10 @@ int main(int argc, char** argv) {
   }
   const int64_t end_s = fleet.installed_s + 3600 * fleet.per_sensor;
   std::printf("database   %lld readings: %zu crushers x %zu sensors x %lld (hourly, %.0f days), %.2f GB\n", total,
-              fleet.crushers.size(), fleet.sensors.size(), fleet.per_sensor, static_cast<double>(fleet.per_sensor) / 24.0,
+              fleet.crushers.size(), fleet.sensors.size(), static_cast<long long>(fleet.per_sensor), static_cast<double>(fleet.per_sensor) / 24.0,
               static_cast<double>(std::filesystem::file_size(db)) / 1e9);
 
-  lw::test::MosquittoFixture broker({.persistence = false, .tls = false, .username = "", .password = ""});
+  lw::test::MosquittoFixture broker({.persistence = false, .tls = false, .username = "", .password = "", .extra_config = ""});
   broker.Start();
   const int port = lw::test::FreeLoopbackPort();
   lw::test::ChildProcess server;
