@@ -77,9 +77,9 @@ void LiveState::Rebuild(Store& store) {
       SensorState& s = c.sensors[sensor];
       s.anchor.resize(crusher->scans.size());
       s.count = store.CountReadings(id, sensor);
-      // Newest first: the latest reading, then the newest usable one.
+      s.latest = store.Latest(id, sensor);
+      // Newest first, to the newest usable reading.
       store.Walk(id, sensor, INT64_MIN, INT64_MAX, true, [&](const StoredReading& r) {
-        if (!s.latest) s.latest = r;
         if (IsFaultReading(r.flags, r.loops_intact)) return true;
         s.last_usable_s = r.time_s;
         return false;

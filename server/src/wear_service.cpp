@@ -255,14 +255,11 @@ std::shared_ptr<const CrusherState> WearService::Latest(const std::string& crush
   const Crusher* crusher = registry_.Find(crusher_id);
   if (!crusher) return nullptr;
   Entry& e = EntryOf(crusher_id);
-  std::unique_lock<std::mutex> compute(e.compute, std::try_to_lock);
-  if (!compute.owns_lock()) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (e.state) return e.state;  // being recomputed: the previous result
-    }
-    compute.lock();  // never computed yet: wait for the first
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (e.state) return e.state;  // current, or the last one while new readings wait for the wear worker
   }
+  std::lock_guard<std::mutex> compute(e.compute);  // never computed yet: the first computation
   return ComputeLocked(*crusher, e);
 }
 

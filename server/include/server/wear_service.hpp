@@ -44,8 +44,9 @@ class WearService {
   /// Current state (recomputed if readings changed since; waits for a computation of this crusher
   /// already under way, never for another crusher's). nullptr for an unknown crusher.
   std::shared_ptr<const CrusherState> Get(const std::string& crusher);
-  /// As Get(), but while another thread is recomputing this crusher it returns the state computed
-  /// before (one batch of readings older) instead of waiting: for summaries such as the crusher list.
+  /// The state computed last, without computing or waiting (only a crusher never computed yet is
+  /// computed): for summaries of many crushers such as the crusher list. After new readings it is
+  /// the previous state until the next Get() (the wear worker's, within --wear-interval-ms).
   std::shared_ptr<const CrusherState> Latest(const std::string& crusher);
 
  private:
