@@ -25,6 +25,11 @@ LiveState::LiveState(const Registry& registry) : registry_(registry) {
   for (const Crusher* c : registry_.All()) crushers_[c->config.crusher_id].crusher = c;
 }
 
+const LiveState::CrusherLive* LiveState::Find(const std::string& crusher) const {
+  const auto it = crushers_.find(crusher);
+  return it == crushers_.end() ? nullptr : &it->second;
+}
+
 int64_t LiveState::WindowStart(const Crusher& c, int64_t last_s) const {
   const core::ForecastOptions o;  // the options ComputeCrusherState's forecasts use
   const int64_t installed = Unix(c.config.installed_at);
@@ -60,19 +65,24 @@ void LiveState::AddLocked(CrusherLive& c, const StoredReading& r) {
 }
 
 void LiveState::Add(const std::vector<StoredReading>& committed) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  CrusherLive* c = nullptr;
+  std::unique_lock<std::mutex> lock;
   for (const StoredReading& r : committed) {
-    const auto it = crushers_.find(r.crusher);
-    if (it != crushers_.end()) AddLocked(it->second, r);
+    if (!c || r.crusher != c->crusher->config.crusher_id) {  // batches come mostly crusher by crusher
+      const auto it = crushers_.find(r.crusher);
+      if (it == crushers_.end()) continue;
+      c = &it->second;
+      lock = std::unique_lock<std::mutex>(c->mutex);
+    }
+    AddLocked(*c, r);
   }
 }
 
 void LiveState::Rebuild(Store& store) {
-  std::map<std::string, CrusherLive> fresh;
-  for (const Crusher* crusher : registry_.All()) {
-    CrusherLive& c = fresh[crusher->config.crusher_id];
+  for (auto& [id, live] : crushers_) {
+    const Crusher* crusher = live.crusher;
+    CrusherLive c;  // loaded here, then swapped in
     c.crusher = crusher;
-    const std::string& id = crusher->config.crusher_id;
     for (const std::string& sensor : store.SensorsOf(id)) {
       SensorState& s = c.sensors[sensor];
       s.anchor.resize(crusher->scans.size());
@@ -102,44 +112,45 @@ void LiveState::Rebuild(Store& store) {
         });
       }
     }
+    std::lock_guard<std::mutex> lock(live.mutex);
+    live.sensors = std::move(c.sensors);
+    live.last_usable_s = c.last_usable_s;
   }
-  std::lock_guard<std::mutex> lock(mutex_);
-  crushers_ = std::move(fresh);
 }
 
 std::vector<Store::SensorSummary> LiveState::LatestPerSensor(const std::string& crusher) const {
-  std::lock_guard<std::mutex> lock(mutex_);
   std::vector<Store::SensorSummary> out;
-  const auto it = crushers_.find(crusher);
-  if (it == crushers_.end()) return out;
-  for (const auto& [sensor, s] : it->second.sensors) {
+  const CrusherLive* c = Find(crusher);
+  if (!c) return out;
+  std::lock_guard<std::mutex> lock(c->mutex);
+  for (const auto& [sensor, s] : c->sensors) {
     if (s.latest) out.push_back({*s.latest, s.count});
   }
   return out;
 }
 
 int64_t LiveState::CountReadings(const std::string& crusher) const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  const auto it = crushers_.find(crusher);
+  const CrusherLive* c = Find(crusher);
+  if (!c) return 0;
+  std::lock_guard<std::mutex> lock(c->mutex);
   int64_t n = 0;
-  if (it != crushers_.end()) {
-    for (const auto& [sensor, s] : it->second.sensors) n += s.count;
-  }
+  for (const auto& [sensor, s] : c->sensors) n += s.count;
   return n;
 }
 
 std::optional<int64_t> LiveState::LatestUsableTime(const std::string& crusher) const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  const auto it = crushers_.find(crusher);
-  return it == crushers_.end() ? std::nullopt : it->second.last_usable_s;
+  const CrusherLive* c = Find(crusher);
+  if (!c) return std::nullopt;
+  std::lock_guard<std::mutex> lock(c->mutex);
+  return c->last_usable_s;
 }
 
 std::vector<StoredReading> LiveState::WearInputs(const std::string& crusher) const {
   std::vector<StoredReading> out;
-  std::lock_guard<std::mutex> lock(mutex_);
-  const auto it = crushers_.find(crusher);
-  if (it == crushers_.end()) return out;
-  for (const auto& [sensor, s] : it->second.sensors) {
+  const CrusherLive* c = Find(crusher);
+  if (!c) return out;
+  std::lock_guard<std::mutex> lock(c->mutex);
+  for (const auto& [sensor, s] : c->sensors) {
     const size_t first = out.size();
     const auto emit = [&](const Point& p) {
       StoredReading r;

@@ -398,8 +398,16 @@ void Store::Walk(const std::string& crusher, const std::string& sensor, int64_t 
   Stmt& s = newest_first ? im.walk_down : im.walk_up;
   InUse use_walk(s);
   s.Bind(1, crusher).Bind(2, sensor).Bind(3, from_s).Bind(4, to_s);
+  StoredReading r;  // one for every row: no allocation per reading (startup walks millions)
+  r.crusher = crusher;
+  r.sensor = sensor;
   while (s.Step()) {
-    if (!visit(Row(s))) break;
+    r.seq = s.Int(2);
+    r.time_s = s.Int(3);
+    r.thickness_mm = s.Real(4);
+    r.loops_intact = s.Int(5);
+    r.flags = s.Int(6);
+    if (!visit(r)) break;
   }
 }
 

@@ -57,18 +57,21 @@ class LiveState {
   };
   struct CrusherLive {
     const Crusher* crusher = nullptr;
+    mutable std::mutex mutex;  ///< per crusher: copying one crusher's inputs never holds up another's
     std::map<std::string, SensorState> sensors;
     std::optional<int64_t> last_usable_s;
   };
 
+  /// The caller holds c.mutex.
   void AddLocked(CrusherLive& c, const StoredReading& r);
+  /// nullptr for a crusher not in the registry.
+  const CrusherLive* Find(const std::string& crusher) const;
   /// Earliest time the forecast's window may reach back to, for a sensor whose newest usable
   /// reading is at `last_s` (with a day's margin: the fit selects its own window from what it gets).
   int64_t WindowStart(const Crusher& c, int64_t last_s) const;
 
   const Registry& registry_;
-  mutable std::mutex mutex_;
-  std::map<std::string, CrusherLive> crushers_;
+  std::map<std::string, CrusherLive> crushers_;  ///< one per registry crusher, made once (never added to)
 };
 
 }  // namespace lw::server
