@@ -345,6 +345,8 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
       rejected.push_back({wall, in.topic, in.payload, v.error});
     }
   }
+  std::unique_lock<std::mutex> commit_order;  // from the commit to live_->Add (LiveState::CommitGuard)
+  if (live_) commit_order = live_->CommitGuard();
   const std::vector<InsertOutcome> outcomes = store_.Commit(readings, rejected, {new_sites.begin(), new_sites.end()});  // throws: nothing acked
   for (const auto& [crusher, site] : new_sites) {
     sites_[crusher] = site;
@@ -377,7 +379,10 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
     }
     acks[{in.site, r.crusher, r.sensor}].insert(r.seq);
   }
-  if (live_) live_->Add(result.new_readings);
+  if (live_) {
+    live_->Add(result.new_readings);
+    commit_order.unlock();
+  }
   for (size_t i = 0; i < batch.size(); ++i) {
     const Validation& v = validations[i];
     if (v.reading) continue;

@@ -22,12 +22,45 @@ bool BetterAtSameTime(double thickness, int64_t seq, double best_thickness, int6
 }  // namespace
 
 LiveState::LiveState(const Registry& registry) : registry_(registry) {
-  for (const Crusher* c : registry_.All()) crushers_[c->config.crusher_id].crusher = c;
+  for (const Crusher* c : registry_.All()) {
+    CrusherLive& live = crushers_[c->config.crusher_id];
+    live.crusher = c;
+    live.loaded = true;  // an empty database, until Rebuild() or LoadLazily()
+  }
 }
 
 const LiveState::CrusherLive* LiveState::Find(const std::string& crusher) const {
   const auto it = crushers_.find(crusher);
-  return it == crushers_.end() ? nullptr : &it->second;
+  if (it == crushers_.end()) return nullptr;
+  CrusherLive& c = it->second;
+  {
+    std::lock_guard<std::mutex> lock(c.mutex);
+    if (c.loaded) return &c;
+  }
+  // First use: load it, with commits held off (CommitGuard) so that none is both read and added.
+  std::lock_guard<std::mutex> order(order_);
+  {
+    std::lock_guard<std::mutex> lock(c.mutex);
+    if (c.loaded) return &c;  // loaded by another thread meanwhile
+  }
+  CrusherLive fresh;
+  if (loader_) LoadFrom(*loader_, *c.crusher, fresh);
+  std::lock_guard<std::mutex> lock(c.mutex);
+  c.sensors = std::move(fresh.sensors);
+  c.last_usable_s = fresh.last_usable_s;
+  c.loaded = true;
+  return &c;
+}
+
+void LiveState::LoadLazily(std::unique_ptr<Store> store) {
+  std::lock_guard<std::mutex> order(order_);
+  loader_ = std::move(store);
+  for (auto& [id, c] : crushers_) {
+    std::lock_guard<std::mutex> lock(c.mutex);
+    c.loaded = false;
+    c.sensors.clear();
+    c.last_usable_s.reset();
+  }
 }
 
 int64_t LiveState::WindowStart(const Crusher& c, int64_t last_s) const {
@@ -74,15 +107,26 @@ void LiveState::Add(const std::vector<StoredReading>& committed) {
       c = &it->second;
       lock = std::unique_lock<std::mutex>(c->mutex);
     }
-    AddLocked(*c, r);
+    if (c->loaded) AddLocked(*c, r);
   }
 }
 
 void LiveState::Rebuild(Store& store) {
+  std::lock_guard<std::mutex> order(order_);
   for (auto& [id, live] : crushers_) {
-    const Crusher* crusher = live.crusher;
     CrusherLive c;  // loaded here, then swapped in
-    c.crusher = crusher;
+    LoadFrom(store, *live.crusher, c);
+    std::lock_guard<std::mutex> lock(live.mutex);
+    live.sensors = std::move(c.sensors);
+    live.last_usable_s = c.last_usable_s;
+    live.loaded = true;
+  }
+}
+
+void LiveState::LoadFrom(Store& store, const Crusher& c_crusher, CrusherLive& c) const {
+  {
+    const Crusher* crusher = &c_crusher;
+    const std::string& id = crusher->config.crusher_id;
     for (const std::string& sensor : store.SensorsOf(id)) {
       SensorState& s = c.sensors[sensor];
       s.anchor.resize(crusher->scans.size());
@@ -112,9 +156,6 @@ void LiveState::Rebuild(Store& store) {
         });
       }
     }
-    std::lock_guard<std::mutex> lock(live.mutex);
-    live.sensors = std::move(c.sensors);
-    live.last_usable_s = c.last_usable_s;
   }
 }
 

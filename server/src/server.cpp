@@ -189,11 +189,10 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   std::mutex read_mutex;
   // Per-crusher state (counts, latest readings, wear and forecast inputs), loaded once here and kept
   // up to date by the ingestor as it commits: no request or recompute reads all of a crusher's readings.
-  const int64_t rebuild_start_ms = WallMs(), rebuild_start_cpu_ms = CpuMs(CLOCK_THREAD_CPUTIME_ID);
+  // Each crusher's is loaded the first time it is asked for; the wear worker asks for all of them
+  // once as soon as the API is up, so the server answers while they load.
   LiveState live(*registry);
-  live.Rebuild(read);
-  log("per-crusher state loaded in " + std::to_string(WallMs() - rebuild_start_ms) + " ms (" +
-      std::to_string(CpuMs(CLOCK_THREAD_CPUTIME_ID) - rebuild_start_cpu_ms) + " ms CPU)");
+  live.LoadLazily(std::make_unique<Store>(o.db));
   const std::string clock_file = o.clock_file;
   Ingestor ingestor(write, *registry, [clock_file] { return NowSeconds(clock_file); }, &live);
   WearService wear(*registry, live);
@@ -266,8 +265,15 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   std::vector<std::pair<std::string, std::string>> computed;  // (crusher, wear summary JSON)
   std::atomic<bool> worker_stop{false};
   std::thread wear_worker([&] {
-    // Once at startup, every crusher's wear and forecast (not published: nothing changed), so the
-    // first requests find them computed.
+    // Once at startup, every crusher's state and then its wear and forecast (not published: nothing
+    // changed), so that requests find them loaded and computed.
+    const int64_t load_start_ms = WallMs(), load_start_cpu_ms = CpuMs(CLOCK_THREAD_CPUTIME_ID);
+    for (const Crusher* c : registry->All()) {
+      if (worker_stop) return;
+      live.LatestUsableTime(c->config.crusher_id);  // loads it
+    }
+    log("per-crusher state loaded in " + std::to_string(WallMs() - load_start_ms) + " ms (" +
+        std::to_string(CpuMs(CLOCK_THREAD_CPUTIME_ID) - load_start_cpu_ms) + " ms CPU)");
     for (const Crusher* c : registry->All()) {
       if (worker_stop) return;
       try {

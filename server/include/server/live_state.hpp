@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -24,9 +25,18 @@ class LiveState {
  public:
   explicit LiveState(const Registry& registry);
 
-  /// Loads every registry crusher's state from `store` (replacing what was held). Startup only.
+  /// Loads every registry crusher's state from `store` now (replacing what was held). Startup only.
   void Rebuild(Store& store);
-  /// Readings just committed (new ones only: not duplicates or conflicts).
+  /// Loads each crusher's state from `store` (a connection of its own) the first time it is asked
+  /// for, instead of all at once: the server answers while the states load (its wear worker asks
+  /// for every crusher once at startup). Call before anything else uses this object.
+  void LoadLazily(std::unique_ptr<Store> store);
+
+  /// The committer holds this from its commit until it has called Add(), so that a crusher being
+  /// loaded sees each commit either in the database or through Add(), never both or neither.
+  std::unique_lock<std::mutex> CommitGuard() { return std::unique_lock<std::mutex>(order_); }
+  /// Readings just committed (new ones only: not duplicates or conflicts). Crushers not loaded yet
+  /// skip them (their load reads them from the database).
   void Add(const std::vector<StoredReading>& committed);
 
   /// As Store::LatestPerSensor (latest by time then seq, any flags; payload left empty), ordered
@@ -58,20 +68,26 @@ class LiveState {
   struct CrusherLive {
     const Crusher* crusher = nullptr;
     mutable std::mutex mutex;  ///< per crusher: copying one crusher's inputs never holds up another's
+    bool loaded = false;       ///< guarded by mutex
     std::map<std::string, SensorState> sensors;
     std::optional<int64_t> last_usable_s;
   };
 
   /// The caller holds c.mutex.
   void AddLocked(CrusherLive& c, const StoredReading& r);
-  /// nullptr for a crusher not in the registry.
+  /// Reads `c`'s state from `store` into `out` (not shared yet: no lock needed).
+  void LoadFrom(Store& store, const Crusher& crusher, CrusherLive& out) const;
+  /// nullptr for a crusher not in the registry; otherwise loaded (lazily, see LoadLazily).
   const CrusherLive* Find(const std::string& crusher) const;
   /// Earliest time the forecast's window may reach back to, for a sensor whose newest usable
   /// reading is at `last_s` (with a day's margin: the fit selects its own window from what it gets).
   int64_t WindowStart(const Crusher& c, int64_t last_s) const;
 
   const Registry& registry_;
-  std::map<std::string, CrusherLive> crushers_;  ///< one per registry crusher, made once (never added to)
+  /// One per registry crusher, made once (never added to); mutable: a lazy load is no visible change.
+  mutable std::map<std::string, CrusherLive> crushers_;
+  mutable std::mutex order_;               ///< see CommitGuard(); taken before any crusher's mutex
+  mutable std::unique_ptr<Store> loader_;  ///< lazy loads (guarded by order_)
 };
 
 }  // namespace lw::server

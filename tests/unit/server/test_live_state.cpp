@@ -145,3 +145,28 @@ TEST(LiveState, WearServiceServesTheFullRecompute) {
   CHECK(ForecastJson(full) == ForecastJson(*wear.Latest(Folder().id())));
   CHECK(wear.Get("no-such-crusher") == nullptr);
 }
+
+// Loaded lazily (as the server does: it answers while the states load): readings committed before
+// the crusher's first use are read from the database, those after it are added, none twice.
+TEST(LiveState, ALazyLoadCountsEveryCommitOnce) {
+  lw::test::TempDirectory dir{"lw-live"};
+  std::vector<std::string> errors;
+  const auto registry = Registry::Load(Folder().crushers, &errors);
+  const Crusher& c = *registry->Find(Folder().id());
+  const auto messages = Messages();
+  const size_t third = messages.size() / 3;
+  {
+    Store store(dir.File("db.sqlite"));
+    Ingestor ingestor(store, *registry, [] { return Now(); });
+    ingestor.Ingest({messages.begin(), messages.begin() + static_cast<std::ptrdiff_t>(third)});
+  }
+  Store store(dir.File("db.sqlite"));
+  LiveState live(*registry);
+  live.LoadLazily(std::make_unique<Store>(dir.File("db.sqlite")));
+  Ingestor ingestor(store, *registry, [] { return Now(); }, &live);
+  // Committed before the crusher was first asked for: not added, read at its load.
+  ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(third), messages.begin() + static_cast<std::ptrdiff_t>(2 * third)});
+  LONGS_EQUAL(store.CountReadings(Folder().id()), live.CountReadings(Folder().id()));
+  ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(2 * third), messages.end()});
+  CheckEqualsFullRecompute(c, live, store, true);
+}
