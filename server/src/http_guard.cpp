@@ -67,27 +67,9 @@ std::string ErrorResponse(int status, const std::string& message) {
          "\r\n\r\n" + body;
 }
 
-/// Writes all of `data` within `timeout_ms` (the socket is non-blocking). False on error or timeout.
-bool SendAll(int fd, const char* data, size_t size, int timeout_ms) {
-  const auto deadline = Clock::now() + std::chrono::milliseconds(timeout_ms);
-  size_t done = 0;
-  while (done < size) {
-    const ssize_t n = ::send(fd, data + done, size - done, MSG_NOSIGNAL);
-    if (n > 0) {
-      done += static_cast<size_t>(n);
-      continue;
-    }
-    if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) return false;
-    pollfd p{fd, POLLOUT, 0};
-    const int left = RemainingMs(deadline);
-    if (left == 0 || ::poll(&p, 1, left) <= 0) return false;
-  }
-  return true;
-}
-
-/// Writes `head` then `body` (the socket is non-blocking) as one sendmsg where the kernel takes
-/// both at once: one segment for a small response. False on error or timeout.
-bool SendBoth(int fd, const std::string& head, const char* body, size_t body_size, int timeout_ms) {
+/// Writes `head` then `body` within `timeout_ms` (the socket is non-blocking) with sendmsg, so that
+/// the kernel takes both at once: one segment for a small response. False on error or timeout.
+bool SendBoth(int fd, std::string_view head, const char* body, size_t body_size, int timeout_ms) {
   const auto deadline = Clock::now() + std::chrono::milliseconds(timeout_ms);
   size_t done = 0;
   const size_t total = head.size() + body_size;
@@ -112,6 +94,9 @@ bool SendBoth(int fd, const std::string& head, const char* body, size_t body_siz
   }
   return true;
 }
+
+/// Writes all of `data` within `timeout_ms` (the socket is non-blocking). False on error or timeout.
+bool SendAll(int fd, const char* data, size_t size, int timeout_ms) { return SendBoth(fd, {}, data, size, timeout_ms); }
 
 std::string Lower(std::string s) {
   for (auto& ch : s) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
