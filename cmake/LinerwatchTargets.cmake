@@ -48,10 +48,22 @@ function(lw_add_unit_test)
   endif()
 endfunction()
 
+# A test that cannot run on this machine is still registered, and reported by ctest as skipped
+# (exit 77) with the reason in its output, instead of silently missing from the list.
+#   lw_add_skipped_test(NAME test_x REASON "mosquitto not found (scripts/install-deps installs it)" [LABELS l])
+function(lw_add_skipped_test)
+  cmake_parse_arguments(T "" "NAME;REASON" "LABELS" ${ARGN})
+  add_test(NAME ${T_NAME} COMMAND sh -c "echo skipped: $1; exit 77" sh "${T_REASON}")
+  set_tests_properties(${T_NAME} PROPERTIES SKIP_RETURN_CODE 77)
+  if(T_LABELS)
+    set_tests_properties(${T_NAME} PROPERTIES LABELS "${T_LABELS}")
+  endif()
+endfunction()
+
 # An integration test against real programs and a real mosquitto on 127.0.0.1 (tests/support/
 # mosquitto_fixture). Each program target P becomes a build dependency and a compile definition
 # LW_<P without "linerwatch-", upper case>_BIN (linerwatch-server -> LW_SERVER_BIN); the broker
-# binary reaches the test as $LW_MOSQUITTO. Skipped (with a warning for mosquitto) when missing.
+# binary reaches the test as $LW_MOSQUITTO. Without mosquitto it is reported as skipped (ctest).
 #   lw_add_integration_test(NAME test_x SOURCES a.cpp LIBS l1 l2 PROGRAMS linerwatch-server [TIMEOUT s])
 function(lw_add_integration_test)
   cmake_parse_arguments(T "" "NAME;TIMEOUT" "SOURCES;LIBS;PROGRAMS" ${ARGN})
@@ -63,6 +75,7 @@ function(lw_add_integration_test)
   find_program(LW_MOSQUITTO mosquitto PATHS /usr/sbin /usr/local/sbin)
   if(NOT LW_MOSQUITTO)
     message(WARNING "mosquitto not found: ${T_NAME} is not built (scripts/install-deps)")
+    lw_add_skipped_test(NAME ${T_NAME} REASON "mosquitto not found (scripts/install-deps installs it)" LABELS integration)
     return()
   endif()
   if(NOT T_TIMEOUT)

@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "core/atomic_file.hpp"
 #include "core/bundle.hpp"
 #include "core/cmdline.hpp"
 #include "core/reconstruction.hpp"
@@ -356,12 +357,6 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
 
 extern "C" void OnStopSignal(int) { dem::RequestStop(); }
 
-void CopyAtomically(const fs::path& from, const fs::path& to) {
-  fs::path tmp = to;
-  tmp += ".tmp";
-  fs::copy_file(from, tmp, fs::copy_options::overwrite_existing);
-  fs::rename(tmp, to);
-}
 
 int Dem(const std::vector<std::string>& args, std::ostream& out) {
   const Options o = ParseOptions(args, 1, {"work", "stage", "np", "windows", "mpirun", "liggghts", "progress_every"},
@@ -453,7 +448,7 @@ int Dem(const std::vector<std::string>& args, std::ostream& out) {
     if (!summary["steady"]["choke_fed"].get<bool>()) out << "dem: caution: the hopper ran empty in the steady span (not choke fed)\n";
     if (o.Flag("install")) {
       for (const char* f : {dem::MapFiles::kMap, dem::MapFiles::kWindows, dem::MapFiles::kSummary})
-        CopyAtomically(work / f, crusher_dir / f);
+        core::CopyFileAtomically(work / f, crusher_dir / f);
       out << "dem: installed wear_map.vtk, wear_windows.vtk and dem_summary.json into " << crusher_dir.string() << "\n";
     }
   }

@@ -1,5 +1,7 @@
 #include "core/wear_map.hpp"
 
+#include "core/atomic_file.hpp"
+
 #include <openssl/evp.h>
 
 #include <algorithm>
@@ -485,11 +487,7 @@ void WriteWearMapVtk(const std::filesystem::path& path, const WearMap& map,
     if (!arr || static_cast<size_t>(arr->size()) != n) throw std::invalid_argument("cell array '" + name + "' does not have one value per face");
     if (name.empty() || name.find_first_of(" \t\n") != std::string::npos) throw std::invalid_argument("cell array name '" + name + "' is not a VTK name");
   }
-  std::filesystem::path tmp = path;
-  tmp += ".tmp";
-  {
-    std::ofstream out(tmp);
-    if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
+  WriteFileAtomically(path, [&](std::ostream& out) {
     out.precision(10);
     // The given title, else the map's own (a re-written map keeps e.g. its windows=K), else a default.
     std::string title = !title_arg.empty() ? title_arg : map.title.empty() ? std::string("linerwatch wear map") : map.title.substr(0, 250);
@@ -505,14 +503,7 @@ void WriteWearMapVtk(const std::filesystem::path& path, const WearMap& map,
       out << "SCALARS " << name << " double 1\nLOOKUP_TABLE default\n";
       for (Eigen::Index i = 0; i < arr->size(); ++i) out << (*arr)[i] << '\n';
     }
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw std::runtime_error("write failed for '" + tmp.string() + "'");
-    }
-  }
-  std::filesystem::rename(tmp, path);
+  });
 }
 
 }  // namespace lw::core

@@ -5,28 +5,15 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/atomic_file.hpp"
+
 namespace lw::dem {
 namespace {
 
 namespace fs = std::filesystem;
 constexpr double kPi = 3.14159265358979323846;
 
-void WriteAtomically(const fs::path& path, const std::string& text) {
-  fs::path tmp = path;
-  tmp += ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
-    out << text;
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw std::runtime_error("write failed for '" + tmp.string() + "'");
-    }
-  }
-  fs::rename(tmp, path);
-}
+void WriteAtomically(const fs::path& path, const std::string& text) { core::WriteFileAtomically(path, text); }
 
 // Surface of revolution through `rings` (z, r), `n_theta` segments, as ASCII STL facets.
 void Revolve(std::ostringstream& out, const std::vector<std::pair<double, double>>& rings, int n_theta, double x_offset) {

@@ -7,6 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/atomic_file.hpp"
 #include "core/wear_map.hpp"
 #include "dem/case_writer.hpp"
 #include "dem/runner.hpp"
@@ -306,13 +307,7 @@ nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::
     summary["corr_wear_normal_stress"] = den > 0 ? cov / den : 0.0;
   }
   summary["chamber"] = ToJson(spec);
-  const fs::path tmp = out_dir / (std::string(MapFiles::kSummary) + ".tmp");
-  {
-    std::ofstream o(tmp);
-    o << summary.dump(2) << "\n";
-    if (!o) throw std::runtime_error("cannot write " + tmp.string());
-  }
-  fs::rename(tmp, out_dir / MapFiles::kSummary);
+  core::WriteFileAtomically(out_dir / MapFiles::kSummary, summary.dump(2) + "\n");
   return summary;
 }
 

@@ -17,6 +17,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "core/atomic_file.hpp"
 #include "dem/case_writer.hpp"
 
 namespace lw::dem {
@@ -56,12 +57,7 @@ void TruncateMassSeries(const fs::path& file, double t_max) {
     kept << line << '\n';
   }
   in.close();
-  const fs::path tmp = fs::path(file) += ".tmp";
-  {
-    std::ofstream out(tmp);
-    out << kept.str();
-  }
-  fs::rename(tmp, file);
+  core::WriteFileAtomically(file, kept.str());
 }
 
 std::string Duration(double s) {

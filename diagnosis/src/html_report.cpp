@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "core/atomic_file.hpp"
 #include "diagnosis/diagnose.hpp"
 
 namespace lw::diagnosis {
@@ -905,20 +906,7 @@ std::string RenderHtml(const DiagnosisResult& r) {
 }
 
 void WriteHtml(const std::filesystem::path& path, const DiagnosisResult& result) {
-  const std::string text = RenderHtml(result);
-  std::filesystem::path tmp = path;
-  tmp += ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    if (!out) throw std::runtime_error(path.string() + ": cannot write");
-    out << text;
-    if (!out) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw std::runtime_error(path.string() + ": write failed");
-    }
-  }
-  std::filesystem::rename(tmp, path);
+  core::WriteFileAtomically(path, RenderHtml(result));
 }
 
 }  // namespace lw::diagnosis

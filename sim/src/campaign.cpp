@@ -10,6 +10,7 @@
 
 #include <Eigen/Geometry>
 
+#include "core/cmdline.hpp"
 #include "core/time.hpp"
 
 namespace lw::sim {
@@ -186,6 +187,17 @@ void CampaignSpec::Complete() {
   }
 }
 
+namespace {
+/// A finite number and nothing else ("0.3x", "nan" and "" are refused), as core::ParseNumber.
+double SpecNumber(const std::string& what, const std::string& text) {
+  try {
+    return core::ParseNumber("", text);
+  } catch (const core::UsageError&) {
+    throw std::invalid_argument(what + ": '" + text + "' is not a number");
+  }
+}
+}  // namespace
+
 EffectSpec ParseEffect(const std::string& text) {
   EffectSpec e;
   const size_t colon = text.find(':');
@@ -196,11 +208,7 @@ EffectSpec ParseEffect(const std::string& text) {
   while (std::getline(ss, kv, ',')) {
     const size_t eq = kv.find('=');
     if (eq == std::string::npos) throw std::invalid_argument("--effect '" + text + "': expected key=value, got '" + kv + "'");
-    try {
-      e.params[kv.substr(0, eq)] = std::stod(kv.substr(eq + 1));
-    } catch (const std::exception&) {
-      throw std::invalid_argument("--effect '" + text + "': '" + kv.substr(eq + 1) + "' is not a number");
-    }
+    e.params[kv.substr(0, eq)] = SpecNumber("--effect '" + text + "'", kv.substr(eq + 1));
   }
   return e;
 }
@@ -212,12 +220,8 @@ FaultSpec ParseFault(const std::string& text) {
   while (std::getline(ss, p, ':')) parts.push_back(p);
   if (parts.size() < 3) throw std::invalid_argument("--fault '" + text + "': expected sensor:kind:day[:size]");
   FaultSpec f{parts[0], parts[1], 0, 0};
-  try {
-    f.day = std::stod(parts[2]);
-    if (parts.size() > 3) f.size = std::stod(parts[3]);
-  } catch (const std::exception&) {
-    throw std::invalid_argument("--fault '" + text + "': day and size must be numbers");
-  }
+  f.day = SpecNumber("--fault '" + text + "': the day", parts[2]);
+  if (parts.size() > 3) f.size = SpecNumber("--fault '" + text + "': the size", parts[3]);
   return f;
 }
 

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/atomic_file.hpp"
 #include "core/cmdline.hpp"
 #include "run.hpp"
 #include "sim/campaign.hpp"
@@ -108,13 +109,11 @@ int Campaign(const std::vector<std::string>& args) {
     const lw::sim::Campaign c = GenerateCampaign(spec, seed);
     c.WriteBundle(out);
     if (!truth.empty()) {
-      const std::string tmp = truth + ".tmp";
-      {
-        std::ofstream t(tmp);
-        t << c.TruthJson().dump(1) << "\n";
-        if (!t) return Fail("campaign: cannot write '" + truth + "'");
+      try {
+        lw::core::WriteFileAtomically(truth, c.TruthJson().dump(1) + "\n");
+      } catch (const std::runtime_error& e) {
+        return Fail(std::string("campaign: ") + e.what());
       }
-      std::rename(tmp.c_str(), truth.c_str());
     }
     std::fprintf(stderr, "linerwatch-sim: wrote %s (%zu readings, %zu faces, %zu sensors)\n", out.c_str(), c.readings().size(),
                  c.map().face_count(), c.crusher().sensors.size());

@@ -25,6 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/atomic_file.hpp"
 #include "core/cmdline.hpp"
 #include "core/time.hpp"
 #include "sim/fleet.hpp"
@@ -164,22 +165,6 @@ fs::path FindCrusherFolder(const RunOptions& o) {
   return dir / names[0];
 }
 
-/// Writes `text` to `path` through a temporary file and a rename.
-void WriteAtomically(const fs::path& path, const std::string& text) {
-  const fs::path tmp = path.string() + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    out << text;
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw std::runtime_error("cannot write " + path.string());
-    }
-  }
-  fs::rename(tmp, path);
-}
-
 std::string Iso(int64_t unix_s) { return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(unix_s))); }
 
 std::string Mm(double mm) {
@@ -209,7 +194,7 @@ void WriteBundle(const fs::path& out, const CrusherFolder& folder, const Fleet& 
     std::stable_sort(sorted.begin(), sorted.end(), [](const LedgerEntry& a, const LedgerEntry& b) { return a.time_s < b.time_s; });
     std::string readings = "time,sensor_id,thickness_mm\n";
     for (const LedgerEntry& e : sorted) readings += Iso(e.time_s) + "," + e.sensor_id + "," + Mm(e.thickness_mm) + "\n";
-    WriteAtomically(tmp / "readings.csv", readings);
+    lw::core::WriteFileAtomically(tmp / "readings.csv", readings);
     std::ostringstream ops;
     ops.setf(std::ios::fixed);
     ops.precision(2);
@@ -226,7 +211,7 @@ void WriteBundle(const fs::path& out, const CrusherFolder& folder, const Fleet& 
       ops << "time,throughput_tph\n";
       for (int64_t t = fleet.start_s(); t <= end_s; t += 86400) ops << Iso(t) << ",3500.00\n";
     }
-    WriteAtomically(tmp / "operations.csv", ops.str());
+    lw::core::WriteFileAtomically(tmp / "operations.csv", ops.str());
   } catch (...) {
     std::error_code ec;
     fs::remove_all(tmp, ec);
@@ -379,7 +364,7 @@ class Runner {
     if (o_.clock_out.empty()) return;
     const long long ms = std::llround(t * 1000.0);
     if (ms == last_clock_ms_) return;
-    WriteAtomically(o_.clock_out, std::to_string(ms) + "\n");
+    lw::core::WriteFileAtomically(o_.clock_out, std::to_string(ms) + "\n", lw::core::Durability::kAtomic);
     last_clock_ms_ = ms;
   }
 
@@ -518,10 +503,10 @@ int RunCommand(const std::vector<std::string>& args) {
                    pty.slave_name().c_str(), o.api_mode, o.clock_out.empty() ? "" : ", virtual clock in ",
                    o.clock_out.c_str());
     }
-    if (!o.clock_out.empty()) WriteAtomically(o.clock_out, std::to_string(fleet.start_s() * 1000) + "\n");
+    if (!o.clock_out.empty()) lw::core::WriteFileAtomically(o.clock_out, std::to_string(fleet.start_s() * 1000) + "\n", lw::core::Durability::kAtomic);
     Runner runner(o, folder, fleet, pty);
     const bool stopped = !runner.WaitForGateway() || runner.Run(end_s);
-    if (!o.ledger.empty()) WriteAtomically(o.ledger, LedgerCsv(fleet.ledger()));
+    if (!o.ledger.empty()) lw::core::WriteFileAtomically(o.ledger, LedgerCsv(fleet.ledger()));
     if (!o.bundle_out.empty()) WriteBundle(o.bundle_out, folder, fleet, std::min<int64_t>(end_s, std::llround(fleet.now())));
     if (!o.quiet) {
       const FleetCounters c = fleet.counters();

@@ -20,20 +20,6 @@
 
 namespace lw::test {
 
-TempDirectory::TempDirectory(const std::string& prefix) {
-  const char* tmp = std::getenv("TMPDIR");
-  std::string tmpl = std::string(tmp && *tmp ? tmp : "/tmp") + "/" + prefix + "-XXXXXX";
-  std::vector<char> buf(tmpl.begin(), tmpl.end());
-  buf.push_back('\0');
-  if (!mkdtemp(buf.data())) throw std::runtime_error("mkdtemp " + tmpl + " failed");
-  path_ = buf.data();
-}
-
-TempDirectory::~TempDirectory() {
-  std::error_code ec;
-  std::filesystem::remove_all(path_, ec);
-}
-
 void ChildProcess::Start(const std::vector<std::string>& argv, const std::string& log_file) {
   if (pid_ > 0 && Running()) throw std::runtime_error("ChildProcess::Start: already running");
   std::vector<char*> args;
@@ -167,7 +153,7 @@ MosquittoFixture::MosquittoFixture(Options options, Access access)
   std::ofstream conf(dir_.File("mosquitto.conf"));
   conf << "listener " << port_ << " 127.0.0.1\n";
   if (options_.tls) {
-    const std::string d = dir_.path() + "/";
+    const std::string d = dir_.path().string() + "/";
     std::ofstream(d + "san.ext") << "subjectAltName=IP:127.0.0.1,DNS:localhost\n";
     run({"openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes", "-keyout",
          d + "ca.key", "-out", d + "ca.pem", "-days", "2", "-subj", "/CN=linerwatch test CA"});
@@ -192,7 +178,7 @@ MosquittoFixture::MosquittoFixture(Options options, Access access)
   if (const passwd* pw = getpwuid(geteuid())) conf << "user " << pw->pw_name << "\n";
   if (options_.persistence) {
     conf << "persistence true\n"
-         << "persistence_location " << dir_.path() << "/\n"
+         << "persistence_location " << dir_.path().string() << "/\n"
          << "autosave_interval 1\n";
   } else {
     conf << "persistence false\n";

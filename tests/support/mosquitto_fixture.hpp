@@ -16,21 +16,9 @@
 #include <utility>
 #include <vector>
 
+#include "support/temp_directory.hpp"
+
 namespace lw::test {
-
-/// A fresh directory under $TMPDIR (or /tmp), removed recursively on destruction.
-class TempDirectory {
- public:
-  explicit TempDirectory(const std::string& prefix = "lw-test");
-  ~TempDirectory();
-  TempDirectory(const TempDirectory&) = delete;
-  TempDirectory& operator=(const TempDirectory&) = delete;
-  const std::string& path() const { return path_; }
-  std::string File(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
 
 /// One child process (fork + exec), stdout and stderr appended to a log file.
 class ChildProcess {
@@ -126,7 +114,7 @@ class MosquittoFixture {
   /// The CA certificate clients trust (tls only).
   std::string ca_file() const { return dir_.File("ca.pem"); }
   /// The temp dir holding mosquitto.conf, mosquitto.log and the persistence database.
-  const std::string& dir() const { return dir_.path(); }
+  const std::filesystem::path& dir() const { return dir_.path(); }
   std::string log_file() const { return dir_.File("mosquitto.log"); }
 
  private:

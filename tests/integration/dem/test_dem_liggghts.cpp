@@ -15,7 +15,7 @@
 #include "unit/cli/run_cli.hpp"
 #include "core/wear_map.hpp"
 #include "dem/runner.hpp"
-#include "unit/core/temp_dir.hpp"
+#include "support/temp_directory.hpp"
 
 #include <CppUTest/TestHarness.h>
 
@@ -31,7 +31,7 @@ Run Cli(const std::vector<std::string>& args) { return lw::test::RunLinerwatch(a
 TEST_GROUP(DemLiggghts){};
 
 TEST(DemLiggghts, CaseRunStopResumeMap) {
-  lw::test::ScratchDir scratch;
+  lw::test::TempDirectory scratch;
   const fs::path crusher = scratch.path() / "tiny";
   const fs::path work = scratch.path() / "case";
   fs::create_directories(crusher);
@@ -117,7 +117,7 @@ TEST(DemLiggghts, CaseRunStopResumeMap) {
 }
 
 TEST(DemLiggghts, MapOfAnUnfinishedRunIsRefused) {
-  lw::test::ScratchDir scratch;
+  lw::test::TempDirectory scratch;
   const fs::path crusher = scratch.path() / "tiny";
   fs::create_directories(crusher);
   fs::copy_file(fs::path(LW_TEST_DATA_DIR) / "dem/tiny/crusher.json", crusher / "crusher.json");

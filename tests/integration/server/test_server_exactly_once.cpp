@@ -1,7 +1,8 @@
 // The real linerwatch-server against a real mosquitto on 127.0.0.1: the test plays the gateway
 // (publishes readings QoS 1, republishes what the server has not confirmed), SIGKILLs the server
 // twice mid-stream and restarts it. Every reading must end up stored exactly once, confirmed, and
-// the retained global wear must equal the reconstruction computed offline from the same readings.
+// the retained global wear must equal the reconstruction computed offline from the same readings
+// (and the folder's laser scan).
 #include <mqtt/async_client.h>
 
 #include <chrono>
@@ -147,7 +148,9 @@ TEST(ServerExactlyOnce, SigkillMidStreamStoresEveryReadingOnceAndWearMatchesOffl
   // Retained global wear (wait for the final publication) equals the offline reconstruction.
   const auto& b = folder.bundle;
   const auto last = std::max_element(b.readings.begin(), b.readings.end(), [](const auto& x, const auto& y) { return x.time < y.time; })->time;
-  const auto offline = lw::core::Reconstruct(b.crusher, b.map, lw::core::SensorWearAt(b.crusher, b.readings, last));
+  // The crusher folder has a laser scan: the server applies the newest one, so does the offline plan.
+  CHECK_FALSE(b.scans.empty());
+  const auto offline = lw::test::OfflineLiveWear(b, last);
   // Wait for the wear computed from every sensor's last reading: an earlier publication can
   // already carry the final time (another sensor's last reading) with one sensor still behind.
   std::map<std::string, int64_t> last_seq;

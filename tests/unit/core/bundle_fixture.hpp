@@ -5,7 +5,7 @@
 
 #include "core/bundle.hpp"
 #include "core/wear_map.hpp"
-#include "unit/core/temp_dir.hpp"
+#include "support/temp_directory.hpp"
 
 namespace lw::test {
 
@@ -62,7 +62,7 @@ inline const char* kCrusherJson = R"({
               {"id": "1002", "row": "LUP", "z_m": 1.5, "theta_deg": 90, "address": "0013A20040A1B2C3"}]
 })";
 
-inline void WriteBundle(const ScratchDir& dir, const std::string& readings) {
+inline void WriteBundle(const TempDirectory& dir, const std::string& readings) {
   dir.Write("crusher.json", kCrusherJson);
   core::WearMap m = CylinderMap(24, 20, [](double z) { return 2.0 - 0.5 * z; });
   core::WriteWearMapVtk(dir.path() / "wear_map.vtk", m, {{"wear", &m.wear}});

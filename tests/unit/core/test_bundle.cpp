@@ -6,7 +6,7 @@
 using namespace lw::core;
 
 namespace {
-std::string ErrorOf(const lw::test::ScratchDir& dir) {
+std::string ErrorOf(const lw::test::TempDirectory& dir) {
   try {
     LoadBundle(dir.path());
   } catch (const InputError& e) {
@@ -16,7 +16,7 @@ std::string ErrorOf(const lw::test::ScratchDir& dir) {
 }
 }  // namespace
 
-TEST_GROUP(Bundle) { lw::test::ScratchDir dir; };
+TEST_GROUP(Bundle) { lw::test::TempDirectory dir; };
 
 TEST(Bundle, LoadsEveryFileSortedAndIgnoresExtras) {
   lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm,comment\n"

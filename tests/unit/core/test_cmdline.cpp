@@ -1,5 +1,5 @@
 #include "core/cmdline.hpp"
-#include "unit/core/temp_dir.hpp"
+#include "support/temp_directory.hpp"
 
 #include <functional>
 #include <map>
@@ -19,7 +19,7 @@ std::string ErrorOf(const std::vector<std::string>& args) {
 }
 }  // namespace
 
-TEST_GROUP(CommandLine) { lw::test::ScratchDir dir; };
+TEST_GROUP(CommandLine) { lw::test::TempDirectory dir; };
 
 TEST(CommandLine, ConfigFileThenFlagsInOrder) {
   const auto file = dir.Write("c.json", R"({"days": 30, "rate_hz": 1.5, "verbose": true, "name": "x"})");

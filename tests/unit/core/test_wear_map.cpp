@@ -2,7 +2,7 @@
 #include <fstream>
 
 #include "core/wear_map.hpp"
-#include "unit/core/temp_dir.hpp"
+#include "support/temp_directory.hpp"
 
 #include <CppUTest/TestHarness.h>
 
@@ -33,7 +33,7 @@ WearMap Cone(int nt, int nz) {
 }
 /// Writes `text` as `name` and loads it: the InputError's message, "" when it loaded, and any
 /// other exception named as such (a map must be refused with file, line and rule, not crash).
-std::string LoadError(const lw::test::ScratchDir& dir, const std::string& name, const std::string& text) {
+std::string LoadError(const lw::test::TempDirectory& dir, const std::string& name, const std::string& text) {
   dir.Write(name, text);
   try {
     LoadWearMap(dir.path() / name);
@@ -63,11 +63,12 @@ TEST(WearMap, ReadsTheLiggghtsSampleExactly) {
 }
 
 TEST(WearMap, WriterOutputReadsBackIdentically) {
-  lw::test::ScratchDir dir;
+  lw::test::TempDirectory dir;
   WearMap m = Cone(12, 5);
   const Eigen::VectorXd extra = m.wear * 2.0;
   WriteWearMapVtk(dir.path() / "m.vtk", m, {{"wear", &m.wear}, {"normal_stress_average", &m.normal_stress}, {"wear_mm", &extra}});
-  CHECK_FALSE(std::filesystem::exists(dir.path() / "m.vtk.tmp"));
+  // Written through a temporary that is gone afterwards: the folder holds the map alone.
+  LONGS_EQUAL(1, std::distance(std::filesystem::directory_iterator(dir.path()), std::filesystem::directory_iterator()));
   MapValidation v;
   const WearMap back = LoadWearMap(dir.path() / "m.vtk", &v);
   LONGS_EQUAL(m.face_count(), back.face_count());
@@ -83,7 +84,7 @@ TEST(WearMap, WriterOutputReadsBackIdentically) {
 }
 
 TEST(WearMap, Vtk42ScalarsAndFieldFormsBothRead) {
-  lw::test::ScratchDir dir;
+  lw::test::TempDirectory dir;
   const std::string head = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n"
                            "1 0 0  0 1 0  1 0 1  0 1 1\nPOLYGONS 2 8\n3 0 1 2\n3 1 3 2\nCELL_DATA 2\n";
   dir.Write("a.vtk", head + "SCALARS wear float 1\nLOOKUP_TABLE default\n0.5\n1.5\n");
@@ -97,7 +98,7 @@ TEST(WearMap, Vtk42ScalarsAndFieldFormsBothRead) {
 }
 
 TEST(WearMap, CsvExportReads) {
-  lw::test::ScratchDir dir;
+  lw::test::TempDirectory dir;
   dir.Write("m.csv", "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear,normal_stress_average\n"
                      "1,0,0,0,1,0,1,0,1,0.25,3\n0,1,0,0,1,1,1,0,1,0.75,4\n");
   const WearMap m = LoadWearMap(dir.path() / "m.csv");
@@ -107,7 +108,7 @@ TEST(WearMap, CsvExportReads) {
 }
 
 TEST(WearMap, BadMapsNameFileLineAndRule) {
-  lw::test::ScratchDir dir;
+  lw::test::TempDirectory dir;
   auto message = [&](const std::string& name, const std::string& text) { return LoadError(dir, name, text); };
   const std::string head = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n1 0 0 0 1 0 1 0 1 0 1 1\n";
   std::string m = message("quad.vtk", head + "POLYGONS 1 5\n4 0 1 3 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n1\n");
@@ -131,7 +132,7 @@ TEST(WearMap, BadMapsNameFileLineAndRule) {
 // behaviour), VTK 5.1 OFFSETS past CONNECTIVITY were read out of bounds, and huge coordinates made
 // areas and normals infinite. Each must be a clear InputError naming the rule.
 TEST(WearMap, AbsurdCountsOffsetsAndCoordinatesAreInputErrors) {
-  lw::test::ScratchDir dir;
+  lw::test::TempDirectory dir;
   auto message = [&](const std::string& name, const std::string& text) { return LoadError(dir, name, text); };
   const std::string v42 = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\n";
   const std::string tail = "POLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n1\n";
@@ -158,7 +159,7 @@ TEST(WearMap, AbsurdCountsOffsetsAndCoordinatesAreInputErrors) {
 }
 
 TEST(WearMap, ParsesFromMemoryLikeFromAFile) {
-  lw::test::ScratchDir dir;
+  lw::test::TempDirectory dir;
   const std::string csv = "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,1,0.5\n";
   dir.Write("m.csv", csv);
   const WearMap from_file = LoadWearMap(dir.path() / "m.csv");
@@ -175,7 +176,7 @@ TEST(WearMap, ParsesFromMemoryLikeFromAFile) {
 }
 
 TEST(WearMap, ValidationFlagsZeroAndTruncatedMaps) {
-  lw::test::ScratchDir dir;
+  lw::test::TempDirectory dir;
   WearMap m = Cone(12, 5);
   for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] = (i % 3 == 0) ? 0.0 : 0.000001 * static_cast<double>(i % 4 + 1);
   WriteWearMapVtk(dir.path() / "t.vtk", m, {{"wear", &m.wear}});
@@ -188,7 +189,7 @@ TEST(WearMap, ValidationFlagsZeroAndTruncatedMaps) {
 
 // Maps that would load and then give plausible wrong answers are refused with file, line and rule.
 TEST(WearMap, ImplausibleMapsAreRefusedNotLoaded) {
-  lw::test::ScratchDir dir;
+  lw::test::TempDirectory dir;
   auto message = [&](const std::string& name, const std::string& text) { return LoadError(dir, name, text); };
   const std::string head = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\n";
   const std::string tri = "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n";
@@ -215,7 +216,7 @@ TEST(WearMap, ImplausibleMapsAreRefusedNotLoaded) {
 }
 
 TEST(WearMap, WearStderrAndTheTitlesWindowCountAreRead) {
-  const lw::test::ScratchDir dir;
+  const lw::test::TempDirectory dir;
   std::ofstream(dir.path() / "m.vtk") << "# vtk DataFile Version 4.2\nlinerwatch dem c1 windows=5 window_s=1.4\nASCII\n"
                                          "DATASET POLYDATA\nPOINTS 3 double\n0 1 0\n1 1 0\n0 1 1\nPOLYGONS 1 4\n3 0 1 2\n"
                                          "CELL_DATA 1\nSCALARS wear double 1\nLOOKUP_TABLE default\n2.5\n"

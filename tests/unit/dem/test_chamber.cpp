@@ -10,7 +10,7 @@
 
 #include "dem/case_writer.hpp"
 #include "dem/chamber.hpp"
-#include "unit/core/temp_dir.hpp"
+#include "support/temp_directory.hpp"
 
 #include <CppUTest/TestHarness.h>
 
@@ -93,7 +93,7 @@ TEST(Chamber, RefusalsNameTheKey) {
 TEST_GROUP(CaseWriter){};
 
 TEST(CaseWriter, WritesMeshesScriptsAndClusterFiles) {
-  lw::test::ScratchDir dir;
+  lw::test::TempDirectory dir;
   const auto s = lw::dem::ChamberFromCrusherJson(Crusher({{"mesh_n_theta", 24}, {"mesh_n_z", 6}}), "crusher.json");
   lw::dem::WriteCase(s, dir.path());
   using L = lw::dem::CaseLayout;

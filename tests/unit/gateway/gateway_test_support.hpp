@@ -9,29 +9,13 @@
 #include <vector>
 
 #include "gateway/publisher.hpp"
+#include "support/temp_directory.hpp"
 #include "protocol/frame_decoder.hpp"
 #include "protocol/sensor_payload.hpp"
 #include "protocol/xbee_api.hpp"
 
 namespace lw::gateway::test {
 
-/// A fresh directory under /tmp, removed with everything in it on destruction.
-class TempDir {
- public:
-  TempDir() {
-    char tmpl[] = "/tmp/lw-gateway-test-XXXXXX";
-    path_ = mkdtemp(tmpl) ? tmpl : "";
-  }
-  ~TempDir() {
-    std::error_code ec;
-    if (!path_.empty()) std::filesystem::remove_all(path_, ec);
-  }
-  std::string File(const std::string& name) const { return path_ + "/" + name; }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
 
 inline protocol::SensorRecord MakeRecord(uint32_t seq, uint16_t thickness_dmm = 870, uint16_t flags = 0) {
   protocol::SensorRecord r;

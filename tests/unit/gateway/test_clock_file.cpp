@@ -28,7 +28,7 @@ void WriteClock(const std::string& path, const std::string& text) {
 }  // namespace
 
 TEST_GROUP(ClockFile) {
-  gw::test::TempDir dir;
+  lw::test::TempDirectory dir;
 };
 
 TEST(ClockFile, ReadsUnixMsAndKeepsTheLastGoodValue) {

@@ -30,7 +30,7 @@ bool Contains(const std::string& s, const std::string& part) { return s.find(par
 }  // namespace
 
 TEST_GROUP(Config) {
-  lw::gateway::test::TempDir dir;
+  lw::test::TempDirectory dir;
 };
 
 TEST(Config, MinimalFlagsGiveDefaults) {

@@ -57,7 +57,7 @@ class Coordinator : public gw::ByteSink {
 }  // namespace
 
 TEST_GROUP(FirmwareInterop) {
-  gw::test::TempDir dir;
+  lw::test::TempDirectory dir;
 };
 
 TEST(FirmwareInterop, EveryWearStepOfTheRealFirmwareReachesTheSpoolAcrossAGatewayOutage) {

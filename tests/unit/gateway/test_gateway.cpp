@@ -38,7 +38,7 @@ std::vector<uint8_t> NodeIdFrame(uint64_t address, const char* node_identifier) 
 }  // namespace
 
 TEST_GROUP(Gateway) {
-  gw::test::TempDir dir;
+  lw::test::TempDirectory dir;
   std::unique_ptr<gw::Spool> spool;
   gw::test::FakePublisher publisher;
   gw::test::FakeRadio radio{kMode};

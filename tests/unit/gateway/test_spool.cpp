@@ -32,7 +32,7 @@ std::vector<uint32_t> Seqs(const std::vector<SpoolRecord>& records, const std::s
 }  // namespace
 
 TEST_GROUP(Spool) {
-  lw::gateway::test::TempDir dir;
+  lw::test::TempDirectory dir;
   std::string path() { return dir.File("spool.db"); }
 };
 

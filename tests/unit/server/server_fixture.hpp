@@ -8,6 +8,8 @@
 #include <vector>
 
 #include "core/bundle.hpp"
+#include "core/reconstruction.hpp"
+#include "core/scan_correction.hpp"
 #include "server/ingest.hpp"
 #include "server/registry.hpp"
 #include "sim/campaign.hpp"
@@ -47,6 +49,15 @@ inline std::vector<server::Incoming> Messages(const core::Bundle& b, const std::
                    "linerwatch/v1/" + site + "/" + b.crusher.crusher_id + "/sensors/" + r.sensor_id + "/reading", j.dump()});
   }
   return out;
+}
+
+/// Live wear as the server and `linerwatch reconstruct` compute it offline from the bundle: the map
+/// model, corrected by the newest scan when the bundle has one (docs/server.md), at time `at`.
+inline core::Reconstruction OfflineLiveWear(const core::Bundle& b, core::TimePoint at) {
+  core::ReconstructionPlan plan = core::PrepareReconstruction(b.crusher, b.map);
+  if (const core::Scan* scan = core::LatestScanAt(b.scans, core::TimePoint::max()))
+    core::ApplyScan(plan, core::ProjectScanToFaces(b.map, *scan), core::SensorWearAt(b.crusher, b.readings, scan->date));
+  return core::Reconstruct(plan, core::SensorWearAt(b.crusher, b.readings, at));
 }
 
 }  // namespace lw::test

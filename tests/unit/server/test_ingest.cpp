@@ -185,10 +185,9 @@ TEST(Ingest, LiveWearAppliesTheLatestScanAsReconstructDoes) {
                                      [](const auto& x, const auto& y) { return x.time < y.time; })->time;
   const lw::core::Scan* scan = lw::core::LatestScanAt(b.scans, lw::core::TimePoint::max());
   CHECK(scan != nullptr);
-  lw::core::ReconstructionPlan plan = lw::core::PrepareReconstruction(b.crusher, b.map);
-  const lw::core::Reconstruction unscanned = lw::core::Reconstruct(plan, lw::core::SensorWearAt(b.crusher, b.readings, last));
-  lw::core::ApplyScan(plan, lw::core::ProjectScanToFaces(b.map, *scan), lw::core::SensorWearAt(b.crusher, b.readings, scan->date));
-  const lw::core::Reconstruction scanned = lw::core::Reconstruct(plan, lw::core::SensorWearAt(b.crusher, b.readings, last));
+  const lw::core::Reconstruction unscanned =
+      lw::core::Reconstruct(lw::core::PrepareReconstruction(b.crusher, b.map), lw::core::SensorWearAt(b.crusher, b.readings, last));
+  const lw::core::Reconstruction scanned = lw::test::OfflineLiveWear(b, last);
   DOUBLES_EQUAL(scanned.min_thickness_mm, st.reconstruction.min_thickness_mm, 1e-9);
   DOUBLES_EQUAL(0, (scanned.remaining_mm - st.reconstruction.remaining_mm).cwiseAbs().maxCoeff(), 1e-9);
   // The scan moved the live map (else this test could not tell the two apart).

@@ -150,5 +150,11 @@ TEST(SimCampaign, BadSpecsAreRefusedNamingTheField) {
   }
   CHECK_THROWS(std::invalid_argument, sim::ParseFault("1001:stuck"));
   CHECK_THROWS(std::invalid_argument, sim::ParseEffect("feed_segregation:amplitude=x"));
+  // Numbers are whole and finite: trailing text, nan and inf are refused, not read as a prefix.
+  CHECK_THROWS(std::invalid_argument, sim::ParseEffect("feed_segregation:amplitude=0.3x"));
+  CHECK_THROWS(std::invalid_argument, sim::ParseEffect("feed_segregation:amplitude=nan"));
+  CHECK_THROWS(std::invalid_argument, sim::ParseFault("1001:stuck:40days"));
+  CHECK_THROWS(std::invalid_argument, sim::ParseFault("1001:stuck:40:inf"));
+  DOUBLES_EQUAL(0.3, sim::ParseEffect("feed_segregation:amplitude=0.3").params.at("amplitude"), 0);
   CHECK_THROWS(std::invalid_argument, sim::CampaignSpec::FromJson(nlohmann::json{{"dayz", 3}}));
 }
