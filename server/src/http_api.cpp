@@ -259,7 +259,8 @@ void HttpApi::Impl::Routes() {
   svr.Get("/api/v1/crushers", [this](const httplib::Request&, httplib::Response& res) {
     ordered_json list = ordered_json::array();
     for (const Crusher* c : ctx.registry->All()) {
-      // Never waits behind a wear recompute: the state computed last (at most one batch older).
+      // Never waits behind a wear recompute: the wear as last computed (the wear worker recomputes a
+      // changed crusher within --wear-interval-ms); the latest reading time is always current.
       const auto st = ctx.wear->Latest(c->config.crusher_id);
       const auto latest = ctx.live->LatestUsableTime(c->config.crusher_id);
       ordered_json rows = ordered_json::array();
