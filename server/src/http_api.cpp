@@ -259,7 +259,10 @@ void HttpApi::Impl::Routes() {
   svr.Get("/api/v1/crushers", [this](const httplib::Request&, httplib::Response& res) {
     ordered_json list = ordered_json::array();
     for (const Crusher* c : ctx.registry->All()) {
-      const auto st = ctx.wear->Get(c->config.crusher_id);
+      // Never waits behind a wear recompute: the wear as last computed (the wear worker recomputes a
+      // changed crusher within --wear-interval-ms); the latest reading time is always current.
+      const auto st = ctx.wear->Latest(c->config.crusher_id);
+      const auto latest = ctx.live->LatestUsableTime(c->config.crusher_id);
       ordered_json rows = ordered_json::array();
       for (const auto& r : c->config.rows) rows.push_back({{"name", r.name}, {"z_min_m", r.z_min_m}, {"z_max_m", r.z_max_m}});
       list.push_back({{"crusher_id", c->config.crusher_id},
@@ -270,7 +273,7 @@ void HttpApi::Impl::Routes() {
                       {"sensor_count", c->config.sensors.size()},
                       {"map_sha256", c->map.sha256},
                       {"face_count", c->map.face_count()},
-                      {"latest_reading_time", st && st->has_wear ? ordered_json(core::FormatIsoTime(st->time)) : ordered_json(nullptr)},
+                      {"latest_reading_time", latest ? ordered_json(Iso(*latest)) : ordered_json(nullptr)},
                       {"min_thickness_mm", st && st->has_wear && std::isfinite(st->reconstruction.min_thickness_mm)
                                                ? ordered_json(st->reconstruction.min_thickness_mm) : ordered_json(nullptr)},
                       {"wear_status", st && st->has_wear ? ordered_json(st->reconstruction.status) : ordered_json(nullptr)}});
@@ -287,11 +290,7 @@ void HttpApi::Impl::Routes() {
     for (const auto& s : c->config.sensors) {
       sensors.push_back({{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg}, {"thickness_new_mm", s.thickness_new_mm}});
     }
-    int64_t stored = 0;
-    {
-      std::lock_guard<std::mutex> lock(*ctx.read_mutex);
-      stored = ctx.read->CountReadings(c->config.crusher_id);
-    }
+    const int64_t stored = ctx.live->CountReadings(c->config.crusher_id);
     const IngestCounters cc = ctx.ingestor->CrusherCounters(c->config.crusher_id);
     Reply(res, 200,
           {{"crusher_id", c->config.crusher_id},
@@ -309,11 +308,7 @@ void HttpApi::Impl::Routes() {
   svr.Get(R"(/api/v1/crushers/([^/]+)/sensors)", [this](const httplib::Request& req, httplib::Response& res) {
     const Crusher* c = CrusherOr404(req, res);
     if (!c) return;
-    std::vector<Store::SensorSummary> latest;
-    {
-      std::lock_guard<std::mutex> lock(*ctx.read_mutex);
-      latest = ctx.read->LatestPerSensor(c->config.crusher_id);
-    }
+    const std::vector<Store::SensorSummary> latest = ctx.live->LatestPerSensor(c->config.crusher_id);
     ordered_json sensors = ordered_json::array();
     for (const auto& s : c->config.sensors) {
       ordered_json o = {{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg},

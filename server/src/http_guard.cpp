@@ -7,12 +7,14 @@
 #include <poll.h>
 #include <strings.h>
 #include <sys/socket.h>
+#include <sys/uio.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <memory>
+#include <string_view>
 
 namespace lw::server {
 
@@ -65,12 +67,22 @@ std::string ErrorResponse(int status, const std::string& message) {
          "\r\n\r\n" + body;
 }
 
-/// Writes all of `data` within `timeout_ms` (the socket is non-blocking). False on error or timeout.
-bool SendAll(int fd, const char* data, size_t size, int timeout_ms) {
+/// Writes `head` then `body` within `timeout_ms` (the socket is non-blocking) with sendmsg, so that
+/// the kernel takes both at once: one segment for a small response. False on error or timeout.
+bool SendBoth(int fd, std::string_view head, const char* body, size_t body_size, int timeout_ms) {
   const auto deadline = Clock::now() + std::chrono::milliseconds(timeout_ms);
   size_t done = 0;
-  while (done < size) {
-    const ssize_t n = ::send(fd, data + done, size - done, MSG_NOSIGNAL);
+  const size_t total = head.size() + body_size;
+  while (done < total) {
+    iovec iov[2];
+    int n_iov = 0;
+    if (done < head.size()) iov[n_iov++] = {const_cast<char*>(head.data()) + done, head.size() - done};
+    const size_t body_done = done > head.size() ? done - head.size() : 0;
+    if (body_size > body_done) iov[n_iov++] = {const_cast<char*>(body) + body_done, body_size - body_done};
+    msghdr msg{};
+    msg.msg_iov = iov;
+    msg.msg_iovlen = static_cast<size_t>(n_iov);
+    const ssize_t n = ::sendmsg(fd, &msg, MSG_NOSIGNAL);
     if (n > 0) {
       done += static_cast<size_t>(n);
       continue;
@@ -82,6 +94,9 @@ bool SendAll(int fd, const char* data, size_t size, int timeout_ms) {
   }
   return true;
 }
+
+/// Writes all of `data` within `timeout_ms` (the socket is non-blocking). False on error or timeout.
+bool SendAll(int fd, const char* data, size_t size, int timeout_ms) { return SendBoth(fd, {}, data, size, timeout_ms); }
 
 std::string Lower(std::string s) {
   for (auto& ch : s) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
@@ -152,10 +167,28 @@ class GuardedStream : public httplib::Stream {
     }
   }
 
+  /// httplib writes a response as two writes, the head then the body. The head is held and sent
+  /// with the body in one sendmsg (Flush() sends it alone when no body follows): one segment for a
+  /// small response, so a kept-alive client never waits on Nagle or a delayed ACK between the two.
   ssize_t write(const char* ptr, size_t size) override {
     if (failed_) return -1;  // our error reply went out instead
+    const std::string_view text(ptr, size);
+    if (!wrote_ && held_.empty() && size < 16384 && text.find("\r\n\r\n") == size - 4 && text.rfind("HTTP/1.1 100", 0) != 0) {
+      held_.assign(ptr, size);  // the response head: wait for the body
+      return static_cast<ssize_t>(size);
+    }
     wrote_ = true;
-    return SendAll(c_.fd, ptr, size, limits_.io_timeout_ms) ? static_cast<ssize_t>(size) : -1;
+    const bool ok = held_.empty() ? SendAll(c_.fd, ptr, size, limits_.io_timeout_ms) : SendBoth(c_.fd, held_, ptr, size, limits_.io_timeout_ms);
+    held_.clear();
+    return ok ? static_cast<ssize_t>(size) : -1;
+  }
+  /// Sends a held response head (a response without a body). False when it could not be sent.
+  bool Flush() {
+    if (held_.empty()) return true;
+    wrote_ = true;
+    const bool ok = SendAll(c_.fd, held_.data(), held_.size(), limits_.io_timeout_ms);
+    held_.clear();
+    return ok;
   }
 
   void get_remote_ip_and_port(std::string& ip, int& port) const override {
@@ -199,6 +232,7 @@ class GuardedStream : public httplib::Stream {
   uint64_t consumed_ = 0;
   bool failed_ = false;
   bool wrote_ = false;
+  std::string held_;  ///< a response head not sent yet
 };
 
 }  // namespace
@@ -421,7 +455,8 @@ void GuardedServer::Worker() {
       GuardedStream strm(*c, limits_);
       const bool last = c->served + 1 >= limits_.max_requests_per_connection;
       bool closed = false;
-      const bool ok = process_request(strm, last, closed, nullptr);
+      const bool processed = process_request(strm, last, closed, nullptr);
+      const bool ok = strm.Flush() && processed;
       ++c->served;
       // Kept alive only when the request was read exactly to its end (httplib leaves the body
       // of a refused request unread; those bytes must not be parsed as the next request).

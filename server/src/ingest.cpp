@@ -284,8 +284,8 @@ std::vector<std::string> CommitAckMessages(const Ack& ack, const std::string& ti
   return out;
 }
 
-Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s)
-    : store_(store), registry_(registry), now_s_(std::move(now_s)) {
+Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s, LiveState* live)
+    : store_(store), registry_(registry), live_(live), now_s_(std::move(now_s)) {
   for (const auto& [crusher, site] : store_.CrusherSites()) sites_[crusher] = site;
   // crusher.json's "site" binds; it overrides a binding learnt from the first reading.
   for (const Crusher* c : registry_.All()) {
@@ -345,6 +345,8 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
       rejected.push_back({wall, in.topic, in.payload, v.error});
     }
   }
+  std::unique_lock<std::mutex> commit_order;  // from the commit to live_->Add (LiveState::CommitGuard)
+  if (live_) commit_order = live_->CommitGuard();
   const std::vector<InsertOutcome> outcomes = store_.Commit(readings, rejected, {new_sites.begin(), new_sites.end()});  // throws: nothing acked
   for (const auto& [crusher, site] : new_sites) {
     sites_[crusher] = site;
@@ -376,6 +378,10 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
         break;
     }
     acks[{in.site, r.crusher, r.sensor}].insert(r.seq);
+  }
+  if (live_) {
+    live_->Add(result.new_readings);
+    commit_order.unlock();
   }
   for (size_t i = 0; i < batch.size(); ++i) {
     const Validation& v = validations[i];

@@ -6,7 +6,8 @@
 
 namespace lw::server {
 
-std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& folder, const core::ReconstructionOptions& options) {
+std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& folder, const core::ReconstructionOptions& options,
+                                               MapModels* models) {
   auto c = std::make_unique<Crusher>();
   c->dir = folder;
   c->config = core::LoadCrusherConfig(folder / "crusher.json");
@@ -17,7 +18,13 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
   }
   c->map = core::LoadWearMap(map_path, &c->validation);
   core::CheckCrusherAgainstMap(c->config, c->map, "crusher.json");
-  c->plan = core::PrepareReconstruction(c->config, c->map, options);
+  if (!models) {
+    c->plan = core::PrepareReconstruction(c->config, c->map, options);
+  } else {
+    auto it = models->find(c->map.sha256);
+    if (it == models->end()) it = models->emplace(c->map.sha256, core::BuildMapModel(c->map, options.map_model)).first;
+    c->plan = core::PrepareReconstruction(c->config, c->map, it->second, options);
+  }
   const auto summary_path = folder / "dem_summary.json";
   if (std::filesystem::exists(summary_path)) {
     std::ifstream in(summary_path);
@@ -96,9 +103,10 @@ std::unique_ptr<Registry> Registry::Load(const std::filesystem::path& dir, std::
   }
   if (ec) throw std::runtime_error("--crusher-dir '" + dir.string() + "': " + ec.message());
   std::sort(folders.begin(), folders.end());
+  MapModels models;  // identical maps are smoothed once
   for (const auto& folder : folders) {
     try {
-      auto c = LoadCrusher(folder);
+      auto c = LoadCrusher(folder, {}, &models);
       if (reg->Find(c->config.crusher_id)) {
         throw std::runtime_error("crusher_id '" + c->config.crusher_id + "' is already used by another folder");
       }

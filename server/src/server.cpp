@@ -4,6 +4,7 @@
 
 #include <poll.h>
 #include <sys/statvfs.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -20,6 +21,7 @@
 #include "server/diagnosis_runner.hpp"
 #include "server/http_api.hpp"
 #include "server/ingest.hpp"
+#include "server/live_state.hpp"
 #include "server/registry.hpp"
 #include "server/store.hpp"
 #include "server/wear_service.hpp"
@@ -29,6 +31,14 @@ namespace {
 
 int64_t WallMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+/// CPU time of `clock` (CLOCK_PROCESS_CPUTIME_ID, CLOCK_THREAD_CPUTIME_ID) in ms: startup figures
+/// that do not depend on what else the machine runs.
+int64_t CpuMs(clockid_t clock) {
+  timespec t{};
+  ::clock_gettime(clock, &t);
+  return static_cast<int64_t>(t.tv_sec) * 1000 + t.tv_nsec / 1'000'000;
 }
 
 std::string Stamp() { return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(WallMs() / 1000))); }
@@ -74,8 +84,9 @@ std::string DiskFull(const std::string& db, int64_t free) {
 
 /// The REST API's context over these parts (both the normal and the read-only start use it).
 ApiContext MakeApiContext(const ServerOptions& o, const Registry& registry, Store& read, std::mutex& read_mutex, WearService& wear,
-                          Ingestor& ingestor, EventBus& events, const TokenStore& tokens) {
+                          const LiveState& live, Ingestor& ingestor, EventBus& events, const TokenStore& tokens) {
   ApiContext ctx;
+  ctx.live = &live;
   ctx.registry = &registry;
   ctx.read = &read;
   ctx.read_mutex = &read_mutex;
@@ -122,11 +133,13 @@ bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& st
     read = std::make_unique<Store>(":memory:");  // empty, in memory: the API answers, nothing on disk
   }
   std::mutex read_mutex;
+  LiveState live(registry);
+  live.Rebuild(*read);
   Ingestor refusing(*read, registry, [] { return WallMs() / 1000; });  // its Commit throws: 503, not stored
-  WearService wear(registry, *read, read_mutex);
+  WearService wear(registry, live);
   EventBus events;
   std::mutex reason_mutex;
-  ApiContext ctx = MakeApiContext(o, registry, *read, read_mutex, wear, refusing, events, tokens);
+  ApiContext ctx = MakeApiContext(o, registry, *read, read_mutex, wear, live, refusing, events, tokens);
   ctx.health = [&] {
     std::lock_guard<std::mutex> lock(reason_mutex);
     return nlohmann::ordered_json{{"status", "degraded"}, {"reason", reason}, {"broker", "not subscribed (disk full)"}};
@@ -174,11 +187,20 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   Store write(o.db);
   Store read(o.db);
   std::mutex read_mutex;
+  // Per-crusher state (counts, latest readings, wear and forecast inputs), loaded once here and kept
+  // up to date by the ingestor as it commits: no request or recompute reads all of a crusher's readings.
+  // Each crusher's is loaded the first time it is asked for; the wear worker asks for all of them
+  // once as soon as the API is up, so the server answers while they load.
+  LiveState live(*registry);
+  live.LoadLazily(std::make_unique<Store>(o.db));
   const std::string clock_file = o.clock_file;
-  Ingestor ingestor(write, *registry, [clock_file] { return NowSeconds(clock_file); });
-  WearService wear(*registry, read, read_mutex);
+  Ingestor ingestor(write, *registry, [clock_file] { return NowSeconds(clock_file); }, &live);
+  WearService wear(*registry, live);
   EventBus events;
-  DiagnosisRunner diagnosis(*registry, read, read_mutex);
+  // The diagnosis loads every reading of a crusher: on its own connection, so REST reads do not wait for it.
+  Store diagnosis_read(o.db);
+  std::mutex diagnosis_mutex;
+  DiagnosisRunner diagnosis(*registry, diagnosis_read, diagnosis_mutex);
 
   std::mutex dirty_mutex;
   std::condition_variable dirty_cv;
@@ -213,7 +235,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   gateway::PahoLink link(lo);
   std::atomic<bool> connected{false};
 
-  ApiContext ctx = MakeApiContext(o, *registry, read, read_mutex, wear, ingestor, events, tokens);
+  ApiContext ctx = MakeApiContext(o, *registry, read, read_mutex, wear, live, ingestor, events, tokens);
   ctx.diagnosis = &diagnosis;
   ctx.health = [&] {
     const IngestCounters c = ingestor.Counters();
@@ -243,6 +265,24 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   std::vector<std::pair<std::string, std::string>> computed;  // (crusher, wear summary JSON)
   std::atomic<bool> worker_stop{false};
   std::thread wear_worker([&] {
+    // Once at startup, every crusher's state and then its wear and forecast (not published: nothing
+    // changed), so that requests find them loaded and computed.
+    const int64_t load_start_ms = WallMs(), load_start_cpu_ms = CpuMs(CLOCK_THREAD_CPUTIME_ID);
+    for (const Crusher* c : registry->All()) {
+      if (worker_stop) return;
+      live.LatestUsableTime(c->config.crusher_id);  // loads it
+    }
+    log("per-crusher state loaded in " + std::to_string(WallMs() - load_start_ms) + " ms (" +
+        std::to_string(CpuMs(CLOCK_THREAD_CPUTIME_ID) - load_start_cpu_ms) + " ms CPU)");
+    for (const Crusher* c : registry->All()) {
+      if (worker_stop) return;
+      try {
+        wear.Get(c->config.crusher_id);
+      } catch (const std::exception& e) {
+        log("crusher " + c->config.crusher_id + ": wear not computed: " + e.what());
+      }
+    }
+    log("wear and forecast of every crusher computed (process CPU since start: " + std::to_string(CpuMs(CLOCK_PROCESS_CPUTIME_ID)) + " ms)");
     int64_t last_ms = 0;
     while (!worker_stop) {
       std::set<std::string> work;

@@ -103,6 +103,7 @@ struct Store::Impl {
   Db db;
   Stmt insert, existing, insert_rejected, latest, range, all, count, count_rejected, rejected_list, save_diag, load_diag;
   Stmt rejected_seen, rejected_oldest, rejected_delete, rejected_totals, meta_get, meta_add, sites_list, site_bind;
+  Stmt count_sensor, next_sensor, walk_up, walk_down, latest_of;
   RejectedLimits limits;
   std::optional<std::pair<int64_t, int64_t>> rejected_size;  ///< (rows, bytes) of the rejected table
   Impl(const std::string& path, RejectedLimits l, bool read_only = false)
@@ -140,6 +141,15 @@ struct Store::Impl {
         meta_add(db, "INSERT INTO meta(key, value) VALUES(?1, ?2) ON CONFLICT(key) DO UPDATE SET value=value+?2"),
         sites_list(db, "SELECT crusher, site FROM crusher_sites ORDER BY crusher"),
         site_bind(db, "INSERT INTO crusher_sites(crusher, site) VALUES(?1, ?2) ON CONFLICT(crusher) DO UPDATE SET site=?2"),
+        count_sensor(db, "SELECT COUNT(*) FROM readings WHERE crusher=?1 AND sensor=?2"),
+        next_sensor(db, "SELECT sensor FROM readings WHERE crusher=?1 AND sensor>?2 ORDER BY sensor LIMIT 1"),
+        // Only the index's columns: battery_mv and received read as 0.
+        walk_up(db, "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, 0, 0, '' FROM readings"
+                    " WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4 ORDER BY time, seq"),
+        walk_down(db, "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, 0, 0, '' FROM readings"
+                      " WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4 ORDER BY time DESC, seq DESC"),
+        latest_of(db, "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, '' FROM readings"
+                      " WHERE crusher=?1 AND sensor=?2 ORDER BY time DESC, seq DESC LIMIT 1"),
         limits(l) {}
 
   static void CheckVersion(const Db& db) {
@@ -172,7 +182,12 @@ struct Store::Impl {
         " time INTEGER NOT NULL, thickness_mm REAL NOT NULL, loops_intact INTEGER NOT NULL,"
         " flags INTEGER NOT NULL, battery_mv INTEGER NOT NULL, received INTEGER NOT NULL, payload TEXT NOT NULL,"
         " PRIMARY KEY (crusher, sensor, seq)) WITHOUT ROWID;"
-        "CREATE INDEX IF NOT EXISTS readings_by_time ON readings(crusher, sensor, time, seq);"
+        // Per sensor by time, covering what wear and forecasts read (thickness, flags, loops): the
+        // state rebuilt at startup (server/live_state.hpp) walks it without touching the rows. It
+        // replaces readings_by_time (crusher, sensor, time, seq), its prefix; built once on a database
+        // that has the older index.
+        "CREATE INDEX IF NOT EXISTS readings_by_sensor_time ON readings(crusher, sensor, time, seq, thickness_mm, flags, loops_intact);"
+        "DROP INDEX IF EXISTS readings_by_time;"
         "CREATE TABLE IF NOT EXISTS rejected (id INTEGER PRIMARY KEY AUTOINCREMENT, received INTEGER NOT NULL,"
         " topic TEXT NOT NULL, payload TEXT NOT NULL, reason TEXT NOT NULL);"
         "CREATE TABLE IF NOT EXISTS diagnoses (id INTEGER PRIMARY KEY AUTOINCREMENT, crusher TEXT NOT NULL,"
@@ -345,6 +360,55 @@ int64_t Store::CountReadings(const std::string& crusher) {
   im.count.Bind(1, crusher);
   im.count.Step();
   return im.count.Int(0);
+}
+
+int64_t Store::CountReadings(const std::string& crusher, const std::string& sensor) {
+  Impl& im = *impl_;
+  InUse use_count(im.count_sensor);
+  im.count_sensor.Bind(1, crusher).Bind(2, sensor);
+  im.count_sensor.Step();
+  return im.count_sensor.Int(0);
+}
+
+std::vector<std::string> Store::SensorsOf(const std::string& crusher) {
+  Impl& im = *impl_;
+  std::vector<std::string> out;
+  std::string after;  // "" sorts before every sensor id (ids are not empty)
+  while (true) {
+    InUse use_next(im.next_sensor);
+    im.next_sensor.Bind(1, crusher).Bind(2, after);
+    if (!im.next_sensor.Step()) break;
+    after = im.next_sensor.Text(0);
+    out.push_back(after);
+  }
+  return out;
+}
+
+std::optional<StoredReading> Store::Latest(const std::string& crusher, const std::string& sensor) {
+  Impl& im = *impl_;
+  InUse use_latest(im.latest_of);
+  im.latest_of.Bind(1, crusher).Bind(2, sensor);
+  if (!im.latest_of.Step()) return std::nullopt;
+  return Row(im.latest_of);
+}
+
+void Store::Walk(const std::string& crusher, const std::string& sensor, int64_t from_s, int64_t to_s, bool newest_first,
+                 const std::function<bool(const StoredReading&)>& visit) {
+  Impl& im = *impl_;
+  Stmt& s = newest_first ? im.walk_down : im.walk_up;
+  InUse use_walk(s);
+  s.Bind(1, crusher).Bind(2, sensor).Bind(3, from_s).Bind(4, to_s);
+  StoredReading r;  // one for every row: no allocation per reading (startup walks millions)
+  r.crusher = crusher;
+  r.sensor = sensor;
+  while (s.Step()) {
+    r.seq = s.Int(2);
+    r.time_s = s.Int(3);
+    r.thickness_mm = s.Real(4);
+    r.loops_intact = s.Int(5);
+    r.flags = s.Int(6);
+    if (!visit(r)) break;
+  }
 }
 
 int64_t Store::CountRejected() {

@@ -216,35 +216,51 @@ ordered_json ForecastJson(const CrusherState& st) {
   return j;
 }
 
-WearService::WearService(const Registry& registry, Store& read, std::mutex& read_mutex)
-    : registry_(registry), read_(read), read_mutex_(read_mutex) {}
+WearService::WearService(const Registry& registry, const LiveState& live) : registry_(registry), live_(live) {}
+
+WearService::Entry& WearService::EntryOf(const std::string& crusher) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return entries_[crusher];  // std::map: entries never move
+}
 
 void WearService::MarkChanged(const std::string& crusher) {
   std::lock_guard<std::mutex> lock(mutex_);
   ++entries_[crusher].version;
 }
 
-std::shared_ptr<const CrusherState> WearService::Get(const std::string& crusher_id) {
-  const Crusher* crusher = registry_.Find(crusher_id);
-  if (!crusher) return nullptr;
-  std::lock_guard<std::mutex> compute(compute_mutex_);
+std::shared_ptr<const CrusherState> WearService::ComputeLocked(const Crusher& crusher, Entry& e) {
   int64_t version = 0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    Entry& e = entries_[crusher_id];
     if (e.state && e.state->version == e.version) return e.state;
     version = e.version;
   }
-  std::vector<StoredReading> readings;
-  {
-    std::lock_guard<std::mutex> rl(read_mutex_);
-    readings = read_.All(crusher_id);
-  }
-  auto st = std::make_shared<CrusherState>(ComputeCrusherState(*crusher, readings));
-  st->version = version;  // readings committed after the version was read bump it again
+  // The version is read before the inputs: readings committed after it bump it again.
+  auto st = std::make_shared<CrusherState>(ComputeCrusherState(crusher, live_.WearInputs(crusher.config.crusher_id)));
+  st->version = version;
   std::lock_guard<std::mutex> lock(mutex_);
-  entries_[crusher_id].state = st;
+  e.state = st;
   return st;
+}
+
+std::shared_ptr<const CrusherState> WearService::Get(const std::string& crusher_id) {
+  const Crusher* crusher = registry_.Find(crusher_id);
+  if (!crusher) return nullptr;
+  Entry& e = EntryOf(crusher_id);
+  std::lock_guard<std::mutex> compute(e.compute);
+  return ComputeLocked(*crusher, e);
+}
+
+std::shared_ptr<const CrusherState> WearService::Latest(const std::string& crusher_id) {
+  const Crusher* crusher = registry_.Find(crusher_id);
+  if (!crusher) return nullptr;
+  Entry& e = EntryOf(crusher_id);
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (e.state) return e.state;  // current, or the last one while new readings wait for the wear worker
+  }
+  std::lock_guard<std::mutex> compute(e.compute);  // never computed yet: the first computation
+  return ComputeLocked(*crusher, e);
 }
 
 }  // namespace lw::server

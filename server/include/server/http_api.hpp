@@ -40,6 +40,7 @@ struct ApiContext {
   Store* read = nullptr;  ///< guarded by read_mutex
   std::mutex* read_mutex = nullptr;
   WearService* wear = nullptr;
+  const LiveState* live = nullptr;  ///< counts and latest readings (summaries never scan the store)
   Ingestor* ingestor = nullptr;
   EventBus* events = nullptr;
   DiagnosisRunner* diagnosis = nullptr;  ///< may be null (diagnosis endpoints answer 503)

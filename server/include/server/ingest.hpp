@@ -15,6 +15,7 @@
 #include <string_view>
 #include <vector>
 
+#include "server/live_state.hpp"
 #include "server/registry.hpp"
 #include "server/store.hpp"
 
@@ -99,7 +100,8 @@ struct IngestCounters {
 /// (or whose validation throws) is quarantined on its own: it never fails the rest of the batch.
 class Ingestor {
  public:
-  Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s);
+  /// `live` (optional) is told every reading committed, in the same critical section as the commit.
+  Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s, LiveState* live = nullptr);
   /// Validates and commits `batch` in one transaction. Throws std::runtime_error on a database
   /// failure (then nothing of the batch is stored and nothing may be acked).
   IngestResult Ingest(const std::vector<Incoming>& batch);
@@ -114,6 +116,7 @@ class Ingestor {
  private:
   Store& store_;
   const Registry& registry_;
+  LiveState* live_ = nullptr;
   std::function<int64_t()> now_s_;
   mutable std::mutex mutex_;
   IngestCounters totals_;

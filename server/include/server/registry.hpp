@@ -62,9 +62,13 @@ class Registry {
   /// readable folder.
   static std::unique_ptr<Registry> Load(const std::filesystem::path& dir, std::vector<std::string>* errors);
 
+  /// Map models already built, by the map file's SHA-256 (all with the same options).
+  using MapModels = std::map<std::string, core::MapModel>;
   /// Loads one crusher folder. Throws core::InputError / std::runtime_error naming file and rule.
+  /// With `models`, a map whose file is byte for byte one already modelled (a fleet of one crusher
+  /// model shares its DEM map) reuses that model instead of smoothing it again; new ones are added.
   static std::unique_ptr<Crusher> LoadCrusher(const std::filesystem::path& folder,
-                                              const core::ReconstructionOptions& options = {});
+                                              const core::ReconstructionOptions& options = {}, MapModels* models = nullptr);
 
   const Crusher* Find(const std::string& crusher_id) const;
   std::vector<const Crusher*> All() const;

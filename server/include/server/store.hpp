@@ -4,6 +4,7 @@
 /// diagnosis per crusher. WAL journal, prepared statements, one transaction per batch.
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -95,6 +96,17 @@ class Store {
   std::vector<StoredReading> All(const std::string& crusher);
 
   int64_t CountReadings(const std::string& crusher);
+  /// Readings of one sensor of `crusher` (an index range count).
+  int64_t CountReadings(const std::string& crusher, const std::string& sensor);
+  /// The sensors `crusher` has readings of, in order (one index seek each, not a scan).
+  std::vector<std::string> SensorsOf(const std::string& crusher);
+  /// The latest reading (by time, then seq) of one sensor, payload left empty.
+  std::optional<StoredReading> Latest(const std::string& crusher, const std::string& sensor);
+  /// Visits the readings of one sensor with time in [from_s, to_s] through the time index alone,
+  /// oldest first (newest first when `newest_first`), until `visit` returns false. Only what the
+  /// index holds is read: seq, time, thickness, loops, flags (battery_mv, received_s 0, payload empty).
+  void Walk(const std::string& crusher, const std::string& sensor, int64_t from_s, int64_t to_s, bool newest_first,
+            const std::function<bool(const StoredReading&)>& visit);
   int64_t CountRejected();
   std::vector<Rejected> RejectedMessages(int limit);
 

@@ -9,6 +9,7 @@
 
 #include "core/forecast.hpp"
 #include "core/reconstruction.hpp"
+#include "server/live_state.hpp"
 #include "server/registry.hpp"
 #include "server/store.hpp"
 
@@ -36,23 +37,31 @@ nlohmann::ordered_json ForecastJson(const CrusherState& state);
 
 class WearService {
  public:
-  /// `read` is a read connection guarded by `read_mutex` (shared with REST handlers).
-  WearService(const Registry& registry, Store& read, std::mutex& read_mutex);
+  /// Computes from `live`'s wear inputs (never from a scan of the stored readings).
+  WearService(const Registry& registry, const LiveState& live);
   /// Readings of `crusher` changed: the next Get() recomputes.
   void MarkChanged(const std::string& crusher);
-  /// Current state (recomputed if readings changed since). nullptr for an unknown crusher.
+  /// Current state (recomputed if readings changed since; waits for a computation of this crusher
+  /// already under way, never for another crusher's). nullptr for an unknown crusher.
   std::shared_ptr<const CrusherState> Get(const std::string& crusher);
+  /// The state computed last, without computing or waiting (only a crusher never computed yet is
+  /// computed): for summaries of many crushers such as the crusher list. After new readings it is
+  /// the previous state until the next Get() (the wear worker's, within --wear-interval-ms).
+  std::shared_ptr<const CrusherState> Latest(const std::string& crusher);
 
  private:
   struct Entry {
     int64_t version = 1;
     std::shared_ptr<const CrusherState> state;
+    std::mutex compute;  ///< one computation of this crusher at a time (held while computing)
   };
+  /// Recomputes `e` if stale; the caller holds e.compute.
+  std::shared_ptr<const CrusherState> ComputeLocked(const Crusher& crusher, Entry& e);
+  Entry& EntryOf(const std::string& crusher);
+
   const Registry& registry_;
-  Store& read_;
-  std::mutex& read_mutex_;
-  std::mutex compute_mutex_;  ///< one computation at a time (held while computing)
-  std::mutex mutex_;          ///< guards entries_ (held briefly: MarkChanged never waits for a computation)
+  const LiveState& live_;
+  std::mutex mutex_;  ///< guards the entries' version and state (held briefly: never during a computation)
   std::map<std::string, Entry> entries_;
 };
 

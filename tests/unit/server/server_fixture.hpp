@@ -23,9 +23,11 @@ struct CrusherFolder {
   std::string folder;    // crushers/demo
   core::Bundle bundle;   // as loaded back from the folder
 
-  explicit CrusherFolder(double days = 30, uint64_t seed = 7) {
+  /// `scan_day` < 0: the generator's default (the last day).
+  explicit CrusherFolder(double days = 30, uint64_t seed = 7, double scan_day = -1) {
     sim::CampaignSpec spec;
     spec.days = days;
+    spec.scan_day = scan_day;
     crushers = dir.File("crushers");
     folder = crushers + "/demo";
     sim::GenerateCampaign(spec, seed).WriteBundle(folder);

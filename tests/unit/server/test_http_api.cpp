@@ -35,6 +35,7 @@ struct Api {
   Store write{dir.File("db.sqlite")};
   Store read{dir.File("db.sqlite")};
   std::mutex read_mutex;
+  std::unique_ptr<LiveState> live;
   std::unique_ptr<Ingestor> ingestor;
   std::unique_ptr<WearService> wear;
   EventBus events;
@@ -46,8 +47,10 @@ struct Api {
   explicit Api(bool with_tokens, const std::string& web_dir = "") {
     std::vector<std::string> errors;
     registry = Registry::Load(Folder().crushers, &errors);
-    ingestor = std::make_unique<Ingestor>(write, *registry, [] { return int64_t{4'000'000'000}; });
-    wear = std::make_unique<WearService>(*registry, read, read_mutex);
+    live = std::make_unique<LiveState>(*registry);
+    live->Rebuild(read);
+    ingestor = std::make_unique<Ingestor>(write, *registry, [] { return int64_t{4'000'000'000}; }, live.get());
+    wear = std::make_unique<WearService>(*registry, *live);
     diagnosis = std::make_unique<DiagnosisRunner>(*registry, read, read_mutex);
     if (with_tokens) {
       tokens.Add({"reader", lw::core::Sha256Hex(kReadToken), true, false});
@@ -58,6 +61,7 @@ struct Api {
     ctx.read = &read;
     ctx.read_mutex = &read_mutex;
     ctx.wear = wear.get();
+    ctx.live = live.get();
     ctx.ingestor = ingestor.get();
     ctx.events = &events;
     ctx.diagnosis = diagnosis.get();

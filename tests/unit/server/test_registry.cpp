@@ -57,3 +57,34 @@ TEST(Registry, ScansAreLoadedSortedByDateAndABrokenOneIsAWarning) {
   LONGS_EQUAL(good->scans.size() + 1, later->scans.size());
   STRCMP_EQUAL("scans/scan_2099-01-01.xyz", later->scans.back().scan.file.c_str());
 }
+
+// A fleet of one crusher model shares its DEM map: the map is smoothed once, and each crusher's
+// plan is the one it gets when loaded alone; a different map gets its own model.
+TEST(Registry, CrushersWithTheSameMapShareItsModelAndGetTheSamePlan) {
+  lw::test::CrusherFolder f(5, 3);
+  lw::test::CrusherFolder other(5, 9);
+  const std::string twin = f.crushers + "/twin";
+  std::filesystem::create_directories(twin);
+  std::filesystem::copy_file(f.folder + "/wear_map.vtk", twin + "/wear_map.vtk");
+  nlohmann::json cj;
+  std::ifstream(f.folder + "/crusher.json") >> cj;
+  cj["crusher_id"] = "twin";
+  std::ofstream(twin + "/crusher.json") << cj.dump();
+  Registry::MapModels models;
+  const auto a = Registry::LoadCrusher(f.folder, {}, &models);
+  const auto b = Registry::LoadCrusher(twin, {}, &models);
+  LONGS_EQUAL(1, models.size());
+  const auto c = Registry::LoadCrusher(other.folder, {}, &models);
+  LONGS_EQUAL(2, models.size());
+  const auto alone = Registry::LoadCrusher(twin);
+  CHECK(b->plan.model.map == &b->map);  // its own map, not the first crusher's
+  DOUBLES_EQUAL(0, (alone->plan.intensity - b->plan.intensity).cwiseAbs().maxCoeff(), 0);
+  DOUBLES_EQUAL(0, (alone->plan.sensor_intensity - b->plan.sensor_intensity).cwiseAbs().maxCoeff(), 0);
+  DOUBLES_EQUAL(alone->plan.model.bandwidth_m, a->plan.model.bandwidth_m, 0);
+  const auto c_alone = Registry::LoadCrusher(other.folder);
+  DOUBLES_EQUAL(0, (c_alone->plan.intensity - c->plan.intensity).cwiseAbs().maxCoeff(), 0);
+  std::vector<std::string> errors;
+  const auto reg = Registry::Load(f.crushers, &errors);
+  CHECK(errors.empty());
+  CHECK(reg->Find("twin") != nullptr);
+}

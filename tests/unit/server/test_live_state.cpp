@@ -1,0 +1,172 @@
+// The per-crusher state kept as readings are committed (server/live_state.hpp) gives what a full
+// recompute from every stored reading gives: wear and forecast JSON, the sensors' latest readings
+// and counts, after ingest in any order, after a restart (rebuilt from the store) and after more
+// readings on top of the rebuilt state; and it holds far fewer readings than the store.
+#include <algorithm>
+#include <random>
+
+#include "server/ingest.hpp"
+#include "server/live_state.hpp"
+#include "server/wear_service.hpp"
+#include "unit/server/server_fixture.hpp"
+
+#include <CppUTest/TestHarness.h>  // last: its leak-detection macros clash with std headers
+
+using namespace lw::server;
+using nlohmann::json;
+
+namespace {
+
+/// 120 days (the forecast's window is the last 48: most readings fall out of it), the laser scan on
+/// day 30 (the sensors' wear at its date comes from readings outside the window).
+lw::test::CrusherFolder& Folder() {
+  static lw::test::CrusherFolder f(120, 5, 30);
+  return f;
+}
+int64_t Now() { return Folder().bundle.readings.back().time.time_since_epoch().count() + 3600; }
+
+/// The campaign's readings plus what the state must get right: cut-cable readings (stored, not
+/// used for wear) newer than everything else, a second reading at a sensor's latest time that is
+/// thinner, one at the scan's date; in a shuffled order (late readings).
+std::vector<Incoming> Messages() {
+  auto out = lw::test::Messages(Folder().bundle);
+  const auto& b = Folder().bundle;
+  const auto add = [&](const std::string& sensor, int64_t seq, int64_t time_s, double mm, int loops, int flags) {
+    const json j = {{"sensor", sensor}, {"seq", seq}, {"time", lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(time_s)))},
+                    {"thickness_mm", mm}, {"loops_intact", loops}, {"flags", flags}, {"battery_mv", 3300}};
+    out.push_back({"site1", b.crusher.crusher_id, sensor,
+                   "linerwatch/v1/site1/" + b.crusher.crusher_id + "/sensors/" + sensor + "/reading", j.dump()});
+  };
+  const int64_t last = b.readings.back().time.time_since_epoch().count();
+  const std::string s0 = b.crusher.sensors.at(0).id, s1 = b.crusher.sensors.at(1).id;
+  add(s0, 900001, last + 60, 0, 40, 8);        // all open with loops intact: a cut cable
+  add(s1, 900002, last + 120, 55, 55, 16);     // SPI stuck
+  int64_t s1_last = 0;
+  double s1_mm = 0;
+  for (const auto& r : b.readings) {
+    if (r.sensor_id == s1 && r.time.time_since_epoch().count() >= s1_last) {
+      s1_last = r.time.time_since_epoch().count();
+      s1_mm = r.thickness_mm;
+    }
+  }
+  add(s1, 900003, s1_last, s1_mm - 1, static_cast<int>(s1_mm - 1), 0);  // thinner at the same time
+  const int64_t scan_s = b.scans.at(0).date.time_since_epoch().count();
+  add(s0, 900004, scan_s, 90, 90, 0);  // at the scan's date exactly
+  std::mt19937 rng(3);
+  // Mostly in order (as a gateway delivers), with every 7th message moved to a random place.
+  for (size_t i = 0; i < out.size(); i += 7) std::swap(out[i], out[rng() % out.size()]);
+  return out;
+}
+
+/// Everything the live state serves equals the full recompute from `store`.
+void CheckEqualsFullRecompute(const Crusher& c, const LiveState& live, Store& store, bool expect_pruned) {
+  const auto all = store.All(Folder().id());
+  const auto inputs = live.WearInputs(Folder().id());
+  if (expect_pruned) CHECK_TEXT(inputs.size() * 2 < all.size(), "the state holds the forecast window, not every reading");
+  const CrusherState full = ComputeCrusherState(c, all), incremental = ComputeCrusherState(c, inputs);
+  CHECK_TRUE(full.has_wear);
+  CHECK(full.scan != nullptr);
+  CHECK(WearJson(full, true) == WearJson(incremental, true));
+  CHECK(ForecastJson(full) == ForecastJson(incremental));
+  CHECK(live.LatestUsableTime(Folder().id()) == full.time.time_since_epoch().count());
+  LONGS_EQUAL(store.CountReadings(Folder().id()), live.CountReadings(Folder().id()));
+  const auto a = store.LatestPerSensor(Folder().id()), b = live.LatestPerSensor(Folder().id());
+  LONGS_EQUAL(a.size(), b.size());
+  for (size_t i = 0; i < a.size() && i < b.size(); ++i) {
+    STRCMP_EQUAL(a[i].latest.sensor.c_str(), b[i].latest.sensor.c_str());
+    LONGS_EQUAL(a[i].count, b[i].count);
+    LONGS_EQUAL(a[i].latest.seq, b[i].latest.seq);
+    LONGS_EQUAL(a[i].latest.time_s, b[i].latest.time_s);
+    DOUBLES_EQUAL(a[i].latest.thickness_mm, b[i].latest.thickness_mm, 0);
+    LONGS_EQUAL(a[i].latest.flags, b[i].latest.flags);
+    LONGS_EQUAL(a[i].latest.loops_intact, b[i].latest.loops_intact);
+    LONGS_EQUAL(a[i].latest.battery_mv, b[i].latest.battery_mv);
+    LONGS_EQUAL(a[i].latest.received_s, b[i].latest.received_s);
+  }
+}
+
+}  // namespace
+
+TEST_GROUP(LiveState){};
+
+TEST(LiveState, EqualsAFullRecomputeAfterIngestAfterARestartAndAfterMore) {
+  lw::test::TempDirectory dir{"lw-live"};
+  std::vector<std::string> errors;
+  const auto registry = Registry::Load(Folder().crushers, &errors);
+  const Crusher& c = *registry->Find(Folder().id());
+  const auto messages = Messages();
+  const size_t half = messages.size() / 2;
+  {
+    Store store(dir.File("db.sqlite"));
+    LiveState live(*registry);
+    live.Rebuild(store);  // an empty database
+    LONGS_EQUAL(0, live.CountReadings(Folder().id()));
+    CHECK_FALSE(live.LatestUsableTime(Folder().id()));
+    CHECK_TRUE(live.WearInputs(Folder().id()).empty());
+    Ingestor ingestor(store, *registry, [] { return Now(); }, &live);
+    for (size_t i = 0; i < half; i += 97) {
+      ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(i), messages.begin() + static_cast<std::ptrdiff_t>(std::min(half, i + 97))});
+    }
+    // Redelivered: duplicates change nothing.
+    ingestor.Ingest({messages.begin(), messages.begin() + 50});
+    CheckEqualsFullRecompute(c, live, store, false);
+  }
+  // Restart: rebuilt once from the store, then kept up to date by the rest of the campaign.
+  Store store(dir.File("db.sqlite"));
+  LiveState live(*registry);
+  live.Rebuild(store);
+  CheckEqualsFullRecompute(c, live, store, false);
+  Ingestor ingestor(store, *registry, [] { return Now(); }, &live);
+  for (size_t i = half; i < messages.size(); i += 211) {
+    ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(i), messages.begin() + static_cast<std::ptrdiff_t>(std::min(messages.size(), i + 211))});
+  }
+  CheckEqualsFullRecompute(c, live, store, true);
+  LiveState rebuilt(*registry);
+  rebuilt.Rebuild(store);
+  CheckEqualsFullRecompute(c, rebuilt, store, true);
+}
+
+// The service computes from the state: what it serves after ingest is the full recompute.
+TEST(LiveState, WearServiceServesTheFullRecompute) {
+  lw::test::TempDirectory dir{"lw-live"};
+  std::vector<std::string> errors;
+  const auto registry = Registry::Load(Folder().crushers, &errors);
+  Store store(dir.File("db.sqlite"));
+  LiveState live(*registry);
+  live.Rebuild(store);
+  Ingestor ingestor(store, *registry, [] { return Now(); }, &live);
+  WearService wear(*registry, live);
+  CHECK_FALSE(wear.Get(Folder().id())->has_wear);
+  ingestor.Ingest(Messages());
+  wear.MarkChanged(Folder().id());
+  const Crusher& c = *registry->Find(Folder().id());
+  const CrusherState full = ComputeCrusherState(c, store.All(Folder().id()));
+  CHECK(WearJson(full, false) == WearJson(*wear.Get(Folder().id()), false));
+  CHECK(ForecastJson(full) == ForecastJson(*wear.Latest(Folder().id())));
+  CHECK(wear.Get("no-such-crusher") == nullptr);
+}
+
+// Loaded lazily (as the server does: it answers while the states load): readings committed before
+// the crusher's first use are read from the database, those after it are added, none twice.
+TEST(LiveState, ALazyLoadCountsEveryCommitOnce) {
+  lw::test::TempDirectory dir{"lw-live"};
+  std::vector<std::string> errors;
+  const auto registry = Registry::Load(Folder().crushers, &errors);
+  const Crusher& c = *registry->Find(Folder().id());
+  const auto messages = Messages();
+  const size_t third = messages.size() / 3;
+  {
+    Store store(dir.File("db.sqlite"));
+    Ingestor ingestor(store, *registry, [] { return Now(); });
+    ingestor.Ingest({messages.begin(), messages.begin() + static_cast<std::ptrdiff_t>(third)});
+  }
+  Store store(dir.File("db.sqlite"));
+  LiveState live(*registry);
+  live.LoadLazily(std::make_unique<Store>(dir.File("db.sqlite")));
+  Ingestor ingestor(store, *registry, [] { return Now(); }, &live);
+  // Committed before the crusher was first asked for: not added, read at its load.
+  ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(third), messages.begin() + static_cast<std::ptrdiff_t>(2 * third)});
+  LONGS_EQUAL(store.CountReadings(Folder().id()), live.CountReadings(Folder().id()));
+  ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(2 * third), messages.end()});
+  CheckEqualsFullRecompute(c, live, store, true);
+}
