@@ -41,7 +41,7 @@ struct Thresholds {
   double min_significance = 2.0;  ///< effect size in standard errors
   double sensor_floor_mm = 0.1;   ///< loop-position tolerance of the ladder
   double scan_floor_mm = 0.2;     ///< scan registration / surface roughness floor
-  double model_floor_rel = 0.02;  ///< relative map error floor of scan cells: DEM maps carry patchy, correlated error that cell averaging does not remove
+  double model_floor_rel = 0.02;  ///< relative model error floor (sensor events, scan cells' map error): smooth deviations no model follows
   double u_floor_rel = 0.02;      ///< per-sensor intensity error floor (placement, local geometry)
 };
 
@@ -107,6 +107,10 @@ struct Problem {
   std::vector<double> scan_map_sd;    ///< per observation: the map error's sd, mm
   std::vector<double> scan_z, scan_arc;  ///< per observation: cell position, m
   std::vector<int> scan_band;            ///< per observation: the cell's band of z (grid row)
+  /// Per observation: the map error along the stress patterns (rank-one terms of the covariance,
+  /// empty without normal stress): the map's wear and its stress come from the same contacts, so
+  /// how the wear follows the stress is known no better than the map's own error.
+  std::vector<std::vector<double>> scan_stress_dirs;
   double share_band = 0, band_corr = 0, share_local = 1, corr_z_m = 0, corr_arc_m = 0, circumference_m = 0;
   mutable std::map<std::vector<size_t>, std::shared_ptr<const Eigen::LLT<Eigen::MatrixXd>>> scan_factors;
 };
@@ -131,7 +135,8 @@ const Eigen::LLT<Eigen::MatrixXd>& ScanFactor(const Problem& p, const std::vecto
         rho = p.share_local * std::exp(-q) +
               p.share_band * std::pow(p.band_corr, std::abs(p.scan_band[ia] - p.scan_band[ib]));
       }
-      const double v = p.scan_map_sd[ia] * p.scan_map_sd[ib] * rho + (a == b ? p.scan_meas_var[ia] : 0.0);
+      double v = p.scan_map_sd[ia] * p.scan_map_sd[ib] * rho + (a == b ? p.scan_meas_var[ia] : 0.0);
+      for (const auto& dir : p.scan_stress_dirs) v += dir[ia] * dir[ib];
       cov(a, b) = cov(b, a) = v;
     }
   }
@@ -666,17 +671,18 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       o.raw = e.wear_mm;
       o.wear = e.wear_mm - e.offset_mm;
       const double st = rho * e.sigma_t_days;
-      o.sigma = std::sqrt(st * st + th.sensor_floor_mm * th.sensor_floor_mm);
+      o.sigma = std::sqrt(st * st + th.sensor_floor_mm * th.sensor_floor_mm + std::pow(th.model_floor_rel * o.wear, 2));
       o.sensor = s.usable_index;
       prob.sensor_obs.back().push_back(add_obs(o));
     }
   }
   // The events' scatter beyond their modelled noise (the time inside the report interval, the loop
-  // position), measured from the events themselves: each interior event against the straight line
-  // through its two neighbours (a smooth change of the wear rate, slower than the events' spacing,
-  // cancels; noise does not), the excess variance (trimmed mean, top 2 % dropped: a step left
-  // over) added to every event. The map's error at a sensor is not noise from event to event: it is
-  // the sensor's intensity error u, profiled in every fit.
+  // position, the relative model floor), measured from the events themselves: each interior event
+  // against the straight line through its two neighbours (a smooth change of the wear rate, slower
+  // than the events' spacing, cancels; noise does not), the excess variance (trimmed mean, top 2 %
+  // dropped: a step left over) added to every event. The relative floor stays: it stands for the
+  // smooth deviations of a real wear rate from any model in time, which this cannot see (without
+  // it, an independent generator's nulls gave work_hardening findings).
   {
     std::vector<double> excess;
     for (const auto& list : prob.sensor_obs)
@@ -760,6 +766,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   // smoothing error (the map alone cannot tell its pattern error from its structure finer than the
   // smoothing: on real DEM maps that estimate ranged 0.14-1.0 where scans measured 0.11-0.23).
   double map_tau = fields.model.smoothing_error_rel;
+  double scan_tau = kNaN;
   std::string tau_source = "map cross-validation";
   {
     Eigen::MatrixXd w;
@@ -809,11 +816,17 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       measured = std::sqrt(std::max(0.0, sum / static_cast<double>(sensor_excess.size() - sensor_rows.size())));
       measured_source = "sensors";
     }
+    // The scan cells' own map error: what the scan measured when it could (the map's own
+    // estimate can be the smaller and still not describe the scan's cells: that is then
+    // evidence the noise model does not hold, not of physics).
+    if (measured_source == "scan") scan_tau = measured;
     if (std::isfinite(measured) && measured < map_tau) {
       map_tau = measured;
       tau_source = measured_source;
     }
+    if (!std::isfinite(scan_tau)) scan_tau = map_tau;
     result.noise["map_pattern_error_relative"] = Round(map_tau, 3);
+    result.noise["scan_map_error_relative"] = Round(scan_tau, 3);
     result.noise["map_pattern_error_source"] = tau_source;
     // Each sensor's intensity error: the map's sampling noise at it and the pattern error.
     for (const SensorData& sd : sensors)
@@ -843,7 +856,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
           const Obs& o = prob.obs[i];
           if (static_cast<size_t>(o.scan) != k) continue;
           const double pred = std::max(Interp(w, o), 0.0);
-          const double rel = std::hypot(scans[k].fields[static_cast<size_t>(o.cell)].rel_sampling, map_tau);
+          const double rel = std::hypot(scans[k].fields[static_cast<size_t>(o.cell)].rel_sampling, scan_tau);
           const double sd = std::sqrt(std::pow(scans[k].sigma_mm[static_cast<size_t>(o.cell)], 2) + std::pow(rel * pred, 2) +
                                       th.scan_floor_mm * th.scan_floor_mm);
           const double zr = (o.wear - pred) / sd;
@@ -944,13 +957,36 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
         const detail::ScanCells& sc = scans[static_cast<size_t>(o.scan)];
         const detail::PointField& pf = sc.fields[static_cast<size_t>(o.cell)];
         const double pred = std::max(Interp(w, o), 0.0);
-        const double rel = std::sqrt(pf.rel_sampling * pf.rel_sampling + map_tau * map_tau + th.model_floor_rel * th.model_floor_rel);
+        const double rel = std::sqrt(pf.rel_sampling * pf.rel_sampling + scan_tau * scan_tau + th.model_floor_rel * th.model_floor_rel);
         prob.scan_meas_var[i] = std::pow(sc.sigma_mm[static_cast<size_t>(o.cell)], 2) + th.scan_floor_mm * th.scan_floor_mm;
         prob.scan_map_sd[i] = rel * pred;
         prob.scan_z[i] = pf.z;
         prob.scan_arc[i] = pf.theta_deg * kPi / 180.0 * fields.mean_radius_m;
         prob.scan_band[i] = o.cell / static_cast<int>(std::max<size_t>(grid.nt, 1));
         o.sigma = std::sqrt(prob.scan_meas_var[i] + prob.scan_map_sd[i] * prob.scan_map_sd[i]);
+      }
+      // The map's error along the stress patterns the hypotheses use (relative stress n_I / I,
+      // squeeze wear; n~, impact hardening): centred and scaled to the map error's size at each
+      // cell. A pattern of the map's own error size along them is noise, not physics: a cleaner
+      // or smoother stress field than wear field would otherwise "explain" the map's noise.
+      if (fields.has_normal) {
+        for (int kind = 0; kind < 2; ++kind) {
+          std::vector<double> q;
+          for (size_t i : prob.scan_obs) {
+            const ModelPoint& mp = prob.points[prob.obs[i].point];
+            q.push_back(kind == 0 ? (mp.intensity > 0 ? mp.normal_i / mp.intensity : 0.0) : mp.normal_tilde);
+          }
+          double mean = 0, var = 0;
+          for (double v : q) mean += v;
+          mean /= static_cast<double>(std::max<size_t>(q.size(), 1));
+          for (double v : q) var += (v - mean) * (v - mean);
+          var /= static_cast<double>(std::max<size_t>(q.size(), 1));
+          if (!(var > 1e-12)) continue;
+          std::vector<double> dir(n_obs, 0.0);
+          for (size_t k = 0; k < prob.scan_obs.size(); ++k)
+            dir[prob.scan_obs[k]] = prob.scan_map_sd[prob.scan_obs[k]] * (q[k] - mean) / std::sqrt(var);
+          prob.scan_stress_dirs.push_back(std::move(dir));
+        }
       }
       prob.scan_gls = true;
       result.noise["scan_map_error_correlation"] = {{"band_share", Round(prob.share_band, 3)},
