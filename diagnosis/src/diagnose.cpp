@@ -6,8 +6,6 @@
 #include <cstdarg>
 #include <cstdio>
 #include <limits>
-#include <map>
-#include <memory>
 #include <numeric>
 #include <optional>
 #include <set>
@@ -41,7 +39,7 @@ struct Thresholds {
   double min_significance = 2.0;  ///< effect size in standard errors
   double sensor_floor_mm = 0.1;   ///< loop-position tolerance of the ladder
   double scan_floor_mm = 0.2;     ///< scan registration / surface roughness floor
-  double model_floor_rel = 0.02;  ///< relative model error floor (sensor events, scan cells' map error): smooth deviations no model follows
+  double model_floor_rel = 0.02;  ///< relative model error floor: DEM maps carry patchy, correlated error that cell averaging does not remove
   double u_floor_rel = 0.02;      ///< per-sensor intensity error floor (placement, local geometry)
 };
 
@@ -84,8 +82,6 @@ struct Obs {
   double frac = 0;
 };
 
-using Mask = std::vector<bool>;
-
 struct Problem {
   std::vector<ModelPoint> points;
   detail::TimeGrid grid;
@@ -94,65 +90,9 @@ struct Problem {
   std::vector<size_t> scan_obs;
   std::vector<double> sigma_u;                  ///< per usable sensor
   size_t rows = 1;
-  // Scan cells share the map's error (one smoothed map; a pattern error with its own extent): their
-  // residuals are whitened jointly (generalised least squares), not cell by cell, with the
-  // covariance meas_var [a = b] + map_sd_a map_sd_b rho(a, b), where the map error's correlation is
-  //   rho = s_ax r^|band_a - band_b| + s_loc exp(-d / l) + (1 - s_ax - s_loc) [a = b]:
-  // a share common to a whole band of z around the liner (the map's z-profile wrong: the
-  // smoothing's bias where the wear changes fast along z, the DEM's chamber), correlated r between
-  // neighbouring bands; a share correlated over a local extent l (d the distance on the unwrapped
-  // surface); and an independent rest.
-  bool scan_gls = false;
-  std::vector<double> scan_meas_var;  ///< per observation (scan cells): measurement variance, mm^2
-  std::vector<double> scan_map_sd;    ///< per observation: the map error's sd, mm
-  std::vector<double> scan_z, scan_arc;  ///< per observation: cell position, m
-  std::vector<int> scan_band;            ///< per observation: the cell's band of z (grid row)
-  /// Per observation: the map error along the stress patterns (rank-one terms of the covariance,
-  /// empty without normal stress): the map's wear and its stress come from the same contacts, so
-  /// how the wear follows the stress is known no better than the map's own error.
-  std::vector<std::vector<double>> scan_stress_dirs;
-  double share_band = 0, band_corr = 0, share_local = 1, corr_z_m = 0, corr_arc_m = 0, circumference_m = 0;
-  mutable std::map<std::vector<size_t>, std::shared_ptr<const Eigen::LLT<Eigen::MatrixXd>>> scan_factors;
 };
 
-// Cholesky factor of the scan cells' joint covariance over the observations `idx` (cached per set).
-const Eigen::LLT<Eigen::MatrixXd>& ScanFactor(const Problem& p, const std::vector<size_t>& idx) {
-  auto it = p.scan_factors.find(idx);
-  if (it != p.scan_factors.end()) return *it->second;
-  const auto n = static_cast<Eigen::Index>(idx.size());
-  Eigen::MatrixXd cov(n, n);
-  for (Eigen::Index a = 0; a < n; ++a) {
-    const size_t ia = idx[static_cast<size_t>(a)];
-    for (Eigen::Index b = 0; b <= a; ++b) {
-      const size_t ib = idx[static_cast<size_t>(b)];
-      double rho = a == b ? 1.0 : 0.0;
-      if (a != b) {
-        const double dz = std::fabs(p.scan_z[ia] - p.scan_z[ib]);
-        double da = std::fabs(p.scan_arc[ia] - p.scan_arc[ib]);
-        if (p.circumference_m > 0) da = std::min(da, p.circumference_m - da);
-        const double q = (p.corr_z_m > 0 ? dz / p.corr_z_m : (dz > 1e-9 ? 1e9 : 0.0)) +
-                         (p.corr_arc_m > 0 ? da / p.corr_arc_m : (da > 1e-9 ? 1e9 : 0.0));
-        rho = p.share_local * std::exp(-q) +
-              p.share_band * std::pow(p.band_corr, std::abs(p.scan_band[ia] - p.scan_band[ib]));
-      }
-      double v = p.scan_map_sd[ia] * p.scan_map_sd[ib] * rho + (a == b ? p.scan_meas_var[ia] : 0.0);
-      for (const auto& dir : p.scan_stress_dirs) v += dir[ia] * dir[ib];
-      cov(a, b) = cov(b, a) = v;
-    }
-  }
-  auto llt = std::make_shared<Eigen::LLT<Eigen::MatrixXd>>(cov);
-  for (double jitter = 1e-9; llt->info() != Eigen::Success && jitter < 1.0; jitter *= 100.0) {
-    Eigen::MatrixXd c = cov;
-    c.diagonal().array() += jitter * cov.diagonal().mean();
-    llt = std::make_shared<Eigen::LLT<Eigen::MatrixXd>>(c);
-  }
-  return *p.scan_factors.emplace(idx, std::move(llt)).first->second;
-}
-
-// Whitened scan residuals over the scan observations in `mask`: L^-1 (pred - target), and the raw
-// residuals (mm) when asked.
-Eigen::VectorXd WhitenedScan(const Problem& p, const Eigen::MatrixXd& w, const Mask& mask, bool raw,
-                             Eigen::VectorXd* e_out = nullptr);
+using Mask = std::vector<bool>;
 
 struct FitResult {
   ModelSpec spec;
@@ -186,20 +126,6 @@ std::optional<double> ProfiledU(const Problem& p, const Eigen::MatrixXd& w, size
   }
   if (!any) return std::nullopt;
   return den > 0 ? -num / den : 0.0;
-}
-
-Eigen::VectorXd WhitenedScan(const Problem& p, const Eigen::MatrixXd& w, const Mask& mask, bool raw, Eigen::VectorXd* e_out) {
-  std::vector<size_t> idx;
-  for (size_t i : p.scan_obs)
-    if (mask[i]) idx.push_back(i);
-  Eigen::VectorXd e(static_cast<Eigen::Index>(idx.size()));
-  for (size_t k = 0; k < idx.size(); ++k) {
-    const Obs& o = p.obs[idx[k]];
-    e[static_cast<Eigen::Index>(k)] = Interp(w, o) - (raw ? o.raw : o.wear);
-  }
-  if (e_out) *e_out = e;
-  if (idx.empty()) return e;
-  return ScanFactor(p, idx).matrixL().solve(e);
 }
 
 struct EvalOptions {
@@ -241,11 +167,6 @@ void Residuals(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x
       r[k++] = (Interp(w, o) * (1.0 + u) - target) / o.sigma;
     }
     if (opt.use_u && any) r[k++] = u / p.sigma_u[s];
-  }
-  if (p.scan_gls) {
-    const Eigen::VectorXd z = WhitenedScan(p, w, train, opt.raw);
-    r.segment(k, z.size()) = z;
-    return;
   }
   for (size_t i : p.scan_obs) {
     if (!train[i]) continue;
@@ -318,18 +239,10 @@ TestScore Score(const Problem& p, const FitResult& f, const Mask& test, const Ma
       s.n += 1;
     }
   }
-  if (p.scan_gls) {
-    Eigen::VectorXd e;
-    const Eigen::VectorXd z = WhitenedScan(p, w, test, raw, &e);
-    s.chi2 += z.squaredNorm();
-    s.sq_mm += e.squaredNorm();
-    s.n += static_cast<size_t>(e.size());
-  }
   for (size_t i = 0; i < p.obs.size(); ++i) {
     if (!test[i]) continue;
     const Obs& o = p.obs[i];
     if (o.sensor >= 0 && !seen[static_cast<size_t>(o.sensor)]) continue;
-    if (o.sensor < 0 && p.scan_gls) continue;
     double pred = Interp(w, o);
     if (o.sensor >= 0) pred *= 1.0 + f.u[static_cast<size_t>(o.sensor)];
     const double e = pred - (raw ? o.raw : o.wear);
@@ -671,7 +584,8 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       o.raw = e.wear_mm;
       o.wear = e.wear_mm - e.offset_mm;
       const double st = rho * e.sigma_t_days;
-      o.sigma = std::sqrt(st * st + th.sensor_floor_mm * th.sensor_floor_mm + std::pow(th.model_floor_rel * o.wear, 2));
+      o.sigma = std::sqrt(st * st + th.sensor_floor_mm * th.sensor_floor_mm +
+                          std::pow(th.model_floor_rel * o.wear, 2));
       o.sensor = s.usable_index;
       prob.sensor_obs.back().push_back(add_obs(o));
     }
@@ -755,8 +669,16 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   const EvalOptions eq9_opt{false, true};
   const FitResult eq9 = Fit(prob, base_spec, sensors_only, eq9_opt, {k_init}, 30, k_scale);
 
-  // Scan-cell noise: points + floors (independent per cell) and the map's error on the predicted
-  // wear, shared by neighbouring cells (see Problem::scan_gls).
+  // Scan-cell noise: points + map noise on the predicted wear + floors. The smoothed map's error is
+  // correlated over the kernel (about (2 h)^2 pi): cells closer than that share it and are not
+  // independent evidence, so the map-noise term counts once per correlation area, not per cell.
+  double corr_cells = 1.0;
+  {
+    const double cell_area = grid.dz * grid.dt_deg * kPi / 180.0 * fields.mean_radius_m;
+    const double h = fields.model.bandwidth_m, ha = fields.model.bandwidth_arc_m;
+    if (cell_area > 0 && h > 0) corr_cells = std::max(1.0, kPi * 4.0 * h * std::max(h, ha) / cell_area);
+    result.noise["scan_cells_per_map_error_area"] = Round(corr_cells, 2);
+  }
   // The map's pattern error, measured: the smoothed map differs from the liner's wear beyond its
   // sampling noise (the smoothing's own bias, where real DEM maps change faster than any scale
   // follows; the DEM's physics; the chamber). Its relative size map_tau is what the observations'
@@ -766,7 +688,6 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   // smoothing error (the map alone cannot tell its pattern error from its structure finer than the
   // smoothing: on real DEM maps that estimate ranged 0.14-1.0 where scans measured 0.11-0.23).
   double map_tau = fields.model.smoothing_error_rel;
-  double scan_tau = kNaN;
   std::string tau_source = "map cross-validation";
   {
     Eigen::MatrixXd w;
@@ -816,47 +737,34 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       measured = std::sqrt(std::max(0.0, sum / static_cast<double>(sensor_excess.size() - sensor_rows.size())));
       measured_source = "sensors";
     }
-    // The scan cells' own map error: what the scan measured when it could (the map's own
-    // estimate can be the smaller and still not describe the scan's cells: that is then
-    // evidence the noise model does not hold, not of physics).
-    if (measured_source == "scan") scan_tau = measured;
     if (std::isfinite(measured) && measured < map_tau) {
       map_tau = measured;
       tau_source = measured_source;
     }
-    if (!std::isfinite(scan_tau)) scan_tau = map_tau;
     result.noise["map_pattern_error_relative"] = Round(map_tau, 3);
-    result.noise["scan_map_error_relative"] = Round(scan_tau, 3);
     result.noise["map_pattern_error_source"] = tau_source;
     // Each sensor's intensity error: the map's sampling noise at it and the pattern error.
     for (const SensorData& sd : sensors)
       if (sd.usable)
         prob.sigma_u[static_cast<size_t>(sd.usable_index)] =
             std::sqrt(sd.field.rel_sampling * sd.field.rel_sampling + map_tau * map_tau + th.u_floor_rel * th.u_floor_rel);
-    // How the map's error is shared between scan cells, measured on the scan's own standardised
-    // residuals (from the baseline): their correlation at lags of 1, 2, ... cells along z and
-    // around, fitted as c exp(-d / l) per direction (c: the correlated share; the rest is
-    // independent from cell to cell). The scan cells are then one joint observation with that
-    // covariance (generalised least squares): a pattern broader than the map error's extent counts
-    // as evidence, one within it does not, and the chi-square of a null is near its degrees of
-    // freedom. A concealed effect's broad pattern raises c and l (cautious). With too few cells to
-    // measure, the kernel's extent (the smoothed sampling noise's correlation) and c = 1.
+    // How many scan cells share one error: the map's error is correlated over the kernel (at most
+    // the kernel's support, corr_cells above), the pattern error over whatever scale it has. From
+    // the scan's own residuals: b cells averaged have b times the variance of one cell's mean when
+    // they share their error, 1 time when independent. The largest ratio over block sizes (rows x
+    // columns of cells), bounded by the kernel's support; a concealed effect's pattern is broad and
+    // raises it (cautious).
     if (!prob.scan_obs.empty()) {
-      const bool wrap = fields.theta_span_deg >= 359.0;
-      const double dz_m = grid.dz, da_m = grid.dt_deg * kPi / 180.0 * fields.mean_radius_m;
-      const size_t kz_max = std::min<size_t>(grid.nz > 0 ? grid.nz - 1 : 0, 10);
-      const size_t ka_max = std::min<size_t>(wrap ? grid.nt / 2 : (grid.nt > 0 ? grid.nt - 1 : 0), 12);
-      std::vector<double> pz(kz_max + 1, 0.0), pa(ka_max + 1, 0.0);
-      std::vector<size_t> nz_(kz_max + 1, 0), na_(ka_max + 1, 0);
-      double v1 = 0;
-      size_t n1 = 0;
+      double corr_data = 1.0;
       for (size_t k = 0; k < scans.size(); ++k) {
         std::vector<double> zres(grid.cells.size(), kNaN);
+        double v1 = 0;
+        size_t n1 = 0;
         for (size_t i : prob.scan_obs) {
           const Obs& o = prob.obs[i];
           if (static_cast<size_t>(o.scan) != k) continue;
           const double pred = std::max(Interp(w, o), 0.0);
-          const double rel = std::hypot(scans[k].fields[static_cast<size_t>(o.cell)].rel_sampling, scan_tau);
+          const double rel = std::hypot(scans[k].fields[static_cast<size_t>(o.cell)].rel_sampling, map_tau);
           const double sd = std::sqrt(std::pow(scans[k].sigma_mm[static_cast<size_t>(o.cell)], 2) + std::pow(rel * pred, 2) +
                                       th.scan_floor_mm * th.scan_floor_mm);
           const double zr = (o.wear - pred) / sd;
@@ -864,137 +772,41 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
           v1 += zr * zr;
           ++n1;
         }
-        for (size_t iz = 0; iz < grid.nz; ++iz)
-          for (size_t it = 0; it < grid.nt; ++it) {
-            const double a = zres[iz * grid.nt + it];
-            if (!std::isfinite(a)) continue;
-            for (size_t l = 1; l <= kz_max && iz + l < grid.nz; ++l) {
-              const double b = zres[(iz + l) * grid.nt + it];
-              if (!std::isfinite(b)) continue;
-              pz[l] += a * b;
-              ++nz_[l];
-            }
-            for (size_t l = 1; l <= ka_max; ++l) {
-              if (!wrap && it + l >= grid.nt) break;
-              const double b = zres[iz * grid.nt + (it + l) % grid.nt];
-              if (!std::isfinite(b)) continue;
-              pa[l] += a * b;
-              ++na_[l];
-            }
-          }
-      }
-      // The band share: the around-correlation's plateau (the median over the farther half of the
-      // lags: what cells far apart around the liner, in the same band, still share). The local
-      // share and extent around: c exp(-d / l) fitted to the nearer lags' correlation beyond the
-      // plateau (consecutive lags while > 0.05); along z, from the correlation of neighbouring
-      // bands' cells (bands are otherwise independent).
-      double s_ax = 0, s_loc = 0.9, band_r = 0, la = 2.0 * std::max(fields.model.bandwidth_m, fields.model.bandwidth_arc_m), lz = la;
-      std::string source = "kernel";
-      if (n1 >= 20 && v1 > 0) {
+        if (n1 < 20) continue;
         v1 /= static_cast<double>(n1);
-        auto rho_a = [&](size_t l) { return na_[l] >= 10 ? pa[l] / static_cast<double>(na_[l]) / v1 : kNaN; };
-        std::vector<double> far;
-        for (size_t l = std::max<size_t>(2, (ka_max + 1) / 2); l <= ka_max; ++l)
-          if (std::isfinite(rho_a(l))) far.push_back(rho_a(l));
-        if (!far.empty()) {
-          std::sort(far.begin(), far.end());
-          s_ax = std::clamp(far[far.size() / 2], 0.0, 0.95);
-        }
-        std::vector<double> x, y;
-        for (size_t l = 1; l <= ka_max; ++l) {
-          const double r = rho_a(l) - s_ax;
-          if (!(r > 0.05)) break;
-          x.push_back(da_m * static_cast<double>(l));
-          y.push_back(std::log(std::min(r, 0.999)));
-        }
-        if (x.empty()) {
-          s_loc = 0;
-          la = 0;
-        } else if (x.size() == 1) {
-          s_loc = std::min(1.0 - s_ax, std::exp(y[0]) * 2.0);
-          la = x[0] / std::log(s_loc / std::exp(y[0]));
-        } else {
-          double mx = 0, my = 0;
-          for (size_t k = 0; k < x.size(); ++k) {
-            mx += x[k];
-            my += y[k];
+        for (size_t bz = 1; bz <= std::max<size_t>(1, grid.nz / 2); bz *= 2)
+          for (size_t bt = 1; bt <= std::max<size_t>(1, grid.nt / 4); bt *= 2) {
+            if (bz * bt < 2) continue;
+            double sum = 0;
+            size_t blocks = 0;
+            for (size_t bz0 = 0; bz0 + bz <= grid.nz; bz0 += bz)
+              for (size_t bt0 = 0; bt0 + bt <= grid.nt; bt0 += bt) {
+                double m = 0;
+                size_t c = 0;
+                for (size_t iz = bz0; iz < bz0 + bz; ++iz)
+                  for (size_t it = bt0; it < bt0 + bt; ++it)
+                    if (std::isfinite(zres[iz * grid.nt + it])) {
+                      m += zres[iz * grid.nt + it];
+                      ++c;
+                    }
+                if (2 * c < bz * bt) continue;
+                sum += m * m / static_cast<double>(c);
+                ++blocks;
+              }
+            if (blocks >= 4 && v1 > 0) corr_data = std::max(corr_data, sum / static_cast<double>(blocks) / v1);
           }
-          mx /= static_cast<double>(x.size());
-          my /= static_cast<double>(x.size());
-          double sxy = 0, sxx = 0;
-          for (size_t k = 0; k < x.size(); ++k) {
-            sxy += (x[k] - mx) * (y[k] - my);
-            sxx += (x[k] - mx) * (x[k] - mx);
-          }
-          const double slope = sxx > 0 ? sxy / sxx : 0;
-          s_loc = std::min(1.0 - s_ax, std::exp(my - slope * mx));
-          la = slope < 0 ? -1.0 / slope : 1e9;
-        }
-        // At least a tenth of what is not shared by the band is the cell's own (roughness finer
-        // than a cell: a covariance without it would read every such wiggle as evidence).
-        s_loc = std::min(s_loc, 0.9 * (1.0 - s_ax));
-        lz = la;
-        const double rz = nz_[1] >= 10 ? pz[1] / static_cast<double>(nz_[1]) / v1 : 0.0;
-        const double local_z = la > 0 ? s_loc * std::exp(-dz_m / la) : 0.0;
-        band_r = s_ax > 0.05 ? std::clamp((rz - local_z) / s_ax, 0.0, 0.9) : 0.0;
-        source = "scan residuals";
       }
-      const double height_m = std::max(fields.z_top - fields.z_bottom, 1e-3);
-      const double circ_m = fields.theta_span_deg * kPi / 180.0 * fields.mean_radius_m;
-      prob.share_band = s_ax;
-      prob.band_corr = band_r;
-      prob.share_local = std::clamp(s_loc, 0.0, 1.0 - s_ax);
-      prob.corr_z_m = std::clamp(lz, 0.0, 2.0 * height_m);
-      prob.corr_arc_m = std::clamp(la, 0.0, circ_m);
-      prob.circumference_m = wrap ? circ_m : 0.0;
-      prob.scan_band.assign(n_obs, -1);
-      prob.scan_meas_var.assign(n_obs, 0.0);
-      prob.scan_map_sd.assign(n_obs, 0.0);
-      prob.scan_z.assign(n_obs, 0.0);
-      prob.scan_arc.assign(n_obs, 0.0);
-      for (size_t i : prob.scan_obs) {
-        Obs& o = prob.obs[i];
-        const detail::ScanCells& sc = scans[static_cast<size_t>(o.scan)];
-        const detail::PointField& pf = sc.fields[static_cast<size_t>(o.cell)];
-        const double pred = std::max(Interp(w, o), 0.0);
-        const double rel = std::sqrt(pf.rel_sampling * pf.rel_sampling + scan_tau * scan_tau + th.model_floor_rel * th.model_floor_rel);
-        prob.scan_meas_var[i] = std::pow(sc.sigma_mm[static_cast<size_t>(o.cell)], 2) + th.scan_floor_mm * th.scan_floor_mm;
-        prob.scan_map_sd[i] = rel * pred;
-        prob.scan_z[i] = pf.z;
-        prob.scan_arc[i] = pf.theta_deg * kPi / 180.0 * fields.mean_radius_m;
-        prob.scan_band[i] = o.cell / static_cast<int>(std::max<size_t>(grid.nt, 1));
-        o.sigma = std::sqrt(prob.scan_meas_var[i] + prob.scan_map_sd[i] * prob.scan_map_sd[i]);
-      }
-      // The map's error along the stress patterns the hypotheses use (relative stress n_I / I,
-      // squeeze wear; n~, impact hardening): centred and scaled to the map error's size at each
-      // cell. A pattern of the map's own error size along them is noise, not physics: a cleaner
-      // or smoother stress field than wear field would otherwise "explain" the map's noise.
-      if (fields.has_normal) {
-        for (int kind = 0; kind < 2; ++kind) {
-          std::vector<double> q;
-          for (size_t i : prob.scan_obs) {
-            const ModelPoint& mp = prob.points[prob.obs[i].point];
-            q.push_back(kind == 0 ? (mp.intensity > 0 ? mp.normal_i / mp.intensity : 0.0) : mp.normal_tilde);
-          }
-          double mean = 0, var = 0;
-          for (double v : q) mean += v;
-          mean /= static_cast<double>(std::max<size_t>(q.size(), 1));
-          for (double v : q) var += (v - mean) * (v - mean);
-          var /= static_cast<double>(std::max<size_t>(q.size(), 1));
-          if (!(var > 1e-12)) continue;
-          std::vector<double> dir(n_obs, 0.0);
-          for (size_t k = 0; k < prob.scan_obs.size(); ++k)
-            dir[prob.scan_obs[k]] = prob.scan_map_sd[prob.scan_obs[k]] * (q[k] - mean) / std::sqrt(var);
-          prob.scan_stress_dirs.push_back(std::move(dir));
-        }
-      }
-      prob.scan_gls = true;
-      result.noise["scan_map_error_correlation"] = {{"band_share", Round(prob.share_band, 3)},
-                                                    {"band_correlation", Round(prob.band_corr, 3)},
-                                                    {"local_share", Round(prob.share_local, 3)},
-                                                    {"length_z_m", Round(prob.corr_z_m, 3)},
-                                                    {"length_around_m", Round(prob.corr_arc_m, 3)},
-                                                    {"source", source}};
+      result.noise["scan_cells_per_map_error_area_kernel"] = Round(corr_cells, 2);
+      corr_cells = std::min(corr_cells, corr_data);
+      result.noise["scan_cells_per_map_error_area"] = Round(corr_cells, 2);
+    }
+    for (size_t i : prob.scan_obs) {
+      Obs& o = prob.obs[i];
+      const detail::ScanCells& sc = scans[static_cast<size_t>(o.scan)];
+      const double pred = std::max(Interp(w, o), 0.0);
+      const double rel = std::hypot(sc.fields[static_cast<size_t>(o.cell)].rel_sampling, map_tau);
+      o.sigma = std::sqrt(std::pow(sc.sigma_mm[static_cast<size_t>(o.cell)], 2) + corr_cells * std::pow(rel * pred, 2) +
+                          th.scan_floor_mm * th.scan_floor_mm + std::pow(th.model_floor_rel * pred, 2));
     }
   }
 
@@ -1462,17 +1274,11 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     double cs = 0, cc = 0;
     size_t ns = 0, nc = 0;
     for (const Obs& o : prob.obs) {
-      if (o.sensor < 0 && prob.scan_gls) continue;
       double pred = Interp(w_null_fit, o);
       if (o.sensor >= 0) pred *= 1.0 + null_fit.u[static_cast<size_t>(o.sensor)];
       const double z = (pred - o.wear) / o.sigma;
       (o.sensor >= 0 ? cs : cc) += z * z;
       ++(o.sensor >= 0 ? ns : nc);
-    }
-    if (prob.scan_gls) {
-      const Eigen::VectorXd z = WhitenedScan(prob, w_null_fit, all, false);
-      cc += z.squaredNorm();
-      nc += static_cast<size_t>(z.size());
     }
     result.noise["baseline_chi2_per_sensor_event"] = Round(ns ? cs / static_cast<double>(ns) : 0.0, 3);
     result.noise["baseline_chi2_per_scan_cell"] = Round(nc ? cc / static_cast<double>(nc) : 0.0, 3);
