@@ -38,6 +38,7 @@
 #include <mqtt/async_client.h>
 #include <nlohmann/json.hpp>
 
+#include "gateway/paho_link.hpp"
 #include "protocol/frame_decoder.hpp"
 #include "protocol/sensor_payload.hpp"
 #include "protocol/xbee_api.hpp"
@@ -61,6 +62,7 @@ struct Options {
   size_t per_frame = 2;
   int window = 1;
   int reps = 3;
+  bool nodelay = true;  ///< the broker's set_tcp_nodelay (as packaging/mosquitto configures it)
 };
 
 uint32_t SensorId(uint32_t s) { return 1001 + s; }
@@ -162,6 +164,7 @@ class FakeServer {
     mqtt::connect_options opts;
     opts.set_clean_session(true);
     client_.connect(opts)->wait();
+    lw::gateway::NoDelayOnTcpSockets();  // as linerwatch-server's link does after connecting
     client_.subscribe(std::string(kRoot) + "sensors/+/reading", 1)->wait();
     client_.subscribe(std::string(kRoot) + "gateway/#", 1)->wait();
     thread_ = std::thread([this] { Run(); });
@@ -237,15 +240,21 @@ class FakeServer {
 struct GatewayResult {
   double seconds = 0;        ///< first byte to every record acked on the radio and seen on MQTT
   double drain_seconds = 0;  ///< to the stats showing the spool empty
+  double acked_seconds = 0;  ///< to the last radio ack (every record spooled)
+  double gateway_cpu_s = 0;  ///< the gateway process's user + system CPU over the whole run
   size_t radio_acked = 0, published = 0, messages = 0, spooled = 0;
   bool complete = false;
   std::string failure;
 };
 
+double CpuSeconds(pid_t pid);
+
 /// (b) The same bytes through `cat` into the pty, the real gateway on the other side.
 GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total_records, const std::string& gateway_bin) {
   GatewayResult out;
-  lw::test::MosquittoFixture broker;
+  lw::test::MosquittoFixture::Options bo;
+  if (o.nodelay) bo.extra_config = "set_tcp_nodelay true\n";
+  lw::test::MosquittoFixture broker(bo);
   broker.Start();
   lw::test::TempDirectory dir("lw-bench-gw");
   lw::test::RawPty pty;
@@ -287,6 +296,7 @@ GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total
       int status = 0;
       if (waitpid(cat, &status, WNOHANG) == cat) cat_done = true;
     }
+    if (out.acked_seconds == 0 && acked.size() >= total_records) out.acked_seconds = Seconds(Clock::now() - t0);
     if (acked.size() >= total_records && server.distinct() >= total_records) break;
     if (Seconds(Clock::now() - t0) > 600 || !gateway.Running()) {
       out.failure = "stalled at " + std::to_string(acked.size()) + " acked, " + std::to_string(server.distinct()) + " published: " +
@@ -319,9 +329,24 @@ GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total
     const size_t frames_of_s = o.frames / o.sensors + (s < o.frames % o.sensors ? 1 : 0);
     for (uint32_t q = 1; q <= frames_of_s * o.per_frame; ++q) expected.insert({SensorId(s), q});
   }
+  out.gateway_cpu_s = CpuSeconds(gateway.pid());
   out.complete = out.failure.empty() && acked == expected && server.seen() == expected && out.spooled == total_records;
   gateway.Stop(SIGTERM);
   return out;
+}
+
+/// User + system CPU seconds of a running process (/proc/PID/stat fields 14 and 15).
+double CpuSeconds(pid_t pid) {
+  FILE* f = std::fopen(("/proc/" + std::to_string(pid) + "/stat").c_str(), "r");
+  if (!f) return -1;
+  char line[2048] = {};
+  const size_t n = std::fread(line, 1, sizeof line - 1, f);
+  std::fclose(f);
+  line[n] = 0;
+  const char* p = std::strrchr(line, ')');  // the command name may hold spaces
+  unsigned long utime = 0, stime = 0;
+  if (!p || std::sscanf(p + 2, "%*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %lu %lu", &utime, &stime) != 2) return -1;
+  return static_cast<double>(utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
 }
 
 double Median(std::vector<double> v) {
@@ -341,6 +366,7 @@ int main(int argc, char** argv) {
     else if (a == "--records-per-frame" && (v == 1 || v == 2)) o.per_frame = static_cast<size_t>(v);
     else if (a == "--window" && v > 0 && v <= 10000) o.window = static_cast<int>(v);
     else if (a == "--reps" && v > 0) o.reps = static_cast<int>(v);
+    else if (a == "--broker-nodelay" && (v == 0 || v == 1)) o.nodelay = v == 1;
     else {
       std::fprintf(stderr, "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K]\n");
       return 2;
@@ -357,17 +383,18 @@ int main(int argc, char** argv) {
     const std::string bytes = MakeFrames(o, file, &records);
     std::printf("replay: %zu frames (%zu records, %u sensors, %zu per frame), %.2f MB, API mode 2\n", o.frames, records, o.sensors,
                 o.per_frame, bytes.size() / 1e6);
-    std::vector<double> bare, gw, drain;
+    std::vector<double> bare, gw, drain, cpu;
     bool all_complete = true;
     for (int r = 0; r < o.reps; ++r) {
       bare.push_back(BareRun(file, bytes.size()));
       const GatewayResult g = GatewayRun(o, file, records, LW_GATEWAY_BIN);
       gw.push_back(g.seconds);
       drain.push_back(g.drain_seconds);
+      cpu.push_back(g.gateway_cpu_s);
       all_complete = all_complete && g.complete;
-      std::printf("  rep %d: cat -> pty -> reader %.3f s; cat -> pty -> gateway -> spool + mosquitto %.3f s (drained %.3f s): "
-                  "radio acked %zu, published %zu distinct (%zu messages), spooled %zu%s%s\n",
-                  r + 1, bare.back(), g.seconds, g.drain_seconds, g.radio_acked, g.published, g.messages, g.spooled,
+      std::printf("  rep %d: cat -> pty -> reader %.3f s; cat -> pty -> gateway -> spool + mosquitto %.3f s (all acked on the radio at %.3f s, drained %.3f s): "
+                  "radio acked %zu, published %zu distinct (%zu messages), spooled %zu; gateway CPU %.2f s%s%s\n",
+                  r + 1, bare.back(), g.seconds, g.acked_seconds, g.drain_seconds, g.radio_acked, g.published, g.messages, g.spooled, g.gateway_cpu_s,
                   g.complete ? ", complete" : ", INCOMPLETE ", g.failure.c_str());
     }
     bare.push_back(BareRun(file, bytes.size()));
@@ -375,6 +402,8 @@ int main(int argc, char** argv) {
     std::printf("bare (cat into the pty)         median %.3f s  %10.0f frames/s\n", b, o.frames / b);
     std::printf("gateway (spooled + published)   median %.3f s  %10.0f frames/s  (%.0f records/s)\n", g, o.frames / g, records / g);
     std::printf("gateway, spool drained by commit acks: median %.3f s\n", Median(drain));
+    std::printf("gateway CPU (user + system)     median %.2f s: %.0f frames per CPU-second (the capacity on an idle core)\n",
+                Median(cpu), o.frames / Median(cpu));
     std::printf("ratio gateway / bare frames/s   %.3f\n", b / g);
     std::printf("nothing lost (every record acked on the radio, published, spooled): %s\n", all_complete ? "yes" : "NO");
     return all_complete ? 0 : 1;
