@@ -170,6 +170,26 @@ TEST(FirmwareApp, RadioDownForDaysThenBackLosesNoThicknessStep) {
   CHECK(rig.board.radio.transmit_requests() < rig.app->stats().wakes);
 }
 
+// The queue's size (kQueueCapacity, docs/firmware.md): 20 days without a radio link at the fastest
+// row's end-of-campaign wear rate (4 mm in 3 days, 1.33 mm/day: 26 steps and ~80 heartbeats)
+// loses no thickness step; only heartbeats are given up.
+TEST(FirmwareApp, TwentyDaysDownAtThePeakWearRateLosesNoStep) {
+  Rig rig;
+  rig.RunUntil(kDay);
+  rig.board.radio.set_link_up(false);
+  auto wear = [&](uint32_t t) { rig.board.ladder.SetIntactCount(static_cast<uint8_t>(100 - (t - kDay) * 4 / (3 * kDay))); };
+  rig.RunUntil(21 * kDay, wear);
+  CHECK(rig.app->queue().full());
+  CHECK(rig.app->queue().dropped_heartbeats() > 0);
+  LONGS_EQUAL(0, rig.app->queue().dropped_steps());
+  rig.board.radio.set_link_up(true);
+  rig.RunUntil(23 * kDay);
+  LONGS_EQUAL(0, rig.app->queue().size());
+  std::set<uint8_t> values;
+  for (const auto& r : rig.Received()) values.insert(r.loops_intact);
+  for (int v = 74; v <= 100; ++v) CHECK_TEXT(values.count(static_cast<uint8_t>(v)) == 1, std::to_string(v).c_str());
+}
+
 TEST(FirmwareApp, UnackedRecordsAreRetransmittedUntilAcknowledged) {
   Rig rig;
   rig.gateway.set_acking(false);  // gateway receives but its acks are lost
