@@ -191,7 +191,9 @@ std::vector<StoredReading> LiveState::WearInputs(const std::string& crusher) con
   const CrusherLive* c = Find(crusher);
   if (!c) return out;
   std::lock_guard<std::mutex> lock(c->mutex);
-  for (const auto& [sensor, s] : c->sensors) {
+  for (const auto& entry : c->sensors) {
+    const std::string& sensor = entry.first;  // not a structured binding: clang 14 cannot capture one
+    const auto& s = entry.second;
     const size_t first = out.size();
     const auto emit = [&](const Point& p) {
       StoredReading r;
