@@ -80,4 +80,22 @@ void CopyFileAtomically(const fs::path& from, const fs::path& to, Durability dur
   Commit(tmp, to, durability);
 }
 
+void WriteFolderAtomically(const fs::path& dir, const std::function<void(const fs::path& tmp)>& fill, const std::string& what) {
+  if (fs::exists(dir) && !(fs::is_directory(dir) && fs::is_empty(dir))) {
+    throw std::runtime_error(what + ": '" + dir.string() + "' exists and is not an empty directory");
+  }
+  const fs::path tmp = dir.string() + ".partial-" + std::to_string(::getpid());
+  fs::remove_all(tmp);
+  fs::create_directories(tmp);
+  try {
+    fill(tmp);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+  if (fs::exists(dir)) fs::remove(dir);
+  fs::rename(tmp, dir);
+}
+
 }  // namespace lw::core

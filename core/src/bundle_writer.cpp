@@ -82,13 +82,7 @@ void WriteBundleMap(const fs::path& path, const WearMap& map) {
 }
 
 void WriteBundle(const Bundle& b, const fs::path& dir, const std::vector<std::pair<std::string, std::string>>& extra) {
-  if (fs::exists(dir) && !(fs::is_directory(dir) && fs::is_empty(dir))) {
-    throw std::runtime_error("output '" + dir.string() + "' exists and is not an empty directory");
-  }
-  const fs::path tmp = dir.string() + ".partial-" + std::to_string(::getpid());
-  fs::remove_all(tmp);
-  fs::create_directories(tmp);
-  try {
+  WriteFolderAtomically(dir, [&](const fs::path& tmp) {
     WriteFileAtomically(tmp / "crusher.json", CrusherConfigJson(b.crusher));
     WriteBundleMap(tmp / "wear_map.vtk", b.map);
     WriteFileAtomically(tmp / "readings.csv", ReadingsCsv(b.readings));
@@ -96,13 +90,7 @@ void WriteBundle(const Bundle& b, const fs::path& dir, const std::vector<std::pa
     if (!b.scans.empty()) fs::create_directories(tmp / "scans");
     for (const Scan& sc : b.scans) WriteFileAtomically(tmp / "scans" / ScanFileName(sc.date), ScanXyz(sc));
     for (const auto& [name, text] : extra) WriteFileAtomically(tmp / name, text);
-  } catch (...) {
-    std::error_code ec;
-    fs::remove_all(tmp, ec);
-    throw;
-  }
-  if (fs::exists(dir)) fs::remove(dir);
-  fs::rename(tmp, dir);
+  });
 }
 
 }  // namespace lw::core

@@ -181,13 +181,7 @@ std::string LedgerCsv(const std::vector<LedgerEntry>& ledger) {
 }
 
 void WriteBundle(const fs::path& out, const CrusherFolder& folder, const Fleet& fleet, int64_t end_s) {
-  if (fs::exists(out) && !(fs::is_directory(out) && fs::is_empty(out))) {
-    throw std::runtime_error("--bundle-out: '" + out.string() + "' exists and is not an empty directory");
-  }
-  const fs::path tmp = out.string() + ".partial-" + std::to_string(::getpid());
-  fs::remove_all(tmp);
-  fs::create_directories(tmp);
-  try {
+  lw::core::WriteFolderAtomically(out, [&](const fs::path& tmp) {
     fs::copy_file(folder.dir / "crusher.json", tmp / "crusher.json");
     fs::copy_file(folder.dir / "wear_map.vtk", tmp / "wear_map.vtk");
     if (fs::exists(folder.dir / kCampaignMarker)) fs::copy_file(folder.dir / kCampaignMarker, tmp / kCampaignMarker);
@@ -206,13 +200,7 @@ void WriteBundle(const fs::path& out, const CrusherFolder& folder, const Fleet& 
     if (truth_ops.empty())
       for (int64_t t = fleet.start_s(); t <= end_s; t += 86400) ops.push_back({core::TimePoint(std::chrono::seconds(t)), 3500.0, {}, {}});
     lw::core::WriteFileAtomically(tmp / "operations.csv", core::OperationsCsv(ops));
-  } catch (...) {
-    std::error_code ec;
-    fs::remove_all(tmp, ec);
-    throw;
-  }
-  if (fs::exists(out)) fs::remove(out);
-  fs::rename(tmp, out);
+  }, "--bundle-out");
 }
 
 /// The coordinator's pty: the master end is ours, PATH is a symlink to the slave end. While no

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <functional>
 #include <iosfwd>
+#include <string>
 #include <string_view>
 
 namespace lw::core {
@@ -27,5 +28,11 @@ void WriteFileAtomically(const std::filesystem::path& path, const std::function<
 /// Copies `from` over `to` atomically (the same guarantees).
 void CopyFileAtomically(const std::filesystem::path& from, const std::filesystem::path& to,
                         Durability durability = Durability::kSynced);
+
+/// Makes folder `dir` whole or not at all: `fill` writes into a temporary sibling folder, which is
+/// renamed to `dir` when it returns. `dir` must not exist or be an empty folder (std::runtime_error
+/// naming it, with `what` as the prefix); an exception from `fill` removes the temporary and propagates.
+void WriteFolderAtomically(const std::filesystem::path& dir, const std::function<void(const std::filesystem::path& tmp)>& fill,
+                           const std::string& what = "output");
 
 }  // namespace lw::core
