@@ -1,6 +1,8 @@
 #include "core/map_model.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <thread>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -17,6 +19,30 @@ double Median(std::vector<double> v) {
   const size_t mid = v.size() / 2;
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
   return v[mid];
+}
+
+/// Runs fn(begin, end) over [0, n) on `threads` threads, in chunks handed out in order. Each face's
+/// result depends only on the inputs, never on the split, so every value is the same for any
+/// thread count (test MapModel.SameResultWithOneOrTwoThreads).
+template <typename Fn>
+void ParallelFor(Eigen::Index n, int threads, Fn&& fn) {
+  constexpr Eigen::Index kChunk = 2048;
+  if (threads <= 1 || n <= kChunk) {
+    fn(Eigen::Index{0}, n);
+    return;
+  }
+  std::atomic<Eigen::Index> next{0};
+  auto worker = [&] {
+    for (;;) {
+      const Eigen::Index b = next.fetch_add(kChunk);
+      if (b >= n) return;
+      fn(b, std::min(n, b + kChunk));
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  worker();
+  for (std::thread& t : pool) t.join();
 }
 
 /// Local-linear (in z) kernel sums around a point: the estimate is the intercept of a weighted
@@ -269,6 +295,7 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   MapModel model;
   model.map = &map;
   const Eigen::Index n = static_cast<Eigen::Index>(map.face_count());
+  const int threads = options.threads > 0 ? options.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   model.clean = map.wear.size() == n ? Eigen::VectorXd(map.wear.cwiseMax(0.0)) : Eigen::VectorXd::Zero(n);
   model.intensity = model.clean;
   model.intensity_sd = Eigen::VectorXd::Zero(n);
@@ -286,7 +313,8 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   Eigen::VectorXd pilot(n), pilot_neff(n);
   {
     const Kernel k(map, model.clean, nullptr, 0.5 * model.face_size_m, 3.0 * model.face_size_m);
-    for (Eigen::Index i = 0; i < n; ++i) {
+    ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
+    for (Eigen::Index i = begin; i < end; ++i) {
       double s0 = 0, sy = 0, s2 = 0;
       k.index.Visit(map.z[i], map.theta_deg[i], map.radius[i], [&](uint32_t j, double dz, double arc) {
         if (static_cast<Eigen::Index>(j) == i) return;
@@ -299,6 +327,7 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
       pilot[i] = s0 > 0 ? sy / s0 : model.clean[i];
       pilot_neff[i] = s2 > 0 ? s0 * s0 / s2 : 0;
     }
+    });
   }
 
   // 2. Noise law var = phi m^p: a face's wear sums the energies of the contacts it received, so its
@@ -417,15 +446,17 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   for (size_t c = 0; c < nh; ++c) {
     Kernel k(map, model.clean, nullptr, candidates[c].first, candidates[c].second);
     // Both forms from the same sums (one pass over the neighbours).
-    for (size_t e = 0; e < eval.size(); ++e) {
-      const Eigen::Index i = eval[e];
-      Sums s = k.At(map.z[i], map.theta_deg[i], map.radius[i], static_cast<long>(i));
-      if (!(s.s0 > 0)) continue;
-      for (int form = 0; form < 2; ++form) {
-        s.linear = form == 1;
-        loo[2 * c + static_cast<size_t>(form)][e] = std::max(0.0, s.Value());
+    ParallelFor(static_cast<Eigen::Index>(eval.size()), threads, [&](Eigen::Index begin, Eigen::Index end) {
+      for (auto e = static_cast<size_t>(begin); e < static_cast<size_t>(end); ++e) {
+        const Eigen::Index i = eval[e];
+        Sums s = k.At(map.z[i], map.theta_deg[i], map.radius[i], static_cast<long>(i));
+        if (!(s.s0 > 0)) continue;
+        for (int form = 0; form < 2; ++form) {
+          s.linear = form == 1;
+          loo[2 * c + static_cast<size_t>(form)][e] = std::max(0.0, s.Value());
+        }
       }
-    }
+    });
   }
   std::vector<double> score(nc, 0.0);
   double area_sum = 0, noise_sum = 0, m2_sum = 0;
@@ -455,12 +486,14 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     // The prediction noise of the chosen candidate only (the others' is not needed).
     Kernel k(map, model.clean, nullptr, candidates[best / 2].first, candidates[best / 2].second);
     k.linear = best % 2 == 1;
-    for (size_t e = 0; e < eval.size(); ++e) {
-      const Eigen::Index i = eval[e];
-      if (!std::isfinite(loo[best][e])) continue;
-      const Sums s = k.At(map.z[i], map.theta_deg[i], map.radius[i], static_cast<long>(i));
-      loo_var[best][e] = k.Variance(s, map.z[i], map.theta_deg[i], map.radius[i], static_cast<long>(i), pilot_var);
-    }
+    ParallelFor(static_cast<Eigen::Index>(eval.size()), threads, [&](Eigen::Index begin, Eigen::Index end) {
+      for (auto e = static_cast<size_t>(begin); e < static_cast<size_t>(end); ++e) {
+        const Eigen::Index i = eval[e];
+        if (!std::isfinite(loo[best][e])) continue;
+        const Sums s = k.At(map.z[i], map.theta_deg[i], map.radius[i], static_cast<long>(i));
+        loo_var[best][e] = k.Variance(s, map.z[i], map.theta_deg[i], map.radius[i], static_cast<long>(i), pilot_var);
+      }
+    });
     double var_pred = 0;
     for (size_t e = 0; e < eval.size(); ++e) {
       if (!std::isfinite(loo[best][e])) continue;
@@ -479,11 +512,13 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     Kernel k(map, model.clean, nrm, model.bandwidth_m, model.bandwidth_arc_m);
     k.linear = model.local_linear;
     std::vector<Sums> sums(static_cast<size_t>(n));
-    for (Eigen::Index i = 0; i < n; ++i) {
-      sums[static_cast<size_t>(i)] = k.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
-      const Sums& s = sums[static_cast<size_t>(i)];
-      model.intensity[i] = s.s0 > 0 ? std::max(0.0, s.Value()) : model.clean[i];
-    }
+    ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
+      for (Eigen::Index i = begin; i < end; ++i) {
+        sums[static_cast<size_t>(i)] = k.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
+        const Sums& s = sums[static_cast<size_t>(i)];
+        model.intensity[i] = s.s0 > 0 ? std::max(0.0, s.Value()) : model.clean[i];
+      }
+    });
     // Normal stress at three times the wear's scale: its sampling noise is shared with the wear's
     // (the same contacts), and at the wear's own scale it would carry the wear map's error into
     // every stress-based hypothesis (a map over-predicting where it happened to sample more
@@ -493,48 +528,64 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
       Kernel kn(map, *nrm, nullptr, model.normal_bandwidth_m, 3.0 * model.bandwidth_arc_m);
       kn.linear = false;
       model.normal_index = kn.owned;
-      for (Eigen::Index i = 0; i < n; ++i) {
-        const Sums sn = kn.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
-        model.normal_stress[i] = sn.s0 > 0 ? sn.t0 / sn.s0 : (*nrm)[i];
-      }
+      ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
+        for (Eigen::Index i = begin; i < end; ++i) {
+          const Sums sn = kn.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
+          model.normal_stress[i] = sn.s0 > 0 ? sn.t0 / sn.s0 : (*nrm)[i];
+        }
+      });
     }
     Eigen::VectorXd& var = model.face_var;
     var.resize(n);
     for (Eigen::Index i = 0; i < n; ++i) var[i] = model.FaceVariance(model.intensity[i]);
     model.index = k.owned;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const double v = k.Variance(sums[static_cast<size_t>(i)], map.z[i], map.theta_deg[i], map.radius[i], -1, var);
-      model.intensity_sd[i] = std::sqrt(v + std::pow(model.smoothing_error_rel * model.intensity[i], 2));
-      model.intensity_noise_sd[i] = std::sqrt(v);
+    // With the local scale (6.) the variance comes from its pass over the neighbours (its top step
+    // is this kernel, on the same face variances); without it, or where that pass finds no
+    // estimate, from this kernel here.
+    if (model.bandwidth_method == "cross-validation" && options.local_scale) {
+      for (double h = 0.25 * model.face_size_m; h < model.bandwidth_m * 0.999; h *= 1.4) model.local_ladder_m.push_back(h);
+      model.local_ladder_m.push_back(model.bandwidth_m);
+    }
+    const bool ici = model.local_ladder_m.size() > 1;
+    if (ici) {
+      model.local_gamma = options.local_gamma;
+      model.ref_var = model.face_var;
+      model.local_bandwidth_m = Eigen::VectorXd::Zero(n);
+    }
+    ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
+      for (Eigen::Index i = begin; i < end; ++i) {
+        double v = std::numeric_limits<double>::quiet_NaN();
+        if (ici) {
+          // 6. Local scale along z (ICI): the cross-validated scale is right on average over the
+          //    liner, and the average is dominated by the many faces where the field is flat; where
+          //    it changes within a kernel (a real map's discharge-edge band holds several times the
+          //    wear of the band above), a smaller scale is used, as small as the data show the
+          //    change to be real.
+          const IciResult r = Ici(map, model.clean, model.local_ladder_m, model.bandwidth_arc_m, model.local_linear, *model.index, map.z[i],
+                                  map.theta_deg[i], map.radius[i], -1, model.ref_var, model.local_gamma);
+          if (std::isfinite(r.value)) {
+            model.local_bandwidth_m[i] = model.local_ladder_m[r.level];
+            if (r.level + 1 < model.local_ladder_m.size()) {
+              model.intensity[i] = std::max(0.0, r.value);
+              // Stopped below the top: the estimate's bias is bounded by about its own sd (that is
+              // where the intervals stop intersecting), so its error is counted twice.
+              model.intensity_sd[i] = std::sqrt(2.0 * r.var);
+              model.intensity_noise_sd[i] = std::sqrt(r.var);
+              continue;
+            }
+            v = r.var;  // the global scale: the value of 5., its variance from the top step
+          }
+        }
+        if (!std::isfinite(v)) v = k.Variance(sums[static_cast<size_t>(i)], map.z[i], map.theta_deg[i], map.radius[i], -1, var);
+        model.intensity_sd[i] = std::sqrt(v + std::pow(model.smoothing_error_rel * model.intensity[i], 2));
+        model.intensity_noise_sd[i] = std::sqrt(v);
+      }
+    });
+    if (ici) {
+      for (Eigen::Index i = 0; i < n; ++i) model.face_var[i] = model.FaceVariance(model.intensity[i]);
     }
   }
 
-  // 6. Local scale along z (ICI): the cross-validated scale is right on average over the liner, and
-  //    the average is dominated by the many faces where the field is flat; where it changes within
-  //    a kernel (a real map's discharge-edge band holds several times the wear of the band above),
-  //    a smaller scale is used, as small as the data show the change to be real.
-  if (model.bandwidth_method == "cross-validation" && options.local_scale) {
-    for (double h = 0.25 * model.face_size_m; h < model.bandwidth_m * 0.999; h *= 1.4) model.local_ladder_m.push_back(h);
-    model.local_ladder_m.push_back(model.bandwidth_m);
-  }
-  if (model.local_ladder_m.size() > 1) {
-    model.local_gamma = options.local_gamma;
-    model.ref_var = model.face_var;
-    model.local_bandwidth_m.resize(n);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const IciResult r = Ici(map, model.clean, model.local_ladder_m, model.bandwidth_arc_m, model.local_linear, *model.index, map.z[i],
-                              map.theta_deg[i], map.radius[i], -1, model.ref_var, model.local_gamma);
-      if (!std::isfinite(r.value)) continue;
-      model.local_bandwidth_m[i] = model.local_ladder_m[r.level];
-      if (r.level + 1 == model.local_ladder_m.size()) continue;  // the global scale: value and error as above
-      model.intensity[i] = std::max(0.0, r.value);
-      // Stopped below the top: the estimate's bias is bounded by about its own sd (that is where
-      // the intervals stop intersecting), so its error is counted twice.
-      model.intensity_sd[i] = std::sqrt(2.0 * r.var);
-      model.intensity_noise_sd[i] = std::sqrt(r.var);
-    }
-    for (Eigen::Index i = 0; i < n; ++i) model.face_var[i] = model.FaceVariance(model.intensity[i]);
-  }
   std::vector<double> cv;
   for (Eigen::Index i = 0; i < n; ++i)
     if (model.intensity[i] > 0) cv.push_back(std::sqrt(model.FaceVariance(model.intensity[i])) / model.intensity[i]);

@@ -5,6 +5,8 @@
 #include <openssl/evp.h>
 
 #include <algorithm>
+#include <charconv>
+#include <string_view>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -45,46 +47,43 @@ std::string ReadFile(const std::filesystem::path& path) {
   return ss.str();
 }
 
-// Whitespace-separated tokens with their line numbers.
+// Whitespace-separated tokens with their line numbers, read in place: a cursor over the text (a
+// million-face map is ~9 million tokens; one std::string each made the parse 10x slower). The
+// tokens are counted once up front, so a count that the rest of the file cannot hold is refused
+// before anything is allocated for it.
 class Tokens {
  public:
-  Tokens(const std::string& text, std::string file) : file_(std::move(file)) {
-    size_t line = 1, i = 0;
-    while (i < text.size()) {
-      const char c = text[i];
-      if (c == '\n') {
-        ++line;
-        ++i;
-        continue;
-      }
-      if (std::isspace(static_cast<unsigned char>(c))) {
-        ++i;
-        continue;
-      }
-      size_t j = i;
-      while (j < text.size() && !std::isspace(static_cast<unsigned char>(text[j]))) ++j;
-      toks_.push_back(text.substr(i, j - i));
-      lines_.push_back(line);
-      i = j;
+  /// The tokens of `text` from `offset` on, which is on line `line`.
+  Tokens(const std::string& text, std::string file, size_t offset, size_t line)
+      : text_(text), file_(std::move(file)), pos_(offset), line_(line) {
+    bool in_token = false;
+    for (size_t i = offset; i < text_.size(); ++i) {
+      const bool space = Space(text_[i]);
+      if (!space && !in_token) ++total_;
+      in_token = !space;
     }
+    SkipSpace();
   }
-  bool done() const { return pos_ >= toks_.size(); }
-  size_t line() const { return pos_ < lines_.size() ? lines_[pos_] : (lines_.empty() ? 0 : lines_.back()); }
-  const std::string& Peek() const {
-    static const std::string kEmpty;
-    return done() ? kEmpty : toks_[pos_];
-  }
-  std::string Next(const char* what) {
-    if (done()) throw Error("file ends where " + std::string(what) + " was expected");
-    return toks_[pos_++];
-  }
+  bool done() const { return pos_ >= text_.size(); }
+  /// Line of the next token (at the end: of the last one).
+  size_t line() const { return done() ? last_line_ : line_; }
+  std::string_view Peek() const { return done() ? std::string_view() : std::string_view(text_).substr(pos_, TokenEnd() - pos_); }
+  std::string Next(const char* what) { return std::string(NextView(what)); }
   double Number(const char* what) {
     const size_t l = line();
-    const std::string t = Next(what);
-    char* end = nullptr;
-    const double v = std::strtod(t.c_str(), &end);
-    if (end == t.c_str() || *end != '\0') throw InputError(file_, l, std::string(what) + " '" + t + "' is not a number");
-    if (!std::isfinite(v)) throw InputError(file_, l, std::string(what) + " '" + t + "' is not finite");
+    const std::string_view t = NextView(what);
+    double v = 0;
+    // A leading '+' (strtod reads it, from_chars does not); from_chars is correctly rounded, as
+    // strtod is: the same double for every decimal.
+    const char* b = t.data() + (t.size() > 1 && t[0] == '+' && t[1] != '-' && t[1] != '+' ? 1 : 0);
+    const auto [end, ec] = std::from_chars(b, t.data() + t.size(), v);
+    if (ec == std::errc::result_out_of_range) {
+      // Beyond double's range: strtod's answer (+-HUGE_VAL, refused below; or a denormal or 0).
+      v = std::strtod(std::string(t).c_str(), nullptr);
+    } else if (ec != std::errc() || end != t.data() + t.size()) {
+      throw InputError(file_, l, std::string(what) + " '" + std::string(t) + "' is not a number");
+    }
+    if (!std::isfinite(v)) throw InputError(file_, l, std::string(what) + " '" + std::string(t) + "' is not finite");
     return v;
   }
   long long Integer(const char* what) {
@@ -106,22 +105,44 @@ class Tokens {
     return n;
   }
   void NeedValues(size_t n, size_t per_item, const char* what, size_t l) const {
-    const size_t left = toks_.size() - pos_;
+    const size_t left = Remaining();
     if (per_item != 0 && n > left / per_item) {
       throw InputError(file_, l, std::string(what) + " " + std::to_string(n) + " needs " + std::to_string(per_item) +
                                      " value(s) each but the file holds only " + std::to_string(left) + " more");
     }
   }
   InputError Error(const std::string& rule) const { return InputError(file_, line(), rule); }
-  size_t Remaining() const { return toks_.size() - pos_; }
+  size_t Remaining() const { return total_ - consumed_; }
   // Line of the token just consumed (for messages about it).
-  size_t LastLine() const { return pos_ ? lines_[pos_ - 1] : 0; }
+  size_t LastLine() const { return consumed_ ? last_line_ : 0; }
 
  private:
+  static bool Space(char c) { return c == ' ' || (c >= '\t' && c <= '\r'); }  // std::isspace in the C locale
+  size_t TokenEnd() const {
+    size_t j = pos_;
+    while (j < text_.size() && !Space(text_[j])) ++j;
+    return j;
+  }
+  void SkipSpace() {
+    while (pos_ < text_.size() && Space(text_[pos_])) {
+      if (text_[pos_] == '\n') ++line_;
+      ++pos_;
+    }
+  }
+  std::string_view NextView(const char* what) {
+    if (done()) throw Error("file ends where " + std::string(what) + " was expected");
+    const size_t end = TokenEnd();
+    const std::string_view t = std::string_view(text_).substr(pos_, end - pos_);
+    last_line_ = line_;
+    ++consumed_;
+    pos_ = end;
+    SkipSpace();
+    return t;
+  }
+  const std::string& text_;
   std::string file_;
-  std::vector<std::string> toks_;
-  std::vector<size_t> lines_;
-  size_t pos_ = 0;
+  size_t pos_ = 0, line_ = 1, last_line_ = 0;
+  size_t total_ = 0, consumed_ = 0;
 };
 
 /// A coordinate beyond this (m) is a units or export mistake (a gyratory concave is a few metres).
@@ -162,10 +183,10 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
     return s;
   };
   if (trim(l3) != "ASCII") throw InputError(file, 3, "only ASCII legacy VTK is supported (found '" + trim(l3) + "')");
-  // Tokenise from line 4 on, keeping line numbers.
+  // Tokens from line 4 on, keeping line numbers.
   size_t offset = 0;
   for (int i = 0; i < 3; ++i) offset = text.find('\n', offset) + 1;
-  Tokens t(std::string(3, '\n') + text.substr(offset), file);
+  Tokens t(text, file, offset, 4);
 
   WearMap map;
   map.title = trim(l2);
@@ -292,7 +313,7 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
     } else if (kw == "METADATA") {
       // VTK 5.1 may add METADATA blocks (INFORMATION ...); skip to the next known keyword.
       while (!t.done()) {
-        const std::string& p = t.Peek();
+        const std::string_view p = t.Peek();
         if (p == "CELL_DATA" || p == "POINT_DATA" || p == "SCALARS" || p == "FIELD" || p == "VECTORS") break;
         t.Next("metadata");
       }

@@ -73,6 +73,7 @@ void Gateway::OnBytes(const uint8_t* data, size_t len, int64_t now_ms) {
         break;
     }
   });
+  FlushReadings();
 }
 
 void Gateway::OnFrame(const uint8_t* frame, size_t len, int64_t now_ms) {
@@ -159,8 +160,13 @@ void Gateway::OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms) 
   // virtual clock still until the ack below comes back.
   const int64_t stamp_ms = options_.stamp_clock ? options_.stamp_clock(now_ms) : now_ms;
   ReadingContext context{rx.src64, options_.gateway_id, stamp_ms};
-  std::vector<SpoolRecord> batch;
-  batch.reserve(count);
+  PendingFrame pending;
+  pending.src64 = rx.src64;
+  pending.src16 = rx.src16;
+  pending.sensor_id = header.sensor_id;
+  pending.stamp_ms = stamp_ms;
+  pending.first = pending_records_.size();
+  pending.count = count;
   for (size_t i = 0; i < count; ++i) {
     SpoolRecord r;
     r.sensor = sensor;
@@ -168,42 +174,59 @@ void Gateway::OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms) 
     r.received_ms = now_ms;
     r.heartbeat = (records[i].flags & protocol::kFlagHeartbeat) != 0;
     r.payload = ReadingJson(header, records[i], context);
-    batch.push_back(std::move(r));
+    pending_records_.push_back(std::move(r));
   }
+  pending_frames_.push_back(pending);
+}
+
+void Gateway::FlushReadings() {
+  if (pending_frames_.empty()) return;
+  std::vector<PendingFrame> frames;
+  std::vector<SpoolRecord> batch;
+  frames.swap(pending_frames_);
+  batch.swap(pending_records_);
   std::vector<InsertOutcome> outcomes;
+  const uint64_t evicted_before = spool_.evicted();
   try {
     outcomes = spool_.Insert(batch);
+    // A full spool evicted the oldest heartbeat, maybe another sensor's head: look at every head.
+    if (spool_.evicted() != evicted_before) records_dirty_ = true;
   } catch (const std::exception& e) {
-    ++counters_.spool_errors;
-    LogLimited("spool_error", std::string("spool: records from sensor ") + sensor + " not stored (not acked): " + e.what());
+    // The transaction rolled back: none of these records is stored and none is acked.
+    for (const PendingFrame& f : frames) {
+      ++counters_.spool_errors;
+      LogLimited("spool_error", "spool: records from sensor " + std::to_string(f.sensor_id) + " not stored (not acked): " + e.what());
+    }
     return;
   }
-  std::vector<uint32_t> ack_seqs;
-  for (size_t i = 0; i < outcomes.size(); ++i) {
-    switch (outcomes[i]) {
-      case InsertOutcome::kStored:
-        ++counters_.records_spooled;
-        ack_seqs.push_back(batch[i].seq);
-        records_dirty_ = true;
-        break;
-      case InsertOutcome::kDuplicate:
-        ++counters_.records_duplicate;
-        ack_seqs.push_back(batch[i].seq);
-        break;
-      case InsertOutcome::kRejectedFull:
-        ++counters_.records_rejected;
-        LogLimited("spool_full", "spool: full (" + std::to_string(spool_.depth()) + " records), record " + sensor + "/" +
-                                     std::to_string(batch[i].seq) + " not acked; the sensor keeps it");
-        break;
+  for (const PendingFrame& f : frames) {
+    const std::string sensor = std::to_string(f.sensor_id);
+    std::vector<uint32_t> ack_seqs;
+    for (size_t i = f.first; i < f.first + f.count; ++i) {
+      switch (outcomes[i]) {
+        case InsertOutcome::kStored:
+          ++counters_.records_spooled;
+          ack_seqs.push_back(batch[i].seq);
+          dirty_sensors_.insert(sensor);
+          break;
+        case InsertOutcome::kDuplicate:
+          ++counters_.records_duplicate;
+          ack_seqs.push_back(batch[i].seq);
+          break;
+        case InsertOutcome::kRejectedFull:
+          ++counters_.records_rejected;
+          LogLimited("spool_full", "spool: full (" + std::to_string(spool_.depth()) + " records), record " + sensor + "/" +
+                                       std::to_string(batch[i].seq) + " not acked; the sensor keeps it");
+          break;
+      }
     }
+    if (!ack_seqs.empty()) SendAck(f.src64, f.src16, f.sensor_id, ack_seqs);
+    DeviceEntry d;
+    d.address = AddressHex(f.src64);
+    d.sensor = sensor;
+    d.first_seen_ms = f.stamp_ms;
+    NoteDevice(d);
   }
-  if (!ack_seqs.empty()) SendAck(rx.src64, rx.src16, header.sensor_id, ack_seqs);
-
-  DeviceEntry d;
-  d.address = source;
-  d.sensor = sensor;
-  d.first_seen_ms = stamp_ms;
-  NoteDevice(d);
 }
 
 void Gateway::SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, const std::vector<uint32_t>& seqs) {
@@ -273,58 +296,71 @@ void Gateway::OnConnected(int64_t now_ms) {
   // Whatever was in flight may have been lost with the old connection (or the broker): start
   // every sensor's queue over, in order.
   in_flight_.clear();
-  records_dirty_ = true;
+  records_dirty_ = true;  // every sensor
   all_devices_dirty_ = true;
   publisher_.Publish({StatusTopic(), StatusJson(true, options_.gateway_id, now_ms), 1, true});
   Pump(now_ms);
 }
 
 void Gateway::OnMessage(std::string_view topic, std::string_view payload, int64_t now_ms) {
-  // {root}sensors/{sensor}/committed
-  const std::string prefix = root_ + "sensors/";
-  const std::string_view suffix = "/committed";
-  if (topic.substr(0, prefix.size()) != prefix || topic.size() <= prefix.size() + suffix.size() ||
-      topic.substr(topic.size() - suffix.size()) != suffix) {
-    LogLimited("unexpected_topic", "mqtt: message on unexpected topic " + std::string(topic) + " ignored");
-    return;
-  }
-  const std::string topic_sensor(topic.substr(prefix.size(), topic.size() - prefix.size() - suffix.size()));
-  std::string error;
-  const auto ack = ParseCommitAck(payload, topic_sensor, &error);
-  if (!ack) {
-    ++counters_.bad_commit_acks;
-    LogLimited("bad_commit", "mqtt: bad commit ack on " + std::string(topic) + ": " + error);
-    return;
-  }
-  // Only records this gateway published and is waiting for are released. The server acks what
-  // it received; anything else (a seq never published since the last connect, or not spooled)
-  // cannot be the server's answer to us, so a forged or stale ack cannot empty the backlog. A
-  // genuine late ack that is skipped costs one republication.
-  std::vector<uint32_t> awaited;
-  auto it = in_flight_.find(ack->sensor);
-  for (uint32_t seq : ack->seqs) {
-    if (it != in_flight_.end() && it->second.count(seq)) {
-      awaited.push_back(seq);
-    } else {
-      ++counters_.commit_acks_ignored;
+  OnMessages({{topic, payload}}, now_ms);
+}
+
+void Gateway::OnMessages(const std::vector<std::pair<std::string_view, std::string_view>>& messages, int64_t now_ms) {
+  // Every acked seq of every message, released in one spool transaction.
+  std::map<std::string, std::vector<uint32_t>> release;
+  for (const auto& [topic, payload] : messages) {
+    // {root}sensors/{sensor}/committed
+    const std::string prefix = root_ + "sensors/";
+    const std::string_view suffix = "/committed";
+    if (topic.substr(0, prefix.size()) != prefix || topic.size() <= prefix.size() + suffix.size() ||
+        topic.substr(topic.size() - suffix.size()) != suffix) {
+      LogLimited("unexpected_topic", "mqtt: message on unexpected topic " + std::string(topic) + " ignored");
+      continue;
+    }
+    const std::string topic_sensor(topic.substr(prefix.size(), topic.size() - prefix.size() - suffix.size()));
+    std::string error;
+    const auto ack = ParseCommitAck(payload, topic_sensor, &error);
+    if (!ack) {
+      ++counters_.bad_commit_acks;
+      LogLimited("bad_commit", "mqtt: bad commit ack on " + std::string(topic) + ": " + error);
+      continue;
+    }
+    // Only records this gateway published and is waiting for are released. The server acks what
+    // it received; anything else (a seq never published since the last connect, or not spooled)
+    // cannot be the server's answer to us, so a forged or stale ack cannot empty the backlog. A
+    // genuine late ack that is skipped costs one republication.
+    size_t awaited = 0;
+    auto it = in_flight_.find(ack->sensor);
+    for (uint32_t seq : ack->seqs) {
+      if (it != in_flight_.end() && it->second.count(seq)) {
+        release[ack->sensor].push_back(seq);
+        ++awaited;
+      } else {
+        ++counters_.commit_acks_ignored;
+      }
+    }
+    if (awaited < ack->seqs.size()) {
+      LogLimited("ack_ignored", "mqtt: commit ack on " + std::string(topic) + " names " + std::to_string(ack->seqs.size() - awaited) +
+                                    " seq(s) not published and awaiting an ack; ignored");
     }
   }
-  if (awaited.size() < ack->seqs.size()) {
-    LogLimited("ack_ignored", "mqtt: commit ack on " + std::string(topic) + " names " +
-                                  std::to_string(ack->seqs.size() - awaited.size()) +
-                                  " seq(s) not published and awaiting an ack; ignored");
-  }
-  if (awaited.empty()) return;
+  if (release.empty()) return;
   std::vector<int64_t> received;
   try {
-    received = spool_.Confirm(ack->sensor, awaited);
+    received = spool_.Confirm(release);
   } catch (const std::exception& e) {
     ++counters_.spool_errors;
     LogLimited("spool_error", std::string("spool: confirm failed (records kept, will be republished): ") + e.what());
     return;
   }
-  for (uint32_t seq : awaited) it->second.erase(seq);
-  if (it->second.empty()) in_flight_.erase(it);
+  for (const auto& [sensor, seqs] : release) {
+    auto it = in_flight_.find(sensor);
+    if (it == in_flight_.end()) continue;
+    for (uint32_t seq : seqs) it->second.erase(seq);
+    if (it->second.empty()) in_flight_.erase(it);
+    dirty_sensors_.insert(sensor);
+  }
   for (int64_t r : received) {
     const int64_t latency = std::max<int64_t>(0, now_ms - r);
     ++counters_.committed;
@@ -332,7 +368,6 @@ void Gateway::OnMessage(std::string_view topic, std::string_view payload, int64_
     counters_.latency_max_ms = std::max(counters_.latency_max_ms, latency);
     counters_.latency_sum_ms += latency;
   }
-  if (!received.empty()) records_dirty_ = true;
 }
 
 size_t Gateway::in_flight() const {
@@ -347,7 +382,7 @@ void Gateway::Pump(int64_t now_ms) {
   next_stats_ms_ = std::min(next_stats_ms_, now_ms + options_.stats_interval_ms);
   if (publisher_.IsConnected()) {
     // Readings first: a registry of many radios must not delay them.
-    if (records_dirty_ || now_ms >= next_republish_check_ms_) PublishRecords(now_ms);
+    if (records_dirty_ || !dirty_sensors_.empty() || now_ms >= next_republish_check_ms_) PublishRecords(now_ms);
     if (all_devices_dirty_ || !dirty_devices_.empty()) PublishDevices(now_ms);
   }
   if (options_.stats_interval_ms > 0 && now_ms >= next_stats_ms_) {
@@ -381,14 +416,20 @@ void Gateway::PublishDevices(int64_t now_ms) {
 }
 
 void Gateway::PublishRecords(int64_t now_ms) {
+  // Every sensor after a connect, a failed publication or when a republication may be due; else
+  // only the sensors whose queue head changed (a record spooled or confirmed): at a hundred
+  // sensors, reading every head on each commit ack cost more than the rest of the round trip.
+  const bool all = records_dirty_ || now_ms >= next_republish_check_ms_;
   std::vector<SpoolRecord> heads;
   try {
-    heads = spool_.Heads(options_.window);
+    heads = all ? spool_.Heads(options_.window) : spool_.Heads(options_.window, dirty_sensors_);
   } catch (const std::exception& e) {
     ++counters_.spool_errors;
     LogLimited("spool_error", std::string("spool: reading records: ") + e.what());
     return;
   }
+  const std::set<std::string> touched = std::move(dirty_sensors_);
+  dirty_sensors_.clear();
   records_dirty_ = false;
   // Forget in-flight entries that are no longer at the head (committed or evicted).
   std::map<std::string, std::map<uint32_t, int64_t>> kept;
@@ -415,11 +456,24 @@ void Gateway::PublishRecords(int64_t now_ms) {
     }
     kept[r.sensor][r.seq] = now_ms;
   }
-  in_flight_ = std::move(kept);
+  if (all) {
+    in_flight_ = std::move(kept);
+    next_republish_check_ms_ = next_due;
+  } else {
+    for (const std::string& sensor : touched) {
+      auto k = kept.find(sensor);
+      if (k == kept.end()) {
+        in_flight_.erase(sensor);
+      } else {
+        in_flight_[sensor] = std::move(k->second);
+      }
+    }
+    // The other sensors' in-flight records keep their due times.
+    next_republish_check_ms_ = std::min(next_republish_check_ms_, next_due);
+  }
   if (!all_sent) {
     records_dirty_ = true;  // retry on the next Pump
   }
-  next_republish_check_ms_ = next_due;
 }
 
 std::string Gateway::StatsJson(int64_t now_ms) const {

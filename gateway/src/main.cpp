@@ -142,7 +142,16 @@ int Run(const lw::gateway::Config& config) {
         break;
       }
     }
-    for (const LinkEvent& e : link->Poll(now)) {
+    // Commit acks that came together are handled together (one spool transaction).
+    std::vector<std::pair<std::string_view, std::string_view>> messages;
+    const std::vector<LinkEvent> events = link->Poll(now);
+    for (const LinkEvent& e : events) {
+      if (e.kind == LinkEvent::Kind::kMessage) {
+        messages.emplace_back(e.topic, e.payload);
+        continue;
+      }
+      if (!messages.empty()) gateway.OnMessages(messages, now);
+      messages.clear();
       switch (e.kind) {
         case LinkEvent::Kind::kConnected:
           Log("mqtt: connected to " + config.broker);
@@ -152,10 +161,10 @@ int Run(const lw::gateway::Config& config) {
           Log("mqtt: " + e.payload);
           break;
         case LinkEvent::Kind::kMessage:
-          gateway.OnMessage(e.topic, e.payload, now);
           break;
       }
     }
+    if (!messages.empty()) gateway.OnMessages(messages, now);
     gateway.Pump(now);
   }
   Log("stopping; " + std::to_string(spool.depth()) + " records stay in the spool");

@@ -43,6 +43,8 @@ struct MapModelOptions {
   /// Local scale along z by intersection of confidence intervals (bandwidth_m < 0 only).
   bool local_scale = true;
   double local_gamma = 2.5;
+  /// Threads for the per-face kernel sums (0: one per core). The result does not depend on it.
+  int threads = 0;
 };
 
 struct MapModel {

@@ -93,7 +93,7 @@ void App::Enqueue(uint32_t now, const LadderSample& sample, uint16_t flags, bool
   q.heartbeat = heartbeat;
   q.sampled_at_s = now;
   q.next_try_s = now;
-  protocol::SensorRecord& r = q.record;
+  StoredRecord& r = q.record;
   // A record is queued only once the state it reflects (reported thickness, seq reservation) is
   // in flash; otherwise a reset could bring back an older thickness or hand its seq out again.
   Persist();
@@ -172,8 +172,7 @@ void App::Transmit(uint32_t now) {
     protocol::SensorRecord recs[8];
     for (size_t i = 0; i < n; ++i) {
       QueuedRecord& q = queue_.at(due[i]);
-      recs[i] = q.record;
-      recs[i].age_s = now - q.sampled_at_s;
+      recs[i] = q.ToSensorRecord(now);
       ++q.attempts;
       q.next_try_s = now + Backoff(q.attempts);
     }

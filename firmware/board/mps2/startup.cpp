@@ -2,7 +2,7 @@
 #include <cstdint>
 
 extern "C" {
-extern uint32_t _sidata, _sdata, _edata, _sbss, _ebss, _estack;
+extern uint32_t _sidata, _sdata, _edata, _sbss, _ebss, _sflash_emu, _eflash_emu, _estack;
 extern void (*__init_array_start[])();
 extern void (*__init_array_end[])();
 int main();
@@ -26,6 +26,7 @@ void Default_Handler() {
 void Reset_Handler() {
   for (uint32_t *src = &_sidata, *dst = &_sdata; dst < &_edata;) *dst++ = *src++;
   for (uint32_t* dst = &_sbss; dst < &_ebss;) *dst++ = 0;
+  for (uint32_t* dst = &_sflash_emu; dst < &_eflash_emu;) *dst++ = 0;
   for (auto* f = __init_array_start; f < __init_array_end; ++f) (*f)();
   main();
   for (;;) {

@@ -81,6 +81,9 @@ class Gateway {
 
   /// A message arrived on a subscribed topic (commit acks).
   void OnMessage(std::string_view topic, std::string_view payload, int64_t now_ms);
+  /// Several messages at once (what one poll of the link returned): the records their commit
+  /// acks release are deleted in one spool transaction.
+  void OnMessages(const std::vector<std::pair<std::string_view, std::string_view>>& messages, int64_t now_ms);
 
   /// Publishes what is due: records (in seq order per sensor), stats. Cheap when nothing changed.
   void Pump(int64_t now_ms);
@@ -105,6 +108,10 @@ class Gateway {
  private:
   void OnFrame(const uint8_t* frame, size_t len, int64_t now_ms);
   void OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms);
+  /// Group commit: the records of every readings frame of one OnBytes call go into the spool in
+  /// one (fsynced) transaction, then each frame is acked to its sensor; nothing is acked before
+  /// it is on disk.
+  void FlushReadings();
   void SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, const std::vector<uint32_t>& seqs);
   void NoteDevice(const DeviceEntry& device);
   void PublishRecords(int64_t now_ms);
@@ -125,12 +132,23 @@ class Gateway {
   std::map<std::string, std::map<uint32_t, int64_t>> in_flight_;
   std::set<std::string> known_devices_;  // "address/sensor" already in the registry
   std::map<std::string, uint64_t> log_counts_;
-  bool records_dirty_ = true;
+  bool records_dirty_ = true;               // every sensor's queue head must be looked at
+  std::set<std::string> dirty_sensors_;     // sensors whose queue head changed since the last look
   bool all_devices_dirty_ = true;            // after a connect: every device's message
   std::set<std::string> dirty_devices_;      // addresses whose message changed
   int64_t next_republish_check_ms_ = 0;
   int64_t next_stats_ms_ = 0;
   uint8_t next_frame_id_ = 1;
+  // Readings frames decoded by the current OnBytes call, not spooled yet (FlushReadings).
+  struct PendingFrame {
+    uint64_t src64 = 0;
+    uint16_t src16 = 0;
+    uint32_t sensor_id = 0;
+    int64_t stamp_ms = 0;
+    size_t first = 0, count = 0;  ///< its records in pending_records_
+  };
+  std::vector<PendingFrame> pending_frames_;
+  std::vector<SpoolRecord> pending_records_;
 };
 
 }  // namespace lw::gateway

@@ -36,6 +36,11 @@ struct LinkEvent {
   std::string payload;  ///< kMessage; reason text for kDisconnected
 };
 
+/// Sets TCP_NODELAY on every connected TCP socket of the process (its MQTT connections): Paho C
+/// leaves Nagle's algorithm on, which holds small PUBACKs and PUBLISHes for the broker's delayed
+/// ACK (40 ms). PahoLink calls it after each connect; another Paho client in the process may too.
+void NoDelayOnTcpSockets();
+
 class PahoLink : public Publisher {
  public:
   /// Throws std::runtime_error when Paho refuses the URI or options.

@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <memory>
 #include <stdexcept>
+#include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -60,9 +62,13 @@ class Spool {
   /// Deletes the confirmed (sensor, seq) pairs; returns the received_ms of each record actually
   /// deleted (unknown pairs are ignored). Throws SpoolError.
   std::vector<int64_t> Confirm(const std::string& sensor, const std::vector<uint32_t>& seqs);
+  /// The same for several sensors, in one transaction.
+  std::vector<int64_t> Confirm(const std::map<std::string, std::vector<uint32_t>>& seqs);
 
   /// Per sensor, its `per_sensor` lowest-seq records, in seq order; sensors in id order (text).
   std::vector<SpoolRecord> Heads(size_t per_sensor) const;
+  /// The same for the named sensors only (one index seek each).
+  std::vector<SpoolRecord> Heads(size_t per_sensor, const std::set<std::string>& sensors) const;
 
   size_t depth() const { return depth_; }
   size_t max_records() const { return max_records_; }

@@ -24,29 +24,24 @@ constexpr uintptr_t kFpgaLed = 0x40028000;
 
 }  // namespace
 
-void CmsdkUart::Init(uint32_t baud_div) {
+void CmsdkUartBase::Init(uint32_t baud_div) {
   Reg(base_ + kUartBaudDiv) = baud_div;
   Reg(base_ + kUartCtrl) = kCtrlTxEn | kCtrlRxEn | kCtrlRxIntEn;
 }
 
-void CmsdkUart::OnRxInterrupt() {
-  while (Reg(base_ + kUartState) & kStateRxFull) rx_.Push(static_cast<uint8_t>(Reg(base_ + kUartData)));
-  Reg(base_ + kUartIntClear) = kIntRx;
-}
+bool CmsdkUartBase::RxReady() const { return (Reg(base_ + kUartState) & kStateRxFull) != 0; }
 
-size_t CmsdkUart::DoWrite(const uint8_t* data, size_t len) {
+uint8_t CmsdkUartBase::RxByte() const { return static_cast<uint8_t>(Reg(base_ + kUartData)); }
+
+void CmsdkUartBase::ClearRxInterrupt() const { Reg(base_ + kUartIntClear) = kIntRx; }
+
+size_t CmsdkUartBase::DoWrite(const uint8_t* data, size_t len) {
   for (size_t i = 0; i < len; ++i) {
     while (Reg(base_ + kUartState) & kStateTxFull) {
     }
     Reg(base_ + kUartData) = data[i];
   }
   return len;
-}
-
-size_t CmsdkUart::DoRead(uint8_t* out, size_t cap) {
-  size_t n = 0;
-  while (n < cap && rx_.Pop(&out[n])) ++n;
-  return n;
 }
 
 void UartLadder::Drain() {

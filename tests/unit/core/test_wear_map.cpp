@@ -1,5 +1,9 @@
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
+#include <random>
+#include <vector>
 
 #include "core/wear_map.hpp"
 #include "support/temp_directory.hpp"
@@ -95,6 +99,39 @@ TEST(WearMap, Vtk42ScalarsAndFieldFormsBothRead) {
   DOUBLES_EQUAL(1.5, b.wear[1], 1e-12);
   DOUBLES_EQUAL(8.0, b.normal_stress[1], 1e-12);
   CHECK(a.sha256 != b.sha256);
+}
+
+// The parser reads numbers in place (from_chars): every spelling a VTK writer uses gives the same
+// double as strtod, to the last bit (both round correctly), and the rest is refused as before.
+TEST(WearMap, NumbersReadToTheSameDoubleAsStrtod) {
+  lw::test::ScratchDir dir;
+  std::vector<std::string> spellings = {"0.5", "+1.25", "3", "1e-5", "2.5E+02", ".75", "7.", "0.1", "1e-320", "4.9406564584124654e-324",
+                                        "1.7976931348623157e308", "123456789012345678901234567890", "0.30000000000000004"};
+  std::mt19937_64 rng(16);
+  std::uniform_real_distribution<double> u(0.0, 5.0);
+  for (int i = 0; i < 200; ++i) {
+    char b[40];
+    std::snprintf(b, sizeof b, i % 2 ? "%.17g" : "%.6e", u(rng) * std::pow(10.0, i % 9 - 4));
+    spellings.push_back(b);
+  }
+  const size_t n = spellings.size();
+  std::string text = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\nPOINTS " + std::to_string(n + 2) + " double\n";
+  for (size_t i = 0; i < n + 2; ++i) text += std::to_string(i % 2) + " " + std::to_string(i / 2) + " 0.5\n";
+  text += "POLYGONS " + std::to_string(n) + " " + std::to_string(4 * n) + "\n";
+  for (size_t i = 0; i < n; ++i) text += "3 " + std::to_string(i) + " " + std::to_string(i + 1) + " " + std::to_string(i + 2) + "\n";
+  text += "CELL_DATA " + std::to_string(n) + "\nSCALARS wear double 1\nLOOKUP_TABLE default\n";
+  for (const std::string& w : spellings) text += w + "\n";
+  dir.Write("n.vtk", text);
+  const WearMap m = LoadWearMap(dir.path() / "n.vtk");
+  for (size_t i = 0; i < n; ++i) {
+    const double expected = std::strtod(spellings[i].c_str(), nullptr);
+    CHECK_TEXT(m.wear[static_cast<Eigen::Index>(i)] == expected, spellings[i].c_str());
+  }
+  // Beyond double's range, and not numbers at all: refused, naming the line.
+  const std::string head = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n";
+  STRCMP_CONTAINS("n.vtk:6: x '1e999' is not finite", LoadError(dir, "n.vtk", head + "1e999 0 0\n0 1 0\n1 1 0\n").c_str());
+  STRCMP_CONTAINS("n.vtk:7: y '0x10' is not a number", LoadError(dir, "n.vtk", head + "1 0 0\n0 0x10 0\n1 1 0\n").c_str());
+  STRCMP_CONTAINS("n.vtk:6: z '1.5.2' is not a number", LoadError(dir, "n.vtk", head + "1 0 1.5.2\n0 1 0\n1 1 0\n").c_str());
 }
 
 TEST(WearMap, CsvExportReads) {

@@ -147,12 +147,13 @@ TEST(FirmwareApp, ALoopThatHealsIsFlaggedAndThicknessStaysDown) {
   CHECK(healed);
 }
 
-TEST(FirmwareApp, RadioDownForDaysThenBackLosesNoThicknessStep) {
-  Rig rig;
+// Day 1 to 21 without a radio link while the ladder wears by `wear(t)`, then two days with it:
+// heartbeats were dropped, no step; every value from 100 down to `lowest` arrived.
+template <typename F>
+void OutageLosesNoStep(Rig& rig, F wear, int lowest) {
   rig.RunUntil(kDay);
   rig.board.radio.set_link_up(false);
-  // 20 days down: 20 steps of wear and ~80 heartbeats, more than the queue holds.
-  rig.RunUntil(21 * kDay, [&](uint32_t t) { rig.board.ladder.SetIntactCount(static_cast<uint8_t>(100 - (t - kDay) / kDay)); });
+  rig.RunUntil(21 * kDay, wear);
   CHECK(rig.app->queue().dropped_heartbeats() > 0);
   LONGS_EQUAL(0, rig.app->queue().dropped_steps());
   rig.board.radio.set_link_up(true);
@@ -160,7 +161,13 @@ TEST(FirmwareApp, RadioDownForDaysThenBackLosesNoThicknessStep) {
   LONGS_EQUAL(0, rig.app->queue().size());
   std::set<uint8_t> values;
   for (const auto& r : rig.Received()) values.insert(r.loops_intact);
-  for (int v = 81; v <= 100; ++v) CHECK(values.count(static_cast<uint8_t>(v)) == 1);
+  for (int v = lowest; v <= 100; ++v) CHECK_TEXT(values.count(static_cast<uint8_t>(v)) == 1, std::to_string(v).c_str());
+}
+
+TEST(FirmwareApp, RadioDownForDaysThenBackLosesNoThicknessStep) {
+  Rig rig;
+  // 20 days down: 20 steps of wear and ~80 heartbeats, more than the queue holds.
+  OutageLosesNoStep(rig, [&](uint32_t t) { rig.board.ladder.SetIntactCount(static_cast<uint8_t>(100 - (t - kDay) / kDay)); }, 81);
   // The drops are reported to the gateway.
   LONGS_EQUAL(rig.app->queue().dropped_total(), rig.gateway.last_dropped_total);
   bool flagged = false;
@@ -168,6 +175,15 @@ TEST(FirmwareApp, RadioDownForDaysThenBackLosesNoThicknessStep) {
   CHECK(flagged);
   // Retransmission backed off while the link was down: far fewer frames than wakes.
   CHECK(rig.board.radio.transmit_requests() < rig.app->stats().wakes);
+}
+
+// The queue's size (kQueueCapacity, docs/firmware.md): 20 days without a radio link at the fastest
+// row's end-of-campaign wear rate (4 mm in 3 days, 1.33 mm/day: 26 steps and ~80 heartbeats)
+// loses no thickness step; only heartbeats are given up.
+TEST(FirmwareApp, TwentyDaysDownAtThePeakWearRateLosesNoStep) {
+  Rig rig;
+  OutageLosesNoStep(rig, [&](uint32_t t) { rig.board.ladder.SetIntactCount(static_cast<uint8_t>(100 - (t - kDay) * 4 / (3 * kDay))); }, 74);
+  CHECK(rig.app->queue().dropped_heartbeats() > 40);  // the queue was full for most of the outage
 }
 
 TEST(FirmwareApp, UnackedRecordsAreRetransmittedUntilAcknowledged) {

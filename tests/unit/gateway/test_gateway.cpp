@@ -111,6 +111,46 @@ TEST(Gateway, RecordIsSpooledThenAckedToItsSourceAddress) {
   CHECK(depth_seen_at_ack == std::vector<size_t>{2});
 }
 
+// Frames read together are spooled in one transaction (group commit) and each is acked to its
+// sensor only after it: at every ack another connection already sees every record of the read.
+TEST(Gateway, FramesOfOneReadAreSpooledTogetherBeforeAnyAck) {
+  publisher.connected = false;
+  std::vector<size_t> depth_seen_at_ack;
+  radio.on_write = [&] { depth_seen_at_ack.push_back(gw::Spool(dir.File("spool.db"), 1000).depth()); };
+  std::vector<uint8_t> bytes = ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1), MakeRecord(2)});
+  const std::vector<uint8_t> second = ReadingsFrame(kMode, kAddrB, 2002, {MakeRecord(7)});
+  const std::vector<uint8_t> again = ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(2)});  // a retransmission in the same read
+  bytes.insert(bytes.end(), second.begin(), second.end());
+  bytes.insert(bytes.end(), again.begin(), again.end());
+  Feed(bytes);
+  LONGS_EQUAL(3, gateway->spool_depth());
+  LONGS_EQUAL(3, radio.acks.size());
+  CHECK(depth_seen_at_ack == (std::vector<size_t>{3, 3, 3}));
+  CHECK(radio.acks[1].dest64 == kAddrB);
+  LONGS_EQUAL(2002, radio.acks[1].ack.sensor_id);
+  LONGS_EQUAL(3, gateway->counters().records_spooled);
+  LONGS_EQUAL(1, gateway->counters().records_duplicate);
+}
+
+// Commit acks that arrive together release their records in one spool transaction; each sensor
+// then publishes its next record, and a sensor that got no ack is not republished early.
+TEST(Gateway, CommitAcksHandledTogetherReleaseEverySensorsNextRecord) {
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1), MakeRecord(2)}));
+  Feed(ReadingsFrame(kMode, kAddrB, 2002, {MakeRecord(10), MakeRecord(11)}));
+  Feed(ReadingsFrame(kMode, kAddrB, 3003, {MakeRecord(5), MakeRecord(6)}));
+  gateway->Pump(now);
+  const std::string a = AckJson({1}), b = AckJson({10}), bad = "{oops";
+  gateway->OnMessages({{Committed(1001), a}, {Committed(2002), b}, {Committed(3003), bad}}, now + 1);
+  gateway->Pump(now + 1);
+  CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2}));
+  CHECK(PublishedSeqs(2002) == (std::vector<uint32_t>{10, 11}));
+  CHECK(PublishedSeqs(3003) == (std::vector<uint32_t>{5}));
+  LONGS_EQUAL(2, gateway->counters().committed);
+  LONGS_EQUAL(1, gateway->counters().bad_commit_acks);
+  LONGS_EQUAL(4, gateway->spool_depth());
+  LONGS_EQUAL(3, gateway->in_flight());
+}
+
 TEST(Gateway, WallClockSteppingBackDoesNotStallRepublishing) {
   Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));
   gateway->Pump(now);

@@ -1,5 +1,6 @@
 // Spool: durability across reopen, duplicates, per-sensor order, confirm, full-spool policy,
 // device registry.
+#include <map>
 #include "gateway/spool.hpp"
 #include "unit/gateway/gateway_test_support.hpp"
 
@@ -81,6 +82,20 @@ TEST(Spool, ConfirmDeletesOnlyNamedRecordsAndReturnsTheirReceiveTimes) {
   CHECK(Seqs(spool.Heads(10), "2") == std::vector<uint32_t>{1});
   LONGS_EQUAL(0, spool.Confirm("1", {1}).size());  // a repeated commit ack is harmless
   LONGS_EQUAL(1, spool.depth());
+}
+
+// Several sensors' commit acks in one transaction; the heads of named sensors only.
+TEST(Spool, ConfirmOfSeveralSensorsAndHeadsOfSomeSensors) {
+  Spool spool(path(), 100);
+  spool.Insert({Rec("1", 1), Rec("1", 2), Rec("2", 1), Rec("2", 2), Rec("3", 1)});
+  const auto received = spool.Confirm(std::map<std::string, std::vector<uint32_t>>{{"1", {1}}, {"2", {1, 2, 9}}});
+  LONGS_EQUAL(3, received.size());
+  LONGS_EQUAL(2, spool.depth());
+  const auto heads = spool.Heads(10, {"1", "4"});
+  LONGS_EQUAL(1, heads.size());
+  STRCMP_EQUAL("1", heads[0].sensor.c_str());
+  LONGS_EQUAL(2, heads[0].seq);
+  CHECK(Seqs(spool.Heads(10), "3") == std::vector<uint32_t>{1});
 }
 
 TEST(Spool, FullSpoolGivesUpOldestHeartbeatFirst) {

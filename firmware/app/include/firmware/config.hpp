@@ -24,8 +24,13 @@ struct Config {
   uint64_t coordinator_address64 = protocol::kCoordinatorAddress64;
 };
 
-/// Capacity of the unacknowledged-record queue (compile time: it sizes a static buffer).
-inline constexpr uint16_t kQueueCapacity = 48;
+/// Capacity of the unacknowledged-record queue (compile time: it sizes a static buffer). Sized for
+/// a 20-day radio outage without losing a thickness step (docs/firmware.md, "Queue"): the
+/// fastest-wearing row of a campaign (90 mm in 95 days, accelerating to ~1.33 mm/day at the end)
+/// makes at most 27 one-millimetre steps in any 20 days; with two new-fault records and the
+/// newest heartbeats (liveness, battery) that is 32. Heartbeats go first when it is full. (A reset
+/// empties the queue: it is RAM; its boot record starts a new one.)
+inline constexpr uint16_t kQueueCapacity = 32;
 
 /// The first rule a Config breaks (kOk: none). An App must only be built from a Config that
 /// passes; provisioning tools and the simulator check with CheckConfig and print ConfigErrorText.

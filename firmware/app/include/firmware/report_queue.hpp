@@ -9,13 +9,39 @@
 
 namespace lw::firmware {
 
+/// A record as it waits in the queue: protocol::SensorRecord without age_s (computed at each
+/// transmission from sampled_at_s), fields ordered without padding (28 bytes, not 36).
+struct StoredRecord {
+  uint32_t seq = 0;
+  uint16_t thickness_dmm = 0;
+  uint16_t flags = 0;
+  uint16_t battery_mv = 0;
+  uint8_t loops_intact = 0;
+  int8_t temperature_c = 0;
+  uint8_t loop_bitmap[protocol::kMaxBitmapBytes] = {};
+};
+
 struct QueuedRecord {
-  protocol::SensorRecord record;
+  StoredRecord record;
   uint32_t sampled_at_s = 0;   ///< RTC time of the sample (age_s is computed at transmission)
   uint32_t next_try_s = 0;     ///< not sent again before this time
   uint8_t attempts = 0;
   bool heartbeat = false;
+  /// The record as transmitted at `now` (age_s = now - sampled_at_s).
+  protocol::SensorRecord ToSensorRecord(uint32_t now) const {
+    protocol::SensorRecord r;
+    r.seq = record.seq;
+    r.age_s = now - sampled_at_s;
+    r.thickness_dmm = record.thickness_dmm;
+    r.loops_intact = record.loops_intact;
+    r.flags = record.flags;
+    r.battery_mv = record.battery_mv;
+    r.temperature_c = record.temperature_c;
+    for (size_t i = 0; i < protocol::kMaxBitmapBytes; ++i) r.loop_bitmap[i] = record.loop_bitmap[i];
+    return r;
+  }
 };
+static_assert(sizeof(QueuedRecord) <= 40, "a queue slot is 40 bytes at most (RAM budget, docs/firmware.md)");
 
 class ReportQueue {
  public:

@@ -1,0 +1,114 @@
+// BuildMapModel's per-face results do not depend on how the work is split over threads, and its
+// standard errors equal a brute-force computation over every face of the map (the variance comes
+// from the local-scale pass's top step when that runs; issue 16).
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "core/map_model.hpp"
+#include "unit/core/bundle_fixture.hpp"
+
+#include <CppUTest/TestHarness.h>
+
+using namespace lw::core;
+
+namespace {
+
+/// A noisy cone with a sharp band at the bottom (the local scale stops below the top there).
+WearMap NoisyBandedCone(int nt, int nz) {
+  WearMap m = lw::test::ConeMap(nt, nz, 0.9, 1.4, [](double z) { return 0.2 + std::pow(1.0 - z / 2.0, 1.5) + (z < 0.25 ? 2.0 : 0.0); });
+  std::mt19937 rng(11);
+  std::gamma_distribution<double> noise(10.0, 0.1);
+  for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] *= noise(rng);
+  return m;
+}
+
+bool Same(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  if (a.size() != b.size()) return false;
+  for (Eigen::Index i = 0; i < a.size(); ++i)
+    if (!(a[i] == b[i])) return false;  // bit for bit
+  return true;
+}
+
+}  // namespace
+
+TEST_GROUP(MapModel) {};
+
+TEST(MapModel, SameResultWithOneOrTwoThreads) {
+  const WearMap m = NoisyBandedCone(64, 36);  // 4608 faces: three work chunks
+  MapModelOptions one, two;
+  one.threads = 1;
+  two.threads = 2;
+  const MapModel a = BuildMapModel(m, one), b = BuildMapModel(m, two);
+  CHECK(a.local_ladder_m.size() > 1);
+  CHECK(a.bandwidth_m == b.bandwidth_m && a.bandwidth_arc_m == b.bandwidth_arc_m && a.local_linear == b.local_linear);
+  CHECK(a.smoothing_error_rel == b.smoothing_error_rel);
+  CHECK(Same(a.clean, b.clean));
+  CHECK(Same(a.intensity, b.intensity));
+  CHECK(Same(a.intensity_sd, b.intensity_sd));
+  CHECK(Same(a.intensity_noise_sd, b.intensity_noise_sd));
+  CHECK(Same(a.local_bandwidth_m, b.local_bandwidth_m));
+  CHECK(Same(a.face_var, b.face_var));
+}
+
+// At the faces that keep the cross-validated scale, the standard error is the noise carried
+// through the kernel (every face's variance at its smoothed value) plus the smoothing's own
+// error: recomputed here by looking at every face of the map.
+TEST(MapModel, StandardErrorsEqualABruteForceSumOverEveryFace) {
+  const WearMap m = NoisyBandedCone(48, 24);
+  const MapModel model = BuildMapModel(m);
+  CHECK(model.local_ladder_m.size() > 1);
+  const double h = model.bandwidth_m, ha = model.bandwidth_arc_m;
+  const Eigen::Index n = m.z.size();
+  // Each face's neighbours and weights, by brute force.
+  auto weights = [&](Eigen::Index i) {
+    std::vector<std::pair<Eigen::Index, std::pair<double, double>>> out;  // (j, (w, dz))
+    for (Eigen::Index j = 0; j < n; ++j) {
+      double dth = std::fmod(m.theta_deg[j] - m.theta_deg[i], 360.0);
+      if (dth > 180.0) dth -= 360.0;
+      if (dth < -180.0) dth += 360.0;
+      const double dz = m.z[j] - m.z[i], arc = 0.5 * (m.radius[i] + m.radius[j]) * dth * 0.017453292519943295;
+      const double q = dz * dz / (h * h) + arc * arc / (ha * ha);
+      if (q <= 6.25) out.push_back({j, {m.areas[j] * std::exp(-0.5 * q), dz}});
+    }
+    return out;
+  };
+  struct S {
+    double s0 = 0, s1 = 0, s2 = 0, t0 = 0, t1 = 0;
+  };
+  std::vector<S> sums(static_cast<size_t>(n));
+  Eigen::VectorXd smooth(n);
+  auto linear = [&](const S& s) { return model.local_linear && s.s0 * s.s2 - s.s1 * s.s1 > 1e-6 * s.s0 * s.s2 && s.s2 > 0; };
+  for (Eigen::Index i = 0; i < n; ++i) {
+    S& s = sums[static_cast<size_t>(i)];
+    for (const auto& [j, wd] : weights(i)) {
+      const auto [w, dz] = wd;
+      s.s0 += w, s.s1 += w * dz, s.s2 += w * dz * dz, s.t0 += w * model.clean[j], s.t1 += w * dz * model.clean[j];
+    }
+    smooth[i] = std::max(0.0, linear(s) ? (s.s2 * s.t0 - s.s1 * s.t1) / (s.s0 * s.s2 - s.s1 * s.s1) : s.t0 / s.s0);
+  }
+  size_t top = 0, below = 0;
+  double worst = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (model.local_bandwidth_m[i] != model.bandwidth_m) {
+      ++below;
+      continue;
+    }
+    ++top;
+    const S& s = sums[static_cast<size_t>(i)];
+    double v = 0;
+    for (const auto& [j, wd] : weights(i)) {
+      const auto [w, dz] = wd;
+      const double l = linear(s) ? w * (s.s2 - s.s1 * dz) / (s.s0 * s.s2 - s.s1 * s.s1) : w / s.s0;
+      v += l * l * model.FaceVariance(smooth[j]);
+    }
+    const double sd = std::sqrt(v + std::pow(model.smoothing_error_rel * smooth[i], 2));
+    CHECK(std::fabs(model.intensity[i] - smooth[i]) <= 1e-12 * smooth[i]);
+    worst = std::max(worst, std::fabs(model.intensity_sd[i] - sd) / sd);
+    worst = std::max(worst, std::fabs(model.intensity_noise_sd[i] - std::sqrt(v)) / std::sqrt(v));
+  }
+  CHECK(top > static_cast<size_t>(n) / 2);
+  CHECK(below > 0);  // the band: a smaller scale there
+  CHECK(worst < 1e-12);
+}
