@@ -104,7 +104,7 @@ TEST(WearMap, Vtk42ScalarsAndFieldFormsBothRead) {
 // The parser reads numbers in place (from_chars): every spelling a VTK writer uses gives the same
 // double as strtod, to the last bit (both round correctly), and the rest is refused as before.
 TEST(WearMap, NumbersReadToTheSameDoubleAsStrtod) {
-  lw::test::ScratchDir dir;
+  lw::test::TempDirectory dir;
   std::vector<std::string> spellings = {"0.5", "+1.25", "3", "1e-5", "2.5E+02", ".75", "7.", "0.1", "1e-320", "4.9406564584124654e-324",
                                         "1.7976931348623157e308", "123456789012345678901234567890", "0.30000000000000004"};
   std::mt19937_64 rng(16);
