@@ -398,8 +398,15 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   LONGS_EQUAL_TEXT(32, got_a, logs().c_str());
 
   // Commit acks flowed back over both bridges: both spools drain.
-  CHECK_TEXT(site_a_obs.WaitFor("linerwatch/v1/" + a.id + "/" + a.crusher + "/gateway/stats", "\"spool_depth\":0,", 30s), logs().c_str());
-  CHECK_TEXT(site_b_obs.WaitFor("linerwatch/v1/" + b.id + "/" + b.crusher + "/gateway/stats", "\"spool_depth\":0,", 30s), logs().c_str());
+  const auto drained = [&](Observer& obs, const Site& s) {
+    const std::string stats = "linerwatch/v1/" + s.id + "/" + s.crusher + "/gateway/stats";
+    if (obs.WaitFor(stats, "\"spool_depth\":0,", 30s)) return;
+    FAIL(("site " + s.id + "'s spool did not drain; commit acks seen at the site: " +
+          std::to_string(obs.Count("/" + s.crusher + "/sensors/", "\"seqs\"")) + ", last stats: " + obs.Last(stats) + logs())
+             .c_str());
+  };
+  drained(site_a_obs, a);
+  drained(site_b_obs, b);
   CHECK(site_a_obs.Count("/sensors/", "\"seqs\"") > 0);
 
   // 4. A gateway of site A (site A's account, on site A's broker) publishing as site B.
