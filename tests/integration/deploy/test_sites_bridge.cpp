@@ -258,7 +258,12 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   co.tls = true;
   co.username = "linerwatch-server";
   co.password = "server-pass";
-  co.extra_config = "max_queued_messages 100000\n";
+  // The shipped central.conf's queue and in-flight settings (its listeners and files are the fixture's).
+  const std::string central_conf = ReadFile(LW_CENTRAL_CONF);
+  for (const char* line : {"max_queued_messages 100000\n", "max_inflight_messages 0\n"}) {
+    CHECK_TEXT(central_conf.find(line) != std::string::npos, line);
+    co.extra_config += line;
+  }
   lw::test::MosquittoFixture::Access ca;
   ca.more_users = {{a.id, a.password}, {b.id, b.password}, {"observer", "o-pass"}};
   ca.acl_file = dir.File("acl");
