@@ -62,7 +62,7 @@ struct Options {
   size_t per_frame = 2;
   int window = 1;
   int reps = 3;
-  bool nodelay = true;  ///< the broker's set_tcp_nodelay (as packaging/mosquitto configures it)
+  bool nodelay = true;  ///< the broker's set_tcp_nodelay (as packaging/mosquitto/*.conf set it)
 };
 
 uint32_t SensorId(uint32_t s) { return 1001 + s; }
