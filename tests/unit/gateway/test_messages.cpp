@@ -1,4 +1,5 @@
-// Messages of docs/mqtt.md: the reading JSON, status, commit-ack parsing.
+// The gateway's side of the messages of docs/mqtt.md: a radio record as a reading, a radio's
+// registry entries as its device message, log lines (the codecs: tests/unit/mqtt/).
 #include <nlohmann/json.hpp>
 
 #include "gateway/messages.hpp"
@@ -11,15 +12,6 @@ using nlohmann::json;
 namespace gw = lw::gateway;
 
 TEST_GROUP(Messages){};
-
-TEST(Messages, IsoUtcFormatsUnixMilliseconds) {
-  STRCMP_EQUAL("1970-01-01T00:00:00Z", gw::IsoUtc(0).c_str());
-  STRCMP_EQUAL("2026-03-01T12:00:07Z", gw::IsoUtc(1772366407123).c_str());
-}
-
-TEST(Messages, AddressIsSixteenUpperCaseHexDigits) {
-  STRCMP_EQUAL("0013A20040A1B2C3", gw::AddressHex(0x0013A20040A1B2C3ull).c_str());
-}
 
 TEST(Messages, ReadingCarriesTheRequiredFieldsAndSampleTime) {
   lw::protocol::ReadingsHeader h;
@@ -47,76 +39,28 @@ TEST(Messages, ReadingCarriesTheRequiredFieldsAndSampleTime) {
   STRCMP_EQUAL("gw-1", j["gateway"].get<std::string>().c_str());
 }
 
-TEST(Messages, StatusMessage) {
-  const json j = json::parse(gw::StatusJson(false, "gw-7", 0));
-  STRCMP_EQUAL("offline", j["state"].get<std::string>().c_str());
-  STRCMP_EQUAL("gw-7", j["gateway"].get<std::string>().c_str());
-}
-
-TEST(Messages, CommitAckParses) {
-  std::string error;
-  const auto ack = gw::ParseCommitAck(R"({"sensor": "1001", "seqs": [41, 42, 43], "time": "x"})", "1001", &error);
-  CHECK_TRUE(ack.has_value());
-  STRCMP_EQUAL("1001", ack->sensor.c_str());
-  CHECK(ack->seqs == (std::vector<uint32_t>{41, 42, 43}));
-}
-
-TEST(Messages, CommitAckWithoutSensorFieldUsesTheTopic) {
-  std::string error;
-  const auto ack = gw::ParseCommitAck(R"({"seqs": [1]})", "77", &error);
-  CHECK_TRUE(ack.has_value());
-  STRCMP_EQUAL("77", ack->sensor.c_str());
-}
-
-TEST(Messages, MalformedCommitAcksAreRefusedWithAReason) {
-  std::string error;
-  CHECK_FALSE(gw::ParseCommitAck("not json", "1", &error).has_value());
-  STRCMP_EQUAL("not JSON", error.c_str());
-  CHECK_FALSE(gw::ParseCommitAck("[1, 2]", "1", &error).has_value());
-  STRCMP_EQUAL("not a JSON object", error.c_str());
-  CHECK_FALSE(gw::ParseCommitAck(R"({"sensor": "1", "seqs": 5})", "1", &error).has_value());
-  CHECK(error.find("seqs") != std::string::npos);
-  CHECK_FALSE(gw::ParseCommitAck(R"({"sensor": "1", "seqs": [-1]})", "1", &error).has_value());
-  CHECK_FALSE(gw::ParseCommitAck(R"({"sensor": "1", "seqs": [4294967296]})", "1", &error).has_value());
-  CHECK_FALSE(gw::ParseCommitAck(R"({"sensor": "2", "seqs": [1]})", "1", &error).has_value());
-  CHECK(error.find("does not match") != std::string::npos);
-}
-
-// Finding 1 of issue 15: `seqs` nested 100 000 deep crashed the gateway (SIGSEGV in a recursive
-// dump() of the offending element); sent retained it crash-looped the gateway on every restart.
-TEST(Messages, DeeplyNestedCommitAckIsRefusedWithoutRecursing) {
-  auto nested = [](size_t depth) {
-    return R"({"sensor": "1", "seqs": [)" + std::string(depth, '[') + "1" + std::string(depth, ']') + "]}";
-  };
-  std::string error;
-  CHECK_FALSE(gw::ParseCommitAck(nested(100000), "1", &error).has_value());  // 200 kB: over the size limit
-  CHECK(error.find("bytes (at most 65536)") != std::string::npos);
-  CHECK_FALSE(gw::ParseCommitAck(nested(30000), "1", &error).has_value());   // 60 kB: the depth limit
-  STRCMP_EQUAL("JSON nested deeper than 8 levels", error.c_str());
-  // Deep but within the byte limit, in a field the gateway does not use: refused all the same.
-  const std::string nested_extra = R"({"seqs": [1], "x": )" + std::string(20, '[') + std::string(20, ']') + "}";
-  CHECK_FALSE(gw::ParseCommitAck(nested_extra, "1", &error).has_value());
-}
-
-TEST(Messages, CommitAckErrorsNeverEchoANestedValue) {
-  std::string error;
-  CHECK_FALSE(gw::ParseCommitAck(R"({"seqs": [1, [2, [3]]]})", "1", &error).has_value());
-  STRCMP_EQUAL("\"seqs\" holds an array, not a 32-bit unsigned sequence number", error.c_str());
-  CHECK_FALSE(gw::ParseCommitAck(R"({"seqs": [-7]})", "1", &error).has_value());
-  STRCMP_EQUAL("\"seqs\" holds -7, not a 32-bit unsigned sequence number", error.c_str());
-}
-
-TEST(Messages, OversizedCommitAcksAreRefusedBeforeParsing) {
-  std::string error;
-  std::string big = R"({"seqs": [1], "pad": ")" + std::string(gw::kMaxCommitAckBytes, 'x') + "\"}";
-  CHECK_FALSE(gw::ParseCommitAck(big, "1", &error).has_value());
-  CHECK(error.find("bytes (at most 65536)") != std::string::npos);
-  json many = {{"seqs", json::array()}};
-  for (uint32_t i = 0; i <= gw::kMaxCommitAckSeqs; ++i) many["seqs"].push_back(i);
-  CHECK_FALSE(gw::ParseCommitAck(many.dump(), "1", &error).has_value());
-  CHECK(error.find("at most 10000") != std::string::npos);
-  many["seqs"].erase(many["seqs"].size() - 1);
-  CHECK_TRUE(gw::ParseCommitAck(many.dump(), "1", &error).has_value());
+// Byte for byte what the gateway sent before lw::mqtt encoded it (keys sorted, text that is not
+// UTF-8 replaced).
+TEST(Messages, ReadingAndDeviceMessagesKeepTheirBytes) {
+  lw::protocol::ReadingsHeader h;
+  h.sensor_id = 1001;
+  h.ladder_loops = 12;
+  h.dropped_total = 3;
+  auto r = gw::test::MakeRecord(42, 873, lw::protocol::kFlagHeartbeat | lw::protocol::kFlagLowBattery);
+  r.age_s = 7;
+  r.temperature_c = -5;
+  r.loop_bitmap[0] = 0xAB;
+  r.loop_bitmap[1] = 0x0F;
+  STRCMP_EQUAL(R"({"address":"0013A20040A1B2C3","battery_mv":3550,"dropped_total":3,"flag_names":["heartbeat","low_battery"],)"
+               R"("flags":65,"gateway":"gw-1)" "\xEF\xBF\xBD" R"(","ladder_loops":12,"loop_bitmap":"ab0f","loops_intact":87,)"
+               R"("received":"2026-03-01T12:00:07Z","sensor":"1001","seq":42,"temperature_c":-5,"thickness_mm":87.3,)"
+               R"("time":"2026-03-01T12:00:00Z"})",
+               gw::ReadingJson(h, r, {0x0013A20040A1B2C3ull, "gw-1\xFF", 1772366407000}).c_str());
+  gw::DeviceEntry node{"0013A20040A1B2C3", "", "ROW1\xFF", 2, 1772366407000};
+  gw::DeviceEntry sensor{"0013A20040A1B2C3", "1001", "", -1, 1772366400000};
+  STRCMP_EQUAL(R"({"address":"0013A20040A1B2C3","device_type":2,"first_seen":"2026-03-01T12:00:00Z","gateway":"gw-1",)"
+               R"("node_identifier":"ROW1)" "\xEF\xBF\xBD" R"(","sensors":["1001"],"time":"2026-03-01T12:00:07Z"})",
+               gw::DeviceJson({node, sensor}, "gw-1", 1772366407000).c_str());
 }
 
 TEST(Messages, SanitizeForLogEscapesControlBytesAndCuts) {
