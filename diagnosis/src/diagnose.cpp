@@ -396,6 +396,9 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   // Benchmarks' oracle: checked before any work.
   std::optional<Effect> oracle_effect;
   if (options.oracle) {
+    // A form's name ("profile_evolution:shift"), or an effect's (its first form: profile_evolution is the tilt).
+    for (int e = detail::kEffectCount - 1; e >= 0; --e)
+      if (options.oracle->effect == detail::EffectName(static_cast<Effect>(e))) oracle_effect = static_cast<Effect>(e);
     for (int e = 0; e < detail::kEffectCount; ++e)
       if (options.oracle->effect == detail::FormName(static_cast<Effect>(e))) oracle_effect = static_cast<Effect>(e);
     if (!oracle_effect) throw std::invalid_argument("oracle: unknown effect '" + options.oracle->effect + "'");

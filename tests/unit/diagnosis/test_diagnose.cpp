@@ -232,6 +232,9 @@ TEST(Diagnose, OracleMeasuresTheTrueEffectAgainstTheBaseline) {
   CHECK_TRUE(n.oracle.has_value());
   DOUBLES_EQUAL(0.0, n.oracle->delta_chi2_sensors + n.oracle->delta_chi2_scan, 1e-3);
 
+  // An effect's name means its first form (profile_evolution: the tilt).
+  const auto t = RunWithOracle(null_spec, {"profile_evolution", {{"p", 0.0}}});
+  STRCMP_EQUAL("profile_evolution:tilt", t.oracle->model.c_str());
   // A bad oracle is a clear error.
   CHECK_THROWS(std::invalid_argument, RunWithOracle(null_spec, {"levitation", {}}));
   CHECK_THROWS(std::invalid_argument, RunWithOracle(null_spec, {"work_hardening", {{"h", 0.3}}}));
