@@ -779,8 +779,8 @@ int main(int argc, char** argv) {
       }
     };
     std::printf("\nOracle: the true effect with its true parameters (row scales fitted) against the baseline\n");
-    std::printf("%-5s %-22s %-9s %-12s %9s %9s %7s %7s %9s %9s %9s %9s %s\n", "case", "truth", "level", "run", "dchi2_sen", "dchi2_scn",
-                "spr_sen", "spr_scn", "dBIC_mod", "dBIC_emp", "fit_dBIC", "null_max", "top finding");
+    std::printf("%-5s %-22s %-9s %-12s %9s %9s %7s %7s %7s %9s %9s %9s %9s %s\n", "case", "truth", "level", "run", "dchi2_sen", "dchi2_scn",
+                "spr_sen", "spr_u", "spr_scn", "dBIC_mod", "dBIC_emp", "fit_dBIC", "null_max", "top finding");
     struct Tally {
       int n = 0, model = 0, empirical = 0, separable = 0, correct = 0;
     };
@@ -792,9 +792,9 @@ int main(int argc, char** argv) {
       double fitted = 0, nmax = 0;
       fitted_vs_null(r, cases[k].truth, fitted, nmax);
       const std::string top = r.findings.empty() ? "none" : r.findings[0].effect;
-      std::printf("%-5zu %-22s %-9s %-12s %9.1f %9.1f %7.3f %7.3f %9.1f %9.1f %9.1f %9.1f %s\n", k, cases[k].truth.c_str(),
+      std::printf("%-5zu %-22s %-9s %-12s %9.1f %9.1f %7.3f %7.3f %7.3f %9.1f %9.1f %9.1f %9.1f %s\n", k, cases[k].truth.c_str(),
                   cases[k].level.c_str(), use_real ? runs[cases[k].run].name.c_str() : "-", o.delta_chi2_sensors, o.delta_chi2_scan,
-                  o.spread_sensors, o.spread_scan, o.delta_bic_model, o.delta_bic_empirical, fitted, nulls_seen ? nmax : kNaN, top.c_str());
+                  o.spread_sensors, o.spread_sensor_priors, o.spread_scan, o.delta_bic_model, o.delta_bic_empirical, fitted, nulls_seen ? nmax : kNaN, top.c_str());
       Tally& t = tally[cases[k].level];
       ++t.n;
       t.model += o.delta_bic_model > o.min_delta_bic;

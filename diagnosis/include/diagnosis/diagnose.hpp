@@ -61,9 +61,10 @@ struct OracleResult {
   double delta_chi2_sensors = 0;   ///< baseline - true, sensor events (with the per-sensor priors)
   double delta_chi2_scan = 0;      ///< baseline - true, scan cells
   double spread_sensors = 1;       ///< true model's chi-square per sensor event (empirical / modelled variance)
+  double spread_sensor_priors = 1; ///< ... per sensor intensity error (u^2 / sigma_u^2)
   double spread_scan = 1;          ///< ... per scan cell
   double delta_bic_model = 0;      ///< (delta chi2) - effect_params ln N, the diagnosis' noise
-  double delta_bic_empirical = 0;  ///< each kind's delta chi2 / its spread, - effect_params ln N
+  double delta_bic_empirical = 0;  ///< each part's delta chi2 / its spread (events, sensor priors, scan cells), - effect_params ln N
   double min_delta_bic = 0;        ///< the diagnosis' threshold on delta BIC for a finding
 };
 
