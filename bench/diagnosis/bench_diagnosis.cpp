@@ -183,6 +183,16 @@ std::optional<lw::diagnosis::OracleEffect> TrueEffect(const Case& c, bool real, 
   return o;
 }
 
+std::vector<std::string> SplitCommas(const std::string& list) {
+  std::vector<std::string> out;
+  for (size_t from = 0; from <= list.size();) {
+    const size_t comma = std::min(list.find(',', from), list.size());
+    out.push_back(list.substr(from, comma - from));
+    from = comma + 1;
+  }
+  return out;
+}
+
 double Median(std::vector<double> v) {
   if (v.empty()) return kNaN;
   std::sort(v.begin(), v.end());
@@ -401,12 +411,7 @@ int main(int argc, char** argv) {
     for (Case& c : cases) c.rd.truth_radius_frac = truth_radius;
   }
   if (!only.empty()) {
-    std::vector<std::string> wanted;
-    for (size_t from = 0; from <= only.size();) {
-      const size_t comma = std::min(only.find(',', from), only.size());
-      wanted.push_back(only.substr(from, comma - from));
-      from = comma + 1;
-    }
+    const std::vector<std::string> wanted = SplitCommas(only);
     std::erase_if(cases, [&](const Case& c) {
       return std::none_of(wanted.begin(), wanted.end(),
                           [&](const std::string& w) { return c.truth.find(w) != std::string::npos; });
@@ -414,12 +419,7 @@ int main(int argc, char** argv) {
   }
   if (!level_filter.empty()) {
     // A comma-separated list of levels; "-" is the nulls' and fault-only cases' level.
-    std::vector<std::string> levels;
-    for (size_t from = 0; from <= level_filter.size();) {
-      const size_t comma = std::min(level_filter.find(',', from), level_filter.size());
-      levels.push_back(level_filter.substr(from, comma - from));
-      from = comma + 1;
-    }
+    const std::vector<std::string> levels = SplitCommas(level_filter);
     std::erase_if(cases, [&](const Case& c) { return std::find(levels.begin(), levels.end(), c.level) == levels.end(); });
   }
   if (static_cast<int>(cases.size()) > max_cases) cases.resize(static_cast<size_t>(max_cases));
