@@ -393,6 +393,19 @@ struct Interpolator {
 DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& options) {
   const Thresholds th;
   DiagnosisResult result;
+  // Benchmarks' oracle: checked before any work.
+  std::optional<Effect> oracle_effect;
+  if (options.oracle) {
+    // A form's name ("profile_evolution:shift"), or an effect's (its first form: profile_evolution is the tilt).
+    for (int e = detail::kEffectCount - 1; e >= 0; --e)
+      if (options.oracle->effect == detail::EffectName(static_cast<Effect>(e))) oracle_effect = static_cast<Effect>(e);
+    for (int e = 0; e < detail::kEffectCount; ++e)
+      if (options.oracle->effect == detail::FormName(static_cast<Effect>(e))) oracle_effect = static_cast<Effect>(e);
+    if (!oracle_effect) throw std::invalid_argument("oracle: unknown effect '" + options.oracle->effect + "'");
+    for (const detail::ParamSpec& ps : detail::EffectParams(*oracle_effect))
+      if (!options.oracle->parameters.count(ps.name))
+        throw std::invalid_argument("oracle: " + options.oracle->effect + " needs parameter '" + ps.name + "'");
+  }
   const core::CrusherConfig& crusher = bundle.crusher;
   result.crusher_id = crusher.crusher_id;
   result.installed_at = crusher.installed_at;
@@ -871,6 +884,83 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   const double dof = std::max(1.0, static_cast<double>(null_fit.n_train) - static_cast<double>(prob.rows));
   result.mismatch_z_score = (null_fit.chi2 - dof) / std::sqrt(2.0 * dof);
   const double log_n = std::log(std::max<double>(static_cast<double>(n_obs), 2.0));
+
+  // Chi-square of a model split by data kind (sensor events with their per-sensor priors; scan cells).
+  struct KindChi2 {
+    double sensors = 0, scan = 0;
+    size_t n_sensors = 0, n_scan = 0;
+    double sensors_events_only = 0;
+    double u_prior = 0;  ///< sum of u^2 / sigma_u^2 over the sensors
+    size_t n_u = 0;
+  };
+  auto chi2_by_kind = [&](const ModelSpec& spec, const Eigen::VectorXd& x) {
+    Eigen::VectorXd r;
+    Eigen::MatrixXd w;
+    std::vector<double> u;
+    Residuals(prob, spec, x, all, joint, r, &u, w);
+    KindChi2 k;
+    for (const Obs& o : prob.obs) {
+      double pred = Interp(w, o);
+      if (o.sensor >= 0) pred *= 1.0 + u[static_cast<size_t>(o.sensor)];
+      const double z = (pred - o.wear) / o.sigma;
+      if (o.sensor >= 0) {
+        k.sensors_events_only += z * z;
+        ++k.n_sensors;
+      } else {
+        k.scan += z * z;
+        ++k.n_scan;
+      }
+    }
+    for (size_t s = 0; s < u.size(); ++s) {
+      if (prob.sensor_obs[s].empty()) continue;
+      k.u_prior += u[s] * u[s] / (prob.sigma_u[s] * prob.sigma_u[s]);
+      ++k.n_u;
+    }
+    k.sensors = k.sensors_events_only + k.u_prior;
+    return k;
+  };
+
+  // Benchmarks: the true effect with its true parameters, only the row scales fitted.
+  if (oracle_effect) {
+    ModelSpec spec = base_spec;
+    spec.effects = {*oracle_effect};
+    Eigen::VectorXd lower, upper, scale, initial;
+    spec.Bounds(lower, upper, scale, initial, k_scale);
+    const std::vector<detail::ParamSpec> ps = detail::EffectParams(*oracle_effect);
+    for (size_t k = 0; k < ps.size(); ++k) initial[static_cast<Eigen::Index>(prob.rows + k)] = options.oracle->parameters.at(ps[k].name);
+    const auto rows = static_cast<Eigen::Index>(prob.rows);
+    Eigen::MatrixXd w;
+    auto fn = [&](const Eigen::VectorXd& k, Eigen::VectorXd& r) {
+      Eigen::VectorXd x = initial;
+      x.head(rows) = k;
+      Residuals(prob, spec, x, all, joint, r, nullptr, w);
+    };
+    const detail::LmResult lm =
+        detail::MinimiseLeastSquares(fn, null_fit.x.head(rows), lower.head(rows), upper.head(rows), scale.head(rows), 40);
+    Eigen::VectorXd x = initial;
+    x.head(rows) = lm.x;
+    const KindChi2 base = chi2_by_kind(base_spec, null_fit.x), truth = chi2_by_kind(spec, x);
+    OracleResult o;
+    o.model = spec.Name();
+    o.effect_params = ps.size();
+    o.log_n = log_n;
+    o.min_delta_bic = th.min_delta_bic;
+    o.chi2_baseline = base.sensors + base.scan;
+    o.chi2_true = truth.sensors + truth.scan;
+    o.delta_chi2_sensors = base.sensors - truth.sensors;
+    o.delta_chi2_scan = base.scan - truth.scan;
+    o.spread_sensors = truth.n_sensors ? truth.sensors_events_only / static_cast<double>(truth.n_sensors) : 1.0;
+    o.spread_sensor_priors = truth.n_u ? truth.u_prior / static_cast<double>(truth.n_u) : 1.0;
+    o.spread_scan = truth.n_scan ? truth.scan / static_cast<double>(truth.n_scan) : 1.0;
+    const double charge = static_cast<double>(o.effect_params) * log_n;
+    o.delta_bic_model = o.delta_chi2_sensors + o.delta_chi2_scan - charge;
+    // Each part divided by the spread the true model shows in it (a spread of 0 would make any gain
+    // infinite: at least a hundredth).
+    o.delta_bic_empirical = (base.sensors_events_only - truth.sensors_events_only) / std::max(o.spread_sensors, 0.01) +
+                            (base.u_prior - truth.u_prior) / std::max(o.spread_sensor_priors, 0.01) +
+                            (truth.n_scan ? o.delta_chi2_scan / std::max(o.spread_scan, 0.01) : 0.0) - charge;
+    result.oracle = o;
+  }
 
   auto evaluate = [&](const ModelSpec& spec, const std::vector<const FitResult*>& seeds) {
     ModelEval ev;

@@ -27,6 +27,16 @@ inline constexpr const char* kThroughputVariation = "throughput_variation";
 inline constexpr const char* kMaterialLoss = "material_loss";
 inline constexpr const char* kUnexplained = "unexplained";
 
+/// A known effect with known parameters (benchmarks only): Diagnose() then also measures how much
+/// this model, with these parameters and only the row scales fitted, explains beyond the baseline
+/// (DiagnosisResult::oracle). Parameter names are the fit's own (`hypotheses[].parameters`): h,
+/// log_tau (work_hardening); g, d0 (hardness_gradient, d0 a share of half the thickness); beta;
+/// p (profile_evolution, tilt form); v (shift form); a, b (feed_segregation: A cos, A sin); phi.
+struct OracleEffect {
+  std::string effect;  ///< an effect name above, or "profile_evolution:shift"
+  std::map<std::string, double> parameters;
+};
+
 struct DiagnoseOptions {
   /// When set, predict every sensor's thickness (and every face's wear) at this time.
   std::optional<core::TimePoint> predict_at;
@@ -34,6 +44,28 @@ struct DiagnoseOptions {
   double holdout_fraction = 0.25;
   /// Try pairs of effects (slower, needed for overlapping effects).
   bool try_pairs = true;
+  /// Benchmarks: measure the true effect's model against the baseline (DiagnosisResult::oracle).
+  std::optional<OracleEffect> oracle;
+};
+
+/// What a known effect (DiagnoseOptions::oracle) explains beyond the baseline, with the same
+/// observations, row scales refitted, under two noise models: the diagnosis' own, and the spread
+/// the true model's residuals actually show (per data kind: chi-square per sensor event and per
+/// scan cell of the true model; diagonal, so an upper bound where errors are correlated).
+struct OracleResult {
+  std::string model;
+  size_t effect_params = 0;        ///< the effect's parameter count (what a fit would be charged)
+  double log_n = 0;                ///< ln(observations), the BIC charge per parameter
+  double chi2_baseline = 0;        ///< refit baseline, the diagnosis' noise model
+  double chi2_true = 0;            ///< the true model, row scales refitted
+  double delta_chi2_sensors = 0;   ///< baseline - true, sensor events (with the per-sensor priors)
+  double delta_chi2_scan = 0;      ///< baseline - true, scan cells
+  double spread_sensors = 1;       ///< true model's chi-square per sensor event (empirical / modelled variance)
+  double spread_sensor_priors = 1; ///< ... per sensor intensity error (u^2 / sigma_u^2)
+  double spread_scan = 1;          ///< ... per scan cell
+  double delta_bic_model = 0;      ///< (delta chi2) - effect_params ln N, the diagnosis' noise
+  double delta_bic_empirical = 0;  ///< each part's delta chi2 / its spread (events, sensor priors, scan cells), - effect_params ln N
+  double min_delta_bic = 0;        ///< the diagnosis' threshold on delta BIC for a finding
 };
 
 /// Error of a model against the measurements (mm of wear depth).
@@ -186,6 +218,7 @@ struct DiagnosisResult {
   std::vector<Finding> findings;
   std::vector<DataQualityIssue> data_quality;
   std::optional<Prediction> prediction;
+  std::optional<OracleResult> oracle;  ///< when DiagnoseOptions::oracle was given
   std::vector<std::string> notes;  ///< skipped hypotheses and why, noise estimates
   nlohmann::ordered_json noise = nlohmann::ordered_json::object();
   nlohmann::ordered_json hypotheses = nlohmann::ordered_json::array();  ///< every model tried
@@ -195,7 +228,8 @@ struct DiagnosisResult {
 };
 
 /// Runs the whole diagnosis on a loaded bundle. Never throws on physically odd data (faults are
-/// reported); throws std::invalid_argument only when nothing can be diagnosed (no usable sensor).
+/// reported); throws std::invalid_argument only when nothing can be diagnosed (no usable sensor) or
+/// options.oracle names an unknown effect or misses one of its parameters.
 DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& options = {});
 
 /// The JSON document of docs/diagnosis.md "Output" (plus optional extra keys).

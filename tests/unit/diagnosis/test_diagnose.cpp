@@ -3,6 +3,7 @@
 // the truth, sensor faults go to data_quality, and the JSON carries every contract key.
 #include <cmath>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 
 #include "core/bundle.hpp"
@@ -178,3 +179,62 @@ TEST(Diagnose, JsonHasEveryContractKeyAndPrediction) {
   CHECK_TRUE(html.find("work_hardening") != std::string::npos);
 }
 
+
+namespace {
+
+lw::diagnosis::DiagnosisResult RunWithOracle(const lw::test::SyntheticSpec& spec, const lw::diagnosis::OracleEffect& oracle) {
+  const auto dir = lw::test::MakeTempDir("diag");
+  lw::test::WriteSyntheticBundle(dir, spec);
+  const lw::core::Bundle bundle = lw::core::LoadBundle(dir);
+  lw::diagnosis::DiagnoseOptions options;
+  options.try_pairs = false;
+  options.oracle = oracle;
+  auto result = lw::diagnosis::Diagnose(bundle, options);
+  std::filesystem::remove_all(dir);
+  return result;
+}
+
+double HypothesisDeltaBic(const lw::diagnosis::DiagnosisResult& r, const std::string& model) {
+  for (const auto& h : r.hypotheses)
+    if (h.at("model").get<std::string>() == model) return h.at("delta_bic").get<double>();
+  return -1e300;
+}
+
+}  // namespace
+
+// The benchmark's oracle (docs/diagnosis.md, "What is detectable"): the true effect with its true
+// parameters, only the row scales fitted, against the baseline under the diagnosis' noise model and
+// under the spread the true model's residuals show.
+TEST(Diagnose, OracleMeasuresTheTrueEffectAgainstTheBaseline) {
+  lw::test::SyntheticSpec spec;
+  spec.seed = 3;
+  spec.feed_amplitude = 0.15;
+  spec.feed_theta_deg = 60;
+  lw::diagnosis::OracleEffect truth{"feed_segregation", {{"a", 0.15 * 0.5}, {"b", 0.15 * std::sqrt(0.75)}}};
+  const auto r = RunWithOracle(spec, truth);
+  CHECK_TRUE(r.oracle.has_value());
+  const auto& o = *r.oracle;
+  STRCMP_EQUAL("feed_segregation", o.model.c_str());
+  LONGS_EQUAL(2, o.effect_params);
+  CHECK_TRUE(o.delta_chi2_sensors + o.delta_chi2_scan > 0);
+  CHECK_TEXT(o.delta_bic_model > o.min_delta_bic, ("oracle delta BIC " + std::to_string(o.delta_bic_model)).c_str());
+  DOUBLES_EQUAL(o.delta_chi2_sensors + o.delta_chi2_scan - 2 * o.log_n, o.delta_bic_model, 1e-9);
+  // The fitted hypothesis does at least as well as the true parameters (it may fit noise too).
+  CHECK_TRUE(HypothesisDeltaBic(r, "feed_segregation") >= o.delta_bic_model - 1.0);
+  // The empirical spreads are the true model's chi-square per observation of each kind.
+  CHECK_TRUE(o.spread_sensors > 0 && o.spread_sensor_priors > 0 && o.spread_scan > 0);
+  CHECK_TRUE(std::isfinite(o.delta_bic_empirical));
+
+  // No effect in the data, the effect at zero: nothing gained. An effect's name means its first
+  // form (profile_evolution: the tilt).
+  lw::test::SyntheticSpec null_spec;
+  null_spec.seed = 3;
+  const auto n = RunWithOracle(null_spec, {"profile_evolution", {{"p", 0.0}}});
+  CHECK_TRUE(n.oracle.has_value());
+  STRCMP_EQUAL("profile_evolution:tilt", n.oracle->model.c_str());
+  DOUBLES_EQUAL(0.0, n.oracle->delta_chi2_sensors + n.oracle->delta_chi2_scan, 1e-3);
+
+  // A bad oracle is a clear error.
+  CHECK_THROWS(std::invalid_argument, RunWithOracle(null_spec, {"levitation", {}}));
+  CHECK_THROWS(std::invalid_argument, RunWithOracle(null_spec, {"work_hardening", {{"h", 0.3}}}));
+}
