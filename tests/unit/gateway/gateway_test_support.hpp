@@ -42,17 +42,8 @@ inline std::vector<uint8_t> ReadingsFrame(protocol::ApiMode mode, uint64_t src64
       protocol::PayloadStatus::kOk) {
     return {};
   }
-  protocol::ReceivePacket rx;
-  rx.src64 = src64;
-  rx.src16 = 0x1234;
-  rx.options = 0x01;
-  rx.payload = payload;
-  rx.payload_len = payload_len;
-  uint8_t frame[protocol::kMaxFrameData];
-  size_t frame_len = 0;
-  if (protocol::BuildReceivePacket(rx, frame, sizeof frame, &frame_len) != protocol::Status::kOk) return {};
   std::vector<uint8_t> wire(protocol::kMaxWireFrame);
-  wire.resize(protocol::EncodeFrame(mode, frame, frame_len, wire.data(), wire.size()));
+  wire.resize(protocol::EncodeReceivePacket(mode, {src64, 0x1234, 0x01, payload, payload_len}, wire.data(), wire.size()));
   return wire;
 }
 

@@ -267,7 +267,10 @@ TEST(Gateway, GarbageAndMalformedFramesAreCountedNotFatal) {
   Feed(gw::test::Wire(kMode, {0x90, 0x01, 0x02}));                            // too short to parse
   Feed(gw::test::Wire(kMode, {0x42, 0x01}));                                  // unknown type
   std::vector<uint8_t> bad_payload = ReadingsFrame(kMode, kAddrB, 1001, {MakeRecord(1)});
-  Feed(gw::test::Wire(kMode, {0x90, 0, 0x13, 0xA2, 0, 0x40, 0xFF, 0xEE, 0x01, 0x12, 0x34, 0x01, 1, 0x01, 9, 9}));  // bad CRC
+  const uint8_t bad_crc[] = {1, 0x01, 9, 9};  // a readings payload whose CRC does not match
+  std::vector<uint8_t> wire(pr::kMaxWireFrame);
+  wire.resize(pr::EncodeReceivePacket(kMode, {0x0013A20040FFEE01ull, 0x1234, 0x01, bad_crc, sizeof bad_crc}, wire.data(), wire.size()));
+  Feed(wire);
   Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));                  // still works afterwards
   LONGS_EQUAL(1, gateway->spool_depth());
   const json stats = json::parse(gateway->StatsJson(now));
