@@ -32,8 +32,8 @@ TEST(ClockFile, OptionIsParsed) {
 
 TEST(ClockFile, StampClockTimesReadingsButNotTheSpoolBookkeeping) {
   gw::Spool spool(dir.File("spool.db"), 1000);
-  gw::test::FakePublisher publisher;
-  gw::test::FakeRadio radio{pr::ApiMode::kEscaped};
+  lw::test::FakePublisher publisher;
+  lw::test::FakeRadio radio{pr::ApiMode::kEscaped};
   gw::GatewayOptions o;
   o.site = "s1";
   o.crusher = "c1";

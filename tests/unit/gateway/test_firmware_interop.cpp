@@ -69,7 +69,7 @@ TEST(FirmwareInterop, EveryWearStepOfTheRealFirmwareReachesTheSpoolAcrossAGatewa
   app.Init();
 
   gw::Spool spool(dir.File("spool.db"), 100'000);
-  gw::test::FakePublisher publisher;
+  lw::test::FakePublisher publisher;
   Coordinator coordinator(board.radio);
   gw::GatewayOptions options;
   options.site = "s1";

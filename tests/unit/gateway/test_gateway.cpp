@@ -40,8 +40,8 @@ std::vector<uint8_t> NodeIdFrame(uint64_t address, const char* node_identifier) 
 TEST_GROUP(Gateway) {
   lw::test::TempDirectory dir;
   std::unique_ptr<gw::Spool> spool;
-  gw::test::FakePublisher publisher;
-  gw::test::FakeRadio radio{kMode};
+  lw::test::FakePublisher publisher;
+  lw::test::FakeRadio radio{kMode};
   std::unique_ptr<gw::Gateway> gateway;
   std::vector<std::string> log;
   int64_t now = 1'000'000;
@@ -78,7 +78,7 @@ TEST_GROUP(Gateway) {
     Feed(gw::test::Wire(kMode, frame));
   }
   // The gateway replaced by one on the same spool whose coordinator runs API mode 1.
-  gw::Gateway& ModeOneGateway(gw::test::FakeRadio& radio1) {
+  gw::Gateway& ModeOneGateway(lw::test::FakeRadio& radio1) {
     gw::GatewayOptions o;
     o.site = "s1";
     o.crusher = "c1";
@@ -333,7 +333,7 @@ TEST(Gateway, StatsArePublishedPeriodicallyWithLatency) {
 }
 
 TEST(Gateway, ApiModeOneIsDecodedAndAckedInModeOne) {
-  gw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
+  lw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
   gw::Gateway& g = ModeOneGateway(radio1);
   const auto bytes = ReadingsFrame(pr::ApiMode::kUnescaped, 0x0013A2004011137Dull, 0x137D11, {MakeRecord(0x7E7D1113)});
   g.OnBytes(bytes.data(), bytes.size(), now);
@@ -344,7 +344,7 @@ TEST(Gateway, ApiModeOneIsDecodedAndAckedInModeOne) {
 // cost the readings frames that follow it (before the fix only the last of them reached the
 // spool; the others were decoded, counted in frames_ok, and dropped).
 TEST(Gateway, ReadingsAfterATruncatedFrameInModeOneAreAllSpooledAndAcked) {
-  gw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
+  lw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
   gw::Gateway& g = ModeOneGateway(radio1);
   // A readings frame cut after its first 20 bytes: its declared length swallows the next two.
   auto cut = ReadingsFrame(pr::ApiMode::kUnescaped, kAddrA, 1001, {MakeRecord(1), MakeRecord(2), MakeRecord(3)});
