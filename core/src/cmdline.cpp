@@ -181,7 +181,7 @@ std::string OptionTable::Help(size_t column) const {
     }
   };
   for (const Option& o : options) line("--" + o.name + (o.value_name.empty() ? "" : " " + o.value_name), o.help);
-  line("--config FILE", "JSON object with any of these options (names with '-' or '_'); flags override it");
+  line("--config FILE", "JSON object with any of these options (\"name\": value); flags override it");
   line("--help", "this text");
   return s;
 }
