@@ -62,7 +62,7 @@ void ReadConfigFile(const OptionTable& table, const std::string& path, Collected
     const std::string name = Dashes(key);
     const std::string at = where + ", key '" + name + "'";
     if (!table.positional_key.empty() && name == Dashes(table.positional_key)) {
-      if (!value.is_string()) throw UsageError(at + ": must be a string");
+      if (!value.is_string()) throw ConfigFileError(at + ": must be a string");
       out->positional = value.get<std::string>();
       continue;
     }
@@ -72,7 +72,7 @@ void ReadConfigFile(const OptionTable& table, const std::string& path, Collected
         (*other)[key] = value;
         continue;
       }
-      throw UsageError(where + ": unknown key '" + key + "' (see --help)");
+      throw ConfigFileError(where + ": unknown key '" + key + "' (see --help)");
     }
     std::vector<nlohmann::json> items;
     if (value.is_array() && opt->repeatable) items.assign(value.begin(), value.end());
@@ -83,7 +83,7 @@ void ReadConfigFile(const OptionTable& table, const std::string& path, Collected
       if (opt->type == OptionType::kSwitch) {
         if (v.is_boolean()) text = v.get<bool>() ? "true" : "false";
         else if (v.is_string()) text = v.get<std::string>();
-        else throw UsageError(at + ": must be true or false");
+        else throw ConfigFileError(at + ": must be true or false");
       } else if (v.is_string()) {
         text = v.get<std::string>();
       } else if (v.is_number_integer()) {
@@ -91,12 +91,12 @@ void ReadConfigFile(const OptionTable& table, const std::string& path, Collected
       } else if (v.is_number() && opt->type != OptionType::kWhole) {
         text = NumberText(v.get<double>());
       } else {
-        throw UsageError(at + ": must be " + (opt->type == OptionType::kText ? "a string" : opt->type == OptionType::kWhole ? "a whole number" : "a number"));
+        throw ConfigFileError(at + ": must be " + (opt->type == OptionType::kText ? "a string" : opt->type == OptionType::kWhole ? "a whole number" : "a number"));
       }
       try {
         CheckValue(*opt, text);
       } catch (const UsageError& e) {
-        throw UsageError(at + ": " + e.what());
+        throw ConfigFileError(at + ": " + e.what());
       }
       texts.push_back(text);
     }
@@ -166,10 +166,10 @@ const Option* OptionTable::Find(const std::string& name) const {
   return nullptr;
 }
 
-std::string OptionTable::Help(size_t column) const {
+std::string OptionTable::Help(size_t column, size_t indent, bool builtins) const {
   std::string s;
   const auto line = [&](const std::string& flag, const std::string& help) {
-    std::string head = "  " + flag;
+    std::string head = std::string(indent, ' ') + flag;
     head += head.size() + 1 < column ? std::string(column - head.size(), ' ') : "\n" + std::string(column, ' ');
     size_t start = 0;
     while (true) {
@@ -181,8 +181,10 @@ std::string OptionTable::Help(size_t column) const {
     }
   };
   for (const Option& o : options) line("--" + o.name + (o.value_name.empty() ? "" : " " + o.value_name), o.help);
-  line("--config FILE", "JSON object with any of these options (\"name\": value); flags override it");
-  line("--help", "this text");
+  if (builtins) {
+    line("--config FILE", "JSON object with any of these options (\"name\": value); flags override it");
+    line("--help", "this text");
+  }
   return s;
 }
 
@@ -195,7 +197,7 @@ std::string OptionTable::Synopsis(size_t indent, size_t width) const {
   words.push_back("[--config FILE]");
   std::string s, line;
   for (const std::string& w : words) {
-    if (!line.empty() && indent + line.size() + 1 + w.size() > width) {
+    if (!line.empty() && indent + line.size() + 1 + w.size() >= width) {
       s += line + "\n" + std::string(indent, ' ');
       line.clear();
     }

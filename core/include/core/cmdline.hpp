@@ -20,8 +20,9 @@
 ///
 /// Every error is a UsageError whose what() is one line naming the flag (or the config file and
 /// key) and the bad value: an unknown flag, a missing value, a flag given twice that takes one
-/// value, a missing required flag, a number that is not one or is out of its range. A config
-/// file that cannot be read or is not a JSON object is a ConfigFileError (a UsageError).
+/// value, a missing required flag, a number that is not one or is out of its range. Everything
+/// wrong with the --config file (unreadable, not a JSON object, an unknown key, a value of the
+/// wrong type or out of range) is a ConfigFileError, a kind of UsageError.
 #include <cstdint>
 #include <limits>
 #include <map>
@@ -39,8 +40,8 @@ class UsageError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// The --config file cannot be read or is not a JSON object (a kind of UsageError, for programs
-/// that report a bad file differently from a bad flag).
+/// Something wrong with the --config file (a kind of UsageError, for programs that report a bad
+/// file differently from a bad flag).
 class ConfigFileError : public UsageError {
  public:
   using UsageError::UsageError;
@@ -111,10 +112,12 @@ struct OptionTable {
   bool other_config_keys = false;
 
   const Option* Find(const std::string& name) const;  ///< '_' and '-' are the same
-  /// The option lines of --help, `--config` and `--help` included; help text starts at `column`.
-  std::string Help(size_t column = 24) const;
+  /// The option lines of --help, each flag `indent` spaces in and its text at `column`;
+  /// `--config FILE` and `--help` last unless `builtins` is false.
+  std::string Help(size_t column = 24, size_t indent = 2, bool builtins = true) const;
   /// "--serial PATH [--baud N] [--quiet] [--config FILE]": required flags bare, others in
-  /// brackets, wrapped before `width` with continuation lines indented by `indent` spaces.
+  /// brackets, for a line whose first `indent` columns the caller fills ("usage: prog "); wrapped
+  /// before column `width`, continuation lines indented by `indent` spaces.
   std::string Synopsis(size_t indent = 0, size_t width = 100) const;
 };
 

@@ -137,7 +137,7 @@ TEST(CommandLine, BadConfigFilesNameTheFileAndTheKey) {
   STRCMP_EQUAL(("config " + f + ", key 'quiet': must be true or false").c_str(), ErrorOf({"--config", f}).c_str());
   dir.Write("bad.json", R"({"serial": "s", "colour": "red"})");
   STRCMP_EQUAL(("config " + f + ": unknown key 'colour' (see --help)").c_str(), ErrorOf({"--config", f}).c_str());
-  // Unreadable or not an object: ConfigFileError.
+  // Every error of the file is a ConfigFileError (programs may report a bad file apart from a bad flag).
   const auto FileErrorOf = [&](const std::string& path) -> std::string {
     try {
       ParseOptions(Table(), {"--config", path});
@@ -146,6 +146,7 @@ TEST(CommandLine, BadConfigFilesNameTheFileAndTheKey) {
     }
     return "(no ConfigFileError)";
   };
+  STRCMP_EQUAL(("config " + f + ": unknown key 'colour' (see --help)").c_str(), FileErrorOf(f).c_str());
   dir.Write("bad.json", R"({"days": )");
   CHECK(FileErrorOf(f).find("config " + f + ": invalid JSON: ") == 0);
   dir.Write("bad.json", "[1]");
