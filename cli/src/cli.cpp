@@ -34,41 +34,44 @@ using core::Option;
 
 // One option table per command: parsing, checks and the option lines of --help come from it.
 const core::OptionTable& DiagnoseTable() {
-  static const core::OptionTable table{{
-                                           Option::Text("json", "OUT.json", "the diagnosis as JSON (docs/diagnosis.md)").Required(),
-                                           Option::Text("html", "OUT.html", "the same as a self-contained HTML report"),
-                                           Option::Text("predict-at", "TIME", "predict the wear map at TIME, with and without the findings"),
-                                           Option::Text("predict-vtk", "OUT.vtk", "that prediction as a VTK map (needs --predict-at)"),
-                                           Option::Switch("no-pairs", "single effects only (faster)"),
-                                       },
-                                       "BUNDLE", "bundle"};
+  static const core::OptionTable table(
+      {
+          Option::Text("json", "OUT.json", "the diagnosis as JSON (docs/diagnosis.md)").Required(),
+          Option::Text("html", "OUT.html", "the same as a self-contained HTML report"),
+          Option::Text("predict-at", "TIME", "predict the wear map at TIME, with and without the findings"),
+          Option::Text("predict-vtk", "OUT.vtk", "that prediction as a VTK map (needs --predict-at)"),
+          Option::Switch("no-pairs", "single effects only (faster)"),
+      },
+      "BUNDLE", "bundle");
   return table;
 }
 
 const core::OptionTable& ReconstructTable() {
-  static const core::OptionTable table{{
-                                           Option::Text("at", "TIME", "the sensors' latest readings at TIME (default: the last reading)"),
-                                           Option::Text("json", "OUT.json", "per-row summary and wear map statistics as JSON"),
-                                           Option::Text("vtk", "OUT.vtk", "the global wear map as VTK"),
-                                           Option::Switch("lower-bound", "reading n is n mm (the thinnest), not n + 0.5"),
-                                           Option::Switch("no-scan", "the map alone, without the latest scan's correction"),
-                                       },
-                                       "BUNDLE", "bundle"};
+  static const core::OptionTable table(
+      {
+          Option::Text("at", "TIME", "the sensors' latest readings at TIME (default: the last reading)"),
+          Option::Text("json", "OUT.json", "per-row summary and wear map statistics as JSON"),
+          Option::Text("vtk", "OUT.vtk", "the global wear map as VTK"),
+          Option::Switch("lower-bound", "reading n is n mm (the thinnest), not n + 0.5"),
+          Option::Switch("no-scan", "the map alone, without the latest scan's correction"),
+      },
+      "BUNDLE", "bundle");
   return table;
 }
 
 const core::OptionTable& DemTable() {
-  static const core::OptionTable table{{
-                                           Option::Text("work", "DIR", "case folder (default CRUSHER_DIR/dem)"),
-                                           Option::Text("stage", "case|run|map|all", "what to do (default all)"),
-                                           Option::Whole("np", "N", 1, 4096, "MPI processes (default 2)"),
-                                           Option::Whole("windows", "K", 2, 100, "independent time windows for wear_stderr (default: as many as fit, at most 8)"),
-                                           Option::Switch("install", "copy the map into CRUSHER_DIR"),
-                                           Option::Text("mpirun", "PATH", "mpirun to use"),
-                                           Option::Text("liggghts", "PATH", "LIGGGHTS executable to use"),
-                                           Option::Whole("progress-every", "S", 1, 3600, "seconds between progress lines (default 10)"),
-                                       },
-                                       "CRUSHER_DIR", "bundle"};
+  static const core::OptionTable table(
+      {
+          Option::Text("work", "DIR", "case folder (default CRUSHER_DIR/dem)"),
+          Option::Text("stage", "case|run|map|all", "what to do (default all)"),
+          Option::Whole("np", "N", 1, 4096, "MPI processes (default 2)"),
+          Option::Whole("windows", "K", 2, 100, "independent time windows for wear_stderr (default: as many as fit, at most 8)"),
+          Option::Switch("install", "copy the map into CRUSHER_DIR"),
+          Option::Text("mpirun", "PATH", "mpirun to use"),
+          Option::Text("liggghts", "PATH", "LIGGGHTS executable to use"),
+          Option::Whole("progress-every", "S", 1, 3600, "seconds between progress lines (default 10)"),
+      },
+      "CRUSHER_DIR", "bundle");
   return table;
 }
 

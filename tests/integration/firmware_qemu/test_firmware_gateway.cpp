@@ -48,8 +48,8 @@ int Relay(int from, FrameDecoder& dec, int to, uint64_t src64) {
       if (ParseTransmitRequest(dec.frame_data(), dec.frame_length(), &req) != Status::kOk) continue;
       const ReceivePacket rx{src64, 0x1234, 0x01, req.payload, req.payload_len};
       uint8_t wire[kMaxWireFrame];
-      const size_t n = EncodeReceivePacket(ApiMode::kEscaped, rx, wire, sizeof wire);
-      if (n > 0) CHECK(::write(to, wire, n) == static_cast<ssize_t>(n));
+      const size_t wire_len = EncodeReceivePacket(ApiMode::kEscaped, rx, wire, sizeof wire);
+      if (wire_len > 0) CHECK(::write(to, wire, wire_len) == static_cast<ssize_t>(wire_len));
       ++carried;
     }
   }
