@@ -1,22 +1,23 @@
 #pragma once
-// A gateway::Publisher that keeps every message instead of sending it (gateway unit tests, fuzz).
+// An mqtt::Publisher that keeps every message instead of sending it (gateway unit tests, fuzz).
 #include <string>
 #include <vector>
 
-#include "gateway/publisher.hpp"
+#include "mqtt/publisher.hpp"
 
 namespace lw::test {
 
 /// Publisher fake: records every message; connection and refusal are test controls.
-class FakePublisher : public gateway::Publisher {
+class FakePublisher : public mqtt::Publisher {
  public:
-  std::vector<gateway::OutMessage> sent;
+  using OutMessage = mqtt::OutMessage;
+  std::vector<OutMessage> sent;
   bool connected = true;
   bool refuse = false;
 
-  std::vector<gateway::OutMessage> SentOn(const std::string& topic_suffix) const {
-    std::vector<gateway::OutMessage> out;
-    for (const gateway::OutMessage& m : sent) {
+  std::vector<OutMessage> SentOn(const std::string& topic_suffix) const {
+    std::vector<OutMessage> out;
+    for (const OutMessage& m : sent) {
       if (m.topic.size() >= topic_suffix.size() &&
           m.topic.compare(m.topic.size() - topic_suffix.size(), topic_suffix.size(), topic_suffix) == 0) {
         out.push_back(m);
@@ -26,7 +27,7 @@ class FakePublisher : public gateway::Publisher {
   }
 
  private:
-  bool DoPublish(const gateway::OutMessage& message) override {
+  bool DoPublish(const OutMessage& message) override {
     if (!connected || refuse) return false;
     sent.push_back(message);
     return true;

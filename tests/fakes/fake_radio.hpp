@@ -6,7 +6,7 @@
 #include <functional>
 #include <vector>
 
-#include "gateway/publisher.hpp"  // gateway::ByteSink
+#include "gateway/byte_sink.hpp"
 #include "protocol/frame_decoder.hpp"
 #include "protocol/sensor_payload.hpp"
 #include "protocol/xbee_api.hpp"
