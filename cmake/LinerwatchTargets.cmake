@@ -8,12 +8,15 @@ function(lw_project_warnings target)
     -Wunused -Wnull-dereference -Wdouble-promotion -Wformat=2 -Wimplicit-fallthrough)
 endfunction()
 
-# Freestanding code (protocol, firmware): no exceptions, no RTTI, no thread-safe statics, and on the
-# MCU no unwinding tables. The same flags apply on the host so host tests catch violations.
+# Freestanding code (protocol, firmware, the MCU HAL ports): no exceptions, no RTTI, no thread-safe
+# statics, and on the MCU no unwinding tables. The same flags apply on the host so host tests catch
+# violations. Implicit conversions that may change a value or its sign are errors here too
+# (-Wconversion -Wsign-conversion with lw_project_warnings' -Werror): on the wire and in the
+# firmware's fixed-width fields a silent truncation is a corrupted reading.
 function(lw_freestanding target)
   target_compile_options(${target} PRIVATE
     $<$<COMPILE_LANGUAGE:CXX>:-fno-exceptions -fno-rtti -fno-threadsafe-statics>
-    -ffunction-sections -fdata-sections)
+    -ffunction-sections -fdata-sections -Wconversion -Wsign-conversion)
   if(CMAKE_CROSSCOMPILING)
     target_compile_options(${target} PRIVATE -ffreestanding -fno-unwind-tables -fno-asynchronous-unwind-tables)
   endif()

@@ -25,8 +25,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size == 0) return 0;
   const protocol::ApiMode mode = (data[0] & 1) ? protocol::ApiMode::kUnescaped : protocol::ApiMode::kEscaped;
   gateway::Spool spool(":memory:", 1000);
-  gateway::test::FakePublisher publisher;
-  gateway::test::FakeRadio radio(mode);
+  lw::test::FakePublisher publisher;
+  lw::test::FakeRadio radio(mode);
   gateway::GatewayOptions options;
   options.site = "site1";
   options.crusher = "fz1";

@@ -13,6 +13,7 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -30,35 +31,44 @@ namespace {
 namespace fs = std::filesystem;
 using lw::core::UsageError;
 
-const char* kHelp = R"(lw_bench_chaos: chaos soak of the real pipeline (docs/reliability.md).
+using lw::core::NumberRange;
+using lw::core::Option;
 
-Usage: lw_bench_chaos [--kills N] [--site-cuts M] [--days D] [--loss P] [--dup P] [--seed S]
-                      [--speed X] [--max-down-ms MS] [--out DIR] [--keep]
-                      [--data-dir DIR --fills F [--full-s S]]
+const lw::core::OptionTable& Table() {
+  static const lw::core::OptionTable table{{
+      Option::Whole("kills", "N", 0, 10'000'000, "SIGKILLs to deliver, counting each program of a site cut (default 1000)"),
+      Option::Whole("site-cuts", "M", 0, 10'000'000,
+                    "of which whole-site power cuts: broker, gateway and server killed at the same\ninstant (default 100)"),
+      Option::Number("days", "D", NumberRange{5, 3650, false, false},
+                     "virtual days of a campaign (default 95); kills fall at random virtual times\n"
+                     "from day 0.5 to day D - 3, another campaign follows if the kills are not done"),
+      Option::Number("loss", "P", NumberRange{0, 1, false, true}, "radio loss per transmission attempt (default 0.2)"),
+      Option::Number("dup", "P", NumberRange{0, 1, false, true}, "probability that a delivered packet arrives twice (default 0.05)"),
+      Option::Whole("seed", "S", 0, UINT32_MAX, "seed of the fault schedule and the radio (default: random, printed)"),
+      Option::Number("speed", "X", NumberRange{0, std::numeric_limits<double>::infinity(), false, true},
+                     "virtual seconds per wall second (default: D days / (1.5 s per fault))"),
+      Option::Whole("max-down-ms", "MS", 0, 60000, "a killed program stays down 0..MS wall ms (default 1000)"),
+      Option::Text("out", "DIR", "logs, databases and ledgers (default /tmp/lw-chaos-PID); removed after a\nclean run unless --keep"),
+      Option::Switch("keep", "keep DIR"),
+      Option::Text("data-dir", "DIR",
+                   "the server's database and the gateway's spool live here (default: in --out);\n"
+                   "meant for a small file system of their own (a tmpfs or a loop mount)"),
+      Option::Whole("fills", "F", 0, 100000,
+                    "F times per campaign, at random virtual times, fill --data-dir's file system\n"
+                    "to the last byte (a filler file written until ENOSPC), keep it full for\n"
+                    "--full-s wall seconds, then delete the filler: the disk-full run"),
+      Option::Number("full-s", "S", NumberRange{0, 600, true, false}, "seconds --data-dir stays full (default 5)"),
+  }};
+  return table;
+}
 
-  --kills N         SIGKILLs to deliver, counting each program of a site cut (default 1000)
-  --site-cuts M     of which whole-site power cuts: broker, gateway and server killed at the same
-                    instant (default 100)
-  --days D          virtual days of a campaign (default 95); kills fall at random virtual times
-                    from day 0.5 to day D - 3, another campaign follows if the kills are not done
-  --loss P          radio loss per transmission attempt (default 0.2)
-  --dup P           probability that a delivered packet arrives twice (default 0.05)
-  --seed S          seed of the fault schedule and the radio (default: random, printed)
-  --speed X         virtual seconds per wall second (default: D days / (1.5 s per fault))
-  --max-down-ms MS  a killed program stays down 0..MS wall ms (default 1000)
-  --out DIR         logs, databases and ledgers (default /tmp/lw-chaos-PID); removed after a
-                    clean run unless --keep
-  --keep            keep DIR
-  --data-dir DIR    the server's database and the gateway's spool live here (default: in --out);
-                    meant for a small file system of their own (a tmpfs or a loop mount)
-  --fills F         F times per campaign, at random virtual times, fill --data-dir's file system
-                    to the last byte (a filler file written until ENOSPC), keep it full for
-                    --full-s wall seconds (default 5), then delete the filler: the disk-full run
-
-Prints progress every 15 s and a last line
+std::string Help() {
+  return "lw_bench_chaos: chaos soak of the real pipeline (docs/reliability.md).\n\nUsage: lw_bench_chaos " +
+         Table().Synopsis(22, 100) + "\n\n" + Table().Help(20) + "\n" + R"(Prints progress every 15 s and a last line
   chaos: kills K (broker B, gateway G, server S; C site cuts), produced P, stored T, lost L, duplicated D, ...
 Exit status 0 when every reading was stored exactly once, 1 otherwise, 2 on bad usage.
 )";
+}
 
 constexpr const char* kUser = "linerwatch-chaos";
 constexpr const char* kPassword = "chaos-broker-secret";
@@ -81,26 +91,22 @@ struct Options {
 
 Options Parse(const std::vector<std::string>& args, bool* help) {
   Options o;
-  *help = !lw::core::ParseCommandLine(args, {"keep"}, [&o](const std::string& name, const std::string& v) {
-    auto prob = [&](double x) {
-      if (!(x >= 0 && x < 1)) throw UsageError("--" + name + ": must be in [0, 1), got " + v);
-      return x;
-    };
-    if (name == "kills") o.kills = lw::core::ParseInteger<long>(name, v, 0, 10000000);
-    else if (name == "site-cuts") o.site_cuts = lw::core::ParseInteger<long>(name, v, 0, 10000000);
-    else if (name == "days") o.days = lw::core::ParseNumber(name, v);
-    else if (name == "loss") o.loss = prob(lw::core::ParseNumber(name, v));
-    else if (name == "dup") o.dup = prob(lw::core::ParseNumber(name, v));
-    else if (name == "seed") o.seed = lw::core::ParseInteger<unsigned>(name, v);
-    else if (name == "speed") o.speed = lw::core::ParseNumber(name, v);
-    else if (name == "max-down-ms") o.max_down_ms = lw::core::ParseInteger<int>(name, v, 0, 60000);
-    else if (name == "out") o.out = v;
-    else if (name == "keep") o.keep = lw::core::ParseBool(name, v);
-    else if (name == "data-dir") o.data_dir = v;
-    else if (name == "fills") o.fills = lw::core::ParseInteger<long>(name, v, 0, 100000);
-    else if (name == "full-s") o.full_s = lw::core::ParseNumber(name, v);
-    else throw UsageError("unknown option --" + name + " (see --help)");
-  });
+  const lw::core::ParsedOptions p = lw::core::ParseOptions(Table(), args);
+  *help = p.help();
+  if (*help) return o;
+  o.kills = p.Integer<long>("kills", o.kills);
+  o.site_cuts = p.Integer<long>("site-cuts", o.site_cuts);
+  o.days = p.Number("days", o.days);
+  o.loss = p.Number("loss", o.loss);
+  o.dup = p.Number("dup", o.dup);
+  o.seed = p.Integer<unsigned>("seed", o.seed);
+  o.speed = p.Number("speed", o.speed);
+  o.max_down_ms = p.Integer<int>("max-down-ms", o.max_down_ms);
+  o.out = p.Text("out");
+  o.keep = p.Switch("keep");
+  o.data_dir = p.Text("data-dir");
+  o.fills = p.Integer<long>("fills", o.fills);
+  o.full_s = p.Number("full-s", o.full_s);
   if (o.kills < 0 || o.site_cuts < 0) throw UsageError("--kills and --site-cuts must be 0 or more");
   if (3 * o.site_cuts > o.kills) throw UsageError("--kills must be at least 3 x --site-cuts (a site cut kills three programs)");
   if (!(o.days >= 5 && o.days <= 3650)) throw UsageError("--days: must be in [5, 3650]");
@@ -387,7 +393,7 @@ int main(int argc, char** argv) {
     bool help = false;
     o = Parse(std::vector<std::string>(argv + 1, argv + argc), &help);
     if (help) {
-      std::fputs(kHelp, stdout);
+      std::fputs(Help().c_str(), stdout);
       return 0;
     }
   } catch (const UsageError& e) {

@@ -34,6 +34,7 @@
 #include "core/scan_correction.hpp"
 #include "diagnosis/diagnose.hpp"
 #include "realdem.hpp"
+#include "support/temp_directory.hpp"
 #include "sim/campaign.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
 
@@ -437,7 +438,9 @@ int main(int argc, char** argv) {
   std::map<std::string, std::vector<double>> param_rel_error;
   std::vector<double> ratios;
   double seconds = 0;
-  const auto tmp = keep.empty() ? lw::test::MakeTempDir("bench") : std::filesystem::path(keep);
+  std::optional<lw::test::TempDirectory> scratch;  // removed at the end unless --keep
+  if (keep.empty()) scratch.emplace("lw-bench-diagnosis");
+  const std::filesystem::path tmp = keep.empty() ? scratch->path() : std::filesystem::path(keep);
   const auto wall_start = std::chrono::steady_clock::now();
 
   // Cases run on `threads` workers (Diagnose is re-entrant); results are printed in case order.
@@ -708,7 +711,6 @@ int main(int argc, char** argv) {
       if (base_rmse > 0) ratios.push_back(impr_rmse / base_rmse);
     }
   }
-  if (keep.empty()) std::filesystem::remove_all(tmp);
 
   std::printf("\n== %zu cases, %.1f s diagnosis time (%.2f s per case; %d threads, %.1f s wall)\n", cases.size(), seconds,
               seconds / std::max<size_t>(cases.size(), 1), threads, wall_seconds);

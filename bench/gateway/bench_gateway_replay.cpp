@@ -95,17 +95,10 @@ std::string MakeFrames(const Options& o, const std::string& path, size_t* record
     if (pr::EncodeReadings(h, recs, o.per_frame, payload, sizeof payload, &payload_len) != pr::PayloadStatus::kOk) {
       throw std::runtime_error("EncodeReadings failed (records per frame too many for 100 loops?)");
     }
-    pr::ReceivePacket rx;
-    rx.src64 = Address(s);
-    rx.src16 = static_cast<uint16_t>(0x2000 + s);
-    rx.options = 0x01;
-    rx.payload = payload;
-    rx.payload_len = payload_len;
-    uint8_t frame[pr::kMaxFrameData];
-    size_t frame_len = 0;
-    if (pr::BuildReceivePacket(rx, frame, sizeof frame, &frame_len) != pr::Status::kOk) throw std::runtime_error("BuildReceivePacket failed");
+    const pr::ReceivePacket rx{Address(s), static_cast<uint16_t>(0x2000 + s), 0x01, payload, payload_len};
     uint8_t wire[pr::kMaxWireFrame];
-    const size_t wire_len = pr::EncodeFrame(pr::ApiMode::kEscaped, frame, frame_len, wire, sizeof wire);
+    const size_t wire_len = pr::EncodeReceivePacket(pr::ApiMode::kEscaped, rx, wire, sizeof wire);
+    if (wire_len == 0) throw std::runtime_error("EncodeReceivePacket failed");
     bytes.append(reinterpret_cast<const char*>(wire), wire_len);
     *records += o.per_frame;
   }

@@ -30,140 +30,101 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kUsage =
-    "usage: linerwatch <command> [options]\n"
-    "\n"
-    "commands:\n"
-    "  diagnose BUNDLE --json OUT.json [--html OUT.html] [--predict-at TIME] [--predict-vtk OUT.vtk]\n"
-    "                  [--no-pairs] [--config FILE]\n"
-    "      Compare the bundle's readings (and scans) with the Eq. 9 reconstruction of its DEM map, test\n"
-    "      whether the mismatch is real, locate it, and name the physics the DEM left out.\n"
-    "      Exit 0 when the diagnosis ran, whatever it found (docs/diagnosis.md, section Output).\n"
-    "  reconstruct BUNDLE [--at TIME] [--json OUT.json] [--vtk OUT.vtk] [--lower-bound] [--no-scan] [--config FILE]\n"
-    "      Eq. 9 global wear from the sensors' latest readings (at TIME, default: the last reading);\n"
-    "      prints a per-row summary. A reading n means [n, n+1) mm: estimates use n + 0.5, as the\n"
-    "      server does; --lower-bound uses n (the thinnest the liner can be). The latest scan at or\n"
-    "      before TIME corrects the map between the sensors (--no-scan: the map alone).\n"
-    "  dem CRUSHER_DIR [--work DIR] [--stage case|run|map|all] [--np N] [--windows K] [--install]\n"
-    "                  [--mpirun PATH] [--liggghts PATH] [--progress-every S] [--config FILE]\n"
-    "      Make the crusher's DEM wear map with LIGGGHTS from the \"chamber\" of its crusher.json\n"
-    "      (defaults: a 62-75 primary gyratory; docs/dem.md): write the case (STL meshes, input\n"
-    "      script, Slurm script, MPI hostfile example) into DIR (default CRUSHER_DIR/dem), run it with\n"
-    "      `mpirun -np N liggghts` (default N 2; after a stop it resumes from the newest restart\n"
-    "      file), and build DIR/wear_map.vtk (wear over the steady, choke-fed span; wear_stderr from\n"
-    "      K independent time windows; averaged stresses), wear_windows.vtk and dem_summary.json.\n"
-    "      --install then copies them into CRUSHER_DIR (replacing its wear_map.vtk).\n"
-    "\n"
-    "options:\n"
-    "  --config FILE   JSON object with the same options, e.g. {\"bundle\": \"b\", \"json\": \"out.json\",\n"
-    "                  \"predict_at\": \"2024-05-01\"}; command-line flags override it\n"
-    "  --help          this text\n"
-    "TIME is ISO-8601 UTC (YYYY-MM-DD or YYYY-MM-DDTHH:MM:SSZ).\n";
+using core::Option;
 
-/// A one-line, user-facing error.
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+// One option table per command: parsing, checks and the option lines of --help come from it.
+const core::OptionTable& DiagnoseTable() {
+  static const core::OptionTable table(
+      {
+          Option::Text("json", "OUT.json", "the diagnosis as JSON (docs/diagnosis.md)").Required(),
+          Option::Text("html", "OUT.html", "the same as a self-contained HTML report"),
+          Option::Text("predict-at", "TIME", "predict the wear map at TIME, with and without the findings"),
+          Option::Text("predict-vtk", "OUT.vtk", "that prediction as a VTK map (needs --predict-at)"),
+          Option::Switch("no-pairs", "single effects only (faster)"),
+      },
+      "BUNDLE", "bundle");
+  return table;
+}
+
+const core::OptionTable& ReconstructTable() {
+  static const core::OptionTable table(
+      {
+          Option::Text("at", "TIME", "the sensors' latest readings at TIME (default: the last reading)"),
+          Option::Text("json", "OUT.json", "per-row summary and wear map statistics as JSON"),
+          Option::Text("vtk", "OUT.vtk", "the global wear map as VTK"),
+          Option::Switch("lower-bound", "reading n is n mm (the thinnest), not n + 0.5"),
+          Option::Switch("no-scan", "the map alone, without the latest scan's correction"),
+      },
+      "BUNDLE", "bundle");
+  return table;
+}
+
+const core::OptionTable& DemTable() {
+  static const core::OptionTable table(
+      {
+          Option::Text("work", "DIR", "case folder (default CRUSHER_DIR/dem)"),
+          Option::Text("stage", "case|run|map|all", "what to do (default all)"),
+          Option::Whole("np", "N", 1, 4096, "MPI processes (default 2)"),
+          Option::Whole("windows", "K", 2, 100, "independent time windows for wear_stderr (default: as many as fit, at most 8)"),
+          Option::Switch("install", "copy the map into CRUSHER_DIR"),
+          Option::Text("mpirun", "PATH", "mpirun to use"),
+          Option::Text("liggghts", "PATH", "LIGGGHTS executable to use"),
+          Option::Whole("progress-every", "S", 1, 3600, "seconds between progress lines (default 10)"),
+      },
+      "CRUSHER_DIR", "bundle");
+  return table;
+}
+
+std::string Usage() {
+  return "usage: linerwatch <command> [options]\n"
+         "\n"
+         "commands:\n"
+         "  diagnose BUNDLE " + DiagnoseTable().Synopsis(18, 100) + "\n"
+         "      Compare the bundle's readings (and scans) with the Eq. 9 reconstruction of its DEM map, test\n"
+         "      whether the mismatch is real, locate it, and name the physics the DEM left out.\n"
+         "      Exit 0 when the diagnosis ran, whatever it found (docs/diagnosis.md, section Output).\n" +
+         DiagnoseTable().Help(28, 6, false) +
+         "  reconstruct BUNDLE " + ReconstructTable().Synopsis(21, 100) + "\n"
+         "      Eq. 9 global wear from the sensors' latest readings (at TIME, default: the last reading);\n"
+         "      prints a per-row summary. A reading n means [n, n+1) mm: estimates use n + 0.5, as the\n"
+         "      server does; --lower-bound uses n (the thinnest the liner can be). The latest scan at or\n"
+         "      before TIME corrects the map between the sensors (--no-scan: the map alone).\n" +
+         ReconstructTable().Help(28, 6, false) +
+         "  dem CRUSHER_DIR " + DemTable().Synopsis(18, 100) + "\n"
+         "      Make the crusher's DEM wear map with LIGGGHTS from the \"chamber\" of its crusher.json\n"
+         "      (defaults: a 62-75 primary gyratory; docs/dem.md): write the case (STL meshes, input\n"
+         "      script, Slurm script, MPI hostfile example) into DIR (default CRUSHER_DIR/dem), run it with\n"
+         "      `mpirun -np N liggghts` (default N 2; after a stop it resumes from the newest restart\n"
+         "      file), and build DIR/wear_map.vtk (wear over the steady, choke-fed span; wear_stderr from\n"
+         "      K independent time windows; averaged stresses), wear_windows.vtk and dem_summary.json.\n"
+         "      --install then copies them into CRUSHER_DIR (replacing its wear_map.vtk).\n" +
+         DemTable().Help(28, 6, false) +
+         "\n"
+         "options:\n"
+         "  --config FILE   JSON object with the same options, e.g. {\"bundle\": \"b\", \"json\": \"out.json\",\n"
+         "                  \"predict_at\": \"2024-05-01\"}; command-line flags override it\n"
+         "  --help          this text\n"
+         "TIME is ISO-8601 UTC (YYYY-MM-DD or YYYY-MM-DDTHH:MM:SSZ).\n";
+}
+
+/// A one-line, user-facing error: exit status 2.
+using core::UsageError;
+/// Bad input (a file, a bundle): exit status 1.
 struct BadInput : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// A command's parsed options; the positional argument (or the config file's "bundle") is "bundle".
 struct Options {
-  std::map<std::string, std::string> values;  // normalised key (dashes -> underscores) -> value
-  std::vector<std::string> flags;             // boolean flags present
-  bool Has(const std::string& k) const { return values.count(k) > 0; }
-  std::string Get(const std::string& k) const {
-    auto it = values.find(k);
-    return it == values.end() ? std::string() : it->second;
-  }
-  bool Flag(const std::string& k) const {
-    for (const auto& f : flags)
-      if (f == k) return true;
-    return false;
-  }
+  core::ParsedOptions parsed;
+  bool Has(const std::string& k) const { return k == "bundle" ? !parsed.positional().empty() : parsed.Has(k); }
+  std::string Get(const std::string& k) const { return k == "bundle" ? parsed.positional() : parsed.Text(k); }
+  bool Flag(const std::string& k) const { return parsed.Switch(k); }
 };
 
-std::string Normalise(std::string key) {
-  for (char& c : key)
-    if (c == '-') c = '_';
-  return key;
-}
-
-Options ParseOptions(const std::vector<std::string>& args, size_t first, const std::vector<std::string>& value_keys,
-                     const std::vector<std::string>& flag_keys) {
-  Options cmdline;
-  std::optional<std::string> config;
-  auto known_value = [&](const std::string& k) {
-    for (const auto& v : value_keys)
-      if (v == k) return true;
-    return false;
-  };
-  auto known_flag = [&](const std::string& k) {
-    for (const auto& v : flag_keys)
-      if (v == k) return true;
-    return false;
-  };
-  for (size_t i = first; i < args.size(); ++i) {
-    const std::string& a = args[i];
-    if (a.rfind("--", 0) == 0) {
-      std::string key = a.substr(2), value;
-      const size_t eq = key.find('=');
-      bool inline_value = false;
-      if (eq != std::string::npos) {
-        value = key.substr(eq + 1);
-        key = key.substr(0, eq);
-        inline_value = true;
-      }
-      key = Normalise(key);
-      if (key == "config") {
-        if (!inline_value) {
-          if (i + 1 >= args.size()) throw UsageError("--config needs a FILE");
-          value = args[++i];
-        }
-        config = value;
-      } else if (known_flag(key)) {
-        cmdline.flags.push_back(key);
-      } else if (known_value(key)) {
-        if (!inline_value) {
-          if (i + 1 >= args.size()) throw UsageError("--" + a.substr(2) + " needs a value");
-          value = args[++i];
-        }
-        cmdline.values[key] = value;
-      } else {
-        throw UsageError("unknown option " + a + " (see --help)");
-      }
-    } else {
-      if (cmdline.Has("bundle")) throw UsageError("unexpected argument '" + a + "' (one BUNDLE only)");
-      cmdline.values["bundle"] = a;
-    }
-  }
-  Options merged;
-  if (config) {
-    std::ifstream in(*config);
-    if (!in) throw BadInput(*config + ": cannot open config file");
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(in);
-    } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for 1e999
-      throw BadInput(*config + ": invalid JSON (" + std::string(e.what()) + ")");
-    }
-    if (!j.is_object()) throw BadInput(*config + ": rule: the config must be a JSON object");
-    for (auto it = j.begin(); it != j.end(); ++it) {
-      const std::string key = Normalise(it.key());
-      if (known_flag(key)) {
-        if (!it.value().is_boolean()) throw BadInput(*config + ": \"" + it.key() + "\" must be true or false");
-        if (it.value().get<bool>()) merged.flags.push_back(key);
-      } else if (known_value(key) || key == "bundle") {
-        if (!it.value().is_string()) throw BadInput(*config + ": \"" + it.key() + "\" must be a string");
-        merged.values[key] = it.value().get<std::string>();
-      } else {
-        throw BadInput(*config + ": unknown option \"" + it.key() + "\"");
-      }
-    }
-  }
-  for (const auto& kv : cmdline.values) merged.values[kv.first] = kv.second;
-  for (const auto& f : cmdline.flags) merged.flags.push_back(f);
-  return merged;
+/// args[0] is the command.
+Options Parse(const core::OptionTable& table, const std::vector<std::string>& args) {
+  return {core::ParseOptions(table, std::vector<std::string>(args.begin() + 1, args.end()))};
 }
 
 core::TimePoint ParseTime(const std::string& text, const std::string& option) {
@@ -215,8 +176,7 @@ core::Bundle Load(const Options& o) {
 }
 
 int Diagnose(const std::vector<std::string>& args, std::ostream& out) {
-  const Options o = ParseOptions(args, 1, {"json", "html", "predict_at", "predict_vtk"}, {"no_pairs"});
-  if (!o.Has("json")) throw UsageError("diagnose needs --json OUT.json");
+  const Options o = Parse(DiagnoseTable(), args);
   CheckWritable(o.Get("json"), "json");
   if (o.Has("html")) CheckWritable(o.Get("html"), "html");
   if (o.Has("predict_vtk")) {
@@ -248,7 +208,7 @@ int Diagnose(const std::vector<std::string>& args, std::ostream& out) {
 }
 
 int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
-  const Options o = ParseOptions(args, 1, {"at", "json", "vtk"}, {"lower_bound", "no_scan"});
+  const Options o = Parse(ReconstructTable(), args);
   if (o.Has("json")) CheckWritable(o.Get("json"), "json");
   if (o.Has("vtk")) CheckWritable(o.Get("vtk"), "vtk");
   std::optional<core::TimePoint> at;
@@ -359,8 +319,7 @@ extern "C" void OnStopSignal(int) { dem::RequestStop(); }
 
 
 int Dem(const std::vector<std::string>& args, std::ostream& out) {
-  const Options o = ParseOptions(args, 1, {"work", "stage", "np", "windows", "mpirun", "liggghts", "progress_every"},
-                                 {"install"});
+  const Options o = Parse(DemTable(), args);
   if (!o.Has("bundle")) throw UsageError("dem needs CRUSHER_DIR (a folder with crusher.json)");
   const fs::path crusher_dir = o.Get("bundle");
   const fs::path crusher_file = crusher_dir / "crusher.json";
@@ -369,21 +328,12 @@ int Dem(const std::vector<std::string>& args, std::ostream& out) {
   const std::string stage = o.Has("stage") ? o.Get("stage") : "all";
   if (stage != "case" && stage != "run" && stage != "map" && stage != "all")
     throw UsageError("--stage must be case, run, map or all (not '" + stage + "')");
-  auto whole = [&](const std::string& key, int lo, int hi) {
-    std::string flag = key;
-    for (char& c : flag) c = c == '_' ? '-' : c;
-    try {
-      return core::ParseInteger<int>(flag, o.Get(key), lo, hi);
-    } catch (const core::UsageError& e) {
-      throw UsageError(e.what());
-    }
-  };
   dem::RunOptions run;
-  if (o.Has("np")) run.np = whole("np", 1, 4096);
+  run.np = o.parsed.Integer<int>("np", run.np);
   if (o.Has("mpirun")) run.mpirun = o.Get("mpirun");
   if (o.Has("liggghts")) run.liggghts = o.Get("liggghts");
-  if (o.Has("progress_every")) run.progress_every_s = whole("progress_every", 1, 3600);
-  const int windows = o.Has("windows") ? whole("windows", 2, 100) : 0;
+  if (o.Has("progress-every")) run.progress_every_s = o.parsed.Integer<int>("progress-every", 0);
+  const int windows = o.parsed.Integer<int>("windows", 0);
 
   nlohmann::json crusher_json;
   {
@@ -469,7 +419,7 @@ int RunCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     const std::string& command = args[0];
     for (const auto& a : args) {
       if (a == "--help" || a == "-h") {
-        out << kUsage;
+        out << Usage();
         return 0;
       }
     }
@@ -477,6 +427,9 @@ int RunCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (command == "reconstruct") return Reconstruct(args, out);
     if (command == "dem") return Dem(args, out);
     throw UsageError("unknown command '" + command + "' (diagnose, reconstruct, dem); see --help");
+  } catch (const core::ConfigFileError& e) {  // a bad --config file is bad input, not a usage error
+    err << "linerwatch: " << OneLine(e.what()) << "\n";
+    return 1;
   } catch (const UsageError& e) {
     err << "linerwatch: " << OneLine(e.what()) << "\n";
     return 2;

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "core/clock.hpp"
 #include "core/sd_notify.hpp"
-#include "gateway/clock_file.hpp"
 #include "gateway/config.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/messages.hpp"
@@ -31,9 +31,7 @@ namespace {
 volatile std::sig_atomic_t g_stop = 0;
 void OnSignal(int) { g_stop = 1; }
 
-int64_t NowMs() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
+int64_t NowMs() { return lw::core::WallClockMs(); }
 
 /// The retained `gateway/status` offline message (the last will and the goodbye).
 std::string Offline(const std::string& gateway_id) { return lw::mqtt::EncodeStatus({false, gateway_id, lw::mqtt::IsoUtc(NowMs())}); }
@@ -79,12 +77,12 @@ int Run(const lw::gateway::Config& config) {
   options.republish_after_ms = static_cast<int64_t>(config.republish_after_s * 1000);
   options.stats_interval_ms = static_cast<int64_t>(config.stats_interval_s * 1000);
   options.log = Log;
-  ClockFile clock(config.clock_file);
-  if (!config.clock_file.empty()) {
+  const lw::core::Clock clock(config.clock_file);
+  if (clock.is_file()) {
     Log("reading times come from the virtual clock in " + config.clock_file + " (simulation)");
-    options.stamp_clock = [&clock](int64_t now_ms) {
+    options.stamp_clock = [&clock](int64_t) {
       const bool was_ok = clock.ok();
-      const int64_t t = clock.Now(now_ms);
+      const int64_t t = clock.NowMs();
       if (was_ok && !clock.ok()) Log("clock file " + clock.path() + ": unreadable or not Unix ms; using the last good time");
       return t;
     };

@@ -50,7 +50,7 @@ uint16_t Crc16Ccitt(const uint8_t* data, size_t len, uint16_t crc) {
   for (size_t i = 0; i < len; ++i) {
     crc = static_cast<uint16_t>(crc ^ (static_cast<uint16_t>(data[i]) << 8));
     for (int b = 0; b < 8; ++b) {
-      crc = (crc & 0x8000u) ? static_cast<uint16_t>((crc << 1) ^ 0x1021u) : static_cast<uint16_t>(crc << 1);
+      crc = (crc & 0x8000u) ? static_cast<uint16_t>((crc << 1) ^ 0x1021) : static_cast<uint16_t>(crc << 1);
     }
   }
   return crc;

@@ -88,6 +88,13 @@ size_t EncodeTransmitRequest(ApiMode mode, const TransmitRequest& req, uint8_t* 
   return EncodeFrame(mode, frame, len, wire, wire_cap);
 }
 
+size_t EncodeReceivePacket(ApiMode mode, const ReceivePacket& rx, uint8_t* wire, size_t wire_cap) {
+  uint8_t frame[kMaxFrameData];
+  size_t len = 0;
+  if (BuildReceivePacket(rx, frame, sizeof frame, &len) != Status::kOk) return 0;
+  return EncodeFrame(mode, frame, len, wire, wire_cap);
+}
+
 size_t EncodeFrame(ApiMode mode, const uint8_t* frame_data, size_t len, uint8_t* out, size_t out_cap) {
   if (frame_data == nullptr || out == nullptr || len == 0 || len > kMaxFrameData) return 0;
   size_t n = 0;

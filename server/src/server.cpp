@@ -16,6 +16,7 @@
 #include <mutex>
 #include <set>
 
+#include "core/clock.hpp"
 #include "core/time.hpp"
 #include "mqtt/messages.hpp"
 #include "mqtt/paho_link.hpp"
@@ -31,9 +32,7 @@
 namespace lw::server {
 namespace {
 
-int64_t WallMs() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
+int64_t WallMs() { return core::WallClockMs(); }
 
 /// CPU time of `clock` (CLOCK_PROCESS_CPUTIME_ID, CLOCK_THREAD_CPUTIME_ID) in ms: startup figures
 /// that do not depend on what else the machine runs.
@@ -45,15 +44,6 @@ int64_t CpuMs(clockid_t clock) {
 
 std::string Stamp() { return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(WallMs() / 1000))); }
 
-/// "now" for validation: the simulator's clock file when given (falls back to the wall clock).
-int64_t NowSeconds(const std::string& clock_file) {
-  if (!clock_file.empty()) {
-    std::ifstream in(clock_file);
-    long long ms = 0;
-    if (in >> ms && ms > 0) return ms / 1000;
-  }
-  return WallMs() / 1000;
-}
 
 class Logger {
  public:
@@ -195,8 +185,10 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   // once as soon as the API is up, so the server answers while they load.
   LiveState live(*registry);
   live.LoadLazily(std::make_unique<Store>(o.db));
-  const std::string clock_file = o.clock_file;
-  Ingestor ingestor(write, *registry, [clock_file] { return NowSeconds(clock_file); }, &live);
+  // "now" for validation and commit acks: the simulator's clock file when given (core::Clock: its
+  // last good value when the file turns bad, the wall clock before the first).
+  const core::Clock clock(o.clock_file);
+  Ingestor ingestor(write, *registry, [&clock] { return clock.NowMs() / 1000; }, &live);
   WearService wear(*registry, live);
   EventBus events;
   // The diagnosis loads every reading of a crusher: on its own connection, so REST reads do not wait for it.
@@ -370,7 +362,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
         log(std::string("database error, batch not stored (the gateway will resend it): ") + e.what());
         continue;
       }
-      const std::string when = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(NowSeconds(o.clock_file))));
+      const std::string when = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(clock.NowMs() / 1000)));
       for (const Ack& a : r.acks) {
         const std::string topic = mqtt::Topics(a.site, a.crusher, o.topic_root).Committed(a.sensor);
         // Seqs are validated to 0..2^32-1 before they are stored or acked.

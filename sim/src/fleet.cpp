@@ -161,16 +161,12 @@ void Fleet::Arrive(const Packet& p) {
     return;
   }
   auto it = by_address_.find(p.src64);
-  protocol::ReceivePacket rx;
-  rx.src64 = p.src64;
-  rx.src16 = it != by_address_.end() ? it->second->src16 : protocol::kUnknownAddress16;
-  rx.options = 0x01;  // acknowledged
-  rx.payload = p.payload.data();
-  rx.payload_len = p.payload.size();
-  uint8_t frame[protocol::kMaxFrameData];
-  size_t n = 0;
-  if (protocol::BuildReceivePacket(rx, frame, sizeof frame, &n) != protocol::Status::kOk) return;
-  AppendFrame(options_.serial_mode, frame, n, &serial_out_);
+  const uint16_t src16 = it != by_address_.end() ? it->second->src16 : protocol::kUnknownAddress16;
+  const protocol::ReceivePacket rx{p.src64, src16, 0x01 /* acknowledged */, p.payload.data(), p.payload.size()};
+  uint8_t wire[protocol::kMaxWireFrame];
+  const size_t n = protocol::EncodeReceivePacket(options_.serial_mode, rx, wire, sizeof wire);
+  if (n == 0) return;
+  serial_out_.insert(serial_out_.end(), wire, wire + n);
   ++counters_.frames_to_gateway;
   protocol::ReadingsHeader header;
   protocol::SensorRecord records[8];

@@ -23,23 +23,36 @@ Commands:
   run        virtual sensor boards (real firmware) and XBee network feeding a gateway through a pty
 )";
 
-const char* kCampaignHelp = R"(linerwatch-sim campaign: write a synthetic campaign bundle.
+using lw::core::NumberRange;
+using lw::core::Option;
 
-Usage: linerwatch-sim campaign --out DIR [options]
+const lw::core::OptionTable& CampaignTable() {
+  static const lw::core::OptionTable table{
+      {
+          Option::Text("out", "DIR", "bundle folder to create (must not exist or be empty)").Required(),
+          Option::Text("truth", "FILE", "also write the truth (effects, faults, daily true thickness) as JSON"),
+          Option::Unsigned("seed", "N", "random seed (default 1); the same seed gives the same bundle"),
+          Option::Number("days", "N", NumberRange::Any(), "campaign length in days (default 95)"),
+          Option::Text("preset", "NAME", "reference (default) or paper (Ou & Chen 2023: hardening + softer core)"),
+          Option::Text("effect", "NAME[:k=v,..]",
+                       "add a physical effect DEM leaves out (repeatable); names and\n"
+                       "parameters in docs/sim.md, e.g. --effect feed_segregation:amplitude=0.2,theta_deg=60")
+              .Repeatable(),
+          Option::Text("fault", "S:KIND:DAY[:SIZE]", "sensor fault (repeatable): dropout, flicker, crack, stuck, dead").Repeatable(),
+          Option::Number("scan-day", "D", NumberRange::Any(), "day of the laser scan (default: last day); --no-scan to omit it"),
+          Option::Switch("no-scan", "no laser scan"),
+          Option::Switch("no-operations", "omit operations.csv"),
+      },
+      "", "", /*other_config_keys=*/true};
+  return table;
+}
 
-  --out DIR              bundle folder to create (must not exist or be empty)
-  --truth FILE           also write the truth (effects, faults, daily true thickness) as JSON
-  --seed N               random seed (default 1); the same seed gives the same bundle
-  --days N               campaign length in days (default 95)
-  --preset NAME          reference (default) or paper (Ou & Chen 2023: hardening + softer core)
-  --effect NAME[:k=v,..] add a physical effect DEM leaves out (repeatable); names and
-                         parameters in docs/sim.md, e.g. --effect feed_segregation:amplitude=0.2,theta_deg=60
-  --fault S:KIND:DAY[:SIZE]  sensor fault (repeatable): dropout, flicker, crack, stuck, dead
-  --scan-day D           day of the laser scan (default: last day); --no-scan to omit it
-  --no-operations        omit operations.csv
-  --config FILE          JSON with any campaign key (docs/sim.md) and the options above
-  --help                 this text
-)";
+std::string CampaignHelp() {
+  return "linerwatch-sim campaign: write a synthetic campaign bundle.\n\n"
+         "Usage: linerwatch-sim campaign " + CampaignTable().Synopsis(31, 100) +
+         "\n\n" + CampaignTable().Help(25) +
+         "A --config file may also hold any campaign key of docs/sim.md; \"effect\" and \"fault\" take lists.\n";
+}
 
 int Fail(const std::string& why) {
   std::fprintf(stderr, "linerwatch-sim: %s\n", why.c_str());
@@ -48,59 +61,23 @@ int Fail(const std::string& why) {
 
 int Campaign(const std::vector<std::string>& args) {
   using namespace lw::sim;
-  nlohmann::json config = nlohmann::json::object();
-  std::string out, truth, preset = "reference";
-  uint64_t seed = 1;
-  std::vector<EffectSpec> effects;
-  std::vector<FaultSpec> faults;
-  std::map<std::string, std::string> flags;
   try {
-    for (size_t i = 0; i < args.size(); ++i) {
-      const std::string& a = args[i];
-      if (a == "--help" || a == "-h") {
-        std::cout << kCampaignHelp;
-        return 0;
-      }
-      if (a == "--no-scan") {
-        config["write_scan"] = false;
-        continue;
-      }
-      if (a == "--no-operations") {
-        config["write_operations"] = false;
-        continue;
-      }
-      if (a.rfind("--", 0) != 0) return Fail("campaign: unexpected argument '" + a + "'");
-      if (i + 1 >= args.size()) return Fail("campaign: " + a + " needs a value");
-      const std::string v = args[++i];
-      if (a == "--config") {
-        std::ifstream in(v);
-        if (!in) return Fail("campaign: --config: cannot read '" + v + "'");
-        nlohmann::json j;
-        try {
-          j = nlohmann::json::parse(in);
-        } catch (const std::exception& e) {
-          return Fail("campaign: --config '" + v + "' is not valid JSON: " + e.what());
-        }
-        for (const auto& [k, val] : j.items()) {
-          if (k == "out") out = val.get<std::string>();
-          else if (k == "truth") truth = val.get<std::string>();
-          else if (k == "seed") seed = lw::core::ParseInteger<uint64_t>("seed", val.is_number() ? val.dump() : val.get<std::string>());
-          else if (k == "preset") preset = val.get<std::string>();
-          else if (k == "effect") for (const auto& e : val) effects.push_back(ParseEffect(e.get<std::string>()));
-          else if (k == "fault") for (const auto& f : val) faults.push_back(ParseFault(f.get<std::string>()));
-          else config[k] = val;
-        }
-      } else if (a == "--out") out = v;
-      else if (a == "--truth") truth = v;
-      else if (a == "--seed") seed = lw::core::ParseInteger<uint64_t>("seed", v);
-      else if (a == "--days") config["days"] = lw::core::ParseNumber("days", v);
-      else if (a == "--preset") preset = v;
-      else if (a == "--effect") effects.push_back(ParseEffect(v));
-      else if (a == "--fault") faults.push_back(ParseFault(v));
-      else if (a == "--scan-day") config["scan_day"] = lw::core::ParseNumber("scan-day", v);
-      else return Fail("campaign: unknown option " + a + " (see --help)");
+    const lw::core::ParsedOptions p = lw::core::ParseOptions(CampaignTable(), args);
+    if (p.help()) {
+      std::cout << CampaignHelp();
+      return 0;
     }
-    if (out.empty()) return Fail("campaign: --out DIR is required");
+    nlohmann::json config = p.other_config();
+    const std::string out = p.Text("out"), truth = p.Text("truth"), preset = p.Text("preset", "reference");
+    const uint64_t seed = p.Integer<uint64_t>("seed", 1);
+    if (p.Has("days")) config["days"] = p.Number("days", 0);
+    if (p.Has("scan-day")) config["scan_day"] = p.Number("scan-day", 0);
+    if (p.Switch("no-scan")) config["write_scan"] = false;
+    if (p.Switch("no-operations")) config["write_operations"] = false;
+    std::vector<EffectSpec> effects;
+    std::vector<FaultSpec> faults;
+    for (const std::string& e : p.Texts("effect")) effects.push_back(ParseEffect(e));
+    for (const std::string& f : p.Texts("fault")) faults.push_back(ParseFault(f));
     CampaignSpec spec = CampaignSpec::FromJson(config);
     ApplyPreset(preset, &spec);
     spec.effects.insert(spec.effects.end(), effects.begin(), effects.end());

@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <stdexcept>
@@ -38,39 +39,45 @@ namespace {
 namespace fs = std::filesystem;
 using WallClock = std::chrono::steady_clock;
 
-const char* kRunHelp = R"(linerwatch-sim run: a virtual site through the real firmware, into the real gateway.
+using core::NumberRange;
+using core::Option;
 
-Usage: linerwatch-sim run --crusher-dir DIR --serial-out PATH [options]
+const core::OptionTable& RunTable() {
+  static const core::OptionTable table{{
+      Option::Text("crusher-dir", "DIR", "folder of crusher folders (crusher.json + wear_map.vtk), or one crusher folder").Required(),
+      Option::Text("crusher", "ID", "which sub-folder of DIR (needed when it holds several)"),
+      Option::Text("serial-out", "PATH", "symlink to create to the coordinator's pty (replaced if it is a symlink)").Required(),
+      Option::Number("days", "N", NumberRange{0, 3650, true, false}, "campaign length in virtual days (default: the campaign's, else 95)"),
+      Option::Number("speed", "X", NumberRange{0, std::numeric_limits<double>::infinity(), false, true},
+                     "virtual seconds per wall second (default 400000: 95 days in ~20 s;\n0: as fast as the gateway acks)"),
+      Option::Whole("api-mode", "1|2", 1, 2, "coordinator API mode, must match the gateway's (default 1)"),
+      Option::Text("clock-out", "PATH", "keep the virtual time (Unix ms) in PATH for the gateway's --clock-file"),
+      Option::Number("loss", "P", NumberRange{0, 1, false, true}, "probability that a radio transmission attempt is lost (default 0)"),
+      Option::Number("dup", "P", NumberRange{0, 1, false, true}, "probability that a delivered packet arrives twice (default 0)"),
+      Option::Number("latency-ms", "MS", NumberRange{0, 60000, false, false}, "mean one-way radio latency in virtual ms (default 50)"),
+      Option::Unsigned("seed", "N", "seed of the network (default 1); the same seed gives the same run"),
+      Option::Number("ack-wait", "S", NumberRange{0, 60, true, false},
+                     "wall seconds to wait for the gateway's acks before virtual time moves\non (default 2)"),
+      Option::Number("drain-days", "N", NumberRange{0, 30, false, false},
+                     "after the campaign, keep boards with unacked records running up to N\nvirtual days (default 1)"),
+      Option::Text("ledger", "FILE", "CSV sensor_id,seq,time,thickness_mm of every reading the sensors produced"),
+      Option::Text("bundle-out", "DIR",
+                   "campaign bundle of the run (crusher.json, wear_map.vtk, readings.csv,\n"
+                   "operations.csv) for `linerwatch diagnose`; DIR must not exist or be empty"),
+      Option::Switch("quiet", "no progress lines"),
+  }};
+  return table;
+}
 
-One virtual sensor board per sensor of the crusher runs the real firmware on the host HAL; its
+std::string RunHelp() {
+  return "linerwatch-sim run: a virtual site through the real firmware, into the real gateway.\n\n"
+         "Usage: linerwatch-sim run " + RunTable().Synopsis(26, 100) + "\n\n" + R"(One virtual sensor board per sensor of the crusher runs the real firmware on the host HAL; its
 wear ladder breaks as the truth says (the campaign generator's truth when the crusher folder was
 made by `linerwatch-sim campaign`, else wear proportional to the map intensity). The boards talk
 over a virtual XBee network to a coordinator whose serial side is a pty: PATH becomes a symlink
 to it; start `linerwatch-gateway --serial PATH --api-mode M --clock-file CLOCK` on it.
-
-  --crusher-dir DIR      folder of crusher folders (crusher.json + wear_map.vtk), or one crusher folder
-  --crusher ID           which sub-folder of DIR (needed when it holds several)
-  --serial-out PATH      symlink to create to the coordinator's pty (replaced if it is a symlink)
-  --days N               campaign length in virtual days (default: the campaign's, else 95)
-  --speed X              virtual seconds per wall second (default 400000: 95 days in ~20 s;
-                         0: as fast as the gateway acks)
-  --api-mode 1|2         coordinator API mode, must match the gateway's (default 1)
-  --clock-out PATH       keep the virtual time (Unix ms) in PATH for the gateway's --clock-file
-  --loss P               probability that a radio transmission attempt is lost (default 0)
-  --dup P                probability that a delivered packet arrives twice (default 0)
-  --latency-ms MS        mean one-way radio latency in virtual ms (default 50)
-  --seed N               seed of the network (default 1); the same seed gives the same run
-  --ack-wait S           wall seconds to wait for the gateway's acks before virtual time moves
-                         on (default 2)
-  --drain-days N         after the campaign, keep boards with unacked records running up to N
-                         virtual days (default 1)
-  --ledger FILE          CSV sensor_id,seq,time,thickness_mm of every reading the sensors produced
-  --bundle-out DIR       campaign bundle of the run (crusher.json, wear_map.vtk, readings.csv,
-                         operations.csv) for `linerwatch diagnose`; DIR must not exist or be empty
-  --quiet                no progress lines
-  --config FILE          JSON object with any of these keys (flags override it)
-  --help                 this text
-)";
+)" + "\n" + RunTable().Help(25);
+}
 
 volatile std::sig_atomic_t g_stop = 0;
 void OnSignal(int) { g_stop = 1; }
@@ -89,53 +96,26 @@ struct RunOptions {
 
 using core::UsageError;
 
-double Number(const std::string& name, const std::string& v) { return core::ParseNumber(name, v); }
-
-void Assign(RunOptions* o, std::string name, const std::string& v) {
-  std::replace(name.begin(), name.end(), '_', '-');
-  const auto prob = [&](double x) {
-    if (!(x >= 0 && x < 1)) throw UsageError("--" + name + ": must be in [0, 1), got " + v);
-    return x;
-  };
-  if (name == "crusher-dir") o->crusher_dir = v;
-  else if (name == "crusher") o->crusher = v;
-  else if (name == "serial-out") o->serial_out = v;
-  else if (name == "clock-out") o->clock_out = v;
-  else if (name == "ledger") o->ledger = v;
-  else if (name == "bundle-out") o->bundle_out = v;
-  else if (name == "days") {
-    o->days = Number(name, v);
-    if (!(o->days > 0 && o->days <= 3650)) throw UsageError("--days: must be in (0, 3650], got " + v);
-  } else if (name == "speed") {
-    o->speed = Number(name, v);
-    if (o->speed < 0) throw UsageError("--speed: must be 0 or more, got " + v);
-  } else if (name == "api-mode") {
-    if (v != "1" && v != "2") throw UsageError("--api-mode: must be 1 or 2, got " + v);
-    o->api_mode = v == "1" ? 1 : 2;
-  } else if (name == "loss") o->loss = prob(Number(name, v));
-  else if (name == "dup") o->dup = prob(Number(name, v));
-  else if (name == "latency-ms") {
-    o->latency_ms = Number(name, v);
-    if (!(o->latency_ms >= 0 && o->latency_ms <= 60000)) throw UsageError("--latency-ms: must be 0..60000, got " + v);
-  } else if (name == "seed") {
-    o->seed = core::ParseInteger<uint64_t>(name, v);
-  } else if (name == "ack-wait") {
-    o->ack_wait_s = Number(name, v);
-    if (!(o->ack_wait_s > 0 && o->ack_wait_s <= 60)) throw UsageError("--ack-wait: must be in (0, 60], got " + v);
-  } else if (name == "drain-days") {
-    o->drain_days = Number(name, v);
-    if (!(o->drain_days >= 0 && o->drain_days <= 30)) throw UsageError("--drain-days: must be 0..30, got " + v);
-  } else if (name == "quiet") o->quiet = v == "true" || v == "1";
-  else throw UsageError("unknown option --" + name + " (see --help)");
-}
-
 /// Returns false for --help.
 bool Parse(const std::vector<std::string>& args, RunOptions* o) {
-  if (!core::ParseCommandLine(args, {"quiet"}, [o](const std::string& name, const std::string& value) { Assign(o, name, value); })) {
-    return false;
-  }
-  if (o->crusher_dir.empty()) throw UsageError("--crusher-dir DIR is required");
-  if (o->serial_out.empty()) throw UsageError("--serial-out PATH is required");
+  const core::ParsedOptions p = core::ParseOptions(RunTable(), args);
+  if (p.help()) return false;
+  o->crusher_dir = p.Text("crusher-dir");
+  o->crusher = p.Text("crusher");
+  o->serial_out = p.Text("serial-out");
+  o->clock_out = p.Text("clock-out");
+  o->ledger = p.Text("ledger");
+  o->bundle_out = p.Text("bundle-out");
+  o->days = p.Number("days", o->days);
+  o->speed = p.Number("speed", o->speed);
+  o->api_mode = p.Integer<int>("api-mode", o->api_mode);
+  o->loss = p.Number("loss", o->loss);
+  o->dup = p.Number("dup", o->dup);
+  o->latency_ms = p.Number("latency-ms", o->latency_ms);
+  o->seed = p.Integer<uint64_t>("seed", o->seed);
+  o->ack_wait_s = p.Number("ack-wait", o->ack_wait_s);
+  o->drain_days = p.Number("drain-days", o->drain_days);
+  o->quiet = p.Switch("quiet");
   return true;
 }
 
@@ -445,7 +425,7 @@ int RunCommand(const std::vector<std::string>& args) {
   CrusherFolder folder;
   try {
     if (!Parse(args, &o)) {
-      std::cout << kRunHelp;
+      std::cout << RunHelp();
       return 0;
     }
     folder = LoadCrusherFolder(FindCrusherFolder(o));

@@ -147,15 +147,10 @@ size_t HostRadio::DoWrite(const uint8_t* data, size_t len) {
 }
 
 void HostRadio::Inject(const uint8_t* payload, size_t len) {
-  protocol::ReceivePacket rx;
-  rx.src64 = protocol::kCoordinatorAddress64;
-  rx.src16 = 0x0000;
-  rx.options = 0x01;
-  rx.payload = payload;
-  rx.payload_len = len;
-  uint8_t frame[protocol::kMaxFrameData];
-  size_t n = 0;
-  if (protocol::BuildReceivePacket(rx, frame, sizeof frame, &n) == protocol::Status::kOk) QueueFrame(frame, n);
+  const protocol::ReceivePacket rx{protocol::kCoordinatorAddress64, 0x0000, 0x01, payload, len};
+  uint8_t wire[protocol::kMaxWireFrame];
+  const size_t n = protocol::EncodeReceivePacket(mode_, rx, wire, sizeof wire);
+  to_mcu_.insert(to_mcu_.end(), wire, wire + n);
 }
 
 void HostRadio::QueueFrame(const uint8_t* frame_data, size_t len) {

@@ -160,6 +160,11 @@ Status BuildTransmitRequest(const TransmitRequest& req, uint8_t* out, size_t out
 /// length, or 0 when the payload is too large or `wire_cap` too small.
 size_t EncodeTransmitRequest(ApiMode mode, const TransmitRequest& req, uint8_t* wire, size_t wire_cap);
 
+/// BuildReceivePacket then EncodeFrame: `rx` as a complete wire frame in `mode`, what a coordinator
+/// writes to its host for a received transmission. Returns the wire length, or 0 when the payload
+/// is too large or `wire_cap` too small.
+size_t EncodeReceivePacket(ApiMode mode, const ReceivePacket& rx, uint8_t* wire, size_t wire_cap);
+
 /// The frame id after `id`: 1..255 cycling (0 means "no Transmit Status wanted", so it is skipped).
 constexpr uint8_t NextFrameId(uint8_t id) { return id == 0xFF ? uint8_t{1} : static_cast<uint8_t>(id + 1); }
 Status BuildTransmitStatus(const TransmitStatus& st, uint8_t* out, size_t out_cap, size_t* written);

@@ -34,12 +34,6 @@ namespace {
 
 constexpr uint64_t kSensorRadio = 0x0013A20000001001ull;
 
-void WriteFrame(int fd, const uint8_t* frame, size_t len) {
-  uint8_t wire[kMaxWireFrame];
-  const size_t n = EncodeFrame(ApiMode::kEscaped, frame, len, wire, sizeof wire);
-  CHECK(::write(fd, wire, n) == static_cast<ssize_t>(n));
-}
-
 // Carries the RF payload of every 0x10 read from `from` to `to` as a 0x90 from `src64`; returns
 // how many frames it carried.
 int Relay(int from, FrameDecoder& dec, int to, uint64_t src64) {
@@ -52,15 +46,10 @@ int Relay(int from, FrameDecoder& dec, int to, uint64_t src64) {
       if (dec.Feed(buf[i]) != DecodeEvent::kFrame) continue;
       TransmitRequest req;
       if (ParseTransmitRequest(dec.frame_data(), dec.frame_length(), &req) != Status::kOk) continue;
-      ReceivePacket rx;
-      rx.src64 = src64;
-      rx.src16 = 0x1234;
-      rx.options = 0x01;
-      rx.payload = req.payload;
-      rx.payload_len = req.payload_len;
-      uint8_t frame[kMaxFrameData];
-      size_t flen = 0;
-      if (BuildReceivePacket(rx, frame, sizeof frame, &flen) == Status::kOk) WriteFrame(to, frame, flen);
+      const ReceivePacket rx{src64, 0x1234, 0x01, req.payload, req.payload_len};
+      uint8_t wire[kMaxWireFrame];
+      const size_t wire_len = EncodeReceivePacket(ApiMode::kEscaped, rx, wire, sizeof wire);
+      if (wire_len > 0) CHECK(::write(to, wire, wire_len) == static_cast<ssize_t>(wire_len));
       ++carried;
     }
   }

@@ -111,15 +111,11 @@ std::vector<Received> Listen(Qemu& q, FrameDecoder& dec, double seconds, bool ac
         a.seqs[a.count++] = recs[k].seq;
       }
       if (!ack) continue;
-      uint8_t payload[kMaxRfPayload], frame[kMaxFrameData], wire[kMaxWireFrame];
-      size_t plen = 0, flen = 0;
+      uint8_t payload[kMaxRfPayload], wire[kMaxWireFrame];
+      size_t plen = 0;
       EncodeAck(a, payload, sizeof payload, &plen);
-      ReceivePacket rx;
-      rx.src64 = kCoordinatorAddress64;
-      rx.payload = payload;
-      rx.payload_len = plen;
-      BuildReceivePacket(rx, frame, sizeof frame, &flen);
-      const size_t wlen = EncodeFrame(ApiMode::kEscaped, frame, flen, wire, sizeof wire);
+      const ReceivePacket rx{kCoordinatorAddress64, 0, 0, payload, plen};
+      const size_t wlen = EncodeReceivePacket(ApiMode::kEscaped, rx, wire, sizeof wire);
       CHECK(::write(q.radio(), wire, wlen) == static_cast<ssize_t>(wlen));
     }
   }

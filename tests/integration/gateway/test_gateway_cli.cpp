@@ -1,5 +1,6 @@
 // The linerwatch-gateway program's command-line contract (docs/gateway.md): --help, a non-zero exit
 // with one line naming what was wrong, and no spool file left behind on bad input.
+#include <algorithm>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -66,13 +67,17 @@ TEST(GatewayCommandLine, BadInputExitsNonZeroWithOneLineAndNoSpool) {
       {{"--serial", dir.File("no-such-tty")}, "does not exist"},
       {{"--config", dir.File("missing.json")}, "cannot be read"},
       {{"--frobnicate", "1"}, "unknown option --frobnicate"},
+      {{"--window", "2", "--window", "3"}, "--window is given twice ('2' and '3')"},
   };
   for (const auto& [change, expected] : cases) {
     std::vector<std::string> args = Valid();
     if (change.size() == 2 && change[0] == "--serial" && change[1] == "/dev/null") {
       args = {"--serial", "/dev/null", "--site", "s", "--crusher", "c", "--spool", dir.File("spool.db")};
     } else {
-      args.insert(args.end(), change.begin(), change.end());
+      // The changed flag replaces its valid value (a flag given twice is refused on its own).
+      const auto it = std::find(args.begin(), args.end(), change[0]);
+      if (change.size() == 2 && it != args.end()) *(it + 1) = change[1];
+      else args.insert(args.end(), change.begin(), change.end());
     }
     const Result r = Run(dir, args);
     CHECK_TEXT(r.exit_code != 0, expected.c_str());

@@ -110,17 +110,9 @@ class SensorSite {
     if (pr::EncodeReadings(h, recs, n, payload, sizeof payload, &payload_len) != pr::PayloadStatus::kOk) {
       throw std::runtime_error("EncodeReadings failed");
     }
-    pr::ReceivePacket rx;
-    rx.src64 = s.address;
-    rx.src16 = static_cast<uint16_t>(0x2000 + s.id);
-    rx.options = 0x01;
-    rx.payload = payload;
-    rx.payload_len = payload_len;
-    uint8_t frame[pr::kMaxFrameData];
-    size_t frame_len = 0;
-    pr::BuildReceivePacket(rx, frame, sizeof frame, &frame_len);
+    const pr::ReceivePacket rx{s.address, static_cast<uint16_t>(0x2000 + s.id), 0x01, payload, payload_len};
     uint8_t wire[pr::kMaxWireFrame];
-    const size_t wire_len = pr::EncodeFrame(pr::ApiMode::kEscaped, frame, frame_len, wire, sizeof wire);
+    const size_t wire_len = pr::EncodeReceivePacket(pr::ApiMode::kEscaped, rx, wire, sizeof wire);
     const ssize_t written = write(pty_.master(), wire, wire_len);
     (void)written;  // a full pty buffer loses the frame: the sensor retransmits, as over radio
     s.awaiting = true;

@@ -11,6 +11,7 @@
 #include "unit/cli/run_cli.hpp"
 #include "core/bundle.hpp"
 #include "core/reconstruction.hpp"
+#include "support/temp_directory.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
 
 // CppUTest last: its leak-detector macros redefine new.
@@ -35,9 +36,8 @@ std::string Slurp(const fs::path& p) {
 }  // namespace
 
 TEST_GROUP(Linerwatch) {
-  fs::path dir;
-  void setup() override { dir = lw::test::MakeTempDir("cli"); }
-  void teardown() override { fs::remove_all(dir); }
+  lw::test::TempDirectory tmp{"lw-cli"};
+  const fs::path& dir = tmp.path();
   fs::path Bundle(const lw::test::SyntheticSpec& spec = {}) {
     const fs::path b = dir / "bundle";
     lw::test::WriteSyntheticBundle(b, spec);

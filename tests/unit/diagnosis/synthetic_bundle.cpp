@@ -88,15 +88,6 @@ struct Truth {
 
 }  // namespace
 
-std::filesystem::path MakeTempDir(const std::string& tag) {
-  static int counter = 0;
-  const auto stamp = std::chrono::steady_clock::now().time_since_epoch().count();
-  std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                              ("lw_" + tag + "_" + std::to_string(stamp) + "_" + std::to_string(counter++));
-  std::filesystem::create_directories(dir);
-  return dir;
-}
-
 void WriteSyntheticBundle(const std::filesystem::path& dir, const SyntheticSpec& s) {
   std::filesystem::create_directories(dir);
   std::mt19937 rng(s.seed);

@@ -43,7 +43,4 @@ struct SyntheticSpec {
 /// Writes crusher.json, wear_map.vtk, readings.csv, optional operations.csv and scans/ into `dir`.
 void WriteSyntheticBundle(const std::filesystem::path& dir, const SyntheticSpec& spec);
 
-/// A fresh, empty temporary directory (removed by the caller).
-std::filesystem::path MakeTempDir(const std::string& tag);
-
 }  // namespace lw::test

@@ -8,6 +8,7 @@
 
 #include "core/bundle.hpp"
 #include "diagnosis/diagnose.hpp"
+#include "support/temp_directory.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
 
 // CppUTest last: its leak-detector macros redefine new.
@@ -16,14 +17,14 @@
 namespace {
 
 lw::diagnosis::DiagnosisResult Run(const lw::test::SyntheticSpec& spec, bool pairs = false) {
-  const auto dir = lw::test::MakeTempDir("diag");
+  const lw::test::TempDirectory tmp("lw-diag");
+  const auto& dir = tmp.path();
   lw::test::WriteSyntheticBundle(dir, spec);
   const lw::core::Bundle bundle = lw::core::LoadBundle(dir);
   lw::diagnosis::DiagnoseOptions options;
   options.try_pairs = pairs;
   options.predict_at = lw::core::AddDays(bundle.crusher.installed_at, 100);
   auto result = lw::diagnosis::Diagnose(bundle, options);
-  std::filesystem::remove_all(dir);
   return result;
 }
 

@@ -10,6 +10,7 @@
 
 #include "core/bundle.hpp"
 #include "diagnosis/diagnose.hpp"
+#include "support/temp_directory.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
 
 // CppUTest last: its leak-detector macros redefine new.
@@ -24,7 +25,8 @@ struct Run {
 };
 
 Run Diagnose(const lw::test::SyntheticSpec& spec) {
-  const auto dir = lw::test::MakeTempDir("report");
+  const lw::test::TempDirectory tmp("lw-report");
+  const auto& dir = tmp.path();
   lw::test::WriteSyntheticBundle(dir, spec);
   Run run;
   run.bundle = lw::core::LoadBundle(dir);
@@ -38,7 +40,6 @@ Run Diagnose(const lw::test::SyntheticSpec& spec) {
   std::ostringstream text;
   text << in.rdbuf();
   run.html = text.str();
-  std::filesystem::remove_all(dir);
   return run;
 }
 

@@ -9,6 +9,7 @@
 
 #include "core/bundle.hpp"
 #include "diagnosis/diagnose.hpp"
+#include "support/temp_directory.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
 
 // CppUTest last: its leak-detector macros redefine new.
@@ -17,10 +18,10 @@
 namespace {
 
 lw::diagnosis::DiagnosisResult Run(const lw::test::SyntheticSpec& spec) {
-  const auto dir = lw::test::MakeTempDir("diag_map");
+  const lw::test::TempDirectory tmp("lw-diag-map");
+  const auto& dir = tmp.path();
   lw::test::WriteSyntheticBundle(dir, spec);
   const lw::core::Bundle bundle = lw::core::LoadBundle(dir);
-  std::filesystem::remove_all(dir);
   lw::diagnosis::DiagnoseOptions options;
   options.try_pairs = false;
   return lw::diagnosis::Diagnose(bundle, options);
@@ -78,10 +79,10 @@ TEST(DiagnoseMaps, TruncatedMapIsNotedAndGivesNoFalseFinding) {
   spec.map_format = "liggghts";
   spec.map_printf_f = true;  // "%f": 6 decimals
   spec.map_scale = 4e-6;     // so each face's wear keeps only one or two significant digits
-  const auto dir = lw::test::MakeTempDir("diag_trunc");
+  const lw::test::TempDirectory tmp("lw-diag-trunc");
+  const auto& dir = tmp.path();
   lw::test::WriteSyntheticBundle(dir, spec);
   const lw::core::Bundle bundle = lw::core::LoadBundle(dir);
-  std::filesystem::remove_all(dir);
   CHECK_TRUE(bundle.map_validation.looks_truncated);
   const auto r = lw::diagnosis::Diagnose(bundle);
   CHECK_TRUE(HasNote(r, "truncated"));
@@ -91,7 +92,8 @@ TEST(DiagnoseMaps, TruncatedMapIsNotedAndGivesNoFalseFinding) {
 TEST(DiagnoseMaps, RealLiggghtsOutputAsTheMapDoesNotCrash) {
   // The two-triangle plate LIGGGHTS wrote (tests/data): not a liner, one face with zero stress and wear
   // far from the other; the diagnosis must run, report the sensors and name no physics.
-  const auto dir = lw::test::MakeTempDir("diag_liggghts");
+  const lw::test::TempDirectory tmp("lw-diag-liggghts");
+  const auto& dir = tmp.path();
   std::filesystem::copy_file(std::filesystem::path(LW_SAMPLES_DIR) / "liggghts_plate_wear.vtk", dir / "wear_map.vtk");
   {
     std::ofstream c(dir / "crusher.json");
@@ -110,7 +112,6 @@ TEST(DiagnoseMaps, RealLiggghtsOutputAsTheMapDoesNotCrash) {
     }
   }
   const lw::core::Bundle bundle = lw::core::LoadBundle(dir);
-  std::filesystem::remove_all(dir);
   lw::diagnosis::DiagnoseOptions options;
   options.predict_at = lw::core::AddDays(bundle.crusher.installed_at, 60);
   const auto r = lw::diagnosis::Diagnose(bundle, options);

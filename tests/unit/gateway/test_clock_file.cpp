@@ -1,12 +1,11 @@
 // The simulation clock (--clock-file): the file's virtual time stamps readings; timers keep the
-// loop's time; a bad file falls back to the last good value.
+// loop's time. Reading the file and its fallback: core::Clock (tests/unit/core/test_clock.cpp).
 #include <cstdio>
 #include <fstream>
 #include <memory>
 
 #include <nlohmann/json.hpp>
 
-#include "gateway/clock_file.hpp"
 #include "gateway/config.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/spool.hpp"
@@ -19,33 +18,9 @@ namespace gw = lw::gateway;
 namespace pr = lw::protocol;
 using nlohmann::json;
 
-namespace {
-void WriteClock(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  std::ofstream(tmp) << text;
-  std::rename(tmp.c_str(), path.c_str());
-}
-}  // namespace
-
 TEST_GROUP(ClockFile) {
   lw::test::TempDirectory dir;
 };
-
-TEST(ClockFile, ReadsUnixMsAndKeepsTheLastGoodValue) {
-  gw::ClockFile clock(dir.File("clock"));
-  LONGS_EQUAL(77, clock.Now(77));  // no file yet: the fallback
-  CHECK_FALSE(clock.ok());
-  WriteClock(dir.File("clock"), "1767571200123\n");
-  CHECK(clock.Now(77) == 1767571200123LL);
-  CHECK(clock.ok());
-  WriteClock(dir.File("clock"), "12x4");
-  CHECK(clock.Now(77) == 1767571200123LL);
-  CHECK_FALSE(clock.ok());
-  WriteClock(dir.File("clock"), "");
-  CHECK(clock.Now(77) == 1767571200123LL);
-  WriteClock(dir.File("clock"), "1767571300000");
-  CHECK(clock.Now(77) == 1767571300000LL);
-}
 
 TEST(ClockFile, OptionIsParsed) {
   gw::Config c;
@@ -57,8 +32,8 @@ TEST(ClockFile, OptionIsParsed) {
 
 TEST(ClockFile, StampClockTimesReadingsButNotTheSpoolBookkeeping) {
   gw::Spool spool(dir.File("spool.db"), 1000);
-  gw::test::FakePublisher publisher;
-  gw::test::FakeRadio radio{pr::ApiMode::kEscaped};
+  lw::test::FakePublisher publisher;
+  lw::test::FakeRadio radio{pr::ApiMode::kEscaped};
   gw::GatewayOptions o;
   o.site = "s1";
   o.crusher = "c1";

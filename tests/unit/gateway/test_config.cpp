@@ -144,7 +144,7 @@ TEST(Config, BadJsonFilesAreNamed) {
   const std::string e1 = ErrorOf({"linerwatch-gateway", "--config", file});
   CHECK(Contains(e1, file) && Contains(e1, "unknown key 'colour'"));
   std::ofstream(file) << R"({"baud": "fast"})";
-  CHECK(Contains(ErrorOf({"linerwatch-gateway", "--config", file}), "key 'baud': must be a number"));
+  CHECK(Contains(ErrorOf({"linerwatch-gateway", "--config", file}), "key 'baud': --baud 'fast' is not a whole number"));
   std::ofstream(file) << R"({"baud": )";
   CHECK(Contains(ErrorOf({"linerwatch-gateway", "--config", file}), "invalid JSON"));
   CHECK(Contains(ErrorOf({"linerwatch-gateway", "--config", dir.File("none.json")}), "cannot be read"));

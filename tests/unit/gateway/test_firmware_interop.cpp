@@ -69,7 +69,7 @@ TEST(FirmwareInterop, EveryWearStepOfTheRealFirmwareReachesTheSpoolAcrossAGatewa
   app.Init();
 
   gw::Spool spool(dir.File("spool.db"), 100'000);
-  gw::test::FakePublisher publisher;
+  lw::test::FakePublisher publisher;
   Coordinator coordinator(board.radio);
   gw::GatewayOptions options;
   options.site = "s1";
@@ -84,17 +84,9 @@ TEST(FirmwareInterop, EveryWearStepOfTheRealFirmwareReachesTheSpoolAcrossAGatewa
       ++coordinator.frames_lost;
       return;
     }
-    pr::ReceivePacket rx;
-    rx.src64 = src64;
-    rx.src16 = 0x4001;
-    rx.options = 0x01;
-    rx.payload = payload;
-    rx.payload_len = len;
-    uint8_t frame[pr::kMaxFrameData];
-    size_t frame_len = 0;
-    CHECK(pr::BuildReceivePacket(rx, frame, sizeof frame, &frame_len) == pr::Status::kOk);
     uint8_t wire[pr::kMaxWireFrame];
-    const size_t n = pr::EncodeFrame(pr::ApiMode::kEscaped, frame, frame_len, wire, sizeof wire);
+    const size_t n = pr::EncodeReceivePacket(pr::ApiMode::kEscaped, {src64, 0x4001, 0x01, payload, len}, wire, sizeof wire);
+    CHECK(n > 0);
     gateway.OnBytes(wire, n, static_cast<int64_t>(board.rtc.now()) * 1000);
   });
 

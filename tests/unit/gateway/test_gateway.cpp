@@ -40,8 +40,8 @@ std::vector<uint8_t> NodeIdFrame(uint64_t address, const char* node_identifier) 
 TEST_GROUP(Gateway) {
   lw::test::TempDirectory dir;
   std::unique_ptr<gw::Spool> spool;
-  gw::test::FakePublisher publisher;
-  gw::test::FakeRadio radio{kMode};
+  lw::test::FakePublisher publisher;
+  lw::test::FakeRadio radio{kMode};
   std::unique_ptr<gw::Gateway> gateway;
   std::vector<std::string> log;
   int64_t now = 1'000'000;
@@ -78,7 +78,7 @@ TEST_GROUP(Gateway) {
     Feed(gw::test::Wire(kMode, frame));
   }
   // The gateway replaced by one on the same spool whose coordinator runs API mode 1.
-  gw::Gateway& ModeOneGateway(gw::test::FakeRadio& radio1) {
+  gw::Gateway& ModeOneGateway(lw::test::FakeRadio& radio1) {
     gw::GatewayOptions o;
     o.site = "s1";
     o.crusher = "c1";
@@ -267,7 +267,10 @@ TEST(Gateway, GarbageAndMalformedFramesAreCountedNotFatal) {
   Feed(gw::test::Wire(kMode, {0x90, 0x01, 0x02}));                            // too short to parse
   Feed(gw::test::Wire(kMode, {0x42, 0x01}));                                  // unknown type
   std::vector<uint8_t> bad_payload = ReadingsFrame(kMode, kAddrB, 1001, {MakeRecord(1)});
-  Feed(gw::test::Wire(kMode, {0x90, 0, 0x13, 0xA2, 0, 0x40, 0xFF, 0xEE, 0x01, 0x12, 0x34, 0x01, 1, 0x01, 9, 9}));  // bad CRC
+  const uint8_t bad_crc[] = {1, 0x01, 9, 9};  // a readings payload whose CRC does not match
+  std::vector<uint8_t> wire(pr::kMaxWireFrame);
+  wire.resize(pr::EncodeReceivePacket(kMode, {0x0013A20040FFEE01ull, 0x1234, 0x01, bad_crc, sizeof bad_crc}, wire.data(), wire.size()));
+  Feed(wire);
   Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));                  // still works afterwards
   LONGS_EQUAL(1, gateway->spool_depth());
   const json stats = json::parse(gateway->StatsJson(now));
@@ -344,7 +347,7 @@ TEST(Gateway, StatsMessageKeepsItsBytes) {
 }
 
 TEST(Gateway, ApiModeOneIsDecodedAndAckedInModeOne) {
-  gw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
+  lw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
   gw::Gateway& g = ModeOneGateway(radio1);
   const auto bytes = ReadingsFrame(pr::ApiMode::kUnescaped, 0x0013A2004011137Dull, 0x137D11, {MakeRecord(0x7E7D1113)});
   g.OnBytes(bytes.data(), bytes.size(), now);
@@ -355,7 +358,7 @@ TEST(Gateway, ApiModeOneIsDecodedAndAckedInModeOne) {
 // cost the readings frames that follow it (before the fix only the last of them reached the
 // spool; the others were decoded, counted in frames_ok, and dropped).
 TEST(Gateway, ReadingsAfterATruncatedFrameInModeOneAreAllSpooledAndAcked) {
-  gw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
+  lw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
   gw::Gateway& g = ModeOneGateway(radio1);
   // A readings frame cut after its first 20 bytes: its declared length swallows the next two.
   auto cut = ReadingsFrame(pr::ApiMode::kUnescaped, kAddrA, 1001, {MakeRecord(1), MakeRecord(2), MakeRecord(3)});

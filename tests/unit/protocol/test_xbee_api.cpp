@@ -56,6 +56,25 @@ TEST(XbeeApi, DigiReceivePacketExampleParses) {
   MEMCMP_EQUAL("RxData", rx.payload, 6);
 }
 
+// The same Digi example built: 0x90 from 0013A20040522BAA / 0x7D84, options 0x01 (acknowledged),
+// RF data "RxData". Hand check: length 0x12 = 1 type + 8 + 2 + 1 options + 6 data; checksum
+// 0xFF - (sum of the 18 frame-data bytes & 0xFF) = 0x0D. In API mode 2 the 0x13 of the address and
+// the 0x7D of the 16-bit address are escaped (7D 33, 7D 5D).
+TEST(XbeeApi, DigiReceivePacketExampleEncodesByteExact) {
+  const char* text = "RxData";
+  const ReceivePacket rx{0x0013A20040522BAAull, 0x7D84, 0x01, reinterpret_cast<const uint8_t*>(text), 6};
+  uint8_t wire[kMaxWireFrame];
+  size_t n = EncodeReceivePacket(ApiMode::kUnescaped, rx, wire, sizeof wire);
+  CHECK(std::vector<uint8_t>(wire, wire + n) == Hex("7E 00 12 90 00 13 A2 00 40 52 2B AA 7D 84 01 52 78 44 61 74 61 0D"));
+  n = EncodeReceivePacket(ApiMode::kEscaped, rx, wire, sizeof wire);
+  CHECK(std::vector<uint8_t>(wire, wire + n) ==
+        Hex("7E 00 12 90 00 7D 33 A2 00 40 52 2B AA 7D 5D 84 01 52 78 44 61 74 61 0D"));
+  LONGS_EQUAL(0, EncodeReceivePacket(ApiMode::kUnescaped, rx, wire, 21));  // one byte short
+  uint8_t big[kMaxRfPayload + 1] = {};
+  const ReceivePacket too_big{1, 2, 0x01, big, sizeof big};
+  LONGS_EQUAL(0, EncodeReceivePacket(ApiMode::kUnescaped, too_big, wire, sizeof wire));
+}
+
 TEST(XbeeApi, DigiModemStatusExampleRoundTrips) {
   ModemStatus ms{0x06};
   uint8_t data[4];

@@ -6,6 +6,7 @@
 
 #include "core/bundle.hpp"
 #include "sim/campaign.hpp"
+#include "support/temp_directory.hpp"
 
 #include <CppUTest/TestHarness.h>
 
@@ -124,8 +125,8 @@ TEST(SimCampaign, FaultsShowInTheReadings) {
 }
 
 TEST(SimCampaign, BundleReadsBackAndIsWrittenAtomically) {
-  const auto dir = std::filesystem::temp_directory_path() / ("lw-sim-" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
+  const lw::test::TempDirectory tmp("lw-sim");
+  const auto dir = tmp.path() / "bundle";
   const auto c = GenerateCampaign(Small(), 4);
   c.WriteBundle(dir);
   const core::Bundle b = core::LoadBundle(dir);
@@ -136,7 +137,6 @@ TEST(SimCampaign, BundleReadsBackAndIsWrittenAtomically) {
   CHECK(b.scans[0].points.size() > 2000);
   CHECK(!b.operations.empty());
   CHECK_THROWS(std::runtime_error, c.WriteBundle(dir));  // never overwrites a bundle
-  std::filesystem::remove_all(dir);
 }
 
 TEST(SimCampaign, BadSpecsAreRefusedNamingTheField) {

@@ -16,6 +16,7 @@
 #include "sim/campaign.hpp"
 #include "sim/fleet.hpp"
 #include "sim/truth.hpp"
+#include "support/temp_directory.hpp"
 
 #include <CppUTest/TestHarness.h>
 
@@ -205,8 +206,8 @@ TEST(SimFleet, SensorAddressesAndIds) {
 
 TEST(SimFleet, MapTruthWearsInProportionToTheMapAndCrusherFoldersChooseTheirTruth) {
   const sim::Campaign c = sim::GenerateCampaign(SmallSpec(3), 4);
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("lw-sim-fleet-" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
+  const lw::test::TempDirectory tmp("lw-sim-fleet");
+  const std::filesystem::path& dir = tmp.path();
   c.WriteBundle(dir / "gen");
   const sim::CrusherFolder generated = sim::LoadCrusherFolder(dir / "gen");
   const auto* ct = dynamic_cast<const sim::CampaignTruth*>(generated.truth.get());
@@ -233,5 +234,4 @@ TEST(SimFleet, MapTruthWearsInProportionToTheMapAndCrusherFoldersChooseTheirTrut
     }
   }
   CHECK_THROWS(std::runtime_error, sim::LoadCrusherFolder(dir / "missing"));
-  std::filesystem::remove_all(dir);
 }
