@@ -184,15 +184,13 @@ TEST(Diagnose, JsonHasEveryContractKeyAndPrediction) {
 namespace {
 
 lw::diagnosis::DiagnosisResult RunWithOracle(const lw::test::SyntheticSpec& spec, const lw::diagnosis::OracleEffect& oracle) {
-  const auto dir = lw::test::MakeTempDir("diag");
-  lw::test::WriteSyntheticBundle(dir, spec);
-  const lw::core::Bundle bundle = lw::core::LoadBundle(dir);
+  const lw::test::TempDirectory tmp("lw-diag");
+  lw::test::WriteSyntheticBundle(tmp.path(), spec);
+  const lw::core::Bundle bundle = lw::core::LoadBundle(tmp.path());
   lw::diagnosis::DiagnoseOptions options;
   options.try_pairs = false;
   options.oracle = oracle;
-  auto result = lw::diagnosis::Diagnose(bundle, options);
-  std::filesystem::remove_all(dir);
-  return result;
+  return lw::diagnosis::Diagnose(bundle, options);
 }
 
 double HypothesisDeltaBic(const lw::diagnosis::DiagnosisResult& r, const std::string& model) {
