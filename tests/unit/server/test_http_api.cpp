@@ -33,8 +33,7 @@ struct Api {
   lw::test::TempDirectory dir{"lw-http"};
   std::unique_ptr<Registry> registry;
   Store write{dir.File("db.sqlite")};
-  Store read{dir.File("db.sqlite")};
-  std::mutex read_mutex;
+  LockedStore read{std::make_unique<Store>(dir.File("db.sqlite"))};
   std::unique_ptr<LiveState> live;
   std::unique_ptr<Ingestor> ingestor;
   std::unique_ptr<WearService> wear;
@@ -48,10 +47,10 @@ struct Api {
     std::vector<std::string> errors;
     registry = Registry::Load(Folder().crushers, &errors);
     live = std::make_unique<LiveState>(*registry);
-    live->Rebuild(read);
+    read.With([&](Store& s) { live->Rebuild(s); });
     ingestor = std::make_unique<Ingestor>(write, *registry, [] { return int64_t{4'000'000'000}; }, live.get());
     wear = std::make_unique<WearService>(*registry, *live);
-    diagnosis = std::make_unique<DiagnosisRunner>(*registry, read, read_mutex);
+    diagnosis = std::make_unique<DiagnosisRunner>(*registry, read);
     if (with_tokens) {
       tokens.Add({"reader", lw::core::Sha256Hex(kReadToken), true, false});
       tokens.Add({"writer", lw::core::Sha256Hex(kWriteToken), true, true});
@@ -59,7 +58,6 @@ struct Api {
     ApiContext ctx;
     ctx.registry = registry.get();
     ctx.read = &read;
-    ctx.read_mutex = &read_mutex;
     ctx.wear = wear.get();
     ctx.live = live.get();
     ctx.ingestor = ingestor.get();
