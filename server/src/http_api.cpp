@@ -107,6 +107,13 @@ struct HttpApi::Impl {
   std::atomic<bool> stopping{false};
 
   void Routes();
+  /// Before routing: the Host must be ours (DNS rebinding); a state-changing request must come
+  /// from our own origin with a JSON body (cross-site forms and text/plain posts: CSRF); then
+  /// bearer tokens on /api with the scope rest::RequiredScope names.
+  httplib::Server::HandlerResponse Admit(const httplib::Request& req, httplib::Response& res);
+  /// index.html at / and its bundle under /assets, nothing else from the folder (in a build tree
+  /// it also holds CMake's files); a page pointing at the API when there is no dashboard.
+  void RouteDashboard();
 };
 
 HttpApi::HttpApi(ApiContext context) : impl_(std::make_unique<Impl>(std::move(context))) { impl_->Routes(); }
@@ -158,63 +165,8 @@ void HttpApi::Impl::Routes() {
     Error(res, res.status, what);
   });
 
-  // Before routing: the Host must be ours (DNS rebinding); a state-changing request must come from
-  // our own origin with a JSON body (cross-site forms and text/plain posts: CSRF); then bearer
-  // tokens on /api: read scope for GET, write scope for everything else.
-  svr.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
-    const std::string host = req.get_header_value("Host");
-    if (req.has_header("Host") && !HostAllowed(host, ctx.allowed_hosts)) {
-      Error(res, 421, "Host '" + host + "' is not one this server answers to (see --allowed-hosts)");
-      return httplib::Server::HandlerResponse::Handled;
-    }
-    if (rest::Writes(req.method)) {
-      const std::string origin = req.get_header_value("Origin");
-      if (req.has_header("Origin") && strcasecmp(OriginHost(origin).c_str(), host.c_str()) != 0) {
-        Error(res, 403, "cross-origin request from '" + origin + "' refused");
-        return httplib::Server::HandlerResponse::Handled;
-      }
-      const std::string type = req.get_header_value("Content-Type");
-      if (type.rfind("application/json", 0) != 0) {
-        Error(res, 415, "a " + req.method + " needs Content-Type: application/json");
-        return httplib::Server::HandlerResponse::Handled;
-      }
-    }
-    const rest::Scope scope = rest::RequiredScope(req.method, req.path);
-    if (!ctx.tokens || !ctx.tokens->enabled() || scope == rest::Scope::kNone) return httplib::Server::HandlerResponse::Unhandled;
-    const auto token = ctx.tokens->Check(BearerOf(req));
-    if (!token) {
-      res.set_header("WWW-Authenticate", "Bearer");
-      Error(res, 401, "missing or unknown bearer token");
-      return httplib::Server::HandlerResponse::Handled;
-    }
-    if ((scope == rest::Scope::kWrite && !token->write) || (scope == rest::Scope::kRead && !token->read)) {
-      Error(res, 403, std::string("token '") + token->name + "' lacks the " + rest::ScopeName(scope) + " scope");
-      return httplib::Server::HandlerResponse::Handled;
-    }
-    return httplib::Server::HandlerResponse::Unhandled;
-  });
-
-  // The dashboard: index.html at / and its bundle under /assets, nothing else from the folder
-  // (in a build tree it also holds CMake's files).
-  if (!ctx.web_dir.empty() && std::filesystem::exists(ctx.web_dir / "index.html")) {
-    if (std::filesystem::is_directory(ctx.web_dir / "assets")) svr.set_mount_point("/assets", (ctx.web_dir / "assets").string());
-    const std::filesystem::path index = ctx.web_dir / "index.html";
-    svr.Get("/", [index](const httplib::Request&, httplib::Response& res) {
-      std::ifstream in(index, std::ios::binary);
-      std::stringstream ss;
-      ss << in.rdbuf();
-      if (!in) return Error(res, 503, "dashboard file " + index.string() + " is not readable");
-      res.set_header("Cache-Control", "no-cache");
-      res.set_content(ss.str(), "text/html; charset=utf-8");
-    });
-  } else {
-    svr.Get("/", [](const httplib::Request&, httplib::Response& res) {
-      res.set_content(
-          "<!doctype html><title>linerwatch</title><p>linerwatch-server: the dashboard is not built "
-          "(see docs/dashboard.md). API: <a href=\"/api/v1/openapi.json\">/api/v1/openapi.json</a></p>",
-          "text/html");
-    });
-  }
+  svr.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) { return Admit(req, res); });
+  RouteDashboard();
 
   // The API: every route of the one table (rest::Resources::Routes(), from which the OpenAPI
   // document is generated).
@@ -225,6 +177,61 @@ void HttpApi::Impl::Routes() {
     const std::string pattern = rest::PathPattern(route.path);
     if (route.method == rest::Method::kGet) svr.Get(pattern, handler);
     else svr.Post(pattern, handler);
+  }
+}
+
+httplib::Server::HandlerResponse HttpApi::Impl::Admit(const httplib::Request& req, httplib::Response& res) {
+  const std::string host = req.get_header_value("Host");
+  if (req.has_header("Host") && !HostAllowed(host, ctx.allowed_hosts)) {
+    Error(res, 421, "Host '" + host + "' is not one this server answers to (see --allowed-hosts)");
+    return httplib::Server::HandlerResponse::Handled;
+  }
+  if (rest::Writes(req.method)) {
+    const std::string origin = req.get_header_value("Origin");
+    if (req.has_header("Origin") && strcasecmp(OriginHost(origin).c_str(), host.c_str()) != 0) {
+      Error(res, 403, "cross-origin request from '" + origin + "' refused");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    const std::string type = req.get_header_value("Content-Type");
+    if (type.rfind("application/json", 0) != 0) {
+      Error(res, 415, "a " + req.method + " needs Content-Type: application/json");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+  }
+  const rest::Scope scope = rest::RequiredScope(req.method, req.path);
+  if (!ctx.tokens || !ctx.tokens->enabled() || scope == rest::Scope::kNone) return httplib::Server::HandlerResponse::Unhandled;
+  const auto token = ctx.tokens->Check(BearerOf(req));
+  if (!token) {
+    res.set_header("WWW-Authenticate", "Bearer");
+    Error(res, 401, "missing or unknown bearer token");
+    return httplib::Server::HandlerResponse::Handled;
+  }
+  if ((scope == rest::Scope::kWrite && !token->write) || (scope == rest::Scope::kRead && !token->read)) {
+    Error(res, 403, std::string("token '") + token->name + "' lacks the " + rest::ScopeName(scope) + " scope");
+    return httplib::Server::HandlerResponse::Handled;
+  }
+  return httplib::Server::HandlerResponse::Unhandled;
+}
+
+void HttpApi::Impl::RouteDashboard() {
+  if (!ctx.web_dir.empty() && std::filesystem::exists(ctx.web_dir / "index.html")) {
+    if (std::filesystem::is_directory(ctx.web_dir / "assets")) server.set_mount_point("/assets", (ctx.web_dir / "assets").string());
+    const std::filesystem::path index = ctx.web_dir / "index.html";
+    server.Get("/", [index](const httplib::Request&, httplib::Response& res) {
+      std::ifstream in(index, std::ios::binary);
+      std::stringstream ss;
+      ss << in.rdbuf();
+      if (!in) return Error(res, 503, "dashboard file " + index.string() + " is not readable");
+      res.set_header("Cache-Control", "no-cache");
+      res.set_content(ss.str(), "text/html; charset=utf-8");
+    });
+  } else {
+    server.Get("/", [](const httplib::Request&, httplib::Response& res) {
+      res.set_content(
+          "<!doctype html><title>linerwatch</title><p>linerwatch-server: the dashboard is not built "
+          "(see docs/dashboard.md). API: <a href=\"/api/v1/openapi.json\">/api/v1/openapi.json</a></p>",
+          "text/html");
+    });
   }
 }
 
