@@ -1,7 +1,7 @@
 // linerwatch-gateway end to end without I/O: arbitrary bytes from the coordinator's serial port
 // (first byte: API mode, odd = 1, even = 2) into gateway::Gateway with an in-memory spool, then the
 // server's side of the conversation: every published reading is validated by the server's
-// ValidateReading and acknowledged with the server's CommitAckJson until nothing is left.
+// ValidateReading and acknowledged with the server's commit ack (mqtt::EncodeCommitAck) until nothing is left.
 // Properties: every message the gateway publishes (reading, status, devices, stats) is JSON; a
 // reading it builds is never refused by the server as malformed or unidentifiable; each ack it
 // writes to the radio decodes with the firmware's protocol library; no spool error; once every
@@ -13,6 +13,8 @@
 #include "fuzz_fixture.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/spool.hpp"
+#include "mqtt/messages.hpp"
+#include "mqtt/topics.hpp"
 #include "server/ingest.hpp"
 #include "unit/gateway/gateway_test_support.hpp"
 
@@ -41,20 +43,19 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   size_t checked = 0;
   for (int round = 0; round < 100000; ++round) {
     gw.Pump(now_ms);
-    std::vector<gateway::OutMessage> sent;
+    std::vector<mqtt::OutMessage> sent;
     sent.swap(publisher.sent);
     size_t readings = 0;
-    for (const gateway::OutMessage& m : sent) {
+    for (const mqtt::OutMessage& m : sent) {
       Check(nlohmann::json::accept(m.payload), "published on " + m.topic + " is not JSON: " + m.payload);
-      const auto topic = server::ParseReadingTopic(m.topic);
-      if (!topic) continue;
+      const auto topic = mqtt::Topics::ParseAny(m.topic);
+      if (!topic || topic->kind != mqtt::TopicKind::kReading) continue;
       ++readings;
-      const server::Validation v = server::ValidateReading({topic->site, topic->crusher, topic->sensor, m.topic, m.payload},
+      const server::Validation v = server::ValidateReading({topic->site, topic->crusher, topic->id, m.topic, m.payload},
                                                            registry, fuzz::kNowS);
       Check(!v.sensor.empty() && v.seq.has_value(), "the server cannot identify a reading the gateway built: " + v.error);
-      server::Ack ack{topic->site, topic->crusher, topic->sensor, {*v.seq}};
-      gw.OnMessage(gw.topic_root() + "sensors/" + topic->sensor + "/committed",
-                   server::CommitAckJson(ack, "2026-06-01T00:00:00Z"), now_ms);
+      gw.OnMessage(gw.topics().Committed(topic->id),
+                   mqtt::EncodeCommitAck({topic->id, {static_cast<uint32_t>(*v.seq)}, "2026-06-01T00:00:00Z"}), now_ms);
       ++checked;
     }
     if (readings == 0) break;

@@ -38,7 +38,7 @@
 #include <mqtt/async_client.h>
 #include <nlohmann/json.hpp>
 
-#include "gateway/paho_link.hpp"
+#include "mqtt/paho_link.hpp"
 #include "protocol/frame_decoder.hpp"
 #include "protocol/sensor_payload.hpp"
 #include "protocol/xbee_api.hpp"
@@ -62,7 +62,7 @@ struct Options {
   size_t per_frame = 2;
   int window = 1;
   int reps = 3;
-  bool nodelay = true;  ///< the broker's set_tcp_nodelay (as packaging/mosquitto configures it)
+  bool nodelay = true;  ///< the broker's set_tcp_nodelay (as packaging/mosquitto/*.conf set it)
 };
 
 uint32_t SensorId(uint32_t s) { return 1001 + s; }
@@ -164,7 +164,7 @@ class FakeServer {
     mqtt::connect_options opts;
     opts.set_clean_session(true);
     client_.connect(opts)->wait();
-    lw::gateway::NoDelayOnTcpSockets();  // as linerwatch-server's link does after connecting
+    lw::mqtt::NoDelayOnTcpSockets();  // as linerwatch-server's link does after connecting
     client_.subscribe(std::string(kRoot) + "sensors/+/reading", 1)->wait();
     client_.subscribe(std::string(kRoot) + "gateway/#", 1)->wait();
     thread_ = std::thread([this] { Run(); });

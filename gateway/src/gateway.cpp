@@ -1,7 +1,5 @@
 #include "gateway/gateway.hpp"
 
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
 #include <cstdio>
 #include <exception>
@@ -24,13 +22,13 @@ std::string FrameTypeHex(uint8_t type) {
 
 }  // namespace
 
-Gateway::Gateway(GatewayOptions options, Spool& spool, Publisher& publisher, ByteSink& radio)
+Gateway::Gateway(GatewayOptions options, Spool& spool, mqtt::Publisher& publisher, ByteSink& radio)
     : options_(std::move(options)),
       spool_(spool),
       publisher_(publisher),
       radio_(radio),
       decoder_(options_.api_mode),
-      root_("linerwatch/v1/" + options_.site + "/" + options_.crusher + "/") {
+      topics_(options_.site, options_.crusher) {
   if (options_.window == 0) options_.window = 1;
   for (const DeviceEntry& d : spool_.Devices()) known_devices_.insert(d.address + "/" + d.sensor);
 }
@@ -90,7 +88,7 @@ void Gateway::OnFrame(const uint8_t* frame, size_t len, int64_t now_ms) {
         return;
       }
       DeviceEntry d;
-      d.address = AddressHex(ni.remote64);
+      d.address = mqtt::AddressHex(ni.remote64);
       d.node_identifier = ni.node_identifier;
       d.device_type = ni.device_type;
       d.first_seen_ms = now_ms;
@@ -136,7 +134,7 @@ void Gateway::OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms) 
     LogLimited("malformed", "serial: malformed receive packet frame (" + std::to_string(len) + " bytes)");
     return;
   }
-  const std::string source = AddressHex(rx.src64);
+  const std::string source = mqtt::AddressHex(rx.src64);
   const uint8_t payload_type = protocol::PayloadType(rx.payload, rx.payload_len);
   if (payload_type != protocol::kMsgReadings) {
     ++counters_.unknown_payloads;
@@ -222,7 +220,7 @@ void Gateway::FlushReadings() {
     }
     if (!ack_seqs.empty()) SendAck(f.src64, f.src16, f.sensor_id, ack_seqs);
     DeviceEntry d;
-    d.address = AddressHex(f.src64);
+    d.address = mqtt::AddressHex(f.src64);
     d.sensor = sensor;
     d.first_seen_ms = f.stamp_ms;
     NoteDevice(d);
@@ -250,7 +248,7 @@ void Gateway::SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, cons
     const size_t wire_len = protocol::EncodeTransmitRequest(options_.api_mode, req, wire, sizeof wire);
     if (wire_len == 0 || !radio_.Write(wire, wire_len)) {
       ++counters_.ack_write_errors;
-      LogLimited("ack_write", "serial: writing an ack to " + AddressHex(dest64) + " failed (the sensor retransmits)");
+      LogLimited("ack_write", "serial: writing an ack to " + mqtt::AddressHex(dest64) + " failed (the sensor retransmits)");
       continue;
     }
     ++counters_.acks_sent;
@@ -298,7 +296,7 @@ void Gateway::OnConnected(int64_t now_ms) {
   in_flight_.clear();
   records_dirty_ = true;  // every sensor
   all_devices_dirty_ = true;
-  publisher_.Publish({StatusTopic(), StatusJson(true, options_.gateway_id, now_ms), 1, true});
+  publisher_.Publish({topics_.Status(), mqtt::EncodeStatus({true, options_.gateway_id, mqtt::IsoUtc(now_ms)}), 1, true});
   Pump(now_ms);
 }
 
@@ -311,16 +309,13 @@ void Gateway::OnMessages(const std::vector<std::pair<std::string_view, std::stri
   std::map<std::string, std::vector<uint32_t>> release;
   for (const auto& [topic, payload] : messages) {
     // {root}sensors/{sensor}/committed
-    const std::string prefix = root_ + "sensors/";
-    const std::string_view suffix = "/committed";
-    if (topic.substr(0, prefix.size()) != prefix || topic.size() <= prefix.size() + suffix.size() ||
-        topic.substr(topic.size() - suffix.size()) != suffix) {
+    const auto parsed = topics_.Parse(topic);
+    if (!parsed || parsed->kind != mqtt::TopicKind::kCommitted) {
       LogLimited("unexpected_topic", "mqtt: message on unexpected topic " + std::string(topic) + " ignored");
       continue;
     }
-    const std::string topic_sensor(topic.substr(prefix.size(), topic.size() - prefix.size() - suffix.size()));
     std::string error;
-    const auto ack = ParseCommitAck(payload, topic_sensor, &error);
+    const auto ack = mqtt::DecodeCommitAck(payload, parsed->id, &error);
     if (!ack) {
       ++counters_.bad_commit_acks;
       LogLimited("bad_commit", "mqtt: bad commit ack on " + std::string(topic) + ": " + error);
@@ -387,13 +382,13 @@ void Gateway::Pump(int64_t now_ms) {
   }
   if (options_.stats_interval_ms > 0 && now_ms >= next_stats_ms_) {
     next_stats_ms_ = now_ms + options_.stats_interval_ms;
-    if (publisher_.IsConnected()) publisher_.Publish({StatsTopic(), StatsJson(now_ms), 0, false});
+    if (publisher_.IsConnected()) publisher_.Publish({topics_.Stats(), StatsJson(now_ms), 0, false});
   }
 }
 
 bool Gateway::PublishDevice(const std::string& address, const std::vector<DeviceEntry>& entries, int64_t now_ms) {
   if (entries.empty()) return true;
-  return publisher_.Publish({DeviceTopic(address), DeviceJson(entries, options_.gateway_id, now_ms), 1, true});
+  return publisher_.Publish({topics_.Device(address), DeviceJson(entries, options_.gateway_id, now_ms), 1, true});
 }
 
 void Gateway::PublishDevices(int64_t now_ms) {
@@ -444,7 +439,7 @@ void Gateway::PublishRecords(int64_t now_ms) {
       next_due = std::min(next_due, found->second + options_.republish_after_ms);
       continue;
     }
-    if (!publisher_.Publish({topic_root() + "sensors/" + r.sensor + "/reading", r.payload, 1, false})) {
+    if (!publisher_.Publish({topics_.Reading(r.sensor), r.payload, 1, false})) {
       all_sent = false;
       if (!first) kept[r.sensor][r.seq] = found->second;
       continue;
@@ -478,11 +473,10 @@ void Gateway::PublishRecords(int64_t now_ms) {
 
 std::string Gateway::StatsJson(int64_t now_ms) const {
   const protocol::DecoderCounters& d = decoder_.counters();
-  nlohmann::json latency = {{"last", counters_.latency_last_ms}, {"max", counters_.latency_max_ms},
-                            {"mean", counters_.committed ? counters_.latency_sum_ms / static_cast<int64_t>(counters_.committed) : -1}};
-  const nlohmann::json j = {
-      {"gateway", options_.gateway_id},
-      {"time", IsoUtc(now_ms)},
+  mqtt::StatsMessage m;
+  m.gateway = options_.gateway_id;
+  m.time = mqtt::IsoUtc(now_ms);
+  m.counters = {
       {"frames_ok", d.frames_ok},
       {"checksum_errors", d.checksum_errors},
       {"escape_errors", d.escape_errors},
@@ -515,9 +509,11 @@ std::string Gateway::StatsJson(int64_t now_ms) const {
       {"max_devices", options_.max_devices},
       {"devices_refused", counters_.devices_refused},
       {"connects", counters_.connects},
-      {"publish_latency_ms", latency},
   };
-  return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);  // gateway_id may not be UTF-8
+  m.latency_last_ms = counters_.latency_last_ms;
+  m.latency_max_ms = counters_.latency_max_ms;
+  m.latency_mean_ms = counters_.committed ? counters_.latency_sum_ms / static_cast<int64_t>(counters_.committed) : -1;
+  return mqtt::EncodeStats(m);  // gateway_id may not be UTF-8: the encoder replaces, never throws
 }
 
 }  // namespace lw::gateway

@@ -20,9 +20,11 @@
 #include "gateway/config.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/messages.hpp"
-#include "gateway/paho_link.hpp"
 #include "gateway/serial_port.hpp"
 #include "gateway/spool.hpp"
+#include "mqtt/messages.hpp"
+#include "mqtt/paho_link.hpp"
+#include "mqtt/topics.hpp"
 
 namespace {
 
@@ -33,6 +35,9 @@ int64_t NowMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
+/// The retained `gateway/status` offline message (the last will and the goodbye).
+std::string Offline(const std::string& gateway_id) { return lw::mqtt::EncodeStatus({false, gateway_id, lw::mqtt::IsoUtc(NowMs())}); }
+
 void Log(const std::string& line) {
   // Lines carry text from the radio and the broker: control characters are escaped.
   std::fprintf(stderr, "linerwatch-gateway: %s\n", lw::gateway::SanitizeForLog(line).c_str());
@@ -41,6 +46,7 @@ void Log(const std::string& line) {
 
 int Run(const lw::gateway::Config& config) {
   using namespace lw::gateway;
+  using lw::mqtt::LinkEvent;
   // A missing port at start is a configuration error; once running, a vanished port (USB
   // adapter unplugged) is waited for instead.
   if (::access(config.serial.c_str(), F_OK) != 0) {
@@ -84,7 +90,7 @@ int Run(const lw::gateway::Config& config) {
     };
   }
 
-  LinkOptions link_options;
+  lw::mqtt::LinkOptions link_options;
   link_options.uri = config.broker;
   link_options.client_id = config.gateway_id;
   link_options.username = config.username;
@@ -93,10 +99,10 @@ int Run(const lw::gateway::Config& config) {
   link_options.reconnect_min_ms = static_cast<int64_t>(config.reconnect_min_s * 1000);
   link_options.reconnect_max_ms = static_cast<int64_t>(config.reconnect_max_s * 1000);
 
-  const std::string root = "linerwatch/v1/" + config.site + "/" + config.crusher + "/";
-  link_options.will = {root + "gateway/status", StatusJson(false, config.gateway_id, NowMs()), 1, true};
-  link_options.subscriptions = {root + "sensors/+/committed"};
-  auto link = std::make_unique<PahoLink>(link_options);
+  const lw::mqtt::Topics topics(config.site, config.crusher);
+  link_options.will = {topics.Status(), Offline(config.gateway_id), 1, true};
+  link_options.subscriptions = {topics.CommittedFilter()};
+  auto link = std::make_unique<lw::mqtt::PahoLink>(link_options);
   Gateway gateway(options, spool, *link, serial);
 
   // Ready for systemd (Type=notify): the spool is open and locked; serial port and broker are
@@ -168,7 +174,7 @@ int Run(const lw::gateway::Config& config) {
     gateway.Pump(now);
   }
   Log("stopping; " + std::to_string(spool.depth()) + " records stay in the spool");
-  link->Shutdown({gateway.StatusTopic(), StatusJson(false, config.gateway_id, NowMs()), 1, true}, 2000);
+  link->Shutdown({topics.Status(), Offline(config.gateway_id), 1, true}, 2000);
   return 0;
 }
 

@@ -8,24 +8,11 @@
 #include <tuple>
 
 #include "core/time.hpp"
-#include "gateway/messages.hpp"
 
 namespace lw::server {
 namespace {
 
 using nlohmann::json;
-
-std::vector<std::string_view> Split(std::string_view s, char sep) {
-  std::vector<std::string_view> out;
-  size_t start = 0;
-  while (true) {
-    const size_t p = s.find(sep, start);
-    out.push_back(s.substr(start, p == std::string_view::npos ? std::string_view::npos : p - start));
-    if (p == std::string_view::npos) break;
-    start = p + 1;
-  }
-  return out;
-}
 
 /// An integer field in [lo, hi]; sets *error (naming the field) otherwise.
 std::optional<int64_t> IntField(const json& j, const char* name, int64_t lo, int64_t hi, std::string* error) {
@@ -125,14 +112,6 @@ bool ParseJsonNamingField(std::string_view text, nlohmann::json* out, std::strin
     *error = "malformed JSON";
   }
   return false;
-}
-
-std::optional<ReadingTopic> ParseReadingTopic(std::string_view topic, std::string_view root) {
-  if (topic.substr(0, root.size()) != root) return std::nullopt;
-  const auto parts = Split(topic.substr(root.size()), '/');
-  if (parts.size() != 5 || parts[2] != "sensors" || parts[4] != "reading") return std::nullopt;
-  if (parts[0].empty() || parts[1].empty() || parts[3].empty()) return std::nullopt;
-  return ReadingTopic{std::string(parts[0]), std::string(parts[1]), std::string(parts[3])};
 }
 
 bool IsFaultReading(int64_t flags, int64_t loops_intact) {
@@ -257,31 +236,6 @@ Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t
   r.payload = in.payload;
   v.reading = std::move(r);
   return v;
-}
-
-std::string CommitAckJson(const Ack& ack, const std::string& time) {
-  const json payload = {{"sensor", ack.sensor}, {"seqs", ack.seqs}, {"time", time}};
-  return payload.dump(-1, ' ', false, json::error_handler_t::replace);
-}
-
-std::vector<std::string> CommitAckMessages(const Ack& ack, const std::string& time) {
-  std::vector<std::string> out;
-  Ack part{ack.site, ack.crusher, ack.sensor, {}};
-  const size_t empty = CommitAckJson(part, time).size();
-  if (empty + 10 > gateway::kMaxCommitAckBytes) return out;  // not even one seq fits
-  size_t bytes = empty;
-  for (const int64_t seq : ack.seqs) {
-    const size_t add = std::to_string(seq).size() + (part.seqs.empty() ? 0 : 1);  // digits and a comma
-    if (part.seqs.size() == gateway::kMaxCommitAckSeqs || bytes + add > gateway::kMaxCommitAckBytes) {
-      out.push_back(CommitAckJson(part, time));
-      part.seqs.clear();
-      bytes = empty;
-    }
-    bytes += std::to_string(seq).size() + (part.seqs.empty() ? 0 : 1);
-    part.seqs.push_back(seq);
-  }
-  if (!part.seqs.empty() || out.empty()) out.push_back(CommitAckJson(part, time));
-  return out;
 }
 
 Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s, LiveState* live)

@@ -1,10 +1,33 @@
 #include "server/registry.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <fstream>
+#include <future>
 #include <stdexcept>
+#include <thread>
 
 namespace lw::server {
+
+const core::MapModel& Registry::MapModels::Get(const core::WearMap& map, const core::MapModelOptions& options) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  const auto it = models_.find(map.sha256);
+  if (it != models_.end()) {
+    const std::shared_future<core::MapModel> ready = it->second;
+    lock.unlock();
+    return ready.get();  // waits while another thread builds it; rethrows its error
+  }
+  std::promise<core::MapModel> promise;
+  const std::shared_future<core::MapModel> future = promise.get_future().share();
+  models_.emplace(map.sha256, future);
+  lock.unlock();
+  try {
+    promise.set_value(core::BuildMapModel(map, options));
+  } catch (...) {
+    promise.set_exception(std::current_exception());
+  }
+  return future.get();
+}
 
 std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& folder, const core::ReconstructionOptions& options,
                                                MapModels* models) {
@@ -21,9 +44,7 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
   if (!models) {
     c->plan = core::PrepareReconstruction(c->config, c->map, options);
   } else {
-    auto it = models->find(c->map.sha256);
-    if (it == models->end()) it = models->emplace(c->map.sha256, core::BuildMapModel(c->map, options.map_model)).first;
-    c->plan = core::PrepareReconstruction(c->config, c->map, it->second, options);
+    c->plan = core::PrepareReconstruction(c->config, c->map, models->Get(c->map, options.map_model), options);
   }
   const auto summary_path = folder / "dem_summary.json";
   if (std::filesystem::exists(summary_path)) {
@@ -103,16 +124,36 @@ std::unique_ptr<Registry> Registry::Load(const std::filesystem::path& dir, std::
   }
   if (ec) throw std::runtime_error("--crusher-dir '" + dir.string() + "': " + ec.message());
   std::sort(folders.begin(), folders.end());
-  MapModels models;  // identical maps are smoothed once
-  for (const auto& folder : folders) {
-    try {
-      auto c = LoadCrusher(folder, {}, &models);
-      if (reg->Find(c->config.crusher_id)) {
-        throw std::runtime_error("crusher_id '" + c->config.crusher_id + "' is already used by another folder");
+  // Folders load on every core at once (a fleet's hundred map files parse in parallel); identical
+  // maps are still smoothed once. Results are taken in folder order, so which of two folders with
+  // the same crusher_id is refused does not depend on the threads.
+  MapModels models;
+  std::vector<std::unique_ptr<Crusher>> loaded(folders.size());
+  std::vector<std::string> failed(folders.size());
+  std::atomic<size_t> next{0};
+  const auto work = [&] {
+    for (size_t i = next++; i < folders.size(); i = next++) {
+      try {
+        loaded[i] = LoadCrusher(folders[i], {}, &models);
+      } catch (const std::exception& e) {
+        failed[i] = e.what();
       }
-      reg->Add(std::move(c));
-    } catch (const std::exception& e) {
-      if (errors) errors->push_back(folder.string() + ": " + e.what());
+    }
+  };
+  const size_t threads = std::min<size_t>(folders.size(), std::max(1u, std::thread::hardware_concurrency()));
+  std::vector<std::thread> pool;
+  for (size_t t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+  for (size_t i = 0; i < folders.size(); ++i) {
+    if (loaded[i] && reg->Find(loaded[i]->config.crusher_id)) {
+      failed[i] = "crusher_id '" + loaded[i]->config.crusher_id + "' is already used by another folder";
+      loaded[i].reset();
+    }
+    if (loaded[i]) {
+      reg->Add(std::move(loaded[i]));
+    } else if (errors) {
+      errors->push_back(folders[i].string() + ": " + failed[i]);
     }
   }
   return reg;

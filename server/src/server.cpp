@@ -17,7 +17,9 @@
 #include <set>
 
 #include "core/time.hpp"
-#include "gateway/paho_link.hpp"
+#include "mqtt/messages.hpp"
+#include "mqtt/paho_link.hpp"
+#include "mqtt/topics.hpp"
 #include "server/diagnosis_runner.hpp"
 #include "server/http_api.hpp"
 #include "server/ingest.hpp"
@@ -225,15 +227,15 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     if (!changed.empty()) dirty_cv.notify_one();
   };
 
-  gateway::LinkOptions lo;
+  mqtt::LinkOptions lo;
   lo.uri = o.broker;
   lo.client_id = o.client_id;
   lo.username = o.username;
   lo.password = o.password;
   lo.tls_ca = o.tls_ca;
   lo.clean_session = false;  // persistent session: the broker queues readings while we are away
-  lo.subscriptions = {o.topic_root + "/+/+/sensors/+/reading"};
-  gateway::PahoLink link(lo);
+  lo.subscriptions = {mqtt::Topics::ReadingsFilter(o.topic_root)};
+  mqtt::PahoLink link(lo);
   std::atomic<bool> connected{false};
 
   ApiContext ctx = MakeApiContext(o, *registry, read, wear, live, ingestor, events, tokens);
@@ -310,7 +312,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
           continue;
         }
         if (!st || !st->has_wear) continue;
-        std::string summary = WearJson(*st, false).dump();
+        std::string summary = mqtt::EncodeWear(WearJson(*st, false));
         events.Publish(c, "wear", summary);
         std::lock_guard<std::mutex> lock(computed_mutex);
         computed.emplace_back(c, std::move(summary));
@@ -332,18 +334,17 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
 
   int64_t last_stats_ms = WallMs();
   IngestCounters last_counters;
-  const std::string root = o.topic_root + "/";
   // Drains the link: connection events are logged, reading messages appended to `batch`.
   const auto collect = [&](int64_t now_ms, std::vector<Incoming>* batch) {
-    for (gateway::LinkEvent& e : link.Poll(now_ms)) {
-      if (e.kind == gateway::LinkEvent::Kind::kConnected) {
+    for (mqtt::LinkEvent& e : link.Poll(now_ms)) {
+      if (e.kind == mqtt::LinkEvent::Kind::kConnected) {
         connected = true;
         log("connected to " + o.broker + " as " + o.client_id);
-      } else if (e.kind == gateway::LinkEvent::Kind::kDisconnected) {
+      } else if (e.kind == mqtt::LinkEvent::Kind::kDisconnected) {
         connected = false;
         log("broker: " + e.payload);
-      } else if (const auto t = ParseReadingTopic(e.topic, root)) {
-        batch->push_back({t->site, t->crusher, t->sensor, std::move(e.topic), std::move(e.payload)});
+      } else if (auto t = mqtt::Topics::ParseAny(e.topic, o.topic_root); t && t->kind == mqtt::TopicKind::kReading) {
+        batch->push_back({std::move(t->site), std::move(t->crusher), std::move(t->id), std::move(e.topic), std::move(e.payload)});
       }
     }
   };
@@ -372,8 +373,10 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       }
       const std::string when = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(NowSeconds(o.clock_file))));
       for (const Ack& a : r.acks) {
-        for (std::string& m : CommitAckMessages(a, when)) {
-          link.Publish({root + a.site + "/" + a.crusher + "/sensors/" + a.sensor + "/committed", std::move(m), 1, false});
+        const std::string topic = mqtt::Topics(a.site, a.crusher, o.topic_root).Committed(a.sensor);
+        // Seqs are validated to 0..2^32-1 before they are stored or acked.
+        for (std::string& m : mqtt::EncodeCommitAcks({a.sensor, {a.seqs.begin(), a.seqs.end()}, when})) {
+          link.Publish({topic, std::move(m), 1, false});
         }
       }
       on_committed(r);
@@ -386,7 +389,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     for (const auto& [c, summary] : ready) {
       // Retained wear goes only to the crusher's own site (crusher.json's "site" or the first site
       // heard from), never to a site name a stray publisher made up.
-      if (const auto site = ingestor.SiteOf(c)) link.Publish({root + *site + "/" + c + "/wear", summary, 1, true});
+      if (const auto site = ingestor.SiteOf(c)) link.Publish({mqtt::Topics(*site, c, o.topic_root).Wear(), summary, 1, true});
     }
     if (now - last_stats_ms >= 60'000) {
       const IngestCounters c = ingestor.Counters();

@@ -80,6 +80,14 @@ class MqttRecorder {
     }
     return false;
   }
+  /// The payload of the newest message on exactly `topic` ("" when none arrived).
+  std::string Last(const std::string& topic) {
+    std::string last;
+    for (const Message& m : received()) {
+      if (m.topic == topic) last = m.payload;
+    }
+    return last;
+  }
   /// Messages whose topic contains `topic_part` and whose payload contains `needle`.
   size_t Count(const std::string& topic_part, const std::string& needle = "") {
     size_t n = 0;

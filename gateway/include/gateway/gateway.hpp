@@ -1,6 +1,6 @@
 #pragma once
 /// The gateway's logic, free of I/O: bytes from the coordinator in, acks to the sensors out through
-/// a ByteSink, records into the Spool, messages out through a Publisher, commit acks in. The caller
+/// a ByteSink, records into the Spool, messages out through an mqtt::Publisher, commit acks in. The caller
 /// (main) owns the threads: every method is called from one thread, with the current Unix time in
 /// ms passed in so tests control time.
 #include <cstddef>
@@ -12,8 +12,10 @@
 #include <string_view>
 #include <vector>
 
-#include "gateway/publisher.hpp"
+#include "gateway/byte_sink.hpp"
 #include "gateway/spool.hpp"
+#include "mqtt/publisher.hpp"
+#include "mqtt/topics.hpp"
 #include "protocol/frame_decoder.hpp"
 
 namespace lw::gateway {
@@ -72,7 +74,7 @@ struct GatewayCounters {
 
 class Gateway {
  public:
-  Gateway(GatewayOptions options, Spool& spool, Publisher& publisher, ByteSink& radio);
+  Gateway(GatewayOptions options, Spool& spool, mqtt::Publisher& publisher, ByteSink& radio);
 
   /// Bytes read from the coordinator's serial port.
   void OnBytes(const uint8_t* data, size_t len, int64_t now_ms);
@@ -90,14 +92,8 @@ class Gateway {
   /// Publishes what is due: records (in seq order per sensor), stats. Cheap when nothing changed.
   void Pump(int64_t now_ms);
 
-  /// Topic root `linerwatch/v1/{site}/{crusher}/`.
-  const std::string& topic_root() const { return root_; }
-  /// Subscription for commit acks: `{root}sensors/+/committed`.
-  std::string CommittedFilter() const { return root_ + "sensors/+/committed"; }
-  std::string StatusTopic() const { return root_ + "gateway/status"; }
-  std::string StatsTopic() const { return root_ + "gateway/stats"; }
-  /// Retained registry message of one radio: `{root}gateway/devices/{address}`.
-  std::string DeviceTopic(const std::string& address) const { return root_ + "gateway/devices/" + address; }
+  /// This gateway's topics: below `linerwatch/v1/{site}/{crusher}/`.
+  const mqtt::Topics& topics() const { return topics_; }
 
   /// The stats message (docs/gateway.md lists the fields).
   std::string StatsJson(int64_t now_ms) const;
@@ -125,10 +121,10 @@ class Gateway {
 
   GatewayOptions options_;
   Spool& spool_;
-  Publisher& publisher_;
+  mqtt::Publisher& publisher_;
   ByteSink& radio_;
   protocol::FrameDecoder decoder_;
-  std::string root_;
+  mqtt::Topics topics_;
   GatewayCounters counters_;
   // Records published and awaiting a commit ack: sensor -> seq -> time of the last publication.
   std::map<std::string, std::map<uint32_t, int64_t>> in_flight_;

@@ -6,7 +6,7 @@
 #include <string>
 #include <utility>
 
-#include "gateway/publisher.hpp"
+#include "gateway/byte_sink.hpp"
 
 namespace lw::gateway {
 

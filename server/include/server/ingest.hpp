@@ -21,14 +21,6 @@
 
 namespace lw::server {
 
-/// `linerwatch/v1/{site}/{crusher}/sensors/{sensor}/reading` split up; nullopt for other topics.
-struct ReadingTopic {
-  std::string site;
-  std::string crusher;
-  std::string sensor;
-};
-std::optional<ReadingTopic> ParseReadingTopic(std::string_view topic, std::string_view root = "linerwatch/v1/");
-
 /// Readings stored but not used for wear: SPI stuck, or every loop open while the board still
 /// holds loops intact (a cut cable). Every loop open with none intact is a consumed sensor: real wear.
 bool IsFaultReading(int64_t flags, int64_t loops_intact);
@@ -66,21 +58,14 @@ struct Validation {
 /// (0..65535), `battery_mv` (0..10000); crusher and sensor known.
 Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t now_s);
 
+/// What the gateway of `site` may drop: sent as mqtt::EncodeCommitAcks on the sensor's
+/// `committed` topic (docs/mqtt.md).
 struct Ack {
   std::string site;
   std::string crusher;
   std::string sensor;
   std::vector<int64_t> seqs;
 };
-
-/// The commit acknowledgement of docs/mqtt.md: `{"sensor": S, "seqs": [...], "time": ISO}`
-/// (what the gateway's ParseCommitAck reads). Text that is not UTF-8 is replaced, never thrown on.
-std::string CommitAckJson(const Ack& ack, const std::string& time);
-
-/// The commit ack as the messages the gateway accepts (docs/mqtt.md: at most 10,000 seqs and
-/// 64 KiB each): one CommitAckJson per slice of `ack.seqs`, in order. Empty when the sensor name
-/// alone makes a message too long (a topic level no gateway publishes: nothing it spooled to ack).
-std::vector<std::string> CommitAckMessages(const Ack& ack, const std::string& time);
 
 struct IngestResult {
   size_t stored = 0;

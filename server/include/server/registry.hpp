@@ -5,6 +5,7 @@
 /// Laser scans in the folder's scans/ (scan_YYYY-MM-DD.xyz, docs/bundle.md) are projected onto the
 /// map's faces once, at load; live wear applies the latest one at or before its time (docs/server.md).
 #include <filesystem>
+#include <future>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <memory>
@@ -62,8 +63,21 @@ class Registry {
   /// readable folder.
   static std::unique_ptr<Registry> Load(const std::filesystem::path& dir, std::vector<std::string>* errors);
 
-  /// Map models already built, by the map file's SHA-256 (all with the same options).
-  using MapModels = std::map<std::string, core::MapModel>;
+  /// Map models already built, by the map file's SHA-256 (all with the same options). Shared by the
+  /// threads that load folders at once: each model is built once, by the first folder that needs
+  /// it; the others wait for it (and get its error, if it failed).
+  class MapModels {
+   public:
+    const core::MapModel& Get(const core::WearMap& map, const core::MapModelOptions& options);
+    size_t size() const {
+      std::lock_guard<std::mutex> lock(mutex_);
+      return models_.size();
+    }
+
+   private:
+    mutable std::mutex mutex_;
+    std::map<std::string, std::shared_future<core::MapModel>> models_;
+  };
   /// Loads one crusher folder. Throws core::InputError / std::runtime_error naming file and rule.
   /// With `models`, a map whose file is byte for byte one already modelled (a fleet of one crusher
   /// model shares its DEM map) reuses that model instead of smoothing it again; new ones are added.

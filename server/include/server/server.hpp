@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "mqtt/topics.hpp"
+
 namespace lw::server {
 
 struct ServerOptions {
@@ -19,7 +21,7 @@ struct ServerOptions {
   std::string password;
   std::string tls_ca;
   std::string client_id = "linerwatch-server";
-  std::string topic_root = "linerwatch/v1";
+  std::string topic_root{mqtt::kDefaultTopicPrefix};
   std::string web_dir;     ///< default: the build's / installed dashboard folder
   std::string clock_file;  ///< simulation: "now" (unix ms) is read from this file
   std::vector<std::string> allowed_hosts;  ///< host names the HTTP API answers to (besides addresses, localhost)

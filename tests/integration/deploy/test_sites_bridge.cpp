@@ -258,7 +258,12 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   co.tls = true;
   co.username = "linerwatch-server";
   co.password = "server-pass";
-  co.extra_config = "max_queued_messages 100000\n";
+  // The shipped central.conf's queue and in-flight settings (its listeners and files are the fixture's).
+  const std::string central_conf = ReadFile(LW_CENTRAL_CONF);
+  for (const char* line : {"max_queued_messages 100000\n", "max_inflight_messages 0\n"}) {
+    CHECK_TEXT(central_conf.find(line) != std::string::npos, line);
+    co.extra_config += line;
+  }
   lw::test::MosquittoFixture::Access ca;
   ca.more_users = {{a.id, a.password}, {b.id, b.password}, {"observer", "o-pass"}};
   ca.acl_file = dir.File("acl");
@@ -398,8 +403,15 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   LONGS_EQUAL_TEXT(32, got_a, logs().c_str());
 
   // Commit acks flowed back over both bridges: both spools drain.
-  CHECK_TEXT(site_a_obs.WaitFor("linerwatch/v1/" + a.id + "/" + a.crusher + "/gateway/stats", "\"spool_depth\":0,", 30s), logs().c_str());
-  CHECK_TEXT(site_b_obs.WaitFor("linerwatch/v1/" + b.id + "/" + b.crusher + "/gateway/stats", "\"spool_depth\":0,", 30s), logs().c_str());
+  const auto drained = [&](Observer& obs, const Site& s) {
+    const std::string stats = "linerwatch/v1/" + s.id + "/" + s.crusher + "/gateway/stats";
+    if (obs.WaitFor(stats, "\"spool_depth\":0,", 30s)) return;
+    FAIL(("site " + s.id + "'s spool did not drain; commit acks seen at the site: " +
+          std::to_string(obs.Count("/" + s.crusher + "/sensors/", "\"seqs\"")) + ", last stats: " + obs.Last(stats) + logs())
+             .c_str());
+  };
+  drained(site_a_obs, a);
+  drained(site_b_obs, b);
   CHECK(site_a_obs.Count("/sensors/", "\"seqs\"") > 0);
 
   // 4. A gateway of site A (site A's account, on site A's broker) publishing as site B.

@@ -8,7 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "gateway/publisher.hpp"
+#include "gateway/byte_sink.hpp"
+#include "mqtt/publisher.hpp"
 #include "support/temp_directory.hpp"
 #include "protocol/frame_decoder.hpp"
 #include "protocol/sensor_payload.hpp"
@@ -64,8 +65,9 @@ inline std::vector<uint8_t> Wire(protocol::ApiMode mode, const std::vector<uint8
 }
 
 /// Publisher fake: records every message; connection and refusal are test controls.
-class FakePublisher : public Publisher {
+class FakePublisher : public mqtt::Publisher {
  public:
+  using OutMessage = mqtt::OutMessage;
   std::vector<OutMessage> sent;
   bool connected = true;
   bool refuse = false;

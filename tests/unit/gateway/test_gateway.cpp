@@ -329,6 +329,20 @@ TEST(Gateway, StatsArePublishedPeriodicallyWithLatency) {
   LONGS_EQUAL(0, j["spool_depth"].get<int>());
 }
 
+// The stats message, byte for byte as the gateway sent it before lw::mqtt encoded it (keys sorted).
+TEST(Gateway, StatsMessageKeepsItsBytes) {
+  const uint8_t junk[] = {1, 2, 3, 0x7E, 0x00};
+  gateway->OnBytes(junk, sizeof junk, now);
+  STRCMP_EQUAL(R"({"ack_write_errors":0,"acks_sent":0,"bad_commit_acks":0,"bad_payloads":0,"bytes_discarded":3,)"
+               R"("checksum_errors":0,"commit_acks_ignored":0,"committed":0,"connects":0,"devices":0,"devices_refused":0,)"
+               R"("escape_errors":0,"frames_ok":0,"gateway":"gw-test","in_flight":0,"length_errors":0,"malformed_frames":0,)"
+               R"("max_devices":1000,"publish_latency_ms":{"last":-1,"max":-1,"mean":-1},"published":0,"records_duplicate":0,)"
+               R"("records_evicted":0,"records_received":0,"records_rejected":0,"records_spooled":0,"republished":0,)"
+               R"("spool_depth":0,"spool_errors":0,"spool_max_records":1000,"time":"2026-03-01T12:00:07Z","truncated_frames":0,)"
+               R"("tx_failures":0,"unknown_frames":0,"unknown_payloads":0,"unknown_types":0})",
+               gateway->StatsJson(1772366407000).c_str());
+}
+
 TEST(Gateway, ApiModeOneIsDecodedAndAckedInModeOne) {
   gw::test::FakeRadio radio1{pr::ApiMode::kUnescaped};
   gw::Gateway& g = ModeOneGateway(radio1);

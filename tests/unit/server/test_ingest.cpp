@@ -1,7 +1,6 @@
 #include <cstdio>
 #include <filesystem>
 
-#include "gateway/messages.hpp"
 #include "core/scan_correction.hpp"
 #include "server/ingest.hpp"
 #include "server/wear_service.hpp"
@@ -40,18 +39,6 @@ TEST_GROUP(Ingest) {
     return v.error;
   }
 };
-
-TEST(Ingest, ParsesReadingTopicsOnly) {
-  const auto t = ParseReadingTopic("linerwatch/v1/mine/cr7/sensors/1001/reading");
-  CHECK(t.has_value());
-  STRCMP_EQUAL("mine", t->site.c_str());
-  STRCMP_EQUAL("cr7", t->crusher.c_str());
-  STRCMP_EQUAL("1001", t->sensor.c_str());
-  CHECK_FALSE(ParseReadingTopic("linerwatch/v1/mine/cr7/sensors/1001/committed"));
-  CHECK_FALSE(ParseReadingTopic("linerwatch/v1/mine/cr7/wear"));
-  CHECK_FALSE(ParseReadingTopic("other/v1/mine/cr7/sensors/1001/reading"));
-  CHECK_FALSE(ParseReadingTopic("linerwatch/v1/mine//sensors/1001/reading"));
-}
 
 TEST(Ingest, AcceptsAWellFormedReading) {
   const Validation v = ValidateReading(With(Reading("")), *registry, Now());
@@ -309,34 +296,4 @@ TEST(Ingest, CrusherJsonSiteBindsBeforeAnyReading) {
   r = ingestor.Ingest({lw::test::Messages(folder.bundle, "plant")[0]});
   LONGS_EQUAL(1, r.stored);
   STRCMP_EQUAL("plant", r.acks.at(0).site.c_str());
-}
-
-// Found by fuzz/commit_ack: one commit ack per sensor and batch could exceed what the gateway
-// accepts (64 KiB, 10,000 seqs): 10,000 ten-digit seqs are 110 KB, and a topic level of control
-// characters is escaped six-fold. The gateway refused such an ack and kept republishing the records.
-TEST_GROUP(CommitAck){};
-
-TEST(CommitAck, AcksAreSplitIntoMessagesTheGatewayAccepts) {
-  Ack ack{"site1", "c1", "1001", {}};
-  for (int64_t s = 0; s < 25000; ++s) ack.seqs.push_back(4294967295 - s);
-  const auto messages = CommitAckMessages(ack, "2026-06-01T00:00:00Z");
-  CHECK(messages.size() >= 3);
-  std::vector<int64_t> seqs;
-  for (const std::string& m : messages) {
-    CHECK(m.size() <= lw::gateway::kMaxCommitAckBytes);
-    std::string error;
-    const auto back = lw::gateway::ParseCommitAck(m, "1001", &error);
-    CHECK_TEXT(back.has_value(), error.c_str());
-    seqs.insert(seqs.end(), back->seqs.begin(), back->seqs.end());
-  }
-  CHECK(seqs == ack.seqs);
-  // The old single message: the gateway refuses it.
-  std::string error;
-  CHECK_FALSE(lw::gateway::ParseCommitAck(CommitAckJson(ack, "2026-06-01T00:00:00Z"), "1001", &error).has_value());
-  // An empty ack and a small one stay one message, exactly CommitAckJson.
-  Ack small{"site1", "c1", "1001", {41, 42}};
-  CHECK(CommitAckMessages(small, "t") == std::vector<std::string>{CommitAckJson(small, "t")});
-  // A sensor name no message can carry: nothing to send.
-  Ack huge{"site1", "c1", std::string(20000, '\x17'), {1}};
-  CHECK(CommitAckMessages(huge, "t").empty());
 }

@@ -88,3 +88,30 @@ TEST(Registry, CrushersWithTheSameMapShareItsModelAndGetTheSamePlan) {
   CHECK(errors.empty());
   CHECK(reg->Find("twin") != nullptr);
 }
+
+// Folders load on several threads at once: the result is the one of loading them in order. Twins
+// of one map, a broken folder and two folders claiming one crusher_id (the later, by folder name,
+// is refused) among eight.
+TEST(Registry, LoadingFoldersInParallelGivesTheInOrderResult) {
+  lw::test::CrusherFolder f(5, 3);
+  nlohmann::json cj;
+  std::ifstream(f.folder + "/crusher.json") >> cj;
+  for (int i = 0; i < 6; ++i) {
+    const std::string twin = f.crushers + "/twin" + std::to_string(i);
+    std::filesystem::create_directories(twin);
+    std::filesystem::copy_file(f.folder + "/wear_map.vtk", twin + "/wear_map.vtk");
+    cj["crusher_id"] = i == 4 ? "twin1" : "twin" + std::to_string(i);  // twin4 claims twin1's id
+    std::ofstream(twin + "/crusher.json") << cj.dump();
+  }
+  std::ofstream(f.crushers + "/twin2/wear_map.vtk") << "# vtk DataFile Version 3.0\nbroken\n";
+  std::vector<std::string> errors;
+  const auto reg = Registry::Load(f.crushers, &errors);
+  LONGS_EQUAL(2, errors.size());
+  CHECK_TEXT(errors[0].find("/twin2: ") != std::string::npos, errors[0].c_str());
+  CHECK_TEXT(errors[1].find("/twin4: crusher_id 'twin1' is already used by another folder") != std::string::npos, errors[1].c_str());
+  LONGS_EQUAL(5, reg->All().size());  // f's own crusher, twin0, twin1, twin3, twin5
+  CHECK(reg->Find("twin2") == nullptr);
+  CHECK(reg->Find("twin1")->dir.filename() == "twin1");
+  const auto alone = Registry::LoadCrusher(f.crushers + "/twin5");
+  DOUBLES_EQUAL(0, (alone->plan.intensity - reg->Find("twin5")->plan.intensity).cwiseAbs().maxCoeff(), 0);
+}

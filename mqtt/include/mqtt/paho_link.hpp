@@ -1,16 +1,16 @@
 #pragma once
-/// The Paho MQTT C++ adapter: the only gateway file that includes mqtt/ headers (in the .cpp).
-/// Paho's callbacks only queue events; the owner's thread calls Poll() to (re)connect with
-/// exponential backoff, subscribe after every connect, and collect what happened, and publishes
-/// through the Publisher interface. Never calls the client from inside a Paho callback.
+/// The Paho MQTT C++ adapter of the gateway and the server: the only file that includes Paho's
+/// headers (in the .cpp). Paho's callbacks only queue events; the owner's thread calls Poll() to
+/// (re)connect with exponential backoff, subscribe after every connect, and collect what happened,
+/// and publishes through the Publisher interface. Never calls the client from inside a Paho callback.
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "gateway/publisher.hpp"
+#include "mqtt/publisher.hpp"
 
-namespace lw::gateway {
+namespace lw::mqtt {
 
 struct LinkOptions {
   std::string uri;        ///< tcp://, ssl://, mqtt://, mqtts://
@@ -69,4 +69,4 @@ class PahoLink : public Publisher {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace lw::gateway
+}  // namespace lw::mqtt

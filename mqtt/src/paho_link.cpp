@@ -1,4 +1,4 @@
-#include "gateway/paho_link.hpp"
+#include "mqtt/paho_link.hpp"
 
 #include <dirent.h>
 #include <mqtt/async_client.h>
@@ -16,7 +16,7 @@
 #include <mutex>
 #include <utility>
 
-namespace lw::gateway {
+namespace lw::mqtt {
 
 // Paho C (1.3 in Debian 12) leaves Nagle's algorithm on its broker socket and has no option to
 // turn it off: a PUBACK or a small PUBLISH written while an earlier segment is unacknowledged
@@ -54,17 +54,17 @@ struct PahoLink::Impl {
     }
   };
   LinkOptions options;
-  mqtt::connect_options connect_options;
+  ::mqtt::connect_options connect_options;
   std::mutex mutex;
   std::deque<LinkEvent> events;  // filled by Paho's threads, drained by Poll()
   std::atomic<bool> connected{false};
-  mqtt::token_ptr pending_connect;
+  ::mqtt::token_ptr pending_connect;
   int64_t next_attempt_ms = 0;
   int64_t backoff_ms = 0;
   int64_t last_connected_ms = -1;
   int flaps = 0;  // connections lost within kFlapMs of being made, in a row
   WakeFd wake;
-  mqtt::async_client client;
+  ::mqtt::async_client client;
 
   explicit Impl(LinkOptions o) : options(std::move(o)), client(options.uri, options.client_id, nullptr) {}
   ~Impl() {
@@ -99,7 +99,7 @@ bool IsTls(const std::string& uri) {
 PahoLink::PahoLink(LinkOptions options) {
   try {
     impl_ = std::make_unique<Impl>(std::move(options));
-  } catch (const mqtt::exception& e) {
+  } catch (const ::mqtt::exception& e) {
     throw std::runtime_error("broker: " + std::string(e.what()));
   }
   Impl& im = *impl_;
@@ -115,11 +115,11 @@ PahoLink::PahoLink(LinkOptions options) {
     co.set_password(im.options.password);
   }
   if (!im.options.will.topic.empty()) {
-    co.set_will(mqtt::will_options(im.options.will.topic, im.options.will.payload, im.options.will.qos,
+    co.set_will(::mqtt::will_options(im.options.will.topic, im.options.will.payload, im.options.will.qos,
                                    im.options.will.retained));
   }
   if (IsTls(im.options.uri)) {
-    mqtt::ssl_options ssl;
+    ::mqtt::ssl_options ssl;
     if (!im.options.tls_ca.empty()) ssl.set_trust_store(im.options.tls_ca);
     ssl.set_enable_server_cert_auth(true);
     co.set_ssl(std::move(ssl));
@@ -133,7 +133,7 @@ PahoLink::PahoLink(LinkOptions options) {
     im.connected = false;
     im.Push({LinkEvent::Kind::kDisconnected, "", cause.empty() ? "connection lost" : cause});
   });
-  im.client.set_message_callback([&im](mqtt::const_message_ptr msg) {
+  im.client.set_message_callback([&im](::mqtt::const_message_ptr msg) {
     im.Push({LinkEvent::Kind::kMessage, msg->get_topic(), msg->to_string()});
   });
 }
@@ -154,7 +154,7 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
     im.pending_connect.reset();
     // rc 0: connected (the connected handler may run just before or after the token completes).
     if (rc != 0) {
-      out.push_back({LinkEvent::Kind::kDisconnected, "", "connect to " + im.options.uri + " failed: " + mqtt::exception::error_str(rc) +
+      out.push_back({LinkEvent::Kind::kDisconnected, "", "connect to " + im.options.uri + " failed: " + ::mqtt::exception::error_str(rc) +
                                                                 " (code " + std::to_string(rc) + "); retrying in " +
                                                                 std::to_string(im.backoff_ms) + " ms"});
       im.next_attempt_ms = now_ms + im.backoff_ms;
@@ -179,7 +179,7 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
       im.backoff_ms = im.options.reconnect_min_ms;
       try {
         for (const std::string& filter : im.options.subscriptions) im.client.subscribe(filter, 1);
-      } catch (const mqtt::exception& ex) {
+      } catch (const ::mqtt::exception& ex) {
         out.push_back({LinkEvent::Kind::kDisconnected, "", std::string("subscribe failed: ") + ex.what()});
       }
     } else if (e.kind == LinkEvent::Kind::kDisconnected) {
@@ -202,7 +202,7 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
     }
     try {
       im.pending_connect = im.client.connect(im.connect_options);
-    } catch (const mqtt::exception& ex) {
+    } catch (const ::mqtt::exception& ex) {
       out.push_back({LinkEvent::Kind::kDisconnected, "", std::string("connect: ") + ex.what()});
       im.next_attempt_ms = now_ms + im.backoff_ms;
       im.backoff_ms = std::min(im.backoff_ms * 2, im.options.reconnect_max_ms);
@@ -233,7 +233,7 @@ bool PahoLink::DoPublish(const OutMessage& message) {
   try {
     im.client.publish(message.topic, message.payload.data(), message.payload.size(), message.qos, message.retained);
     return true;
-  } catch (const mqtt::exception&) {
+  } catch (const ::mqtt::exception&) {
     return false;
   }
 }
@@ -242,4 +242,4 @@ int PahoLink::wake_fd() const { return impl_->wake.fd; }
 
 bool PahoLink::DoIsConnected() const { return impl_->connected; }
 
-}  // namespace lw::gateway
+}  // namespace lw::mqtt

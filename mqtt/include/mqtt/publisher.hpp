@@ -1,11 +1,10 @@
 #pragma once
-/// The gateway's view of an MQTT client: two methods, so the core logic is tested with a fake and
-/// only the Paho adapter (paho_link.hpp) includes mqtt/ headers.
-#include <cstddef>
-#include <cstdint>
+/// The publisher contract: what the gateway and the server need of an MQTT client, two methods, so
+/// their logic is tested with a fake and only the Paho adapter (paho_link.hpp) includes Paho's
+/// headers.
 #include <string>
 
-namespace lw::gateway {
+namespace lw::mqtt {
 
 /// One outgoing MQTT message.
 struct OutMessage {
@@ -22,7 +21,8 @@ class Publisher {
 
   /// Hands a message to the client. Non-blocking. Returns false when the client is not connected
   /// or refused the message (nothing was sent; the caller keeps it and retries later). True does
-  /// NOT mean the message reached anyone: the spool keeps records until the server's commit ack.
+  /// NOT mean the message reached anyone: the gateway's spool keeps records until the server's
+  /// commit ack.
   bool Publish(const OutMessage& message) { return DoPublish(message); }
 
   /// True while the client believes it is connected to the broker. Non-blocking.
@@ -33,12 +33,4 @@ class Publisher {
   virtual bool DoIsConnected() const = 0;
 };
 
-/// Where the gateway writes frames for the radio (acks to sensors). Implemented by SerialPort.
-class ByteSink {
- public:
-  virtual ~ByteSink() = default;
-  /// Writes all bytes or returns false. May block briefly (bounded) while the port drains.
-  virtual bool Write(const uint8_t* data, size_t len) = 0;
-};
-
-}  // namespace lw::gateway
+}  // namespace lw::mqtt

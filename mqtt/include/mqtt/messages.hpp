@@ -1,0 +1,167 @@
+#pragma once
+/// The JSON messages of docs/mqtt.md, one encoder and one decoder each: reading, commit ack,
+/// gateway status, gateway stats, device registry and wear. Encoders write exactly the bytes the
+/// gateway and the server have always sent (keys in sorted order, text that is not UTF-8 replaced
+/// by U+FFFD, never thrown on); decoders check the fields docs/mqtt.md requires and ignore the ones
+/// they do not know. Times are ISO-8601 UTC strings as on the wire. Pure functions, no I/O.
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace lw::mqtt {
+
+/// Unix milliseconds as ISO-8601 UTC with second precision: "2026-03-01T12:00:07Z".
+std::string IsoUtc(int64_t unix_ms);
+
+/// 64-bit radio address as 16 upper-case hex digits (the `address` field and `{address}` level).
+std::string AddressHex(uint64_t address);
+
+/// Names of the set record flag bits ("heartbeat", "loop_healed", ...), lowest bit first; a bit
+/// without a name is "bitN".
+std::vector<std::string> FlagNames(uint16_t flags);
+
+// ---- reading: `sensors/{sensor}/reading`, gateway -> server ----
+
+/// One sensor record. `flag_names` is not a member: EncodeReading derives it from `flags`.
+struct ReadingMessage {
+  // Required.
+  std::string sensor;
+  uint32_t seq = 0;
+  std::string time;  ///< when the sample was taken
+  double thickness_mm = 0;
+  int64_t loops_intact = 0;
+  uint16_t flags = 0;
+  int64_t battery_mv = 0;
+  // Optional: the gateway sends them all.
+  std::optional<int64_t> temperature_c;
+  std::optional<int64_t> ladder_loops;
+  std::optional<std::string> loop_bitmap;  ///< lower-case hex, loop 0 in the first byte's top bit
+  std::optional<int64_t> dropped_total;
+  std::optional<std::string> address;      ///< the radio's, AddressHex
+  std::optional<std::string> gateway;
+  std::optional<std::string> received;     ///< when the gateway received it
+
+  bool operator==(const ReadingMessage&) const = default;
+};
+
+std::string EncodeReading(const ReadingMessage& reading);
+/// Nullopt with `*error` naming the field when a required field is missing or of the wrong type,
+/// or the text is not a JSON object.
+std::optional<ReadingMessage> DecodeReading(std::string_view payload, std::string* error);
+
+// ---- commit ack: `sensors/{sensor}/committed`, server -> gateway ----
+
+struct CommitAck {
+  std::string sensor;
+  std::vector<uint32_t> seqs;
+  std::string time;  ///< when the server sent it (decoded: empty when absent)
+
+  bool operator==(const CommitAck&) const = default;
+};
+
+/// Limits on a commit ack, checked before it is parsed into a tree: the server sends at most one
+/// transaction's readings (`--batch-max`, default 1000) in one ack, two levels deep.
+inline constexpr size_t kMaxCommitAckBytes = 64 * 1024;
+inline constexpr size_t kMaxCommitAckDepth = 8;
+inline constexpr size_t kMaxCommitAckSeqs = 10000;
+
+/// `{"sensor": S, "seqs": [...], "time": ISO}`.
+std::string EncodeCommitAck(const CommitAck& ack);
+
+/// The ack as messages the gateway accepts (at most kMaxCommitAckSeqs seqs and kMaxCommitAckBytes
+/// each): one EncodeCommitAck per slice of `ack.seqs`, in order. Empty when the sensor name alone
+/// makes a message too long (a topic level no gateway publishes: nothing it spooled to ack).
+std::vector<std::string> EncodeCommitAcks(const CommitAck& ack);
+
+/// Parses a commit ack received on `.../sensors/{sensor}/committed`. `topic_sensor` is the
+/// {sensor} level of the topic; a payload naming another sensor is refused, one naming none is
+/// the topic's. Returns nullopt and sets `*error` when the message is malformed, over
+/// kMaxCommitAckBytes, nested deeper than kMaxCommitAckDepth or holds more than kMaxCommitAckSeqs
+/// seqs.
+std::optional<CommitAck> DecodeCommitAck(std::string_view payload, const std::string& topic_sensor, std::string* error);
+
+// ---- gateway status: `gateway/status` (retained; also the last will) ----
+
+struct StatusMessage {
+  bool online = false;
+  std::string gateway;
+  std::string time;
+
+  bool operator==(const StatusMessage&) const = default;
+};
+
+/// `{"state": "online"|"offline", "gateway": ID, "time": ISO}`.
+std::string EncodeStatus(const StatusMessage& status);
+std::optional<StatusMessage> DecodeStatus(std::string_view payload, std::string* error);
+
+// ---- gateway stats: `gateway/stats` (fields: docs/gateway.md) ----
+
+struct StatsMessage {
+  std::string gateway;
+  std::string time;
+  std::map<std::string, uint64_t> counters;  ///< frames_ok, spool_depth, ... (every whole-number field)
+  int64_t latency_last_ms = -1;               ///< `publish_latency_ms`: -1 before the first commit ack
+  int64_t latency_max_ms = -1;
+  int64_t latency_mean_ms = -1;
+
+  bool operator==(const StatsMessage&) const = default;
+};
+
+std::string EncodeStats(const StatsMessage& stats);
+std::optional<StatsMessage> DecodeStats(std::string_view payload, std::string* error);
+
+// ---- device registry: `gateway/devices/{address}` (retained) ----
+
+struct DeviceMessage {
+  std::string gateway;
+  std::string time;
+  std::string address;
+  std::string first_seen;
+  std::vector<std::string> sensors;
+  std::optional<std::string> node_identifier;
+  std::optional<int64_t> device_type;
+
+  bool operator==(const DeviceMessage&) const = default;
+};
+
+/// `{"gateway", "time", "address", "first_seen", "sensors": [ids], "node_identifier"?, "device_type"?}`.
+std::string EncodeDevice(const DeviceMessage& device);
+std::optional<DeviceMessage> DecodeDevice(std::string_view payload, std::string* error);
+
+// ---- wear: `wear` (retained), server ----
+
+/// The wear message is the server's wear result without faces (docs/server.md, *Global wear*),
+/// built by the server; this is its encoding (as the server has always sent it).
+std::string EncodeWear(const nlohmann::ordered_json& summary);
+
+/// The fields every wear message carries, as consumers read them; `summary` is the whole message.
+struct WearMessage {
+  std::string crusher_id;
+  std::string time;  ///< the latest reading used
+  std::string map_sha256;
+  std::optional<double> min_thickness_mm;  ///< null when the sensors cannot support it
+  struct Row {
+    std::string row;
+    std::optional<double> min_thickness_mm;
+    bool operator==(const Row&) const = default;
+  };
+  std::vector<Row> rows;
+  struct Used {
+    std::string sensor;
+    int64_t seq = 0;
+    std::string time;
+    double thickness_mm = 0;
+    bool operator==(const Used&) const = default;
+  };
+  std::vector<Used> readings_used;
+  nlohmann::ordered_json summary;
+};
+
+std::optional<WearMessage> DecodeWear(std::string_view payload, std::string* error);
+
+}  // namespace lw::mqtt

@@ -1,0 +1,451 @@
+#include "mqtt/messages.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <ctime>
+
+namespace lw::mqtt {
+
+using nlohmann::json;
+
+namespace {
+
+/// Text from the radio (NI strings) or the host is not always UTF-8: invalid bytes become U+FFFD
+/// instead of an exception that would lose the message.
+std::string Dump(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
+
+/// Every decoder's bounds (the server's on readings, the gateway's on commit acks): checked before
+/// a tree is built. Wear messages name every row and sensor: they get more room.
+constexpr size_t kMaxMessageBytes = 64 * 1024;
+constexpr size_t kMaxMessageDepth = 8;
+constexpr size_t kMaxWearBytes = 1024 * 1024;
+
+// SAX pass that only measures nesting and stops at the first level beyond the limit, so that a
+// hostile message (`[[[[...` 100 000 deep) is refused without building a tree or recursing.
+class DepthLimit {
+ public:
+  explicit DepthLimit(size_t max_depth) : max_depth_(max_depth) {}
+  bool too_deep() const { return too_deep_; }
+  bool null() { return true; }
+  bool boolean(bool) { return true; }
+  bool number_integer(json::number_integer_t) { return true; }
+  bool number_unsigned(json::number_unsigned_t) { return true; }
+  bool number_float(json::number_float_t, const json::string_t&) { return true; }
+  bool string(json::string_t&) { return true; }
+  bool binary(json::binary_t&) { return true; }
+  bool key(json::string_t&) { return true; }
+  bool start_object(std::size_t) { return Enter(); }
+  bool start_array(std::size_t) { return Enter(); }
+  bool end_object() { return Leave(); }
+  bool end_array() { return Leave(); }
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) { return false; }
+
+ private:
+  bool Enter() {
+    if (++depth_ > max_depth_) too_deep_ = true;
+    return !too_deep_;
+  }
+  bool Leave() {
+    --depth_;
+    return true;
+  }
+  size_t max_depth_;
+  size_t depth_ = 0;
+  bool too_deep_ = false;
+};
+
+// Describes a JSON value for an error message without serialising it (a nested value may be
+// arbitrarily large): numbers and short strings as they are, anything else by its type.
+std::string Describe(const json& v) {
+  if (v.is_number() || v.is_boolean() || v.is_null()) return v.dump();
+  if (v.is_string() && v.get_ref<const std::string&>().size() <= 32) return v.dump();
+  const std::string type = v.type_name();
+  return (v.is_object() || v.is_array() ? "an " : "a ") + type;
+}
+
+// Size and nesting checked before a tree is built.
+std::optional<json> ParseBoundedJson(std::string_view text, size_t max_bytes, size_t max_depth, std::string* error) {
+  if (text.size() > max_bytes) {
+    *error = "message of " + std::to_string(text.size()) + " bytes (at most " + std::to_string(max_bytes) + ")";
+    return std::nullopt;
+  }
+  DepthLimit limit(max_depth);
+  if (!json::sax_parse(text, &limit, json::input_format_t::json, /*strict=*/true, /*ignore_comments=*/false)) {
+    *error = limit.too_deep() ? "JSON nested deeper than " + std::to_string(max_depth) + " levels" : "not JSON";
+    return std::nullopt;
+  }
+  json j = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) {
+    *error = "not JSON";
+    return std::nullopt;
+  }
+  return j;
+}
+
+/// A bounded JSON object, or nullopt with `*error` set.
+std::optional<json> ParseObject(std::string_view text, std::string* error, size_t max_bytes = kMaxMessageBytes) {
+  auto parsed = ParseBoundedJson(text, max_bytes, kMaxMessageDepth, error);
+  if (parsed && !parsed->is_object()) {
+    *error = "not a JSON object";
+    return std::nullopt;
+  }
+  return parsed;
+}
+
+/// Typed field readers for the decoders: each sets `*error` naming the field when it is missing
+/// (required ones) or of another type, and returns false.
+class Fields {
+ public:
+  Fields(const json& object, std::string* error) : j_(object), error_(error) {}
+
+  bool String(const char* name, std::string* out, bool required = true) {
+    const auto it = j_.find(name);
+    if (it == j_.end()) return Missing(name, required);
+    if (!it->is_string()) return Wrong(name, "a string");
+    *out = it->get<std::string>();
+    return true;
+  }
+  bool String(const char* name, std::optional<std::string>* out) {
+    std::string v;
+    if (j_.find(name) == j_.end()) return true;
+    if (!String(name, &v)) return false;
+    *out = std::move(v);
+    return true;
+  }
+  bool Integer(const char* name, int64_t lo, int64_t hi, int64_t* out, bool required = true) {
+    const auto it = j_.find(name);
+    if (it == j_.end()) return Missing(name, required);
+    if (!it->is_number_integer() || (it->is_number_unsigned() && it->get<uint64_t>() > static_cast<uint64_t>(hi)) ||
+        it->get<int64_t>() < lo || it->get<int64_t>() > hi) {
+      return Wrong(name, "a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    }
+    *out = it->get<int64_t>();
+    return true;
+  }
+  bool Integer(const char* name, std::optional<int64_t>* out) {
+    int64_t v = 0;
+    if (j_.find(name) == j_.end()) return true;
+    if (!Integer(name, INT64_MIN, INT64_MAX, &v)) return false;
+    *out = v;
+    return true;
+  }
+  bool Number(const char* name, double* out) {
+    const auto it = j_.find(name);
+    if (it == j_.end()) return Missing(name, true);
+    if (!it->is_number()) return Wrong(name, "a number");
+    *out = it->get<double>();
+    return true;
+  }
+  /// A number or null.
+  bool NumberOrNull(const json& where, const char* name, std::optional<double>* out) {
+    const auto it = where.find(name);
+    if (it == where.end()) return Missing(name, true);
+    if (it->is_null()) return true;
+    if (!it->is_number()) return Wrong(name, "a number or null");
+    *out = it->get<double>();
+    return true;
+  }
+  bool Array(const char* name, const json** out) {
+    const auto it = j_.find(name);
+    if (it == j_.end()) return Missing(name, true);
+    if (!it->is_array()) return Wrong(name, "an array");
+    *out = &*it;
+    return true;
+  }
+  bool Wrong(const std::string& name, const std::string& what) {
+    *error_ = "\"" + name + "\" must be " + what;
+    return false;
+  }
+
+ private:
+  bool Missing(const char* name, bool required) {
+    if (!required) return true;
+    *error_ = std::string("missing \"") + name + "\"";
+    return false;
+  }
+  const json& j_;
+  std::string* error_;
+};
+
+}  // namespace
+
+std::string IsoUtc(int64_t unix_ms) {
+  int64_t secs = unix_ms / 1000;
+  if (unix_ms < 0 && unix_ms % 1000 != 0) --secs;
+  const time_t t = static_cast<time_t>(secs);
+  struct tm tm_utc {};
+  gmtime_r(&t, &tm_utc);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm_utc);
+  return buf;
+}
+
+std::string AddressHex(uint64_t address) {
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llX", static_cast<unsigned long long>(address));
+  return buf;
+}
+
+std::vector<std::string> FlagNames(uint16_t flags) {
+  static constexpr const char* kNames[] = {"heartbeat", "loop_healed", "non_contiguous", "all_open",
+                                           "spi_stuck", "flicker",     "low_battery",    "boot",
+                                           "watchdog_reset", "dropped"};
+  std::vector<std::string> out;
+  for (unsigned bit = 0; bit < 16; ++bit) {
+    if (!(flags & (1u << bit))) continue;
+    out.push_back(bit < std::size(kNames) ? kNames[bit] : "bit" + std::to_string(bit));
+  }
+  return out;
+}
+
+// ---- reading ----
+
+std::string EncodeReading(const ReadingMessage& r) {
+  json j = {
+      {"sensor", r.sensor},
+      {"seq", r.seq},
+      {"time", r.time},
+      {"thickness_mm", r.thickness_mm},
+      {"loops_intact", r.loops_intact},
+      {"flags", r.flags},
+      {"flag_names", FlagNames(r.flags)},
+      {"battery_mv", r.battery_mv},
+  };
+  if (r.temperature_c) j["temperature_c"] = *r.temperature_c;
+  if (r.ladder_loops) j["ladder_loops"] = *r.ladder_loops;
+  if (r.loop_bitmap) j["loop_bitmap"] = *r.loop_bitmap;
+  if (r.dropped_total) j["dropped_total"] = *r.dropped_total;
+  if (r.address) j["address"] = *r.address;
+  if (r.gateway) j["gateway"] = *r.gateway;
+  if (r.received) j["received"] = *r.received;
+  return Dump(j);
+}
+
+std::optional<ReadingMessage> DecodeReading(std::string_view payload, std::string* error) {
+  const auto j = ParseObject(payload, error);
+  if (!j) return std::nullopt;
+  Fields f(*j, error);
+  ReadingMessage r;
+  int64_t seq = 0, flags = 0;
+  // The sensor id is a string on the wire; a bare number names the same sensor.
+  if (const auto s = j->find("sensor"); s != j->end() && s->is_number_unsigned()) {
+    r.sensor = std::to_string(s->get<uint64_t>());
+  } else if (!f.String("sensor", &r.sensor)) {
+    return std::nullopt;
+  }
+  if (!f.Integer("seq", 0, 0xFFFFFFFFLL, &seq) || !f.String("time", &r.time) || !f.Number("thickness_mm", &r.thickness_mm) ||
+      !f.Integer("loops_intact", 0, INT64_MAX, &r.loops_intact) || !f.Integer("flags", 0, 0xFFFF, &flags) ||
+      !f.Integer("battery_mv", INT64_MIN, INT64_MAX, &r.battery_mv) || !f.Integer("temperature_c", &r.temperature_c) ||
+      !f.Integer("ladder_loops", &r.ladder_loops) || !f.String("loop_bitmap", &r.loop_bitmap) ||
+      !f.Integer("dropped_total", &r.dropped_total) || !f.String("address", &r.address) || !f.String("gateway", &r.gateway) ||
+      !f.String("received", &r.received)) {
+    return std::nullopt;
+  }
+  r.seq = static_cast<uint32_t>(seq);
+  r.flags = static_cast<uint16_t>(flags);
+  return r;
+}
+
+// ---- commit ack ----
+
+std::string EncodeCommitAck(const CommitAck& ack) {
+  return Dump({{"sensor", ack.sensor}, {"seqs", ack.seqs}, {"time", ack.time}});
+}
+
+std::vector<std::string> EncodeCommitAcks(const CommitAck& ack) {
+  std::vector<std::string> out;
+  CommitAck part{ack.sensor, {}, ack.time};
+  const size_t empty = EncodeCommitAck(part).size();
+  if (empty + 10 > kMaxCommitAckBytes) return out;  // not even one seq fits
+  size_t bytes = empty;
+  for (const uint32_t seq : ack.seqs) {
+    const size_t add = std::to_string(seq).size() + (part.seqs.empty() ? 0 : 1);  // digits and a comma
+    if (part.seqs.size() == kMaxCommitAckSeqs || bytes + add > kMaxCommitAckBytes) {
+      out.push_back(EncodeCommitAck(part));
+      part.seqs.clear();
+      bytes = empty;
+    }
+    bytes += std::to_string(seq).size() + (part.seqs.empty() ? 0 : 1);
+    part.seqs.push_back(seq);
+  }
+  if (!part.seqs.empty() || out.empty()) out.push_back(EncodeCommitAck(part));
+  return out;
+}
+
+std::optional<CommitAck> DecodeCommitAck(std::string_view payload, const std::string& topic_sensor, std::string* error) {
+  auto parsed = ParseBoundedJson(payload, kMaxCommitAckBytes, kMaxCommitAckDepth, error);
+  if (!parsed) return std::nullopt;
+  const json& j = *parsed;
+  if (!j.is_object()) {
+    *error = "not a JSON object";
+    return std::nullopt;
+  }
+  CommitAck ack;
+  ack.sensor = topic_sensor;
+  if (const auto it = j.find("sensor"); it != j.end()) {
+    if (!it->is_string() && !it->is_number_unsigned()) {
+      *error = "\"sensor\" must be a string";
+      return std::nullopt;
+    }
+    const std::string named = it->is_string() ? it->get<std::string>() : std::to_string(it->get<uint64_t>());
+    if (!topic_sensor.empty() && named != topic_sensor) {
+      *error = "\"sensor\" " + named + " does not match the topic's sensor " + topic_sensor;
+      return std::nullopt;
+    }
+    ack.sensor = named;
+  }
+  if (ack.sensor.empty()) {
+    *error = "no sensor";
+    return std::nullopt;
+  }
+  const auto seqs = j.find("seqs");
+  if (seqs == j.end() || !seqs->is_array()) {
+    *error = "\"seqs\" must be an array of sequence numbers";
+    return std::nullopt;
+  }
+  if (seqs->size() > kMaxCommitAckSeqs) {
+    *error = "\"seqs\" holds " + std::to_string(seqs->size()) + " sequence numbers (at most " +
+             std::to_string(kMaxCommitAckSeqs) + ")";
+    return std::nullopt;
+  }
+  for (const json& s : *seqs) {
+    if (!s.is_number_unsigned() || s.get<uint64_t>() > 0xFFFFFFFFull) {
+      *error = "\"seqs\" holds " + Describe(s) + ", not a 32-bit unsigned sequence number";
+      return std::nullopt;
+    }
+    ack.seqs.push_back(static_cast<uint32_t>(s.get<uint64_t>()));
+  }
+  // The time is informative: the gateway acts on the seqs whatever it says.
+  if (const auto t = j.find("time"); t != j.end() && t->is_string()) ack.time = t->get<std::string>();
+  return ack;
+}
+
+// ---- gateway status ----
+
+std::string EncodeStatus(const StatusMessage& s) {
+  return Dump({{"state", s.online ? "online" : "offline"}, {"gateway", s.gateway}, {"time", s.time}});
+}
+
+std::optional<StatusMessage> DecodeStatus(std::string_view payload, std::string* error) {
+  const auto j = ParseObject(payload, error);
+  if (!j) return std::nullopt;
+  Fields f(*j, error);
+  StatusMessage s;
+  std::string state;
+  if (!f.String("state", &state) || !f.String("gateway", &s.gateway) || !f.String("time", &s.time)) return std::nullopt;
+  if (state != "online" && state != "offline") {
+    f.Wrong("state", "\"online\" or \"offline\"");
+    return std::nullopt;
+  }
+  s.online = state == "online";
+  return s;
+}
+
+// ---- gateway stats ----
+
+std::string EncodeStats(const StatsMessage& s) {
+  json j(s.counters);
+  j["gateway"] = s.gateway;
+  j["time"] = s.time;
+  j["publish_latency_ms"] = {{"last", s.latency_last_ms}, {"max", s.latency_max_ms}, {"mean", s.latency_mean_ms}};
+  return Dump(j);
+}
+
+std::optional<StatsMessage> DecodeStats(std::string_view payload, std::string* error) {
+  const auto j = ParseObject(payload, error);
+  if (!j) return std::nullopt;
+  Fields f(*j, error);
+  StatsMessage s;
+  if (!f.String("gateway", &s.gateway) || !f.String("time", &s.time)) return std::nullopt;
+  const auto latency = j->find("publish_latency_ms");
+  if (latency == j->end() || !latency->is_object()) {
+    f.Wrong("publish_latency_ms", "an object");
+    return std::nullopt;
+  }
+  Fields l(*latency, error);
+  if (!l.Integer("last", -1, INT64_MAX, &s.latency_last_ms) || !l.Integer("max", -1, INT64_MAX, &s.latency_max_ms) ||
+      !l.Integer("mean", -1, INT64_MAX, &s.latency_mean_ms)) {
+    return std::nullopt;
+  }
+  for (const auto& [name, value] : j->items()) {
+    if (value.is_number_unsigned()) s.counters[name] = value.get<uint64_t>();
+  }
+  return s;
+}
+
+// ---- device registry ----
+
+std::string EncodeDevice(const DeviceMessage& d) {
+  json j = {{"gateway", d.gateway}, {"time", d.time}, {"address", d.address}, {"first_seen", d.first_seen}};
+  if (d.node_identifier) j["node_identifier"] = *d.node_identifier;
+  if (d.device_type) j["device_type"] = *d.device_type;
+  j["sensors"] = d.sensors;
+  return Dump(j);
+}
+
+std::optional<DeviceMessage> DecodeDevice(std::string_view payload, std::string* error) {
+  const auto j = ParseObject(payload, error);
+  if (!j) return std::nullopt;
+  Fields f(*j, error);
+  DeviceMessage d;
+  const json* sensors = nullptr;
+  if (!f.String("gateway", &d.gateway) || !f.String("time", &d.time) || !f.String("address", &d.address) ||
+      !f.String("first_seen", &d.first_seen) || !f.Array("sensors", &sensors) || !f.String("node_identifier", &d.node_identifier) ||
+      !f.Integer("device_type", &d.device_type)) {
+    return std::nullopt;
+  }
+  for (const json& s : *sensors) {
+    if (!s.is_string()) {
+      f.Wrong("sensors", "an array of sensor ids");
+      return std::nullopt;
+    }
+    d.sensors.push_back(s.get<std::string>());
+  }
+  return d;
+}
+
+// ---- wear ----
+
+std::string EncodeWear(const nlohmann::ordered_json& summary) { return summary.dump(); }
+
+std::optional<WearMessage> DecodeWear(std::string_view payload, std::string* error) {
+  if (!ParseObject(payload, error, kMaxWearBytes)) return std::nullopt;
+  WearMessage w;
+  w.summary = nlohmann::ordered_json::parse(payload);
+  // Fields reads a json; the ordered copy is kept for the caller.
+  const json j = json::parse(payload);
+  Fields f(j, error);
+  const json* rows = nullptr;
+  const json* used = nullptr;
+  if (!f.String("crusher_id", &w.crusher_id) || !f.String("time", &w.time) || !f.String("map_sha256", &w.map_sha256) ||
+      !f.NumberOrNull(j, "min_thickness_mm", &w.min_thickness_mm) || !f.Array("rows", &rows) ||
+      !f.Array("readings_used", &used)) {
+    return std::nullopt;
+  }
+  for (const json& r : *rows) {
+    WearMessage::Row row;
+    if (!r.is_object()) {
+      f.Wrong("rows", "an array of objects");
+      return std::nullopt;
+    }
+    Fields rf(r, error);
+    if (!rf.String("row", &row.row) || !rf.NumberOrNull(r, "min_thickness_mm", &row.min_thickness_mm)) return std::nullopt;
+    w.rows.push_back(std::move(row));
+  }
+  for (const json& u : *used) {
+    WearMessage::Used one;
+    if (!u.is_object()) {
+      f.Wrong("readings_used", "an array of objects");
+      return std::nullopt;
+    }
+    Fields uf(u, error);
+    if (!uf.String("sensor", &one.sensor) || !uf.Integer("seq", 0, 0xFFFFFFFFLL, &one.seq) || !uf.String("time", &one.time) ||
+        !uf.Number("thickness_mm", &one.thickness_mm)) {
+      return std::nullopt;
+    }
+    w.readings_used.push_back(std::move(one));
+  }
+  return w;
+}
+
+}  // namespace lw::mqtt

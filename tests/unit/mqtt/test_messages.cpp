@@ -1,0 +1,331 @@
+// Messages of docs/mqtt.md: every codec round-trips, encodes the bytes the gateway and the server
+// have always sent, and refuses malformed messages with a reason.
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+#include "mqtt/messages.hpp"
+
+// CppUTest last: its new/delete macros break standard headers included after it.
+#include <CppUTest/TestHarness.h>
+
+using nlohmann::json;
+namespace mq = lw::mqtt;
+
+namespace {
+
+mq::ReadingMessage FullReading() {
+  mq::ReadingMessage r;
+  r.sensor = "1001";
+  r.seq = 42;
+  r.time = "2026-03-01T12:00:00Z";
+  r.thickness_mm = 87.3;
+  r.loops_intact = 87;
+  r.flags = 0x41;
+  r.battery_mv = 3550;
+  r.temperature_c = -5;
+  r.ladder_loops = 12;
+  r.loop_bitmap = "ab0f";
+  r.dropped_total = 3;
+  r.address = "0013A20040A1B2C3";
+  r.gateway = "gw-1";
+  r.received = "2026-03-01T12:00:07Z";
+  return r;
+}
+
+}  // namespace
+
+TEST_GROUP(Messages){};
+
+TEST(Messages, IsoUtcFormatsUnixMilliseconds) {
+  STRCMP_EQUAL("1970-01-01T00:00:00Z", mq::IsoUtc(0).c_str());
+  STRCMP_EQUAL("2026-03-01T12:00:07Z", mq::IsoUtc(1772366407123).c_str());
+  STRCMP_EQUAL("1969-12-31T23:59:59Z", mq::IsoUtc(-1).c_str());
+}
+
+TEST(Messages, AddressIsSixteenUpperCaseHexDigits) {
+  STRCMP_EQUAL("0013A20040A1B2C3", mq::AddressHex(0x0013A20040A1B2C3ull).c_str());
+}
+
+TEST(Messages, FlagNamesLowestBitFirst) {
+  CHECK(mq::FlagNames(0x41) == (std::vector<std::string>{"heartbeat", "low_battery"}));
+  CHECK(mq::FlagNames(0x8200) == (std::vector<std::string>{"dropped", "bit15"}));
+  CHECK(mq::FlagNames(0).empty());
+}
+
+// ---- reading ----
+
+TEST(Messages, ReadingEncodesTheBytesTheGatewayAlwaysSent) {
+  // The gateway's ReadingJson before lw::mqtt existed, for the same record.
+  STRCMP_EQUAL(R"({"address":"0013A20040A1B2C3","battery_mv":3550,"dropped_total":3,"flag_names":["heartbeat","low_battery"],)"
+               R"("flags":65,"gateway":"gw-1","ladder_loops":12,"loop_bitmap":"ab0f","loops_intact":87,)"
+               R"("received":"2026-03-01T12:00:07Z","sensor":"1001","seq":42,"temperature_c":-5,"thickness_mm":87.3,)"
+               R"("time":"2026-03-01T12:00:00Z"})",
+               mq::EncodeReading(FullReading()).c_str());
+}
+
+TEST(Messages, ReadingRoundTrips) {
+  std::string error;
+  const auto full = mq::DecodeReading(mq::EncodeReading(FullReading()), &error);
+  CHECK_TEXT(full.has_value(), error.c_str());
+  CHECK(*full == FullReading());
+  // Only the required fields: the optional ones stay absent.
+  mq::ReadingMessage bare;
+  bare.sensor = "7";
+  bare.seq = 4294967295u;
+  bare.time = "2026-01-01T00:00:00Z";
+  bare.thickness_mm = 0.5;
+  bare.flags = 0xFFFF;
+  const auto back = mq::DecodeReading(mq::EncodeReading(bare), &error);
+  CHECK_TEXT(back.has_value(), error.c_str());
+  CHECK(*back == bare);
+  CHECK_FALSE(json::parse(mq::EncodeReading(bare)).contains("address"));
+}
+
+TEST(Messages, ReadingDecoderIgnoresUnknownFieldsAndNamesWhatIsWrong) {
+  std::string error;
+  CHECK(mq::DecodeReading(R"({"sensor":1001,"seq":1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1,"new":[1]})",
+                          &error)
+            ->sensor == "1001");
+  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1","time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})", &error));
+  STRCMP_EQUAL("missing \"seq\"", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1","seq":-1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})", &error));
+  STRCMP_EQUAL("\"seq\" must be a whole number in [0, 4294967295]", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1","seq":1,"time":"t","thickness_mm":"9","loops_intact":9,"flags":0,"battery_mv":1})", &error));
+  STRCMP_EQUAL("\"thickness_mm\" must be a number", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1","seq":1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":65536,"battery_mv":1})", &error));
+  STRCMP_EQUAL("\"flags\" must be a whole number in [0, 65535]", error.c_str());
+  CHECK_FALSE(mq::DecodeReading("[1]", &error));
+  STRCMP_EQUAL("not a JSON object", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(std::string(70000, ' '), &error));
+  STRCMP_EQUAL("message of 70000 bytes (at most 65536)", error.c_str());
+}
+
+// ---- commit ack ----
+
+TEST(Messages, CommitAckEncodesTheBytesTheServerAlwaysSent) {
+  STRCMP_EQUAL(R"({"sensor":"1001","seqs":[41,42,43],"time":"2026-06-01T00:00:00Z"})",
+               mq::EncodeCommitAck({"1001", {41, 42, 43}, "2026-06-01T00:00:00Z"}).c_str());
+}
+
+TEST(Messages, CommitAckRoundTrips) {
+  const mq::CommitAck ack{"1001", {0, 41, 4294967295u}, "2026-06-01T00:00:00Z"};
+  std::string error;
+  const auto back = mq::DecodeCommitAck(mq::EncodeCommitAck(ack), "1001", &error);
+  CHECK_TEXT(back.has_value(), error.c_str());
+  CHECK(*back == ack);
+}
+
+TEST(Messages, CommitAckParses) {
+  std::string error;
+  const auto ack = mq::DecodeCommitAck(R"({"sensor": "1001", "seqs": [41, 42, 43], "time": "x"})", "1001", &error);
+  CHECK_TRUE(ack.has_value());
+  STRCMP_EQUAL("1001", ack->sensor.c_str());
+  CHECK(ack->seqs == (std::vector<uint32_t>{41, 42, 43}));
+  STRCMP_EQUAL("x", ack->time.c_str());
+}
+
+TEST(Messages, CommitAckWithoutSensorFieldUsesTheTopic) {
+  std::string error;
+  const auto ack = mq::DecodeCommitAck(R"({"seqs": [1]})", "77", &error);
+  CHECK_TRUE(ack.has_value());
+  STRCMP_EQUAL("77", ack->sensor.c_str());
+  STRCMP_EQUAL("", ack->time.c_str());
+}
+
+TEST(Messages, MalformedCommitAcksAreRefusedWithAReason) {
+  std::string error;
+  CHECK_FALSE(mq::DecodeCommitAck("not json", "1", &error).has_value());
+  STRCMP_EQUAL("not JSON", error.c_str());
+  CHECK_FALSE(mq::DecodeCommitAck("[1, 2]", "1", &error).has_value());
+  STRCMP_EQUAL("not a JSON object", error.c_str());
+  CHECK_FALSE(mq::DecodeCommitAck(R"({"sensor": "1", "seqs": 5})", "1", &error).has_value());
+  CHECK(error.find("seqs") != std::string::npos);
+  CHECK_FALSE(mq::DecodeCommitAck(R"({"sensor": "1", "seqs": [-1]})", "1", &error).has_value());
+  CHECK_FALSE(mq::DecodeCommitAck(R"({"sensor": "1", "seqs": [4294967296]})", "1", &error).has_value());
+  CHECK_FALSE(mq::DecodeCommitAck(R"({"sensor": "2", "seqs": [1]})", "1", &error).has_value());
+  CHECK(error.find("does not match") != std::string::npos);
+}
+
+// Finding 1 of issue 15: `seqs` nested 100 000 deep crashed the gateway (SIGSEGV in a recursive
+// dump() of the offending element); sent retained it crash-looped the gateway on every restart.
+TEST(Messages, DeeplyNestedCommitAckIsRefusedWithoutRecursing) {
+  auto nested = [](size_t depth) {
+    return R"({"sensor": "1", "seqs": [)" + std::string(depth, '[') + "1" + std::string(depth, ']') + "]}";
+  };
+  std::string error;
+  CHECK_FALSE(mq::DecodeCommitAck(nested(100000), "1", &error).has_value());  // 200 kB: over the size limit
+  CHECK(error.find("bytes (at most 65536)") != std::string::npos);
+  CHECK_FALSE(mq::DecodeCommitAck(nested(30000), "1", &error).has_value());   // 60 kB: the depth limit
+  STRCMP_EQUAL("JSON nested deeper than 8 levels", error.c_str());
+  // Deep but within the byte limit, in a field the gateway does not use: refused all the same.
+  const std::string nested_extra = R"({"seqs": [1], "x": )" + std::string(20, '[') + std::string(20, ']') + "}";
+  CHECK_FALSE(mq::DecodeCommitAck(nested_extra, "1", &error).has_value());
+}
+
+TEST(Messages, CommitAckErrorsNeverEchoANestedValue) {
+  std::string error;
+  CHECK_FALSE(mq::DecodeCommitAck(R"({"seqs": [1, [2, [3]]]})", "1", &error).has_value());
+  STRCMP_EQUAL("\"seqs\" holds an array, not a 32-bit unsigned sequence number", error.c_str());
+  CHECK_FALSE(mq::DecodeCommitAck(R"({"seqs": [-7]})", "1", &error).has_value());
+  STRCMP_EQUAL("\"seqs\" holds -7, not a 32-bit unsigned sequence number", error.c_str());
+}
+
+TEST(Messages, OversizedCommitAcksAreRefusedBeforeParsing) {
+  std::string error;
+  std::string big = R"({"seqs": [1], "pad": ")" + std::string(mq::kMaxCommitAckBytes, 'x') + "\"}";
+  CHECK_FALSE(mq::DecodeCommitAck(big, "1", &error).has_value());
+  CHECK(error.find("bytes (at most 65536)") != std::string::npos);
+  json many = {{"seqs", json::array()}};
+  for (uint32_t i = 0; i <= mq::kMaxCommitAckSeqs; ++i) many["seqs"].push_back(i);
+  CHECK_FALSE(mq::DecodeCommitAck(many.dump(), "1", &error).has_value());
+  CHECK(error.find("at most 10000") != std::string::npos);
+  many["seqs"].erase(many["seqs"].size() - 1);
+  CHECK_TRUE(mq::DecodeCommitAck(many.dump(), "1", &error).has_value());
+}
+
+// Found by fuzz/commit_ack: one commit ack per sensor and batch could exceed what the gateway
+// accepts (64 KiB, 10,000 seqs): 10,000 ten-digit seqs are 110 KB, and a topic level of control
+// characters is escaped six-fold. The gateway refused such an ack and kept republishing the records.
+TEST(Messages, AcksAreSplitIntoMessagesTheGatewayAccepts) {
+  mq::CommitAck ack{"1001", {}, "2026-06-01T00:00:00Z"};
+  for (uint32_t s = 0; s < 25000; ++s) ack.seqs.push_back(4294967295u - s);
+  const auto messages = mq::EncodeCommitAcks(ack);
+  CHECK(messages.size() >= 3);
+  std::vector<uint32_t> seqs;
+  for (const std::string& m : messages) {
+    CHECK(m.size() <= mq::kMaxCommitAckBytes);
+    std::string error;
+    const auto back = mq::DecodeCommitAck(m, "1001", &error);
+    CHECK_TEXT(back.has_value(), error.c_str());
+    seqs.insert(seqs.end(), back->seqs.begin(), back->seqs.end());
+  }
+  CHECK(seqs == ack.seqs);
+  // The single message: the gateway refuses it.
+  std::string error;
+  CHECK_FALSE(mq::DecodeCommitAck(mq::EncodeCommitAck(ack), "1001", &error).has_value());
+  // An empty ack and a small one stay one message, exactly EncodeCommitAck.
+  const mq::CommitAck small{"1001", {41, 42}, "t"};
+  CHECK(mq::EncodeCommitAcks(small) == std::vector<std::string>{mq::EncodeCommitAck(small)});
+  const mq::CommitAck none{"1001", {}, "t"};
+  CHECK(mq::EncodeCommitAcks(none) == std::vector<std::string>{mq::EncodeCommitAck(none)});
+  // A sensor name no message can carry: nothing to send.
+  CHECK(mq::EncodeCommitAcks({std::string(20000, '\x17'), {1}, "t"}).empty());
+}
+
+// ---- gateway status ----
+
+TEST(Messages, StatusEncodesTheBytesTheGatewayAlwaysSent) {
+  STRCMP_EQUAL(R"({"gateway":"gw-7","state":"offline","time":"1970-01-01T00:00:00Z"})",
+               mq::EncodeStatus({false, "gw-7", mq::IsoUtc(0)}).c_str());
+  STRCMP_EQUAL(R"({"gateway":"gw-1","state":"online","time":"2026-03-01T12:00:07Z"})",
+               mq::EncodeStatus({true, "gw-1", "2026-03-01T12:00:07Z"}).c_str());
+}
+
+TEST(Messages, StatusRoundTripsAndRefusesAnUnknownState) {
+  std::string error;
+  for (const bool online : {true, false}) {
+    const mq::StatusMessage s{online, "gw-1", "2026-03-01T12:00:07Z"};
+    const auto back = mq::DecodeStatus(mq::EncodeStatus(s), &error);
+    CHECK_TEXT(back.has_value(), error.c_str());
+    CHECK(*back == s);
+  }
+  CHECK_FALSE(mq::DecodeStatus(R"({"state":"asleep","gateway":"g","time":"t"})", &error));
+  STRCMP_EQUAL("\"state\" must be \"online\" or \"offline\"", error.c_str());
+  CHECK_FALSE(mq::DecodeStatus(R"({"state":"online","time":"t"})", &error));
+  STRCMP_EQUAL("missing \"gateway\"", error.c_str());
+}
+
+TEST(Messages, TextThatIsNotUtf8IsReplacedNeverThrown) {
+  const json j = json::parse(mq::EncodeStatus({true, "gw\xFF", "t"}));
+  STRCMP_EQUAL("gw\xEF\xBF\xBD", j["gateway"].get<std::string>().c_str());
+}
+
+// ---- gateway stats ----
+
+TEST(Messages, StatsRoundTrip) {
+  mq::StatsMessage s;
+  s.gateway = "gw-1";
+  s.time = "2026-03-01T12:00:07Z";
+  s.counters = {{"frames_ok", 12}, {"spool_depth", 0}, {"bytes_discarded", 18446744073709551615ull}};
+  s.latency_last_ms = 4;
+  s.latency_max_ms = 90;
+  s.latency_mean_ms = 11;
+  const std::string text = mq::EncodeStats(s);
+  STRCMP_EQUAL(R"({"bytes_discarded":18446744073709551615,"frames_ok":12,"gateway":"gw-1",)"
+               R"("publish_latency_ms":{"last":4,"max":90,"mean":11},"spool_depth":0,"time":"2026-03-01T12:00:07Z"})",
+               text.c_str());
+  std::string error;
+  const auto back = mq::DecodeStats(text, &error);
+  CHECK_TEXT(back.has_value(), error.c_str());
+  CHECK(*back == s);
+  CHECK_FALSE(mq::DecodeStats(R"({"gateway":"g","time":"t"})", &error));
+  STRCMP_EQUAL("\"publish_latency_ms\" must be an object", error.c_str());
+}
+
+// ---- device registry ----
+
+TEST(Messages, DeviceRoundTrips) {
+  mq::DeviceMessage d;
+  d.gateway = "gw-1";
+  d.time = "2026-03-01T12:00:07Z";
+  d.address = "0013A20040A1B2C3";
+  d.first_seen = "2026-03-01T12:00:00Z";
+  d.sensors = {"1001", "1002"};
+  std::string error;
+  auto back = mq::DecodeDevice(mq::EncodeDevice(d), &error);  // no identifier, no type: left out
+  CHECK_TEXT(back.has_value(), error.c_str());
+  CHECK(*back == d);
+  d.node_identifier = "ROW1";
+  d.device_type = 2;
+  STRCMP_EQUAL(R"({"address":"0013A20040A1B2C3","device_type":2,"first_seen":"2026-03-01T12:00:00Z","gateway":"gw-1",)"
+               R"("node_identifier":"ROW1","sensors":["1001","1002"],"time":"2026-03-01T12:00:07Z"})",
+               mq::EncodeDevice(d).c_str());
+  back = mq::DecodeDevice(mq::EncodeDevice(d), &error);
+  CHECK_TEXT(back.has_value(), error.c_str());
+  CHECK(*back == d);
+  CHECK_FALSE(mq::DecodeDevice(R"({"gateway":"g","time":"t","address":"a","first_seen":"t","sensors":[1]})", &error));
+  STRCMP_EQUAL("\"sensors\" must be an array of sensor ids", error.c_str());
+}
+
+// ---- wear ----
+
+TEST(Messages, WearRoundTripsWithEveryFieldKept) {
+  nlohmann::ordered_json summary;
+  summary["crusher_id"] = "cr7";
+  summary["time"] = "2026-03-01T12:00:00Z";
+  summary["map_sha256"] = "ab12";
+  summary["status"] = "ok";
+  summary["min_thickness_mm"] = 61.25;
+  summary["rows"] = {{{"row", "R1"}, {"min_thickness_mm", 61.25}, {"scale_sd", 0.1}}, {{"row", "R2"}, {"min_thickness_mm", nullptr}}};
+  summary["readings_used"] = {{{"sensor", "1001"}, {"seq", 42}, {"time", "2026-03-01T12:00:00Z"}, {"thickness_mm", 61.0}}};
+  summary["note"] = "kept as it is";
+  const std::string text = mq::EncodeWear(summary);
+  // Insertion order, as the server has always sent it.
+  CHECK(text.rfind(R"({"crusher_id":"cr7","time":)", 0) == 0);
+  std::string error;
+  const auto w = mq::DecodeWear(text, &error);
+  CHECK_TEXT(w.has_value(), error.c_str());
+  CHECK(w->summary == summary);
+  STRCMP_EQUAL(text.c_str(), mq::EncodeWear(w->summary).c_str());
+  STRCMP_EQUAL("cr7", w->crusher_id.c_str());
+  STRCMP_EQUAL("2026-03-01T12:00:00Z", w->time.c_str());
+  STRCMP_EQUAL("ab12", w->map_sha256.c_str());
+  DOUBLES_EQUAL(61.25, *w->min_thickness_mm, 0);
+  CHECK(w->rows == (std::vector<mq::WearMessage::Row>{{"R1", 61.25}, {"R2", std::nullopt}}));
+  CHECK(w->readings_used == (std::vector<mq::WearMessage::Used>{{"1001", 42, "2026-03-01T12:00:00Z", 61.0}}));
+}
+
+TEST(Messages, WearWithoutSupportAndMalformedWear) {
+  std::string error;
+  const auto w = mq::DecodeWear(R"({"crusher_id":"c","time":"t","map_sha256":"h","min_thickness_mm":null,"rows":[],"readings_used":[]})", &error);
+  CHECK_TEXT(w.has_value(), error.c_str());
+  CHECK_FALSE(w->min_thickness_mm.has_value());
+  CHECK_FALSE(mq::DecodeWear(R"({"crusher_id":"c","time":"t","min_thickness_mm":1,"rows":[],"readings_used":[]})", &error));
+  STRCMP_EQUAL("missing \"map_sha256\"", error.c_str());
+  CHECK_FALSE(mq::DecodeWear(R"({"crusher_id":"c","time":"t","map_sha256":"h","min_thickness_mm":1,"rows":[{"min_thickness_mm":1}],"readings_used":[]})", &error));
+  STRCMP_EQUAL("missing \"row\"", error.c_str());
+  CHECK_FALSE(mq::DecodeWear("not json", &error));
+  STRCMP_EQUAL("not JSON", error.c_str());
+}
