@@ -7,8 +7,7 @@
 
 namespace lw::server {
 
-DiagnosisRunner::DiagnosisRunner(const Registry& registry, Store& read, std::mutex& read_mutex)
-    : registry_(registry), read_(read), read_mutex_(read_mutex) {}
+DiagnosisRunner::DiagnosisRunner(const Registry& registry, LockedStore& store) : registry_(registry), store_(store) {}
 
 DiagnosisRunner::~DiagnosisRunner() {
   for (auto& j : jobs_) {
@@ -18,8 +17,9 @@ DiagnosisRunner::~DiagnosisRunner() {
 
 bool DiagnosisRunner::Start(const std::string& crusher) {
   std::lock_guard<std::mutex> lock(mutex_);
-  if (state_[crusher] == "running") return false;
-  state_[crusher] = "running";
+  RunStatus& run = runs_[crusher];
+  if (run.state == RunState::kRunning) return false;
+  run = {RunState::kRunning, ""};
   // Reap finished runs so their threads do not pile up over months.
   for (auto it = jobs_.begin(); it != jobs_.end();) {
     if (*it->done) {
@@ -39,6 +39,7 @@ bool DiagnosisRunner::Start(const std::string& crusher) {
 }
 
 void DiagnosisRunner::Run(const std::string& crusher_id) {
+  bool failed = false;
   std::string error;
   try {
     const Crusher* c = registry_.Find(crusher_id);
@@ -48,11 +49,7 @@ void DiagnosisRunner::Run(const std::string& crusher_id) {
     b.crusher = c->config;
     b.map = c->map;
     b.map_validation = c->validation;
-    std::vector<StoredReading> stored;
-    {
-      std::lock_guard<std::mutex> rl(read_mutex_);
-      stored = read_.All(crusher_id);
-    }
+    const std::vector<StoredReading> stored = store_.With([&](Store& s) { return s.All(crusher_id); });
     for (const StoredReading& r : stored) {
       core::Reading x;
       x.time = core::TimePoint(std::chrono::seconds(r.time_s));
@@ -64,34 +61,33 @@ void DiagnosisRunner::Run(const std::string& crusher_id) {
     b.scans = core::LoadScans(c->dir);
     const auto result = diagnosis::Diagnose(b);
     const auto now = std::chrono::floor<std::chrono::seconds>(std::chrono::system_clock::now());
-    std::lock_guard<std::mutex> rl(read_mutex_);
-    read_.SaveDiagnosis(crusher_id, now.time_since_epoch().count(), diagnosis::ToJson(result).dump());
+    const std::string json = diagnosis::ToJson(result).dump();
+    store_.With([&](Store& s) { s.SaveDiagnosis(crusher_id, now.time_since_epoch().count(), json); });
   } catch (const std::exception& e) {
+    failed = true;
     error = e.what();
   }
   std::lock_guard<std::mutex> lock(mutex_);
-  state_[crusher_id] = error.empty() ? "" : "failed: " + error;
+  runs_[crusher_id] = failed ? RunStatus{RunState::kFailed, error} : RunStatus{};
 }
 
 std::string DiagnosisRunner::StatusJson(const std::string& crusher) {
   nlohmann::ordered_json j;
-  std::string state;
+  RunStatus run;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    state = state_[crusher];
+    if (const auto it = runs_.find(crusher); it != runs_.end()) run = it->second;
   }
-  std::optional<std::pair<int64_t, std::string>> latest;
-  {
-    std::lock_guard<std::mutex> rl(read_mutex_);
-    latest = read_.LatestDiagnosis(crusher);
+  const std::optional<std::pair<int64_t, std::string>> latest = store_.With([&](Store& s) { return s.LatestDiagnosis(crusher); });
+  switch (run.state) {
+    case RunState::kRunning: j["status"] = "running"; break;
+    case RunState::kFailed: j["status"] = "failed"; break;
+    case RunState::kIdle: j["status"] = latest ? "done" : "none"; break;
   }
-  if (state == "running") j["status"] = "running";
-  else if (state.rfind("failed: ", 0) == 0) j["status"] = "failed";
-  else j["status"] = latest ? "done" : "none";
   j["time"] = latest ? nlohmann::ordered_json(core::FormatIsoTime(core::TimePoint(std::chrono::seconds(latest->first))))
                      : nlohmann::ordered_json(nullptr);
   j["result"] = latest ? nlohmann::ordered_json::parse(latest->second) : nlohmann::ordered_json(nullptr);
-  if (state.rfind("failed: ", 0) == 0) j["error"] = state.substr(8);
+  if (run.state == RunState::kFailed) j["error"] = run.error;
   return j.dump();
 }
 

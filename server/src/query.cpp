@@ -7,15 +7,15 @@
 #include "server/store.hpp"
 
 namespace lw::server {
-namespace {
-
-const std::string* Param(const QueryParams& params, const char* name) {
-  const auto it = params.find(name);
-  return it == params.end() ? nullptr : &it->second;
+const std::string* FindParam(const QueryParams& params, const char* name) {
+  const auto it = params.lower_bound(name);
+  return it == params.end() || it->first != name ? nullptr : &it->second;
 }
 
+namespace {
+
 bool TimeParam(const QueryParams& params, const char* name, int64_t* out, std::string* error) {
-  const std::string* v = Param(params, name);
+  const std::string* v = FindParam(params, name);
   if (!v) return true;
   const auto t = core::ParseIsoTime(*v);
   if (!t) {
@@ -29,7 +29,7 @@ bool TimeParam(const QueryParams& params, const char* name, int64_t* out, std::s
 }  // namespace
 
 bool WholeNumberParam(const QueryParams& params, const char* name, int min, int max, int* out, std::string* error) {
-  const std::string* v = Param(params, name);
+  const std::string* v = FindParam(params, name);
   if (!v) return true;
   const std::string range = "[" + std::to_string(min) + ", " + std::to_string(max) + "]";
   int x = 0;
@@ -51,7 +51,7 @@ std::optional<ReadingsQuery> ParseReadingsQuery(const QueryParams& params, std::
   ReadingsQuery q;
   if (!TimeParam(params, "from", &q.from_s, error) || !TimeParam(params, "to", &q.to_s, error)) return std::nullopt;
   if (!WholeNumberParam(params, "limit", 1, 5000, &q.limit, error)) return std::nullopt;
-  if (const std::string* v = Param(params, "cursor")) q.cursor = *v;
+  if (const std::string* v = FindParam(params, "cursor")) q.cursor = *v;
   if (!q.cursor.empty()) {
     try {
       int64_t t = 0, s = 0;

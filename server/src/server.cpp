@@ -75,13 +75,12 @@ std::string DiskFull(const std::string& db, int64_t free) {
 }
 
 /// The REST API's context over these parts (both the normal and the read-only start use it).
-ApiContext MakeApiContext(const ServerOptions& o, const Registry& registry, Store& read, std::mutex& read_mutex, WearService& wear,
+ApiContext MakeApiContext(const ServerOptions& o, const Registry& registry, LockedStore& read, WearService& wear,
                           const LiveState& live, Ingestor& ingestor, EventBus& events, const TokenStore& tokens) {
   ApiContext ctx;
   ctx.live = &live;
   ctx.registry = &registry;
   ctx.read = &read;
-  ctx.read_mutex = &read_mutex;
   ctx.wear = &wear;
   ctx.ingestor = &ingestor;
   ctx.events = &events;
@@ -117,21 +116,25 @@ bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& st
     reason = DiskFull(o.db, free);
     log(reason + ": " + e.what() + "; serving stored data read-only and taking no readings until space returns");
   }
-  std::unique_ptr<Store> read;
-  try {
-    read = Store::OpenReadOnly(o.db);
-  } catch (const std::exception& e) {
-    log("read-only: " + std::string(e.what()) + "; serving no stored data");
-    read = std::make_unique<Store>(":memory:");  // empty, in memory: the API answers, nothing on disk
-  }
-  std::mutex read_mutex;
+  // The REST reads' connection, and one of the refusing ingestor's own (each Store one thread at a time).
+  const auto open_read_only = [&](bool log_failure) {
+    try {
+      return Store::OpenReadOnly(o.db);
+    } catch (const std::exception& e) {
+      if (log_failure) log("read-only: " + std::string(e.what()) + "; serving no stored data");
+      return std::make_unique<Store>(":memory:");  // empty, in memory: the API answers, nothing on disk
+    }
+  };
+  std::unique_ptr<Store> read_store = open_read_only(true);
   LiveState live(registry);
-  live.Rebuild(*read);
-  Ingestor refusing(*read, registry, [] { return WallMs() / 1000; });  // its Commit throws: 503, not stored
+  live.Rebuild(*read_store);
+  LockedStore read(std::move(read_store));
+  std::unique_ptr<Store> ingest_store = open_read_only(false);
+  Ingestor refusing(*ingest_store, registry, [] { return WallMs() / 1000; });  // its Commit throws: 503, not stored
   WearService wear(registry, live);
   EventBus events;
   std::mutex reason_mutex;
-  ApiContext ctx = MakeApiContext(o, registry, *read, read_mutex, wear, live, refusing, events, tokens);
+  ApiContext ctx = MakeApiContext(o, registry, read, wear, live, refusing, events, tokens);
   ctx.health = [&] {
     std::lock_guard<std::mutex> lock(reason_mutex);
     return nlohmann::ordered_json{{"status", "degraded"}, {"reason", reason}, {"broker", "not subscribed (disk full)"}};
@@ -177,8 +180,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
 
   if (!WaitForWritableDatabase(o, stop, log, *registry, tokens)) return;
   Store write(o.db);
-  Store read(o.db);
-  std::mutex read_mutex;
+  LockedStore read(std::make_unique<Store>(o.db));
   // Per-crusher state (counts, latest readings, wear and forecast inputs), loaded once here and kept
   // up to date by the ingestor as it commits: no request or recompute reads all of a crusher's readings.
   // Each crusher's is loaded the first time it is asked for; the wear worker asks for all of them
@@ -192,9 +194,8 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   WearService wear(*registry, live);
   EventBus events;
   // The diagnosis loads every reading of a crusher: on its own connection, so REST reads do not wait for it.
-  Store diagnosis_read(o.db);
-  std::mutex diagnosis_mutex;
-  DiagnosisRunner diagnosis(*registry, diagnosis_read, diagnosis_mutex);
+  LockedStore diagnosis_store(std::make_unique<Store>(o.db));
+  DiagnosisRunner diagnosis(*registry, diagnosis_store);
 
   std::mutex dirty_mutex;
   std::condition_variable dirty_cv;
@@ -229,7 +230,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   mqtt::PahoLink link(lo);
   std::atomic<bool> connected{false};
 
-  ApiContext ctx = MakeApiContext(o, *registry, read, read_mutex, wear, live, ingestor, events, tokens);
+  ApiContext ctx = MakeApiContext(o, *registry, read, wear, live, ingestor, events, tokens);
   ctx.diagnosis = &diagnosis;
   ctx.health = [&] {
     const IngestCounters c = ingestor.Counters();

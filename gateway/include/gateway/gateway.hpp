@@ -38,9 +38,11 @@ struct GatewayOptions {
   int64_t stats_interval_ms = 60'000;
   /// Time (Unix ms) that stamps received records (`time` = it - age_s, `received`) and new
   /// devices, given the loop's `now_ms`; unset: `now_ms`. Set from --clock-file when a simulator
-  /// runs virtual time; spool bookkeeping and every timer keep `now_ms`.
+  /// runs virtual time; spool bookkeeping and every timer keep `now_ms`. Called synchronously from
+  /// within OnBytes, on the thread that calls the Gateway (main's loop).
   std::function<int64_t(int64_t now_ms)> stamp_clock;
-  /// Log sink (one line, no newline). Defaults to stderr.
+  /// Log sink (one line, no newline). Defaults to stderr. Called synchronously from within the
+  /// Gateway's methods, on the thread that calls them (main's loop): never concurrently.
   std::function<void(const std::string&)> log;
 };
 

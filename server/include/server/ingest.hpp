@@ -86,6 +86,8 @@ struct IngestCounters {
 class Ingestor {
  public:
   /// `live` (optional) is told every reading committed, in the same critical section as the commit.
+  /// `now_s` (validation's "now", unix seconds) is called by Ingest() on its caller's thread (the
+  /// server's MQTT loop or an HTTP worker) with the ingestor's lock held: one call at a time.
   Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s, LiveState* live = nullptr);
   /// Validates and commits `batch` in one transaction. Throws std::runtime_error on a database
   /// failure (then nothing of the batch is stored and nothing may be acked).

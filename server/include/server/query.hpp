@@ -11,6 +11,9 @@ namespace lw::server {
 /// Decoded query parameters, name -> value (cpp-httplib's Params); the first value of a name counts.
 using QueryParams = std::multimap<std::string, std::string>;
 
+/// The first value of query parameter `name`; nullptr when it is absent.
+const std::string* FindParam(const QueryParams& params, const char* name);
+
 /// Query parameter `name` as a whole number in [min, max]; `*out` is left alone when it is absent.
 /// Returns false and sets `*error` (the 400 message: the parameter, its value, the range) otherwise.
 bool WholeNumberParam(const QueryParams& params, const char* name, int min, int max, int* out, std::string* error);

@@ -2,12 +2,23 @@
 /// The server's SQLite database: readings (unique on crusher + sensor + seq, so a redelivery is
 /// harmless), quarantined messages that failed validation (kept, never dropped), and the latest
 /// diagnosis per crusher. WAL journal, prepared statements, one transaction per batch.
+///
+/// Threads: a Store is one SQLite connection with its prepared statements, and is NOT safe to use
+/// from two threads at once. Use each Store from one thread at a time: own it on one thread, or
+/// share it through a LockedStore (below), or behind a lock of the object that owns it (Ingestor,
+/// LiveState). Several Stores on the same file may be used at once from different threads (WAL:
+/// readers and the writer do not block each other). In
+/// linerwatch-server: one writing Store owned by the Ingestor (MQTT loop and REST posts, under its
+/// lock), one LockedStore for the REST reads, one LockedStore for the diagnosis, and one Store
+/// for LiveState's lazy loads (under its lock).
 #include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace lw::server {
@@ -105,6 +116,7 @@ class Store {
   /// Visits the readings of one sensor with time in [from_s, to_s] through the time index alone,
   /// oldest first (newest first when `newest_first`), until `visit` returns false. Only what the
   /// index holds is read: seq, time, thickness, loops, flags (battery_mv, received_s 0, payload empty).
+  /// `visit` runs on the calling thread, inside the query (it must not use this Store).
   void Walk(const std::string& crusher, const std::string& sensor, int64_t from_s, int64_t to_s, bool newest_first,
             const std::function<bool(const StoredReading&)>& visit);
   int64_t CountRejected();
@@ -119,6 +131,29 @@ class Store {
   Store(const std::filesystem::path& path, ReadOnlyTag);
   struct Impl;
   std::unique_ptr<Impl> impl_;
+};
+
+/// A Store shared by several threads: it owns the store and the lock, and the store is reached only
+/// through With(), which holds the lock for the whole call. The result is returned by value (no
+/// reference into the store outlives the lock).
+///
+///   const int64_t n = read.With([&](Store& s) { return s.CountReadings(crusher); });
+class LockedStore {
+ public:
+  explicit LockedStore(std::unique_ptr<Store> store) : store_(std::move(store)) {}
+  LockedStore(const LockedStore&) = delete;
+  LockedStore& operator=(const LockedStore&) = delete;
+
+  /// Calls `use(store)` on the calling thread with the lock held; other threads' calls wait.
+  template <class F>
+  auto With(F&& use) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return std::forward<F>(use)(*store_);
+  }
+
+ private:
+  std::unique_ptr<Store> store_;
+  std::mutex mutex_;
 };
 
 }  // namespace lw::server

@@ -10,6 +10,8 @@
 #include "core/bundle.hpp"
 #include "core/reconstruction.hpp"
 #include "core/scan_correction.hpp"
+#include "core/wear_map.hpp"  // Sha256Hex
+#include "server/api_context.hpp"
 #include "server/ingest.hpp"
 #include "server/registry.hpp"
 #include "sim/campaign.hpp"
@@ -59,5 +61,55 @@ inline core::Reconstruction OfflineLiveWear(const core::Bundle& b, core::TimePoi
     core::ApplyScan(plan, core::ProjectScanToFaces(b.map, *scan), core::SensorWearAt(b.crusher, b.readings, scan->date));
   return core::Reconstruct(plan, core::SensorWearAt(b.crusher, b.readings, at));
 }
+
+/// A server's worth of parts over the crusher folder `crushers` (a fresh database in a scratch
+/// directory) and the ApiContext over them: what HttpApi and rest::Resources serve from.
+struct ServerParts {
+  static constexpr const char* kReadToken = "reader-secret";
+  static constexpr const char* kWriteToken = "writer-secret";
+
+  TempDirectory dir{"lw-api"};
+  std::unique_ptr<server::Registry> registry;
+  server::Store write{dir.File("db.sqlite")};
+  server::LockedStore read{std::make_unique<server::Store>(dir.File("db.sqlite"))};
+  std::unique_ptr<server::LiveState> live;
+  std::unique_ptr<server::Ingestor> ingestor;
+  std::unique_ptr<server::WearService> wear;
+  server::EventBus events;
+  std::unique_ptr<server::DiagnosisRunner> diagnosis;
+  server::TokenStore tokens;
+  server::ApiContext ctx;
+
+  /// `with_tokens`: tokens "reader" (kReadToken, read) and "writer" (kWriteToken, read and write).
+  /// Readings posted through the API mark the wear changed and publish a `reading` event.
+  ServerParts(const std::string& crushers, bool with_tokens, const std::string& web_dir = "") {
+    std::vector<std::string> errors;
+    registry = server::Registry::Load(crushers, &errors);
+    live = std::make_unique<server::LiveState>(*registry);
+    read.With([&](server::Store& s) { live->Rebuild(s); });
+    ingestor = std::make_unique<server::Ingestor>(write, *registry, [] { return int64_t{4'000'000'000}; }, live.get());
+    wear = std::make_unique<server::WearService>(*registry, *live);
+    diagnosis = std::make_unique<server::DiagnosisRunner>(*registry, read);
+    if (with_tokens) {
+      tokens.Add({"reader", core::Sha256Hex(kReadToken), true, false});
+      tokens.Add({"writer", core::Sha256Hex(kWriteToken), true, true});
+    }
+    ctx.registry = registry.get();
+    ctx.read = &read;
+    ctx.wear = wear.get();
+    ctx.live = live.get();
+    ctx.ingestor = ingestor.get();
+    ctx.events = &events;
+    ctx.diagnosis = diagnosis.get();
+    ctx.tokens = &tokens;
+    ctx.web_dir = web_dir;
+    ctx.after_ingest = [this](const server::IngestResult& r) {
+      for (const auto& s : r.new_readings) {
+        wear->MarkChanged(s.crusher);
+        events.Publish(s.crusher, "reading", nlohmann::json{{"sensor", s.sensor}, {"seq", s.seq}}.dump());
+      }
+    };
+  }
+};
 
 }  // namespace lw::test

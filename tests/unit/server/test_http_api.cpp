@@ -10,6 +10,7 @@
 
 #include "core/wear_map.hpp"
 #include "server/http_api.hpp"
+#include "server/rest.hpp"
 #include "unit/server/server_fixture.hpp"
 
 // After Eigen: <resolv.h> (via httplib) defines the macro _res, a parameter name inside Eigen.
@@ -25,55 +26,18 @@ lw::test::CrusherFolder& Folder() {
   static lw::test::CrusherFolder f(20, 11);
   return f;
 }
-const char* kReadToken = "reader-secret";
-const char* kWriteToken = "writer-secret";
+const char* kReadToken = lw::test::ServerParts::kReadToken;
+const char* kWriteToken = lw::test::ServerParts::kWriteToken;
 
 /// A server's worth of parts around a real HttpApi on 127.0.0.1 (any free port).
 struct Api {
-  lw::test::TempDirectory dir{"lw-http"};
-  std::unique_ptr<Registry> registry;
-  Store write{dir.File("db.sqlite")};
-  Store read{dir.File("db.sqlite")};
-  std::mutex read_mutex;
-  std::unique_ptr<LiveState> live;
-  std::unique_ptr<Ingestor> ingestor;
-  std::unique_ptr<WearService> wear;
-  EventBus events;
-  std::unique_ptr<DiagnosisRunner> diagnosis;
-  TokenStore tokens;
+  lw::test::ServerParts parts;
+  EventBus& events = parts.events;
   std::unique_ptr<HttpApi> api;
   int port = 0;
 
-  explicit Api(bool with_tokens, const std::string& web_dir = "") {
-    std::vector<std::string> errors;
-    registry = Registry::Load(Folder().crushers, &errors);
-    live = std::make_unique<LiveState>(*registry);
-    live->Rebuild(read);
-    ingestor = std::make_unique<Ingestor>(write, *registry, [] { return int64_t{4'000'000'000}; }, live.get());
-    wear = std::make_unique<WearService>(*registry, *live);
-    diagnosis = std::make_unique<DiagnosisRunner>(*registry, read, read_mutex);
-    if (with_tokens) {
-      tokens.Add({"reader", lw::core::Sha256Hex(kReadToken), true, false});
-      tokens.Add({"writer", lw::core::Sha256Hex(kWriteToken), true, true});
-    }
-    ApiContext ctx;
-    ctx.registry = registry.get();
-    ctx.read = &read;
-    ctx.read_mutex = &read_mutex;
-    ctx.wear = wear.get();
-    ctx.live = live.get();
-    ctx.ingestor = ingestor.get();
-    ctx.events = &events;
-    ctx.diagnosis = diagnosis.get();
-    ctx.tokens = &tokens;
-    ctx.web_dir = web_dir;
-    ctx.after_ingest = [this](const IngestResult& r) {
-      for (const auto& s : r.new_readings) {
-        wear->MarkChanged(s.crusher);
-        events.Publish(s.crusher, "reading", json{{"sensor", s.sensor}, {"seq", s.seq}}.dump());
-      }
-    };
-    api = std::make_unique<HttpApi>(ctx);
+  explicit Api(bool with_tokens, const std::string& web_dir = "") : parts(Folder().crushers, with_tokens, web_dir) {
+    api = std::make_unique<HttpApi>(parts.ctx);
     port = api->Bind("127.0.0.1", 0);
     api->Start();
   }
@@ -596,4 +560,33 @@ TEST(HttpApi, AClosedEventStreamFreesItsSlotPromptly) {
     ::close(fd);
   }
   CHECK_TRUE(reopened);
+}
+
+// The HTTP layer routes by the one table the OpenAPI document is generated from
+// (tests/unit/server/test_rest.cpp checks the generator): every route of the table is served,
+// and a path the table does not have is not.
+TEST(HttpApi, EveryRouteOfTheTableIsServedAndNothingElse) {
+  Api a(false);
+  for (const rest::Route& route : rest::Resources::Routes()) {
+    std::string path = route.path;
+    for (const auto& [name, value] : {std::pair<std::string, std::string>{"{crusher}", Folder().id()}, {"{sensor}", "1001"}}) {
+      if (const size_t at = path.find(name); at != std::string::npos) path.replace(at, name.size(), value);
+    }
+    const std::string body = route.method == rest::Method::kPost ? "{}" : "";
+    const int fd = Connect(a.port);
+    SendText(fd, std::string(rest::MethodName(route.method)) + " " + path +
+                     " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: " +
+                     std::to_string(body.size()) + "\r\n\r\n" + body);
+    const std::string reply = Receive(fd, 2000);  // an event stream sends its preamble, then waits
+    ::close(fd);
+    const std::string what = std::string(rest::MethodName(route.method)) + " " + path + ": " + reply.substr(0, 200);
+    CHECK_TEXT(reply.rfind("HTTP/1.1 ", 0) == 0, what.c_str());
+    CHECK_TEXT(reply.find("no such resource") == std::string::npos, what.c_str());
+  }
+  auto c = a.Client();
+  auto res = c.Get("/api/v1/crushers/" + Folder().id() + "/nothing");
+  LONGS_EQUAL(404, res->status);
+  CHECK(res->body.find("no such resource") != std::string::npos);
+  res = c.Put(a.Base() + "/readings", "{}", "application/json");  // a method the table does not list
+  LONGS_EQUAL(404, res->status);
 }

@@ -1,7 +1,9 @@
 #include <sqlite3.h>
 #include <sys/stat.h>
 
+#include <atomic>
 #include <chrono>
+#include <thread>
 
 #include "server/store.hpp"
 #include "support/mosquitto_fixture.hpp"
@@ -221,4 +223,30 @@ TEST(Store, ANewDatabaseIsPrivateToItsOwner) {
     CHECK_EQUAL(0, ::stat((db() + suffix).c_str(), &st));
     LONGS_EQUAL(0, st.st_mode & 077);
   }
+}
+
+// A LockedStore hands its store to one caller at a time, and what a call returns is the result.
+TEST(Store, ALockedStoreIsUsedByOneThreadAtATime) {
+  lw::server::LockedStore shared(std::make_unique<Store>(db()));
+  shared.With([](Store& s) { s.Commit({R("a", 1, 100, 90)}, {}); });
+  LONGS_EQUAL(1, shared.With([](Store& s) { return s.CountReadings("c1"); }));
+  std::atomic<int> inside{0};
+  std::atomic<int> overlaps{0};
+  std::atomic<int64_t> seq{1};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&] {
+      for (int i = 0; i < 25; ++i) {
+        shared.With([&](Store& s) {
+          if (inside.fetch_add(1) != 0) ++overlaps;
+          s.Commit({R("a", ++seq, 100 + seq, 90)}, {});
+          std::this_thread::sleep_for(std::chrono::microseconds(200));
+          inside.fetch_sub(1);
+        });
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  LONGS_EQUAL(0, overlaps.load());
+  LONGS_EQUAL(101, shared.With([](Store& s) { return s.CountReadings("c1"); }));
 }

@@ -1,0 +1,160 @@
+#pragma once
+/// The REST API (docs/server.md) as resources apart from HTTP: each route is a handler that takes
+/// a Request (its path parameters, query, body, token) and returns a Response ({status, json}, or
+/// a body of another type, or an event stream). One table, Routes(), lists every route with what
+/// the OpenAPI document says of it: HttpApi (server/http_api.hpp) routes requests by it and
+/// OpenApiJson() (server/openapi.hpp) is generated from it, so neither can list a route the other
+/// does not.
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "server/api_context.hpp"
+#include "server/query.hpp"
+
+namespace lw::server::rest {
+
+enum class Method { kGet, kPost };
+const char* MethodName(Method method);  ///< "GET", "POST"
+
+/// True for a state-changing method: every method but GET and HEAD.
+bool Writes(std::string_view method);
+
+/// The token scope a request needs when the server runs with --tokens.
+enum class Scope { kNone, kRead, kWrite };
+const char* ScopeName(Scope scope);  ///< "none", "read", "write" (OpenAPI's x-scope)
+/// The rule the HTTP front end enforces before routing, and the OpenAPI document states: nothing
+/// outside /api/, the write scope for a method that Writes(), the read scope otherwise.
+Scope RequiredScope(std::string_view method, std::string_view path);
+
+struct Request {
+  std::vector<std::string> path;  ///< the route's path parameters, in order ({crusher}, {sensor})
+  QueryParams query;              ///< decoded query parameters
+  std::string_view body;          ///< the request body (valid while the handler runs)
+  std::string bearer;             ///< the bearer token presented (empty: none)
+  std::string last_event_id;      ///< the Last-Event-ID header (event stream; empty: none)
+};
+
+/// A body that is not JSON made here (the OpenAPI text, a VTK file, a JSON document made elsewhere).
+struct RawBody {
+  std::string content;
+  std::string content_type;
+};
+
+class EventStream;
+
+struct Response {
+  int status = 200;
+  nlohmann::ordered_json json;  ///< the body, sent as application/json, unless `raw` or `stream` is set
+  std::optional<RawBody> raw;
+  std::shared_ptr<EventStream> stream;                        ///< set: a text/event-stream body
+  std::vector<std::pair<std::string, std::string>> headers;  ///< extra response headers
+};
+
+/// {status, {"error": message}}: every error of the API (docs/server.md).
+Response Error(int status, const std::string& message);
+
+/// One open Server-Sent Events stream of a crusher (GET .../events). The HTTP layer calls Next() on
+/// the worker thread that serves the stream, one call at a time, and sends each chunk it returns.
+class EventStream {
+ public:
+  /// The next chunk: first the `retry` preamble, then the events after the last one sent (waiting
+  /// up to 15 s for one, then a keepalive comment). nullopt when the stream must end: the server is
+  /// stopping, or `client_gone()` (asked about once a second while waiting) says the client left.
+  std::optional<std::string> Next(const std::function<bool()>& client_gone);
+
+ private:
+  friend class Resources;
+  EventStream(EventBus& events, const std::atomic<bool>& stopping, std::string crusher, int64_t after,
+              std::shared_ptr<void> slot)
+      : events_(events), stopping_(stopping), crusher_(std::move(crusher)), after_(after), slot_(std::move(slot)) {}
+  EventBus& events_;
+  const std::atomic<bool>& stopping_;
+  std::string crusher_;
+  int64_t after_;
+  bool first_ = true;
+  std::shared_ptr<void> slot_;  ///< counts this stream while it exists
+};
+
+class Resources;
+
+/// A documented query parameter (OpenAPI).
+struct QueryDoc {
+  const char* name;
+  const char* type;  ///< "string", "integer", "boolean"
+  const char* description;
+};
+
+struct Route {
+  Method method;
+  /// OpenAPI path template; {name} is one path segment, passed in Request::path in order.
+  const char* path;
+  const char* summary;
+  std::vector<QueryDoc> query;
+  const char* ok_status;  ///< the success status the OpenAPI document names ("200", "202")
+  Response (Resources::*handler)(const Request&);
+};
+
+/// The names of `path_template`'s parameters in order: "crusher", "sensor".
+std::vector<std::string> PathParams(std::string_view path_template);
+/// The regular expression the HTTP layer routes `path_template` by: each {name} becomes ([^/]+),
+/// the rest is kept as it is.
+std::string PathPattern(std::string_view path_template);
+
+/// The API's resources over the server's parts. Handlers are called on the HTTP worker threads,
+/// several at once; each is safe to call concurrently (readings posts are handled one at a time).
+class Resources {
+ public:
+  explicit Resources(const ApiContext& context);
+  Resources(const Resources&) = delete;
+  Resources& operator=(const Resources&) = delete;
+
+  /// Every route of the API, in the order of the OpenAPI document.
+  static const std::vector<Route>& Routes();
+  /// The route of `method` and `path_template`; throws std::out_of_range when there is none.
+  static const Route& Find(Method method, std::string_view path_template);
+
+  /// Runs `route`'s handler. Throws what the handler throws (the HTTP layer answers 500).
+  Response Call(const Route& route, const Request& request) { return (this->*route.handler)(request); }
+
+  /// Ends every event stream (their next Next() returns nullopt); new streams end at once.
+  void Stop() { stopping_ = true; }
+
+ private:
+  Response Health(const Request&);
+  Response Crushers(const Request&);
+  Response CrusherDetail(const Request&);
+  Response Sensors(const Request&);
+  Response Readings(const Request&);
+  Response PostReadings(const Request&);
+  Response Mesh(const Request&);
+  Response Wear(const Request&);
+  Response Forecast(const Request&);
+  Response Diagnosis(const Request&);
+  Response StartDiagnosis(const Request&);
+  Response Events(const Request&);
+  Response RejectedList(const Request&);
+  Response WhoAmI(const Request&);
+  Response OpenApi(const Request&);
+
+  /// The crusher named by the first path parameter, or nullptr with *error set to the 404.
+  const Crusher* CrusherOf(const Request& request, Response* error) const;
+
+  ApiContext ctx_;
+  std::atomic<bool> stopping_{false};
+  std::atomic<int> event_streams_{0};
+  /// Each event stream holds one worker thread for its lifetime: at most half the workers, so
+  /// ordinary requests always find a thread.
+  int max_event_streams_;
+  std::mutex post_mutex_;  ///< one readings body parsed at a time (a parsed body is ~20x its bytes)
+};
+
+}  // namespace lw::server::rest

@@ -1,0 +1,455 @@
+#include "server/rest.hpp"
+
+#include <stdlib.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include "core/time.hpp"
+#include "core/wear_map.hpp"
+#include "server/openapi.hpp"
+
+namespace lw::server::rest {
+namespace {
+
+using nlohmann::ordered_json;
+
+Response Json(int status, ordered_json body) {
+  Response r;
+  r.status = status;
+  r.json = std::move(body);
+  return r;
+}
+
+std::string Iso(int64_t unix_s) { return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(unix_s))); }
+
+ordered_json ReadingJson(const StoredReading& r) {
+  return {{"sensor", r.sensor},
+          {"time", Iso(r.time_s)},
+          {"seq", r.seq},
+          {"thickness_mm", r.thickness_mm},
+          {"loops_intact", r.loops_intact},
+          {"flags", r.flags},
+          {"battery_mv", r.battery_mv},
+          {"received", Iso(r.received_s)}};
+}
+
+ordered_json RowsJson(const core::CrusherConfig& config) {
+  ordered_json rows = ordered_json::array();
+  for (const auto& r : config.rows) rows.push_back({{"name", r.name}, {"z_min_m", r.z_min_m}, {"z_max_m", r.z_max_m}});
+  return rows;
+}
+
+}  // namespace
+
+const char* MethodName(Method method) { return method == Method::kGet ? "GET" : "POST"; }
+
+const char* ScopeName(Scope scope) {
+  switch (scope) {
+    case Scope::kNone: return "none";
+    case Scope::kRead: return "read";
+    case Scope::kWrite: return "write";
+  }
+  return "none";
+}
+
+bool Writes(std::string_view method) { return method != "GET" && method != "HEAD"; }
+
+Scope RequiredScope(std::string_view method, std::string_view path) {
+  if (path.rfind("/api/", 0) != 0) return Scope::kNone;
+  return Writes(method) ? Scope::kWrite : Scope::kRead;
+}
+
+Response Error(int status, const std::string& message) { return Json(status, {{"error", message}}); }
+
+std::vector<std::string> PathParams(std::string_view path_template) {
+  std::vector<std::string> names;
+  for (size_t open = path_template.find('{'); open != std::string_view::npos; open = path_template.find('{', open + 1)) {
+    const size_t close = path_template.find('}', open);
+    if (close == std::string_view::npos) throw std::invalid_argument("path template '" + std::string(path_template) + "': unclosed {");
+    names.emplace_back(path_template.substr(open + 1, close - open - 1));
+  }
+  return names;
+}
+
+std::string PathPattern(std::string_view path_template) {
+  std::string out;
+  for (size_t i = 0; i < path_template.size(); ++i) {
+    if (path_template[i] != '{') {
+      out += path_template[i];
+      continue;
+    }
+    const size_t close = path_template.find('}', i);
+    if (close == std::string_view::npos) throw std::invalid_argument("path template '" + std::string(path_template) + "': unclosed {");
+    out += "([^/]+)";
+    i = close;
+  }
+  return out;
+}
+
+std::optional<std::string> EventStream::Next(const std::function<bool()>& client_gone) {
+  if (stopping_ || events_.closed()) return std::nullopt;
+  if (first_) {
+    first_ = false;
+    return std::string("retry: 3000\n: connected\n\n");
+  }
+  // Wait up to 15 s for events (then a keepalive), but look every second whether the client
+  // is still there: a closed stream frees its slot and its worker at once.
+  std::vector<Event> events;
+  for (int waited = 0; waited < 15 && events.empty(); ++waited) {
+    events = events_.WaitAfter(&after_, crusher_, std::chrono::milliseconds(1000));
+    if (stopping_ || events_.closed()) return std::nullopt;
+    if (events.empty() && client_gone && client_gone()) return std::nullopt;
+  }
+  std::string out;
+  if (events.empty()) out = ": keepalive\n\n";
+  for (const Event& e : events) out += "id: " + std::to_string(e.id) + "\nevent: " + e.name + "\ndata: " + e.data + "\n\n";
+  return out;
+}
+
+const std::vector<Route>& Resources::Routes() {
+  static const std::vector<Route> routes = {
+      {Method::kGet, "/healthz", "Liveness: database and broker state", {}, "200", &Resources::Health},
+      {Method::kGet, "/api/v1/crushers", "Crushers with their latest minimum thickness", {}, "200", &Resources::Crushers},
+      {Method::kGet, "/api/v1/crushers/{crusher}", "Crusher geometry, sensors, map hash and counters", {}, "200",
+       &Resources::CrusherDetail},
+      {Method::kGet, "/api/v1/crushers/{crusher}/sensors", "Latest reading of each sensor", {}, "200", &Resources::Sensors},
+      {Method::kGet, "/api/v1/crushers/{crusher}/sensors/{sensor}/readings",
+       "Readings of one sensor, oldest first, paged with cursors",
+       {{"from", "string", "ISO-8601 UTC, inclusive"},
+        {"to", "string", "ISO-8601 UTC, inclusive"},
+        {"limit", "integer", "1..5000, default 500"},
+        {"cursor", "string", "next_cursor of the previous page"}},
+       "200", &Resources::Readings},
+      {Method::kPost, "/api/v1/crushers/{crusher}/readings",
+       "Store readings {\"readings\": [{sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv}]}", {}, "200",
+       &Resources::PostReadings},
+      {Method::kGet, "/api/v1/crushers/{crusher}/mesh", "As-new liner mesh: points, faces, face z and theta", {}, "200",
+       &Resources::Mesh},
+      {Method::kGet, "/api/v1/crushers/{crusher}/wear",
+       "Global wear (seed Eq. 9): per-face remaining thickness, per-row summary, minimum and where",
+       {{"format", "string", "json (default) or vtk (legacy VTK for ParaView)"},
+        {"faces", "boolean", "false: leave out the per-face array"}},
+       "200", &Resources::Wear},
+      {Method::kGet, "/api/v1/crushers/{crusher}/forecast",
+       "Per row and sensor: the date the minimum thickness is reached, with a band", {}, "200", &Resources::Forecast},
+      {Method::kGet, "/api/v1/crushers/{crusher}/diagnosis",
+       "Latest diagnosis (docs/diagnosis.md, section Output) and its status", {}, "200", &Resources::Diagnosis},
+      {Method::kPost, "/api/v1/crushers/{crusher}/diagnosis", "Start a diagnosis on the stored readings", {}, "202",
+       &Resources::StartDiagnosis},
+      {Method::kGet, "/api/v1/crushers/{crusher}/events", "Server-Sent Events: `reading` and `wear` as they are committed",
+       {{"access_token", "string", "the bearer token (EventSource cannot set headers)"}}, "200", &Resources::Events},
+      {Method::kGet, "/api/v1/rejected", "Quarantined messages that failed validation, newest first",
+       {{"limit", "integer", "1..1000, default 100"}}, "200", &Resources::RejectedList},
+      {Method::kGet, "/api/v1/whoami", "The caller's token name and scopes ({auth: false} on an open server)", {}, "200",
+       &Resources::WhoAmI},
+      {Method::kGet, "/api/v1/openapi.json", "This document", {}, "200", &Resources::OpenApi},
+  };
+  return routes;
+}
+
+const Route& Resources::Find(Method method, std::string_view path_template) {
+  for (const Route& r : Routes()) {
+    if (r.method == method && r.path == path_template) return r;
+  }
+  throw std::out_of_range(std::string("no route ") + MethodName(method) + " " + std::string(path_template));
+}
+
+Resources::Resources(const ApiContext& context)
+    : ctx_(context), max_event_streams_(static_cast<int>(std::max<size_t>(1, context.limits.workers / 2))) {}
+
+const Crusher* Resources::CrusherOf(const Request& request, Response* error) const {
+  const std::string id = request.path.empty() ? std::string() : request.path[0];
+  const Crusher* c = ctx_.registry->Find(id);
+  if (!c) *error = Error(404, "unknown crusher '" + id + "'");
+  return c;
+}
+
+Response Resources::Health(const Request&) {
+  ordered_json j = {{"status", "ok"}, {"version", "0.1.0"}};
+  try {
+    ctx_.read->With([](Store& s) { return s.CountRejected(); });
+    j["db"] = "ok";
+  } catch (const std::exception& e) {
+    j["status"] = "degraded";
+    j["db"] = e.what();
+  }
+  if (ctx_.health) {
+    const ordered_json extra = ctx_.health();
+    for (const auto& [k, v] : extra.items()) j[k] = v;
+  }
+  const int status = j["status"] == "ok" ? 200 : 503;
+  return Json(status, std::move(j));
+}
+
+Response Resources::Crushers(const Request&) {
+  ordered_json list = ordered_json::array();
+  for (const Crusher* c : ctx_.registry->All()) {
+    // Never waits behind a wear recompute: the wear as last computed (the wear worker recomputes a
+    // changed crusher within --wear-interval-ms); the latest reading time is always current.
+    const auto st = ctx_.wear->Latest(c->config.crusher_id);
+    const auto latest = ctx_.live->LatestUsableTime(c->config.crusher_id);
+    list.push_back({{"crusher_id", c->config.crusher_id},
+                    {"installed_at", core::FormatIsoTime(c->config.installed_at)},
+                    {"thickness_new_mm", c->config.thickness_new_mm},
+                    {"thickness_min_mm", c->config.thickness_min_mm},
+                    {"rows", RowsJson(c->config)},
+                    {"sensor_count", c->config.sensors.size()},
+                    {"map_sha256", c->map.sha256},
+                    {"face_count", c->map.face_count()},
+                    {"latest_reading_time", latest ? ordered_json(Iso(*latest)) : ordered_json(nullptr)},
+                    {"min_thickness_mm", st && st->has_wear && std::isfinite(st->reconstruction.min_thickness_mm)
+                                             ? ordered_json(st->reconstruction.min_thickness_mm) : ordered_json(nullptr)},
+                    {"wear_status", st && st->has_wear ? ordered_json(st->reconstruction.status) : ordered_json(nullptr)}});
+  }
+  return Json(200, {{"crushers", list}});
+}
+
+Response Resources::CrusherDetail(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  ordered_json sensors = ordered_json::array();
+  for (const auto& s : c->config.sensors) {
+    sensors.push_back({{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg}, {"thickness_new_mm", s.thickness_new_mm}});
+  }
+  const int64_t stored = ctx_.live->CountReadings(c->config.crusher_id);
+  const IngestCounters cc = ctx_.ingestor->CrusherCounters(c->config.crusher_id);
+  return Json(200,
+              {{"crusher_id", c->config.crusher_id},
+               {"installed_at", core::FormatIsoTime(c->config.installed_at)},
+               {"concave", {{"thickness_new_mm", c->config.thickness_new_mm}, {"thickness_min_mm", c->config.thickness_min_mm}, {"rows", RowsJson(c->config)}}},
+               {"sensors", sensors},
+               {"map", {{"sha256", c->map.sha256},
+                        {"face_count", c->map.face_count()},
+                        {"warnings", c->validation.warnings},
+                        {"has_stderr", c->map.has_wear_stderr()}, {"windows", c->map.windows},
+                        {"dem_summary", c->dem_summary}}},
+               {"counters", {{"readings_stored", stored}, {"duplicates", cc.duplicates}, {"conflicts", cc.conflicts}, {"rejected", cc.rejected}}}});
+}
+
+Response Resources::Sensors(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  const std::vector<Store::SensorSummary> latest = ctx_.live->LatestPerSensor(c->config.crusher_id);
+  ordered_json sensors = ordered_json::array();
+  for (const auto& s : c->config.sensors) {
+    ordered_json o = {{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg},
+                      {"thickness_new_mm", s.thickness_new_mm}, {"reading_count", 0}, {"latest", nullptr}};
+    for (const auto& l : latest) {
+      if (l.latest.sensor != s.id) continue;
+      o["reading_count"] = l.count;
+      ordered_json r = ReadingJson(l.latest);
+      r.erase("sensor");
+      o["latest"] = r;
+    }
+    sensors.push_back(o);
+  }
+  return Json(200, {{"sensors", sensors}});
+}
+
+Response Resources::Readings(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  const std::string sensor = req.path.size() > 1 ? req.path[1] : std::string();
+  if (!c->config.FindSensor(sensor)) return Error(404, "unknown sensor '" + sensor + "' on crusher " + c->config.crusher_id);
+  std::string message;
+  const auto query = ParseReadingsQuery(req.query, &message);
+  if (!query) return Error(400, message);
+  Page page;
+  try {
+    page = ctx_.read->With([&](Store& s) {
+      return s.Range(c->config.crusher_id, sensor, query->from_s, query->to_s, query->limit, query->cursor);
+    });
+  } catch (const std::invalid_argument& e) {
+    return Error(400, e.what());
+  }
+  ordered_json readings = ordered_json::array();
+  for (const auto& r : page.readings) {
+    ordered_json o = ReadingJson(r);
+    o.erase("sensor");
+    readings.push_back(o);
+  }
+  return Json(200, {{"readings", readings}, {"next_cursor", page.next_cursor ? ordered_json(*page.next_cursor) : ordered_json(nullptr)}});
+}
+
+Response Resources::PostReadings(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  if (JsonNestingDepth(req.body) > kMaxJsonDepth + 2) return Error(400, "body is nested too deeply");
+  std::lock_guard<std::mutex> one_at_a_time(post_mutex_);
+  nlohmann::json body;
+  std::string parse_error;
+  if (!ParseJsonNamingField(req.body, &body, &parse_error)) {
+    return Error(400, parse_error == "malformed JSON" ? "body is not valid JSON" : "body: " + parse_error);
+  }
+  if (!body.is_object() || !body.contains("readings") || !body["readings"].is_array()) {
+    return Error(400, "body must be {\"readings\": [...]}");
+  }
+  if (body["readings"].size() > 10000) return Error(413, "at most 10000 readings per request");
+  std::vector<Incoming> batch;
+  for (const auto& r : body["readings"]) {
+    batch.push_back({"", c->config.crusher_id, "", "", r.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)});
+  }
+  IngestResult result;
+  try {
+    result = ctx_.ingestor->Ingest(batch);
+  } catch (const std::exception& e) {
+    return Error(503, std::string("not stored: ") + e.what());
+  }
+  if (ctx_.after_ingest) ctx_.after_ingest(result);
+  ordered_json j = {{"stored", result.stored}, {"duplicates", result.duplicates}, {"conflicts", result.conflicts},
+                    {"rejected", result.rejected}, {"errors", result.log}};
+  const bool all_rejected = result.rejected > 0 && result.rejected == batch.size();
+  if (all_rejected) j["error"] = "every reading was rejected";
+  return Json(all_rejected ? 422 : 200, std::move(j));
+}
+
+Response Resources::Mesh(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  const auto& m = c->map;
+  std::vector<double> pts;
+  pts.reserve(m.points.size() * 3);
+  for (const auto& p : m.points) {
+    for (int k = 0; k < 3; ++k) pts.push_back(std::round(p[k] * 1e5) / 1e5);
+  }
+  std::vector<uint32_t> faces;
+  faces.reserve(m.faces.size() * 3);
+  for (const auto& f : m.faces) faces.insert(faces.end(), f.begin(), f.end());
+  std::vector<double> z(m.face_count()), th(m.face_count());
+  for (size_t i = 0; i < m.face_count(); ++i) {
+    z[i] = std::round(m.z[static_cast<Eigen::Index>(i)] * 1e4) / 1e4;
+    th[i] = std::round(m.theta_deg[static_cast<Eigen::Index>(i)] * 100) / 100;
+  }
+  return Json(200, {{"points", pts}, {"faces", faces}, {"face_z_m", z}, {"face_theta_deg", th}});
+}
+
+Response Resources::Wear(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  const auto st = ctx_.wear->Get(c->config.crusher_id);
+  if (!st || !st->has_wear) return Error(404, "no readings yet for crusher " + c->config.crusher_id);
+  const std::string* format_param = FindParam(req.query, "format");
+  const std::string format = format_param ? *format_param : "json";
+  if (format == "vtk") {
+    // A private directory (mkdtemp, mode 0700): nobody else can race a file name in it.
+    char tmpl[] = "/tmp/linerwatch-wear-XXXXXX";
+    if (!mkdtemp(tmpl)) return Error(500, "cannot create a temporary directory");
+    const std::filesystem::path tmp_dir = tmpl;
+    const std::filesystem::path path = tmp_dir / "wear.vtk";
+    std::stringstream ss;
+    try {
+      const Eigen::VectorXd& wear = st->reconstruction.wear_mm;
+      const Eigen::VectorXd& remaining = st->reconstruction.remaining_mm;
+      const Eigen::VectorXd& sd = st->reconstruction.remaining_sd_mm;
+      core::WriteWearMapVtk(path, c->map, {{"remaining_mm", &remaining}, {"remaining_sd_mm", &sd}, {"wear_mm", &wear},
+                                           {"dem_wear", &c->map.wear}, {"dem_intensity_smoothed", &c->plan.intensity}});
+      std::ifstream in(path, std::ios::binary);
+      ss << in.rdbuf();
+    } catch (...) {
+      std::error_code ec;
+      std::filesystem::remove_all(tmp_dir, ec);
+      throw;
+    }
+    std::error_code ec;
+    std::filesystem::remove_all(tmp_dir, ec);
+    Response r;
+    r.headers.emplace_back("Content-Disposition", "attachment; filename=\"" + c->config.crusher_id + "_wear.vtk\"");
+    r.raw = RawBody{ss.str(), "application/octet-stream"};
+    return r;
+  }
+  if (format != "json") return Error(400, "format='" + format + "': use json or vtk");
+  const std::string* faces_param = FindParam(req.query, "faces");
+  const bool faces = !(faces_param && *faces_param == "false");
+  return Json(200, WearJson(*st, faces));
+}
+
+Response Resources::Forecast(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  const auto st = ctx_.wear->Get(c->config.crusher_id);
+  if (!st || !st->has_wear) return Error(404, "no readings yet for crusher " + c->config.crusher_id);
+  return Json(200, ForecastJson(*st));
+}
+
+Response Resources::Diagnosis(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  if (!ctx_.diagnosis) return Error(503, "diagnosis is not available on this server");
+  Response r;
+  r.raw = RawBody{ctx_.diagnosis->StatusJson(c->config.crusher_id), "application/json"};
+  return r;
+}
+
+Response Resources::StartDiagnosis(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  if (!ctx_.diagnosis) return Error(503, "diagnosis is not available on this server");
+  if (!ctx_.diagnosis->Start(c->config.crusher_id)) return Error(409, "a diagnosis is already running");
+  return Json(202, {{"status", "running"}});
+}
+
+Response Resources::Events(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  if (event_streams_.load() >= max_event_streams_) {
+    return Error(503, "too many open event streams (" + std::to_string(max_event_streams_) + "); retry later");
+  }
+  int64_t after = ctx_.events->LastId();
+  // A client reconnecting after a server restart carries an id from the previous run: ids start
+  // again at 1, so a larger one means "from now on", not "wait until the counter gets there".
+  if (!req.last_event_id.empty()) after = std::min(after, std::max<int64_t>(0, std::atoll(req.last_event_id.c_str())));
+  // Counts the stream while it exists (the HTTP layer drops it when the stream ends).
+  auto slot = std::shared_ptr<void>(nullptr, [this](void*) { --event_streams_; });
+  ++event_streams_;
+  Response r;
+  r.headers = {{"Cache-Control", "no-cache"}, {"X-Accel-Buffering", "no"}};
+  r.stream = std::shared_ptr<EventStream>(new EventStream(*ctx_.events, stopping_, c->config.crusher_id, after, std::move(slot)));
+  return r;
+}
+
+Response Resources::RejectedList(const Request& req) {
+  int limit = 100;
+  std::string message;
+  if (!WholeNumberParam(req.query, "limit", 1, 1000, &limit, &message)) return Error(400, message);
+  return ctx_.read->With([&](Store& s) {
+    ordered_json list = ordered_json::array();
+    for (const auto& r : s.RejectedMessages(limit)) {
+      list.push_back({{"received", Iso(r.received_s)}, {"topic", r.topic}, {"payload", r.payload}, {"reason", r.reason}});
+    }
+    return Json(200, {{"total", s.CountRejected()}, {"evicted", s.RejectedEvicted()}, {"rejected", list}});
+  });
+}
+
+Response Resources::WhoAmI(const Request& req) {
+  if (!ctx_.tokens || !ctx_.tokens->enabled()) {
+    return Json(200, {{"auth", false}, {"name", nullptr}, {"scopes", {"read", "write"}}});
+  }
+  const auto token = ctx_.tokens->Check(req.bearer);  // the HTTP layer's scope check let it through
+  ordered_json scopes = ordered_json::array();
+  if (token && token->read) scopes.push_back("read");
+  if (token && token->write) scopes.push_back("write");
+  return Json(200, {{"auth", true}, {"name", token ? token->name : ""}, {"scopes", scopes}});
+}
+
+Response Resources::OpenApi(const Request&) {
+  Response r;
+  r.raw = RawBody{OpenApiJson(), "application/json"};
+  return r;
+}
+
+}  // namespace lw::server::rest

@@ -1,0 +1,325 @@
+// The REST resources without HTTP: the route table, the OpenAPI document generated from it, and
+// the handlers called through rest::Resources.
+#include <chrono>
+#include <set>
+#include <thread>
+
+#include "server/openapi.hpp"
+#include "server/rest.hpp"
+#include "unit/server/server_fixture.hpp"
+
+#include <CppUTest/TestHarness.h>  // last: its leak-detection macros clash with std headers
+
+using namespace lw::server;
+using lw::test::ServerParts;
+using nlohmann::json;
+
+namespace {
+
+lw::test::CrusherFolder& Folder() {
+  static lw::test::CrusherFolder f(10, 5);
+  return f;
+}
+
+/// The server's parts and the resources over them.
+struct Fixture {
+  ServerParts parts;
+  std::unique_ptr<rest::Resources> resources;
+  explicit Fixture(bool with_tokens = false, size_t workers = 32) : parts(Folder().crushers, with_tokens) {
+    parts.ctx.limits.workers = workers;
+    resources = std::make_unique<rest::Resources>(parts.ctx);
+  }
+  rest::Response Call(rest::Method method, const char* path, rest::Request request = {}) {
+    return resources->Call(rest::Resources::Find(method, path), request);
+  }
+  rest::Response Get(const char* path, std::vector<std::string> params = {Folder().id()}, QueryParams query = {}) {
+    rest::Request r;
+    r.path = std::move(params);
+    r.query = std::move(query);
+    return Call(rest::Method::kGet, path, r);
+  }
+  rest::Response PostReadings(const std::string& body) {
+    rest::Request r;
+    r.path = {Folder().id()};
+    r.body = body;
+    return Call(rest::Method::kPost, "/api/v1/crushers/{crusher}/readings", r);
+  }
+  /// Every reading of the folder's bundle as a POST body.
+  static std::string AllReadings() {
+    json body = {{"readings", json::array()}};
+    for (const auto& m : lw::test::Messages(Folder().bundle)) body["readings"].push_back(json::parse(m.payload));
+    return body.dump();
+  }
+};
+
+std::string ErrorOf(const rest::Response& r) { return r.json.value("error", std::string("(no error)")); }
+
+}  // namespace
+
+TEST_GROUP(RestRoutes){};
+
+// The OpenAPI document is generated from the route table: this checks the generator. Every route
+// has exactly one operation (its method under its path) and every operation is a route; each
+// names its path parameters, its query parameters, its success status and the scope the HTTP
+// front end enforces for it.
+TEST(RestRoutes, TheOpenApiDocumentHasOneOperationPerRouteAndNoOther) {
+  const json doc = json::parse(OpenApiJson());
+  std::set<std::pair<std::string, std::string>> documented;
+  for (const auto& [path, operations] : doc["paths"].items()) {
+    for (const auto& [method, op] : operations.items()) documented.insert({method, path});
+  }
+  std::set<std::pair<std::string, std::string>> routed;
+  for (const rest::Route& route : rest::Resources::Routes()) {
+    std::string method = rest::MethodName(route.method);
+    for (char& ch : method) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    CHECK_TEXT(routed.insert({method, route.path}).second, (method + " " + route.path + " is in the table twice").c_str());
+    const bool has_operation = doc["paths"].contains(route.path) && doc["paths"][route.path].contains(method);
+    CHECK_TEXT(has_operation, (method + " " + route.path + " has no OpenAPI operation").c_str());
+    if (!has_operation) continue;
+    const json& op = doc["paths"][route.path][method];
+    STRCMP_EQUAL(route.summary, op["summary"].get<std::string>().c_str());
+    CHECK_TEXT(op["responses"].contains(route.ok_status), route.path);
+    STRCMP_EQUAL(rest::ScopeName(rest::RequiredScope(rest::MethodName(route.method), route.path)),
+                 op["x-scope"].get<std::string>().c_str());
+    std::vector<std::string> in_path, in_query;
+    for (const auto& p : op["parameters"]) (p["in"] == "path" ? in_path : in_query).push_back(p["name"]);
+    CHECK(rest::PathParams(route.path) == in_path);
+    LONGS_EQUAL(route.query.size(), in_query.size());
+    for (size_t i = 0; i < route.query.size(); ++i) STRCMP_EQUAL(route.query[i].name, in_query[i].c_str());
+  }
+  CHECK(routed == documented);
+  // The operations docs/server.md lists, as the dashboard and the tests use them.
+  LONGS_EQUAL(15, routed.size());
+  CHECK(documented.count({"post", "/api/v1/crushers/{crusher}/diagnosis"}));
+  STRCMP_EQUAL("write", doc["paths"]["/api/v1/crushers/{crusher}/readings"]["post"]["x-scope"].get<std::string>().c_str());
+  STRCMP_EQUAL("none", doc["paths"]["/healthz"]["get"]["x-scope"].get<std::string>().c_str());
+  STRCMP_EQUAL("read", doc["paths"]["/api/v1/openapi.json"]["get"]["x-scope"].get<std::string>().c_str());
+}
+
+TEST(RestRoutes, PathTemplatesBecomeRoutingPatternsAndParameters) {
+  STRCMP_EQUAL("/api/v1/crushers/([^/]+)/sensors/([^/]+)/readings",
+               rest::PathPattern("/api/v1/crushers/{crusher}/sensors/{sensor}/readings").c_str());
+  STRCMP_EQUAL("/healthz", rest::PathPattern("/healthz").c_str());
+  CHECK((std::vector<std::string>{"crusher", "sensor"}) == rest::PathParams("/api/v1/crushers/{crusher}/sensors/{sensor}/readings"));
+  CHECK(rest::PathParams("/api/v1/rejected").empty());
+  CHECK_THROWS(std::invalid_argument, rest::PathPattern("/api/v1/crushers/{crusher"));
+  CHECK_THROWS(std::invalid_argument, rest::PathParams("/api/v1/crushers/{crusher"));
+  CHECK_THROWS(std::out_of_range, rest::Resources::Find(rest::Method::kPost, "/api/v1/crushers"));
+}
+
+TEST(RestRoutes, ScopesFollowTheMethodInsideApiOnly) {
+  CHECK(rest::Scope::kNone == rest::RequiredScope("GET", "/healthz"));
+  CHECK(rest::Scope::kNone == rest::RequiredScope("POST", "/"));
+  CHECK(rest::Scope::kRead == rest::RequiredScope("GET", "/api/v1/crushers"));
+  CHECK(rest::Scope::kRead == rest::RequiredScope("HEAD", "/api/v1/crushers"));
+  CHECK(rest::Scope::kWrite == rest::RequiredScope("POST", "/api/v1/crushers/x/readings"));
+  CHECK(rest::Scope::kWrite == rest::RequiredScope("DELETE", "/api/v1/crushers"));
+  CHECK_FALSE(rest::Writes("GET"));
+  CHECK(rest::Writes("PUT"));
+}
+
+TEST_GROUP(RestHandlers){};
+
+TEST(RestHandlers, EveryCrusherRouteAnswers404ForAnUnknownCrusher) {
+  Fixture f;
+  int crusher_routes = 0;
+  for (const rest::Route& route : rest::Resources::Routes()) {
+    if (rest::PathParams(route.path).empty()) continue;
+    ++crusher_routes;
+    rest::Request r;
+    r.path = {"nope", "1001"};
+    r.body = "{}";
+    const rest::Response res = f.resources->Call(route, r);
+    LONGS_EQUAL_TEXT(404, res.status, route.path);
+    STRCMP_EQUAL("unknown crusher 'nope'", ErrorOf(res).c_str());
+  }
+  LONGS_EQUAL(10, crusher_routes);
+}
+
+TEST(RestHandlers, PostedReadingsAreStoredOnceAndServedBack) {
+  Fixture f;
+  int after_ingest = 0;
+  const auto publish = f.parts.ctx.after_ingest;
+  f.parts.ctx.after_ingest = [&](const IngestResult& r) {
+    ++after_ingest;
+    publish(r);
+  };
+  f.resources = std::make_unique<rest::Resources>(f.parts.ctx);
+  const size_t n = lw::test::Messages(Folder().bundle).size();
+  const std::string all = Fixture::AllReadings();
+  rest::Response res = f.PostReadings(all);
+  LONGS_EQUAL(200, res.status);
+  LONGS_EQUAL(n, res.json["stored"].get<size_t>());
+  res = f.PostReadings(all);  // a redelivery
+  LONGS_EQUAL(200, res.status);
+  LONGS_EQUAL(0, res.json["stored"].get<size_t>());
+  LONGS_EQUAL(n, res.json["duplicates"].get<size_t>());
+  LONGS_EQUAL(2, after_ingest);
+  // Every reading rejected: 422 with the reasons; each one quarantined, none lost.
+  res = f.PostReadings(R"({"readings":[{"sensor":"1001","seq":1,"time":"2099-01-01T00:00:00Z"}]})");
+  LONGS_EQUAL(422, res.status);
+  STRCMP_EQUAL("every reading was rejected", ErrorOf(res).c_str());
+  LONGS_EQUAL(1, res.json["errors"].size());
+  STRCMP_EQUAL("body is not valid JSON", ErrorOf(f.PostReadings("{oops")).c_str());
+  STRCMP_EQUAL("body must be {\"readings\": [...]}", ErrorOf(f.PostReadings("[1]")).c_str());
+  STRCMP_EQUAL("body is nested too deeply", ErrorOf(f.PostReadings(R"({"readings":[[[[[[[[[[[[]]]]]]]]]]]]})")).c_str());
+  LONGS_EQUAL(3, after_ingest);
+
+  // The crusher's counters, its sensors' latest readings, and one sensor's readings page by page.
+  const json detail = f.Get("/api/v1/crushers/{crusher}").json;
+  LONGS_EQUAL(n, detail["counters"]["readings_stored"].get<size_t>());
+  LONGS_EQUAL(n, detail["counters"]["duplicates"].get<size_t>());
+  const json sensors = f.Get("/api/v1/crushers/{crusher}/sensors").json;
+  LONGS_EQUAL(Folder().bundle.crusher.sensors.size(), sensors["sensors"].size());
+  size_t expected = 0;
+  for (const auto& r : Folder().bundle.readings) expected += r.sensor_id == "1001";
+  size_t got = 0;
+  std::string cursor;
+  const char* readings = "/api/v1/crushers/{crusher}/sensors/{sensor}/readings";
+  do {
+    QueryParams q = {{"limit", "50"}};
+    if (!cursor.empty()) q.emplace("cursor", cursor);
+    const rest::Response page = f.Get(readings, {Folder().id(), "1001"}, q);
+    LONGS_EQUAL(200, page.status);
+    CHECK(page.json["readings"].size() <= 50);
+    got += page.json["readings"].size();
+    cursor = page.json["next_cursor"].is_null() ? "" : page.json["next_cursor"].get<std::string>();
+  } while (!cursor.empty());
+  LONGS_EQUAL(expected, got);
+  LONGS_EQUAL(400, f.Get(readings, {Folder().id(), "1001"}, {{"cursor", "bogus"}}).status);
+  STRCMP_EQUAL("limit=0 must be in [1, 5000]", ErrorOf(f.Get(readings, {Folder().id(), "1001"}, {{"limit", "0"}})).c_str());
+  const rest::Response unknown = f.Get(readings, {Folder().id(), "9999"});
+  LONGS_EQUAL(404, unknown.status);
+  STRCMP_EQUAL(("unknown sensor '9999' on crusher " + Folder().id()).c_str(), ErrorOf(unknown).c_str());
+
+  // The quarantined message is listed; a bad limit is named.
+  const rest::Response rejected = f.Get("/api/v1/rejected", {});
+  LONGS_EQUAL(1, rejected.json["total"].get<int>());
+  STRCMP_EQUAL("limit='x' is not a whole number in [1, 1000]", ErrorOf(f.Get("/api/v1/rejected", {}, {{"limit", "x"}})).c_str());
+}
+
+TEST(RestHandlers, WearAndForecastOnceThereAreReadings) {
+  Fixture f;
+  const char* wear = "/api/v1/crushers/{crusher}/wear";
+  rest::Response res = f.Get(wear);
+  LONGS_EQUAL(404, res.status);
+  STRCMP_EQUAL(("no readings yet for crusher " + Folder().id()).c_str(), ErrorOf(res).c_str());
+  LONGS_EQUAL(404, f.Get("/api/v1/crushers/{crusher}/forecast").status);
+  LONGS_EQUAL(200, f.PostReadings(Fixture::AllReadings()).status);
+
+  res = f.Get(wear);
+  LONGS_EQUAL(200, res.status);
+  LONGS_EQUAL(Folder().bundle.map.face_count(), res.json["remaining_mm"].size());
+  CHECK_FALSE(f.Get(wear, {Folder().id()}, {{"faces", "false"}}).json.contains("remaining_mm"));
+  res = f.Get(wear, {Folder().id()}, {{"format", "png"}});
+  LONGS_EQUAL(400, res.status);
+  STRCMP_EQUAL("format='png': use json or vtk", ErrorOf(res).c_str());
+  res = f.Get(wear, {Folder().id()}, {{"format", "vtk"}});
+  CHECK(res.raw.has_value());
+  STRCMP_EQUAL("application/octet-stream", res.raw->content_type.c_str());
+  CHECK(res.raw->content.rfind("# vtk DataFile Version", 0) == 0);
+  CHECK(res.raw->content.find("remaining_mm") != std::string::npos);
+  CHECK(res.headers == (std::vector<std::pair<std::string, std::string>>{
+                           {"Content-Disposition", "attachment; filename=\"" + Folder().id() + "_wear.vtk\""}}));
+
+  const rest::Response forecast = f.Get("/api/v1/crushers/{crusher}/forecast");
+  LONGS_EQUAL(200, forecast.status);
+  LONGS_EQUAL(3, forecast.json["rows"].size());
+  const rest::Response mesh = f.Get("/api/v1/crushers/{crusher}/mesh");
+  LONGS_EQUAL(Folder().bundle.map.face_count() * 3, mesh.json["faces"].size());
+  // The list shows the wear as last computed.
+  const json list = f.Get("/api/v1/crushers", {}).json;
+  LONGS_EQUAL(1, list["crushers"].size());
+  DOUBLES_EQUAL(f.Get(wear).json["min_thickness_mm"].get<double>(), list["crushers"][0]["min_thickness_mm"].get<double>(), 1e-3);
+}
+
+TEST(RestHandlers, HealthMergesTheServersFieldsAndReportsDegraded) {
+  Fixture f;
+  rest::Response res = f.Get("/healthz", {});
+  LONGS_EQUAL(200, res.status);
+  STRCMP_EQUAL(R"({"status":"ok","version":"0.1.0","db":"ok"})", res.json.dump().c_str());
+  f.parts.ctx.health = [] { return nlohmann::ordered_json{{"status", "degraded"}, {"reason", "disk full"}}; };
+  f.resources = std::make_unique<rest::Resources>(f.parts.ctx);
+  res = f.Get("/healthz", {});
+  LONGS_EQUAL(503, res.status);
+  STRCMP_EQUAL(R"({"status":"degraded","version":"0.1.0","db":"ok","reason":"disk full"})", res.json.dump().c_str());
+}
+
+TEST(RestHandlers, WhoAmINamesTheTokensScopes) {
+  Fixture open;
+  STRCMP_EQUAL(R"({"auth":false,"name":null,"scopes":["read","write"]})", open.Get("/api/v1/whoami", {}).json.dump().c_str());
+  Fixture with_tokens(true);
+  rest::Request r;
+  r.bearer = ServerParts::kReadToken;
+  STRCMP_EQUAL(R"({"auth":true,"name":"reader","scopes":["read"]})",
+               with_tokens.Call(rest::Method::kGet, "/api/v1/whoami", r).json.dump().c_str());
+  r.bearer = ServerParts::kWriteToken;
+  STRCMP_EQUAL(R"({"auth":true,"name":"writer","scopes":["read","write"]})",
+               with_tokens.Call(rest::Method::kGet, "/api/v1/whoami", r).json.dump().c_str());
+}
+
+TEST(RestHandlers, TheOpenApiRouteServesTheGeneratedDocument) {
+  Fixture f;
+  const rest::Response res = f.Get("/api/v1/openapi.json", {});
+  CHECK(res.raw.has_value());
+  STRCMP_EQUAL("application/json", res.raw->content_type.c_str());
+  CHECK(res.raw->content == OpenApiJson());
+}
+
+TEST(RestHandlers, DiagnosisStatusAndAFailedRun) {
+  Fixture f;
+  const char* diagnosis = "/api/v1/crushers/{crusher}/diagnosis";
+  rest::Response res = f.Get(diagnosis);
+  CHECK(res.raw.has_value());
+  STRCMP_EQUAL(R"({"status":"none","time":null,"result":null})", res.raw->content.c_str());
+  // A run that fails (the runner is asked about a crusher it cannot find) reports why.
+  CHECK(f.parts.diagnosis->Start("no-such-crusher"));
+  json status;
+  for (int i = 0; i < 500; ++i) {
+    status = json::parse(f.parts.diagnosis->StatusJson("no-such-crusher"));
+    if (status["status"] != "running") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  STRCMP_EQUAL("failed", status["status"].get<std::string>().c_str());
+  STRCMP_EQUAL("unknown crusher", status["error"].get<std::string>().c_str());
+  // Without a runner both diagnosis routes answer 503.
+  f.parts.ctx.diagnosis = nullptr;
+  f.resources = std::make_unique<rest::Resources>(f.parts.ctx);
+  LONGS_EQUAL(503, f.Get(diagnosis).status);
+  rest::Request post;
+  post.path = {Folder().id()};
+  res = f.Call(rest::Method::kPost, diagnosis, post);
+  LONGS_EQUAL(503, res.status);
+  STRCMP_EQUAL("diagnosis is not available on this server", ErrorOf(res).c_str());
+}
+
+TEST(RestHandlers, EventStreamsAreCountedAndCarryTheCrushersEvents) {
+  Fixture f(false, 2);  // 2 workers: one event stream at most
+  const char* events = "/api/v1/crushers/{crusher}/events";
+  rest::Response first = f.Get(events);
+  CHECK(first.stream != nullptr);
+  CHECK(first.headers == (std::vector<std::pair<std::string, std::string>>{{"Cache-Control", "no-cache"}, {"X-Accel-Buffering", "no"}}));
+  rest::Response refused = f.Get(events);
+  LONGS_EQUAL(503, refused.status);
+  STRCMP_EQUAL("too many open event streams (1); retry later", ErrorOf(refused).c_str());
+
+  const auto never_gone = [] { return false; };
+  STRCMP_EQUAL("retry: 3000\n: connected\n\n", first.stream->Next(never_gone).value().c_str());
+  f.parts.events.Publish("other-crusher", "reading", "{}");
+  f.parts.events.Publish(Folder().id(), "wear", R"({"x":1})");
+  STRCMP_EQUAL("id: 2\nevent: wear\ndata: {\"x\":1}\n\n", first.stream->Next(never_gone).value().c_str());
+  // A client gone is noticed within a second while no event arrives.
+  CHECK_FALSE(first.stream->Next([] { return true; }));
+
+  first = {};  // the stream ends: its slot is free again
+  rest::Request resume;
+  resume.path = {Folder().id()};
+  resume.last_event_id = "12000";  // from before a restart: "from now on"
+  rest::Response second = f.Call(rest::Method::kGet, events, resume);
+  CHECK(second.stream != nullptr);
+  second.stream->Next(never_gone);
+  f.parts.events.Publish(Folder().id(), "reading", R"({"seq":1})");
+  STRCMP_EQUAL("id: 3\nevent: reading\ndata: {\"seq\":1}\n\n", second.stream->Next(never_gone).value().c_str());
+  f.resources->Stop();
+  CHECK_FALSE(second.stream->Next(never_gone));
+}
