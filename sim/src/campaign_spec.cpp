@@ -1,0 +1,200 @@
+// Campaign specs: JSON in and out, completion with defaults and checks, --effect/--fault/--preset.
+#include "sim/campaign.hpp"
+
+#include <set>
+#include <stdexcept>
+
+#include "core/cmdline.hpp"
+#include "core/time.hpp"
+
+namespace lw::sim {
+
+// ---------------------------------------------------------------------------------------------
+// Spec
+
+nlohmann::json CampaignSpec::ToJson() const {
+  nlohmann::json j = {{"crusher_id", crusher_id}, {"installed_at", installed_at}, {"days", days},
+                      {"thickness_new_mm", thickness_new_mm}, {"thickness_min_mm", thickness_min_mm},
+                      {"height_m", height_m}, {"r_bottom_m", r_bottom_m}, {"r_top_m", r_top_m},
+                      {"n_theta", n_theta}, {"n_z", n_z}, {"reference_wear_mm", reference_wear_mm},
+                      {"reference_day", reference_day}, {"dem_noise", dem_noise}, {"poll_minutes", poll_minutes},
+                      {"heartbeat_hours", heartbeat_hours}, {"throughput_tph", throughput_tph}, {"ore_ai", ore_ai},
+                      {"write_operations", write_operations}, {"write_scan", write_scan}, {"scan_day", scan_day},
+                      {"scan_noise_mm", scan_noise_mm}, {"scan_points", scan_points},
+                      {"scan_occluded_deg", scan_occluded_deg}};
+  j["rows"] = nlohmann::json::array();
+  for (const auto& r : rows) j["rows"].push_back({{"name", r.name}, {"z_min_m", r.z_min_m}, {"z_max_m", r.z_max_m}});
+  j["sensors"] = nlohmann::json::array();
+  for (const auto& s : sensors) j["sensors"].push_back({{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg}});
+  j["effects"] = nlohmann::json::array();
+  for (const auto& e : effects) j["effects"].push_back({{"name", e.name}, {"params", e.params}});
+  j["faults"] = nlohmann::json::array();
+  for (const auto& f : faults) j["faults"].push_back({{"sensor", f.sensor}, {"kind", f.kind}, {"day", f.day}, {"size", f.size}});
+  return j;
+}
+
+CampaignSpec CampaignSpec::FromJson(const nlohmann::json& j) {
+  CampaignSpec s;
+  const std::set<std::string> known = {"crusher_id", "installed_at", "days", "thickness_new_mm", "thickness_min_mm",
+                                       "height_m", "r_bottom_m", "r_top_m", "n_theta", "n_z", "reference_wear_mm",
+                                       "reference_day", "dem_noise", "poll_minutes", "heartbeat_hours",
+                                       "throughput_tph", "ore_ai", "write_operations", "write_scan", "scan_day",
+                                       "scan_noise_mm", "scan_points", "scan_occluded_deg", "rows", "sensors",
+                                       "effects", "faults", "seed", "out", "truth", "preset", "effect", "fault"};
+  for (const auto& [k, v] : j.items()) {
+    if (!known.count(k)) throw std::invalid_argument("unknown campaign key \"" + k + "\"");
+  }
+  try {
+    auto get = [&](const char* key, auto& field) {
+      if (j.contains(key)) field = j.at(key).get<std::decay_t<decltype(field)>>();
+    };
+    get("crusher_id", s.crusher_id);
+    get("installed_at", s.installed_at);
+    get("days", s.days);
+    get("thickness_new_mm", s.thickness_new_mm);
+    get("thickness_min_mm", s.thickness_min_mm);
+    get("height_m", s.height_m);
+    get("r_bottom_m", s.r_bottom_m);
+    get("r_top_m", s.r_top_m);
+    get("n_theta", s.n_theta);
+    get("n_z", s.n_z);
+    get("reference_wear_mm", s.reference_wear_mm);
+    get("reference_day", s.reference_day);
+    get("dem_noise", s.dem_noise);
+    get("poll_minutes", s.poll_minutes);
+    get("heartbeat_hours", s.heartbeat_hours);
+    get("throughput_tph", s.throughput_tph);
+    get("ore_ai", s.ore_ai);
+    get("write_operations", s.write_operations);
+    get("write_scan", s.write_scan);
+    get("scan_day", s.scan_day);
+    get("scan_noise_mm", s.scan_noise_mm);
+    get("scan_points", s.scan_points);
+    get("scan_occluded_deg", s.scan_occluded_deg);
+    if (j.contains("rows")) {
+      for (const auto& r : j["rows"]) s.rows.push_back({r.at("name").get<std::string>(), r.at("z_min_m").get<double>(), r.at("z_max_m").get<double>()});
+    }
+    if (j.contains("sensors")) {
+      for (const auto& x : j["sensors"]) {
+        s.sensors.push_back({x.at("id").get<std::string>(), x.at("row").get<std::string>(), x.at("z_m").get<double>(),
+                             x.at("theta_deg").get<double>()});
+      }
+    }
+    if (j.contains("effects")) {
+      for (const auto& e : j["effects"]) {
+        EffectSpec es{e.at("name").get<std::string>(), {}};
+        if (e.contains("params")) es.params = e["params"].get<std::map<std::string, double>>();
+        s.effects.push_back(es);
+      }
+    }
+    if (j.contains("faults")) {
+      for (const auto& f : j["faults"]) {
+        s.faults.push_back({f.at("sensor").get<std::string>(), f.at("kind").get<std::string>(), f.value("day", 0.0), f.value("size", 0.0)});
+      }
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw std::invalid_argument(std::string("campaign spec: ") + e.what());
+  }
+  return s;
+}
+
+void CampaignSpec::Complete() {
+  auto require = [](bool ok, const std::string& what) {
+    if (!ok) throw std::invalid_argument(what);
+  };
+  require(days > 0 && days <= 2000, "days must be in (0, 2000]");
+  require(thickness_new_mm > thickness_min_mm && thickness_min_mm >= 0, "thickness_new_mm must exceed thickness_min_mm >= 0");
+  require(height_m > 0 && r_bottom_m > 0 && r_top_m > 0, "height_m, r_bottom_m and r_top_m must be positive");
+  require(n_theta >= 8 && n_z >= 6 && n_theta * n_z <= 2000000, "n_theta >= 8, n_z >= 6, n_theta * n_z <= 2e6");
+  require(dem_noise >= 0 && dem_noise < 0.5, "dem_noise must be in [0, 0.5)");
+  require(poll_minutes > 0 && heartbeat_hours > 0, "poll_minutes and heartbeat_hours must be positive");
+  require(reference_wear_mm > 0 && reference_wear_mm < thickness_new_mm, "reference_wear_mm must be in (0, thickness_new_mm)");
+  require(core::ParseIsoTime(installed_at).has_value(), "installed_at '" + installed_at + "' is not an ISO-8601 time");
+  if (rows.empty()) {
+    const double h = height_m / 3.0;
+    rows = {{"LDWN", 0.0, h}, {"LMID", h, 2 * h}, {"LUP", 2 * h, height_m}};
+  }
+  if (sensors.empty()) {
+    // 2 in the upper row, 4 in each of the others, at angles that leave room between them.
+    auto centre = [&](const std::string& name) {
+      for (const auto& r : rows) {
+        if (r.name == name) return 0.5 * (r.z_min_m + r.z_max_m);
+      }
+      return 0.5 * height_m;
+    };
+    int id = 1001;
+    const std::vector<std::pair<std::string, std::vector<double>>> layout = {
+        {rows.back().name, {30, 210}},
+        {rows[rows.size() / 2].name, {0, 90, 180, 270}},
+        {rows.front().name, {45, 135, 225, 315}}};
+    for (const auto& [row, thetas] : layout) {
+      for (double th : thetas) sensors.push_back({std::to_string(id++), row, centre(row), th});
+    }
+  }
+  std::set<std::string> ids;
+  for (const auto& s : sensors) {
+    require(ids.insert(s.id).second, "sensor id '" + s.id + "' is listed twice");
+    require(s.z_m >= 0 && s.z_m <= height_m, "sensor '" + s.id + "' z_m is outside the concave");
+  }
+  static const std::set<std::string> kEffects = {"work_hardening", "hardness_gradient", "squeeze_wear", "profile_evolution",
+                                                 "feed_segregation", "throughput_variation", "material_loss"};
+  for (const auto& e : effects) require(kEffects.count(e.name) == 1, "unknown effect '" + e.name + "'");
+  static const std::set<std::string> kFaults = {"dropout", "flicker", "crack", "stuck", "dead"};
+  for (const auto& f : faults) {
+    require(kFaults.count(f.kind) == 1, "unknown fault kind '" + f.kind + "'");
+    require(ids.count(f.sensor) == 1, "fault names unknown sensor '" + f.sensor + "'");
+  }
+}
+
+namespace {
+/// A finite number and nothing else ("0.3x", "nan" and "" are refused), as core::ParseNumber.
+double SpecNumber(const std::string& what, const std::string& text) {
+  try {
+    return core::ParseNumber("", text);
+  } catch (const core::UsageError&) {
+    throw std::invalid_argument(what + ": '" + text + "' is not a number");
+  }
+}
+}  // namespace
+
+EffectSpec ParseEffect(const std::string& text) {
+  EffectSpec e;
+  const size_t colon = text.find(':');
+  e.name = text.substr(0, colon);
+  if (colon == std::string::npos) return e;
+  std::stringstream ss(text.substr(colon + 1));
+  std::string kv;
+  while (std::getline(ss, kv, ',')) {
+    const size_t eq = kv.find('=');
+    if (eq == std::string::npos) throw std::invalid_argument("--effect '" + text + "': expected key=value, got '" + kv + "'");
+    e.params[kv.substr(0, eq)] = SpecNumber("--effect '" + text + "'", kv.substr(eq + 1));
+  }
+  return e;
+}
+
+FaultSpec ParseFault(const std::string& text) {
+  std::vector<std::string> parts;
+  std::stringstream ss(text);
+  std::string p;
+  while (std::getline(ss, p, ':')) parts.push_back(p);
+  if (parts.size() < 3) throw std::invalid_argument("--fault '" + text + "': expected sensor:kind:day[:size]");
+  FaultSpec f{parts[0], parts[1], 0, 0};
+  f.day = SpecNumber("--fault '" + text + "': the day", parts[2]);
+  if (parts.size() > 3) f.size = SpecNumber("--fault '" + text + "': the size", parts[3]);
+  return f;
+}
+
+void ApplyPreset(const std::string& name, CampaignSpec* spec) {
+  if (name == "reference") return;
+  if (name == "paper") {
+    // Ou & Chen 2023: LDWN ~6x LUP and ~2x LMID, late acceleration (softer casting core), and
+    // work hardening where impact is high (Eq. 9 over-predicts up to ~5 mm mid-lower).
+    spec->effects.push_back({"work_hardening", {{"h", 0.45}, {"tau_days", 6}}});
+    spec->effects.push_back({"hardness_gradient", {{"c", 0.25}, {"onset_mm", 25}, {"width_mm", 30}}});
+    return;
+  }
+  throw std::invalid_argument("unknown preset '" + name + "' (reference or paper)");
+}
+
+
+}  // namespace lw::sim
