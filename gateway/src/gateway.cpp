@@ -440,6 +440,7 @@ void Gateway::PublishRecords(int64_t now_ms) {
       continue;
     }
     if (!publisher_.Publish({topics_.Reading(r.sensor), r.payload, 1, false})) {
+      ++counters_.publish_refused;
       all_sent = false;
       if (!first) kept[r.sensor][r.seq] = found->second;
       continue;
@@ -502,6 +503,7 @@ std::string Gateway::StatsJson(int64_t now_ms) const {
       {"in_flight", in_flight()},
       {"published", counters_.published},
       {"republished", counters_.republished},
+      {"publish_refused", counters_.publish_refused},
       {"committed", counters_.committed},
       {"bad_commit_acks", counters_.bad_commit_acks},
       {"commit_acks_ignored", counters_.commit_acks_ignored},

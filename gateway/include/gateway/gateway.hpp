@@ -62,6 +62,7 @@ struct GatewayCounters {
   uint64_t spool_errors = 0;        ///< SQLite failures (records not acked)
   uint64_t published = 0;           ///< first publications of a record
   uint64_t republished = 0;         ///< publications after a reconnect or the republish timeout
+  uint64_t publish_refused = 0;     ///< readings the MQTT client refused to take (kept, tried again at the next Pump)
   uint64_t committed = 0;           ///< records deleted after the server's commit ack
   uint64_t bad_commit_acks = 0;
   uint64_t commit_acks_ignored = 0; ///< acked seqs that were not published and awaiting an ack

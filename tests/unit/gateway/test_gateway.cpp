@@ -248,9 +248,11 @@ TEST(Gateway, RefusedPublicationIsRetried) {
   Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));
   publisher.refuse = true;
   gateway->Pump(now);
+  LONGS_EQUAL(1, json::parse(gateway->StatsJson(now))["publish_refused"].get<int>());
   publisher.refuse = false;
   gateway->Pump(now + 1);
   CHECK(PublishedSeqs(1001) == std::vector<uint32_t>{1});
+  LONGS_EQUAL(1, gateway->counters().publish_refused);
 }
 
 TEST(Gateway, FullSpoolRecordIsNeitherStoredNorAcked) {
@@ -339,7 +341,7 @@ TEST(Gateway, StatsMessageKeepsItsBytes) {
   STRCMP_EQUAL(R"({"ack_write_errors":0,"acks_sent":0,"bad_commit_acks":0,"bad_payloads":0,"bytes_discarded":3,)"
                R"("checksum_errors":0,"commit_acks_ignored":0,"committed":0,"connects":0,"devices":0,"devices_refused":0,)"
                R"("escape_errors":0,"frames_ok":0,"gateway":"gw-test","in_flight":0,"length_errors":0,"malformed_frames":0,)"
-               R"("max_devices":1000,"publish_latency_ms":{"last":-1,"max":-1,"mean":-1},"published":0,"records_duplicate":0,)"
+               R"("max_devices":1000,"publish_latency_ms":{"last":-1,"max":-1,"mean":-1},"publish_refused":0,"published":0,"records_duplicate":0,)"
                R"("records_evicted":0,"records_received":0,"records_rejected":0,"records_spooled":0,"republished":0,)"
                R"("spool_depth":0,"spool_errors":0,"spool_max_records":1000,"time":"2026-03-01T12:00:07Z","truncated_frames":0,)"
                R"("tx_failures":0,"unknown_frames":0,"unknown_payloads":0,"unknown_types":0})",
