@@ -294,6 +294,7 @@ void Gateway::OnConnected(int64_t now_ms) {
   // Whatever was in flight may have been lost with the old connection (or the broker): start
   // every sensor's queue over, in order.
   in_flight_.clear();
+  last_progress_ms_ = now_ms;
   records_dirty_ = true;  // every sensor
   all_devices_dirty_ = true;
   publisher_.Publish({topics_.Status(), mqtt::EncodeStatus({true, options_.gateway_id, mqtt::IsoUtc(now_ms)}), 1, true});
@@ -356,6 +357,7 @@ void Gateway::OnMessages(const std::vector<std::pair<std::string_view, std::stri
     if (it->second.empty()) in_flight_.erase(it);
     dirty_sensors_.insert(sensor);
   }
+  if (!received.empty()) last_progress_ms_ = now_ms;
   for (int64_t r : received) {
     const int64_t latency = std::max<int64_t>(0, now_ms - r);
     ++counters_.committed;
@@ -384,6 +386,15 @@ void Gateway::Pump(int64_t now_ms) {
     next_stats_ms_ = now_ms + options_.stats_interval_ms;
     if (publisher_.IsConnected()) publisher_.Publish({topics_.Stats(), StatsJson(now_ms), 0, false});
   }
+}
+
+bool Gateway::LinkStalled(int64_t now_ms) const {
+  return publisher_.IsConnected() && spool_.depth() > 0 && now_ms - last_progress_ms_ > 3 * options_.republish_after_ms;
+}
+
+void Gateway::OnLinkReset(int64_t now_ms) {
+  ++counters_.link_resets;
+  last_progress_ms_ = now_ms;
 }
 
 bool Gateway::PublishDevice(const std::string& address, const std::vector<DeviceEntry>& entries, int64_t now_ms) {
@@ -450,6 +461,7 @@ void Gateway::PublishRecords(int64_t now_ms) {
     } else {
       ++counters_.republished;
     }
+    last_progress_ms_ = now_ms;
     kept[r.sensor][r.seq] = now_ms;
   }
   if (all) {
@@ -504,6 +516,7 @@ std::string Gateway::StatsJson(int64_t now_ms) const {
       {"published", counters_.published},
       {"republished", counters_.republished},
       {"publish_refused", counters_.publish_refused},
+      {"link_resets", counters_.link_resets},
       {"committed", counters_.committed},
       {"bad_commit_acks", counters_.bad_commit_acks},
       {"commit_acks_ignored", counters_.commit_acks_ignored},

@@ -170,6 +170,12 @@ int Run(const lw::gateway::Config& config) {
     }
     if (!messages.empty()) gateway.OnMessages(messages, now);
     gateway.Pump(now);
+    if (gateway.LinkStalled(now)) {
+      Log("mqtt: connected, but no reading publication was taken and no commit ack arrived for three "
+          "republication periods while records wait: reconnecting");
+      link->Reconnect("reconnecting: the connection carried nothing of QoS 1");
+      gateway.OnLinkReset(now);
+    }
   }
   Log("stopping; " + std::to_string(spool.depth()) + " records stay in the spool");
   link->Shutdown({topics.Status(), Offline(config.gateway_id), 1, true}, 2000);

@@ -211,6 +211,17 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
   return out;
 }
 
+void PahoLink::Reconnect(const std::string& reason) {
+  Impl& im = *impl_;
+  im.connected = false;
+  try {
+    if (im.client.is_connected()) im.client.disconnect(0)->wait_for(std::chrono::milliseconds(1000));
+  } catch (const std::exception&) {
+    // Already going: Poll() connects again either way.
+  }
+  im.Push({LinkEvent::Kind::kDisconnected, "", reason});
+}
+
 void PahoLink::Shutdown(const OutMessage& final_message, int timeout_ms) {
   Impl& im = *impl_;
   try {

@@ -63,6 +63,7 @@ struct GatewayCounters {
   uint64_t published = 0;           ///< first publications of a record
   uint64_t republished = 0;         ///< publications after a reconnect or the republish timeout
   uint64_t publish_refused = 0;     ///< readings the MQTT client refused to take (kept, tried again at the next Pump)
+  uint64_t link_resets = 0;         ///< reconnects asked for because the link carried nothing of QoS 1 (LinkStalled)
   uint64_t committed = 0;           ///< records deleted after the server's commit ack
   uint64_t bad_commit_acks = 0;
   uint64_t commit_acks_ignored = 0; ///< acked seqs that were not published and awaiting an ack
@@ -92,6 +93,14 @@ class Gateway {
 
   /// Publishes what is due: records (in seq order per sensor), stats. Cheap when nothing changed.
   void Pump(int64_t now_ms);
+
+  /// True when records wait in the spool, the link says it is connected, and for three
+  /// republication periods no reading publication was accepted and no commit ack released a
+  /// record: the connection carries nothing of QoS 1 (seen in CI: the acks were at the broker and
+  /// every republication was refused, while QoS 0 stats went out). The caller then reconnects the
+  /// link and calls OnLinkReset(); the reconnect republishes every unconfirmed record.
+  bool LinkStalled(int64_t now_ms) const;
+  void OnLinkReset(int64_t now_ms);
 
   /// This gateway's topics: below `linerwatch/v1/{site}/{crusher}/`.
   const mqtt::Topics& topics() const { return topics_; }
@@ -136,6 +145,7 @@ class Gateway {
   bool all_devices_dirty_ = true;            // after a connect: every device's message
   std::set<std::string> dirty_devices_;      // addresses whose message changed
   int64_t next_republish_check_ms_ = 0;
+  int64_t last_progress_ms_ = 0;  ///< last accepted reading publication, released record or connect
   int64_t next_stats_ms_ = 0;
   uint8_t next_frame_id_ = 1;
   // Readings frames decoded by the current OnBytes call, not spooled yet (FlushReadings).

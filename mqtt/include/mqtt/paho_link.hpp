@@ -53,6 +53,10 @@ class PahoLink : public Publisher {
   /// last call, in order. Non-blocking.
   std::vector<LinkEvent> Poll(int64_t now_ms);
 
+  /// Drops the connection now (when it is up) and reports a kDisconnected event with `reason`;
+  /// Poll() connects again with its backoff. For a connection that stopped carrying messages.
+  void Reconnect(const std::string& reason);
+
   /// A descriptor that becomes readable when events are queued: poll() it beside the serial port
   /// so commit acks are handled at once (Poll() drains it).
   int wake_fd() const;

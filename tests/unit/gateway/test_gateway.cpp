@@ -255,6 +255,37 @@ TEST(Gateway, RefusedPublicationIsRetried) {
   LONGS_EQUAL(1, gateway->counters().publish_refused);
 }
 
+// A connection that carries nothing of QoS 1 (every publication refused, no commit ack) while
+// records wait is reported after three republication periods, not before, and not while
+// publications are taken (a server that is down: republications go out, no ack comes back).
+TEST(Gateway, LinkThatCarriesNothingOfQos1IsReportedAfterThreeRepublicationPeriods) {
+  const int64_t period = 10'000;  // the fixture's republish_after_ms
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));
+  gateway->Pump(now);  // published, no ack comes back
+  for (int64_t t = now; t <= now + 4 * period; t += 1000) {
+    gateway->Pump(t);
+    CHECK_FALSE_TEXT(gateway->LinkStalled(t), "republications are taken: the server may only be down");
+  }
+  const int64_t refused_from = now + 4 * period;
+  publisher.refuse = true;
+  // The last taken republication was less than a period before the refusals began.
+  for (int64_t t = refused_from; t <= refused_from + 2 * period; t += 1000) {
+    gateway->Pump(t);
+    CHECK_FALSE(gateway->LinkStalled(t));
+  }
+  const int64_t stalled_at = refused_from + 3 * period + 1000;
+  gateway->Pump(stalled_at);
+  CHECK_TRUE(gateway->LinkStalled(stalled_at));
+  gateway->OnLinkReset(stalled_at);
+  CHECK_FALSE(gateway->LinkStalled(stalled_at + 1000));
+  LONGS_EQUAL(1, gateway->counters().link_resets);
+  publisher.refuse = false;
+  gateway->OnConnected(stalled_at + 2000);
+  gateway->OnMessage(Committed(1001), AckJson({1}), stalled_at + 2000);
+  LONGS_EQUAL(0, gateway->spool_depth());
+  CHECK_FALSE(gateway->LinkStalled(stalled_at + 10 * period));  // nothing waits
+}
+
 TEST(Gateway, FullSpoolRecordIsNeitherStoredNorAcked) {
   Start(1);
   Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));
@@ -340,7 +371,7 @@ TEST(Gateway, StatsMessageKeepsItsBytes) {
   gateway->OnBytes(junk, sizeof junk, now);
   STRCMP_EQUAL(R"({"ack_write_errors":0,"acks_sent":0,"bad_commit_acks":0,"bad_payloads":0,"bytes_discarded":3,)"
                R"("checksum_errors":0,"commit_acks_ignored":0,"committed":0,"connects":0,"devices":0,"devices_refused":0,)"
-               R"("escape_errors":0,"frames_ok":0,"gateway":"gw-test","in_flight":0,"length_errors":0,"malformed_frames":0,)"
+               R"("escape_errors":0,"frames_ok":0,"gateway":"gw-test","in_flight":0,"length_errors":0,"link_resets":0,"malformed_frames":0,)"
                R"("max_devices":1000,"publish_latency_ms":{"last":-1,"max":-1,"mean":-1},"publish_refused":0,"published":0,"records_duplicate":0,)"
                R"("records_evicted":0,"records_received":0,"records_rejected":0,"records_spooled":0,"republished":0,)"
                R"("spool_depth":0,"spool_errors":0,"spool_max_records":1000,"time":"2026-03-01T12:00:07Z","truncated_frames":0,)"
