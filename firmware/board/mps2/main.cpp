@@ -10,9 +10,12 @@ constexpr uint32_t kCoreHz = 25000000;  // MPS2 FPGA system clock
 constexpr uint32_t kBaudDiv = kCoreHz / 115200;
 
 // The radio ring holds what arrives while the board sleeps (acks and transmit statuses, ~100 B
-// per batch); the ladder test path's ring one shift-register image (0x55, n, n <= 17 bytes).
+// per batch); the ladder test path's ring six shift-register images (0x55, n, n <= 17 bytes):
+// it is drained only when the firmware reads the ladder, and an emulator held up by a loaded
+// host can receive several of the test's images meanwhile (with one image's room, 32 B, a step
+// was lost once in CI: test_integration_firmware_qemu).
 lw::hal::mps2::CmsdkUart<256> radio_uart(0x40004000);
-lw::hal::mps2::CmsdkUart<32> ladder_uart(0x40005000);
+lw::hal::mps2::CmsdkUart<128> ladder_uart(0x40005000);
 lw::hal::mps2::UartLadder ladder(ladder_uart);
 lw::hal::mps2::Led ladder_power;
 lw::hal::mps2::FixedAdc adc;
