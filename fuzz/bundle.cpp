@@ -21,7 +21,8 @@ bool SafePath(std::string_view p) {
   if (p.empty() || p.size() > 64 || p.front() == '.' || p.front() == '/' || p.find("..") != std::string_view::npos) return false;
   if (std::count(p.begin(), p.end(), '/') > 1 || p.back() == '/') return false;
   return std::all_of(p.begin(), p.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-' || c == '.' || c == '/';
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-' || c == '.' ||
+           c == '/';
   });
 }
 
@@ -41,7 +42,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (name_end == std::string_view::npos) break;
     const std::string_view name = in.substr(pos + 4, name_end - pos - 4);
     size_t next = in.find("\n=== ", name_end);
-    const std::string_view body = in.substr(name_end + 1, next == std::string_view::npos ? std::string_view::npos : next + 1 - (name_end + 1));
+    const std::string_view body =
+        in.substr(name_end + 1, next == std::string_view::npos ? std::string_view::npos : next + 1 - (name_end + 1));
     if (SafePath(name)) fuzz::WriteFile(dir / std::string(name), body);
     pos = next == std::string_view::npos ? next : next + 1;
   }
@@ -60,7 +62,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       Check(p.sensor_id < r.sensor_id || (p.sensor_id == r.sensor_id && p.time <= r.time), "readings not sorted");
     }
   }
-  for (size_t i = 1; i < b.operations.size(); ++i) Check(b.operations[i - 1].time <= b.operations[i].time, "operations not sorted");
+  for (size_t i = 1; i < b.operations.size(); ++i)
+    Check(b.operations[i - 1].time <= b.operations[i].time, "operations not sorted");
   for (size_t i = 1; i < b.scans.size(); ++i) Check(b.scans[i - 1].date <= b.scans[i].date, "scans not sorted");
   Check(b.map.wear.size() == static_cast<Eigen::Index>(b.map.face_count()), "wear does not have one value per face");
   return 0;

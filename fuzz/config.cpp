@@ -17,14 +17,16 @@ using lw::fuzz::Check;
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::filesystem::path file = fuzz::ScratchDir() / "config.json";
-  if (!fuzz::WriteFile(file, std::string_view(reinterpret_cast<const char*>(data), size))) fuzz::Fail("cannot write " + file.string());
+  if (!fuzz::WriteFile(file, std::string_view(reinterpret_cast<const char*>(data), size)))
+    fuzz::Fail("cannot write " + file.string());
   const std::string path = file.string();
 
   // Every option type of core's parser, repeatable and positional included, and unknown keys kept.
   static const core::OptionTable table(
       {core::Option::Text("name", "S", "text"), core::Option::Whole("count", "N", -5, 1000, "whole"),
-       core::Option::Unsigned("seed", "N", "seed"), core::Option::Number("rate", "X", core::NumberRange{0, 1, false, true}, "number"),
-       core::Option::Switch("quiet", "switch"), core::Option::Text("effect", "E", "list").Repeatable()},
+       core::Option::Unsigned("seed", "N", "seed"),
+       core::Option::Number("rate", "X", core::NumberRange{0, 1, false, true}, "number"), core::Option::Switch("quiet", "switch"),
+       core::Option::Text("effect", "E", "list").Repeatable()},
       "BUNDLE", "bundle", /*keep_other_config_keys=*/true);
   try {
     const core::ParsedOptions o = core::ParseOptions(table, {"--config", path});
@@ -49,7 +51,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const server::TokenStore tokens = server::TokenStore::Load(file);
     (void)tokens.Check("secret");
   } catch (const std::runtime_error& e) {
-    Check(std::string(e.what()).find("--tokens") != std::string::npos, std::string("tokens error not naming --tokens: ") + e.what());
+    Check(std::string(e.what()).find("--tokens") != std::string::npos,
+          std::string("tokens error not naming --tokens: ") + e.what());
   }
   return 0;
 }

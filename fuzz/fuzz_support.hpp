@@ -11,7 +11,6 @@
 #include <string>
 #include <string_view>
 
-
 namespace lw::fuzz {
 
 /// A property the target checks failed: print it and abort, so libFuzzer saves the input.

@@ -51,8 +51,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       const auto topic = mqtt::Topics::ParseAny(m.topic);
       if (!topic || topic->kind != mqtt::TopicKind::kReading) continue;
       ++readings;
-      const server::Validation v = server::ValidateReading({topic->site, topic->crusher, topic->id, m.topic, m.payload},
-                                                           registry, fuzz::kNowS);
+      const server::Validation v =
+          server::ValidateReading({topic->site, topic->crusher, topic->id, m.topic, m.payload}, registry, fuzz::kNowS);
       Check(!v.sensor.empty() && v.seq.has_value(), "the server cannot identify a reading the gateway built: " + v.error);
       gw.OnMessage(gw.topics().Committed(topic->id),
                    mqtt::EncodeCommitAck({topic->id, {static_cast<uint32_t>(*v.seq)}, "2026-06-01T00:00:00Z"}), now_ms);
@@ -63,9 +63,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
   Check(gw.counters().bad_commit_acks == 0, "the gateway refused the server's commit ack");
   Check(gw.counters().spool_errors == 0, "spool error on an in-memory spool (see the gateway log)");
-  Check(gw.spool_depth() == 0 && gw.in_flight() == 0,
-        "records left after every published reading was acknowledged: spool " + std::to_string(gw.spool_depth()) +
-            ", in flight " + std::to_string(gw.in_flight()));
+  Check(gw.spool_depth() == 0 && gw.in_flight() == 0, "records left after every published reading was acknowledged: spool " +
+                                                          std::to_string(gw.spool_depth()) + ", in flight " +
+                                                          std::to_string(gw.in_flight()));
   (void)checked;
   return 0;
 }

@@ -3,8 +3,8 @@
 // against the fixture crusher "fz1".
 // Properties: ValidateReading and Ingest never throw; a message is stored, a duplicate, a conflict
 // or rejected (exactly one); a message that named its sensor (the topic's) and seq under the crusher's
-// own site is acknowledged with that seq (a rejected one too, once quarantined); the commit ack the server publishes for it parses in the
-// gateway (mqtt::DecodeCommitAck) to the same sensor and seqs.
+// own site is acknowledged with that seq (a rejected one too, once quarantined); the commit ack the server publishes for it
+// parses in the gateway (mqtt::DecodeCommitAck) to the same sensor and seqs.
 #include <memory>
 #include <optional>
 #include <string>

@@ -43,12 +43,14 @@ const lw::core::OptionTable& Table() {
                      "virtual days of a campaign (default 95); kills fall at random virtual times\n"
                      "from day 0.5 to day D - 3, another campaign follows if the kills are not done"),
       Option::Number("loss", "P", NumberRange{0, 1, false, true}, "radio loss per transmission attempt (default 0.2)"),
-      Option::Number("dup", "P", NumberRange{0, 1, false, true}, "probability that a delivered packet arrives twice (default 0.05)"),
+      Option::Number("dup", "P", NumberRange{0, 1, false, true},
+                     "probability that a delivered packet arrives twice (default 0.05)"),
       Option::Whole("seed", "S", 0, UINT32_MAX, "seed of the fault schedule and the radio (default: random, printed)"),
       Option::Number("speed", "X", NumberRange{0, std::numeric_limits<double>::infinity(), false, true},
                      "virtual seconds per wall second (default: D days / (1.5 s per fault))"),
       Option::Whole("max-down-ms", "MS", 0, 60000, "a killed program stays down 0..MS wall ms (default 1000)"),
-      Option::Text("out", "DIR", "logs, databases and ledgers (default /tmp/lw-chaos-PID); removed after a\nclean run unless --keep"),
+      Option::Text("out", "DIR",
+                   "logs, databases and ledgers (default /tmp/lw-chaos-PID); removed after a\nclean run unless --keep"),
       Option::Switch("keep", "keep DIR"),
       Option::Text("data-dir", "DIR",
                    "the server's database and the gateway's spool live here (default: in --out);\n"
@@ -117,7 +119,9 @@ Options Parse(const std::vector<std::string>& args, bool* help) {
   return o;
 }
 
-void SleepMs(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
+void SleepMs(int ms) {
+  std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+}
 
 double WallS(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -207,26 +211,59 @@ class Soak {
     }
     const std::string clock = dir + "/clock", db = data + "/server.sqlite", ledger = dir + "/ledger.csv";
     const std::string filler = o_.data_dir + "/filler";
-    Program server{"server", {}, {LW_SERVER_BIN, "--broker", broker.uri(), "--db", db, "--http",
-                                  "127.0.0.1:" + std::to_string(http_port), "--crusher-dir", crushers_, "--username",
-                                  kUser, "--password", kPassword, "--clock-file", clock, "--wear-interval-ms", "1000",
-                                  "--web-dir", ""},
+    Program server{"server",
+                   {},
+                   {LW_SERVER_BIN, "--broker", broker.uri(), "--db", db, "--http", "127.0.0.1:" + std::to_string(http_port),
+                    "--crusher-dir", crushers_, "--username", kUser, "--password", kPassword, "--clock-file", clock,
+                    "--wear-interval-ms", "1000", "--web-dir", ""},
                    dir + "/server.log"};
-    Program sim{"sim", {}, {LW_SIM_BIN, "run", "--crusher-dir", crushers_, "--serial-out", dir + "/tty", "--days",
-                            std::to_string(o_.days), "--speed", std::to_string(speed), "--loss", std::to_string(o_.loss),
-                            "--dup", std::to_string(o_.dup), "--api-mode", "2", "--clock-out", clock, "--ledger", ledger,
-                            "--drain-days", "3", "--seed", std::to_string((o_.seed + round) % 1000000)},
+    Program sim{"sim",
+                {},
+                {LW_SIM_BIN,      "run",
+                 "--crusher-dir", crushers_,
+                 "--serial-out",  dir + "/tty",
+                 "--days",        std::to_string(o_.days),
+                 "--speed",       std::to_string(speed),
+                 "--loss",        std::to_string(o_.loss),
+                 "--dup",         std::to_string(o_.dup),
+                 "--api-mode",    "2",
+                 "--clock-out",   clock,
+                 "--ledger",      ledger,
+                 "--drain-days",  "3",
+                 "--seed",        std::to_string((o_.seed + round) % 1000000)},
                 dir + "/sim.log"};
-    Program gateway{"gateway", {}, {LW_GATEWAY_BIN, "--serial", dir + "/tty", "--api-mode", "2", "--broker", broker.uri(),
-                                    "--site", "chaos-site", "--crusher", crusher, "--spool", data + "/spool.db",
-                                    "--clock-file", clock, "--gateway-id", "gw-chaos", "--username", kUser, "--password",
-                                    kPassword, "--republish-after", "1"},
+    Program gateway{"gateway",
+                    {},
+                    {LW_GATEWAY_BIN,
+                     "--serial",
+                     dir + "/tty",
+                     "--api-mode",
+                     "2",
+                     "--broker",
+                     broker.uri(),
+                     "--site",
+                     "chaos-site",
+                     "--crusher",
+                     crusher,
+                     "--spool",
+                     data + "/spool.db",
+                     "--clock-file",
+                     clock,
+                     "--gateway-id",
+                     "gw-chaos",
+                     "--username",
+                     kUser,
+                     "--password",
+                     kPassword,
+                     "--republish-after",
+                     "1"},
                     dir + "/gateway.log"};
     server.Start();
     sim.Start();
     struct stat st {};
     for (int i = 0; i < 300 && ::lstat((dir + "/tty").c_str(), &st) != 0; ++i) SleepMs(100);
-    if (::lstat((dir + "/tty").c_str(), &st) != 0) throw std::runtime_error("the simulator made no pty: " + lw::test::FileTail(sim.log));
+    if (::lstat((dir + "/tty").c_str(), &st) != 0)
+      throw std::runtime_error("the simulator made no pty: " + lw::test::FileTail(sim.log));
     gateway.Start();
 
     // The fault times, in virtual days, for the kills still to deliver.
@@ -370,8 +407,8 @@ class Soak {
     std::fprintf(stderr,
                  "chaos: round %d, day %.1f/%.0f: kills %ld (broker %ld, gateway %ld, server %ld; %ld site cuts), "
                  "unexpected exits %ld, disk full %ld times; wall %.0f s\n",
-                 round, day, o_.days, t_.kills, t_.broker, t_.gateway, t_.server, t_.site_cuts, t_.unexpected_exits,
-                 t_.fills, WallS(t0_));
+                 round, day, o_.days, t_.kills, t_.broker, t_.gateway, t_.server, t_.site_cuts, t_.unexpected_exits, t_.fills,
+                 WallS(t0_));
   }
 
   double wall_s() const { return WallS(t0_); }

@@ -43,9 +43,9 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 struct Case {
-  std::string truth;   // effect name, "a+b" for pairs, "none", or "fault"
-  std::string level;   // weak / moderate / strong / - 
-  double param = 0;    // true value of the effect's main parameter
+  std::string truth;  // effect name, "a+b" for pairs, "none", or "fault"
+  std::string level;  // weak / moderate / strong / -
+  double param = 0;   // true value of the effect's main parameter
   lw::test::SyntheticSpec spec;
   // --generator sim: the independent campaign generator (sim/), whose effect forms differ from the
   // diagnosis' hypotheses; its truth gives the thickness at the withheld date.
@@ -77,9 +77,8 @@ void ToRealDem(const lw::test::SyntheticSpec& s, lw::bench::RealDemSpec& r) {
 
 void ApplySim(const std::string& effect, int level, uint64_t seed, lw::sim::CampaignSpec& s, double& param) {
   static const std::map<std::string, std::vector<double>> kLevels = {
-      {"work_hardening", {0.15, 0.3, 0.5}},     {"hardness_gradient", {0.1, 0.2, 0.35}},
-      {"squeeze_wear", {0.1, 0.25, 0.5}},       {"profile_evolution", {0.3, 0.6, 1.2}},
-      {"feed_segregation", {0.05, 0.1, 0.2}},   {"throughput_variation", {0.2, 0.4, 0.6}},
+      {"work_hardening", {0.15, 0.3, 0.5}},   {"hardness_gradient", {0.1, 0.2, 0.35}}, {"squeeze_wear", {0.1, 0.25, 0.5}},
+      {"profile_evolution", {0.3, 0.6, 1.2}}, {"feed_segregation", {0.05, 0.1, 0.2}},  {"throughput_variation", {0.2, 0.4, 0.6}},
       {"material_loss", {4.0, 8.0, 15.0}}};
   const double v = kLevels.at(effect)[static_cast<size_t>(level)];
   // `param` is the truth in the diagnosis' own parameter where the definitions can be converted:
@@ -91,25 +90,30 @@ void ApplySim(const std::string& effect, int level, uint64_t seed, lw::sim::Camp
   if (effect == "throughput_variation") param = 1.0;
   if (effect == "profile_evolution") param = 0.15 * v * 100.0 / 95.0;
   lw::sim::EffectSpec e{effect, {}};
-  if (effect == "work_hardening") e.params = {{"h", v}, {"tau_days", 3.0 + 3.0 * static_cast<double>(seed % 4)}};
-  else if (effect == "hardness_gradient") e.params = {{"c", v}, {"onset_mm", 15.0 + 10.0 * static_cast<double>(seed % 3)}, {"width_mm", 25}};
-  else if (effect == "squeeze_wear") e.params = {{"beta", v}};
-  else if (effect == "profile_evolution") e.params = {{"p", v}};
-  else if (effect == "feed_segregation") e.params = {{"amplitude", v}, {"theta_deg", 20.0 + 67.0 * static_cast<double>(seed % 5)}};
-  else if (effect == "throughput_variation") e.params = {{"amplitude", v}};
-  else if (effect == "material_loss") e.params = {{"depth_mm", v}, {"day", 20.0 + 8.0 * static_cast<double>(seed % 5)}, {"sensor_index", seed % 2 ? 6.0 : 3.0}};
+  if (effect == "work_hardening")
+    e.params = {{"h", v}, {"tau_days", 3.0 + 3.0 * static_cast<double>(seed % 4)}};
+  else if (effect == "hardness_gradient")
+    e.params = {{"c", v}, {"onset_mm", 15.0 + 10.0 * static_cast<double>(seed % 3)}, {"width_mm", 25}};
+  else if (effect == "squeeze_wear")
+    e.params = {{"beta", v}};
+  else if (effect == "profile_evolution")
+    e.params = {{"p", v}};
+  else if (effect == "feed_segregation")
+    e.params = {{"amplitude", v}, {"theta_deg", 20.0 + 67.0 * static_cast<double>(seed % 5)}};
+  else if (effect == "throughput_variation")
+    e.params = {{"amplitude", v}};
+  else if (effect == "material_loss")
+    e.params = {{"depth_mm", v}, {"day", 20.0 + 8.0 * static_cast<double>(seed % 5)}, {"sensor_index", seed % 2 ? 6.0 : 3.0}};
   s.effects.push_back(e);
 }
 
-const std::vector<std::string> kEffects = {"work_hardening",   "hardness_gradient",    "squeeze_wear",
-                                           "profile_evolution", "feed_segregation",    "throughput_variation",
-                                           "material_loss"};
+const std::vector<std::string> kEffects = {"work_hardening",   "hardness_gradient",    "squeeze_wear", "profile_evolution",
+                                           "feed_segregation", "throughput_variation", "material_loss"};
 
 void Apply(const std::string& effect, int level, lw::test::SyntheticSpec& s, double& param) {
   static const std::map<std::string, std::vector<double>> kLevels = {
-      {"work_hardening", {0.12, 0.3, 0.5}},    {"hardness_gradient", {0.08, 0.2, 0.4}},
-      {"squeeze_wear", {0.05, 0.15, 0.4}},     {"profile_evolution", {0.25, 0.6, 1.2}},
-      {"feed_segregation", {0.04, 0.1, 0.2}},  {"throughput_variation", {0.2, 0.5, 0.8}},
+      {"work_hardening", {0.12, 0.3, 0.5}},    {"hardness_gradient", {0.08, 0.2, 0.4}}, {"squeeze_wear", {0.05, 0.15, 0.4}},
+      {"profile_evolution", {0.25, 0.6, 1.2}}, {"feed_segregation", {0.04, 0.1, 0.2}},  {"throughput_variation", {0.2, 0.5, 0.8}},
       {"material_loss", {3.0, 8.0, 15.0}}};
   const double v = kLevels.at(effect)[static_cast<size_t>(level)];
   param = v;
@@ -145,8 +149,9 @@ double MainParam(const lw::diagnosis::Finding& f, bool sim) {
     return std::numeric_limits<double>::quiet_NaN();
   }
   static const std::map<std::string, std::string> kKey = {
-      {"work_hardening", "h"},         {"hardness_gradient", "g"},       {"squeeze_wear", "beta"},
-      {"profile_evolution", "p_per_100_days"}, {"feed_segregation", "amplitude"}, {"throughput_variation", "phi"},
+      {"work_hardening", "h"},           {"hardness_gradient", "g"},
+      {"squeeze_wear", "beta"},          {"profile_evolution", "p_per_100_days"},
+      {"feed_segregation", "amplitude"}, {"throughput_variation", "phi"},
       {"material_loss", "depth_mm"}};
   auto it = kKey.find(f.effect);
   if (it == kKey.end() || !f.parameters.contains(it->second)) return kNaN;
@@ -173,7 +178,8 @@ std::optional<lw::diagnosis::OracleEffect> TrueEffect(const Case& c, bool real, 
   } else if (c.truth == "profile_evolution") {
     p["p"] = real ? r.profile_p : t.profile_p;
   } else if (c.truth == "feed_segregation") {
-    const double a = real ? r.feed_amplitude : t.feed_amplitude, th = (real ? r.feed_theta_deg : t.feed_theta_deg) * 3.14159265358979323846 / 180.0;
+    const double a = real ? r.feed_amplitude : t.feed_amplitude,
+                 th = (real ? r.feed_theta_deg : t.feed_theta_deg) * 3.14159265358979323846 / 180.0;
     p["a"] = a * std::cos(th);
     p["b"] = a * std::sin(th);
   } else if (c.truth == "throughput_variation") {
@@ -211,22 +217,35 @@ int main(int argc, char** argv) {
   bool live_only = false, oracle = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--generator" && i + 1 < argc) generator = argv[++i];
-    else if (a == "--cases" && i + 1 < argc) max_cases = std::stoi(argv[++i]);
-    else if (a == "--seed" && i + 1 < argc) seed0 = static_cast<unsigned>(std::stoul(argv[++i]));
-    else if (a == "--keep" && i + 1 < argc) keep = argv[++i];
-    else if (a == "--only" && i + 1 < argc) only = argv[++i];
-    else if (a == "--level" && i + 1 < argc) level_filter = argv[++i];
-    else if (a == "--json-dir" && i + 1 < argc) json_dir = argv[++i];
-    else if (a == "--threads" && i + 1 < argc) threads = std::stoi(argv[++i]);
-    else if (a == "--dem-dir" && i + 1 < argc) dem_dir = argv[++i];
-    else if (a == "--truth-radius" && i + 1 < argc) truth_radius = std::stod(argv[++i]);
-    else if (a == "--live-only") live_only = true;
-    else if (a == "--oracle") oracle = true;
+    if (a == "--generator" && i + 1 < argc)
+      generator = argv[++i];
+    else if (a == "--cases" && i + 1 < argc)
+      max_cases = std::stoi(argv[++i]);
+    else if (a == "--seed" && i + 1 < argc)
+      seed0 = static_cast<unsigned>(std::stoul(argv[++i]));
+    else if (a == "--keep" && i + 1 < argc)
+      keep = argv[++i];
+    else if (a == "--only" && i + 1 < argc)
+      only = argv[++i];
+    else if (a == "--level" && i + 1 < argc)
+      level_filter = argv[++i];
+    else if (a == "--json-dir" && i + 1 < argc)
+      json_dir = argv[++i];
+    else if (a == "--threads" && i + 1 < argc)
+      threads = std::stoi(argv[++i]);
+    else if (a == "--dem-dir" && i + 1 < argc)
+      dem_dir = argv[++i];
+    else if (a == "--truth-radius" && i + 1 < argc)
+      truth_radius = std::stod(argv[++i]);
+    else if (a == "--live-only")
+      live_only = true;
+    else if (a == "--oracle")
+      oracle = true;
     else {
-      std::fprintf(stderr,
-                   "usage: lw_bench_diagnosis [--generator test|sim|realdem] [--dem-dir DIR] [--truth-radius F] [--live-only] [--oracle] "
-                   "[--cases N] [--only TRUTH] [--level L[,L...]] [--seed S] [--keep DIR] [--json-dir DIR] [--threads N]\n");
+      std::fprintf(
+          stderr,
+          "usage: lw_bench_diagnosis [--generator test|sim|realdem] [--dem-dir DIR] [--truth-radius F] [--live-only] [--oracle] "
+          "[--cases N] [--only TRUTH] [--level L[,L...]] [--seed S] [--keep DIR] [--json-dir DIR] [--threads N]\n");
       return 2;
     }
   }
@@ -235,7 +254,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (generator == "realdem" && dem_dir.empty()) {
-    std::fprintf(stderr, "lw_bench_diagnosis: --generator realdem needs --dem-dir DIR (folders with wear_windows.vtk and crusher.json)\n");
+    std::fprintf(
+        stderr, "lw_bench_diagnosis: --generator realdem needs --dem-dir DIR (folders with wear_windows.vtk and crusher.json)\n");
     return 2;
   }
   const bool use_sim = generator == "sim";
@@ -247,14 +267,16 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "lw_bench_diagnosis: no run folders in %s\n", dem_dir.c_str());
       return 2;
     }
-    std::printf("generator: realdem (%zu runs in %s; map from half of each run's windows, truth from the other half "
-                "smoothed over %.2f x the concave height; effects in the diagnosis' forms)\n",
-                runs.size(), dem_dir.c_str(), truth_radius);
+    std::printf(
+        "generator: realdem (%zu runs in %s; map from half of each run's windows, truth from the other half "
+        "smoothed over %.2f x the concave height; effects in the diagnosis' forms)\n",
+        runs.size(), dem_dir.c_str(), truth_radius);
     for (const auto& r : runs)
       std::printf("  run %-24s %zu faces, %zu windows%s\n", r.name.c_str(), r.mesh.face_count(), r.wear_w.size(),
                   r.normal_w.empty() ? " (no per-window normal stress)" : "");
   } else {
-    std::printf("generator: %s\n", use_sim ? "sim (independent campaign generator, sim/)" : "test forward model (the diagnosis' own forms)");
+    std::printf("generator: %s\n",
+                use_sim ? "sim (independent campaign generator, sim/)" : "test forward model (the diagnosis' own forms)");
   }
 
   // Case list.
@@ -277,10 +299,11 @@ int main(int argc, char** argv) {
       }
     }
   }
-  const std::vector<std::pair<std::string, std::string>> pairs = {
-      {"throughput_variation", "hardness_gradient"}, {"work_hardening", "feed_segregation"},
-      {"squeeze_wear", "profile_evolution"},         {"hardness_gradient", "feed_segregation"},
-      {"work_hardening", "throughput_variation"}};
+  const std::vector<std::pair<std::string, std::string>> pairs = {{"throughput_variation", "hardness_gradient"},
+                                                                  {"work_hardening", "feed_segregation"},
+                                                                  {"squeeze_wear", "profile_evolution"},
+                                                                  {"hardness_gradient", "feed_segregation"},
+                                                                  {"work_hardening", "throughput_variation"}};
   for (const auto& p : pairs) {
     for (int rep = 0; rep < 4; ++rep) {
       Case c;
@@ -450,7 +473,7 @@ int main(int argc, char** argv) {
     double rmse = 0, rmse_plain = 0;          // per face against the truth, mm
     bool in_band = false;
     double band_lo = 0, band_hi = 0, truth_min = 0;
-    double low_only_thin = 0;                 // thinnest point with only the lowest row reporting
+    double low_only_thin = 0;  // thinnest point with only the lowest row reporting
     std::string low_only_status;
     double bandwidth = 0, bandwidth_arc = 0;
     // With a scan (day scan_day), 15 days later: the live map with and without the scan applied.
@@ -502,7 +525,12 @@ int main(int argc, char** argv) {
       const Eigen::VectorXd tw = real->TrueFaceWear(day);
       const double new_mm = bundle.crusher.thickness_new_mm;
       lv.truth_min = new_mm - tw.maxCoeff();
-      if (std::getenv("LW_DEBUG")) { Eigen::Index im; tw.maxCoeff(&im); std::fprintf(stderr, "truth max wear %.2f at face %ld z %.3f mean %.2f\n", tw.maxCoeff(), (long)im, bundle.map.z[im], tw.mean()); }
+      if (std::getenv("LW_DEBUG")) {
+        Eigen::Index im;
+        tw.maxCoeff(&im);
+        std::fprintf(stderr, "truth max wear %.2f at face %ld z %.3f mean %.2f\n", tw.maxCoeff(), (long)im, bundle.map.z[im],
+                     tw.mean());
+      }
       const Eigen::VectorXd truth_rem = (new_mm - tw.array()).matrix();
       lv.thin_err = rec.min_thickness_mm - lv.truth_min;
       lv.thin_err_plain = prec.min_thickness_mm - lv.truth_min;
@@ -615,15 +643,15 @@ int main(int argc, char** argv) {
       ratio.push_back(lv.rmse / lv.rmse_plain);
       in_band += lv.in_band;
       low_neg += !(lv.low_only_thin >= 0);
-      std::printf("%-6zu %-22s %5.2f/%-5.2f %9.2f %9.2f %9.2f %9.2f %8.1f..%-8.1f %9.2f %.1f (%s)\n", k, runs[cases[k].run].name.c_str(),
-                  lv.bandwidth, lv.bandwidth_arc, lv.thin_err, lv.thin_err_plain, lv.rmse, lv.rmse_plain, lv.band_lo, lv.band_hi, lv.truth_min,
-                  lv.low_only_thin, lv.low_only_status.c_str());
+      std::printf("%-6zu %-22s %5.2f/%-5.2f %9.2f %9.2f %9.2f %9.2f %8.1f..%-8.1f %9.2f %.1f (%s)\n", k,
+                  runs[cases[k].run].name.c_str(), lv.bandwidth, lv.bandwidth_arc, lv.thin_err, lv.thin_err_plain, lv.rmse,
+                  lv.rmse_plain, lv.band_lo, lv.band_hi, lv.truth_min, lv.low_only_thin, lv.low_only_status.c_str());
     }
     if (n) {
       std::sort(e.begin(), e.end());
       std::sort(ep.begin(), ep.end());
-      std::printf("thinnest-point |error|: median %.2f mm, worst %.2f mm (plain smoothing: median %.2f, worst %.2f)\n",
-                  Median(e), e.back(), Median(ep), ep.back());
+      std::printf("thinnest-point |error|: median %.2f mm, worst %.2f mm (plain smoothing: median %.2f, worst %.2f)\n", Median(e),
+                  e.back(), Median(ep), ep.back());
       std::printf("per-face RMSE: median %.2f mm (plain smoothing %.2f mm); ratio model / plain median %.3f, worst %.3f\n",
                   Median(rm), Median(rmp), Median(ratio), *std::max_element(ratio.begin(), ratio.end()));
       std::printf("truth's thinnest point inside the +/-2 sd band: %d / %d; lowest-row-only thinnest negative or NaN: %d / %d\n",
@@ -641,9 +669,12 @@ int main(int argc, char** argv) {
     if (!se.empty()) {
       std::sort(se.begin(), se.end());
       std::sort(sn.begin(), sn.end());
-      std::printf("with the day-%.0f scan applied, 15 days later (%zu nulls with a scan): thinnest-point |error| median %.2f mm, worst %.2f "
-                  "(without the scan %.2f / %.2f); per-face RMSE median %.2f mm (without %.2f)\n",
-                  cases.empty() ? 0.0 : cases[0].rd.scan_day, se.size(), Median(se), se.back(), Median(sn), sn.back(), Median(sr), Median(snr));
+      std::printf(
+          "with the day-%.0f scan applied, 15 days later (%zu nulls with a scan): thinnest-point |error| median %.2f mm, worst "
+          "%.2f "
+          "(without the scan %.2f / %.2f); per-face RMSE median %.2f mm (without %.2f)\n",
+          cases.empty() ? 0.0 : cases[0].rd.scan_day, se.size(), Median(se), se.back(), Median(sn), sn.back(), Median(sr),
+          Median(snr));
     }
     if (live_only) return 0;
   }
@@ -781,8 +812,8 @@ int main(int argc, char** argv) {
       }
     };
     std::printf("\nOracle: the true effect with its true parameters (row scales fitted) against the baseline\n");
-    std::printf("%-5s %-22s %-9s %-12s %9s %9s %7s %7s %7s %9s %9s %9s %9s %s\n", "case", "truth", "level", "run", "dchi2_sen", "dchi2_scn",
-                "spr_sen", "spr_u", "spr_scn", "dBIC_mod", "dBIC_emp", "fit_dBIC", "null_max", "top finding");
+    std::printf("%-5s %-22s %-9s %-12s %9s %9s %7s %7s %7s %9s %9s %9s %9s %s\n", "case", "truth", "level", "run", "dchi2_sen",
+                "dchi2_scn", "spr_sen", "spr_u", "spr_scn", "dBIC_mod", "dBIC_emp", "fit_dBIC", "null_max", "top finding");
     struct Tally {
       int n = 0, model = 0, empirical = 0, separable = 0, correct = 0;
     };
@@ -795,8 +826,9 @@ int main(int argc, char** argv) {
       fitted_vs_null(r, cases[k].truth, fitted, nmax);
       const std::string top = r.findings.empty() ? "none" : r.findings[0].effect;
       std::printf("%-5zu %-22s %-9s %-12s %9.1f %9.1f %7.3f %7.3f %7.3f %9.1f %9.1f %9.1f %9.1f %s\n", k, cases[k].truth.c_str(),
-                  cases[k].level.c_str(), use_real ? runs[cases[k].run].name.c_str() : "-", o.delta_chi2_sensors, o.delta_chi2_scan,
-                  o.spread_sensors, o.spread_sensor_priors, o.spread_scan, o.delta_bic_model, o.delta_bic_empirical, fitted, nulls_seen ? nmax : kNaN, top.c_str());
+                  cases[k].level.c_str(), use_real ? runs[cases[k].run].name.c_str() : "-", o.delta_chi2_sensors,
+                  o.delta_chi2_scan, o.spread_sensors, o.spread_sensor_priors, o.spread_scan, o.delta_bic_model,
+                  o.delta_bic_empirical, fitted, nulls_seen ? nmax : kNaN, top.c_str());
       Tally& t = tally[cases[k].level];
       ++t.n;
       t.model += o.delta_bic_model > o.min_delta_bic;
@@ -805,11 +837,13 @@ int main(int argc, char** argv) {
       t.correct += top == cases[k].truth;
     }
     for (const auto& [level, t] : tally) {
-      std::printf("oracle %-9s detectable (delta BIC > 10): diagnosis noise %d / %d, empirical spread %d / %d; fitted true hypothesis above "
-                  "every null's (%d nulls and fault-only cases): %s; named correctly %d / %d\n",
-                  level.c_str(), t.model, t.n, t.empirical, t.n, nulls_seen,
-                  nulls_seen ? (std::to_string(t.separable) + " / " + std::to_string(t.n)).c_str() : "n/a (no nulls in this run)",
-                  t.correct, t.n);
+      std::printf(
+          "oracle %-9s detectable (delta BIC > 10): diagnosis noise %d / %d, empirical spread %d / %d; fitted true hypothesis "
+          "above "
+          "every null's (%d nulls and fault-only cases): %s; named correctly %d / %d\n",
+          level.c_str(), t.model, t.n, t.empirical, t.n, nulls_seen,
+          nulls_seen ? (std::to_string(t.separable) + " / " + std::to_string(t.n)).c_str() : "n/a (no nulls in this run)",
+          t.correct, t.n);
     }
     std::printf("(material loss, pairs: no oracle; they are not single fitted models)\n");
   }

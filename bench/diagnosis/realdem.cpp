@@ -18,7 +18,9 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-std::string Iso(const core::TimePoint& t0, double days) { return core::FormatIsoTime(core::AddDays(t0, days)); }
+std::string Iso(const core::TimePoint& t0, double days) {
+  return core::FormatIsoTime(core::AddDays(t0, days));
+}
 
 double Median(std::vector<double> v) {
   if (v.empty()) return 0;
@@ -43,7 +45,9 @@ std::map<std::string, Eigen::VectorXd> ReadCellScalars(const std::filesystem::pa
     if (tok == "CELL_DATA") {
       size_t n = 0;
       in >> n;
-      if (n != faces) throw std::runtime_error(path.string() + ": CELL_DATA " + std::to_string(n) + " != " + std::to_string(faces) + " faces of wear_map.vtk");
+      if (n != faces)
+        throw std::runtime_error(path.string() + ": CELL_DATA " + std::to_string(n) + " != " + std::to_string(faces) +
+                                 " faces of wear_map.vtk");
       cell = true;
     } else if (tok == "POINT_DATA") {
       cell = false;
@@ -235,7 +239,8 @@ double RealDemCampaign::TrueSensorThickness(size_t index, double day) const {
 
 Eigen::VectorXd RealDemCampaign::TrueFaceWear(double day) const {
   Eigen::VectorXd w(static_cast<Eigen::Index>(faces_.size()));
-  for (size_t i = 0; i < faces_.size(); ++i) w[static_cast<Eigen::Index>(i)] = Wear(faces_[i], day, run_.crusher.thickness_new_mm);
+  for (size_t i = 0; i < faces_.size(); ++i)
+    w[static_cast<Eigen::Index>(i)] = Wear(faces_[i], day, run_.crusher.thickness_new_mm);
   return w;
 }
 

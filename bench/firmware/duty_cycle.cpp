@@ -42,8 +42,8 @@ int main() {
   const auto& s = app.stats();
   std::printf("campaign: %.0f days, poll %u s, heartbeat %u s\n", days, config.poll_period_s, config.heartbeat_period_s);
   std::printf("wakes/day            %8.1f\n", s.wakes / days);
-  std::printf("ladder reads/day     %8.1f (each = %u SPI transfers of %u bytes)\n", hb.ladder.transfers() / days / config.votes_per_poll,
-              config.votes_per_poll, (config.ladder_loops + 7) / 8 + 1);
+  std::printf("ladder reads/day     %8.1f (each = %u SPI transfers of %u bytes)\n",
+              hb.ladder.transfers() / days / config.votes_per_poll, config.votes_per_poll, (config.ladder_loops + 7) / 8 + 1);
   std::printf("radio frames/day     %8.2f\n", s.frames_sent / days);
   std::printf("records/day          %8.2f (acked %u of %u queued)\n", s.records_queued / days, acked, s.records_queued);
   std::printf("flash saves          %8u (%.2f/day)\n", hb.flash.erases(), hb.flash.erases() / days);

@@ -41,13 +41,13 @@ constexpr uint8_t kLastLoops = 3;
 struct Counts {
   long cuts = 0, cuts_in_erase = 0, cuts_in_program = 0, cuts_during_boot = 0, boots = 0, liners = 0;
   unsigned long long wakes = 0, records = 0;
-  long blank_boots = 0;        // a save had completed, yet no valid state
-  long state_went_back = 0;    // generation, seq reservation, boots or drops lower than before
-  long state_inconsistent = 0; // ladder size not the provisioned one, or the saved thickness rose
-  long seq_reuses = 0;         // resumed at or below a seq the gateway has, or a seq with two samples
-  long thickness_rises = 0;    // at the gateway, by seq
-  long steps_lost = 0;         // thickness values a powered wake read that never reached the gateway
-  long steps = 0;              // thickness values read by wakes that kept their power
+  long blank_boots = 0;         // a save had completed, yet no valid state
+  long state_went_back = 0;     // generation, seq reservation, boots or drops lower than before
+  long state_inconsistent = 0;  // ladder size not the provisioned one, or the saved thickness rose
+  long seq_reuses = 0;          // resumed at or below a seq the gateway has, or a seq with two samples
+  long thickness_rises = 0;     // at the gateway, by seq
+  long steps_lost = 0;          // thickness values a powered wake read that never reached the gateway
+  long steps = 0;               // thickness values read by wakes that kept their power
   std::string first_failure;
   bool failed() const {
     return blank_boots || state_went_back || state_inconsistent || seq_reuses || thickness_rises || steps_lost;
@@ -57,7 +57,10 @@ struct Counts {
 class Liner {
  public:
   Liner(uint32_t sensor_id, std::mt19937& rng, Counts& n, bool tear, long cuts_wanted)
-      : cuts_wanted_(cuts_wanted), rng_(rng), n_(n), board_(100, 0x0013A20000000000ull | sensor_id, lw::protocol::ApiMode::kEscaped, kPageSize, 2),
+      : cuts_wanted_(cuts_wanted),
+        rng_(rng),
+        n_(n),
+        board_(100, 0x0013A20000000000ull | sensor_id, lw::protocol::ApiMode::kEscaped, kPageSize, 2),
         gateway_(board_.radio, &board_.rtc) {
     config_.sensor_id = sensor_id;
     if (tear) board_.flash.TearAtPowerLoss(static_cast<uint32_t>(rng_()));
@@ -173,8 +176,8 @@ class Liner {
     if (s.generation < last_.generation || s.seq_reserved_until < last_.seq_reserved_until || s.boots < last_.boots ||
         s.dropped_total < last_.dropped_total) {
       Fail(&n_.state_went_back, "state went back: generation " + std::to_string(last_.generation) + " -> " +
-                                    std::to_string(s.generation) + ", seq reserved " +
-                                    std::to_string(last_.seq_reserved_until) + " -> " + std::to_string(s.seq_reserved_until));
+                                    std::to_string(s.generation) + ", seq reserved " + std::to_string(last_.seq_reserved_until) +
+                                    " -> " + std::to_string(s.seq_reserved_until));
     }
     if (last_.reported_loops != 0xFF && s.reported_loops != 0xFF && s.reported_loops > last_.reported_loops) {
       Fail(&n_.state_inconsistent, "saved thickness rose from " + std::to_string(last_.reported_loops) + " to " +
@@ -185,8 +188,10 @@ class Liner {
   void PowerCut() {
     ++n_.cuts;
     const long offset = arm_offset_ % static_cast<long>(kSaveBytes);
-    if (offset < static_cast<long>(kPageSize)) ++n_.cuts_in_erase;
-    else ++n_.cuts_in_program;
+    if (offset < static_cast<long>(kPageSize))
+      ++n_.cuts_in_erase;
+    else
+      ++n_.cuts_in_program;
     armed_ = false;
     board_.flash.PowerRestored();
     board_.rtc.Advance(static_cast<uint32_t>(rng_() % (4 * 3600)));  // off for up to 4 h
@@ -201,8 +206,8 @@ class Liner {
     std::set<uint8_t> seen;
     for (const auto& [seq, r] : gateway_.records) {
       if (r.loops_intact > prev) {
-        Fail(&n_.thickness_rises, "seq " + std::to_string(seq) + " reports " + std::to_string(r.loops_intact) +
-                                      " loops after " + std::to_string(prev));
+        Fail(&n_.thickness_rises, "seq " + std::to_string(seq) + " reports " + std::to_string(r.loops_intact) + " loops after " +
+                                      std::to_string(prev));
       }
       prev = r.loops_intact;
       seen.insert(r.loops_intact);
@@ -248,8 +253,10 @@ int main(int argc, char** argv) {
       char* end = nullptr;
       const long v = std::strtol(argv[++i], &end, 10);
       if (!end || *end || v < 0) return Usage(("bad value for " + a + ": " + argv[i]).c_str());
-      if (a == "--cuts") cuts = v;
-      else seed = static_cast<unsigned>(v);
+      if (a == "--cuts")
+        cuts = v;
+      else
+        seed = static_cast<unsigned>(v);
     } else if (a == "--no-tear") {
       tear = false;
     } else if (a == "--help" || a == "-h") {
@@ -265,17 +272,17 @@ int main(int argc, char** argv) {
     Liner liner(id, rng, n, tear, cuts);
     liner.Run();
     if (n.liners % 10 == 0) {
-      std::fprintf(stderr, "powercut: %ld liners, %ld cuts, %ld boots, %llu records at the gateway\n", n.liners, n.cuts,
-                   n.boots, n.records);
+      std::fprintf(stderr, "powercut: %ld liners, %ld cuts, %ld boots, %llu records at the gateway\n", n.liners, n.cuts, n.boots,
+                   n.records);
     }
   }
   std::printf(
       "powercut: %ld cuts (%ld in an erase, %ld in a program, %ld of them during a boot's own save; %s), %ld boots, "
       "%ld liners worn 100 -> %d loops, %llu wakes, %llu records at the gateway; blank boots %ld, state went back %ld, "
       "inconsistent state %ld, seq reuses %ld, thickness rises %ld, steps lost %ld of %ld; seed %u\n",
-      n.cuts, n.cuts_in_erase, n.cuts_in_program, n.cuts_during_boot, tear ? "torn" : "clean cuts", n.boots, n.liners,
-      kLastLoops, n.wakes, n.records, n.blank_boots, n.state_went_back, n.state_inconsistent, n.seq_reuses,
-      n.thickness_rises, n.steps_lost, n.steps, seed);
+      n.cuts, n.cuts_in_erase, n.cuts_in_program, n.cuts_during_boot, tear ? "torn" : "clean cuts", n.boots, n.liners, kLastLoops,
+      n.wakes, n.records, n.blank_boots, n.state_went_back, n.state_inconsistent, n.seq_reuses, n.thickness_rises, n.steps_lost,
+      n.steps, seed);
   if (n.failed()) std::printf("powercut: FAILED: %s\n", n.first_failure.c_str());
   return n.failed() ? 1 : 0;
 }

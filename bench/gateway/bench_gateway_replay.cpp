@@ -53,7 +53,9 @@ using nlohmann::json;
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+double Seconds(Clock::duration d) {
+  return std::chrono::duration<double>(d).count();
+}
 constexpr const char* kRoot = "linerwatch/v1/bench/c1/";
 
 struct Options {
@@ -65,8 +67,12 @@ struct Options {
   bool nodelay = true;  ///< the broker's set_tcp_nodelay (as packaging/mosquitto/*.conf set it)
 };
 
-uint32_t SensorId(uint32_t s) { return 1001 + s; }
-uint64_t Address(uint32_t s) { return 0x0013A20040000000ull + s; }
+uint32_t SensorId(uint32_t s) {
+  return 1001 + s;
+}
+uint64_t Address(uint32_t s) {
+  return 0x0013A20040000000ull + s;
+}
 
 /// The replay file: frame f comes from sensor f % S and carries that sensor's next R seqs.
 std::string MakeFrames(const Options& o, const std::string& path, size_t* records) {
@@ -103,7 +109,8 @@ std::string MakeFrames(const Options& o, const std::string& path, size_t* record
     *records += o.per_frame;
   }
   FILE* f = std::fopen(path.c_str(), "wb");
-  if (!f || std::fwrite(bytes.data(), 1, bytes.size(), f) != bytes.size() || std::fclose(f) != 0) throw std::runtime_error("cannot write " + path);
+  if (!f || std::fwrite(bytes.data(), 1, bytes.size(), f) != bytes.size() || std::fclose(f) != 0)
+    throw std::runtime_error("cannot write " + path);
   return bytes;
 }
 
@@ -254,9 +261,29 @@ GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total
   FakeServer server(broker.uri());
   lw::test::ChildProcess gateway;
   const std::string log = dir.File("gateway.log");
-  gateway.Start({gateway_bin, "--serial", pty.slave_name(), "--baud", "115200", "--api-mode", "2", "--broker", broker.uri(),
-                 "--site", "bench", "--crusher", "c1", "--spool", dir.File("spool.db"), "--gateway-id", "gw-bench",
-                 "--window", std::to_string(o.window), "--stats-interval", "0.2", "--republish-after", "30"},
+  gateway.Start({gateway_bin,
+                 "--serial",
+                 pty.slave_name(),
+                 "--baud",
+                 "115200",
+                 "--api-mode",
+                 "2",
+                 "--broker",
+                 broker.uri(),
+                 "--site",
+                 "bench",
+                 "--crusher",
+                 "c1",
+                 "--spool",
+                 dir.File("spool.db"),
+                 "--gateway-id",
+                 "gw-bench",
+                 "--window",
+                 std::to_string(o.window),
+                 "--stats-interval",
+                 "0.2",
+                 "--republish-after",
+                 "30"},
                 log);
   const auto wait_start = Clock::now();
   while (!server.online()) {
@@ -292,8 +319,8 @@ GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total
     if (out.acked_seconds == 0 && acked.size() >= total_records) out.acked_seconds = Seconds(Clock::now() - t0);
     if (acked.size() >= total_records && server.distinct() >= total_records) break;
     if (Seconds(Clock::now() - t0) > 600 || !gateway.Running()) {
-      out.failure = "stalled at " + std::to_string(acked.size()) + " acked, " + std::to_string(server.distinct()) + " published: " +
-                    lw::test::FileTail(log);
+      out.failure = "stalled at " + std::to_string(acked.size()) + " acked, " + std::to_string(server.distinct()) +
+                    " published: " + lw::test::FileTail(log);
       break;
     }
   }
@@ -354,19 +381,28 @@ int main(int argc, char** argv) {
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
     const long v = std::atol(argv[i + 1]);
-    if (a == "--frames" && v > 0) o.frames = static_cast<size_t>(v);
-    else if (a == "--sensors" && v > 0) o.sensors = static_cast<uint32_t>(v);
-    else if (a == "--records-per-frame" && (v == 1 || v == 2)) o.per_frame = static_cast<size_t>(v);
-    else if (a == "--window" && v > 0 && v <= 10000) o.window = static_cast<int>(v);
-    else if (a == "--reps" && v > 0) o.reps = static_cast<int>(v);
-    else if (a == "--broker-nodelay" && (v == 0 || v == 1)) o.nodelay = v == 1;
+    if (a == "--frames" && v > 0)
+      o.frames = static_cast<size_t>(v);
+    else if (a == "--sensors" && v > 0)
+      o.sensors = static_cast<uint32_t>(v);
+    else if (a == "--records-per-frame" && (v == 1 || v == 2))
+      o.per_frame = static_cast<size_t>(v);
+    else if (a == "--window" && v > 0 && v <= 10000)
+      o.window = static_cast<int>(v);
+    else if (a == "--reps" && v > 0)
+      o.reps = static_cast<int>(v);
+    else if (a == "--broker-nodelay" && (v == 0 || v == 1))
+      o.nodelay = v == 1;
     else {
-      std::fprintf(stderr, "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K]\n");
+      std::fprintf(
+          stderr,
+          "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K]\n");
       return 2;
     }
   }
   if (argc % 2 == 0) {
-    std::fprintf(stderr, "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K]\n");
+    std::fprintf(stderr,
+                 "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K]\n");
     return 2;
   }
   try {
@@ -374,8 +410,8 @@ int main(int argc, char** argv) {
     size_t records = 0;
     const std::string file = dir.File("frames.bin");
     const std::string bytes = MakeFrames(o, file, &records);
-    std::printf("replay: %zu frames (%zu records, %u sensors, %zu per frame), %.2f MB, API mode 2\n", o.frames, records, o.sensors,
-                o.per_frame, bytes.size() / 1e6);
+    std::printf("replay: %zu frames (%zu records, %u sensors, %zu per frame), %.2f MB, API mode 2\n", o.frames, records,
+                o.sensors, o.per_frame, bytes.size() / 1e6);
     std::vector<double> bare, gw, drain, cpu, intake;
     bool all_complete = true;
     for (int r = 0; r < o.reps; ++r) {
@@ -386,17 +422,20 @@ int main(int argc, char** argv) {
       cpu.push_back(g.gateway_cpu_s);
       intake.push_back(g.acked_seconds);
       all_complete = all_complete && g.complete;
-      std::printf("  rep %d: cat -> pty -> reader %.3f s; cat -> pty -> gateway -> spool + mosquitto %.3f s (all acked on the radio at %.3f s, drained %.3f s): "
-                  "radio acked %zu, published %zu distinct (%zu messages), spooled %zu; gateway CPU %.2f s%s%s\n",
-                  r + 1, bare.back(), g.seconds, g.acked_seconds, g.drain_seconds, g.radio_acked, g.published, g.messages, g.spooled, g.gateway_cpu_s,
-                  g.complete ? ", complete" : ", INCOMPLETE ", g.failure.c_str());
+      std::printf(
+          "  rep %d: cat -> pty -> reader %.3f s; cat -> pty -> gateway -> spool + mosquitto %.3f s (all acked on the radio at "
+          "%.3f s, drained %.3f s): "
+          "radio acked %zu, published %zu distinct (%zu messages), spooled %zu; gateway CPU %.2f s%s%s\n",
+          r + 1, bare.back(), g.seconds, g.acked_seconds, g.drain_seconds, g.radio_acked, g.published, g.messages, g.spooled,
+          g.gateway_cpu_s, g.complete ? ", complete" : ", INCOMPLETE ", g.failure.c_str());
     }
     bare.push_back(BareRun(file, bytes.size()));
     const double b = Median(bare), g = Median(gw);
     std::printf("bare (cat into the pty)         median %.3f s  %10.0f frames/s\n", b, o.frames / b);
     std::printf("gateway intake (spooled, fsynced, acked on the radio)  median %.3f s  %10.0f frames/s\n", Median(intake),
                 o.frames / Median(intake));
-    std::printf("gateway end to end (spooled + published)   median %.3f s  %10.0f frames/s  (%.0f records/s)\n", g, o.frames / g, records / g);
+    std::printf("gateway end to end (spooled + published)   median %.3f s  %10.0f frames/s  (%.0f records/s)\n", g, o.frames / g,
+                records / g);
     std::printf("gateway, spool drained by commit acks: median %.3f s\n", Median(drain));
     std::printf("gateway CPU (user + system)     median %.2f s: %.0f frames per CPU-second (the capacity on an idle core)\n",
                 Median(cpu), o.frames / Median(cpu));

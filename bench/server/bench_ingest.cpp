@@ -43,8 +43,13 @@ std::vector<Message> MakeMessages(const lw::core::CrusherConfig& c, long n) {
     const auto& s = c.sensors[static_cast<size_t>(i) % c.sensors.size()];
     const int64_t seq = i / static_cast<long>(c.sensors.size()) + 1;
     const double thickness = std::max(0.0, s.thickness_new_mm - static_cast<double>(seq / 50));
-    const json j = {{"sensor", s.id}, {"seq", seq}, {"time", lw::core::FormatIsoTime(c.installed_at + std::chrono::seconds(60 * seq))},
-                    {"thickness_mm", thickness}, {"loops_intact", static_cast<int>(thickness)}, {"flags", 0}, {"battery_mv", 3500}};
+    const json j = {{"sensor", s.id},
+                    {"seq", seq},
+                    {"time", lw::core::FormatIsoTime(c.installed_at + std::chrono::seconds(60 * seq))},
+                    {"thickness_mm", thickness},
+                    {"loops_intact", static_cast<int>(thickness)},
+                    {"flags", 0},
+                    {"battery_mv", 3500}};
     out.push_back({root + s.id + "/reading", j.dump(), s.id, seq});
   }
   return out;
@@ -70,16 +75,23 @@ int main(int argc, char** argv) {
   int reps = 5;
   std::string perf, commit_delay = "5";
   for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--readings")) n = std::atol(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--reps")) reps = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--perf")) perf = argv[i + 1];
-    else if (!std::strcmp(argv[i], "--commit-delay-ms")) commit_delay = argv[i + 1];
+    if (!std::strcmp(argv[i], "--readings"))
+      n = std::atol(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--reps"))
+      reps = std::atoi(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--perf"))
+      perf = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--commit-delay-ms"))
+      commit_delay = argv[i + 1];
     else {
       std::fprintf(stderr, "usage: lw_bench_ingest [--readings N] [--reps R] [--perf FILE] [--commit-delay-ms N]\n");
       return 2;
     }
   }
-  lw::test::MosquittoFixture broker({.persistence = false, .tls = false, .username = "", .password = "",
+  lw::test::MosquittoFixture broker({.persistence = false,
+                                     .tls = false,
+                                     .username = "",
+                                     .password = "",
                                      .extra_config = "max_queued_messages 0\nmax_inflight_messages 0\n"});
   broker.Start();
   lw::test::TempDirectory dir("lw-bench-ingest");
@@ -125,10 +137,10 @@ int main(int argc, char** argv) {
       const int http = lw::test::FreeLoopbackPort();
       const std::string db = dir.File("server-" + run + ".sqlite");
       lw::test::ChildProcess server;
-      server.Start({LW_SERVER_BIN, "--broker", broker.uri(), "--db", db, "--http", "127.0.0.1:" + std::to_string(http),
-                    "--crusher-dir", dir.File("crushers"), "--client-id", "bench-server-" + run, "--web-dir", "",
-                    "--commit-delay-ms", delays[d]},
-                   dir.File("server.log"));
+      server.Start(
+          {LW_SERVER_BIN, "--broker", broker.uri(), "--db", db, "--http", "127.0.0.1:" + std::to_string(http), "--crusher-dir",
+           dir.File("crushers"), "--client-id", "bench-server-" + run, "--web-dir", "", "--commit-delay-ms", delays[d]},
+          dir.File("server.log"));
       mqtt::async_client acks(broker.uri(), "bench-acks-" + run, nullptr);
       acks.start_consuming();
       acks.connect(po)->wait();
@@ -154,7 +166,8 @@ int main(int argc, char** argv) {
       t_server.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
       publisher.join();
       if (confirmed.size() < static_cast<size_t>(n)) {
-        std::fprintf(stderr, "server confirmed only %zu of %ld:\n%s\n", confirmed.size(), n, lw::test::FileTail(dir.File("server.log")).c_str());
+        std::fprintf(stderr, "server confirmed only %zu of %ld:\n%s\n", confirmed.size(), n,
+                     lw::test::FileTail(dir.File("server.log")).c_str());
         return 1;
       }
       acks.disconnect()->wait();
@@ -175,10 +188,13 @@ int main(int argc, char** argv) {
     const double srv = Median(t_servers[d]);
     std::vector<double> ratios;
     for (size_t r = 0; r < t_bare.size(); ++r) ratios.push_back(t_bare[r] / t_servers[d][r]);
-    std::printf("server, committed and acked     %.0f readings/s  (median of %d; --commit-delay-ms %s)\n", n / srv, reps, delays[d].c_str());
-    std::printf("ratio server/bare               %.2f   (of the medians; paired ratios: median %.2f, range %.2f-%.2f; target >= 0.9)   %s\n",
-                bare / srv, Median(ratios), *std::min_element(ratios.begin(), ratios.end()), *std::max_element(ratios.begin(), ratios.end()),
-                bare / srv >= 0.9 ? "MET" : "MISSED");
+    std::printf("server, committed and acked     %.0f readings/s  (median of %d; --commit-delay-ms %s)\n", n / srv, reps,
+                delays[d].c_str());
+    std::printf(
+        "ratio server/bare               %.2f   (of the medians; paired ratios: median %.2f, range %.2f-%.2f; target >= 0.9)   "
+        "%s\n",
+        bare / srv, Median(ratios), *std::min_element(ratios.begin(), ratios.end()),
+        *std::max_element(ratios.begin(), ratios.end()), bare / srv >= 0.9 ? "MET" : "MISSED");
   }
   return 0;
 }

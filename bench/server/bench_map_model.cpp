@@ -23,7 +23,9 @@
 
 namespace {
 
-double Seconds(std::chrono::steady_clock::duration d) { return std::chrono::duration<double>(d).count(); }
+double Seconds(std::chrono::steady_clock::duration d) {
+  return std::chrono::duration<double>(d).count();
+}
 
 /// CPU seconds of the whole process (every thread).
 double Cpu() {
@@ -45,10 +47,14 @@ int main(int argc, char** argv) {
   int threads = 0;
   std::string dir = "/var/tmp";
   for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--faces")) faces = std::atol(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--reps")) reps = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--dir")) dir = argv[i + 1];
-    else if (!std::strcmp(argv[i], "--threads")) threads = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--faces"))
+      faces = std::atol(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--reps"))
+      reps = std::atoi(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--dir"))
+      dir = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--threads"))
+      threads = std::atoi(argv[i + 1]);
     else {
       std::fprintf(stderr, "usage: lw_bench_map_model [--faces N] [--reps R] [--dir D] [--threads T]\n");
       return 2;
@@ -56,7 +62,8 @@ int main(int argc, char** argv) {
   }
   const int nt = std::max(8, static_cast<int>(std::sqrt(static_cast<double>(faces) / 2.0) * 1.5));
   const int nz = static_cast<int>(std::max(1L, faces / (2L * nt)));
-  lw::core::WearMap map = lw::test::ConeMap(nt, nz, 1.6, 2.6, [](double z) { return 0.06 + std::pow(1 - z / 3.0, 1.5); }, 3.0);
+  lw::core::WearMap map = lw::test::ConeMap(
+      nt, nz, 1.6, 2.6, [](double z) { return 0.06 + std::pow(1 - z / 3.0, 1.5); }, 3.0);
   std::mt19937 rng(16);
   std::gamma_distribution<double> noise(10.0, 0.1);  // mean 1, sd ~0.32
   for (Eigen::Index i = 0; i < map.wear.size(); ++i) {
@@ -120,10 +127,13 @@ int main(int argc, char** argv) {
   std::printf("LoadWearMap (read + parse)     %8.2f s    %8.2f s\n", read_s, Median(c_read));
   std::printf("LoadWearMap + BuildMapModel    %8.2f s    %8.2f s   (%d threads)\n", model_s, Median(c_model), used);
   if (used > 1) std::printf("BuildMapModel alone, 1 thread  %8.2f s    %8.2f s\n", one_wall, one_cpu);
-  std::printf("  chosen: bandwidth %.4f m along z, %.4f m around, %s, %zu outlier faces capped, %zu CV candidates, %zu local scales\n",
-              last.bandwidth_m, last.bandwidth_arc_m, last.local_linear ? "local-linear" : "kernel mean", last.outlier_faces,
-              last.cv_curve.size(), last.local_ladder_m.size());
-  std::printf("ratio (load + model) / read the bytes   wall %.1f   CPU %.1f\n", model_s / bytes_s, Median(c_model) / Median(c_bytes));
-  std::printf("ratio (load + model) / LoadWearMap      wall %.2f   CPU %.2f\n", model_s / read_s, Median(c_model) / Median(c_read));
+  std::printf(
+      "  chosen: bandwidth %.4f m along z, %.4f m around, %s, %zu outlier faces capped, %zu CV candidates, %zu local scales\n",
+      last.bandwidth_m, last.bandwidth_arc_m, last.local_linear ? "local-linear" : "kernel mean", last.outlier_faces,
+      last.cv_curve.size(), last.local_ladder_m.size());
+  std::printf("ratio (load + model) / read the bytes   wall %.1f   CPU %.1f\n", model_s / bytes_s,
+              Median(c_model) / Median(c_bytes));
+  std::printf("ratio (load + model) / LoadWearMap      wall %.2f   CPU %.2f\n", model_s / read_s,
+              Median(c_model) / Median(c_read));
   return checksum > 0 ? 0 : 1;
 }

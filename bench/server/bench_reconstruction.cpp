@@ -1,6 +1,7 @@
 // Issue 4 benchmark (b): one Eq. 9 reconstruction of a 1,000,000-face map, against a memory-bound
 // copy of the same arrays (the per-face inputs it reads, into fresh outputs), side by side in one
-// run. Target: ratio <= 2. The plan (map smoothing) is prepared once per map and not timed. Prints medians of alternating repetitions.
+// run. Target: ratio <= 2. The plan (map smoothing) is prepared once per map and not timed. Prints medians of alternating
+// repetitions.
 //   lw_bench_reconstruction [--faces N] [--reps R]
 #include <Eigen/Core>
 #include <algorithm>
@@ -16,7 +17,9 @@
 
 namespace {
 
-double Seconds(std::chrono::steady_clock::duration d) { return std::chrono::duration<double>(d).count(); }
+double Seconds(std::chrono::steady_clock::duration d) {
+  return std::chrono::duration<double>(d).count();
+}
 
 double Median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -26,7 +29,8 @@ double Median(std::vector<double> v) {
 /// A truncated-cone concave (radius 1.6 -> 2.6 m over 3 m), the reference profile with a mild
 /// ripple around.
 lw::core::WearMap Cone(int nt, int nz) {
-  lw::core::WearMap m = lw::test::ConeMap(nt, nz, 1.6, 2.6, [](double z) { return 0.06 + std::pow(1 - z / 3.0, 1.5); }, 3.0);
+  lw::core::WearMap m = lw::test::ConeMap(
+      nt, nz, 1.6, 2.6, [](double z) { return 0.06 + std::pow(1 - z / 3.0, 1.5); }, 3.0);
   for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] *= 1 + 0.05 * std::sin(7.0 * m.theta_deg[i] * M_PI / 180.0);
   return m;
 }
@@ -37,8 +41,10 @@ int main(int argc, char** argv) {
   long faces = 1'000'000;
   int reps = 7;
   for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--faces")) faces = std::atol(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--reps")) reps = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--faces"))
+      faces = std::atol(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--reps"))
+      reps = std::atoi(argv[i + 1]);
     else {
       std::fprintf(stderr, "usage: lw_bench_reconstruction [--faces N] [--reps R]\n");
       return 2;

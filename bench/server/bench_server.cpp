@@ -43,7 +43,9 @@ namespace {
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
-double Ms(Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
+double Ms(Clock::duration d) {
+  return std::chrono::duration<double, std::milli>(d).count();
+}
 
 struct Stats {
   double p50 = 0, p99 = 0;
@@ -58,10 +60,10 @@ Stats Percentiles(std::vector<double> v) {
 
 struct Fleet {
   std::vector<std::string> crushers;
-  std::vector<std::string> sensors;     ///< the same sensor ids on every crusher
-  std::vector<double> thickness_new;    ///< per sensor
+  std::vector<std::string> sensors;   ///< the same sensor ids on every crusher
+  std::vector<double> thickness_new;  ///< per sensor
   int64_t installed_s = 0;
-  int64_t per_sensor = 0;               ///< readings per sensor, one per hour from installed + 1 h
+  int64_t per_sensor = 0;  ///< readings per sensor, one per hour from installed + 1 h
   double thickness_min = 0;
 };
 
@@ -103,9 +105,11 @@ void BuildDatabase(const std::string& db, const Fleet& f) {
   lw::server::Store store(db);
   std::vector<std::string> iso(static_cast<size_t>(f.per_sensor));
   for (int64_t k = 0; k < f.per_sensor; ++k) {
-    iso[static_cast<size_t>(k)] = lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(f.installed_s + 3600 * (k + 1))));
+    iso[static_cast<size_t>(k)] =
+        lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(f.installed_s + 3600 * (k + 1))));
   }
-  const int64_t received = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  const int64_t received =
+      std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   std::vector<lw::server::StoredReading> batch;
   batch.reserve(100000);
   const auto t0 = Clock::now();
@@ -121,13 +125,15 @@ void BuildDatabase(const std::string& db, const Fleet& f) {
         r.sensor = f.sensors[s];
         r.seq = k + 1;
         r.time_s = f.installed_s + 3600 * (k + 1);
-        r.thickness_mm = std::floor(f.thickness_new[s] - span * static_cast<double>(k) / static_cast<double>(f.per_sensor) * (0.9 + 0.02 * static_cast<double>(s)));
+        r.thickness_mm = std::floor(f.thickness_new[s] - span * static_cast<double>(k) / static_cast<double>(f.per_sensor) *
+                                                             (0.9 + 0.02 * static_cast<double>(s)));
         r.loops_intact = static_cast<int64_t>(r.thickness_mm);
         r.battery_mv = 3500;
         r.received_s = received;
         char payload[256];
         std::snprintf(payload, sizeof payload,
-                      "{\"sensor\":\"%s\",\"seq\":%lld,\"time\":\"%s\",\"thickness_mm\":%g,\"loops_intact\":%lld,\"flags\":0,\"battery_mv\":3500}",
+                      "{\"sensor\":\"%s\",\"seq\":%lld,\"time\":\"%s\",\"thickness_mm\":%g,\"loops_intact\":%lld,\"flags\":0,"
+                      "\"battery_mv\":3500}",
                       r.sensor.c_str(), static_cast<long long>(r.seq), iso[static_cast<size_t>(k)].c_str(), r.thickness_mm,
                       static_cast<long long>(r.loops_intact));
         r.payload = payload;
@@ -150,7 +156,8 @@ void BuildDatabase(const std::string& db, const Fleet& f) {
 class Direct {
  public:
   explicit Direct(const std::string& path) {
-    if (sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK) throw std::runtime_error("cannot open " + path);
+    if (sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK)
+      throw std::runtime_error("cannot open " + path);
   }
   ~Direct() {
     for (auto& [sql, st] : cache_) sqlite3_finalize(st);
@@ -169,8 +176,10 @@ class Direct {
     while (sqlite3_step(st) == SQLITE_ROW) {
       ++rows;
       for (int c = 0; c < sqlite3_column_count(st); ++c) {
-        if (sqlite3_column_type(st, c) == SQLITE_TEXT) sink = sink + sqlite3_column_bytes(st, c);
-        else sink = sink + sqlite3_column_int64(st, c);
+        if (sqlite3_column_type(st, c) == SQLITE_TEXT)
+          sink = sink + sqlite3_column_bytes(st, c);
+        else
+          sink = sink + sqlite3_column_int64(st, c);
       }
     }
     sqlite3_reset(st);
@@ -188,12 +197,16 @@ class Direct {
 const char* kRangeSql =
     "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload FROM readings"
     " WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4 AND (time>?5 OR (time=?5 AND seq>?6)) ORDER BY time, seq LIMIT ?7";
-const char* kLatestSql = "SELECT time, thickness_mm, flags, loops_intact FROM readings WHERE crusher=?1 AND sensor=?2"
-                         " ORDER BY time DESC, seq DESC LIMIT 1";
-const char* kWindowSql = "SELECT time, thickness_mm, flags, loops_intact FROM readings WHERE crusher=?1 AND sensor=?2"
-                         " AND time>=?3 ORDER BY time, seq";
+const char* kLatestSql =
+    "SELECT time, thickness_mm, flags, loops_intact FROM readings WHERE crusher=?1 AND sensor=?2"
+    " ORDER BY time DESC, seq DESC LIMIT 1";
+const char* kWindowSql =
+    "SELECT time, thickness_mm, flags, loops_intact FROM readings WHERE crusher=?1 AND sensor=?2"
+    " AND time>=?3 ORDER BY time, seq";
 
-std::string Iso(int64_t s) { return lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(s))); }
+std::string Iso(int64_t s) {
+  return lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(s)));
+}
 
 }  // namespace
 
@@ -202,10 +215,14 @@ int main(int argc, char** argv) {
   int n_crushers = 100, requests = 200;
   std::string db_arg;
   for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--readings")) n = std::atoll(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--crushers")) n_crushers = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--requests")) requests = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--db")) db_arg = argv[i + 1];
+    if (!std::strcmp(argv[i], "--readings"))
+      n = std::atoll(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--crushers"))
+      n_crushers = std::atoi(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--requests"))
+      requests = std::atoi(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--db"))
+      db_arg = argv[i + 1];
     else {
       std::fprintf(stderr, "usage: lw_bench_server [--readings N] [--crushers C] [--requests R] [--db FILE]\n");
       return 2;
@@ -218,8 +235,10 @@ int main(int argc, char** argv) {
   lw::test::TempDirectory dir("lw-bench-server");
   // Installed so that the hourly readings end an hour ago (posted readings must not be in the future).
   const long long per_sensor = n / (static_cast<long long>(n_crushers) * 10);
-  const int64_t now_s = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
-  const int64_t installed_s = (now_s - 3600 * (per_sensor + 1)) / 86400 * 86400;  // midnight: the same for runs on one day (--db reuse)
+  const int64_t now_s =
+      std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  const int64_t installed_s =
+      (now_s - 3600 * (per_sensor + 1)) / 86400 * 86400;  // midnight: the same for runs on one day (--db reuse)
   Fleet fleet = MakeCrusherDir(dir.path(), n_crushers, Iso(installed_s));
   fleet.per_sensor = n / static_cast<long long>(fleet.crushers.size() * fleet.sensors.size());
   const long long total = fleet.per_sensor * static_cast<long long>(fleet.crushers.size() * fleet.sensors.size());
@@ -231,16 +250,16 @@ int main(int argc, char** argv) {
   }
   const int64_t end_s = fleet.installed_s + 3600 * fleet.per_sensor;
   std::printf("database   %lld readings: %zu crushers x %zu sensors x %lld (hourly, %.0f days), %.2f GB\n", total,
-              fleet.crushers.size(), fleet.sensors.size(), static_cast<long long>(fleet.per_sensor), static_cast<double>(fleet.per_sensor) / 24.0,
-              static_cast<double>(std::filesystem::file_size(db)) / 1e9);
+              fleet.crushers.size(), fleet.sensors.size(), static_cast<long long>(fleet.per_sensor),
+              static_cast<double>(fleet.per_sensor) / 24.0, static_cast<double>(std::filesystem::file_size(db)) / 1e9);
 
   lw::test::MosquittoFixture broker({.persistence = false, .tls = false, .username = "", .password = "", .extra_config = ""});
   broker.Start();
   const int port = lw::test::FreeLoopbackPort();
   lw::test::ChildProcess server;
   const auto t_start = Clock::now();
-  server.Start({LW_SERVER_BIN, "--broker", broker.uri(), "--db", db, "--http", "127.0.0.1:" + std::to_string(port), "--crusher-dir",
-                dir.File("crushers"), "--client-id", "bench-server", "--web-dir", ""},
+  server.Start({LW_SERVER_BIN, "--broker", broker.uri(), "--db", db, "--http", "127.0.0.1:" + std::to_string(port),
+                "--crusher-dir", dir.File("crushers"), "--client-id", "bench-server", "--web-dir", ""},
                dir.File("server.log"));
   double t_http = -1, t_ready = -1;
   while (Ms(Clock::now() - t_start) < 600'000) {
@@ -275,10 +294,11 @@ int main(int argc, char** argv) {
   }
   double load[1] = {0};
   getloadavg(load, 1);
-  std::printf("startup    HTTP answering after %.2f s, every crusher's wear and forecast computed after %.2f s, target < 10 s\n"
-              "           (per-crusher state from the database: %s; the server's CPU time to that point: %s;\n"
-              "            load average %.1f on %u cores)\n",
-              t_http / 1000, t_ready / 1000, rebuild.c_str(), cpu.c_str(), load[0], std::thread::hardware_concurrency());
+  std::printf(
+      "startup    HTTP answering after %.2f s, every crusher's wear and forecast computed after %.2f s, target < 10 s\n"
+      "           (per-crusher state from the database: %s; the server's CPU time to that point: %s;\n"
+      "            load average %.1f on %u cores)\n",
+      t_http / 1000, t_ready / 1000, rebuild.c_str(), cpu.c_str(), load[0], std::thread::hardware_concurrency());
   if (t_ready < 0) return 1;
 
   // The same random picks for every way of asking.
@@ -290,7 +310,8 @@ int main(int argc, char** argv) {
   std::vector<Pick> picks;
   for (int i = 0; i < requests; ++i) {
     const int64_t day = static_cast<int64_t>(rng() % static_cast<uint64_t>(std::max<int64_t>(1, fleet.per_sensor / 24)));
-    picks.push_back({fleet.crushers[rng() % fleet.crushers.size()], fleet.sensors[rng() % fleet.sensors.size()], fleet.installed_s + day * 86400});
+    picks.push_back({fleet.crushers[rng() % fleet.crushers.size()], fleet.sensors[rng() % fleet.sensors.size()],
+                     fleet.installed_s + day * 86400});
   }
   const double t_last_days = static_cast<double>(end_s - fleet.installed_s) / 86400.0;
   const int64_t window_s = end_s - static_cast<int64_t>(std::max(21.0, 0.4 * t_last_days) * 86400.0);
@@ -303,10 +324,14 @@ int main(int argc, char** argv) {
   };
   int day_rows = 0;
   const std::vector<Kind> kinds = {
-      {"one-day readings", [](const Pick& p) {
-         return "/api/v1/crushers/" + p.crusher + "/sensors/" + p.sensor + "/readings?from=" + Iso(p.from_s) + "&to=" + Iso(p.from_s + 86399);
+      {"one-day readings",
+       [](const Pick& p) {
+         return "/api/v1/crushers/" + p.crusher + "/sensors/" + p.sensor + "/readings?from=" + Iso(p.from_s) +
+                "&to=" + Iso(p.from_s + 86399);
        },
-       [&](const Pick& p) { return day_rows = direct.Run(kRangeSql, {p.crusher, p.sensor}, {p.from_s, p.from_s + 86399, INT64_MIN, INT64_MIN, 501}); }},
+       [&](const Pick& p) {
+         return day_rows = direct.Run(kRangeSql, {p.crusher, p.sensor}, {p.from_s, p.from_s + 86399, INT64_MIN, INT64_MIN, 501});
+       }},
       {"crusher list", [](const Pick&) { return std::string("/api/v1/crushers"); },
        [&](const Pick&) {
          int rows = 0;
@@ -328,7 +353,8 @@ int main(int argc, char** argv) {
        }},
   };
   std::printf("%-19s %17s | %17s %14s | %17s %14s\n", "", "SQLite alone", "kept-alive", "ratio", "new connections", "ratio");
-  std::printf("%-19s %17s | %17s %14s | %17s %14s\n", "query", "p50 / p99 ms", "p50 / p99 ms", "p50 / p99", "p50 / p99 ms", "p50 / p99");
+  std::printf("%-19s %17s | %17s %14s | %17s %14s\n", "query", "p50 / p99 ms", "p50 / p99 ms", "p50 / p99", "p50 / p99 ms",
+              "p50 / p99");
   httplib::Client kept("127.0.0.1", port);
   kept.set_keep_alive(true);
   kept.set_read_timeout(60, 0);
@@ -359,8 +385,9 @@ int main(int argc, char** argv) {
       if (!r || r->status != 200) return 1;
     }
     const Stats s = Percentiles(t_sql), a = Percentiles(t_kept), b = Percentiles(t_new);
-    std::printf("%-19s %7.3f / %7.3f | %7.3f / %7.3f %6.1f / %5.1f | %7.3f / %7.3f %6.1f / %5.1f   (%d requests, %zu bytes)\n", k.name,
-                s.p50, s.p99, a.p50, a.p99, a.p50 / s.p50, a.p99 / s.p99, b.p50, b.p99, b.p50 / s.p50, b.p99 / s.p99, reps, body_bytes);
+    std::printf("%-19s %7.3f / %7.3f | %7.3f / %7.3f %6.1f / %5.1f | %7.3f / %7.3f %6.1f / %5.1f   (%d requests, %zu bytes)\n",
+                k.name, s.p50, s.p99, a.p50, a.p99, a.p50 / s.p50, a.p99 / s.p99, b.p50, b.p99, b.p50 / s.p50, b.p99 / s.p99,
+                reps, body_bytes);
   }
   {
     std::vector<double> t;
@@ -388,10 +415,16 @@ int main(int argc, char** argv) {
         for (const auto& c : fleet.crushers) {
           json body = {{"readings", json::array()}};
           for (size_t s = 0; s < fleet.sensors.size(); ++s) {
-            body["readings"].push_back({{"sensor", fleet.sensors[s]}, {"seq", seq}, {"time", Iso(end_s + 60 * (seq - fleet.per_sensor))},
-                                        {"thickness_mm", fleet.thickness_min + 5}, {"loops_intact", 35}, {"flags", 0}, {"battery_mv", 3500}});
+            body["readings"].push_back({{"sensor", fleet.sensors[s]},
+                                        {"seq", seq},
+                                        {"time", Iso(end_s + 60 * (seq - fleet.per_sensor))},
+                                        {"thickness_mm", fleet.thickness_min + 5},
+                                        {"loops_intact", 35},
+                                        {"flags", 0},
+                                        {"battery_mv", 3500}});
           }
-          if (auto r = w.Post("/api/v1/crushers/" + c + "/readings", body.dump(), "application/json"); r && r->status == 200) ++posted;
+          if (auto r = w.Post("/api/v1/crushers/" + c + "/readings", body.dump(), "application/json"); r && r->status == 200)
+            ++posted;
           if (stop) break;
         }
         ++seq;
@@ -408,8 +441,8 @@ int main(int argc, char** argv) {
     stop = true;
     writer.join();
     const Stats s = Percentiles(t);
-    std::printf("%-19s %17s | %7.3f / %7.3f   (while %ld posts of 10 readings were committed; target < 50 ms)\n", "list under ingest", "",
-                s.p50, s.p99, posted.load());
+    std::printf("%-19s %17s | %7.3f / %7.3f   (while %ld posts of 10 readings were committed; target < 50 ms)\n",
+                "list under ingest", "", s.p50, s.p99, posted.load());
   }
   server.Stop(SIGTERM);
   return 0;

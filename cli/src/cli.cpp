@@ -79,18 +79,20 @@ std::string Usage() {
   return "usage: linerwatch <command> [options]\n"
          "\n"
          "commands:\n"
-         "  diagnose BUNDLE " + DiagnoseTable().Synopsis(18, 100) + "\n"
+         "  diagnose BUNDLE " +
+         DiagnoseTable().Synopsis(18, 100) +
+         "\n"
          "      Compare the bundle's readings (and scans) with the Eq. 9 reconstruction of its DEM map, test\n"
          "      whether the mismatch is real, locate it, and name the physics the DEM left out.\n"
          "      Exit 0 when the diagnosis ran, whatever it found (docs/diagnosis.md, section Output).\n" +
-         DiagnoseTable().Help(28, 6, false) +
-         "  reconstruct BUNDLE " + ReconstructTable().Synopsis(21, 100) + "\n"
+         DiagnoseTable().Help(28, 6, false) + "  reconstruct BUNDLE " + ReconstructTable().Synopsis(21, 100) +
+         "\n"
          "      Eq. 9 global wear from the sensors' latest readings (at TIME, default: the last reading);\n"
          "      prints a per-row summary. A reading n means [n, n+1) mm: estimates use n + 0.5, as the\n"
          "      server does; --lower-bound uses n (the thinnest the liner can be). The latest scan at or\n"
          "      before TIME corrects the map between the sensors (--no-scan: the map alone).\n" +
-         ReconstructTable().Help(28, 6, false) +
-         "  dem CRUSHER_DIR " + DemTable().Synopsis(18, 100) + "\n"
+         ReconstructTable().Help(28, 6, false) + "  dem CRUSHER_DIR " + DemTable().Synopsis(18, 100) +
+         "\n"
          "      Make the crusher's DEM wear map with LIGGGHTS from the \"chamber\" of its crusher.json\n"
          "      (defaults: a 62-75 primary gyratory; docs/dem.md): write the case (STL meshes, input\n"
          "      script, Slurm script, MPI hostfile example) into DIR (default CRUSHER_DIR/dem), run it with\n"
@@ -200,8 +202,8 @@ int Diagnose(const std::vector<std::string>& args, std::ostream& out) {
     if (o.Has("predict_vtk")) fs::remove(o.Get("predict_vtk"), ec);
     throw;
   }
-  out << "diagnosis of " << result.crusher_id << ": mismatch " << (result.mismatch_detected ? "detected" : "not detected")
-      << "; " << result.findings.size() << " finding(s)";
+  out << "diagnosis of " << result.crusher_id << ": mismatch " << (result.mismatch_detected ? "detected" : "not detected") << "; "
+      << result.findings.size() << " finding(s)";
   if (!result.findings.empty()) out << ", top: " << result.findings.front().effect;
   out << "; " << result.data_quality.size() << " data-quality issue(s)\n";
   return 0;
@@ -226,12 +228,14 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
     if (const core::Scan* latest = core::LatestScanAt(bundle.scans, at.value_or(core::TimePoint::max()))) {
       const core::ScanFaces sf = core::ProjectScanToFaces(bundle.map, *latest);
       const core::ScanCorrection c = core::ApplyScan(
-          plan, sf, core::SensorWearAt(bundle.crusher, bundle.readings, latest->date, /*interval_centre=*/!o.Flag("lower_bound")));
+          plan, sf,
+          core::SensorWearAt(bundle.crusher, bundle.readings, latest->date, /*interval_centre=*/!o.Flag("lower_bound")));
       char buf[320];
       if (c.detail.empty())
-        std::snprintf(buf, sizeof buf, "scan %s (%s): %zu of %zu points on the map, %zu faces corrected, median corrected/map intensity %.2f\n",
-                      latest->file.c_str(), core::FormatIsoTime(latest->date).c_str(), sf.points_used, sf.points_total, c.faces_corrected,
-                      c.median_ratio);
+        std::snprintf(buf, sizeof buf,
+                      "scan %s (%s): %zu of %zu points on the map, %zu faces corrected, median corrected/map intensity %.2f\n",
+                      latest->file.c_str(), core::FormatIsoTime(latest->date).c_str(), sf.points_used, sf.points_total,
+                      c.faces_corrected, c.median_ratio);
       else
         std::snprintf(buf, sizeof buf, "scan %s not applied: %s\n", latest->file.c_str(), c.detail.c_str());
       scan_line = buf;
@@ -241,9 +245,10 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   const core::MapModel& model = plan.model;
   char line[320];
   std::snprintf(line, sizeof line,
-                "map model: smoothing %.3f m along z, %.3f m around (%s), per-face noise %.0f %% (%s), smoothing error %.1f %%, %zu outlier faces capped\n",
-                model.bandwidth_m, model.bandwidth_arc_m, model.bandwidth_method.c_str(), 100.0 * model.face_cv, model.noise_source.c_str(),
-                100.0 * model.smoothing_error_rel, model.outlier_faces);
+                "map model: smoothing %.3f m along z, %.3f m around (%s), per-face noise %.0f %% (%s), smoothing error %.1f %%, "
+                "%zu outlier faces capped\n",
+                model.bandwidth_m, model.bandwidth_arc_m, model.bandwidth_method.c_str(), 100.0 * model.face_cv,
+                model.noise_source.c_str(), 100.0 * model.smoothing_error_rel, model.outlier_faces);
   out << line << scan_line;
   out << "row        scale_mm/unit  mean_wear_mm  min_thickness_mm  band_mm (+/-2 sd)  at_z_m  at_theta_deg  sensors\n";
   for (const core::RowSummary& r : rec.rows) {
@@ -302,8 +307,9 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
     outputs.Add(o.Get("json"), j.dump(2) + "\n");
   }
   if (o.Has("vtk")) {
-    core::WriteWearMapVtk(o.Get("vtk"), bundle.map,
-                          {{"wear_mm", &rec.wear_mm}, {"remaining_mm", &rec.remaining_mm}, {"remaining_sd_mm", &rec.remaining_sd_mm}});
+    core::WriteWearMapVtk(
+        o.Get("vtk"), bundle.map,
+        {{"wear_mm", &rec.wear_mm}, {"remaining_mm", &rec.remaining_mm}, {"remaining_sd_mm", &rec.remaining_sd_mm}});
   }
   try {
     outputs.Commit();
@@ -315,8 +321,9 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   return 0;
 }
 
-extern "C" void OnStopSignal(int) { dem::RequestStop(); }
-
+extern "C" void OnStopSignal(int) {
+  dem::RequestStop();
+}
 
 int Dem(const std::vector<std::string>& args, std::ostream& out) {
   const Options o = Parse(DemTable(), args);
@@ -324,7 +331,8 @@ int Dem(const std::vector<std::string>& args, std::ostream& out) {
   const fs::path crusher_dir = o.Get("bundle");
   const fs::path crusher_file = crusher_dir / "crusher.json";
   std::error_code ec;
-  if (!fs::is_regular_file(crusher_file, ec)) throw BadInput(crusher_file.string() + ": missing (a crusher folder holds crusher.json)");
+  if (!fs::is_regular_file(crusher_file, ec))
+    throw BadInput(crusher_file.string() + ": missing (a crusher folder holds crusher.json)");
   const std::string stage = o.Has("stage") ? o.Get("stage") : "all";
   if (stage != "case" && stage != "run" && stage != "map" && stage != "all")
     throw UsageError("--stage must be case, run, map or all (not '" + stage + "')");
@@ -366,15 +374,16 @@ int Dem(const std::vector<std::string>& args, std::ostream& out) {
     struct sigaction sa {};
     sa.sa_handler = OnStopSignal;
     sigemptyset(&sa.sa_mask);
-    struct sigaction old_int {}, old_term {};
+    struct sigaction old_int {
+    }, old_term{};
     sigaction(SIGINT, &sa, &old_int);
     sigaction(SIGTERM, &sa, &old_term);
     const dem::RunResult r = dem::RunCase(spec, work, run, out);
     sigaction(SIGINT, &old_int, nullptr);
     sigaction(SIGTERM, &old_term, nullptr);
     if (!r.completed) throw BadInput(r.message);
-    out << "dem: run complete" << (r.wall_s > 0 ? " after " + std::to_string(std::lround(r.wall_s)) + " s of wall time" : std::string())
-        << "\n";
+    out << "dem: run complete"
+        << (r.wall_s > 0 ? " after " + std::to_string(std::lround(r.wall_s)) + " s of wall time" : std::string()) << "\n";
   }
   if (stage == "map" || stage == "all") {
     nlohmann::json summary;
@@ -394,8 +403,10 @@ int Dem(const std::vector<std::string>& args, std::ostream& out) {
                     r["cv"].get<double>(), r["faces_over_10x_mean"].get<int>());
       out << line;
     }
-    if (!summary["steady"]["note"].get<std::string>().empty()) out << "dem: caution: " << summary["steady"]["note"].get<std::string>() << "\n";
-    if (!summary["steady"]["choke_fed"].get<bool>()) out << "dem: caution: the hopper ran empty in the steady span (not choke fed)\n";
+    if (!summary["steady"]["note"].get<std::string>().empty())
+      out << "dem: caution: " << summary["steady"]["note"].get<std::string>() << "\n";
+    if (!summary["steady"]["choke_fed"].get<bool>())
+      out << "dem: caution: the hopper ran empty in the steady span (not choke fed)\n";
     if (o.Flag("install")) {
       for (const char* f : {dem::MapFiles::kMap, dem::MapFiles::kWindows, dem::MapFiles::kSummary})
         core::CopyFileAtomically(work / f, crusher_dir / f);

@@ -68,8 +68,8 @@ void WriteFileAtomically(const fs::path& path, const std::function<void(std::ost
 }
 
 void WriteFileAtomically(const fs::path& path, std::string_view text, Durability durability) {
-  WriteFileAtomically(path, [text](std::ostream& out) { out.write(text.data(), static_cast<std::streamsize>(text.size())); },
-                      durability);
+  WriteFileAtomically(
+      path, [text](std::ostream& out) { out.write(text.data(), static_cast<std::streamsize>(text.size())); }, durability);
 }
 
 void CopyFileAtomically(const fs::path& from, const fs::path& to, Durability durability) {

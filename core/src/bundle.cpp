@@ -42,7 +42,8 @@ std::vector<std::string> SplitCsv(const std::string& line) {
 double ParseNumber(const std::string& text, const std::string& file, size_t line, const std::string& column) {
   char* end = nullptr;
   const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || end == text.c_str() || *end != '\0') throw InputError(file, line, column + " '" + text + "' is not a number");
+  if (text.empty() || end == text.c_str() || *end != '\0')
+    throw InputError(file, line, column + " '" + text + "' is not a number");
   if (!std::isfinite(v)) throw InputError(file, line, column + " '" + text + "' is not finite");
   return v;
 }
@@ -82,7 +83,8 @@ void ReadCsv(const std::filesystem::path& path, const std::vector<std::string>& 
     if (Trim(line).empty()) continue;
     const auto cells = SplitCsv(line);
     if (cells.size() < header.size()) {
-      throw InputError(file, lineno, "has " + std::to_string(cells.size()) + " columns, the header has " + std::to_string(header.size()));
+      throw InputError(file, lineno,
+                       "has " + std::to_string(cells.size()) + " columns, the header has " + std::to_string(header.size()));
     }
     row(cells, lineno);
   }
@@ -101,10 +103,9 @@ T Get(const json& j, const char* key, const std::string& where, const std::strin
 /// Identifiers that become MQTT topic levels and are shown in the dashboard: 1-64 characters of
 /// letters, digits, '.', '_' and '-' (no '/', '+', '#', spaces, markup).
 void CheckIdentifier(const std::string& id, const std::string& what, const std::string& file) {
-  const bool ok = !id.empty() && id.size() <= 64 &&
-                  std::all_of(id.begin(), id.end(), [](char ch) {
-                    return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == '-';
-                  });
+  const bool ok = !id.empty() && id.size() <= 64 && std::all_of(id.begin(), id.end(), [](char ch) {
+    return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == '-';
+  });
   if (!ok) {
     throw InputError(file, 0, what + " '" + id + "' must be 1-64 letters, digits, '.', '_' or '-' (it is an MQTT topic level)");
   }
@@ -139,7 +140,8 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
     // nlohmann reports a byte offset; turn it into a line.
     std::ifstream again(path);
     std::string text((std::istreambuf_iterator<char>(again)), std::istreambuf_iterator<char>());
-    const size_t line = 1 + static_cast<size_t>(std::count(text.begin(), text.begin() + static_cast<long>(std::min(e.byte, text.size())), '\n'));
+    const size_t line =
+        1 + static_cast<size_t>(std::count(text.begin(), text.begin() + static_cast<long>(std::min(e.byte, text.size())), '\n'));
     throw InputError(file, line, std::string("not valid JSON: ") + e.what());
   } catch (const json::exception& e) {  // a number out of range (1e999) is not a parse_error
     throw InputError(file, 0, std::string("not valid JSON: ") + e.what());
@@ -159,17 +161,20 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
   c.thickness_min_mm = Get<double>(cc, "thickness_min_mm", "concave", file);
   if (!(c.thickness_new_mm > 0) || !(c.thickness_min_mm >= 0) || c.thickness_min_mm >= c.thickness_new_mm ||
       c.thickness_new_mm > kMaxThicknessMm) {
-    throw InputError(file, 0, "concave thickness_min_mm must be >= 0 and below thickness_new_mm, which must be in (0, " +
-                                  std::to_string(static_cast<int>(kMaxThicknessMm)) + "] mm");
+    throw InputError(file, 0,
+                     "concave thickness_min_mm must be >= 0 and below thickness_new_mm, which must be in (0, " +
+                         std::to_string(static_cast<int>(kMaxThicknessMm)) + "] mm");
   }
-  if (!cc.contains("rows") || !cc["rows"].is_array() || cc["rows"].empty()) throw InputError(file, 0, "concave.rows must be a non-empty array");
+  if (!cc.contains("rows") || !cc["rows"].is_array() || cc["rows"].empty())
+    throw InputError(file, 0, "concave.rows must be a non-empty array");
   for (const auto& r : cc["rows"]) {
     Row row;
     row.name = Get<std::string>(r, "name", "a concave row", file);
     row.z_min_m = Get<double>(r, "z_min_m", "row '" + row.name + "'", file);
     row.z_max_m = Get<double>(r, "z_max_m", "row '" + row.name + "'", file);
     if (!(row.z_max_m > row.z_min_m)) throw InputError(file, 0, "row '" + row.name + "': z_max_m must be above z_min_m");
-    if (row.name.empty() || row.name.size() > 64) throw InputError(file, 0, "row name '" + row.name + "' must be 1-64 characters");
+    if (row.name.empty() || row.name.size() > 64)
+      throw InputError(file, 0, "row name '" + row.name + "' must be 1-64 characters");
     if (c.RowIndex(row.name) >= 0) throw InputError(file, 0, "row '" + row.name + "' is listed twice");
     for (const Row& other : c.rows) {
       if (row.z_min_m < other.z_max_m && other.z_min_m < row.z_max_m) {
@@ -181,8 +186,10 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
   if (!j.contains("sensors") || !j["sensors"].is_array()) throw InputError(file, 0, "\"sensors\" array is required");
   for (const auto& s : j["sensors"]) {
     SensorInfo si;
-    if (s.contains("id") && s["id"].is_number_integer()) si.id = std::to_string(s["id"].get<long long>());
-    else si.id = Get<std::string>(s, "id", "a sensor", file);
+    if (s.contains("id") && s["id"].is_number_integer())
+      si.id = std::to_string(s["id"].get<long long>());
+    else
+      si.id = Get<std::string>(s, "id", "a sensor", file);
     CheckIdentifier(si.id, "sensor id", file);
     const std::string where = "sensor '" + si.id + "'";
     si.row = Get<std::string>(s, "row", where, file);
@@ -202,12 +209,14 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
     if (c.RowIndex(si.row) < 0) throw InputError(file, 0, where + " names row '" + si.row + "' that is not in concave.rows");
     if (c.FindSensor(si.id)) throw InputError(file, 0, where + " is listed twice");
     if (!(si.thickness_new_mm > 0) || si.thickness_new_mm > kMaxThicknessMm) {
-      throw InputError(file, 0, where + " thickness_new_mm must be in (0, " + std::to_string(static_cast<int>(kMaxThicknessMm)) + "]");
+      throw InputError(file, 0,
+                       where + " thickness_new_mm must be in (0, " + std::to_string(static_cast<int>(kMaxThicknessMm)) + "]");
     }
     const Row& row = c.rows[static_cast<size_t>(c.RowIndex(si.row))];
     if (si.z_m < row.z_min_m || si.z_m > row.z_max_m) {
-      throw InputError(file, 0, where + " z_m " + std::to_string(si.z_m) + " is outside its row '" + row.name + "' [" +
-                                    std::to_string(row.z_min_m) + ", " + std::to_string(row.z_max_m) + "] m");
+      throw InputError(file, 0,
+                       where + " z_m " + std::to_string(si.z_m) + " is outside its row '" + row.name + "' [" +
+                           std::to_string(row.z_min_m) + ", " + std::to_string(row.z_max_m) + "] m");
     }
     if (!(si.theta_deg >= -360 && si.theta_deg <= 360)) {
       throw InputError(file, 0, where + " theta_deg " + std::to_string(si.theta_deg) + " is outside [-360, 360]");
@@ -234,8 +243,9 @@ void CheckCrusherAgainstMap(const CrusherConfig& config, const WearMap& map, con
   }
   for (const SensorInfo& s : config.sensors) {
     if (s.z_m < lo - tol || s.z_m > hi + tol) {
-      throw InputError(file, 0, "sensor '" + s.id + "' z_m " + std::to_string(s.z_m) + " is outside the wear map's z range " +
-                                    range + " (wrong frame or units?)");
+      throw InputError(file, 0,
+                       "sensor '" + s.id + "' z_m " + std::to_string(s.z_m) + " is outside the wear map's z range " + range +
+                           " (wrong frame or units?)");
     }
   }
 }
@@ -244,16 +254,19 @@ std::vector<Reading> LoadReadings(const std::filesystem::path& path) {
   const std::string file = path.filename().string();
   std::vector<Reading> out;
   std::map<std::string, size_t> col;
-  ReadCsv(path, {"time", "sensor_id", "thickness_mm"}, [&](const std::vector<std::string>& c, size_t line) {
-    Reading r;
-    r.line = line;
-    r.time = ParseTime(c[col["time"]], file, line, "time");
-    r.sensor_id = c[col["sensor_id"]];
-    if (r.sensor_id.empty()) throw InputError(file, line, "sensor_id is empty");
-    r.thickness_mm = ParseNumber(c[col["thickness_mm"]], file, line, "thickness_mm");
-    if (r.thickness_mm < 0) throw InputError(file, line, "thickness_mm " + c[col["thickness_mm"]] + " is negative");
-    out.push_back(std::move(r));
-  }, &col);
+  ReadCsv(
+      path, {"time", "sensor_id", "thickness_mm"},
+      [&](const std::vector<std::string>& c, size_t line) {
+        Reading r;
+        r.line = line;
+        r.time = ParseTime(c[col["time"]], file, line, "time");
+        r.sensor_id = c[col["sensor_id"]];
+        if (r.sensor_id.empty()) throw InputError(file, line, "sensor_id is empty");
+        r.thickness_mm = ParseNumber(c[col["thickness_mm"]], file, line, "thickness_mm");
+        if (r.thickness_mm < 0) throw InputError(file, line, "thickness_mm " + c[col["thickness_mm"]] + " is negative");
+        out.push_back(std::move(r));
+      },
+      &col);
   std::stable_sort(out.begin(), out.end(), [](const Reading& a, const Reading& b) {
     return a.sensor_id != b.sensor_id ? a.sensor_id < b.sensor_id : a.time < b.time;
   });
@@ -264,15 +277,19 @@ std::vector<OperationsSample> LoadOperations(const std::filesystem::path& path) 
   const std::string file = path.filename().string();
   std::vector<OperationsSample> out;
   std::map<std::string, size_t> col;
-  ReadCsv(path, {"time", "throughput_tph"}, [&](const std::vector<std::string>& c, size_t line) {
-    OperationsSample s;
-    s.time = ParseTime(c[col["time"]], file, line, "time");
-    s.throughput_tph = ParseNumber(c[col["throughput_tph"]], file, line, "throughput_tph");
-    if (s.throughput_tph < 0) throw InputError(file, line, "throughput_tph is negative");
-    if (col.count("power_kw") && !c[col["power_kw"]].empty()) s.power_kw = ParseNumber(c[col["power_kw"]], file, line, "power_kw");
-    if (col.count("ore_ai") && !c[col["ore_ai"]].empty()) s.ore_ai = ParseNumber(c[col["ore_ai"]], file, line, "ore_ai");
-    out.push_back(s);
-  }, &col);
+  ReadCsv(
+      path, {"time", "throughput_tph"},
+      [&](const std::vector<std::string>& c, size_t line) {
+        OperationsSample s;
+        s.time = ParseTime(c[col["time"]], file, line, "time");
+        s.throughput_tph = ParseNumber(c[col["throughput_tph"]], file, line, "throughput_tph");
+        if (s.throughput_tph < 0) throw InputError(file, line, "throughput_tph is negative");
+        if (col.count("power_kw") && !c[col["power_kw"]].empty())
+          s.power_kw = ParseNumber(c[col["power_kw"]], file, line, "power_kw");
+        if (col.count("ore_ai") && !c[col["ore_ai"]].empty()) s.ore_ai = ParseNumber(c[col["ore_ai"]], file, line, "ore_ai");
+        out.push_back(s);
+      },
+      &col);
   std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.time < b.time; });
   return out;
 }
@@ -310,7 +327,8 @@ Bundle LoadBundle(const std::filesystem::path& dir) {
   Bundle b;
   b.dir = dir;
   for (const char* req : {"crusher.json", "wear_map.vtk", "readings.csv"}) {
-    if (!std::filesystem::exists(dir / req)) throw InputError(req, 0, "required bundle file is missing in '" + dir.string() + "'");
+    if (!std::filesystem::exists(dir / req))
+      throw InputError(req, 0, "required bundle file is missing in '" + dir.string() + "'");
   }
   b.crusher = LoadCrusherConfig(dir / "crusher.json");
   b.map = LoadWearMap(dir / "wear_map.vtk", &b.map_validation);

@@ -16,11 +16,13 @@ std::string CrusherConfigJson(const CrusherConfig& c) {
   nlohmann::json j = {{"crusher_id", c.crusher_id}};
   if (!c.site.empty()) j["site"] = c.site;
   j["installed_at"] = FormatIsoTime(c.installed_at);
-  j["concave"] = {{"thickness_new_mm", c.thickness_new_mm}, {"thickness_min_mm", c.thickness_min_mm}, {"rows", nlohmann::json::array()}};
+  j["concave"] = {
+      {"thickness_new_mm", c.thickness_new_mm}, {"thickness_min_mm", c.thickness_min_mm}, {"rows", nlohmann::json::array()}};
   for (const Row& r : c.rows) j["concave"]["rows"].push_back({{"name", r.name}, {"z_min_m", r.z_min_m}, {"z_max_m", r.z_max_m}});
   j["sensors"] = nlohmann::json::array();
   for (const SensorInfo& s : c.sensors) {
-    nlohmann::json o = {{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg}, {"thickness_new_mm", s.thickness_new_mm}};
+    nlohmann::json o = {
+        {"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg}, {"thickness_new_mm", s.thickness_new_mm}};
     if (s.address) {
       char hex[17];
       std::snprintf(hex, sizeof hex, "%016llX", static_cast<unsigned long long>(*s.address));
@@ -71,7 +73,9 @@ std::string ScanXyz(const Scan& scan) {
   return sc.str();
 }
 
-std::string ScanFileName(TimePoint date) { return "scan_" + FormatIsoTime(date).substr(0, 10) + ".xyz"; }
+std::string ScanFileName(TimePoint date) {
+  return "scan_" + FormatIsoTime(date).substr(0, 10) + ".xyz";
+}
 
 void WriteBundleMap(const fs::path& path, const WearMap& map) {
   std::vector<std::pair<std::string, const Eigen::VectorXd*>> arrays = {{"wear", &map.wear}};

@@ -29,8 +29,10 @@ void CheckValue(const Option& opt, const std::string& text) {
     case OptionType::kText:
       break;
     case OptionType::kWhole:
-      if (opt.whole_unsigned) (void)ParseUnsignedNumber(opt.name, text);
-      else (void)ParseWholeNumber(opt.name, text, opt.min, opt.max);
+      if (opt.whole_unsigned)
+        (void)ParseUnsignedNumber(opt.name, text);
+      else
+        (void)ParseWholeNumber(opt.name, text, opt.min, opt.max);
       break;
     case OptionType::kNumber:
       (void)ParseNumber(opt.name, text, opt.range);
@@ -75,15 +77,20 @@ void ReadConfigFile(const OptionTable& table, const std::string& path, Collected
       throw ConfigFileError(where + ": unknown key '" + key + "' (see --help)");
     }
     std::vector<nlohmann::json> items;
-    if (value.is_array() && opt->repeatable) items.assign(value.begin(), value.end());
-    else items.push_back(value);
+    if (value.is_array() && opt->repeatable)
+      items.assign(value.begin(), value.end());
+    else
+      items.push_back(value);
     std::vector<std::string>& texts = out->values[opt->name];
     for (const nlohmann::json& v : items) {
       std::string text;
       if (opt->type == OptionType::kSwitch) {
-        if (v.is_boolean()) text = v.get<bool>() ? "true" : "false";
-        else if (v.is_string()) text = v.get<std::string>();
-        else throw ConfigFileError(at + ": must be true or false");
+        if (v.is_boolean())
+          text = v.get<bool>() ? "true" : "false";
+        else if (v.is_string())
+          text = v.get<std::string>();
+        else
+          throw ConfigFileError(at + ": must be true or false");
       } else if (v.is_string()) {
         text = v.get<std::string>();
       } else if (v.is_number_integer()) {
@@ -91,7 +98,10 @@ void ReadConfigFile(const OptionTable& table, const std::string& path, Collected
       } else if (v.is_number() && opt->type != OptionType::kWhole) {
         text = NumberText(v.get<double>());
       } else {
-        throw ConfigFileError(at + ": must be " + (opt->type == OptionType::kText ? "a string" : opt->type == OptionType::kWhole ? "a whole number" : "a number"));
+        throw ConfigFileError(at + ": must be " +
+                              (opt->type == OptionType::kText    ? "a string"
+                               : opt->type == OptionType::kWhole ? "a whole number"
+                                                                 : "a number"));
       }
       try {
         CheckValue(*opt, text);
@@ -206,7 +216,9 @@ std::string OptionTable::Synopsis(size_t indent, size_t width) const {
   return s + line;
 }
 
-std::string ParsedOptions::Key(std::string name) { return Dashes(std::move(name)); }
+std::string ParsedOptions::Key(std::string name) {
+  return Dashes(std::move(name));
+}
 
 const ParsedOptions::Value& ParsedOptions::Get(const std::string& name) const {
   const auto it = values_.find(Key(name));
@@ -245,7 +257,9 @@ uint64_t ParsedOptions::CheckedUnsigned(const std::string& name) const {
                              static_cast<uint64_t>(std::max<int64_t>(o.max, 0)));
 }
 
-int64_t ParsedOptions::Whole(const std::string& name, int64_t fallback) const { return Integer<int64_t>(name, fallback); }
+int64_t ParsedOptions::Whole(const std::string& name, int64_t fallback) const {
+  return Integer<int64_t>(name, fallback);
+}
 
 double ParsedOptions::Number(const std::string& name, double fallback) const {
   const Option& o = Spec(name);
@@ -318,8 +332,10 @@ ParsedOptions ParseOptions(const OptionTable& table, const std::vector<std::stri
   Collected file;
   if (has_config) ReadConfigFile(table, config_file, &file, &parsed.other_config_);
   for (const auto& [name, texts] : file.values) {
-    if (!flags.values.count(name)) parsed.values_[name] = {texts, "config " + config_file + ", key '" + name + "'"};
-    else if (table.Find(name)->repeatable) parsed.values_[name].texts = texts;  // the file's first
+    if (!flags.values.count(name))
+      parsed.values_[name] = {texts, "config " + config_file + ", key '" + name + "'"};
+    else if (table.Find(name)->repeatable)
+      parsed.values_[name].texts = texts;  // the file's first
   }
   for (const auto& [name, texts] : flags.values) {
     ParsedOptions::Value& v = parsed.values_[name];
@@ -335,7 +351,9 @@ ParsedOptions ParseOptions(const OptionTable& table, const std::vector<std::stri
 
 namespace {
 
-std::string Range(const std::string& lo, const std::string& hi) { return "[" + lo + ", " + hi + "]"; }
+std::string Range(const std::string& lo, const std::string& hi) {
+  return "[" + lo + ", " + hi + "]";
+}
 
 // Whole decimal digits with an optional sign, no spaces: what std::stoll would also take after
 // leading blanks or before trailing junk is refused here.
@@ -365,7 +383,8 @@ int64_t ParseWholeNumber(const std::string& name, const std::string& value, int6
 
 uint64_t ParseUnsignedNumber(const std::string& name, const std::string& value, uint64_t min, uint64_t max) {
   if (!value.empty() && value[0] == '-') {
-    throw UsageError("--" + name + " " + value + " is out of range (allowed: " + Range(std::to_string(min), std::to_string(max)) + ")");
+    throw UsageError("--" + name + " " + value + " is out of range (allowed: " + Range(std::to_string(min), std::to_string(max)) +
+                     ")");
   }
   return ParseChecked<uint64_t>(name, value, min, max);
 }

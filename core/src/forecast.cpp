@@ -11,7 +11,9 @@ namespace {
 
 constexpr double kQuantisationSd = 0.28867513459481287;  // 1/sqrt(12): uniform over [n, n+1)
 
-Eigen::Vector3d Basis(double s) { return {1.0, s, s * s}; }
+Eigen::Vector3d Basis(double s) {
+  return {1.0, s, s * s};
+}
 
 /// First time (days) in (t0, t0 + horizon] where f(t) >= limit; daily steps, then bisection.
 std::optional<double> FirstReach(const std::function<double(double)>& f, double t0, double horizon, double limit) {
@@ -38,9 +40,13 @@ std::optional<TimePoint> ToTime(const CrusherConfig& crusher, std::optional<doub
 
 }  // namespace
 
-double WearCurve::Wear(double t_days) const { return Basis(t_days - t_ref_days).dot(c); }
+double WearCurve::Wear(double t_days) const {
+  return Basis(t_days - t_ref_days).dot(c);
+}
 
-double WearCurve::RateMmPerDay(double t_days) const { return c[1] + 2.0 * c[2] * (t_days - t_ref_days); }
+double WearCurve::RateMmPerDay(double t_days) const {
+  return c[1] + 2.0 * c[2] * (t_days - t_ref_days);
+}
 
 double WearCurve::Sd(double t_days) const {
   const Eigen::Vector3d x = Basis(t_days - t_ref_days);
@@ -50,8 +56,8 @@ double WearCurve::Sd(double t_days) const {
   return std::sqrt(param_var + rate_sd * rate_sd);
 }
 
-SensorForecast ForecastSensor(const CrusherConfig& crusher, const SensorInfo& sensor,
-                              const std::vector<Reading>& readings, const ForecastOptions& options) {
+SensorForecast ForecastSensor(const CrusherConfig& crusher, const SensorInfo& sensor, const std::vector<Reading>& readings,
+                              const ForecastOptions& options) {
   SensorForecast out;
   out.sensor_id = sensor.id;
   std::vector<std::pair<double, double>> pts;  // (days since installation, wear mm at interval centre)
@@ -59,8 +65,10 @@ SensorForecast ForecastSensor(const CrusherConfig& crusher, const SensorInfo& se
     if (r.sensor_id != sensor.id) continue;
     pts.emplace_back(DaysBetween(crusher.installed_at, r.time), sensor.thickness_new_mm - (r.thickness_mm + 0.5));
     if (r.time >= out.last_time) {
-      if (r.time > out.last_time || out.readings_used == 0) out.last_reading_mm = r.thickness_mm;
-      else out.last_reading_mm = std::min(out.last_reading_mm, r.thickness_mm);
+      if (r.time > out.last_time || out.readings_used == 0)
+        out.last_reading_mm = r.thickness_mm;
+      else
+        out.last_reading_mm = std::min(out.last_reading_mm, r.thickness_mm);
       out.last_time = r.time;
     }
     ++out.readings_used;
@@ -159,9 +167,8 @@ SensorForecast ForecastSensor(const CrusherConfig& crusher, const SensorInfo& se
 }
 
 std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const Reconstruction& reconstruction,
-                                      const std::vector<SensorWear>& sensor_wear,
-                                      const std::vector<SensorForecast>& sensors, TimePoint now,
-                                      const ForecastOptions& options) {
+                                      const std::vector<SensorWear>& sensor_wear, const std::vector<SensorForecast>& sensors,
+                                      TimePoint now, const ForecastOptions& options) {
   std::map<std::string, double> wear_now;
   for (const auto& w : sensor_wear) wear_now[w.sensor_id] = w.wear_mm;
   std::map<std::string, const SensorForecast*> by_id;
@@ -225,10 +232,10 @@ std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const Recons
     const double hi = std::max(rs.min_thickness_hi_mm, rs.min_thickness_mm);
     rf.reach = ToTime(crusher, FirstReach([&](double t) { return increment(t, 0.0, ratio); }, t_now, options.horizon_days,
                                           rs.min_thickness_mm - lim));
-    rf.reach_earliest = ToTime(crusher, FirstReach([&](double t) { return increment(t, k, ratio_for(lo)); }, t_now,
-                                                   options.horizon_days, lo - lim));
-    rf.reach_latest = ToTime(crusher, FirstReach([&](double t) { return increment(t, -k, ratio_for(hi)); }, t_now,
-                                                 options.horizon_days, hi - lim));
+    rf.reach_earliest = ToTime(
+        crusher, FirstReach([&](double t) { return increment(t, k, ratio_for(lo)); }, t_now, options.horizon_days, lo - lim));
+    rf.reach_latest = ToTime(
+        crusher, FirstReach([&](double t) { return increment(t, -k, ratio_for(hi)); }, t_now, options.horizon_days, hi - lim));
     rf.ok = true;
     out.push_back(rf);
   }

@@ -129,7 +129,8 @@ struct Kernel {
     return v;
   }
   /// Variance() for both forms at once (one visit): first the local-constant, then the local-linear.
-  std::pair<double, double> Variances(const Sums& s, double z, double theta, double radius, long skip, const Eigen::VectorXd& var) const {
+  std::pair<double, double> Variances(const Sums& s, double z, double theta, double radius, long skip,
+                                      const Eigen::VectorXd& var) const {
     Sums sl = s;
     sl.linear = true;
     // Sums::Weight() of either form, its divisions done once.
@@ -172,7 +173,8 @@ struct IciResult {
 /// circumferential scale `ha` and the top step's index covers them all; per step the kernel sums
 /// and the sums that give the estimate's variance (for the local-linear form too).
 IciResult Ici(const WearMap& map, const Eigen::VectorXd& y, const std::vector<double>& ladder, double ha, bool linear,
-              const SurfaceIndex& index, double z, double theta, double radius, long skip, const Eigen::VectorXd& var, double gamma) {
+              const SurfaceIndex& index, double z, double theta, double radius, long skip, const Eigen::VectorXd& var,
+              double gamma) {
   const size_t nk = ladder.size();
   struct Acc {
     Sums s;
@@ -229,7 +231,9 @@ IciResult Ici(const WearMap& map, const Eigen::VectorXd& y, const std::vector<do
 
 }  // namespace
 
-double MapModel::FaceVariance(double m) const { return noise_phi * std::pow(std::max(m, 0.0), noise_power); }
+double MapModel::FaceVariance(double m) const {
+  return noise_phi * std::pow(std::max(m, 0.0), noise_power);
+}
 
 double MapModel::RelSd(Eigen::Index i) const {
   const double v = intensity[i];
@@ -252,7 +256,8 @@ MapModel::Point MapModel::At(double z, double theta_deg) const {
       p.noise_sd = std::sqrt(v);
       if (local_ladder_m.size() > 1 && index) {
         // The same local scale as the faces get (Eq. 9's row scale sees the faces' averaging).
-        const IciResult r = Ici(m, clean, local_ladder_m, bandwidth_arc_m, local_linear, *index, z, theta_deg, -1, -1, ref_var, local_gamma);
+        const IciResult r =
+            Ici(m, clean, local_ladder_m, bandwidth_arc_m, local_linear, *index, z, theta_deg, -1, -1, ref_var, local_gamma);
         if (std::isfinite(r.value) && r.level + 1 < local_ladder_m.size()) {
           p.intensity = std::max(0.0, r.value);
           p.sd = std::sqrt(2.0 * r.var);
@@ -314,19 +319,19 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   {
     const Kernel k(map, model.clean, nullptr, 0.5 * model.face_size_m, 3.0 * model.face_size_m);
     ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
-    for (Eigen::Index i = begin; i < end; ++i) {
-      double s0 = 0, sy = 0, s2 = 0;
-      k.index.Visit(map.z[i], map.theta_deg[i], map.radius[i], [&](uint32_t j, double dz, double arc) {
-        if (static_cast<Eigen::Index>(j) == i) return;
-        const double w = k.W(j, dz, arc);
-        if (w <= 0) return;
-        s0 += w;
-        sy += w * model.clean[static_cast<Eigen::Index>(j)];
-        s2 += w * w;
-      });
-      pilot[i] = s0 > 0 ? sy / s0 : model.clean[i];
-      pilot_neff[i] = s2 > 0 ? s0 * s0 / s2 : 0;
-    }
+      for (Eigen::Index i = begin; i < end; ++i) {
+        double s0 = 0, sy = 0, s2 = 0;
+        k.index.Visit(map.z[i], map.theta_deg[i], map.radius[i], [&](uint32_t j, double dz, double arc) {
+          if (static_cast<Eigen::Index>(j) == i) return;
+          const double w = k.W(j, dz, arc);
+          if (w <= 0) return;
+          s0 += w;
+          sy += w * model.clean[static_cast<Eigen::Index>(j)];
+          s2 += w * w;
+        });
+        pilot[i] = s0 > 0 ? sy / s0 : model.clean[i];
+        pilot_neff[i] = s2 > 0 ? s0 * s0 / s2 : 0;
+      }
     });
   }
 
@@ -381,8 +386,10 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     for (size_t k = 0; k < keep; ++k) sum += ratio[k];
     model.noise_power = p;
     model.noise_phi = keep ? sum / static_cast<double>(keep) : 0.0;
-    model.noise_source = use_stderr ? "wear_stderr (" + (map.windows > 0 ? std::to_string(map.windows) + " windows" : std::string("windows not stated")) + ")"
-                                    : "neighbour differences";
+    model.noise_source =
+        use_stderr ? "wear_stderr (" +
+                         (map.windows > 0 ? std::to_string(map.windows) + " windows" : std::string("windows not stated")) + ")"
+                   : "neighbour differences";
   }
 
   // 3. Outliers: a face far above its neighbourhood is capped (one-sided: DEM spikes are faces a
@@ -479,7 +486,8 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   model.bandwidth_arc_m = candidates[best / 2].second;
   model.local_linear = best % 2 == 1;
   for (size_t c = 0; c < nh; ++c)
-    model.cv_curve.push_back({candidates[c].first, score[best] > 0 ? std::min(score[2 * c], score[2 * c + 1]) / score[best] : 1.0});
+    model.cv_curve.push_back(
+        {candidates[c].first, score[best] > 0 ? std::min(score[2 * c], score[2 * c + 1]) / score[best] : 1.0});
   // The smoothing's own error: what the cross-validated error holds beyond the faces' noise and the
   // noise of the prediction, relative to the field's mean square.
   if (area_sum > 0) {
@@ -561,8 +569,8 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
           //    it changes within a kernel (a real map's discharge-edge band holds several times the
           //    wear of the band above), a smaller scale is used, as small as the data show the
           //    change to be real.
-          const IciResult r = Ici(map, model.clean, model.local_ladder_m, model.bandwidth_arc_m, model.local_linear, *model.index, map.z[i],
-                                  map.theta_deg[i], map.radius[i], -1, model.ref_var, model.local_gamma);
+          const IciResult r = Ici(map, model.clean, model.local_ladder_m, model.bandwidth_arc_m, model.local_linear, *model.index,
+                                  map.z[i], map.theta_deg[i], map.radius[i], -1, model.ref_var, model.local_gamma);
           if (std::isfinite(r.value)) {
             model.local_bandwidth_m[i] = model.local_ladder_m[r.level];
             if (r.level + 1 < model.local_ladder_m.size()) {

@@ -389,7 +389,8 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
   }
   for (size_t r = 0; r < nrows; ++r) {
     out.rows[r].mean_wear_mm = area_sum[r] > 0 ? wear_sum[r] / area_sum[r] : 0.0;
-    if (area_sum[r] == 0) out.rows[r].min_thickness_mm = out.rows[r].min_thickness_lo_mm = out.rows[r].min_thickness_hi_mm = crusher.thickness_new_mm;
+    if (area_sum[r] == 0)
+      out.rows[r].min_thickness_mm = out.rows[r].min_thickness_lo_mm = out.rows[r].min_thickness_hi_mm = crusher.thickness_new_mm;
   }
   // Can the map and sensors support the thinnest-point number?
   if (n > 0) {
@@ -398,8 +399,10 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
     if (wear_min > 0 && sd_min / wear_min > plan.options.max_rel_sd) {
       out.status = kStatusUnsupported;
       char b[200];
-      std::snprintf(b, sizeof b, "the thinnest point's wear has a %.0f %% standard error (map noise, sensor quantisation, row scale): band only",
-                    100.0 * sd_min / wear_min);
+      std::snprintf(
+          b, sizeof b,
+          "the thinnest point's wear has a %.0f %% standard error (map noise, sensor quantisation, row scale): band only",
+          100.0 * sd_min / wear_min);
       out.status_detail = b;
     }
   }

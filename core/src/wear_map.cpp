@@ -107,8 +107,9 @@ class Tokens {
   void NeedValues(size_t n, size_t per_item, const char* what, size_t l) const {
     const size_t left = Remaining();
     if (per_item != 0 && n > left / per_item) {
-      throw InputError(file_, l, std::string(what) + " " + std::to_string(n) + " needs " + std::to_string(per_item) +
-                                     " value(s) each but the file holds only " + std::to_string(left) + " more");
+      throw InputError(file_, l,
+                       std::string(what) + " " + std::to_string(n) + " needs " + std::to_string(per_item) +
+                           " value(s) each but the file holds only " + std::to_string(left) + " more");
     }
   }
   InputError Error(const std::string& rule) const { return InputError(file_, line(), rule); }
@@ -150,8 +151,8 @@ constexpr double kMaxCoordinateM = 1000;
 
 std::string OutOfFrame(const Eigen::Vector3d& p) {
   char b[160];
-  std::snprintf(b, sizeof b, "vertex (%g, %g, %g) is more than %g m from the crusher origin (metres, crusher frame?)", p.x(), p.y(),
-                p.z(), kMaxCoordinateM);
+  std::snprintf(b, sizeof b, "vertex (%g, %g, %g) is more than %g m from the crusher origin (metres, crusher frame?)", p.x(),
+                p.y(), p.z(), kMaxCoordinateM);
   return b;
 }
 
@@ -162,11 +163,16 @@ std::string NegativeWear(size_t face, double value) {
 }
 
 void Assign(WearMap& map, const std::string& name, Eigen::VectorXd values) {
-  if (name == "wear") map.wear = std::move(values);
-  else if (name == "normal_stress_average") map.normal_stress = std::move(values);
-  else if (name == "shear_stress_average") map.shear_stress = std::move(values);
-  else if (name == "wear_stderr") map.wear_stderr = std::move(values);
-  else map.extra[name] = std::move(values);
+  if (name == "wear")
+    map.wear = std::move(values);
+  else if (name == "normal_stress_average")
+    map.normal_stress = std::move(values);
+  else if (name == "shear_stress_average")
+    map.shear_stress = std::move(values);
+  else if (name == "wear_stderr")
+    map.wear_stderr = std::move(values);
+  else
+    map.extra[name] = std::move(values);
 }
 
 WearMap ParseVtk(const std::string& text, const std::string& file) {
@@ -176,7 +182,8 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
   std::getline(hs, l1);
   std::getline(hs, l2);
   std::getline(hs, l3);
-  if (l1.rfind("# vtk DataFile Version", 0) != 0) throw InputError(file, 1, "not a legacy VTK file (expected '# vtk DataFile Version')");
+  if (l1.rfind("# vtk DataFile Version", 0) != 0)
+    throw InputError(file, 1, "not a legacy VTK file (expected '# vtk DataFile Version')");
   const bool v5 = l1.find("5.") != std::string::npos;
   auto trim = [](std::string s) {
     while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
@@ -226,8 +233,9 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
         for (auto& o : offsets) o = t.Integer("offset");
         for (size_t i = 0; i < a; ++i) {
           if (static_cast<size_t>(offsets[i]) > b || (i > 0 && offsets[i] < offsets[i - 1])) {
-            throw InputError(file, kw_line, "OFFSETS must not decrease nor exceed the CONNECTIVITY size " + std::to_string(b) +
-                                                " (offset " + std::to_string(i) + " is " + std::to_string(offsets[i]) + ")");
+            throw InputError(file, kw_line,
+                             "OFFSETS must not decrease nor exceed the CONNECTIVITY size " + std::to_string(b) + " (offset " +
+                                 std::to_string(i) + " is " + std::to_string(offsets[i]) + ")");
           }
         }
         if (t.Next("CONNECTIVITY") != "CONNECTIVITY") throw InputError(file, t.LastLine(), "expected CONNECTIVITY after OFFSETS");
@@ -240,7 +248,10 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
             throw InputError(file, kw_line, "OFFSETS " + std::to_string(i + 1) + " is out of order or beyond the connectivity");
           }
           const long long k = offsets[i + 1] - offsets[i];
-          if (kw == "POLYGONS" && k != 3) throw InputError(file, kw_line, "polygon " + std::to_string(i) + " has " + std::to_string(k) + " vertices; only triangles are supported");
+          if (kw == "POLYGONS" && k != 3)
+            throw InputError(
+                file, kw_line,
+                "polygon " + std::to_string(i) + " has " + std::to_string(k) + " vertices; only triangles are supported");
           if (kw == "POLYGONS") {
             faces.push_back({static_cast<uint32_t>(conn[offsets[i]]), static_cast<uint32_t>(conn[offsets[i] + 1]),
                              static_cast<uint32_t>(conn[offsets[i] + 2])});
@@ -253,7 +264,8 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
           std::vector<uint32_t> idx(k);
           for (auto& v : idx) v = static_cast<uint32_t>(t.Integer("point index"));
           if (kw == "POLYGONS") {
-            if (k != 3) throw InputError(file, line, "polygon with " + std::to_string(k) + " vertices; only triangles are supported");
+            if (k != 3)
+              throw InputError(file, line, "polygon with " + std::to_string(k) + " vertices; only triangles are supported");
             faces.push_back({idx[0], idx[1], idx[2]});
           }
         }
@@ -272,7 +284,8 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
       t.Next("data type");
       size_t ncomp = 1;
       if (t.Peek() != "LOOKUP_TABLE") ncomp = static_cast<size_t>(t.Integer("component count"));
-      if (t.Next("LOOKUP_TABLE") != "LOOKUP_TABLE") throw InputError(file, t.LastLine(), "expected LOOKUP_TABLE after SCALARS " + name);
+      if (t.Next("LOOKUP_TABLE") != "LOOKUP_TABLE")
+        throw InputError(file, t.LastLine(), "expected LOOKUP_TABLE after SCALARS " + name);
       t.Next("lookup table name");
       if (ncomp < 1 || ncomp > 9) throw InputError(file, t.LastLine(), "SCALARS " + name + ": component count must be 1-9");
       const size_t tuples = in_point_data ? point_data_count : cell_count;
@@ -281,7 +294,8 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
       Eigen::VectorXd v(static_cast<Eigen::Index>(n));
       for (size_t i = 0; i < n; ++i) {
         v[static_cast<Eigen::Index>(i)] = t.Number(name.c_str());
-        if (name == "wear" && v[static_cast<Eigen::Index>(i)] < 0) throw InputError(file, t.LastLine(), NegativeWear(i, v[static_cast<Eigen::Index>(i)]));
+        if (name == "wear" && v[static_cast<Eigen::Index>(i)] < 0)
+          throw InputError(file, t.LastLine(), NegativeWear(i, v[static_cast<Eigen::Index>(i)]));
       }
       if (in_cell_data && ncomp == 1) Assign(map, name, std::move(v));
     } else if (kw == "FIELD") {
@@ -294,7 +308,9 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
         const size_t ntuples = t.Count("tuple count", std::max<size_t>(ncomp, 1));
         t.Next("data type");
         if (in_cell_data && ntuples != cell_count) {
-          throw InputError(file, line, "array '" + name + "' has " + std::to_string(ntuples) + " tuples but CELL_DATA is " + std::to_string(cell_count));
+          throw InputError(
+              file, line,
+              "array '" + name + "' has " + std::to_string(ntuples) + " tuples but CELL_DATA is " + std::to_string(cell_count));
         }
         t.NeedValues(ntuples, ncomp, name.c_str(), line);
         Eigen::VectorXd v(static_cast<Eigen::Index>(ncomp * ntuples));
@@ -324,11 +340,16 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
   if (map.faces.empty()) throw InputError(file, 0, "no triangles (POLYGONS) found");
   for (size_t i = 0; i < map.faces.size(); ++i) {
     for (uint32_t v : map.faces[i]) {
-      if (v >= map.points.size()) throw InputError(file, 0, "triangle " + std::to_string(i) + " refers to point " + std::to_string(v) + " of " + std::to_string(map.points.size()));
+      if (v >= map.points.size())
+        throw InputError(file, 0,
+                         "triangle " + std::to_string(i) + " refers to point " + std::to_string(v) + " of " +
+                             std::to_string(map.points.size()));
     }
   }
   if (cell_count != 0 && cell_count != map.faces.size()) {
-    throw InputError(file, 0, "CELL_DATA count " + std::to_string(cell_count) + " differs from the triangle count " + std::to_string(map.faces.size()));
+    throw InputError(
+        file, 0,
+        "CELL_DATA count " + std::to_string(cell_count) + " differs from the triangle count " + std::to_string(map.faces.size()));
   }
   if (map.wear.size() == 0) throw InputError(file, 0, "no per-face array named 'wear' in CELL_DATA");
   return map;
@@ -352,7 +373,8 @@ WearMap ParseCsv(const std::string& text, const std::string& file) {
   std::vector<int> coord_idx;
   for (const char* k : kCoords) {
     auto it = std::find(cols.begin(), cols.end(), k);
-    if (it == cols.end()) throw InputError(file, 1, std::string("header lacks column '") + k + "' (x1,y1,z1,x2,y2,z2,x3,y3,z3,wear required)");
+    if (it == cols.end())
+      throw InputError(file, 1, std::string("header lacks column '") + k + "' (x1,y1,z1,x2,y2,z2,x3,y3,z3,wear required)");
     coord_idx.push_back(static_cast<int>(it - cols.begin()));
   }
   auto wear_it = std::find(cols.begin(), cols.end(), "wear");
@@ -382,11 +404,13 @@ WearMap ParseCsv(const std::string& text, const std::string& file) {
       }
       v.push_back(d);
     }
-    if (v.size() != cols.size()) throw InputError(file, lineno, "has " + std::to_string(v.size()) + " columns, header has " + std::to_string(cols.size()));
+    if (v.size() != cols.size())
+      throw InputError(file, lineno, "has " + std::to_string(v.size()) + " columns, header has " + std::to_string(cols.size()));
     const auto base = static_cast<uint32_t>(map.points.size());
     for (int p = 0; p < 3; ++p) {
       map.points.emplace_back(v[coord_idx[3 * p]], v[coord_idx[3 * p + 1]], v[coord_idx[3 * p + 2]]);
-      if (map.points.back().cwiseAbs().maxCoeff() > kMaxCoordinateM) throw InputError(file, lineno, OutOfFrame(map.points.back()));
+      if (map.points.back().cwiseAbs().maxCoeff() > kMaxCoordinateM)
+        throw InputError(file, lineno, OutOfFrame(map.points.back()));
     }
     if (v[static_cast<size_t>(wear_it - cols.begin())] < 0) {
       throw InputError(file, lineno, NegativeWear(map.faces.size(), v[static_cast<size_t>(wear_it - cols.begin())]));
@@ -418,8 +442,8 @@ MapValidation Validate(WearMap& map) {
     distinct.insert(std::llround(scaled));
   }
   const double max_wear = map.wear.size() ? map.wear.maxCoeff() : 0.0;
-  v.looks_truncated = n > 20 && on_grid == static_cast<size_t>(n) && max_wear < 1e-2 &&
-                      distinct.size() < static_cast<size_t>(n) / 4;
+  v.looks_truncated =
+      n > 20 && on_grid == static_cast<size_t>(n) && max_wear < 1e-2 && distinct.size() < static_cast<size_t>(n) / 4;
   if (v.degenerate_faces) v.warnings.push_back(std::to_string(v.degenerate_faces) + " degenerate (zero-area) faces");
   if (v.negative_wear_faces) v.warnings.push_back(std::to_string(v.negative_wear_faces) + " faces with negative wear");
   if (v.zero_wear_fraction > 0.25) {
@@ -427,7 +451,8 @@ MapValidation Validate(WearMap& map) {
     std::snprintf(b, sizeof b, "%.0f %% of faces have zero wear (short DEM run or unreached area?)", 100 * v.zero_wear_fraction);
     v.warnings.push_back(b);
   }
-  if (v.looks_truncated) v.warnings.push_back("wear values look %f-truncated to 6 decimals: rescale the DEM output before export");
+  if (v.looks_truncated)
+    v.warnings.push_back("wear values look %f-truncated to 6 decimals: rescale the DEM output before export");
   return v;
 }
 
@@ -474,9 +499,12 @@ WearMap ParseWearMap(const std::string& text, const std::string& file, MapValida
   std::string ext = std::filesystem::path(file).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   WearMap map;
-  if (ext == ".vtk") map = ParseVtk(text, file);
-  else if (ext == ".csv") map = ParseCsv(text, file);
-  else throw InputError(file, 0, "unknown map format '" + ext + "' (expected .vtk or .csv)");
+  if (ext == ".vtk")
+    map = ParseVtk(text, file);
+  else if (ext == ".csv")
+    map = ParseCsv(text, file);
+  else
+    throw InputError(file, 0, "unknown map format '" + ext + "' (expected .vtk or .csv)");
   // Coordinates beyond kMaxCoordinateM were refused, with their line, while parsing.
   const auto n = static_cast<Eigen::Index>(map.faces.size());
   for (const auto* arr : {&map.normal_stress, &map.shear_stress, &map.wear_stderr}) {
@@ -485,7 +513,8 @@ WearMap ParseWearMap(const std::string& text, const std::string& file, MapValida
   if (map.has_wear_stderr() && (map.wear_stderr.array() < 0).any()) {
     throw InputError(file, 0, "'wear_stderr' has negative values (a standard error is >= 0)");
   }
-  if (map.wear.size() != n) throw InputError(file, 0, "'wear' has " + std::to_string(map.wear.size()) + " values for " + std::to_string(n) + " faces");
+  if (map.wear.size() != n)
+    throw InputError(file, 0, "'wear' has " + std::to_string(map.wear.size()) + " values for " + std::to_string(n) + " faces");
   if (!(map.wear.maxCoeff() > 0)) throw InputError(file, 0, "every face has zero wear: the map cannot be scaled by the sensors");
   map.ComputeGeometry();
   map.sha256 = Sha256Hex(text);
@@ -505,13 +534,17 @@ void WriteWearMapVtk(const std::filesystem::path& path, const WearMap& map,
   if (title_arg.size() > 255 || title_arg.find_first_of("\r\n") != std::string::npos)
     throw std::invalid_argument("a VTK title is one line of at most 255 characters");
   for (const auto& [name, arr] : cell_arrays) {
-    if (!arr || static_cast<size_t>(arr->size()) != n) throw std::invalid_argument("cell array '" + name + "' does not have one value per face");
-    if (name.empty() || name.find_first_of(" \t\n") != std::string::npos) throw std::invalid_argument("cell array name '" + name + "' is not a VTK name");
+    if (!arr || static_cast<size_t>(arr->size()) != n)
+      throw std::invalid_argument("cell array '" + name + "' does not have one value per face");
+    if (name.empty() || name.find_first_of(" \t\n") != std::string::npos)
+      throw std::invalid_argument("cell array name '" + name + "' is not a VTK name");
   }
   WriteFileAtomically(path, [&](std::ostream& out) {
     out.precision(10);
     // The given title, else the map's own (a re-written map keeps e.g. its windows=K), else a default.
-    std::string title = !title_arg.empty() ? title_arg : map.title.empty() ? std::string("linerwatch wear map") : map.title.substr(0, 250);
+    std::string title = !title_arg.empty()  ? title_arg
+                        : map.title.empty() ? std::string("linerwatch wear map")
+                                            : map.title.substr(0, 250);
     for (char& ch : title)
       if (ch == '\n' || ch == '\r') ch = ' ';
     out << "# vtk DataFile Version 4.2\n" << title << "\nASCII\nDATASET POLYDATA\n";

@@ -13,7 +13,9 @@ namespace {
 namespace fs = std::filesystem;
 constexpr double kPi = 3.14159265358979323846;
 
-void WriteAtomically(const fs::path& path, const std::string& text) { core::WriteFileAtomically(path, text); }
+void WriteAtomically(const fs::path& path, const std::string& text) {
+  core::WriteFileAtomically(path, text);
+}
 
 // Surface of revolution through `rings` (z, r), `n_theta` segments, as ASCII STL facets.
 void Revolve(std::ostringstream& out, const std::vector<std::pair<double, double>>& rings, int n_theta, double x_offset) {
@@ -73,7 +75,7 @@ Heights HeightsOf(const ChamberSpec& s) {
 
 // Primes above 10000 for LIGGGHTS's random seeds, picked by the spec's seed.
 long Prime(unsigned seed, int k) {
-  static const long kPrimes[] = {15485863, 15485867, 32452843, 32452867, 49979687, 49979693, 67867967, 67867979,
+  static const long kPrimes[] = {15485863, 15485867, 32452843,  32452867,  49979687,  49979693,  67867967,  67867979,
                                  86028121, 86028157, 104395301, 104395303, 122949823, 122949829, 141650939, 141650963};
   return kPrimes[(seed * 5 + static_cast<unsigned>(k)) % 16];
 }
@@ -113,15 +115,17 @@ std::string Script(const ChamberSpec& s, bool resume) {
     << "fix concave all mesh/surface/stress file " << CaseLayout::kConcaveStl << " type 1 wear finnie\n"
     << "fix mantle all mesh/surface file " << CaseLayout::kMantleStl << " type 1 curvature_tolerant yes\n"
     << "fix hopper all mesh/surface file " << CaseLayout::kHopperStl << " type 1\n"
-    << "fix walls all wall/gran model hertz tangential history rolling_friction epsd2 mesh n_meshes 3 meshes concave mantle hopper\n"
+    << "fix walls all wall/gran model hertz tangential history rolling_friction epsd2 mesh n_meshes 3 meshes concave mantle "
+       "hopper\n"
     << "variable vx equal -${ecc}*${omega}*sin(${omega}*step*${dt})\n"
     << "variable vy equal ${ecc}*${omega}*cos(${omega}*step*${dt})\n"
     << "variable vz equal 0\n"
     << "fix gyration all move/mesh mesh mantle linear/variable v_vx v_vy v_vz\n"
-    << "region feed cylinder z 0 0 " << h.box_r - 0.1 - s.max_radius_m() - 0.02 << " " << h.feed_lo << " " << h.feed_hi << " units box\n";
+    << "region feed cylinder z 0 0 " << h.box_r - 0.1 - s.max_radius_m() - 0.02 << " " << h.feed_lo << " " << h.feed_hi
+    << " units box\n";
   for (size_t k = 0; k < s.psd.size(); ++k)
-    o << "fix pts" << k + 1 << " all particletemplate/sphere " << Prime(s.seed, static_cast<int>(k)) << " atom_type 1 density constant "
-      << s.density_kg_m3 << " radius constant " << s.psd[k].radius_m << "\n";
+    o << "fix pts" << k + 1 << " all particletemplate/sphere " << Prime(s.seed, static_cast<int>(k))
+      << " atom_type 1 density constant " << s.density_kg_m3 << " radius constant " << s.psd[k].radius_m << "\n";
   o << "fix pdd all particledistribution/discrete " << Prime(s.seed, 11) << " " << s.psd.size();
   for (size_t k = 0; k < s.psd.size(); ++k) o << " pts" << k + 1 << " " << s.psd[k].mass_fraction;
   o << "\n";
@@ -169,18 +173,21 @@ void WriteCase(const ChamberSpec& s, const fs::path& dir) {
   std::error_code ec;
   fs::create_directories(dir / CaseLayout::kDumpDir, ec);
   fs::create_directories(dir / CaseLayout::kRestartDir, ec);
-  if (!fs::is_directory(dir / CaseLayout::kDumpDir)) throw std::runtime_error("cannot create '" + (dir / CaseLayout::kDumpDir).string() + "'");
+  if (!fs::is_directory(dir / CaseLayout::kDumpDir))
+    throw std::runtime_error("cannot create '" + (dir / CaseLayout::kDumpDir).string() + "'");
   const Heights h = HeightsOf(s);
 
-  WriteAtomically(dir / CaseLayout::kConcaveStl, Stl("concave", {Rings(s.concave, 0.0, s.height_m(), s.mesh_n_z)}, {s.mesh_n_theta}));
+  WriteAtomically(dir / CaseLayout::kConcaveStl,
+                  Stl("concave", {Rings(s.concave, 0.0, s.height_m(), s.mesh_n_z)}, {s.mesh_n_theta}));
   const int mantle_theta = std::max(16, s.mesh_n_theta * 2 / 3);
   const double span = s.mantle.z_max() - s.mantle.z_min();
   const int mantle_bands = std::max(4, static_cast<int>(std::lround(span / 0.25)));
   Profile cap;
   cap.points = {{s.mantle.z_max(), s.mantle.points.back().second}, {h.mantle_apex, 0.06}};
-  WriteAtomically(dir / CaseLayout::kMantleStl,
-                  Stl("mantle", {Rings(s.mantle, s.mantle.z_min(), s.mantle.z_max(), mantle_bands), Rings(cap, cap.z_min(), cap.z_max(), 1)},
-                      {mantle_theta, 16}, s.eccentric_throw_m));  // at phase 0 of the gyration: axis at (+e, 0)
+  WriteAtomically(
+      dir / CaseLayout::kMantleStl,
+      Stl("mantle", {Rings(s.mantle, s.mantle.z_min(), s.mantle.z_max(), mantle_bands), Rings(cap, cap.z_min(), cap.z_max(), 1)},
+          {mantle_theta, 16}, s.eccentric_throw_m));  // at phase 0 of the gyration: axis at (+e, 0)
   const double r_top = s.concave.points.back().second;
   Profile hopper;
   hopper.points = {{s.height_m(), r_top}, {h.hopper_top, r_top}};
@@ -190,10 +197,13 @@ void WriteCase(const ChamberSpec& s, const fs::path& dir) {
   WriteAtomically(dir / CaseLayout::kResume, Script(s, true));
   nlohmann::json cj = {{"name", s.name}, {"chamber", ToJson(s)}};
   const CaseSteps st = StepsOf(s);
-  cj["steps"] = {{"total", st.total}, {"dump_every", st.dump_every}, {"gyration", st.gyration}, {"restart_every", st.restart_every}};
+  cj["steps"] = {
+      {"total", st.total}, {"dump_every", st.dump_every}, {"gyration", st.gyration}, {"restart_every", st.restart_every}};
   cj["derived_speed_rpm"] = 60.0 * st.omega_rad_s / (2 * kPi);
-  cj["derived"] = {{"closed_side_setting_m", s.closed_side_setting_m()}, {"open_side_setting_m", s.open_side_setting_m()},
-                   {"rayleigh_time_s", s.rayleigh_time_s()}, {"concave_faces", 2 * s.mesh_n_theta * s.mesh_n_z}};
+  cj["derived"] = {{"closed_side_setting_m", s.closed_side_setting_m()},
+                   {"open_side_setting_m", s.open_side_setting_m()},
+                   {"rayleigh_time_s", s.rayleigh_time_s()},
+                   {"concave_faces", 2 * s.mesh_n_theta * s.mesh_n_z}};
   WriteAtomically(dir / CaseLayout::kCaseJson, cj.dump(2) + "\n");
 
   std::ostringstream slurm;

@@ -25,8 +25,7 @@ double Number(const nlohmann::json& obj, const std::string& key, double fallback
   return x;
 }
 
-void CheckKeys(const nlohmann::json& obj, const std::set<std::string>& known, const std::string& file,
-               const std::string& path) {
+void CheckKeys(const nlohmann::json& obj, const std::set<std::string>& known, const std::string& file, const std::string& path) {
   for (auto it = obj.begin(); it != obj.end(); ++it)
     if (!known.count(it.key())) Fail(file, path + it.key(), "unknown key (see docs/dem.md)");
 }
@@ -90,10 +89,10 @@ ChamberSpec ChamberFromCrusherJson(const nlohmann::json& crusher, const std::str
     c = crusher.at("chamber");
     if (!c.is_object()) throw std::invalid_argument(file + ": chamber: must be an object (docs/dem.md)");
   }
-  CheckKeys(c,
-            {"concave", "mantle", "css_m", "eccentric_throw_m", "speed_rpm", "feed_rate_tph", "psd", "density_kg_m3",
-             "simulated_s", "timestep_s", "dump_interval_s", "youngs_modulus_pa", "poisson_ratio", "restitution",
-             "friction", "rolling_friction", "finnie_k", "mesh_n_theta", "mesh_n_z", "seed", "windows"},
+  CheckKeys(c, {"concave",       "mantle",        "css_m",       "eccentric_throw_m", "speed_rpm",       "feed_rate_tph",
+                "psd",           "density_kg_m3", "simulated_s", "timestep_s",        "dump_interval_s", "youngs_modulus_pa",
+                "poisson_ratio", "restitution",   "friction",    "rolling_friction",  "finnie_k",        "mesh_n_theta",
+                "mesh_n_z",      "seed",          "windows"},
             file, "");
 
   // Concave: a cone (height, bottom and top radius) or a profile.
@@ -123,7 +122,7 @@ ChamberSpec ChamberFromCrusherJson(const nlohmann::json& crusher, const std::str
     if (mantle.contains("r_bottom_m") && c.contains("css_m"))
       Fail(file, "css_m", "give either css_m or mantle.r_bottom_m, not both");
     const double rb = mantle.contains("r_bottom_m") ? Number(mantle, "r_bottom_m", 0, file, "mantle.", 0.05, 10)
-                                                     : s.concave.RadiusAt(0.0) - css - s.eccentric_throw_m;
+                                                    : s.concave.RadiusAt(0.0) - css - s.eccentric_throw_m;
     const double rt = Number(mantle, "r_top_m", 0.30, file, "mantle.", 0.05, 10);
     const double zt = Number(mantle, "z_top_m", 0.92 * s.height_m(), file, "mantle.", 0.1, 12);
     const double zb = Number(mantle, "z_bottom_m", -0.4, file, "mantle.", -3, -0.05);
@@ -179,11 +178,14 @@ ChamberSpec ChamberFromCrusherJson(const nlohmann::json& crusher, const std::str
   }
   const double css = s.closed_side_setting_m();
   if (css < 2.0 * s.max_radius_m() * 1.1)
-    Fail(file, "psd", "the largest particle (" + std::to_string(2000 * s.max_radius_m()) + " mm) does not pass the closed side setting (" +
-                          std::to_string(1000 * css) + " mm): with no breakage in LIGGGHTS-PUBLIC the chamber would jam; feed the product size range");
+    Fail(file, "psd",
+         "the largest particle (" + std::to_string(2000 * s.max_radius_m()) + " mm) does not pass the closed side setting (" +
+             std::to_string(1000 * css) +
+             " mm): with no breakage in LIGGGHTS-PUBLIC the chamber would jam; feed the product size range");
   if (s.timestep_s > 0.2 * s.rayleigh_time_s())
-    Fail(file, "timestep_s", "is " + std::to_string(s.timestep_s) + " s, above 20 % of the Rayleigh time of the smallest particle (" +
-                                 std::to_string(s.rayleigh_time_s()) + " s)");
+    Fail(file, "timestep_s",
+         "is " + std::to_string(s.timestep_s) + " s, above 20 % of the Rayleigh time of the smallest particle (" +
+             std::to_string(s.rayleigh_time_s()) + " s)");
   if (s.dump_interval_s < s.timestep_s) Fail(file, "dump_interval_s", "is shorter than the time step");
   if (s.simulated_s < 4 * s.dump_interval_s) Fail(file, "simulated_s", "must cover at least 4 dump intervals");
   return s;

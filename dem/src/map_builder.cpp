@@ -164,8 +164,8 @@ nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::
   int k = ChooseWindowCount(span, min_window_s, requested);
   if (k > 0 && static_cast<long>(last - first) < k) k = static_cast<int>(last - first);
   if (k < 2)
-    throw std::runtime_error(case_dir.string() + ": the steady span (" + std::to_string(span) + " s from t = " +
-                             std::to_string(steady.t_start) + " s) holds fewer than " +
+    throw std::runtime_error(case_dir.string() + ": the steady span (" + std::to_string(span) +
+                             " s from t = " + std::to_string(steady.t_start) + " s) holds fewer than " +
                              std::to_string(requested > 0 ? requested : 2) + " windows of " + std::to_string(min_window_s) +
                              " s; raise chamber.simulated_s and run again (it resumes)");
   const auto win = SplitWindows(first, last, k);
@@ -210,10 +210,10 @@ nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::
   char title[256];
   std::snprintf(title, sizeof title, "linerwatch dem %s windows=%d window_s=%.3f steady_from_s=%.3f steady_to_s=%.3f liggghts=%s",
                 spec.name.c_str(), k, span / k, dump_t[first], dump_t[last], LiggghtsVersion(case_dir).c_str());
-  core::WriteWearMapVtk(out_dir / MapFiles::kMap, out,
-                        {{"wear", &total}, {"wear_stderr", &stderr_total}, {"normal_stress_average", &sn_avg},
-                         {"shear_stress_average", &ss_avg}},
-                        title);
+  core::WriteWearMapVtk(
+      out_dir / MapFiles::kMap, out,
+      {{"wear", &total}, {"wear_stderr", &stderr_total}, {"normal_stress_average", &sn_avg}, {"shear_stress_average", &ss_avg}},
+      title);
   std::vector<std::string> names;
   std::vector<std::pair<std::string, const Eigen::VectorXd*>> arrays = {{"wear", &total}};  // loads as a map too
   for (int i = 0; i < k; ++i) names.push_back("wear_w" + std::to_string(i + 1));
@@ -250,9 +250,14 @@ nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::
       }
     if (a && b && b->t > a->t) flow_tph = ((b->m_inserted - b->m_total) - (a->m_inserted - a->m_total)) / (b->t - a->t) * 3.6;
   }
-  summary["steady"] = {{"from_s", dump_t[first]}, {"to_s", dump_t[last]}, {"chamber_mass_t", steady.level / 1000.0},
-                       {"band_t", steady.band / 1000.0}, {"drift", steady.drift}, {"note", steady.reason},
-                       {"mass_flow_tph", flow_tph}, {"hopper_min_t", hopper_min / 1000.0},
+  summary["steady"] = {{"from_s", dump_t[first]},
+                       {"to_s", dump_t[last]},
+                       {"chamber_mass_t", steady.level / 1000.0},
+                       {"band_t", steady.band / 1000.0},
+                       {"drift", steady.drift},
+                       {"note", steady.reason},
+                       {"mass_flow_tph", flow_tph},
+                       {"hopper_min_t", hopper_min / 1000.0},
                        {"choke_fed", hopper_min > 0.05 * steady.level}};
   summary["windows"] = {{"count", k}, {"window_s", span / k}, {"min_window_s", min_window_s}};
   // Rows: area-weighted mean intensity, spread, zero faces, edge outliers, noise.
@@ -285,8 +290,14 @@ nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::
     }
     outliers += row_out;
     means.push_back(mean);
-    jrows.push_back({{"row", row.name}, {"z_min_m", row.z_min_m}, {"z_max_m", row.z_max_m}, {"faces", vals.size()},
-                     {"mean_wear", mean}, {"cv", cv}, {"median_rel_stderr", Median(rel_se)}, {"faces_over_10x_mean", row_out}});
+    jrows.push_back({{"row", row.name},
+                     {"z_min_m", row.z_min_m},
+                     {"z_max_m", row.z_max_m},
+                     {"faces", vals.size()},
+                     {"mean_wear", mean},
+                     {"cv", cv},
+                     {"median_rel_stderr", Median(rel_se)},
+                     {"faces_over_10x_mean", row_out}});
   }
   const double lowest = *std::min_element(means.begin(), means.end());
   for (size_t r = 0; r < jrows.size(); ++r) jrows[r]["ratio"] = lowest > 0 ? means[r] / lowest : 0.0;

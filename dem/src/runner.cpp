@@ -95,7 +95,9 @@ std::vector<long> StepsInFolder(const fs::path& dir, const std::string& prefix, 
   return steps;
 }
 
-void RequestStop() { g_stop = true; }
+void RequestStop() {
+  g_stop = true;
+}
 
 RunResult RunCase(const ChamberSpec& spec, const fs::path& dir, const RunOptions& options, std::ostream& progress) {
   g_stop = false;
@@ -137,8 +139,8 @@ RunResult RunCase(const ChamberSpec& spec, const fs::path& dir, const RunOptions
            << " -np " << options.np << " " << options.liggghts << " (log " << (dir / log).string() << ")\n";
   progress.flush();
 
-  std::vector<std::string> argv = {options.mpirun, "--bind-to", "none", "-np", std::to_string(options.np), options.liggghts,
-                                   "-in", input, "-log", log};
+  std::vector<std::string> argv = {options.mpirun,   "--bind-to", "none", "-np",  std::to_string(options.np),
+                                   options.liggghts, "-in",       input,  "-log", log};
   if (!restart_file.empty()) argv.insert(argv.end(), {"-var", "restartfile", restart_file});
   const auto t0 = std::chrono::steady_clock::now();
   const pid_t pid = fork();

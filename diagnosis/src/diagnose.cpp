@@ -39,8 +39,9 @@ struct Thresholds {
   double min_significance = 2.0;  ///< effect size in standard errors
   double sensor_floor_mm = 0.1;   ///< loop-position tolerance of the ladder
   double scan_floor_mm = 0.2;     ///< scan registration / surface roughness floor
-  double model_floor_rel = 0.02;  ///< relative model error floor: DEM maps carry patchy, correlated error that cell averaging does not remove
-  double u_floor_rel = 0.02;      ///< per-sensor intensity error floor (placement, local geometry)
+  double model_floor_rel =
+      0.02;  ///< relative model error floor: DEM maps carry patchy, correlated error that cell averaging does not remove
+  double u_floor_rel = 0.02;  ///< per-sensor intensity error floor (placement, local geometry)
 };
 
 __attribute__((format(printf, 1, 2))) std::string Fmt(const char* format, ...) {
@@ -72,10 +73,10 @@ struct SensorData {
 struct Obs {
   size_t point = 0;
   double t = 0;
-  double wear = 0;    ///< wear minus material lost before (what the wear model explains)
-  double raw = 0;     ///< wear as the sensor/scan saw it
+  double wear = 0;  ///< wear minus material lost before (what the wear model explains)
+  double raw = 0;   ///< wear as the sensor/scan saw it
   double sigma = 1;
-  int sensor = -1;    ///< usable-sensor index, -1 for scan cells
+  int sensor = -1;  ///< usable-sensor index, -1 for scan cells
   int scan = -1;
   int cell = -1;
   size_t j = 0;
@@ -88,7 +89,7 @@ struct Problem {
   std::vector<Obs> obs;
   std::vector<std::vector<size_t>> sensor_obs;  ///< per usable sensor
   std::vector<size_t> scan_obs;
-  std::vector<double> sigma_u;                  ///< per usable sensor
+  std::vector<double> sigma_u;  ///< per usable sensor
   size_t rows = 1;
 };
 
@@ -135,8 +136,8 @@ struct EvalOptions {
 
 // Whitened residuals over the training observations; per-sensor random intensity error u_s is
 // profiled out analytically (prior N(0, sigma_u^2)).
-void Residuals(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x, const Mask& train,
-               const EvalOptions& opt, Eigen::VectorXd& r, std::vector<double>* u_out, Eigen::MatrixXd& w) {
+void Residuals(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x, const Mask& train, const EvalOptions& opt,
+               Eigen::VectorXd& r, std::vector<double>* u_out, Eigen::MatrixXd& w) {
   detail::Simulate(spec, x, p.points, p.grid, w);
   size_t count = 0;
   for (size_t s = 0; s < p.sensor_obs.size(); ++s) {
@@ -299,8 +300,8 @@ double Significance(const FitResult& f, Effect e, double dispersion) {
   return se > 0 ? std::fabs(f.x[o]) / se : 0;
 }
 
-std::vector<Eigen::VectorXd> Starts(const ModelSpec& spec, const Eigen::VectorXd& k,
-                                    const std::vector<const FitResult*>& seeds, double k_scale) {
+std::vector<Eigen::VectorXd> Starts(const ModelSpec& spec, const Eigen::VectorXd& k, const std::vector<const FitResult*>& seeds,
+                                    double k_scale) {
   Eigen::VectorXd lower, upper, scale, initial;
   spec.Bounds(lower, upper, scale, initial, k_scale);
   initial.head(static_cast<Eigen::Index>(spec.rows)) = k;
@@ -439,11 +440,12 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
                                  {"outlier_faces_capped", m.outlier_faces},
                                  {"windows", bundle.map.windows}};
     if (fields.noise_estimated) {
-      result.notes.push_back(Fmt("map model: per-face noise %.0f %% (%s), smoothed over %.3f m along z (%.3f m around, %s), smoothing error "
-                                 "%.1f %%, %zu outlier faces capped; every intensity (sensors, scan cells, faces) is "
-                                 "the smoothed one with its standard error",
-                                 100.0 * m.face_cv, m.noise_source.c_str(), m.bandwidth_m, m.bandwidth_arc_m, m.bandwidth_method.c_str(),
-                                 100.0 * m.smoothing_error_rel, m.outlier_faces));
+      result.notes.push_back(
+          Fmt("map model: per-face noise %.0f %% (%s), smoothed over %.3f m along z (%.3f m around, %s), smoothing error "
+              "%.1f %%, %zu outlier faces capped; every intensity (sensors, scan cells, faces) is "
+              "the smoothed one with its standard error",
+              100.0 * m.face_cv, m.noise_source.c_str(), m.bandwidth_m, m.bandwidth_arc_m, m.bandwidth_method.c_str(),
+              100.0 * m.smoothing_error_rel, m.outlier_faces));
     }
   }
 
@@ -464,8 +466,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     s.analysis = detail::AnalyseSensor(std::move(raw), s.thickness);
     for (const auto& q : s.analysis.issues)
       result.data_quality.push_back({s.id, q.issue, to_time(q.from_days), to_time(q.to_days), q.detail});
-    if (s.analysis.readings.empty())
-      result.data_quality.push_back({s.id, "no_readings", t0, t0, "the sensor never reported"});
+    if (s.analysis.readings.empty()) result.data_quality.push_back({s.id, "no_readings", t0, t0, "the sensor never reported"});
     s.field = detail::FieldAt(bundle.map, fields, s.z, s.theta);
     s.usable = s.analysis.events.size() >= 2 && s.field.intensity > 1e-6;
     s.sigma_u = std::sqrt(s.field.rel_noise * s.field.rel_noise + th.u_floor_rel * th.u_floor_rel);
@@ -565,9 +566,10 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     }
     if (!throughput_available) {
       for (double& q : prob.grid.throughput) q = 1.0;
-      result.notes.push_back(Fmt("operations.csv shows almost constant throughput (variation %.1f %%): "
-                                 "throughput_variation not identifiable, skipped",
-                                 100.0 * throughput_cv));
+      result.notes.push_back(
+          Fmt("operations.csv shows almost constant throughput (variation %.1f %%): "
+              "throughput_variation not identifiable, skipped",
+              100.0 * throughput_cv));
     }
   } else {
     result.notes.push_back("no operations.csv: throughput_variation skipped");
@@ -597,8 +599,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       o.raw = e.wear_mm;
       o.wear = e.wear_mm - e.offset_mm;
       const double st = rho * e.sigma_t_days;
-      o.sigma = std::sqrt(st * st + th.sensor_floor_mm * th.sensor_floor_mm +
-                          std::pow(th.model_floor_rel * o.wear, 2));
+      o.sigma = std::sqrt(st * st + th.sensor_floor_mm * th.sensor_floor_mm + std::pow(th.model_floor_rel * o.wear, 2));
       o.sensor = s.usable_index;
       prob.sensor_obs.back().push_back(add_obs(o));
     }
@@ -637,8 +638,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   const detail::CellGrid grid = detail::BuildCellGrid(bundle.map, fields, 240);
   std::vector<detail::ScanCells> scans;
   for (const core::Scan& scan : bundle.scans) {
-    detail::ScanCells sc =
-        detail::ProjectScan(bundle.map, fields, grid, scan, days(scan.date), crusher.thickness_new_mm);
+    detail::ScanCells sc = detail::ProjectScan(bundle.map, fields, grid, scan, days(scan.date), crusher.thickness_new_mm);
     result.noise["scan_point_noise_mm:" + scan.file] = Round(sc.point_noise_mm, 3);
     if (sc.points_used < sc.points_total / 2) {
       result.notes.push_back("scan " + scan.file + ": only " + std::to_string(sc.points_used) + " of " +
@@ -927,7 +927,8 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     Eigen::VectorXd lower, upper, scale, initial;
     spec.Bounds(lower, upper, scale, initial, k_scale);
     const std::vector<detail::ParamSpec> ps = detail::EffectParams(*oracle_effect);
-    for (size_t k = 0; k < ps.size(); ++k) initial[static_cast<Eigen::Index>(prob.rows + k)] = options.oracle->parameters.at(ps[k].name);
+    for (size_t k = 0; k < ps.size(); ++k)
+      initial[static_cast<Eigen::Index>(prob.rows + k)] = options.oracle->parameters.at(ps[k].name);
     const auto rows = static_cast<Eigen::Index>(prob.rows);
     Eigen::MatrixXd w;
     auto fn = [&](const Eigen::VectorXd& k, Eigen::VectorXd& r) {
@@ -964,8 +965,8 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
 
   auto evaluate = [&](const ModelSpec& spec, const std::vector<const FitResult*>& seeds) {
     ModelEval ev;
-    ev.full = Fit(prob, spec, all, joint, Starts(spec, null_fit.x.head(static_cast<Eigen::Index>(prob.rows)), seeds, k_scale),
-                  40, k_scale);
+    ev.full = Fit(prob, spec, all, joint, Starts(spec, null_fit.x.head(static_cast<Eigen::Index>(prob.rows)), seeds, k_scale), 40,
+                  k_scale);
     for (const Fold& fold : folds) {
       FitResult ff = Fit(prob, spec, fold.train, joint, {ev.full.x}, 15, k_scale);
       const TestScore sc = Score(prob, ff, fold.test, fold.train, false);
@@ -1024,8 +1025,8 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     ev.ho_rel = null_eval.ho_chi2 > 0 ? ev.ho_gain / null_eval.ho_chi2 : 0;
     ev.significance = std::numeric_limits<double>::max();
     for (Effect e : ev.full.spec.effects) ev.significance = std::min(ev.significance, Significance(ev.full, e, dispersion));
-    ev.accepted = ev.delta_bic > th.min_delta_bic && ev.ho_gain > th.min_holdout_gain &&
-                  ev.ho_rel > th.min_holdout_rel && ev.significance > th.min_significance;
+    ev.accepted = ev.delta_bic > th.min_delta_bic && ev.ho_gain > th.min_holdout_gain && ev.ho_rel > th.min_holdout_rel &&
+                  ev.significance > th.min_significance;
     ev.score = ev.delta_bic + ev.ho_gain;
   };
   for (Effect e : available) {
@@ -1047,8 +1048,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     for (size_t k : order) {
       bool same_effect = false;  // the weaker form of an effect already in the list
       for (size_t t : top)
-        if (std::string(detail::EffectName(evals[t].full.spec.effects[0])) ==
-            detail::EffectName(evals[k].full.spec.effects[0]))
+        if (std::string(detail::EffectName(evals[t].full.spec.effects[0])) == detail::EffectName(evals[k].full.spec.effects[0]))
           same_effect = true;
       if (evals[k].delta_bic > 0 && top.size() < 3 && !same_effect) top.push_back(k);
     }
@@ -1068,11 +1068,10 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     }
   }
   {
-    double best_reduced = null_eval.full.chi2 / std::max(1.0, static_cast<double>(null_eval.full.n_train) -
-                                                                   static_cast<double>(prob.rows));
+    double best_reduced =
+        null_eval.full.chi2 / std::max(1.0, static_cast<double>(null_eval.full.n_train) - static_cast<double>(prob.rows));
     for (const ModelEval& ev : evals) {
-      const double dof_m = std::max(1.0, static_cast<double>(ev.full.n_train) -
-                                             static_cast<double>(ev.full.spec.ParamCount()));
+      const double dof_m = std::max(1.0, static_cast<double>(ev.full.n_train) - static_cast<double>(ev.full.spec.ParamCount()));
       best_reduced = std::min(best_reduced, ev.full.chi2 / dof_m);
     }
     dispersion = std::max(1.0, best_reduced);
@@ -1123,9 +1122,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   const double corr_depth = Correlation(res_null, f_depth);
 
   // --- Findings --------------------------------------------------------------------------------
-  auto param = [&](const FitResult& f, Effect e, size_t k) {
-    return f.x[f.spec.Offset(e) + static_cast<Eigen::Index>(k)];
-  };
+  auto param = [&](const FitResult& f, Effect e, size_t k) { return f.x[f.spec.Offset(e) + static_cast<Eigen::Index>(k)]; };
   auto param_se = [&](const FitResult& f, Effect e, size_t k) {
     return f.stderr_x[f.spec.Offset(e) + static_cast<Eigen::Index>(k)];
   };
@@ -1162,11 +1159,11 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
         out.parameters["onset_depth_mm"] = Round(d0 * half, 1);
         out.parameters["onset_depth_mm_stderr"] = Round(param_se(f, e, 1) * half, 1);
         out.parameters["full_depth_mm"] = Round(std::max(half, d0 * half + 3.0), 1);
-        out.explanation = Fmt(
-            "Wear accelerated once the surface reached about %.0f mm of worn depth, at every sensor alike, so the "
-            "high-wear rows accelerated earlier in time: the wear rate is %.0f %% higher by %.0f mm depth. This is a "
-            "softer casting core (hardness falling with depth), not a change in time.",
-            d0 * half, 100.0 * g, std::max(half, d0 * half + 3.0));
+        out.explanation =
+            Fmt("Wear accelerated once the surface reached about %.0f mm of worn depth, at every sensor alike, so the "
+                "high-wear rows accelerated earlier in time: the wear rate is %.0f %% higher by %.0f mm depth. This is a "
+                "softer casting core (hardness falling with depth), not a change in time.",
+                d0 * half, 100.0 * g, std::max(half, d0 * half + 3.0));
         out.explanation += Fmt(" Baseline residual vs worn depth: correlation %.2f.", corr_depth);
         break;
       }
@@ -1174,11 +1171,11 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
         const double beta = param(f, e, 0);
         out.parameters["beta"] = Round(beta, 3);
         out.parameters["beta_stderr"] = Round(param_se(f, e, 0), 3);
-        out.explanation = Fmt(
-            "Extra wear where normal stress is high, in a fixed ratio from day 0: squeezing/compression wear that "
-            "Finnie's angle law misses. Rate = k (I + %.2f n), n = normal stress in map-intensity units. The "
-            "baseline residual follows normal stress (correlation %.2f), not depth (%.2f).",
-            beta, corr_normal, corr_depth);
+        out.explanation =
+            Fmt("Extra wear where normal stress is high, in a fixed ratio from day 0: squeezing/compression wear that "
+                "Finnie's angle law misses. Rate = k (I + %.2f n), n = normal stress in map-intensity units. The "
+                "baseline residual follows normal stress (correlation %.2f), not depth (%.2f).",
+                beta, corr_normal, corr_depth);
         break;
       }
       case Effect::kProfileEvolution: {
@@ -1187,11 +1184,11 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
         out.parameters["p_per_100_days"] = Round(p, 3);
         out.parameters["p_stderr"] = Round(param_se(f, e, 0), 3);
         out.parameters["top_vs_bottom_change_over_campaign"] = Round(p * span_days / 100.0, 3);
-        out.explanation = Fmt(
-            "The relative wear rates along the concave drifted during the campaign: the rate at the top relative to "
-            "the bottom changed by %+.0f %% over %.0f days, so the wear peak moved %%s as the chamber wore (the "
-            "DEM of the new chamber cannot show this).",
-            100.0 * p * span_days / 100.0, span_days);
+        out.explanation =
+            Fmt("The relative wear rates along the concave drifted during the campaign: the rate at the top relative to "
+                "the bottom changed by %+.0f %% over %.0f days, so the wear peak moved %%s as the chamber wore (the "
+                "DEM of the new chamber cannot show this).",
+                100.0 * p * span_days / 100.0, span_days);
         const size_t pos = out.explanation.find("moved %s");
         if (pos != std::string::npos) out.explanation.replace(pos, 8, p > 0 ? "moved up" : "moved down");
         break;
@@ -1203,12 +1200,12 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
         out.parameters["shift_per_100_days"] = Round(v, 4);
         out.parameters["shift_stderr"] = Round(param_se(f, e, 0), 4);
         out.parameters["shift_over_campaign_m"] = Round(v * height_m * span_days / 100.0, 3);
-        out.explanation = Fmt(
-            "The wear rates along the concave changed during the campaign the way the DEM's own wear profile "
-            "would if it slid %s the liner: by about %.0f mm over %.0f days, with the same total wear. The "
-            "worn chamber's geometry moves the crushing zone (the DEM of the new chamber cannot show this); "
-            "rows change rate at the same time, not at the same worn depth.",
-            v > 0 ? "up" : "down", 1000.0 * std::fabs(v) * height_m * span_days / 100.0, span_days);
+        out.explanation =
+            Fmt("The wear rates along the concave changed during the campaign the way the DEM's own wear profile "
+                "would if it slid %s the liner: by about %.0f mm over %.0f days, with the same total wear. The "
+                "worn chamber's geometry moves the crushing zone (the DEM of the new chamber cannot show this); "
+                "rows change rate at the same time, not at the same worn depth.",
+                v > 0 ? "up" : "down", 1000.0 * std::fabs(v) * height_m * span_days / 100.0, span_days);
         break;
       }
       case Effect::kFeedSegregation: {
@@ -1219,11 +1216,11 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
         out.parameters["amplitude"] = Round(amp, 3);
         out.parameters["amplitude_stderr"] = Round(std::hypot(param_se(f, e, 0), param_se(f, e, 1)) / std::sqrt(2.0), 3);
         out.parameters["theta_f_deg"] = Round(theta_f, 1);
-        out.explanation = Fmt(
-            "Wear varies around the circumference as 1 + %.2f cos(theta - %.0f deg), from day 0 and in a fixed ratio: "
-            "one-sided feed (segregation) puts more coarse rock on the side at %.0f deg. The pattern follows the "
-            "angle, not the segment joints.",
-            amp, theta_f, theta_f);
+        out.explanation =
+            Fmt("Wear varies around the circumference as 1 + %.2f cos(theta - %.0f deg), from day 0 and in a fixed ratio: "
+                "one-sided feed (segregation) puts more coarse rock on the side at %.0f deg. The pattern follows the "
+                "angle, not the segment joints.",
+                amp, theta_f, theta_f);
         break;
       }
       case Effect::kThroughputVariation: {
@@ -1234,10 +1231,10 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
         bool with_ai = false;
         for (const auto& o : bundle.operations)
           if (o.ore_ai) with_ai = true;
-        out.explanation = Fmt(
-            "All wear rates changed together with the tonnage log: %.0f %% of the wear rate follows throughput%%s "
-            "rather than calendar time (throughput varied by %.0f %%).",
-            100.0 * phi, 100.0 * throughput_cv);
+        out.explanation =
+            Fmt("All wear rates changed together with the tonnage log: %.0f %% of the wear rate follows throughput%%s "
+                "rather than calendar time (throughput varied by %.0f %%).",
+                100.0 * phi, 100.0 * throughput_cv);
         const size_t pos = out.explanation.find("throughput%s");
         if (pos != std::string::npos)
           out.explanation.replace(pos, 12, with_ai ? "throughput x abrasiveness (Bond: Ai + 0.22)" : "throughput");
@@ -1312,11 +1309,11 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       f.parameters["depth_mm"] = Round(loss.depth_mm, 1);
       f.parameters["z_m"] = Round(s.z, 3);
       f.parameters["theta_deg"] = Round(s.theta, 1);
-      f.explanation = Fmt(
-          "Sensor lost %.0f mm at once on day %.1f, then kept wearing at its normal rate (%.2f mm/day) from the "
-          "lower level: material broke out of the liner (spall), which a DEM wear law does not model. Not a sensor "
-          "fault: a crack would stay flat until the wear caught up.",
-          loss.depth_mm, loss.t_days, s.analysis.rate_mm_per_day);
+      f.explanation =
+          Fmt("Sensor lost %.0f mm at once on day %.1f, then kept wearing at its normal rate (%.2f mm/day) from the "
+              "lower level: material broke out of the liner (spall), which a DEM wear law does not model. Not a sensor "
+              "fault: a crack would stay flat until the wear caught up.",
+              loss.depth_mm, loss.t_days, s.analysis.rate_mm_per_day);
       f.explanation = "Sensor " + s.id + " " + f.explanation.substr(7);
       f.evidence["step_mm"] = loss.step_mm;
       f.evidence["rate_mm_per_day"] = Round(s.analysis.rate_mm_per_day, 3);
@@ -1331,11 +1328,11 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     Finding f;
     f.effect = kUnexplained;
     f.confidence = Round(std::clamp(1.0 - std::exp(-(result.mismatch_z_score - th.mismatch_z) / 4.0), 0.3, 0.95), 3);
-    f.explanation = Fmt(
-        "The recordings disagree with the DEM-based reconstruction by more than sensor quantisation, map noise and "
-        "scan noise allow (chi-square excess %.1f sigma), but none of the modelled effects explains it on held-out "
-        "data. See the mismatch regions.",
-        result.mismatch_z_score);
+    f.explanation =
+        Fmt("The recordings disagree with the DEM-based reconstruction by more than sensor quantisation, map noise and "
+            "scan noise allow (chi-square excess %.1f sigma), but none of the modelled effects explains it on held-out "
+            "data. See the mismatch regions.",
+            result.mismatch_z_score);
     f.evidence["mismatch_z_score"] = Round(result.mismatch_z_score, 2);
     nlohmann::ordered_json alternatives = nlohmann::ordered_json::object();
     for (const ModelEval& ev : evals) alternatives[ev.full.spec.Name()] = Round(ev.delta_bic, 2);
@@ -1375,7 +1372,8 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
     result.noise["sensor_events"] = ns;
     result.noise["scan_cells"] = nc;
   }
-  result.noise["baseline_chi2_per_observation"] = Round(null_fit.chi2 / std::max<double>(1.0, static_cast<double>(null_fit.n_train)), 3);
+  result.noise["baseline_chi2_per_observation"] =
+      Round(null_fit.chi2 / std::max<double>(1.0, static_cast<double>(null_fit.n_train)), 3);
   result.noise["mismatch_z_score"] = Round(result.mismatch_z_score, 2);
   {
     nlohmann::ordered_json f = nlohmann::ordered_json::array();
@@ -1625,11 +1623,14 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   }
 
   // --- Unwrapped-liner maps and thinnest points for the HTML report (report_maps.cpp) -------------
-  detail::FillLinerReport(bundle, fields, scans, [&](bool improved, double t) {
-    const Eigen::VectorXd w = improved ? detail::SimulateAt(model_fit.spec, model_fit.x, face_points, prob.grid, t)
-                                       : detail::SimulateAt(base_spec, eq9.x, face_points, prob.grid, t);
-    return Eigen::VectorXd(w.cwiseMax(0.0).cwiseMin(crusher.thickness_new_mm));
-  }, result);
+  detail::FillLinerReport(
+      bundle, fields, scans,
+      [&](bool improved, double t) {
+        const Eigen::VectorXd w = improved ? detail::SimulateAt(model_fit.spec, model_fit.x, face_points, prob.grid, t)
+                                           : detail::SimulateAt(base_spec, eq9.x, face_points, prob.grid, t);
+        return Eigen::VectorXd(w.cwiseMax(0.0).cwiseMin(crusher.thickness_new_mm));
+      },
+      result);
 
   std::stable_sort(result.data_quality.begin(), result.data_quality.end(),
                    [](const DataQualityIssue& a, const DataQualityIssue& b) {

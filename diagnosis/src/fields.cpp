@@ -41,8 +41,8 @@ class UnwrappedIndex {
       : map_(map), bucket_(bucket_m), radius_(mean_radius_m) {
     circumference_buckets_ = std::max<long>(1, static_cast<long>(std::ceil(2 * kPi * radius_ / bucket_)));
     for (size_t f = 0; f < map.face_count(); ++f) {
-      buckets_[Key(BucketZ(map.z[static_cast<Eigen::Index>(f)]), BucketT(map.theta_deg[static_cast<Eigen::Index>(f)]))]
-          .push_back(f);
+      buckets_[Key(BucketZ(map.z[static_cast<Eigen::Index>(f)]), BucketT(map.theta_deg[static_cast<Eigen::Index>(f)]))].push_back(
+          f);
     }
   }
   long BucketZ(double z) const { return static_cast<long>(std::floor(z / bucket_)); }
@@ -96,9 +96,12 @@ int CellGrid::CellOf(double z, double theta_deg) const {
   const double span = dt_deg * static_cast<double>(nt);
   if (rel > span) {
     // Just outside the covered range: snap to the nearest edge bin when close.
-    if (rel - span < 0.5 * dt_deg) rel = span - 1e-9;
-    else if (360.0 - rel < 0.5 * dt_deg) rel = 0;
-    else return -1;
+    if (rel - span < 0.5 * dt_deg)
+      rel = span - 1e-9;
+    else if (360.0 - rel < 0.5 * dt_deg)
+      rel = 0;
+    else
+      return -1;
   }
   long iz = static_cast<long>(std::floor(fz));
   long it = static_cast<long>(std::floor(rel / dt_deg));
@@ -126,7 +129,8 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
   f.rel_noise_sd.resize(nf);
   for (Eigen::Index i = 0; i < nf; ++i) {
     const double v = f.model.intensity[i];
-    f.rel_noise_sd[i] = v > 0 && f.model.intensity_noise_sd.size() == nf ? std::min(1.0, f.model.intensity_noise_sd[i] / v) : f.rel_sd[i];
+    f.rel_noise_sd[i] =
+        v > 0 && f.model.intensity_noise_sd.size() == nf ? std::min(1.0, f.model.intensity_noise_sd[i] / v) : f.rel_sd[i];
   }
   if (bundle.map_validation.looks_truncated) f.quantum_raw = 1e-6;  // "%f": six decimals
 
@@ -274,10 +278,11 @@ PointField FieldAt(const core::WearMap& map, const MapFields& fields, double z, 
   if (map.face_count() == 0) return p;
   const core::MapModel::Point at = fields.model.At(z, theta_deg);
   p.intensity = at.intensity / fields.intensity_median;
-  const double rel = fields.noise_estimated ? (at.intensity > 0 ? std::min(1.0, at.sd / at.intensity) : 1.0)
-                                            : kUnestimatedFaceNoise;
+  const double rel =
+      fields.noise_estimated ? (at.intensity > 0 ? std::min(1.0, at.sd / at.intensity) : 1.0) : kUnestimatedFaceNoise;
   p.rel_noise = std::hypot(rel, QuantisationRel(fields, p.intensity));
-  const double rel_s = fields.noise_estimated ? (at.intensity > 0 ? std::min(1.0, at.noise_sd / at.intensity) : 1.0) : kUnestimatedFaceNoise;
+  const double rel_s =
+      fields.noise_estimated ? (at.intensity > 0 ? std::min(1.0, at.noise_sd / at.intensity) : 1.0) : kUnestimatedFaceNoise;
   p.rel_sampling = std::hypot(rel_s, QuantisationRel(fields, p.intensity));
   if (fields.has_normal) {
     p.normal_tilde = std::min(1.5, std::max(0.0, at.normal_stress) / fields.normal_robust_max);
@@ -409,8 +414,7 @@ ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const C
   for (auto& pf : s.fields) pf.normal_tilde = 0;
   for (size_t f = 0; f < nf; ++f) {
     if (per_face[f].empty()) continue;
-    const double mean = std::accumulate(per_face[f].begin(), per_face[f].end(), 0.0) /
-                        static_cast<double>(per_face[f].size());
+    const double mean = std::accumulate(per_face[f].begin(), per_face[f].end(), 0.0) / static_cast<double>(per_face[f].size());
     const double med = Median(per_face[f]);
     // Robust face value: median when enough points, else the mean.
     const double value = per_face[f].size() >= 5 ? med : mean;

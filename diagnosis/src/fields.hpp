@@ -16,13 +16,13 @@ struct MapFields {
   /// The map model (core/map_model.hpp) every intensity here comes from: smoothed at the
   /// data-chosen scale, with a standard error per face.
   core::MapModel model;
-  Eigen::VectorXd intensity;     ///< per face, model intensity / median (median face = 1)
-  Eigen::VectorXd rel_sd;        ///< per face, relative standard error of `intensity` (map noise + smoothing error)
-  Eigen::VectorXd rel_noise_sd;  ///< per face, its sampling-noise part only (the kernel-averaged face noise)
-  double normal_robust_max = 1;  ///< normal stress that maps to normal_tilde = 1
+  Eigen::VectorXd intensity;       ///< per face, model intensity / median (median face = 1)
+  Eigen::VectorXd rel_sd;          ///< per face, relative standard error of `intensity` (map noise + smoothing error)
+  Eigen::VectorXd rel_noise_sd;    ///< per face, its sampling-noise part only (the kernel-averaged face noise)
+  double normal_robust_max = 1;    ///< normal stress that maps to normal_tilde = 1
   double normal_to_intensity = 0;  ///< normal_i = normal stress x this
-  Eigen::VectorXd normal_tilde;  ///< per face, normal stress / robust max, clipped to [0, 1.5]; 1 when absent
-  Eigen::VectorXd normal_i;      ///< per face, normal stress in intensity units (same area-weighted mean)
+  Eigen::VectorXd normal_tilde;    ///< per face, normal stress / robust max, clipped to [0, 1.5]; 1 when absent
+  Eigen::VectorXd normal_i;        ///< per face, normal stress in intensity units (same area-weighted mean)
   bool has_normal = false;
   double intensity_median = 1;   ///< raw intensity that maps to 1
   double face_rel_noise = 0;     ///< relative noise of one raw face (the model's noise law), for notes
@@ -30,8 +30,8 @@ struct MapFields {
   double face_size_m = 0.05;     ///< typical face edge
   double z_bottom = 0;           ///< concave extent along z (rows)
   double z_top = 1;
-  double theta_lo_deg = 0;       ///< start of the covered angular range
-  double theta_span_deg = 360;   ///< covered angular range
+  double theta_lo_deg = 0;      ///< start of the covered angular range
+  double theta_span_deg = 360;  ///< covered angular range
   double mean_radius_m = 1;
   /// The map's circumferential-mean intensity profile along z: relative rate change per concave
   /// height of upward translation, -(d ln I_mean / d zeta) minus its intensity-weighted liner mean
@@ -53,7 +53,7 @@ double ProfileShiftRel(const MapFields& fields, double z);
 struct PointField {
   double z = 0;
   double theta_deg = 0;
-  double intensity = 0;     ///< normalised
+  double intensity = 0;  ///< normalised
   double normal_tilde = 1;
   double normal_i = 0;
   double rel_noise = 0;     ///< relative noise of `intensity` from the map's per-face noise
@@ -69,8 +69,8 @@ struct CellGrid {
   double dz = 1;
   double t0_deg = 0;
   double dt_deg = 360;
-  std::vector<int> face_cell;       ///< per face: cell index or -1
-  std::vector<PointField> cells;    ///< nz * nt (cells with faces == 0 are empty)
+  std::vector<int> face_cell;     ///< per face: cell index or -1
+  std::vector<PointField> cells;  ///< nz * nt (cells with faces == 0 are empty)
   int CellOf(double z, double theta_deg) const;
 };
 
@@ -78,12 +78,12 @@ struct CellGrid {
 struct ScanCells {
   double t_days = 0;
   std::string file;
-  std::vector<double> wear_mm;      ///< per cell (NaN where no points)
-  std::vector<double> sigma_mm;     ///< standard error of the cell mean
-  std::vector<size_t> points;       ///< per cell
-  std::vector<double> face_wear_mm; ///< per face (NaN where no points), for crater checks
-  std::vector<PointField> fields;   ///< per cell, over the faces the scan covered
-  double point_noise_mm = 0;        ///< estimated scan noise per point
+  std::vector<double> wear_mm;       ///< per cell (NaN where no points)
+  std::vector<double> sigma_mm;      ///< standard error of the cell mean
+  std::vector<size_t> points;        ///< per cell
+  std::vector<double> face_wear_mm;  ///< per face (NaN where no points), for crater checks
+  std::vector<PointField> fields;    ///< per cell, over the faces the scan covered
+  double point_noise_mm = 0;         ///< estimated scan noise per point
   size_t points_used = 0;
   size_t points_total = 0;
 };

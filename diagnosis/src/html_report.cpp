@@ -22,12 +22,23 @@ std::string Esc(const std::string& s) {
   out.reserve(s.size());
   for (char c : s) {
     switch (c) {
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '&': out += "&amp;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&#39;"; break;
-      default: out += c;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '&':
+        out += "&amp;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&#39;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -48,7 +59,9 @@ std::string Sig(double v) {
   return Num(v, a >= 100 ? 0 : a >= 10 ? 1 : a >= 1 ? 2 : a >= 0.1 ? 3 : 4);
 }
 
-std::string Date(core::TimePoint t) { return core::FormatIsoTime(t).substr(0, 10); }
+std::string Date(core::TimePoint t) {
+  return core::FormatIsoTime(t).substr(0, 10);
+}
 
 std::string Hex(double r, double g, double b) {
   char buf[16];
@@ -107,8 +120,7 @@ constexpr ParamInfo kParams[] = {
     {"h", "h (hardening)", "fraction",
      "Wear-rate reduction where normal stress (impact) is at its robust maximum, once hardening has saturated: "
      "0.3 = 30 % slower."},
-    {"tau_days", "&tau; (hardening time constant)", "days",
-     "The reduction builds up as 1 - exp(-t / &tau;) from installation."},
+    {"tau_days", "&tau; (hardening time constant)", "days", "The reduction builds up as 1 - exp(-t / &tau;) from installation."},
     {"saturation_days", "saturation time", "days", "3 &tau;: about 95 % of the hardening is reached by then."},
     {"weighted_by", "weighted by", "", "The map field that says where hardening acts."},
     {"g", "g (softer core)", "fraction", "Wear-rate increase once the surface has worn to mid-thickness: 0.3 = 30 % faster."},
@@ -167,8 +179,7 @@ std::string ParameterTable(const nlohmann::ordered_json& params) {
        "<th>meaning</th></tr>";
   for (auto it = params.begin(); it != params.end(); ++it) {
     const std::string& key = it.key();
-    if (key.size() > 7 && key.compare(key.size() - 7, 7, "_stderr") == 0 && !StderrOwner(params, key).empty())
-      continue;
+    if (key.size() > 7 && key.compare(key.size() - 7, 7, "_stderr") == 0 && !StderrOwner(params, key).empty()) continue;
     std::string se = "-";
     for (auto jt = params.begin(); jt != params.end(); ++jt) {
       const std::string& k2 = jt.key();
@@ -179,8 +190,8 @@ std::string ParameterTable(const nlohmann::ordered_json& params) {
     const ParamInfo* info = FindParam(key);
     const bool same = info && key == info->name;
     s << "<tr><td>" << (info ? info->name : "") << (same ? "" : " <code>" + Esc(key) + "</code>") << "</td><td class='num'>"
-      << JsonValue(it.value()) << "</td><td>" << (info ? info->unit : "") << "</td><td class='num'>" << se
-      << "</td><td>" << (info ? info->meaning : "") << "</td></tr>";
+      << JsonValue(it.value()) << "</td><td>" << (info ? info->unit : "") << "</td><td class='num'>" << se << "</td><td>"
+      << (info ? info->meaning : "") << "</td></tr>";
   }
   s << "</table>";
   return s.str();
@@ -243,7 +254,7 @@ std::string ModelWords(const std::string& model) {
 
 struct MapFrame {
   double theta_lo = 0, theta_hi = 360, z_lo = 0, z_hi = 1;
-  double w = 500, h = 240;                 // plot area, px
+  double w = 500, h = 240;                    // plot area, px
   double ml = 46, mr = 10, mt = 22, mb = 34;  // margins
   double X(double theta) const { return ml + w * (theta - theta_lo) / (theta_hi - theta_lo); }
   double Y(double z) const { return mt + h * (z_hi - z) / (z_hi - z_lo); }
@@ -287,9 +298,9 @@ std::string LinerMap(int& ids, const LinerReport& L, const MapFrame& f, const st
                      const ThinnestPoint* thinnest) {
   std::ostringstream s;
   const int clip = ++ids;
-  s << "<svg xmlns='http://www.w3.org/2000/svg' class='map' width='" << Num(f.Width(), 0) << "' height='"
-    << Num(f.Height(), 0) << "'><defs><clipPath id='clip" << clip << "'><rect x='" << f.ml << "' y='" << f.mt
-    << "' width='" << f.w << "' height='" << f.h << "'/></clipPath></defs>";
+  s << "<svg xmlns='http://www.w3.org/2000/svg' class='map' width='" << Num(f.Width(), 0) << "' height='" << Num(f.Height(), 0)
+    << "'><defs><clipPath id='clip" << clip << "'><rect x='" << f.ml << "' y='" << f.mt << "' width='" << f.w << "' height='"
+    << f.h << "'/></clipPath></defs>";
   s << "<text x='" << f.ml << "' y='14' font-size='12' font-weight='bold'>" << Esc(title) << "</text>";
   s << "<rect x='" << f.ml << "' y='" << f.mt << "' width='" << f.w << "' height='" << f.h << "' fill='#e0e0e0'/>";
   s << "<g clip-path='url(#clip" << clip << ")' stroke-width='0.6' stroke-linejoin='round'>";
@@ -305,8 +316,10 @@ std::string LinerMap(int& ids, const LinerReport& L, const MapFrame& f, const st
       for (int k = 0; k < t.corners; ++k)
         s << Num(f.X(t.theta_deg[k] + shift), 1) << ',' << Num(f.Y(t.z_m[k]), 1) << (k + 1 < t.corners ? " " : "");
       s << "' fill='" << c << "' stroke='" << c << "'";
-      if (std::isfinite(v)) s << "><title>" << Num(v, 2) << ' ' << unit << "</title></polygon>";
-      else s << "/>";
+      if (std::isfinite(v))
+        s << "><title>" << Num(v, 2) << ' ' << unit << "</title></polygon>";
+      else
+        s << "/>";
     }
   }
   s << "</g>";
@@ -314,17 +327,17 @@ std::string LinerMap(int& ids, const LinerReport& L, const MapFrame& f, const st
   s << "<g font-size='10' fill='#333'>";
   const double step = (f.theta_hi - f.theta_lo) > 120 ? 45 : 10;
   for (double th = std::ceil(f.theta_lo / step) * step; th <= f.theta_hi + 1e-9; th += step) {
-    s << "<line x1='" << Num(f.X(th), 1) << "' x2='" << Num(f.X(th), 1) << "' y1='" << f.mt + f.h << "' y2='"
-      << f.mt + f.h + 4 << "' stroke='#333'/><text x='" << Num(f.X(th), 1) << "' y='" << f.mt + f.h + 15
-      << "' text-anchor='middle'>" << Num(th, 0) << "</text>";
+    s << "<line x1='" << Num(f.X(th), 1) << "' x2='" << Num(f.X(th), 1) << "' y1='" << f.mt + f.h << "' y2='" << f.mt + f.h + 4
+      << "' stroke='#333'/><text x='" << Num(f.X(th), 1) << "' y='" << f.mt + f.h + 15 << "' text-anchor='middle'>" << Num(th, 0)
+      << "</text>";
   }
   s << "<text x='" << Num(f.ml + f.w / 2, 0) << "' y='" << Num(f.Height() - 3, 0)
     << "' text-anchor='middle'>&theta; around the liner (deg)</text>";
   for (int k = 0; k <= 4; ++k) {
     const double z = f.z_lo + (f.z_hi - f.z_lo) * k / 4.0;
     s << "<line x1='" << f.ml - 4 << "' x2='" << f.ml << "' y1='" << Num(f.Y(z), 1) << "' y2='" << Num(f.Y(z), 1)
-      << "' stroke='#333'/><text x='" << f.ml - 6 << "' y='" << Num(f.Y(z) + 3, 1) << "' text-anchor='end'>"
-      << Num(z, 2) << "</text>";
+      << "' stroke='#333'/><text x='" << f.ml - 6 << "' y='" << Num(f.Y(z) + 3, 1) << "' text-anchor='end'>" << Num(z, 2)
+      << "</text>";
   }
   s << "<text x='10' y='" << Num(f.mt + f.h / 2, 0) << "' transform='rotate(-90 10 " << Num(f.mt + f.h / 2, 0)
     << ")' text-anchor='middle'>z (m)</text></g>";
@@ -335,35 +348,37 @@ std::string LinerMap(int& ids, const LinerReport& L, const MapFrame& f, const st
       const double th = r->theta_min_deg <= r->theta_max_deg ? 0.5 * (r->theta_min_deg + r->theta_max_deg)
                                                              : std::fmod(0.5 * (r->theta_min_deg + r->theta_max_deg + 360), 360);
       s << "<circle cx='" << Num(f.X(th), 1) << "' cy='" << Num(f.Y(0.5 * (r->z_min_m + r->z_max_m)), 1)
-        << "' r='10' fill='none' stroke='#000' stroke-width='1.5' stroke-dasharray='4,2'><title>mismatch ("
-        << Esc(r->sign) << ", " << Num(r->size_mm) << " mm) " << Esc(r->source) << "</title></circle>";
+        << "' r='10' fill='none' stroke='#000' stroke-width='1.5' stroke-dasharray='4,2'><title>mismatch (" << Esc(r->sign)
+        << ", " << Num(r->size_mm) << " mm) " << Esc(r->source) << "</title></circle>";
       continue;
     }
     std::vector<std::pair<double, double>> spans;
-    if (r->theta_min_deg <= r->theta_max_deg) spans.push_back({r->theta_min_deg, r->theta_max_deg});
-    else spans = {{r->theta_min_deg, 360.0}, {0.0, r->theta_max_deg}};
+    if (r->theta_min_deg <= r->theta_max_deg)
+      spans.push_back({r->theta_min_deg, r->theta_max_deg});
+    else
+      spans = {{r->theta_min_deg, 360.0}, {0.0, r->theta_max_deg}};
     for (const auto& [a, b] : spans) {
-      s << "<rect x='" << Num(f.X(a), 1) << "' y='" << Num(f.Y(r->z_max_m), 1) << "' width='"
-        << Num(f.X(b) - f.X(a), 1) << "' height='" << Num(f.Y(r->z_min_m) - f.Y(r->z_max_m), 1)
-        << "' fill='none' stroke='#000' stroke-width='1.8' stroke-dasharray='6,3'><title>mismatch region ("
-        << Esc(r->sign) << ", " << Num(r->size_mm) << " mm) " << Esc(r->source) << "</title></rect>";
+      s << "<rect x='" << Num(f.X(a), 1) << "' y='" << Num(f.Y(r->z_max_m), 1) << "' width='" << Num(f.X(b) - f.X(a), 1)
+        << "' height='" << Num(f.Y(r->z_min_m) - f.Y(r->z_max_m), 1)
+        << "' fill='none' stroke='#000' stroke-width='1.8' stroke-dasharray='6,3'><title>mismatch region (" << Esc(r->sign)
+        << ", " << Num(r->size_mm) << " mm) " << Esc(r->source) << "</title></rect>";
     }
   }
   for (const Marker& m : markers) {
     const double x = f.X(m.theta), y = f.Y(m.z);
     s << "<circle cx='" << Num(x, 1) << "' cy='" << Num(y, 1) << "' r='4.5' fill='" << m.fill
       << "' stroke='#000' stroke-width='1.2'><title>" << Esc(m.id) << (m.title.empty() ? "" : ": ") << Esc(m.title)
-      << "</title></circle><text x='" << Num(x + 6, 1) << "' y='" << Num(y - 5, 1)
-      << "' font-size='10' class='halo'>" << Esc(m.id) << (m.value.empty() ? "" : ": ") << Esc(m.value) << "</text>";
+      << "</title></circle><text x='" << Num(x + 6, 1) << "' y='" << Num(y - 5, 1) << "' font-size='10' class='halo'>"
+      << Esc(m.id) << (m.value.empty() ? "" : ": ") << Esc(m.value) << "</text>";
   }
   if (thinnest) {
     const double x = f.X(thinnest->theta_deg), y = f.Y(thinnest->z_m);
     s << "<g stroke='#000' stroke-width='2.5'><line x1='" << Num(x - 7, 1) << "' y1='" << Num(y - 7, 1) << "' x2='"
-      << Num(x + 7, 1) << "' y2='" << Num(y + 7, 1) << "'/><line x1='" << Num(x - 7, 1) << "' y1='" << Num(y + 7, 1)
-      << "' x2='" << Num(x + 7, 1) << "' y2='" << Num(y - 7, 1) << "'/></g>";
+      << Num(x + 7, 1) << "' y2='" << Num(y + 7, 1) << "'/><line x1='" << Num(x - 7, 1) << "' y1='" << Num(y + 7, 1) << "' x2='"
+      << Num(x + 7, 1) << "' y2='" << Num(y - 7, 1) << "'/></g>";
     const bool left = x > f.ml + 0.7 * f.w, below = y < f.mt + 0.5 * f.h;
-    s << "<text x='" << Num(left ? x - 9 : x + 9, 1) << "' y='" << Num(below ? y + 18 : y - 10, 1)
-      << "' text-anchor='" << (left ? "end" : "start") << "' font-size='11' font-weight='bold' class='halo'>thinnest "
+    s << "<text x='" << Num(left ? x - 9 : x + 9, 1) << "' y='" << Num(below ? y + 18 : y - 10, 1) << "' text-anchor='"
+      << (left ? "end" : "start") << "' font-size='11' font-weight='bold' class='halo'>thinnest "
       << Num(thinnest->thickness_mm, 1) << " mm</text>";
   }
   s << "</svg>";
@@ -378,8 +393,8 @@ std::string Legend(const std::function<std::string(double)>& colour, double lo, 
   const int n = 60;
   for (int k = 0; k < n; ++k) {
     const double v = lo + (hi - lo) * (k + 0.5) / n;
-    s << "<rect x='" << Num(x0 + w * k / n, 2) << "' y='4' width='" << Num(w / n + 0.6, 2) << "' height='12' fill='"
-      << colour(v) << "'/>";
+    s << "<rect x='" << Num(x0 + w * k / n, 2) << "' y='4' width='" << Num(w / n + 0.6, 2) << "' height='12' fill='" << colour(v)
+      << "'/>";
   }
   s << "<rect x='" << x0 << "' y='4' width='" << w << "' height='12' fill='none' stroke='#666'/>";
   const double range = hi - lo;
@@ -474,17 +489,20 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
          "<b>measured minus predicted wear</b> in mm: <span class='red'>red</span> = the liner wore <b>more</b> than "
          "the model says (thinner than predicted), <span class='blue'>blue</span> = less. Left: the baseline "
          "(plain Eq. 9, before the diagnosis); right: the model with the findings. Same colour scale; values beyond "
-         "&plusmn;" << Sig(scale) << " mm are drawn at the end colour. Grey: no scan points on the face. Circles: "
+         "&plusmn;"
+      << Sig(scale)
+      << " mm are drawn at the end colour. Grey: no scan points on the face. Circles: "
          "sensors (filled with their own residual at their latest reading up to the scan). Dashed outlines: the "
          "located mismatch regions. Hover a face for its value.</p>";
   } else {
-    h << "<h3>No scan: sensor residuals on the predicted wear (" << Date(snap.time) << ", day " << Num(day, 0)
-      << ")</h3>";
+    h << "<h3>No scan: sensor residuals on the predicted wear (" << Date(snap.time) << ", day " << Num(day, 0) << ")</h3>";
     h << "<p class='caption'>This campaign has no laser scan, so residuals are known <b>only at the sensors</b>. "
          "Background: the wear each model predicts at the latest reading (mm, pale = little, dark = much). Circles: "
          "the sensors, labelled and filled with <b>measured minus predicted wear</b> (mm) at their latest reading (<span "
          "class='red'>red</span> = wore more than predicted, <span class='blue'>blue</span> = less; same scale, "
-         "&plusmn;" << Sig(scale) << " mm). Left: baseline (plain Eq. 9); right: the model with the findings. "
+         "&plusmn;"
+      << Sig(scale)
+      << " mm). Left: baseline (plain Eq. 9); right: the model with the findings. "
          "Dashed circles: sensors whose readings ran away from the baseline (mismatch regions).</p>";
   }
   h << "<div class='maps pair'>";
@@ -499,12 +517,10 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
       if (std::isfinite(v)) wmax = std::max(wmax, v);
     wmax = NiceCeil(wmax);
     auto seq = [wmax](double v) { return Sequential(v / wmax); };
-    h << LinerMap(ids, L, frame, snap.baseline_mm, seq, "BEFORE: baseline (plain Eq. 9), predicted wear", "mm wear", mb,
-                  regions, nullptr);
-    h << LinerMap(ids, L, frame, snap.improved_mm, seq, "AFTER: improved model, predicted wear", "mm wear", ma, regions,
+    h << LinerMap(ids, L, frame, snap.baseline_mm, seq, "BEFORE: baseline (plain Eq. 9), predicted wear", "mm wear", mb, regions,
                   nullptr);
-    h << "</div><div class='maps'>"
-      << Legend(seq, 0, wmax, "background: predicted wear (mm)");
+    h << LinerMap(ids, L, frame, snap.improved_mm, seq, "AFTER: improved model, predicted wear", "mm wear", ma, regions, nullptr);
+    h << "</div><div class='maps'>" << Legend(seq, 0, wmax, "background: predicted wear (mm)");
   }
   if (scan) h << "</div><div class='maps'>";
   h << Legend(div, -scale, scale,
@@ -541,8 +557,8 @@ std::string ThinnestSection(int& ids, const DiagnosisResult& r, const MapFrame& 
        "<th>&theta; (deg)</th><th>z (m)</th><th>row</th><th>status</th></tr>";
   for (const ThinnestPoint& p : L.thinnest) {
     const bool band = std::isfinite(p.lo_mm) && std::isfinite(p.hi_mm);
-    h << "<tr><td>" << Esc(p.label) << "</td><td>" << Date(p.time) << "</td><td class='num'><b>"
-      << Num(p.thickness_mm, 1) << "</b></td><td class='num'>"
+    h << "<tr><td>" << Esc(p.label) << "</td><td>" << Date(p.time) << "</td><td class='num'><b>" << Num(p.thickness_mm, 1)
+      << "</b></td><td class='num'>"
       << (band ? Num(p.lo_mm, 1) + " .. " + Num(p.hi_mm, 1) + " (" + Num(p.thickness_mm, 1) + " &plusmn; " +
                      Num(0.5 * (p.hi_mm - p.lo_mm), 1) + ")"
                : std::string("not computed for a model prediction"))
@@ -559,13 +575,12 @@ std::string ThinnestSection(int& ids, const DiagnosisResult& r, const MapFrame& 
        "allowed thickness: "
     << Num(L.thickness_min_mm, 1) << " mm (as new " << Num(L.thickness_new_mm, 1) << " mm).</p>";
   if (!L.reline.empty()) {
-    h << "<h3>Reline by (core forecast, per row)</h3><table><tr><th>row</th><th>reaches "
-      << Num(L.thickness_min_mm, 1) << " mm</th><th>earliest</th><th>latest</th><th>note</th></tr>";
+    h << "<h3>Reline by (core forecast, per row)</h3><table><tr><th>row</th><th>reaches " << Num(L.thickness_min_mm, 1)
+      << " mm</th><th>earliest</th><th>latest</th><th>note</th></tr>";
     for (const RelineDate& d : L.reline) {
       auto date = [](const std::optional<core::TimePoint>& t) { return t ? Date(*t) : std::string("-"); };
-      h << "<tr><td>" << Esc(d.row) << "</td><td><b>" << date(d.reach) << "</b></td><td>" << date(d.earliest)
-        << "</td><td>" << date(d.latest) << "</td><td>" << Esc(d.ok ? d.note : (d.note.empty() ? "no forecast" : d.note))
-        << "</td></tr>";
+      h << "<tr><td>" << Esc(d.row) << "</td><td><b>" << date(d.reach) << "</b></td><td>" << date(d.earliest) << "</td><td>"
+        << date(d.latest) << "</td><td>" << Esc(d.ok ? d.note : (d.note.empty() ? "no forecast" : d.note)) << "</td></tr>";
     }
     h << "</table><p class='caption'>The row's thinnest face carried along its sensors' fitted wear curves (the "
          "same forecast as the dashboard, plain Eq. 9: it does not use the findings). Earliest/latest: the band "
@@ -636,8 +651,7 @@ std::string SensorPlot(const SensorCurve& c) {
       << (c.reading_used[i] ? "#333" : "#e33") << "'/>";
   }
   auto line = [&](const std::vector<double>& ys, const char* colour, const char* dash) {
-    s << "<polyline fill='none' stroke='" << colour << "' stroke-width='1.5' stroke-dasharray='" << dash
-      << "' points='";
+    s << "<polyline fill='none' stroke='" << colour << "' stroke-width='1.5' stroke-dasharray='" << dash << "' points='";
     for (size_t i = 0; i < c.model_days.size() && i < ys.size(); ++i)
       s << Num(X(c.model_days[i]), 1) << "," << Num(Y(ys[i]), 1) << " ";
     s << "'/>";
@@ -656,21 +670,19 @@ std::string GridPlot(const ResidualGrid& g, const std::vector<double>& v, const 
   const double w = ml + cw * static_cast<double>(g.ntheta) + 10, h = mt + ch * static_cast<double>(g.nz) + 30;
   std::ostringstream s;
   s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << w << "' height='" << h << "'>";
-  s << "<text x='" << ml << "' y='12' font-size='11'>" << Esc(title) << " (scale &plusmn;" << Num(scale, 1)
-    << " mm)</text>";
+  s << "<text x='" << ml << "' y='12' font-size='11'>" << Esc(title) << " (scale &plusmn;" << Num(scale, 1) << " mm)</text>";
   for (size_t iz = 0; iz < g.nz; ++iz) {
     for (size_t it = 0; it < g.ntheta; ++it) {
       const double x = v[iz * g.ntheta + it];
       if (!std::isfinite(x)) continue;
       const std::string colour = diverging ? Diverging(x / scale) : Sequential(x / scale);
       s << "<rect x='" << Num(ml + cw * static_cast<double>(it), 1) << "' y='"
-        << Num(mt + ch * static_cast<double>(g.nz - 1 - iz), 1) << "' width='" << Num(cw, 1) << "' height='"
-        << Num(ch, 1) << "' fill='" << colour << "'><title>" << Num(x, 2) << " mm</title></rect>";
+        << Num(mt + ch * static_cast<double>(g.nz - 1 - iz), 1) << "' width='" << Num(cw, 1) << "' height='" << Num(ch, 1)
+        << "' fill='" << colour << "'><title>" << Num(x, 2) << " mm</title></rect>";
     }
   }
   s << "<text x='2' y='" << mt + 8 << "' font-size='9'>z " << Num(g.z_max_m, 2) << "</text>";
-  s << "<text x='2' y='" << mt + ch * static_cast<double>(g.nz) << "' font-size='9'>z " << Num(g.z_min_m, 2)
-    << "</text>";
+  s << "<text x='2' y='" << mt + ch * static_cast<double>(g.nz) << "' font-size='9'>z " << Num(g.z_min_m, 2) << "</text>";
   s << "<text x='" << ml << "' y='" << h - 6 << "' font-size='9'>&theta; " << Num(g.theta_min_deg, 0) << " .. "
     << Num(g.theta_max_deg, 0) << " deg</text>";
   s << "</svg>";
@@ -697,12 +709,14 @@ std::string Verdict(const DiagnosisResult& r) {
 
 std::string EvidenceTable(const nlohmann::ordered_json& e) {
   if (!e.is_object() || e.empty()) return "";
-  auto num = [&](const char* k, int d) { return e.contains(k) && e[k].is_number() ? Num(e[k].get<double>(), d) : std::string("-"); };
+  auto num = [&](const char* k, int d) {
+    return e.contains(k) && e[k].is_number() ? Num(e[k].get<double>(), d) : std::string("-");
+  };
   std::ostringstream s;
   s << "<table class='evidence'>";
   if (e.contains("delta_bic"))
-    s << "<tr><td>information gain over the baseline (&Delta;BIC, > 10 needed)</td><td class='num'>"
-      << num("delta_bic", 1) << "</td></tr>";
+    s << "<tr><td>information gain over the baseline (&Delta;BIC, > 10 needed)</td><td class='num'>" << num("delta_bic", 1)
+      << "</td></tr>";
   if (e.contains("chi2_model"))
     s << "<tr><td>&chi;&sup2; baseline &rarr; model (" << num("observations", 0) << " observations)</td><td class='num'>"
       << num("chi2_baseline", 1) << " &rarr; " << num("chi2_model", 1) << "</td></tr>";
@@ -710,8 +724,8 @@ std::string EvidenceTable(const nlohmann::ordered_json& e) {
     s << "<tr><td>held-out &chi;&sup2; baseline &rarr; model (data the fit did not see)</td><td class='num'>"
       << num("holdout_chi2_baseline", 1) << " &rarr; " << num("holdout_chi2_model", 1) << "</td></tr>";
   if (e.contains("holdout_improvement"))
-    s << "<tr><td>held-out improvement (> 3 % needed)</td><td class='num'>"
-      << Num(100.0 * e.value("holdout_improvement", 0.0), 1) << " %</td></tr>";
+    s << "<tr><td>held-out improvement (> 3 % needed)</td><td class='num'>" << Num(100.0 * e.value("holdout_improvement", 0.0), 1)
+      << " %</td></tr>";
   if (e.contains("residual_corr_normal_stress"))
     s << "<tr><td>baseline residual vs normal stress / vs worn depth (correlation)</td><td class='num'>"
       << num("residual_corr_normal_stress", 2) << " / " << num("residual_corr_depth", 2) << "</td></tr>";
@@ -719,8 +733,8 @@ std::string EvidenceTable(const nlohmann::ordered_json& e) {
     s << "<tr><td>mismatch beyond the noise (chi-square excess, sigma)</td><td class='num'>" << num("mismatch_z_score", 1)
       << "</td></tr>";
   if (e.contains("step_mm"))
-    s << "<tr><td>step seen by the sensor (mm) / its normal rate (mm/day)</td><td class='num'>" << num("step_mm", 1)
-      << " / " << num("rate_mm_per_day", 3) << "</td></tr>";
+    s << "<tr><td>step seen by the sensor (mm) / its normal rate (mm/day)</td><td class='num'>" << num("step_mm", 1) << " / "
+      << num("rate_mm_per_day", 3) << "</td></tr>";
   s << "</table>";
   return s.str();
 }
@@ -735,7 +749,8 @@ std::string RenderHtml(const DiagnosisResult& r) {
        "collapse;margin:8px 0}td,th{border:1px solid #ccc;padding:3px 8px;font-size:13px;vertical-align:top;"
        "text-align:left}th{background:#f3f3f3}td.num{text-align:right;white-space:nowrap}.params td:nth-child(5){"
        "max-width:520px}.plots svg{margin:4px;border:1px solid #eee}.maps{display:flex;flex-wrap:wrap;gap:12px;"
-       "align-items:flex-start}.maps svg.map{border:1px solid #ddd}.pair{flex-wrap:nowrap;overflow-x:auto}.caption{font-size:13px;color:#444;max-width:"
+       "align-items:flex-start}.maps svg.map{border:1px solid "
+       "#ddd}.pair{flex-wrap:nowrap;overflow-x:auto}.caption{font-size:13px;color:#444;max-width:"
        "1150px}.good{color:#2e7d32}.bad{color:#c62828}.red{color:#b2182b;font-weight:bold}.blue{color:#2166ac;"
        "font-weight:bold}.summary{background:#f7f7f7;border:1px solid #ddd;padding:8px 14px;max-width:1150px}"
        ".halo{paint-order:stroke;stroke:#fff;stroke-width:3px}h3{margin-bottom:4px}</style></head><body>";
@@ -744,12 +759,10 @@ std::string RenderHtml(const DiagnosisResult& r) {
   // --- At a glance ---
   h << "<div class='summary'><p>" << Verdict(r) << "</p><ul>";
   h << "<li>Installed " << Date(r.installed_at) << "; latest reading used " << Date(r.liner.now)
-    << ". Mismatch test: chi-square excess " << Num(r.mismatch_z_score, 1)
-    << " sigma over the noise model (real above 4).</li>";
+    << ". Mismatch test: chi-square excess " << Num(r.mismatch_z_score, 1) << " sigma over the noise model (real above 4).</li>";
   if (!r.liner.thinnest.empty()) {
     const ThinnestPoint& p = r.liner.thinnest.front();
-    h << "<li><a href='#thinnest'>Thinnest point</a> on " << Date(p.time) << ": <b>" << Num(p.thickness_mm, 1)
-      << " mm</b>";
+    h << "<li><a href='#thinnest'>Thinnest point</a> on " << Date(p.time) << ": <b>" << Num(p.thickness_mm, 1) << " mm</b>";
     if (std::isfinite(p.lo_mm) && std::isfinite(p.hi_mm))
       h << " (band " << Num(p.lo_mm, 1) << " .. " << Num(p.hi_mm, 1) << " mm)";
     h << " at &theta; " << Num(p.theta_deg, 0) << " deg, z " << Num(p.z_m, 2) << " m"
@@ -791,9 +804,8 @@ std::string RenderHtml(const DiagnosisResult& r) {
   } else {
     int k = 1;
     for (const Finding& f : r.findings) {
-      h << "<h3>" << k++ << ". " << Esc(EffectWords(f.effect)) << " <small>(<code>" << Esc(f.effect)
-        << "</code>, confidence " << Num(f.confidence, 2) << ")</small></h3><p class='caption'>" << Esc(f.explanation)
-        << "</p>";
+      h << "<h3>" << k++ << ". " << Esc(EffectWords(f.effect)) << " <small>(<code>" << Esc(f.effect) << "</code>, confidence "
+        << Num(f.confidence, 2) << ")</small></h3><p class='caption'>" << Esc(f.explanation) << "</p>";
       h << ParameterTable(f.parameters);
       h << EvidenceTable(f.evidence);
     }
@@ -802,11 +814,11 @@ std::string RenderHtml(const DiagnosisResult& r) {
   h << "<h2>Error (mm of wear)</h2><table><tr><th></th><th>RMSE</th><th>max |error|</th><th>held-out RMSE</th>"
        "<th>observations</th></tr>";
   h << "<tr><td>baseline (plain Eq. 9, wear linear in time)</td><td class='num'>" << Num(r.baseline.rmse_mm)
-    << "</td><td class='num'>" << Num(r.baseline.max_abs_mm) << "</td><td class='num'>"
-    << Num(r.baseline.holdout_rmse_mm) << "</td><td class='num'>" << r.baseline.observations << "</td></tr>";
+    << "</td><td class='num'>" << Num(r.baseline.max_abs_mm) << "</td><td class='num'>" << Num(r.baseline.holdout_rmse_mm)
+    << "</td><td class='num'>" << r.baseline.observations << "</td></tr>";
   h << "<tr><td>improved (findings modelled)</td><td class='num'>" << Num(r.improved.rmse_mm) << "</td><td class='num'>"
-    << Num(r.improved.max_abs_mm) << "</td><td class='num'>" << Num(r.improved.holdout_rmse_mm)
-    << "</td><td class='num'>" << r.improved.observations << "</td></tr></table>";
+    << Num(r.improved.max_abs_mm) << "</td><td class='num'>" << Num(r.improved.holdout_rmse_mm) << "</td><td class='num'>"
+    << r.improved.observations << "</td></tr></table>";
 
   if (!r.regions.empty()) {
     h << "<h2>Mismatch regions</h2><p class='caption'>Where the baseline (refit to all data) misses beyond 3 sigma. "
@@ -845,9 +857,8 @@ std::string RenderHtml(const DiagnosisResult& r) {
        "limit of its physical range (docs/diagnosis.md, section 5). Parameters in physical units.</p>";
   std::vector<const nlohmann::ordered_json*> hyps;
   for (const auto& hy : r.hypotheses) hyps.push_back(&hy);
-  std::stable_sort(hyps.begin(), hyps.end(), [](const auto* a, const auto* b) {
-    return a->value("delta_bic", 0.0) > b->value("delta_bic", 0.0);
-  });
+  std::stable_sort(hyps.begin(), hyps.end(),
+                   [](const auto* a, const auto* b) { return a->value("delta_bic", 0.0) > b->value("delta_bic", 0.0); });
   const std::string top_model =
       !r.findings.empty() && r.findings.front().evidence.contains("model") && r.findings.front().evidence["model"].is_string()
           ? r.findings.front().evidence["model"].get<std::string>()
@@ -858,23 +869,23 @@ std::string RenderHtml(const DiagnosisResult& r) {
   for (const auto* hy : hyps) {
     const std::string model = hy->value("model", "");
     const bool accepted = hy->value("accepted", false);
-    std::string verdict = accepted ? (model == top_model ? "<b class='good'>accepted, chosen</b>" : "accepted")
-                                   : "not convincing";
+    std::string verdict =
+        accepted ? (model == top_model ? "<b class='good'>accepted, chosen</b>" : "accepted") : "not convincing";
     h << "<tr><td class='num'>" << rank++ << "</td><td>" << Esc(ModelWords(model)) << "</td><td class='num'>"
-      << Num(hy->value("delta_bic", 0.0), 1) << "</td><td class='num'>"
-      << Num(100.0 * hy->value("holdout_improvement", 0.0), 1) << " %</td><td class='num'>"
-      << Num(hy->value("significance", 0.0), 1) << "</td><td>" << verdict << "</td><td>"
-      << HypothesisParams(hy->contains("parameters") ? (*hy)["parameters"] : nlohmann::ordered_json(),
-                          r.liner.thickness_new_mm)
+      << Num(hy->value("delta_bic", 0.0), 1) << "</td><td class='num'>" << Num(100.0 * hy->value("holdout_improvement", 0.0), 1)
+      << " %</td><td class='num'>" << Num(hy->value("significance", 0.0), 1) << "</td><td>" << verdict << "</td><td>"
+      << HypothesisParams(hy->contains("parameters") ? (*hy)["parameters"] : nlohmann::ordered_json(), r.liner.thickness_new_mm)
       << "</td></tr>";
   }
   h << "</table>";
   if (!r.hypotheses.empty()) {
     h << "<p><b>Verdict:</b> ";
-    if (r.findings.empty()) h << "no mismatch beyond the noise; no hypothesis needed.";
+    if (r.findings.empty())
+      h << "no mismatch beyond the noise; no hypothesis needed.";
     else if (r.findings.front().effect == kUnexplained)
       h << "<b>unexplained</b>: the mismatch is real but no hypothesis is convincing.";
-    else h << Esc(EffectWords(r.findings.front().effect)) << ".";
+    else
+      h << Esc(EffectWords(r.findings.front().effect)) << ".";
     h << "</p>";
   }
 
@@ -886,7 +897,8 @@ std::string RenderHtml(const DiagnosisResult& r) {
         if (std::isfinite(g.before_mm[i])) scale = std::max(scale, std::fabs(g.before_mm[i]));
         if (std::isfinite(g.measured_mm[i])) mscale = std::max(mscale, g.measured_mm[i]);
       }
-      h << "<p>Scan " << Esc(g.scan_file) << " (" << Date(g.date) << "): cells of the fit. Here residual = model - "
+      h << "<p>Scan " << Esc(g.scan_file) << " (" << Date(g.date)
+        << "): cells of the fit. Here residual = model - "
            "measured (red: the model predicts more wear than measured, \"over\").</p><div class='plots'>";
       h << GridPlot(g, g.measured_mm, "measured wear", false, mscale);
       h << GridPlot(g, g.before_mm, "refit baseline - measured", true, scale);

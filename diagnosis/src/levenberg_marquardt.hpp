@@ -10,8 +10,8 @@ using ResidualFn = std::function<void(const Eigen::VectorXd& x, Eigen::VectorXd&
 
 struct LmResult {
   Eigen::VectorXd x;
-  double cost = 0;        ///< sum of squared residuals at x
-  Eigen::MatrixXd jtj;    ///< J^T J at x (inverse = covariance when residuals are whitened)
+  double cost = 0;      ///< sum of squared residuals at x
+  Eigen::MatrixXd jtj;  ///< J^T J at x (inverse = covariance when residuals are whitened)
   int iterations = 0;
 };
 

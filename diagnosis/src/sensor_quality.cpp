@@ -56,11 +56,10 @@ SensorAnalysis AnalyseSensor(std::vector<RawReading> readings, double thickness_
   SensorAnalysis a;
   std::stable_sort(readings.begin(), readings.end(),
                    [](const RawReading& x, const RawReading& y) { return x.t_days < y.t_days; });
-  readings.erase(std::unique(readings.begin(), readings.end(),
-                             [](const RawReading& x, const RawReading& y) {
-                               return x.t_days == y.t_days && x.value_mm == y.value_mm;
-                             }),
-                 readings.end());
+  readings.erase(
+      std::unique(readings.begin(), readings.end(),
+                  [](const RawReading& x, const RawReading& y) { return x.t_days == y.t_days && x.value_mm == y.value_mm; }),
+      readings.end());
   a.readings = readings;
   const size_t n = readings.size();
   a.used.assign(n, true);
@@ -144,8 +143,7 @@ SensorAnalysis AnalyseSensor(std::vector<RawReading> readings, double thickness_
         bool all_off = true;
         for (size_t w = 0; w < width; ++w) {
           const double x = readings[u[k + w]].value_mm;
-          if (std::fabs(x - prev) < 2.0 || std::fabs(x - next) < 2.0 || (x - prev) * (x - next) <= 0 ||
-              std::fabs(x - v) > 1.0)
+          if (std::fabs(x - prev) < 2.0 || std::fabs(x - next) < 2.0 || (x - prev) * (x - next) <= 0 || std::fabs(x - v) > 1.0)
             all_off = false;
         }
         if (all_off) {
@@ -207,8 +205,8 @@ SensorAnalysis AnalyseSensor(std::vector<RawReading> readings, double thickness_
       if (!flicker_runs.empty() && readings[k].t_days - flicker_runs.back().to_days < 1.0) {
         flicker_runs.back().to_days = readings[k].t_days;
       } else {
-        flicker_runs.push_back({"flicker", readings[k].t_days, readings[k].t_days,
-                                "loop near the wear face alternating; monotone envelope kept"});
+        flicker_runs.push_back(
+            {"flicker", readings[k].t_days, readings[k].t_days, "loop near the wear face alternating; monotone envelope kept"});
       }
     }
     a.issues.insert(a.issues.end(), flicker_runs.begin(), flicker_runs.end());
@@ -320,11 +318,10 @@ SensorAnalysis AnalyseSensor(std::vector<RawReading> readings, double thickness_
   // Stuck until the end: flat for long while the rate says several mm should have gone.
   {
     const Segment& last = segments.back();
-    if (!classified[m - 1] && last.count >= 3 && last.level > 1.5 &&
-        rho * (last.t_last - last.t_first) >= 4.0) {
+    if (!classified[m - 1] && last.count >= 3 && last.level > 1.5 && rho * (last.t_last - last.t_first) >= 4.0) {
       a.issues.push_back({"stuck", last.t_first, last.t_last,
-                          Fmt("no change for %.1f days while ~%.1f mm of wear was expected",
-                              last.t_last - last.t_first, rho * (last.t_last - last.t_first))});
+                          Fmt("no change for %.1f days while ~%.1f mm of wear was expected", last.t_last - last.t_first,
+                              rho * (last.t_last - last.t_first))});
       exclude_segment(last, true);
     }
   }

@@ -7,22 +7,32 @@ namespace lw::diagnosis::detail {
 
 const char* EffectName(Effect effect) {
   switch (effect) {
-    case Effect::kWorkHardening: return "work_hardening";
-    case Effect::kHardnessGradient: return "hardness_gradient";
-    case Effect::kSqueezeWear: return "squeeze_wear";
-    case Effect::kProfileEvolution: return "profile_evolution";
-    case Effect::kFeedSegregation: return "feed_segregation";
-    case Effect::kThroughputVariation: return "throughput_variation";
-    case Effect::kProfileShift: return "profile_evolution";
+    case Effect::kWorkHardening:
+      return "work_hardening";
+    case Effect::kHardnessGradient:
+      return "hardness_gradient";
+    case Effect::kSqueezeWear:
+      return "squeeze_wear";
+    case Effect::kProfileEvolution:
+      return "profile_evolution";
+    case Effect::kFeedSegregation:
+      return "feed_segregation";
+    case Effect::kThroughputVariation:
+      return "throughput_variation";
+    case Effect::kProfileShift:
+      return "profile_evolution";
   }
   return "unknown";
 }
 
 const char* FormName(Effect effect) {
   switch (effect) {
-    case Effect::kProfileEvolution: return "profile_evolution:tilt";
-    case Effect::kProfileShift: return "profile_evolution:shift";
-    default: return EffectName(effect);
+    case Effect::kProfileEvolution:
+      return "profile_evolution:tilt";
+    case Effect::kProfileShift:
+      return "profile_evolution:shift";
+    default:
+      return EffectName(effect);
   }
 }
 
@@ -80,8 +90,8 @@ std::string ModelSpec::Name() const {
   return name;
 }
 
-void ModelSpec::Bounds(Eigen::VectorXd& lower, Eigen::VectorXd& upper, Eigen::VectorXd& scale,
-                       Eigen::VectorXd& initial, double k_scale) const {
+void ModelSpec::Bounds(Eigen::VectorXd& lower, Eigen::VectorXd& upper, Eigen::VectorXd& scale, Eigen::VectorXd& initial,
+                       double k_scale) const {
   const auto n = static_cast<Eigen::Index>(ParamCount());
   lower.resize(n);
   upper.resize(n);
@@ -200,8 +210,8 @@ std::vector<double> HardeningCurve(const Resolved& r, const TimeGrid& grid, size
 
 }  // namespace
 
-void Simulate(const ModelSpec& spec, const Eigen::VectorXd& params, const std::vector<ModelPoint>& points,
-              const TimeGrid& grid, Eigen::MatrixXd& wear) {
+void Simulate(const ModelSpec& spec, const Eigen::VectorXd& params, const std::vector<ModelPoint>& points, const TimeGrid& grid,
+              Eigen::MatrixXd& wear) {
   const Resolved r = Resolve(spec, params);
   const std::vector<double> hard = HardeningCurve(r, grid, grid.steps);
   wear.resize(static_cast<Eigen::Index>(points.size()), static_cast<Eigen::Index>(grid.steps + 1));

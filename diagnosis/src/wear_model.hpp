@@ -66,8 +66,8 @@ struct TimeGrid {
 };
 
 /// Wear (mm) of every point at every grid time: rows = points, cols = steps + 1.
-void Simulate(const ModelSpec& spec, const Eigen::VectorXd& params, const std::vector<ModelPoint>& points,
-              const TimeGrid& grid, Eigen::MatrixXd& wear);
+void Simulate(const ModelSpec& spec, const Eigen::VectorXd& params, const std::vector<ModelPoint>& points, const TimeGrid& grid,
+              Eigen::MatrixXd& wear);
 /// Wear of every point at one time (no history kept; for the whole mesh).
 Eigen::VectorXd SimulateAt(const ModelSpec& spec, const Eigen::VectorXd& params, const std::vector<ModelPoint>& points,
                            const TimeGrid& grid, double t_days);

@@ -25,9 +25,12 @@ const core::OptionTable& Table() {
       Option::Text("tls-ca", "FILE", "CA certificate file for ssl:// brokers"),
       Option::Text("gateway-id", "ID", "gateway id in messages and MQTT client id (default gw-HOSTNAME)"),
       Option::Whole("spool-max-records", "N", 1, 1'000'000'000, "spool capacity in records (default 1000000)"),
-      Option::Whole("window", "N", 1, static_cast<int64_t>(kMaxCommitAckSeqs), "records per sensor awaiting a commit ack (default 1: strict order)"),
-      Option::Whole("max-devices", "N", 1, 1'000'000, "device registry entries at most; new radios beyond are not registered\n(default 1000)"),
-      Option::Number("republish-after", "S", NumberRange::Positive(), "seconds before an unconfirmed record is republished (default 30)"),
+      Option::Whole("window", "N", 1, static_cast<int64_t>(kMaxCommitAckSeqs),
+                    "records per sensor awaiting a commit ack (default 1: strict order)"),
+      Option::Whole("max-devices", "N", 1, 1'000'000,
+                    "device registry entries at most; new radios beyond are not registered\n(default 1000)"),
+      Option::Number("republish-after", "S", NumberRange::Positive(),
+                     "seconds before an unconfirmed record is republished (default 30)"),
       Option::Number("stats-interval", "S", NumberRange::Positive(), "seconds between gateway/stats messages (default 60)"),
       Option::Number("reconnect-min", "S", NumberRange::Positive(), "first reconnect delay, seconds (default 1)"),
       Option::Number("reconnect-max", "S", NumberRange::Positive(), "longest reconnect delay, seconds (default 60)"),
@@ -103,10 +106,13 @@ ParseResult ParseCommandLine(const std::vector<std::string>& args, Config* confi
   for (const auto& [name, value] : required) {
     if (value->empty()) throw ConfigError(std::string("--") + name + " is required (see --help)");
   }
-  if (!IsSupportedBaud(c.baud)) throw ConfigError("--baud: " + std::to_string(c.baud) + " is not a supported rate (1200..921600, standard values)");
+  if (!IsSupportedBaud(c.baud))
+    throw ConfigError("--baud: " + std::to_string(c.baud) + " is not a supported rate (1200..921600, standard values)");
   RequireUri(c.broker);
-  if (!IsTopicLevel(c.site)) throw ConfigError("--site: '" + c.site + "' must be a non-empty MQTT topic level without '/', '+' or '#'");
-  if (!IsTopicLevel(c.crusher)) throw ConfigError("--crusher: '" + c.crusher + "' must be a non-empty MQTT topic level without '/', '+' or '#'");
+  if (!IsTopicLevel(c.site))
+    throw ConfigError("--site: '" + c.site + "' must be a non-empty MQTT topic level without '/', '+' or '#'");
+  if (!IsTopicLevel(c.crusher))
+    throw ConfigError("--crusher: '" + c.crusher + "' must be a non-empty MQTT topic level without '/', '+' or '#'");
   if (!c.password.empty() && c.username.empty()) throw ConfigError("--password given without --username");
   if (c.reconnect_max_s < c.reconnect_min_s) throw ConfigError("--reconnect-max must not be below --reconnect-min");
   if (!c.tls_ca.empty() && access(c.tls_ca.c_str(), R_OK) != 0) throw ConfigError("--tls-ca: " + c.tls_ca + " cannot be read");

@@ -124,7 +124,8 @@ void Gateway::OnFrame(const uint8_t* frame, size_t len, int64_t now_ms) {
       break;
   }
   ++counters_.unknown_frames;
-  LogLimited("unknown_frame", "serial: frame of unhandled type " + FrameTypeHex(type) + " (" + std::to_string(len) + " bytes) ignored");
+  LogLimited("unknown_frame",
+             "serial: frame of unhandled type " + FrameTypeHex(type) + " (" + std::to_string(len) + " bytes) ignored");
 }
 
 void Gateway::OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms) {
@@ -138,7 +139,8 @@ void Gateway::OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms) 
   const uint8_t payload_type = protocol::PayloadType(rx.payload, rx.payload_len);
   if (payload_type != protocol::kMsgReadings) {
     ++counters_.unknown_payloads;
-    LogLimited("unknown_payload", "radio: payload of unknown type " + FrameTypeHex(payload_type) + " from " + source + " ignored");
+    LogLimited("unknown_payload",
+               "radio: payload of unknown type " + FrameTypeHex(payload_type) + " from " + source + " ignored");
     return;
   }
   protocol::ReadingsHeader header;
@@ -148,8 +150,8 @@ void Gateway::OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms) 
       protocol::DecodeReadings(rx.payload, rx.payload_len, &header, records, kMaxRecordsPerMessage, &count);
   if (status != protocol::PayloadStatus::kOk) {
     ++counters_.bad_payloads;
-    LogLimited("bad_payload", std::string("radio: bad readings payload from ") + source + ": " +
-                                  protocol::PayloadStatusName(status));
+    LogLimited("bad_payload",
+               std::string("radio: bad readings payload from ") + source + ": " + protocol::PayloadStatusName(status));
     return;
   }
   counters_.records_received += count;
@@ -193,7 +195,8 @@ void Gateway::FlushReadings() {
     // The transaction rolled back: none of these records is stored and none is acked.
     for (const PendingFrame& f : frames) {
       ++counters_.spool_errors;
-      LogLimited("spool_error", "spool: records from sensor " + std::to_string(f.sensor_id) + " not stored (not acked): " + e.what());
+      LogLimited("spool_error",
+                 "spool: records from sensor " + std::to_string(f.sensor_id) + " not stored (not acked): " + e.what());
     }
     return;
   }
@@ -337,7 +340,8 @@ void Gateway::OnMessages(const std::vector<std::pair<std::string_view, std::stri
       }
     }
     if (awaited < ack->seqs.size()) {
-      LogLimited("ack_ignored", "mqtt: commit ack on " + std::string(topic) + " names " + std::to_string(ack->seqs.size() - awaited) +
+      LogLimited("ack_ignored", "mqtt: commit ack on " + std::string(topic) + " names " +
+                                    std::to_string(ack->seqs.size() - awaited) +
                                     " seq(s) not published and awaiting an ack; ignored");
     }
   }

@@ -29,12 +29,18 @@
 namespace {
 
 volatile std::sig_atomic_t g_stop = 0;
-void OnSignal(int) { g_stop = 1; }
+void OnSignal(int) {
+  g_stop = 1;
+}
 
-int64_t NowMs() { return lw::core::WallClockMs(); }
+int64_t NowMs() {
+  return lw::core::WallClockMs();
+}
 
 /// The retained `gateway/status` offline message (the last will and the goodbye).
-std::string Offline(const std::string& gateway_id) { return lw::mqtt::EncodeStatus({false, gateway_id, lw::mqtt::IsoUtc(NowMs())}); }
+std::string Offline(const std::string& gateway_id) {
+  return lw::mqtt::EncodeStatus({false, gateway_id, lw::mqtt::IsoUtc(NowMs())});
+}
 
 void Log(const std::string& line) {
   // Lines carry text from the radio and the broker: control characters are escaped.

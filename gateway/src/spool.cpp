@@ -27,16 +27,16 @@ Spool::Spool(const std::string& path, size_t max_records)
   db_->database.Exec("PRAGMA journal_mode=WAL");
   db_->database.Exec("PRAGMA synchronous=FULL");
   db_->database.Exec(
-       "CREATE TABLE IF NOT EXISTS records ("
-       " id INTEGER PRIMARY KEY AUTOINCREMENT,"
-       " sensor TEXT NOT NULL, seq INTEGER NOT NULL, received_ms INTEGER NOT NULL,"
-       " heartbeat INTEGER NOT NULL, payload TEXT NOT NULL,"
-       " UNIQUE(sensor, seq));"
-       "CREATE INDEX IF NOT EXISTS records_heartbeat ON records(heartbeat, id);"
-       "CREATE TABLE IF NOT EXISTS devices ("
-       " address TEXT NOT NULL, sensor TEXT NOT NULL, node_identifier TEXT NOT NULL,"
-       " device_type INTEGER NOT NULL, first_seen_ms INTEGER NOT NULL,"
-       " PRIMARY KEY(address, sensor));");
+      "CREATE TABLE IF NOT EXISTS records ("
+      " id INTEGER PRIMARY KEY AUTOINCREMENT,"
+      " sensor TEXT NOT NULL, seq INTEGER NOT NULL, received_ms INTEGER NOT NULL,"
+      " heartbeat INTEGER NOT NULL, payload TEXT NOT NULL,"
+      " UNIQUE(sensor, seq));"
+      "CREATE INDEX IF NOT EXISTS records_heartbeat ON records(heartbeat, id);"
+      "CREATE TABLE IF NOT EXISTS devices ("
+      " address TEXT NOT NULL, sensor TEXT NOT NULL, node_identifier TEXT NOT NULL,"
+      " device_type INTEGER NOT NULL, first_seen_ms INTEGER NOT NULL,"
+      " PRIMARY KEY(address, sensor));");
   Stmt count(db_->database, "SELECT COUNT(*) FROM records");
   if (count.Step()) depth_ = static_cast<size_t>(count.Int(0));
 }
@@ -49,10 +49,8 @@ std::vector<InsertOutcome> Spool::Insert(const std::vector<SpoolRecord>& records
   const auto& db = db_->database;
   Transaction tx(db);
   Stmt exists(db, "SELECT 1 FROM records WHERE sensor = ?1 AND seq = ?2");
-  Stmt insert(db,
-              "INSERT INTO records(sensor, seq, received_ms, heartbeat, payload) VALUES (?1, ?2, ?3, ?4, ?5)");
-  Stmt evict(db,
-             "DELETE FROM records WHERE id = (SELECT id FROM records WHERE heartbeat = 1 ORDER BY id LIMIT 1)");
+  Stmt insert(db, "INSERT INTO records(sensor, seq, received_ms, heartbeat, payload) VALUES (?1, ?2, ?3, ?4, ?5)");
+  Stmt evict(db, "DELETE FROM records WHERE id = (SELECT id FROM records WHERE heartbeat = 1 ORDER BY id LIMIT 1)");
   size_t depth = depth_;
   uint64_t evicted = 0;
   for (const SpoolRecord& r : records) {
@@ -138,8 +136,7 @@ std::vector<SpoolRecord> Spool::Heads(size_t per_sensor) const {
 
 std::vector<SpoolRecord> Spool::Heads(size_t per_sensor, const std::set<std::string>& sensors) const {
   std::vector<SpoolRecord> out;
-  Stmt head(db_->database,
-            "SELECT seq, received_ms, heartbeat, payload FROM records WHERE sensor = ?1 ORDER BY seq LIMIT ?2");
+  Stmt head(db_->database, "SELECT seq, received_ms, heartbeat, payload FROM records WHERE sensor = ?1 ORDER BY seq LIMIT ?2");
   for (const std::string& sensor : sensors) {
     head.Bind(1, sensor).Bind(2, static_cast<int64_t>(per_sensor));
     while (head.Step()) {

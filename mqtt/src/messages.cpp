@@ -12,7 +12,9 @@ namespace {
 
 /// Text from the radio (NI strings) or the host is not always UTF-8: invalid bytes become U+FFFD
 /// instead of an exception that would lose the message.
-std::string Dump(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
+std::string Dump(const json& j) {
+  return j.dump(-1, ' ', false, json::error_handler_t::replace);
+}
 
 /// Every decoder's bounds (the server's on readings, the gateway's on commit acks): checked before
 /// a tree is built. Wear messages name every row and sensor: they get more room.
@@ -187,9 +189,8 @@ std::string AddressHex(uint64_t address) {
 }
 
 std::vector<std::string> FlagNames(uint16_t flags) {
-  static constexpr const char* kNames[] = {"heartbeat", "loop_healed", "non_contiguous", "all_open",
-                                           "spi_stuck", "flicker",     "low_battery",    "boot",
-                                           "watchdog_reset", "dropped"};
+  static constexpr const char* kNames[] = {"heartbeat", "loop_healed", "non_contiguous", "all_open",       "spi_stuck",
+                                           "flicker",   "low_battery", "boot",           "watchdog_reset", "dropped"};
   std::vector<std::string> out;
   for (unsigned bit = 0; bit < 16; ++bit) {
     if (!(flags & (1u << bit))) continue;
@@ -390,8 +391,8 @@ std::optional<DeviceMessage> DecodeDevice(std::string_view payload, std::string*
   DeviceMessage d;
   const json* sensors = nullptr;
   if (!f.String("gateway", &d.gateway) || !f.String("time", &d.time) || !f.String("address", &d.address) ||
-      !f.String("first_seen", &d.first_seen) || !f.Array("sensors", &sensors) || !f.String("node_identifier", &d.node_identifier) ||
-      !f.Integer("device_type", &d.device_type)) {
+      !f.String("first_seen", &d.first_seen) || !f.Array("sensors", &sensors) ||
+      !f.String("node_identifier", &d.node_identifier) || !f.Integer("device_type", &d.device_type)) {
     return std::nullopt;
   }
   for (const json& s : *sensors) {
@@ -406,7 +407,9 @@ std::optional<DeviceMessage> DecodeDevice(std::string_view payload, std::string*
 
 // ---- wear ----
 
-std::string EncodeWear(const nlohmann::ordered_json& summary) { return summary.dump(); }
+std::string EncodeWear(const nlohmann::ordered_json& summary) {
+  return summary.dump();
+}
 
 std::optional<WearMessage> DecodeWear(std::string_view payload, std::string* error) {
   if (!ParseObject(payload, error, kMaxWearBytes)) return std::nullopt;

@@ -115,8 +115,8 @@ PahoLink::PahoLink(LinkOptions options) {
     co.set_password(im.options.password);
   }
   if (!im.options.will.topic.empty()) {
-    co.set_will(::mqtt::will_options(im.options.will.topic, im.options.will.payload, im.options.will.qos,
-                                   im.options.will.retained));
+    co.set_will(
+        ::mqtt::will_options(im.options.will.topic, im.options.will.payload, im.options.will.qos, im.options.will.retained));
   }
   if (IsTls(im.options.uri)) {
     ::mqtt::ssl_options ssl;
@@ -154,9 +154,9 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
     im.pending_connect.reset();
     // rc 0: connected (the connected handler may run just before or after the token completes).
     if (rc != 0) {
-      out.push_back({LinkEvent::Kind::kDisconnected, "", "connect to " + im.options.uri + " failed: " + ::mqtt::exception::error_str(rc) +
-                                                                " (code " + std::to_string(rc) + "); retrying in " +
-                                                                std::to_string(im.backoff_ms) + " ms"});
+      out.push_back({LinkEvent::Kind::kDisconnected, "",
+                     "connect to " + im.options.uri + " failed: " + ::mqtt::exception::error_str(rc) + " (code " +
+                         std::to_string(rc) + "); retrying in " + std::to_string(im.backoff_ms) + " ms"});
       im.next_attempt_ms = now_ms + im.backoff_ms;
       im.backoff_ms = std::min(im.backoff_ms * 2, im.options.reconnect_max_ms);
     } else {
@@ -227,8 +227,9 @@ void PahoLink::Shutdown(const OutMessage& final_message, int timeout_ms) {
   try {
     if (!im.client.is_connected()) return;
     if (!final_message.topic.empty()) {
-      im.client.publish(final_message.topic, final_message.payload.data(), final_message.payload.size(), final_message.qos,
-                        final_message.retained)
+      im.client
+          .publish(final_message.topic, final_message.payload.data(), final_message.payload.size(), final_message.qos,
+                   final_message.retained)
           ->wait_for(std::chrono::milliseconds(timeout_ms));
     }
     im.client.disconnect(timeout_ms)->wait_for(std::chrono::milliseconds(timeout_ms));
@@ -249,8 +250,12 @@ bool PahoLink::DoPublish(const OutMessage& message) {
   }
 }
 
-int PahoLink::wake_fd() const { return impl_->wake.fd; }
+int PahoLink::wake_fd() const {
+  return impl_->wake.fd;
+}
 
-bool PahoLink::DoIsConnected() const { return impl_->connected; }
+bool PahoLink::DoIsConnected() const {
+  return impl_->connected;
+}
 
 }  // namespace lw::mqtt

@@ -71,16 +71,32 @@ std::string Topics::Build(TopicKind kind, std::string_view id) const {
   return root_;
 }
 
-std::string Topics::Reading(std::string_view sensor) const { return Build(TopicKind::kReading, sensor); }
-std::string Topics::Committed(std::string_view sensor) const { return Build(TopicKind::kCommitted, sensor); }
-std::string Topics::Status() const { return Build(TopicKind::kStatus); }
-std::string Topics::Stats() const { return Build(TopicKind::kStats); }
-std::string Topics::Device(std::string_view address) const { return Build(TopicKind::kDevice, address); }
-std::string Topics::Wear() const { return Build(TopicKind::kWear); }
+std::string Topics::Reading(std::string_view sensor) const {
+  return Build(TopicKind::kReading, sensor);
+}
+std::string Topics::Committed(std::string_view sensor) const {
+  return Build(TopicKind::kCommitted, sensor);
+}
+std::string Topics::Status() const {
+  return Build(TopicKind::kStatus);
+}
+std::string Topics::Stats() const {
+  return Build(TopicKind::kStats);
+}
+std::string Topics::Device(std::string_view address) const {
+  return Build(TopicKind::kDevice, address);
+}
+std::string Topics::Wear() const {
+  return Build(TopicKind::kWear);
+}
 
-std::string Topics::CommittedFilter() const { return Committed("+"); }
+std::string Topics::CommittedFilter() const {
+  return Committed("+");
+}
 
-std::string Topics::ReadingsFilter(std::string_view prefix) { return Topics("+", "+", prefix).Reading("+"); }
+std::string Topics::ReadingsFilter(std::string_view prefix) {
+  return Topics("+", "+", prefix).Reading("+");
+}
 
 std::optional<ParsedTopic> Topics::Parse(std::string_view topic) const {
   if (topic.substr(0, root_.size()) != root_) return std::nullopt;
@@ -98,8 +114,10 @@ std::optional<ParsedTopic> Topics::ParseAny(std::string_view topic, std::string_
   if (site_end == std::string_view::npos || site_end == 0) return std::nullopt;
   const size_t crusher_end = rest.find('/', site_end + 1);
   if (crusher_end == std::string_view::npos || crusher_end == site_end + 1) return std::nullopt;
-  ParsedTopic out{TopicKind::kReading, std::string(rest.substr(0, site_end)),
-                  std::string(rest.substr(site_end + 1, crusher_end - site_end - 1)), {}};
+  ParsedTopic out{TopicKind::kReading,
+                  std::string(rest.substr(0, site_end)),
+                  std::string(rest.substr(site_end + 1, crusher_end - site_end - 1)),
+                  {}};
   if (!ParseBelowRoot(rest.substr(crusher_end + 1), &out)) return std::nullopt;
   return out;
 }

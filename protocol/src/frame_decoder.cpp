@@ -104,7 +104,7 @@ void FrameDecoder::Requeue() {
     keep = sizeof(queue_) - n;
   }
   for (size_t i = 0; i < keep; ++i) queue_[i] = queue_[queue_head_ + i];  // to the front
-  for (size_t i = keep; i-- > 0;) queue_[i + n] = queue_[i];                // make room
+  for (size_t i = keep; i-- > 0;) queue_[i + n] = queue_[i];              // make room
   for (size_t i = 0; i < n; ++i) queue_[i] = raw_[start + i];
   queue_head_ = 0;
   queue_length_ = n + keep;

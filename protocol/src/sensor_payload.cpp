@@ -12,10 +12,12 @@ void Put16(uint8_t* p, uint16_t v) {
 void Put32(uint8_t* p, uint32_t v) {
   for (int i = 0; i < 4; ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
 }
-uint16_t Get16(const uint8_t* p) { return static_cast<uint16_t>(p[0] | (p[1] << 8)); }
+uint16_t Get16(const uint8_t* p) {
+  return static_cast<uint16_t>(p[0] | (p[1] << 8));
+}
 uint32_t Get32(const uint8_t* p) {
-  return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8) |
-         (static_cast<uint32_t>(p[2]) << 16) | (static_cast<uint32_t>(p[3]) << 24);
+  return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8) | (static_cast<uint32_t>(p[2]) << 16) |
+         (static_cast<uint32_t>(p[3]) << 24);
 }
 
 // Checks version, type and CRC common to every message; `min_len` excludes the CRC.
@@ -33,15 +35,24 @@ PayloadStatus CheckEnvelope(const uint8_t* payload, size_t len, uint8_t type, si
 
 const char* PayloadStatusName(PayloadStatus status) {
   switch (status) {
-    case PayloadStatus::kOk: return "ok";
-    case PayloadStatus::kBufferTooSmall: return "buffer_too_small";
-    case PayloadStatus::kTruncated: return "truncated";
-    case PayloadStatus::kBadVersion: return "bad_version";
-    case PayloadStatus::kBadType: return "bad_type";
-    case PayloadStatus::kBadCrc: return "bad_crc";
-    case PayloadStatus::kBadLadder: return "bad_ladder";
-    case PayloadStatus::kTooManyRecords: return "too_many_records";
-    case PayloadStatus::kTrailingBytes: return "trailing_bytes";
+    case PayloadStatus::kOk:
+      return "ok";
+    case PayloadStatus::kBufferTooSmall:
+      return "buffer_too_small";
+    case PayloadStatus::kTruncated:
+      return "truncated";
+    case PayloadStatus::kBadVersion:
+      return "bad_version";
+    case PayloadStatus::kBadType:
+      return "bad_type";
+    case PayloadStatus::kBadCrc:
+      return "bad_crc";
+    case PayloadStatus::kBadLadder:
+      return "bad_ladder";
+    case PayloadStatus::kTooManyRecords:
+      return "too_many_records";
+    case PayloadStatus::kTrailingBytes:
+      return "trailing_bytes";
   }
   return "unknown";
 }
@@ -56,8 +67,8 @@ uint16_t Crc16Ccitt(const uint8_t* data, size_t len, uint16_t crc) {
   return crc;
 }
 
-PayloadStatus EncodeReadings(const ReadingsHeader& header, const SensorRecord* records, size_t count,
-                             uint8_t* out, size_t out_cap, size_t* written) {
+PayloadStatus EncodeReadings(const ReadingsHeader& header, const SensorRecord* records, size_t count, uint8_t* out,
+                             size_t out_cap, size_t* written) {
   if (header.ladder_loops == 0 || header.ladder_loops > kMaxLadderLoops) return PayloadStatus::kBadLadder;
   if (count == 0 || records == nullptr || count > MaxRecordsPerPayload(header.ladder_loops) || count > 255) {
     return PayloadStatus::kTooManyRecords;
@@ -69,18 +80,25 @@ PayloadStatus EncodeReadings(const ReadingsHeader& header, const SensorRecord* r
   uint8_t* p = out;
   *p++ = kPayloadVersion;
   *p++ = kMsgReadings;
-  Put32(p, header.sensor_id); p += 4;
+  Put32(p, header.sensor_id);
+  p += 4;
   *p++ = header.ladder_loops;
   *p++ = static_cast<uint8_t>(count);
-  Put16(p, header.dropped_total); p += 2;
+  Put16(p, header.dropped_total);
+  p += 2;
   for (size_t i = 0; i < count; ++i) {
     const SensorRecord& r = records[i];
-    Put32(p, r.seq); p += 4;
-    Put32(p, r.age_s); p += 4;
-    Put16(p, r.thickness_dmm); p += 2;
+    Put32(p, r.seq);
+    p += 4;
+    Put32(p, r.age_s);
+    p += 4;
+    Put16(p, r.thickness_dmm);
+    p += 2;
     *p++ = r.loops_intact;
-    Put16(p, r.flags); p += 2;
-    Put16(p, r.battery_mv); p += 2;
+    Put16(p, r.flags);
+    p += 2;
+    Put16(p, r.battery_mv);
+    p += 2;
     *p++ = static_cast<uint8_t>(r.temperature_c);
     std::memcpy(p, r.loop_bitmap, bitmap_bytes);
     // Bits beyond the ladder are always zero on the wire.
@@ -94,8 +112,8 @@ PayloadStatus EncodeReadings(const ReadingsHeader& header, const SensorRecord* r
   return PayloadStatus::kOk;
 }
 
-PayloadStatus DecodeReadings(const uint8_t* payload, size_t len, ReadingsHeader* header,
-                             SensorRecord* records, size_t records_cap, size_t* count) {
+PayloadStatus DecodeReadings(const uint8_t* payload, size_t len, ReadingsHeader* header, SensorRecord* records,
+                             size_t records_cap, size_t* count) {
   PayloadStatus s = CheckEnvelope(payload, len, kMsgReadings, kReadingsHeaderSize);
   if (s != PayloadStatus::kOk) return s;
   const uint8_t ladder = payload[6];
@@ -114,12 +132,17 @@ PayloadStatus DecodeReadings(const uint8_t* payload, size_t len, ReadingsHeader*
   for (size_t i = 0; i < n; ++i) {
     SensorRecord& r = records[i];
     r = SensorRecord{};
-    r.seq = Get32(p); p += 4;
-    r.age_s = Get32(p); p += 4;
-    r.thickness_dmm = Get16(p); p += 2;
+    r.seq = Get32(p);
+    p += 4;
+    r.age_s = Get32(p);
+    p += 4;
+    r.thickness_dmm = Get16(p);
+    p += 2;
     r.loops_intact = *p++;
-    r.flags = Get16(p); p += 2;
-    r.battery_mv = Get16(p); p += 2;
+    r.flags = Get16(p);
+    p += 2;
+    r.battery_mv = Get16(p);
+    p += 2;
     r.temperature_c = static_cast<int8_t>(*p++);
     std::memcpy(r.loop_bitmap, p, rec_size - kRecordFixedSize);
     p += rec_size - kRecordFixedSize;
@@ -135,7 +158,8 @@ PayloadStatus EncodeAck(const Ack& ack, uint8_t* out, size_t out_cap, size_t* wr
   uint8_t* p = out;
   *p++ = kPayloadVersion;
   *p++ = kMsgAck;
-  Put32(p, ack.sensor_id); p += 4;
+  Put32(p, ack.sensor_id);
+  p += 4;
   *p++ = ack.count;
   for (size_t i = 0; i < ack.count; ++i) {
     Put32(p, ack.seqs[i]);

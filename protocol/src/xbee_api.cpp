@@ -5,7 +5,9 @@
 namespace lw::protocol {
 namespace {
 
-bool NeedsEscape(uint8_t b) { return b == kStartDelimiter || b == kEscape || b == kXon || b == kXoff; }
+bool NeedsEscape(uint8_t b) {
+  return b == kStartDelimiter || b == kEscape || b == kXon || b == kXoff;
+}
 
 void Put64(uint8_t* p, uint64_t v) {
   for (int i = 7; i >= 0; --i) {
@@ -21,7 +23,9 @@ uint64_t Get64(const uint8_t* p) {
   for (int i = 0; i < 8; ++i) v = (v << 8) | p[i];
   return v;
 }
-uint16_t Get16(const uint8_t* p) { return static_cast<uint16_t>((p[0] << 8) | p[1]); }
+uint16_t Get16(const uint8_t* p) {
+  return static_cast<uint16_t>((p[0] << 8) | p[1]);
+}
 
 // Common prologue of every parser: non-null, long enough, right type.
 Status Check(const uint8_t* data, size_t len, size_t min_len, FrameType type) {
@@ -40,37 +44,62 @@ Status Finish(size_t needed, size_t out_cap, size_t* written) {
 
 const char* DeliveryStatusName(uint8_t status) {
   switch (static_cast<DeliveryStatus>(status)) {
-    case DeliveryStatus::kSuccess: return "success";
-    case DeliveryStatus::kMacAckFailure: return "mac_ack_failure";
-    case DeliveryStatus::kCcaFailure: return "cca_failure";
-    case DeliveryStatus::kInvalidDestinationEndpoint: return "invalid_destination_endpoint";
-    case DeliveryStatus::kNetworkAckFailure: return "network_ack_failure";
-    case DeliveryStatus::kNotJoinedToNetwork: return "not_joined_to_network";
-    case DeliveryStatus::kSelfAddressed: return "self_addressed";
-    case DeliveryStatus::kAddressNotFound: return "address_not_found";
-    case DeliveryStatus::kRouteNotFound: return "route_not_found";
-    case DeliveryStatus::kBroadcastSourceFailedToHearNeighbour: return "broadcast_source_failed_to_hear_neighbour";
-    case DeliveryStatus::kInvalidBindingTableIndex: return "invalid_binding_table_index";
-    case DeliveryStatus::kResourceErrorLackOfBuffers: return "resource_error_lack_of_buffers";
-    case DeliveryStatus::kAttemptedBroadcastWithApsTransmission: return "attempted_broadcast_with_aps_transmission";
-    case DeliveryStatus::kAttemptedUnicastWithApsTransmissionButEeIsZero: return "attempted_unicast_with_aps_but_ee_zero";
-    case DeliveryStatus::kResourceErrorLackOfBuffers2: return "resource_error_lack_of_buffers_2";
-    case DeliveryStatus::kDataPayloadTooLarge: return "data_payload_too_large";
-    case DeliveryStatus::kIndirectMessageUnrequested: return "indirect_message_unrequested";
+    case DeliveryStatus::kSuccess:
+      return "success";
+    case DeliveryStatus::kMacAckFailure:
+      return "mac_ack_failure";
+    case DeliveryStatus::kCcaFailure:
+      return "cca_failure";
+    case DeliveryStatus::kInvalidDestinationEndpoint:
+      return "invalid_destination_endpoint";
+    case DeliveryStatus::kNetworkAckFailure:
+      return "network_ack_failure";
+    case DeliveryStatus::kNotJoinedToNetwork:
+      return "not_joined_to_network";
+    case DeliveryStatus::kSelfAddressed:
+      return "self_addressed";
+    case DeliveryStatus::kAddressNotFound:
+      return "address_not_found";
+    case DeliveryStatus::kRouteNotFound:
+      return "route_not_found";
+    case DeliveryStatus::kBroadcastSourceFailedToHearNeighbour:
+      return "broadcast_source_failed_to_hear_neighbour";
+    case DeliveryStatus::kInvalidBindingTableIndex:
+      return "invalid_binding_table_index";
+    case DeliveryStatus::kResourceErrorLackOfBuffers:
+      return "resource_error_lack_of_buffers";
+    case DeliveryStatus::kAttemptedBroadcastWithApsTransmission:
+      return "attempted_broadcast_with_aps_transmission";
+    case DeliveryStatus::kAttemptedUnicastWithApsTransmissionButEeIsZero:
+      return "attempted_unicast_with_aps_but_ee_zero";
+    case DeliveryStatus::kResourceErrorLackOfBuffers2:
+      return "resource_error_lack_of_buffers_2";
+    case DeliveryStatus::kDataPayloadTooLarge:
+      return "data_payload_too_large";
+    case DeliveryStatus::kIndirectMessageUnrequested:
+      return "indirect_message_unrequested";
   }
   return "unknown";
 }
 
 const char* ModemStatusName(uint8_t status) {
   switch (static_cast<ModemStatusCode>(status)) {
-    case ModemStatusCode::kHardwareReset: return "hardware_reset";
-    case ModemStatusCode::kWatchdogTimerReset: return "watchdog_timer_reset";
-    case ModemStatusCode::kJoinedNetwork: return "joined_network";
-    case ModemStatusCode::kDisassociated: return "disassociated";
-    case ModemStatusCode::kCoordinatorStarted: return "coordinator_started";
-    case ModemStatusCode::kNetworkSecurityKeyUpdated: return "network_security_key_updated";
-    case ModemStatusCode::kVoltageSupplyLimitExceeded: return "voltage_supply_limit_exceeded";
-    case ModemStatusCode::kModemConfigChangedWhileJoining: return "modem_config_changed_while_joining";
+    case ModemStatusCode::kHardwareReset:
+      return "hardware_reset";
+    case ModemStatusCode::kWatchdogTimerReset:
+      return "watchdog_timer_reset";
+    case ModemStatusCode::kJoinedNetwork:
+      return "joined_network";
+    case ModemStatusCode::kDisassociated:
+      return "disassociated";
+    case ModemStatusCode::kCoordinatorStarted:
+      return "coordinator_started";
+    case ModemStatusCode::kNetworkSecurityKeyUpdated:
+      return "network_security_key_updated";
+    case ModemStatusCode::kVoltageSupplyLimitExceeded:
+      return "voltage_supply_limit_exceeded";
+    case ModemStatusCode::kModemConfigChangedWhileJoining:
+      return "modem_config_changed_while_joining";
   }
   return "unknown";
 }
@@ -169,23 +198,31 @@ Status BuildNodeIdentification(const NodeIdentification& ni, uint8_t* out, size_
   while (ni_len < sizeof(ni.node_identifier) - 1 && ni.node_identifier[ni_len] != '\0') ++ni_len;
   // 0x95 | src64(8) | src16(2) | opts | remote16(2) | remote64(8) | NI.. 0x00 | parent16(2) |
   // device type | source event | profile(2) | manufacturer(2) [| DD(4)] [| RSSI]
-  const size_t needed = 1 + 8 + 2 + 1 + 2 + 8 + ni_len + 1 + 2 + 1 + 1 + 2 + 2 +
-                        (ni.has_device_type_identifier ? 4 : 0) + (ni.has_rssi ? 1 : 0);
+  const size_t needed =
+      1 + 8 + 2 + 1 + 2 + 8 + ni_len + 1 + 2 + 1 + 1 + 2 + 2 + (ni.has_device_type_identifier ? 4 : 0) + (ni.has_rssi ? 1 : 0);
   if (Finish(needed, out_cap, written) != Status::kOk || out == nullptr) return Status::kBufferTooSmall;
   uint8_t* p = out;
   *p++ = static_cast<uint8_t>(FrameType::kNodeIdentification);
-  Put64(p, ni.sender64); p += 8;
-  Put16(p, ni.sender16); p += 2;
+  Put64(p, ni.sender64);
+  p += 8;
+  Put16(p, ni.sender16);
+  p += 2;
   *p++ = ni.receive_options;
-  Put16(p, ni.remote16); p += 2;
-  Put64(p, ni.remote64); p += 8;
-  std::memcpy(p, ni.node_identifier, ni_len); p += ni_len;
+  Put16(p, ni.remote16);
+  p += 2;
+  Put64(p, ni.remote64);
+  p += 8;
+  std::memcpy(p, ni.node_identifier, ni_len);
+  p += ni_len;
   *p++ = 0;
-  Put16(p, ni.parent16); p += 2;
+  Put16(p, ni.parent16);
+  p += 2;
   *p++ = ni.device_type;
   *p++ = ni.source_event;
-  Put16(p, ni.profile_id); p += 2;
-  Put16(p, ni.manufacturer_id); p += 2;
+  Put16(p, ni.profile_id);
+  p += 2;
+  Put16(p, ni.manufacturer_id);
+  p += 2;
   if (ni.has_device_type_identifier) {
     for (int i = 3; i >= 0; --i) *p++ = static_cast<uint8_t>(ni.device_type_identifier >> (8 * i));
   }
@@ -242,11 +279,15 @@ Status ParseNodeIdentification(const uint8_t* data, size_t len, NodeIdentificati
   const Status s = Check(data, len, 22 + 1 + 8, FrameType::kNodeIdentification);
   if (s != Status::kOk) return s;
   const uint8_t* p = data + 1;
-  out->sender64 = Get64(p); p += 8;
-  out->sender16 = Get16(p); p += 2;
+  out->sender64 = Get64(p);
+  p += 8;
+  out->sender16 = Get16(p);
+  p += 2;
   out->receive_options = *p++;
-  out->remote16 = Get16(p); p += 2;
-  out->remote64 = Get64(p); p += 8;
+  out->remote16 = Get16(p);
+  p += 2;
+  out->remote64 = Get64(p);
+  p += 8;
   const uint8_t* end = data + len;
   size_t ni_len = 0;
   while (p + ni_len < end && p[ni_len] != 0) ++ni_len;
@@ -256,11 +297,14 @@ Status ParseNodeIdentification(const uint8_t* data, size_t len, NodeIdentificati
   std::memcpy(out->node_identifier, p, ni_len);
   out->node_identifier[ni_len] = '\0';
   p += ni_len + 1;
-  out->parent16 = Get16(p); p += 2;
+  out->parent16 = Get16(p);
+  p += 2;
   out->device_type = *p++;
   out->source_event = *p++;
-  out->profile_id = Get16(p); p += 2;
-  out->manufacturer_id = Get16(p); p += 2;
+  out->profile_id = Get16(p);
+  p += 2;
+  out->manufacturer_id = Get16(p);
+  p += 2;
   // Optional fields (NO setting of the receiving radio): none, RSSI (1), DD (4) or DD + RSSI (5).
   const size_t rest = static_cast<size_t>(end - p);
   if (rest == 2 || rest == 3) return Status::kTruncated;

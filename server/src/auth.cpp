@@ -31,18 +31,23 @@ TokenStore TokenStore::Load(const std::filesystem::path& path) {
     if (!t.is_object()) throw std::runtime_error(item + "must be an object");
     Token tok;
     tok.name = t.value("name", std::string("token") + std::to_string(index));
-    if (!t.contains("sha256") || !t["sha256"].is_string()) throw std::runtime_error(item + "needs \"sha256\" (hex SHA-256 of the token)");
+    if (!t.contains("sha256") || !t["sha256"].is_string())
+      throw std::runtime_error(item + "needs \"sha256\" (hex SHA-256 of the token)");
     tok.sha256 = t["sha256"].get<std::string>();
     for (auto& ch : tok.sha256) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
     if (tok.sha256.size() != 64 || tok.sha256.find_first_not_of("0123456789abcdef") != std::string::npos) {
       throw std::runtime_error(item + "\"sha256\" must be 64 hex digits (printf %s TOKEN | sha256sum)");
     }
     if (t.contains("token")) throw std::runtime_error(item + "holds a plain \"token\": store only its sha256");
-    if (!t.contains("scopes") || !t["scopes"].is_array()) throw std::runtime_error(item + "needs \"scopes\": [\"read\"] or [\"read\", \"write\"]");
+    if (!t.contains("scopes") || !t["scopes"].is_array())
+      throw std::runtime_error(item + "needs \"scopes\": [\"read\"] or [\"read\", \"write\"]");
     for (const auto& s : t["scopes"]) {
-      if (s == "read") tok.read = true;
-      else if (s == "write") tok.write = true;
-      else throw std::runtime_error(item + "unknown scope " + s.dump() + " (read, write)");
+      if (s == "read")
+        tok.read = true;
+      else if (s == "write")
+        tok.write = true;
+      else
+        throw std::runtime_error(item + "unknown scope " + s.dump() + " (read, write)");
     }
     store.tokens_.push_back(tok);
   }

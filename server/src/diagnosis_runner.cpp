@@ -80,9 +80,15 @@ std::string DiagnosisRunner::StatusJson(const std::string& crusher) {
   }
   const std::optional<std::pair<int64_t, std::string>> latest = store_.With([&](Store& s) { return s.LatestDiagnosis(crusher); });
   switch (run.state) {
-    case RunState::kRunning: j["status"] = "running"; break;
-    case RunState::kFailed: j["status"] = "failed"; break;
-    case RunState::kIdle: j["status"] = latest ? "done" : "none"; break;
+    case RunState::kRunning:
+      j["status"] = "running";
+      break;
+    case RunState::kFailed:
+      j["status"] = "failed";
+      break;
+    case RunState::kIdle:
+      j["status"] = latest ? "done" : "none";
+      break;
   }
   j["time"] = latest ? nlohmann::ordered_json(core::FormatIsoTime(core::TimePoint(std::chrono::seconds(latest->first))))
                      : nlohmann::ordered_json(nullptr);

@@ -25,7 +25,9 @@ void Reply(httplib::Response& res, int status, const ordered_json& body) {
   res.set_content(body.dump(-1, ' ', false, ordered_json::error_handler_t::replace), "application/json");
 }
 
-void Error(httplib::Response& res, int status, const std::string& message) { Reply(res, status, {{"error", message}}); }
+void Error(httplib::Response& res, int status, const std::string& message) {
+  Reply(res, status, {{"error", message}});
+}
 
 /// The event stream path: the only one that takes ?access_token= (EventSource cannot send headers).
 bool IsEventStream(const std::string& path) {
@@ -116,9 +118,13 @@ struct HttpApi::Impl {
   void RouteDashboard();
 };
 
-HttpApi::HttpApi(ApiContext context) : impl_(std::make_unique<Impl>(std::move(context))) { impl_->Routes(); }
+HttpApi::HttpApi(ApiContext context) : impl_(std::make_unique<Impl>(std::move(context))) {
+  impl_->Routes();
+}
 
-HttpApi::~HttpApi() { Stop(); }
+HttpApi::~HttpApi() {
+  Stop();
+}
 
 int HttpApi::Bind(const std::string& host, int port) {
   int bound = port;
@@ -159,9 +165,12 @@ void HttpApi::Impl::Routes() {
   svr.set_error_handler([this](const httplib::Request& req, httplib::Response& res) {  // runs outside httplib's try
     if (!res.body.empty()) return;
     std::string what = "request failed";
-    if (res.status == 404) what = "no such resource: " + req.path;
-    else if (res.status == 413) what = "request body larger than " + std::to_string(ctx.limits.max_body_bytes) + " bytes";
-    else if (res.status == 400) what = "malformed HTTP request";
+    if (res.status == 404)
+      what = "no such resource: " + req.path;
+    else if (res.status == 413)
+      what = "request body larger than " + std::to_string(ctx.limits.max_body_bytes) + " bytes";
+    else if (res.status == 400)
+      what = "malformed HTTP request";
     Error(res, res.status, what);
   });
 
@@ -175,8 +184,10 @@ void HttpApi::Impl::Routes() {
       Send(resources.Call(route, ToRest(req)), res);
     };
     const std::string pattern = rest::PathPattern(route.path);
-    if (route.method == rest::Method::kGet) svr.Get(pattern, handler);
-    else svr.Post(pattern, handler);
+    if (route.method == rest::Method::kGet)
+      svr.Get(pattern, handler);
+    else
+      svr.Post(pattern, handler);
   }
 }
 
@@ -215,7 +226,8 @@ httplib::Server::HandlerResponse HttpApi::Impl::Admit(const httplib::Request& re
 
 void HttpApi::Impl::RouteDashboard() {
   if (!ctx.web_dir.empty() && std::filesystem::exists(ctx.web_dir / "index.html")) {
-    if (std::filesystem::is_directory(ctx.web_dir / "assets")) server.set_mount_point("/assets", (ctx.web_dir / "assets").string());
+    if (std::filesystem::is_directory(ctx.web_dir / "assets"))
+      server.set_mount_point("/assets", (ctx.web_dir / "assets").string());
     const std::filesystem::path index = ctx.web_dir / "index.html";
     server.Get("/", [index](const httplib::Request&, httplib::Response& res) {
       std::ifstream in(index, std::ios::binary);

@@ -27,10 +27,10 @@ struct GuardedServer::Conn {
   std::string buf;  ///< received, not yet consumed by a request
   enum class State { kIdle, kHead, kLinger } state = State::kIdle;
   Clock::time_point deadline;
-  size_t head_len = 0;      ///< bytes of the complete head at the start of buf
+  size_t head_len = 0;          ///< bytes of the complete head at the start of buf
   uint64_t body_allowance = 0;  ///< body bytes the request may send (framing included)
-  size_t served = 0;        ///< requests answered on this connection
-  size_t lingered = 0;      ///< bytes discarded after an error reply
+  size_t served = 0;            ///< requests answered on this connection
+  size_t lingered = 0;          ///< bytes discarded after an error reply
 };
 
 namespace {
@@ -42,16 +42,26 @@ int RemainingMs(Clock::time_point deadline) {
 
 const char* Reason(int status) {
   switch (status) {
-    case 400: return "Bad Request";
-    case 408: return "Request Timeout";
-    case 411: return "Length Required";
-    case 413: return "Payload Too Large";
-    case 414: return "URI Too Long";
-    case 415: return "Unsupported Media Type";
-    case 431: return "Request Header Fields Too Large";
-    case 501: return "Not Implemented";
-    case 503: return "Service Unavailable";
-    default: return "Error";
+    case 400:
+      return "Bad Request";
+    case 408:
+      return "Request Timeout";
+    case 411:
+      return "Length Required";
+    case 413:
+      return "Payload Too Large";
+    case 414:
+      return "URI Too Long";
+    case 415:
+      return "Unsupported Media Type";
+    case 431:
+      return "Request Header Fields Too Large";
+    case 501:
+      return "Not Implemented";
+    case 503:
+      return "Service Unavailable";
+    default:
+      return "Error";
   }
 }
 
@@ -96,7 +106,9 @@ bool SendBoth(int fd, std::string_view head, const char* body, size_t body_size,
 }
 
 /// Writes all of `data` within `timeout_ms` (the socket is non-blocking). False on error or timeout.
-bool SendAll(int fd, const char* data, size_t size, int timeout_ms) { return SendBoth(fd, {}, data, size, timeout_ms); }
+bool SendAll(int fd, const char* data, size_t size, int timeout_ms) {
+  return SendBoth(fd, {}, data, size, timeout_ms);
+}
 
 std::string Lower(std::string s) {
   for (auto& ch : s) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
@@ -178,7 +190,8 @@ class GuardedStream : public httplib::Stream {
       return static_cast<ssize_t>(size);
     }
     wrote_ = true;
-    const bool ok = held_.empty() ? SendAll(c_.fd, ptr, size, limits_.io_timeout_ms) : SendBoth(c_.fd, held_, ptr, size, limits_.io_timeout_ms);
+    const bool ok = held_.empty() ? SendAll(c_.fd, ptr, size, limits_.io_timeout_ms)
+                                  : SendBoth(c_.fd, held_, ptr, size, limits_.io_timeout_ms);
     held_.clear();
     return ok ? static_cast<ssize_t>(size) : -1;
   }
@@ -390,7 +403,8 @@ void GuardedServer::ReadHead(Conn& c) {
   const size_t end = c.buf.find("\r\n\r\n");
   if (end == std::string::npos || end + 4 > limits_.max_head_bytes) {
     if (c.buf.size() >= limits_.max_head_bytes) {
-      return Refuse(c, 431, "request head (request line and headers) longer than " + std::to_string(limits_.max_head_bytes) + " bytes");
+      return Refuse(c, 431,
+                    "request head (request line and headers) longer than " + std::to_string(limits_.max_head_bytes) + " bytes");
     }
     return;  // wait for more
   }
@@ -405,7 +419,8 @@ void GuardedServer::ReadHead(Conn& c) {
     const std::string line = c.buf.substr(p, q - p);
     p = q + 2;
     if (line.empty()) continue;
-    if (++headers > limits_.max_headers) return Refuse(c, 431, "more than " + std::to_string(limits_.max_headers) + " header fields");
+    if (++headers > limits_.max_headers)
+      return Refuse(c, 431, "more than " + std::to_string(limits_.max_headers) + " header fields");
     const size_t colon = line.find(':');
     if (colon == std::string::npos) return Refuse(c, 400, "malformed header line");
     const std::string name = Lower(TrimSpaces(line.substr(0, colon)));
@@ -417,7 +432,8 @@ void GuardedServer::ReadHead(Conn& c) {
       has_length = true;
       length = std::stoull(value);
     } else if (name == "transfer-encoding") {
-      if (value != "chunked" || chunked) return Refuse(c, 501, "Transfer-Encoding other than a single 'chunked' is not supported");
+      if (value != "chunked" || chunked)
+        return Refuse(c, 501, "Transfer-Encoding other than a single 'chunked' is not supported");
       chunked = true;
     } else if (name == "content-encoding" && value != "identity") {
       return Refuse(c, 415, "compressed request bodies (Content-Encoding) are not accepted");
@@ -425,7 +441,8 @@ void GuardedServer::ReadHead(Conn& c) {
   }
   if (has_length && chunked) return Refuse(c, 400, "both Content-Length and Transfer-Encoding");
   if (has_length && length > limits_.max_body_bytes) {
-    return Refuse(c, 413, "request body of " + std::to_string(length) + " bytes; at most " + std::to_string(limits_.max_body_bytes));
+    return Refuse(c, 413,
+                  "request body of " + std::to_string(length) + " bytes; at most " + std::to_string(limits_.max_body_bytes));
   }
   const bool body_method = method == "POST" || method == "PUT" || method == "PATCH";
   if (body_method && !has_length && !chunked) return Refuse(c, 411, "a " + method + " needs Content-Length or chunked encoding");

@@ -45,7 +45,7 @@ class GuardedServer : public httplib::Server {
   void Accept();
   void ReadHead(Conn& c);
   void Worker();
-  void Release(Conn& c);   // closes the socket and gives back the connection slots
+  void Release(Conn& c);                                         // closes the socket and gives back the connection slots
   void Refuse(Conn& c, int status, const std::string& message);  // replies, then lingers briefly
   void Wake();
 

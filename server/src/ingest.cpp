@@ -24,8 +24,7 @@ std::optional<int64_t> IntField(const json& j, const char* name, int64_t lo, int
   int64_t v = 0;
   if (it->is_number_integer()) {
     v = it->get<int64_t>();
-  } else if (it->is_number_float() && std::floor(it->get<double>()) == it->get<double>() &&
-             std::fabs(it->get<double>()) < 9e15) {
+  } else if (it->is_number_float() && std::floor(it->get<double>()) == it->get<double>() && std::fabs(it->get<double>()) < 9e15) {
     v = static_cast<int64_t>(it->get<double>());
   } else {
     *error = std::string("\"") + name + "\" must be a whole number";
@@ -55,8 +54,10 @@ void IdentifyDespiteOverflow(std::string_view payload, Validation* v) {
       const json j = json::parse(text);
       if (!j.is_object()) return;
       const auto s = j.find("sensor");
-      if (s != j.end() && s->is_string()) v->sensor = s->get<std::string>();
-      else if (s != j.end() && s->is_number_integer()) v->sensor = std::to_string(s->get<int64_t>());
+      if (s != j.end() && s->is_string())
+        v->sensor = s->get<std::string>();
+      else if (s != j.end() && s->is_number_integer())
+        v->sensor = std::to_string(s->get<int64_t>());
       std::string ignored;
       v->seq = IntField(j, "seq", 0, 0xFFFFFFFFLL, &ignored);
       return;
@@ -125,9 +126,12 @@ size_t JsonNestingDepth(std::string_view text) {
   bool in_string = false, escaped = false;
   for (const char ch : text) {
     if (in_string) {
-      if (escaped) escaped = false;
-      else if (ch == '\\') escaped = true;
-      else if (ch == '"') in_string = false;
+      if (escaped)
+        escaped = false;
+      else if (ch == '\\')
+        escaped = true;
+      else if (ch == '"')
+        in_string = false;
     } else if (ch == '"') {
       in_string = true;
     } else if (ch == '[' || ch == '{') {
@@ -160,8 +164,10 @@ Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t
   }
   // Identify first, so that even a rejected message can be acknowledged once quarantined.
   const auto s = j.find("sensor");
-  if (s != j.end() && s->is_string()) v.sensor = s->get<std::string>();
-  else if (s != j.end() && s->is_number_integer()) v.sensor = std::to_string(s->get<int64_t>());
+  if (s != j.end() && s->is_string())
+    v.sensor = s->get<std::string>();
+  else if (s != j.end() && s->is_number_integer())
+    v.sensor = std::to_string(s->get<int64_t>());
   std::string error;
   if (const auto seq = IntField(j, "seq", 0, 0xFFFFFFFFLL, &error)) v.seq = seq;
   if (v.sensor.empty()) {
@@ -258,15 +264,14 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
   std::lock_guard<std::mutex> lock(mutex_);
   IngestResult result;
   const int64_t now = now_s_();
-  const int64_t wall = static_cast<int64_t>(std::chrono::duration_cast<std::chrono::seconds>(
-                                                std::chrono::system_clock::now().time_since_epoch())
-                                                .count());
+  const int64_t wall = static_cast<int64_t>(
+      std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count());
   std::vector<StoredReading> readings;
   std::vector<size_t> reading_index;  // batch index of each reading
   std::vector<Rejected> rejected;
   std::vector<Validation> validations;
   std::vector<bool> foreign_site(batch.size(), false);  // a known crusher heard under another site
-  std::map<std::string, std::string> new_sites;          // bound by this batch (first site heard)
+  std::map<std::string, std::string> new_sites;         // bound by this batch (first site heard)
   validations.reserve(batch.size());
   for (size_t i = 0; i < batch.size(); ++i) {
     const Incoming& in = batch[i];
@@ -287,8 +292,8 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
       if (site && *site != in.site) {
         foreign_site[i] = true;
         v.reading.reset();
-        v.error = "site '" + in.site + "' is not crusher " + in.crusher + "'s site '" + *site +
-                  "' (quarantined, not acknowledged)";
+        v.error =
+            "site '" + in.site + "' is not crusher " + in.crusher + "'s site '" + *site + "' (quarantined, not acknowledged)";
       }
     }
     if (v.reading) {
@@ -301,7 +306,8 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
   }
   std::unique_lock<std::mutex> commit_order;  // from the commit to live_->Add (LiveState::CommitGuard)
   if (live_) commit_order = live_->CommitGuard();
-  const std::vector<InsertOutcome> outcomes = store_.Commit(readings, rejected, {new_sites.begin(), new_sites.end()});  // throws: nothing acked
+  const std::vector<InsertOutcome> outcomes =
+      store_.Commit(readings, rejected, {new_sites.begin(), new_sites.end()});  // throws: nothing acked
   for (const auto& [crusher, site] : new_sites) {
     sites_[crusher] = site;
     result.log.push_back("crusher " + crusher + " is now bound to site '" + site +

@@ -11,7 +11,9 @@
 namespace lw::server {
 namespace {
 
-int64_t Unix(core::TimePoint t) { return t.time_since_epoch().count(); }
+int64_t Unix(core::TimePoint t) {
+  return t.time_since_epoch().count();
+}
 
 /// At the same time the thinner reading counts (wear only goes one way), then the lower seq: the
 /// reading core::LatestReadingIndices picks from readings ordered by time and seq.
@@ -86,14 +88,17 @@ void LiveState::AddLocked(CrusherLive& c, const StoredReading& r) {
   if (!s.last_usable_s || r.time_s > *s.last_usable_s) s.last_usable_s = r.time_s;
   const int64_t start = WindowStart(*c.crusher, *s.last_usable_s);
   if (r.time_s >= start) {
-    const auto later = [](const Point& a, const Point& b) { return a.time_s < b.time_s || (a.time_s == b.time_s && a.seq < b.seq); };
+    const auto later = [](const Point& a, const Point& b) {
+      return a.time_s < b.time_s || (a.time_s == b.time_s && a.seq < b.seq);
+    };
     s.window.insert(std::upper_bound(s.window.begin(), s.window.end(), p, later), p);  // at the end but for late readings
   }
   while (!s.window.empty() && s.window.front().time_s < start) s.window.pop_front();
   for (size_t k = 0; k < c.crusher->scans.size(); ++k) {
     if (r.time_s > Unix(c.crusher->scans[k].scan.date)) continue;
     std::optional<Point>& a = s.anchor[k];
-    if (!a || r.time_s > a->time_s || (r.time_s == a->time_s && BetterAtSameTime(p.thickness_mm, p.seq, a->thickness_mm, a->seq))) a = p;
+    if (!a || r.time_s > a->time_s || (r.time_s == a->time_s && BetterAtSameTime(p.thickness_mm, p.seq, a->thickness_mm, a->seq)))
+      a = p;
   }
 }
 
@@ -141,7 +146,8 @@ void LiveState::LoadFrom(Store& store, const Crusher& c_crusher, CrusherLive& c)
       if (!s.last_usable_s) continue;
       if (!c.last_usable_s || *s.last_usable_s > *c.last_usable_s) c.last_usable_s = s.last_usable_s;
       store.Walk(id, sensor, WindowStart(*crusher, *s.last_usable_s), INT64_MAX, false, [&](const StoredReading& r) {
-        if (!IsFaultReading(r.flags, r.loops_intact)) s.window.push_back({r.time_s, r.seq, r.thickness_mm, r.loops_intact, r.flags});
+        if (!IsFaultReading(r.flags, r.loops_intact))
+          s.window.push_back({r.time_s, r.seq, r.thickness_mm, r.loops_intact, r.flags});
         return true;
       });
       for (size_t k = 0; k < crusher->scans.size(); ++k) {
@@ -209,7 +215,9 @@ std::vector<StoredReading> LiveState::WearInputs(const std::string& crusher) con
     for (const Point& p : s.window) emit(p);
     bool extra = false;
     for (const auto& a : s.anchor) {
-      if (!a || std::any_of(out.begin() + static_cast<std::ptrdiff_t>(first), out.end(), [&](const StoredReading& r) { return r.seq == a->seq; })) continue;
+      if (!a || std::any_of(out.begin() + static_cast<std::ptrdiff_t>(first), out.end(),
+                            [&](const StoredReading& r) { return r.seq == a->seq; }))
+        continue;
       emit(*a);
       extra = true;
     }

@@ -17,7 +17,8 @@ ordered_json Operation(const rest::Route& route) {
     params.push_back({{"name", name}, {"in", "path"}, {"required", true}, {"schema", {{"type", "string"}}}});
   }
   for (const rest::QueryDoc& q : route.query) {
-    params.push_back({{"name", q.name}, {"in", "query"}, {"required", false}, {"description", q.description}, {"schema", {{"type", q.type}}}});
+    params.push_back(
+        {{"name", q.name}, {"in", "query"}, {"required", false}, {"description", q.description}, {"schema", {{"type", q.type}}}});
   }
   return {{"summary", route.summary},
           {"parameters", params},
@@ -54,8 +55,7 @@ std::string OpenApiJson() {
          {{"Error",
            {{"description", "Error"},
             {"content",
-             {{"application/json",
-               {{"schema", {{"type", "object"}, {"properties", {{"error", {{"type", "string"}}}}}}}}}}}}}}}}},
+             {{"application/json", {{"schema", {{"type", "object"}, {"properties", {{"error", {{"type", "string"}}}}}}}}}}}}}}}}},
       {"security", ordered_json::array({{{"bearer", ordered_json::array()}}})}};
   return doc.dump(1);
 }

@@ -61,7 +61,8 @@ std::vector<std::string> SplitList(const std::string& value) {
 
 std::string ServerHelp() {
   return "linerwatch-server: readings over MQTT -> SQLite -> live global wear, forecasts, REST, dashboard.\n\n"
-         "Usage: linerwatch-server " + Table().Synopsis(25, 100) + "\n\n" + Table().Help(24);
+         "Usage: linerwatch-server " +
+         Table().Synopsis(25, 100) + "\n\n" + Table().Help(24);
 }
 
 ServerOptions ParseServerOptions(const std::vector<std::string>& args) {

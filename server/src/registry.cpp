@@ -82,7 +82,8 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
         c->validation.warnings.push_back("scans/" + f.filename().string() + ": " + e.what() + " (scan ignored)");
       }
     }
-    std::stable_sort(c->scans.begin(), c->scans.end(), [](const CrusherScan& a, const CrusherScan& b) { return a.scan.date < b.scan.date; });
+    std::stable_sort(c->scans.begin(), c->scans.end(),
+                     [](const CrusherScan& a, const CrusherScan& b) { return a.scan.date < b.scan.date; });
   }
   return c;
 }

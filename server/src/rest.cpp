@@ -25,7 +25,9 @@ Response Json(int status, ordered_json body) {
   return r;
 }
 
-std::string Iso(int64_t unix_s) { return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(unix_s))); }
+std::string Iso(int64_t unix_s) {
+  return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(unix_s)));
+}
 
 ordered_json ReadingJson(const StoredReading& r) {
   return {{"sensor", r.sensor},
@@ -46,31 +48,41 @@ ordered_json RowsJson(const core::CrusherConfig& config) {
 
 }  // namespace
 
-const char* MethodName(Method method) { return method == Method::kGet ? "GET" : "POST"; }
+const char* MethodName(Method method) {
+  return method == Method::kGet ? "GET" : "POST";
+}
 
 const char* ScopeName(Scope scope) {
   switch (scope) {
-    case Scope::kNone: return "none";
-    case Scope::kRead: return "read";
-    case Scope::kWrite: return "write";
+    case Scope::kNone:
+      return "none";
+    case Scope::kRead:
+      return "read";
+    case Scope::kWrite:
+      return "write";
   }
   return "none";
 }
 
-bool Writes(std::string_view method) { return method != "GET" && method != "HEAD"; }
+bool Writes(std::string_view method) {
+  return method != "GET" && method != "HEAD";
+}
 
 Scope RequiredScope(std::string_view method, std::string_view path) {
   if (path.rfind("/api/", 0) != 0) return Scope::kNone;
   return Writes(method) ? Scope::kWrite : Scope::kRead;
 }
 
-Response Error(int status, const std::string& message) { return Json(status, {{"error", message}}); }
+Response Error(int status, const std::string& message) {
+  return Json(status, {{"error", message}});
+}
 
 std::vector<std::string> PathParams(std::string_view path_template) {
   std::vector<std::string> names;
   for (size_t open = path_template.find('{'); open != std::string_view::npos; open = path_template.find('{', open + 1)) {
     const size_t close = path_template.find('}', open);
-    if (close == std::string_view::npos) throw std::invalid_argument("path template '" + std::string(path_template) + "': unclosed {");
+    if (close == std::string_view::npos)
+      throw std::invalid_argument("path template '" + std::string(path_template) + "': unclosed {");
     names.emplace_back(path_template.substr(open + 1, close - open - 1));
   }
   return names;
@@ -84,7 +96,8 @@ std::string PathPattern(std::string_view path_template) {
       continue;
     }
     const size_t close = path_template.find('}', i);
-    if (close == std::string_view::npos) throw std::invalid_argument("path template '" + std::string(path_template) + "': unclosed {");
+    if (close == std::string_view::npos)
+      throw std::invalid_argument("path template '" + std::string(path_template) + "': unclosed {");
     out += "([^/]+)";
     i = close;
   }
@@ -115,37 +128,76 @@ const std::vector<Route>& Resources::Routes() {
   static const std::vector<Route> routes = {
       {Method::kGet, "/healthz", "Liveness: database and broker state", {}, "200", &Resources::Health},
       {Method::kGet, "/api/v1/crushers", "Crushers with their latest minimum thickness", {}, "200", &Resources::Crushers},
-      {Method::kGet, "/api/v1/crushers/{crusher}", "Crusher geometry, sensors, map hash and counters", {}, "200",
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}",
+       "Crusher geometry, sensors, map hash and counters",
+       {},
+       "200",
        &Resources::CrusherDetail},
       {Method::kGet, "/api/v1/crushers/{crusher}/sensors", "Latest reading of each sensor", {}, "200", &Resources::Sensors},
-      {Method::kGet, "/api/v1/crushers/{crusher}/sensors/{sensor}/readings",
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}/sensors/{sensor}/readings",
        "Readings of one sensor, oldest first, paged with cursors",
        {{"from", "string", "ISO-8601 UTC, inclusive"},
         {"to", "string", "ISO-8601 UTC, inclusive"},
         {"limit", "integer", "1..5000, default 500"},
         {"cursor", "string", "next_cursor of the previous page"}},
-       "200", &Resources::Readings},
-      {Method::kPost, "/api/v1/crushers/{crusher}/readings",
-       "Store readings {\"readings\": [{sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv}]}", {}, "200",
+       "200",
+       &Resources::Readings},
+      {Method::kPost,
+       "/api/v1/crushers/{crusher}/readings",
+       "Store readings {\"readings\": [{sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv}]}",
+       {},
+       "200",
        &Resources::PostReadings},
-      {Method::kGet, "/api/v1/crushers/{crusher}/mesh", "As-new liner mesh: points, faces, face z and theta", {}, "200",
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}/mesh",
+       "As-new liner mesh: points, faces, face z and theta",
+       {},
+       "200",
        &Resources::Mesh},
-      {Method::kGet, "/api/v1/crushers/{crusher}/wear",
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}/wear",
        "Global wear (seed Eq. 9): per-face remaining thickness, per-row summary, minimum and where",
        {{"format", "string", "json (default) or vtk (legacy VTK for ParaView)"},
         {"faces", "boolean", "false: leave out the per-face array"}},
-       "200", &Resources::Wear},
-      {Method::kGet, "/api/v1/crushers/{crusher}/forecast",
-       "Per row and sensor: the date the minimum thickness is reached, with a band", {}, "200", &Resources::Forecast},
-      {Method::kGet, "/api/v1/crushers/{crusher}/diagnosis",
-       "Latest diagnosis (docs/diagnosis.md, section Output) and its status", {}, "200", &Resources::Diagnosis},
-      {Method::kPost, "/api/v1/crushers/{crusher}/diagnosis", "Start a diagnosis on the stored readings", {}, "202",
+       "200",
+       &Resources::Wear},
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}/forecast",
+       "Per row and sensor: the date the minimum thickness is reached, with a band",
+       {},
+       "200",
+       &Resources::Forecast},
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}/diagnosis",
+       "Latest diagnosis (docs/diagnosis.md, section Output) and its status",
+       {},
+       "200",
+       &Resources::Diagnosis},
+      {Method::kPost,
+       "/api/v1/crushers/{crusher}/diagnosis",
+       "Start a diagnosis on the stored readings",
+       {},
+       "202",
        &Resources::StartDiagnosis},
-      {Method::kGet, "/api/v1/crushers/{crusher}/events", "Server-Sent Events: `reading` and `wear` as they are committed",
-       {{"access_token", "string", "the bearer token (EventSource cannot set headers)"}}, "200", &Resources::Events},
-      {Method::kGet, "/api/v1/rejected", "Quarantined messages that failed validation, newest first",
-       {{"limit", "integer", "1..1000, default 100"}}, "200", &Resources::RejectedList},
-      {Method::kGet, "/api/v1/whoami", "The caller's token name and scopes ({auth: false} on an open server)", {}, "200",
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}/events",
+       "Server-Sent Events: `reading` and `wear` as they are committed",
+       {{"access_token", "string", "the bearer token (EventSource cannot set headers)"}},
+       "200",
+       &Resources::Events},
+      {Method::kGet,
+       "/api/v1/rejected",
+       "Quarantined messages that failed validation, newest first",
+       {{"limit", "integer", "1..1000, default 100"}},
+       "200",
+       &Resources::RejectedList},
+      {Method::kGet,
+       "/api/v1/whoami",
+       "The caller's token name and scopes ({auth: false} on an open server)",
+       {},
+       "200",
        &Resources::WhoAmI},
       {Method::kGet, "/api/v1/openapi.json", "This document", {}, "200", &Resources::OpenApi},
   };
@@ -203,7 +255,8 @@ Response Resources::Crushers(const Request&) {
                     {"face_count", c->map.face_count()},
                     {"latest_reading_time", latest ? ordered_json(Iso(*latest)) : ordered_json(nullptr)},
                     {"min_thickness_mm", st && st->has_wear && std::isfinite(st->reconstruction.min_thickness_mm)
-                                             ? ordered_json(st->reconstruction.min_thickness_mm) : ordered_json(nullptr)},
+                                             ? ordered_json(st->reconstruction.min_thickness_mm)
+                                             : ordered_json(nullptr)},
                     {"wear_status", st && st->has_wear ? ordered_json(st->reconstruction.status) : ordered_json(nullptr)}});
   }
   return Json(200, {{"crushers", list}});
@@ -215,21 +268,29 @@ Response Resources::CrusherDetail(const Request& req) {
   if (!c) return error;
   ordered_json sensors = ordered_json::array();
   for (const auto& s : c->config.sensors) {
-    sensors.push_back({{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg}, {"thickness_new_mm", s.thickness_new_mm}});
+    sensors.push_back(
+        {{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg}, {"thickness_new_mm", s.thickness_new_mm}});
   }
   const int64_t stored = ctx_.live->CountReadings(c->config.crusher_id);
   const IngestCounters cc = ctx_.ingestor->CrusherCounters(c->config.crusher_id);
-  return Json(200,
-              {{"crusher_id", c->config.crusher_id},
-               {"installed_at", core::FormatIsoTime(c->config.installed_at)},
-               {"concave", {{"thickness_new_mm", c->config.thickness_new_mm}, {"thickness_min_mm", c->config.thickness_min_mm}, {"rows", RowsJson(c->config)}}},
-               {"sensors", sensors},
-               {"map", {{"sha256", c->map.sha256},
-                        {"face_count", c->map.face_count()},
-                        {"warnings", c->validation.warnings},
-                        {"has_stderr", c->map.has_wear_stderr()}, {"windows", c->map.windows},
-                        {"dem_summary", c->dem_summary}}},
-               {"counters", {{"readings_stored", stored}, {"duplicates", cc.duplicates}, {"conflicts", cc.conflicts}, {"rejected", cc.rejected}}}});
+  return Json(
+      200,
+      {{"crusher_id", c->config.crusher_id},
+       {"installed_at", core::FormatIsoTime(c->config.installed_at)},
+       {"concave",
+        {{"thickness_new_mm", c->config.thickness_new_mm},
+         {"thickness_min_mm", c->config.thickness_min_mm},
+         {"rows", RowsJson(c->config)}}},
+       {"sensors", sensors},
+       {"map",
+        {{"sha256", c->map.sha256},
+         {"face_count", c->map.face_count()},
+         {"warnings", c->validation.warnings},
+         {"has_stderr", c->map.has_wear_stderr()},
+         {"windows", c->map.windows},
+         {"dem_summary", c->dem_summary}}},
+       {"counters",
+        {{"readings_stored", stored}, {"duplicates", cc.duplicates}, {"conflicts", cc.conflicts}, {"rejected", cc.rejected}}}});
 }
 
 Response Resources::Sensors(const Request& req) {
@@ -239,8 +300,13 @@ Response Resources::Sensors(const Request& req) {
   const std::vector<Store::SensorSummary> latest = ctx_.live->LatestPerSensor(c->config.crusher_id);
   ordered_json sensors = ordered_json::array();
   for (const auto& s : c->config.sensors) {
-    ordered_json o = {{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg},
-                      {"thickness_new_mm", s.thickness_new_mm}, {"reading_count", 0}, {"latest", nullptr}};
+    ordered_json o = {{"id", s.id},
+                      {"row", s.row},
+                      {"z_m", s.z_m},
+                      {"theta_deg", s.theta_deg},
+                      {"thickness_new_mm", s.thickness_new_mm},
+                      {"reading_count", 0},
+                      {"latest", nullptr}};
     for (const auto& l : latest) {
       if (l.latest.sensor != s.id) continue;
       o["reading_count"] = l.count;
@@ -264,9 +330,8 @@ Response Resources::Readings(const Request& req) {
   if (!query) return Error(400, message);
   Page page;
   try {
-    page = ctx_.read->With([&](Store& s) {
-      return s.Range(c->config.crusher_id, sensor, query->from_s, query->to_s, query->limit, query->cursor);
-    });
+    page = ctx_.read->With(
+        [&](Store& s) { return s.Range(c->config.crusher_id, sensor, query->from_s, query->to_s, query->limit, query->cursor); });
   } catch (const std::invalid_argument& e) {
     return Error(400, e.what());
   }
@@ -276,7 +341,8 @@ Response Resources::Readings(const Request& req) {
     o.erase("sensor");
     readings.push_back(o);
   }
-  return Json(200, {{"readings", readings}, {"next_cursor", page.next_cursor ? ordered_json(*page.next_cursor) : ordered_json(nullptr)}});
+  return Json(
+      200, {{"readings", readings}, {"next_cursor", page.next_cursor ? ordered_json(*page.next_cursor) : ordered_json(nullptr)}});
 }
 
 Response Resources::PostReadings(const Request& req) {
@@ -305,8 +371,11 @@ Response Resources::PostReadings(const Request& req) {
     return Error(503, std::string("not stored: ") + e.what());
   }
   if (ctx_.after_ingest) ctx_.after_ingest(result);
-  ordered_json j = {{"stored", result.stored}, {"duplicates", result.duplicates}, {"conflicts", result.conflicts},
-                    {"rejected", result.rejected}, {"errors", result.log}};
+  ordered_json j = {{"stored", result.stored},
+                    {"duplicates", result.duplicates},
+                    {"conflicts", result.conflicts},
+                    {"rejected", result.rejected},
+                    {"errors", result.log}};
   const bool all_rejected = result.rejected > 0 && result.rejected == batch.size();
   if (all_rejected) j["error"] = "every reading was rejected";
   return Json(all_rejected ? 422 : 200, std::move(j));
@@ -352,8 +421,12 @@ Response Resources::Wear(const Request& req) {
       const Eigen::VectorXd& wear = st->reconstruction.wear_mm;
       const Eigen::VectorXd& remaining = st->reconstruction.remaining_mm;
       const Eigen::VectorXd& sd = st->reconstruction.remaining_sd_mm;
-      core::WriteWearMapVtk(path, c->map, {{"remaining_mm", &remaining}, {"remaining_sd_mm", &sd}, {"wear_mm", &wear},
-                                           {"dem_wear", &c->map.wear}, {"dem_intensity_smoothed", &c->plan.intensity}});
+      core::WriteWearMapVtk(path, c->map,
+                            {{"remaining_mm", &remaining},
+                             {"remaining_sd_mm", &sd},
+                             {"wear_mm", &wear},
+                             {"dem_wear", &c->map.wear},
+                             {"dem_intensity_smoothed", &c->plan.intensity}});
       std::ifstream in(path, std::ios::binary);
       ss << in.rdbuf();
     } catch (...) {

@@ -32,7 +32,9 @@
 namespace lw::server {
 namespace {
 
-int64_t WallMs() { return core::WallClockMs(); }
+int64_t WallMs() {
+  return core::WallClockMs();
+}
 
 /// CPU time of `clock` (CLOCK_PROCESS_CPUTIME_ID, CLOCK_THREAD_CPUTIME_ID) in ms: startup figures
 /// that do not depend on what else the machine runs.
@@ -42,8 +44,9 @@ int64_t CpuMs(clockid_t clock) {
   return static_cast<int64_t>(t.tv_sec) * 1000 + t.tv_nsec / 1'000'000;
 }
 
-std::string Stamp() { return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(WallMs() / 1000))); }
-
+std::string Stamp() {
+  return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(WallMs() / 1000)));
+}
 
 class Logger {
  public:
@@ -190,7 +193,8 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   // "now" for validation and commit acks: the simulator's clock file when given (core::Clock: its
   // last good value when the file turns bad, the wall clock before the first).
   const core::Clock clock(o.clock_file);
-  Ingestor ingestor(write, *registry, [&clock] { return clock.NowMs() / 1000; }, &live);
+  Ingestor ingestor(
+      write, *registry, [&clock] { return clock.NowMs() / 1000; }, &live);
   WearService wear(*registry, live);
   EventBus events;
   // The diagnosis loads every reading of a crusher: on its own connection, so REST reads do not wait for it.
@@ -248,7 +252,8 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   };
   ctx.after_ingest = on_committed;
   HttpApi api(ctx);
-  log("listening on " + StartApi(api, o) + " (REST /api/v1, dashboard " + (o.web_dir.empty() ? std::string("not built") : o.web_dir) + ")");
+  log("listening on " + StartApi(api, o) + " (REST /api/v1, dashboard " +
+      (o.web_dir.empty() ? std::string("not built") : o.web_dir) + ")");
   if (tokens.enabled()) log("bearer tokens required on /api");
   // Ready for systemd (Type=notify): database open, crushers loaded, HTTP serving. The broker is
   // connected (and reconnected) by the loop below.
@@ -277,7 +282,8 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
         log("crusher " + c->config.crusher_id + ": wear not computed: " + e.what());
       }
     }
-    log("wear and forecast of every crusher computed (process CPU since start: " + std::to_string(CpuMs(CLOCK_PROCESS_CPUTIME_ID)) + " ms)");
+    log("wear and forecast of every crusher computed (process CPU since start: " +
+        std::to_string(CpuMs(CLOCK_PROCESS_CPUTIME_ID)) + " ms)");
     int64_t last_ms = 0;
     while (!worker_stop) {
       std::set<std::string> work;

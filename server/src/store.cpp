@@ -20,8 +20,7 @@ using Tx = core::sqlite::Transaction<std::runtime_error>;
 
 constexpr int kSchemaVersion = 2;
 
-const char* kSelectColumns =
-    "crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload";
+const char* kSelectColumns = "crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload";
 
 StoredReading Row(const Stmt& s) {
   StoredReading r;
@@ -54,7 +53,9 @@ class InUse {
 
 }  // namespace
 
-std::string MakeCursor(int64_t time_s, int64_t seq) { return "t" + std::to_string(time_s) + "s" + std::to_string(seq); }
+std::string MakeCursor(int64_t time_s, int64_t seq) {
+  return "t" + std::to_string(time_s) + "s" + std::to_string(seq);
+}
 
 void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq) {
   const size_t s = cursor.find('s');
@@ -109,9 +110,10 @@ struct Store::Impl {
   Impl(const std::string& path, RejectedLimits l, bool read_only = false)
       : db(read_only ? ImmutableUri(path) : (CreatePrivate(path), path), "database",
            read_only ? SQLITE_OPEN_READONLY | SQLITE_OPEN_URI : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE),
-        insert((read_only ? CheckVersion(db) : Init(db), db),
-               "INSERT INTO readings(crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload)"
-               " VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10) ON CONFLICT DO NOTHING"),
+        insert(
+            (read_only ? CheckVersion(db) : Init(db), db),
+            "INSERT INTO readings(crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload)"
+            " VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10) ON CONFLICT DO NOTHING"),
         existing(db, "SELECT time, thickness_mm FROM readings WHERE crusher=?1 AND sensor=?2 AND seq=?3"),
         insert_rejected(db, "INSERT INTO rejected(received, topic, payload, reason, digest, bytes) VALUES(?1,?2,?3,?4,?5,?6)"),
         latest(db,
@@ -124,8 +126,9 @@ struct Store::Impl {
                    " AND (time>?5 OR (time=?5 AND seq>?6)) ORDER BY time, seq LIMIT ?7")
                       .c_str()),
         // Everything but the raw payload: this feeds the wear and forecast computations.
-        all(db, "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, '' FROM readings"
-                " WHERE crusher=?1 ORDER BY sensor, time, seq"),
+        all(db,
+            "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, '' FROM readings"
+            " WHERE crusher=?1 ORDER BY sensor, time, seq"),
         count(db, "SELECT COUNT(*) FROM readings WHERE crusher=?1"),
         count_rejected(db, "SELECT COUNT(*) FROM rejected"),
         rejected_list(db, "SELECT received, topic, payload, reason FROM rejected ORDER BY id DESC LIMIT ?1"),
@@ -144,12 +147,15 @@ struct Store::Impl {
         count_sensor(db, "SELECT COUNT(*) FROM readings WHERE crusher=?1 AND sensor=?2"),
         next_sensor(db, "SELECT sensor FROM readings WHERE crusher=?1 AND sensor>?2 ORDER BY sensor LIMIT 1"),
         // Only the index's columns: battery_mv and received read as 0.
-        walk_up(db, "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, 0, 0, '' FROM readings"
-                    " WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4 ORDER BY time, seq"),
-        walk_down(db, "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, 0, 0, '' FROM readings"
-                      " WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4 ORDER BY time DESC, seq DESC"),
-        latest_of(db, "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, '' FROM readings"
-                      " WHERE crusher=?1 AND sensor=?2 ORDER BY time DESC, seq DESC LIMIT 1"),
+        walk_up(db,
+                "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, 0, 0, '' FROM readings"
+                " WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4 ORDER BY time, seq"),
+        walk_down(db,
+                  "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, 0, 0, '' FROM readings"
+                  " WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4 ORDER BY time DESC, seq DESC"),
+        latest_of(db,
+                  "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, '' FROM readings"
+                  " WHERE crusher=?1 AND sensor=?2 ORDER BY time DESC, seq DESC LIMIT 1"),
         limits(l) {}
 
   static void CheckVersion(const Db& db) {
@@ -157,7 +163,8 @@ struct Store::Impl {
     version.Step();
     if (version.Int(0) != kSchemaVersion) {
       throw std::runtime_error("database " + db.path() + ": schema version " + std::to_string(version.Int(0)) +
-                               ", not this server's (" + std::to_string(kSchemaVersion) + "): cannot be read without upgrading it");
+                               ", not this server's (" + std::to_string(kSchemaVersion) +
+                               "): cannot be read without upgrading it");
     }
   }
 
@@ -186,7 +193,8 @@ struct Store::Impl {
         // state rebuilt at startup (server/live_state.hpp) walks it without touching the rows. It
         // replaces readings_by_time (crusher, sensor, time, seq), its prefix; built once on a database
         // that has the older index.
-        "CREATE INDEX IF NOT EXISTS readings_by_sensor_time ON readings(crusher, sensor, time, seq, thickness_mm, flags, loops_intact);"
+        "CREATE INDEX IF NOT EXISTS readings_by_sensor_time ON readings(crusher, sensor, time, seq, thickness_mm, flags, "
+        "loops_intact);"
         "DROP INDEX IF EXISTS readings_by_time;"
         "CREATE TABLE IF NOT EXISTS rejected (id INTEGER PRIMARY KEY AUTOINCREMENT, received INTEGER NOT NULL,"
         " topic TEXT NOT NULL, payload TEXT NOT NULL, reason TEXT NOT NULL);"
@@ -214,9 +222,9 @@ struct Store::Impl {
   }
 };
 
-Store::Store(const std::filesystem::path& path, RejectedLimits limits)
-    : impl_(std::make_unique<Impl>(path.string(), limits)) {}
-Store::Store(const std::filesystem::path& path, ReadOnlyTag) : impl_(std::make_unique<Impl>(path.string(), RejectedLimits{}, true)) {}
+Store::Store(const std::filesystem::path& path, RejectedLimits limits) : impl_(std::make_unique<Impl>(path.string(), limits)) {}
+Store::Store(const std::filesystem::path& path, ReadOnlyTag)
+    : impl_(std::make_unique<Impl>(path.string(), RejectedLimits{}, true)) {}
 std::unique_ptr<Store> Store::OpenReadOnly(const std::filesystem::path& path) {
   return std::unique_ptr<Store>(new Store(path, ReadOnlyTag{}));
 }
@@ -239,8 +247,8 @@ std::vector<InsertOutcome> Store::Commit(const std::vector<StoredReading>& readi
     }
     InUse use_existing(im.existing);
     im.existing.Bind(1, r.crusher).Bind(2, r.sensor).Bind(3, r.seq);
-    const bool same = im.existing.Step() && im.existing.Int(0) == r.time_s &&
-                      std::fabs(im.existing.Real(1) - r.thickness_mm) < 1e-9;
+    const bool same =
+        im.existing.Step() && im.existing.Int(0) == r.time_s && std::fabs(im.existing.Real(1) - r.thickness_mm) < 1e-9;
     out.push_back(same ? InsertOutcome::kDuplicate : InsertOutcome::kConflict);
   }
   for (const auto& [crusher, site] : new_sites) {

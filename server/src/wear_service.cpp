@@ -11,7 +11,9 @@ namespace {
 
 using nlohmann::ordered_json;
 
-core::TimePoint FromUnix(int64_t s) { return core::TimePoint(std::chrono::seconds(s)); }
+core::TimePoint FromUnix(int64_t s) {
+  return core::TimePoint(std::chrono::seconds(s));
+}
 
 ordered_json OptTime(const std::optional<core::TimePoint>& t) {
   return t ? ordered_json(core::FormatIsoTime(*t)) : ordered_json(nullptr);
@@ -23,7 +25,9 @@ double Round(double v, double step) {
 }
 
 /// A number, or null when there is none (NaN: the map or sensors cannot support it).
-ordered_json Num(double v, double step) { return std::isfinite(v) ? ordered_json(Round(v, step)) : ordered_json(nullptr); }
+ordered_json Num(double v, double step) {
+  return std::isfinite(v) ? ordered_json(Round(v, step)) : ordered_json(nullptr);
+}
 
 }  // namespace
 
@@ -51,7 +55,8 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   // The crusher's newest laser scan corrects the map between the sensors (even when it is dated after
   // the latest reading: readings arrive late, a scan is the newest measurement of the pattern).
   st.scan = crusher.PlanWithScan(usable, core::TimePoint::max());
-  st.reconstruction = core::Reconstruct(st.scan && st.scan->correction.detail.empty() ? st.scan->plan : crusher.plan, st.sensor_wear);
+  st.reconstruction =
+      core::Reconstruct(st.scan && st.scan->correction.detail.empty() ? st.scan->plan : crusher.plan, st.sensor_wear);
   st.has_wear = true;
   for (const core::SensorInfo& s : crusher.config.sensors) {
     st.sensor_forecasts.push_back(core::ForecastSensor(crusher.config, s, usable));
@@ -66,7 +71,9 @@ namespace {
 ordered_json ReadingsUsedJson(const CrusherState& st) {
   ordered_json used = ordered_json::array();
   for (const StoredReading& r : st.used) {
-    used.push_back({{"sensor", r.sensor}, {"seq", r.seq}, {"time", core::FormatIsoTime(FromUnix(r.time_s))},
+    used.push_back({{"sensor", r.sensor},
+                    {"seq", r.seq},
+                    {"time", core::FormatIsoTime(FromUnix(r.time_s))},
                     {"thickness_mm", r.thickness_mm}});
   }
   return used;
@@ -87,13 +94,15 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
   j["status"] = rec.status;
   if (!rec.status_detail.empty()) j["status_detail"] = rec.status_detail;
   j["min_thickness_mm"] = Num(rec.min_thickness_mm, 0.001);
-  j["min_thickness_band_mm"] = supported ? ordered_json::array({Num(rec.min_thickness_lo_mm, 0.001), Num(rec.min_thickness_hi_mm, 0.001)})
-                                         : ordered_json(nullptr);
+  j["min_thickness_band_mm"] =
+      supported ? ordered_json::array({Num(rec.min_thickness_lo_mm, 0.001), Num(rec.min_thickness_hi_mm, 0.001)})
+                : ordered_json(nullptr);
   j["worn_through_faces"] = rec.worn_through_faces;
   j["maybe_worn_through_faces"] = rec.maybe_worn_through_faces;
   const size_t f = rec.min_face;
   std::string min_row;
-  if (f < c.plan.face_row.size() && c.plan.face_row[f] >= 0) min_row = c.config.rows[static_cast<size_t>(c.plan.face_row[f])].name;
+  if (f < c.plan.face_row.size() && c.plan.face_row[f] >= 0)
+    min_row = c.config.rows[static_cast<size_t>(c.plan.face_row[f])].name;
   if (supported) {
     j["min"] = {{"face", f},
                 {"z_m", f < c.map.face_count() ? Round(c.map.z[static_cast<Eigen::Index>(f)], 1e-4) : 0.0},
@@ -108,8 +117,9 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
                     {"scale_mm_per_unit", Num(r.scale_mm_per_unit, 1e-9)},
                     {"scale_sd", Num(r.scale_sd, 1e-9)},
                     {"min_thickness_mm", Num(r.min_thickness_mm, 0.001)},
-                    {"min_thickness_band_mm", supported ? ordered_json::array({Num(r.min_thickness_lo_mm, 0.001), Num(r.min_thickness_hi_mm, 0.001)})
-                                                        : ordered_json(nullptr)},
+                    {"min_thickness_band_mm",
+                     supported ? ordered_json::array({Num(r.min_thickness_lo_mm, 0.001), Num(r.min_thickness_hi_mm, 0.001)})
+                               : ordered_json(nullptr)},
                     {"min_z_m", Round(r.min_z_m, 1e-4)},
                     {"min_theta_deg", Round(r.min_theta_deg, 0.01)},
                     {"mean_wear_mm", Num(r.mean_wear_mm, 0.001)},
@@ -147,8 +157,9 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
     j["scan"] = nullptr;
   }
   j["readings_used"] = ReadingsUsedJson(st);
-  j["note"] = "a reading n means thickness in [n, n+1) mm; estimates use n + 0.5; bands are +/-2 sd (map noise, "
-              "sensor quantisation, row scale); remaining thickness is never below 0 (worn through)";
+  j["note"] =
+      "a reading n means thickness in [n, n+1) mm; estimates use n + 0.5; bands are +/-2 sd (map noise, "
+      "sensor quantisation, row scale); remaining thickness is never below 0 (worn through)";
   if (with_faces) {
     if (supported) {
       std::vector<double> remaining(static_cast<size_t>(rec.remaining_mm.size())), sd(remaining.size());
@@ -175,13 +186,14 @@ ordered_json ForecastJson(const CrusherState& st) {
   j["readings_used"] = ReadingsUsedJson(st);
   ordered_json rows = ordered_json::array();
   for (const core::RowForecast& r : st.row_forecasts) {
-    ordered_json o = {{"row", r.row},
-                      {"min_thickness_mm", Num(r.min_thickness_mm, 0.001)},
-                      {"min_thickness_band_mm", ordered_json::array({Num(r.min_thickness_lo_mm, 0.001), Num(r.min_thickness_hi_mm, 0.001)})},
-                      {"rate_mm_per_day", Round(r.rate_mm_per_day, 1e-4)},
-                      {"reach_date", OptTime(r.reach)},
-                      {"reach_earliest", OptTime(r.reach_earliest)},
-                      {"reach_latest", OptTime(r.reach_latest)}};
+    ordered_json o = {
+        {"row", r.row},
+        {"min_thickness_mm", Num(r.min_thickness_mm, 0.001)},
+        {"min_thickness_band_mm", ordered_json::array({Num(r.min_thickness_lo_mm, 0.001), Num(r.min_thickness_hi_mm, 0.001)})},
+        {"rate_mm_per_day", Round(r.rate_mm_per_day, 1e-4)},
+        {"reach_date", OptTime(r.reach)},
+        {"reach_earliest", OptTime(r.reach_earliest)},
+        {"reach_latest", OptTime(r.reach_latest)}};
     if (!r.note.empty()) o["note"] = r.note;
     rows.push_back(o);
   }
@@ -211,8 +223,9 @@ ordered_json ForecastJson(const CrusherState& st) {
     sensors.push_back(o);
   }
   j["sensors"] = sensors;
-  j["note"] = "a reading n means thickness in [n, n+1) mm; fits use n + 0.5; bands are +/-2 sd; a row's earliest "
-              "date starts from the thin edge of its thinnest point's band";
+  j["note"] =
+      "a reading n means thickness in [n, n+1) mm; fits use n + 0.5; bands are +/-2 sd; a row's earliest "
+      "date starts from the thin edge of its thinnest point's band";
   return j;
 }
 

@@ -24,7 +24,7 @@ using namespace model;
 namespace {
 
 struct Throughput {
-  std::vector<double> q;   // hourly relative wear-rate factor from tonnage x abrasiveness
+  std::vector<double> q;  // hourly relative wear-rate factor from tonnage x abrasiveness
   std::vector<double> tph, ai;
 };
 
@@ -66,7 +66,6 @@ Throughput MakeThroughput(const CampaignSpec& s, const EffectSpec* effect, size_
 }
 
 }  // namespace
-
 
 Campaign GenerateCampaign(const CampaignSpec& input, uint64_t seed) {
   Campaign c;
@@ -115,8 +114,8 @@ Campaign GenerateCampaign(const CampaignSpec& input, uint64_t seed) {
   };
   std::vector<Mode> modes;
   for (int i = 0; i < 6; ++i) {
-    modes.push_back({gauss(rng) * 0.4, static_cast<double>(3 + static_cast<int>(uni(rng) * 6)),
-                     2.0 + 3.0 * uni(rng), 2 * kPi * uni(rng)});
+    modes.push_back(
+        {gauss(rng) * 0.4, static_cast<double>(3 + static_cast<int>(uni(rng) * 6)), 2.0 + 3.0 * uni(rng), 2 * kPi * uni(rng)});
   }
   c.intensity_true_.resize(nf);
   c.normal_.resize(nf);
@@ -207,7 +206,8 @@ Campaign GenerateCampaign(const CampaignSpec& input, uint64_t seed) {
           if (flicker_phase) value += 1;  // the loop at the face is still half-cut
         }
         if (f->kind == "crack") {
-          if (crack_level < 0) crack_level = std::floor(c.TrueSensorThickness(static_cast<size_t>(k), f->day)) - std::max(1.0, f->size);
+          if (crack_level < 0)
+            crack_level = std::floor(c.TrueSensorThickness(static_cast<size_t>(k), f->day)) - std::max(1.0, f->size);
           value = std::min(value, crack_level);
         }
         if (f->kind == "stuck") {
@@ -276,7 +276,10 @@ void Campaign::WriteBundle(const std::filesystem::path& dir) const {
     b.scans.push_back({core::AddDays(crusher_.installed_at, day), "", scan_});
   }
   // campaign.json marks the folder as generated: `linerwatch-sim run` regenerates this truth from it.
-  core::WriteBundle(b, dir, {{"campaign.json", nlohmann::json{{"generator", "linerwatch-sim campaign"}, {"seed", seed_}, {"spec", spec_.ToJson()}}.dump(1) + "\n"}});
+  core::WriteBundle(
+      b, dir,
+      {{"campaign.json",
+        nlohmann::json{{"generator", "linerwatch-sim campaign"}, {"seed", seed_}, {"spec", spec_.ToJson()}}.dump(1) + "\n"}});
 }
 
 }  // namespace lw::sim

@@ -28,7 +28,9 @@ inline const EffectSpec* Find(const std::vector<EffectSpec>& effects, const std:
 // Reduced-order chamber model (docs/sim.md). zeta = z / height, 0 at the discharge.
 // Abrasive sliding work rises towards the discharge (finer, faster rock); Finnie's angle factor
 // keeps it the dominant term of the DEM wear.
-inline double Abrasion(double zeta) { return 0.06 + std::pow(std::clamp(1.0 - zeta, 0.0, 1.5), 1.5); }
+inline double Abrasion(double zeta) {
+  return 0.06 + std::pow(std::clamp(1.0 - zeta, 0.0, 1.5), 1.5);
+}
 // Compressive (normal) stress peaks where rock is nipped, in the mid-lower chamber, with a mild
 // two-lobed variation around the circumference from the eccentric throw.
 inline double NormalStress(double zeta, double theta_deg) {
@@ -39,7 +41,5 @@ inline double SmoothStep(double x) {
   x = std::clamp(x, 0.0, 1.0);
   return x * x * (3.0 - 2.0 * x);
 }
-
-
 
 }  // namespace lw::sim::model

@@ -13,19 +13,34 @@ namespace lw::sim {
 // Spec
 
 nlohmann::json CampaignSpec::ToJson() const {
-  nlohmann::json j = {{"crusher_id", crusher_id}, {"installed_at", installed_at}, {"days", days},
-                      {"thickness_new_mm", thickness_new_mm}, {"thickness_min_mm", thickness_min_mm},
-                      {"height_m", height_m}, {"r_bottom_m", r_bottom_m}, {"r_top_m", r_top_m},
-                      {"n_theta", n_theta}, {"n_z", n_z}, {"reference_wear_mm", reference_wear_mm},
-                      {"reference_day", reference_day}, {"dem_noise", dem_noise}, {"poll_minutes", poll_minutes},
-                      {"heartbeat_hours", heartbeat_hours}, {"throughput_tph", throughput_tph}, {"ore_ai", ore_ai},
-                      {"write_operations", write_operations}, {"write_scan", write_scan}, {"scan_day", scan_day},
-                      {"scan_noise_mm", scan_noise_mm}, {"scan_points", scan_points},
+  nlohmann::json j = {{"crusher_id", crusher_id},
+                      {"installed_at", installed_at},
+                      {"days", days},
+                      {"thickness_new_mm", thickness_new_mm},
+                      {"thickness_min_mm", thickness_min_mm},
+                      {"height_m", height_m},
+                      {"r_bottom_m", r_bottom_m},
+                      {"r_top_m", r_top_m},
+                      {"n_theta", n_theta},
+                      {"n_z", n_z},
+                      {"reference_wear_mm", reference_wear_mm},
+                      {"reference_day", reference_day},
+                      {"dem_noise", dem_noise},
+                      {"poll_minutes", poll_minutes},
+                      {"heartbeat_hours", heartbeat_hours},
+                      {"throughput_tph", throughput_tph},
+                      {"ore_ai", ore_ai},
+                      {"write_operations", write_operations},
+                      {"write_scan", write_scan},
+                      {"scan_day", scan_day},
+                      {"scan_noise_mm", scan_noise_mm},
+                      {"scan_points", scan_points},
                       {"scan_occluded_deg", scan_occluded_deg}};
   j["rows"] = nlohmann::json::array();
   for (const auto& r : rows) j["rows"].push_back({{"name", r.name}, {"z_min_m", r.z_min_m}, {"z_max_m", r.z_max_m}});
   j["sensors"] = nlohmann::json::array();
-  for (const auto& s : sensors) j["sensors"].push_back({{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg}});
+  for (const auto& s : sensors)
+    j["sensors"].push_back({{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg}});
   j["effects"] = nlohmann::json::array();
   for (const auto& e : effects) j["effects"].push_back({{"name", e.name}, {"params", e.params}});
   j["faults"] = nlohmann::json::array();
@@ -35,12 +50,39 @@ nlohmann::json CampaignSpec::ToJson() const {
 
 CampaignSpec CampaignSpec::FromJson(const nlohmann::json& j) {
   CampaignSpec s;
-  const std::set<std::string> known = {"crusher_id", "installed_at", "days", "thickness_new_mm", "thickness_min_mm",
-                                       "height_m", "r_bottom_m", "r_top_m", "n_theta", "n_z", "reference_wear_mm",
-                                       "reference_day", "dem_noise", "poll_minutes", "heartbeat_hours",
-                                       "throughput_tph", "ore_ai", "write_operations", "write_scan", "scan_day",
-                                       "scan_noise_mm", "scan_points", "scan_occluded_deg", "rows", "sensors",
-                                       "effects", "faults", "seed", "out", "truth", "preset", "effect", "fault"};
+  const std::set<std::string> known = {"crusher_id",
+                                       "installed_at",
+                                       "days",
+                                       "thickness_new_mm",
+                                       "thickness_min_mm",
+                                       "height_m",
+                                       "r_bottom_m",
+                                       "r_top_m",
+                                       "n_theta",
+                                       "n_z",
+                                       "reference_wear_mm",
+                                       "reference_day",
+                                       "dem_noise",
+                                       "poll_minutes",
+                                       "heartbeat_hours",
+                                       "throughput_tph",
+                                       "ore_ai",
+                                       "write_operations",
+                                       "write_scan",
+                                       "scan_day",
+                                       "scan_noise_mm",
+                                       "scan_points",
+                                       "scan_occluded_deg",
+                                       "rows",
+                                       "sensors",
+                                       "effects",
+                                       "faults",
+                                       "seed",
+                                       "out",
+                                       "truth",
+                                       "preset",
+                                       "effect",
+                                       "fault"};
   for (const auto& [k, v] : j.items()) {
     if (!known.count(k)) throw std::invalid_argument("unknown campaign key \"" + k + "\"");
   }
@@ -72,7 +114,8 @@ CampaignSpec CampaignSpec::FromJson(const nlohmann::json& j) {
     get("scan_points", s.scan_points);
     get("scan_occluded_deg", s.scan_occluded_deg);
     if (j.contains("rows")) {
-      for (const auto& r : j["rows"]) s.rows.push_back({r.at("name").get<std::string>(), r.at("z_min_m").get<double>(), r.at("z_max_m").get<double>()});
+      for (const auto& r : j["rows"])
+        s.rows.push_back({r.at("name").get<std::string>(), r.at("z_min_m").get<double>(), r.at("z_max_m").get<double>()});
     }
     if (j.contains("sensors")) {
       for (const auto& x : j["sensors"]) {
@@ -89,7 +132,8 @@ CampaignSpec CampaignSpec::FromJson(const nlohmann::json& j) {
     }
     if (j.contains("faults")) {
       for (const auto& f : j["faults"]) {
-        s.faults.push_back({f.at("sensor").get<std::string>(), f.at("kind").get<std::string>(), f.value("day", 0.0), f.value("size", 0.0)});
+        s.faults.push_back(
+            {f.at("sensor").get<std::string>(), f.at("kind").get<std::string>(), f.value("day", 0.0), f.value("size", 0.0)});
       }
     }
   } catch (const nlohmann::json::exception& e) {
@@ -124,9 +168,7 @@ void CampaignSpec::Complete() {
     };
     int id = 1001;
     const std::vector<std::pair<std::string, std::vector<double>>> layout = {
-        {rows.back().name, {30, 210}},
-        {rows[rows.size() / 2].name, {0, 90, 180, 270}},
-        {rows.front().name, {45, 135, 225, 315}}};
+        {rows.back().name, {30, 210}}, {rows[rows.size() / 2].name, {0, 90, 180, 270}}, {rows.front().name, {45, 135, 225, 315}}};
     for (const auto& [row, thetas] : layout) {
       for (double th : thetas) sensors.push_back({std::to_string(id++), row, centre(row), th});
     }
@@ -136,7 +178,7 @@ void CampaignSpec::Complete() {
     require(ids.insert(s.id).second, "sensor id '" + s.id + "' is listed twice");
     require(s.z_m >= 0 && s.z_m <= height_m, "sensor '" + s.id + "' z_m is outside the concave");
   }
-  static const std::set<std::string> kEffects = {"work_hardening", "hardness_gradient", "squeeze_wear", "profile_evolution",
+  static const std::set<std::string> kEffects = {"work_hardening",   "hardness_gradient",    "squeeze_wear", "profile_evolution",
                                                  "feed_segregation", "throughput_variation", "material_loss"};
   for (const auto& e : effects) require(kEffects.count(e.name) == 1, "unknown effect '" + e.name + "'");
   static const std::set<std::string> kFaults = {"dropout", "flicker", "crack", "stuck", "dead"};
@@ -195,6 +237,5 @@ void ApplyPreset(const std::string& name, CampaignSpec* spec) {
   }
   throw std::invalid_argument("unknown preset '" + name + "' (reference or paper)");
 }
-
 
 }  // namespace lw::sim

@@ -110,7 +110,6 @@ Eigen::VectorXd Campaign::TrueFaceWear(double day) const {
   return face_daily_[d0] + f * (face_daily_[d0 + 1] - face_daily_[d0]);
 }
 
-
 nlohmann::json Campaign::TruthJson() const {
   nlohmann::json j;
   j["seed"] = seed_;

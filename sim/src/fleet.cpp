@@ -104,10 +104,11 @@ Fleet::Fleet(const core::CrusherConfig& crusher, const TruthModel& truth, const 
     b->index = i;
     b->id = s.id;
     b->src16 = static_cast<uint16_t>(0x1000 + i);
-    const uint32_t boot = static_cast<uint32_t>(start_s_) +
-                          (crusher.sensors.size() > 1 ? static_cast<uint32_t>(options.boot_spread_s * static_cast<double>(i) /
-                                                                               static_cast<double>(crusher.sensors.size()))
-                                                      : 0u);
+    const uint32_t boot =
+        static_cast<uint32_t>(start_s_) +
+        (crusher.sensors.size() > 1
+             ? static_cast<uint32_t>(options.boot_spread_s * static_cast<double>(i) / static_cast<double>(crusher.sensors.size()))
+             : 0u);
     b->host.rtc.Set(boot);
     b->host.ladder.SetIntactCount(config.ladder_loops);
     Board* raw = b.get();

@@ -38,19 +38,22 @@ const lw::core::OptionTable& CampaignTable() {
                        "add a physical effect DEM leaves out (repeatable); names and\n"
                        "parameters in docs/sim.md, e.g. --effect feed_segregation:amplitude=0.2,theta_deg=60")
               .Repeatable(),
-          Option::Text("fault", "S:KIND:DAY[:SIZE]", "sensor fault (repeatable): dropout, flicker, crack, stuck, dead").Repeatable(),
+          Option::Text("fault", "S:KIND:DAY[:SIZE]", "sensor fault (repeatable): dropout, flicker, crack, stuck, dead")
+              .Repeatable(),
           Option::Number("scan-day", "D", NumberRange::Any(), "day of the laser scan (default: last day); --no-scan to omit it"),
           Option::Switch("no-scan", "no laser scan"),
           Option::Switch("no-operations", "omit operations.csv"),
       },
-      "", "", /*other_config_keys=*/true};
+      "",
+      "",
+      /*other_config_keys=*/true};
   return table;
 }
 
 std::string CampaignHelp() {
   return "linerwatch-sim campaign: write a synthetic campaign bundle.\n\n"
-         "Usage: linerwatch-sim campaign " + CampaignTable().Synopsis(31, 100) +
-         "\n\n" + CampaignTable().Help(25) +
+         "Usage: linerwatch-sim campaign " +
+         CampaignTable().Synopsis(31, 100) + "\n\n" + CampaignTable().Help(25) +
          "A --config file may also hold any campaign key of docs/sim.md; \"effect\" and \"fault\" take lists.\n";
 }
 
@@ -110,7 +113,8 @@ int main(int argc, char** argv) {
     std::cout << kHelp;
     return args.empty() ? 2 : 0;
   }
-  const std::map<std::string, std::function<int(const std::vector<std::string>&)>> commands = {{"campaign", Campaign}, {"run", lw::sim::RunCommand}};
+  const std::map<std::string, std::function<int(const std::vector<std::string>&)>> commands = {{"campaign", Campaign},
+                                                                                               {"run", lw::sim::RunCommand}};
   auto it = commands.find(args[0]);
   if (it == commands.end()) return Fail("unknown command '" + args[0] + "' (see --help)");
   return it->second(std::vector<std::string>(args.begin() + 1, args.end()));

@@ -7,12 +7,16 @@
 namespace lw::sim {
 namespace {
 // std::push_heap builds a max-heap: "greater" puts the earliest arrival on top.
-bool Later(const Packet& a, const Packet& b) { return a.at > b.at || (a.at == b.at && a.order > b.order); }
+bool Later(const Packet& a, const Packet& b) {
+  return a.at > b.at || (a.at == b.at && a.order > b.order);
+}
 }  // namespace
 
 VirtualNetwork::VirtualNetwork(const NetworkParams& params) : params_(params), rng_(params.seed) {
-  if (!(params.loss >= 0 && params.loss < 1)) throw std::invalid_argument("loss must be in [0, 1), got " + std::to_string(params.loss));
-  if (!(params.dup >= 0 && params.dup <= 1)) throw std::invalid_argument("dup must be in [0, 1], got " + std::to_string(params.dup));
+  if (!(params.loss >= 0 && params.loss < 1))
+    throw std::invalid_argument("loss must be in [0, 1), got " + std::to_string(params.loss));
+  if (!(params.dup >= 0 && params.dup <= 1))
+    throw std::invalid_argument("dup must be in [0, 1], got " + std::to_string(params.dup));
   if (!(params.latency_s >= 0 && params.latency_s < 3600)) {
     throw std::invalid_argument("latency must be 0..3600 s, got " + std::to_string(params.latency_s));
   }
@@ -25,7 +29,9 @@ bool VirtualNetwork::DrawLoss() {
   return lost;
 }
 
-double VirtualNetwork::Latency() { return params_.latency_s * (0.5 + uniform_(rng_)); }
+double VirtualNetwork::Latency() {
+  return params_.latency_s * (0.5 + uniform_(rng_));
+}
 
 void VirtualNetwork::Schedule(double now, uint64_t src64, uint64_t dst64, const uint8_t* payload, size_t len) {
   Packet p;

@@ -44,17 +44,21 @@ using core::Option;
 
 const core::OptionTable& RunTable() {
   static const core::OptionTable table{{
-      Option::Text("crusher-dir", "DIR", "folder of crusher folders (crusher.json + wear_map.vtk), or one crusher folder").Required(),
+      Option::Text("crusher-dir", "DIR", "folder of crusher folders (crusher.json + wear_map.vtk), or one crusher folder")
+          .Required(),
       Option::Text("crusher", "ID", "which sub-folder of DIR (needed when it holds several)"),
       Option::Text("serial-out", "PATH", "symlink to create to the coordinator's pty (replaced if it is a symlink)").Required(),
-      Option::Number("days", "N", NumberRange{0, 3650, true, false}, "campaign length in virtual days (default: the campaign's, else 95)"),
+      Option::Number("days", "N", NumberRange{0, 3650, true, false},
+                     "campaign length in virtual days (default: the campaign's, else 95)"),
       Option::Number("speed", "X", NumberRange{0, std::numeric_limits<double>::infinity(), false, true},
                      "virtual seconds per wall second (default 400000: 95 days in ~20 s;\n0: as fast as the gateway acks)"),
       Option::Whole("api-mode", "1|2", 1, 2, "coordinator API mode, must match the gateway's (default 1)"),
       Option::Text("clock-out", "PATH", "keep the virtual time (Unix ms) in PATH for the gateway's --clock-file"),
-      Option::Number("loss", "P", NumberRange{0, 1, false, true}, "probability that a radio transmission attempt is lost (default 0)"),
+      Option::Number("loss", "P", NumberRange{0, 1, false, true},
+                     "probability that a radio transmission attempt is lost (default 0)"),
       Option::Number("dup", "P", NumberRange{0, 1, false, true}, "probability that a delivered packet arrives twice (default 0)"),
-      Option::Number("latency-ms", "MS", NumberRange{0, 60000, false, false}, "mean one-way radio latency in virtual ms (default 50)"),
+      Option::Number("latency-ms", "MS", NumberRange{0, 60000, false, false},
+                     "mean one-way radio latency in virtual ms (default 50)"),
       Option::Unsigned("seed", "N", "seed of the network (default 1); the same seed gives the same run"),
       Option::Number("ack-wait", "S", NumberRange{0, 60, true, false},
                      "wall seconds to wait for the gateway's acks before virtual time moves\non (default 2)"),
@@ -71,16 +75,21 @@ const core::OptionTable& RunTable() {
 
 std::string RunHelp() {
   return "linerwatch-sim run: a virtual site through the real firmware, into the real gateway.\n\n"
-         "Usage: linerwatch-sim run " + RunTable().Synopsis(26, 100) + "\n\n" + R"(One virtual sensor board per sensor of the crusher runs the real firmware on the host HAL; its
+         "Usage: linerwatch-sim run " +
+         RunTable().Synopsis(26, 100) + "\n\n" +
+         R"(One virtual sensor board per sensor of the crusher runs the real firmware on the host HAL; its
 wear ladder breaks as the truth says (the campaign generator's truth when the crusher folder was
 made by `linerwatch-sim campaign`, else wear proportional to the map intensity). The boards talk
 over a virtual XBee network to a coordinator whose serial side is a pty: PATH becomes a symlink
 to it; start `linerwatch-gateway --serial PATH --api-mode M --clock-file CLOCK` on it.
-)" + "\n" + RunTable().Help(25);
+)" + "\n" +
+         RunTable().Help(25);
 }
 
 volatile std::sig_atomic_t g_stop = 0;
-void OnSignal(int) { g_stop = 1; }
+void OnSignal(int) {
+  g_stop = 1;
+}
 
 struct RunOptions {
   std::string crusher_dir, crusher, serial_out, clock_out, ledger, bundle_out;
@@ -129,7 +138,8 @@ fs::path FindCrusherFolder(const RunOptions& o) {
     return dir;
   }
   if (!o.crusher.empty()) {
-    if (!fs::exists(dir / o.crusher / "crusher.json")) throw UsageError("--crusher: no " + (dir / o.crusher / "crusher.json").string());
+    if (!fs::exists(dir / o.crusher / "crusher.json"))
+      throw UsageError("--crusher: no " + (dir / o.crusher / "crusher.json").string());
     return dir / o.crusher;
   }
   std::vector<std::string> names;
@@ -146,7 +156,9 @@ fs::path FindCrusherFolder(const RunOptions& o) {
   return dir / names[0];
 }
 
-std::string Iso(int64_t unix_s) { return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(unix_s))); }
+std::string Iso(int64_t unix_s) {
+  return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(unix_s)));
+}
 
 std::string Mm(double mm) {
   std::ostringstream os;
@@ -156,31 +168,38 @@ std::string Mm(double mm) {
 
 std::string LedgerCsv(const std::vector<LedgerEntry>& ledger) {
   std::string s = "sensor_id,seq,time,thickness_mm\n";
-  for (const LedgerEntry& e : ledger) s += e.sensor_id + "," + std::to_string(e.seq) + "," + Iso(e.time_s) + "," + Mm(e.thickness_mm) + "\n";
+  for (const LedgerEntry& e : ledger)
+    s += e.sensor_id + "," + std::to_string(e.seq) + "," + Iso(e.time_s) + "," + Mm(e.thickness_mm) + "\n";
   return s;
 }
 
 void WriteBundle(const fs::path& out, const CrusherFolder& folder, const Fleet& fleet, int64_t end_s) {
-  lw::core::WriteFolderAtomically(out, [&](const fs::path& tmp) {
-    fs::copy_file(folder.dir / "crusher.json", tmp / "crusher.json");
-    fs::copy_file(folder.dir / "wear_map.vtk", tmp / "wear_map.vtk");
-    if (fs::exists(folder.dir / kCampaignMarker)) fs::copy_file(folder.dir / kCampaignMarker, tmp / kCampaignMarker);
-    std::vector<LedgerEntry> sorted = fleet.ledger();
-    std::stable_sort(sorted.begin(), sorted.end(), [](const LedgerEntry& a, const LedgerEntry& b) { return a.time_s < b.time_s; });
-    std::vector<core::Reading> readings;
-    for (const LedgerEntry& e : sorted) readings.push_back({core::TimePoint(std::chrono::seconds(e.time_s)), e.sensor_id, e.thickness_mm});
-    lw::core::WriteFileAtomically(tmp / "readings.csv", core::ReadingsCsv(readings));
-    std::vector<core::OperationsSample> ops;
-    const auto truth_ops = folder.truth->Operations();
-    for (const auto& x : truth_ops) {
-      if (x.time.time_since_epoch().count() > end_s) break;
-      ops.push_back(x);
-    }
-    // The map model wears at a constant rate: constant nominal tonnage, daily.
-    if (truth_ops.empty())
-      for (int64_t t = fleet.start_s(); t <= end_s; t += 86400) ops.push_back({core::TimePoint(std::chrono::seconds(t)), 3500.0, {}, {}});
-    lw::core::WriteFileAtomically(tmp / "operations.csv", core::OperationsCsv(ops));
-  }, "--bundle-out");
+  lw::core::WriteFolderAtomically(
+      out,
+      [&](const fs::path& tmp) {
+        fs::copy_file(folder.dir / "crusher.json", tmp / "crusher.json");
+        fs::copy_file(folder.dir / "wear_map.vtk", tmp / "wear_map.vtk");
+        if (fs::exists(folder.dir / kCampaignMarker)) fs::copy_file(folder.dir / kCampaignMarker, tmp / kCampaignMarker);
+        std::vector<LedgerEntry> sorted = fleet.ledger();
+        std::stable_sort(sorted.begin(), sorted.end(),
+                         [](const LedgerEntry& a, const LedgerEntry& b) { return a.time_s < b.time_s; });
+        std::vector<core::Reading> readings;
+        for (const LedgerEntry& e : sorted)
+          readings.push_back({core::TimePoint(std::chrono::seconds(e.time_s)), e.sensor_id, e.thickness_mm});
+        lw::core::WriteFileAtomically(tmp / "readings.csv", core::ReadingsCsv(readings));
+        std::vector<core::OperationsSample> ops;
+        const auto truth_ops = folder.truth->Operations();
+        for (const auto& x : truth_ops) {
+          if (x.time.time_since_epoch().count() > end_s) break;
+          ops.push_back(x);
+        }
+        // The map model wears at a constant rate: constant nominal tonnage, daily.
+        if (truth_ops.empty())
+          for (int64_t t = fleet.start_s(); t <= end_s; t += 86400)
+            ops.push_back({core::TimePoint(std::chrono::seconds(t)), 3500.0, {}, {}});
+        lw::core::WriteFileAtomically(tmp / "operations.csv", core::OperationsCsv(ops));
+      },
+      "--bundle-out");
 }
 
 /// The coordinator's pty: the master end is ours, PATH is a symlink to the slave end. While no
@@ -189,7 +208,8 @@ class Pty {
  public:
   explicit Pty(const std::string& link) : link_(link) {
     master_ = ::posix_openpt(O_RDWR | O_NOCTTY);
-    if (master_ < 0 || ::grantpt(master_) != 0 || ::unlockpt(master_) != 0) throw std::runtime_error(std::string("pty: ") + std::strerror(errno));
+    if (master_ < 0 || ::grantpt(master_) != 0 || ::unlockpt(master_) != 0)
+      throw std::runtime_error(std::string("pty: ") + std::strerror(errno));
     const char* name = ::ptsname(master_);
     if (!name) throw std::runtime_error(std::string("pty: ") + std::strerror(errno));
     slave_name_ = name;
@@ -395,11 +415,10 @@ class Runner {
     std::fprintf(stderr,
                  "linerwatch-sim: day %.1f/%.1f: %llu readings produced, %llu acked to the sensors, %llu queued; "
                  "air: %llu sent, %llu lost, %llu duplicated; wall %.1f s\n",
-                 (t - static_cast<double>(fleet_.start_s())) / 86400.0,
-                 static_cast<double>(end_s - fleet_.start_s()) / 86400.0, static_cast<unsigned long long>(c.readings_produced),
-                 static_cast<unsigned long long>(c.readings_acked), static_cast<unsigned long long>(fleet_.queued_records()),
-                 static_cast<unsigned long long>(n.attempts), static_cast<unsigned long long>(n.lost),
-                 static_cast<unsigned long long>(n.duplicated), WallSeconds());
+                 (t - static_cast<double>(fleet_.start_s())) / 86400.0, static_cast<double>(end_s - fleet_.start_s()) / 86400.0,
+                 static_cast<unsigned long long>(c.readings_produced), static_cast<unsigned long long>(c.readings_acked),
+                 static_cast<unsigned long long>(fleet_.queued_records()), static_cast<unsigned long long>(n.attempts),
+                 static_cast<unsigned long long>(n.lost), static_cast<unsigned long long>(n.duplicated), WallSeconds());
   }
 
   const RunOptions& o_;
@@ -462,10 +481,10 @@ int RunCommand(const std::vector<std::string>& args) {
                    folder.crusher.crusher_id.c_str(), fleet.board_count(), days, Iso(fleet.start_s()).c_str(),
                    folder.truth->Describe().c_str());
       std::fprintf(stderr, "linerwatch-sim: coordinator on %s -> %s (API mode %d)%s%s\n", o.serial_out.c_str(),
-                   pty.slave_name().c_str(), o.api_mode, o.clock_out.empty() ? "" : ", virtual clock in ",
-                   o.clock_out.c_str());
+                   pty.slave_name().c_str(), o.api_mode, o.clock_out.empty() ? "" : ", virtual clock in ", o.clock_out.c_str());
     }
-    if (!o.clock_out.empty()) lw::core::WriteFileAtomically(o.clock_out, std::to_string(fleet.start_s() * 1000) + "\n", lw::core::Durability::kAtomic);
+    if (!o.clock_out.empty())
+      lw::core::WriteFileAtomically(o.clock_out, std::to_string(fleet.start_s() * 1000) + "\n", lw::core::Durability::kAtomic);
     Runner runner(o, folder, fleet, pty);
     const bool stopped = !runner.WaitForGateway() || runner.Run(end_s);
     if (!o.ledger.empty()) lw::core::WriteFileAtomically(o.ledger, LedgerCsv(fleet.ledger()));

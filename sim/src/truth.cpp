@@ -12,19 +12,19 @@ namespace lw::sim {
 std::string CampaignTruth::Describe() const {
   std::string effects;
   for (const auto& e : campaign_.spec().effects) effects += (effects.empty() ? "" : ", ") + e.name;
-  return "campaign generator truth (" + std::string(kCampaignMarker) + ": " +
-         std::to_string(campaign_.crusher().sensors.size()) + " sensors, effects: " + (effects.empty() ? "none" : effects) + ")";
+  return "campaign generator truth (" + std::string(kCampaignMarker) + ": " + std::to_string(campaign_.crusher().sensors.size()) +
+         " sensors, effects: " + (effects.empty() ? "none" : effects) + ")";
 }
 
-MapTruth::MapTruth(const core::CrusherConfig& crusher, const core::WearMap& map, double reference_days,
-                   double reference_fraction)
+MapTruth::MapTruth(const core::CrusherConfig& crusher, const core::WearMap& map, double reference_days, double reference_fraction)
     : min_mm_(crusher.thickness_min_mm) {
   const Eigen::VectorXd intensity = core::IntensityAtSensors(crusher, map);
   const double top = intensity.size() > 0 ? intensity.maxCoeff() : 0.0;
   if (!(top > 0)) throw std::runtime_error("wear_map.vtk: the wear intensity at every sensor is zero; nothing to simulate");
   const double wear_mm = reference_fraction * (crusher.thickness_new_mm - crusher.thickness_min_mm);
   for (size_t i = 0; i < crusher.sensors.size(); ++i) {
-    const double new_mm = crusher.sensors[i].thickness_new_mm > 0 ? crusher.sensors[i].thickness_new_mm : crusher.thickness_new_mm;
+    const double new_mm =
+        crusher.sensors[i].thickness_new_mm > 0 ? crusher.sensors[i].thickness_new_mm : crusher.thickness_new_mm;
     new_mm_.push_back(new_mm);
     rate_.push_back(std::max(0.0, intensity[static_cast<Eigen::Index>(i)]) / top * wear_mm / reference_days);
   }

@@ -14,14 +14,13 @@ class FakeGateway {
  public:
   /// With `rtc`, each record's sample time (arrival - age_s) identifies it, so a seq handed out
   /// twice for different samples is caught even when the contents happen to match.
-  explicit FakeGateway(hal::host::HostRadio& radio, const hal::host::HostRtc* rtc = nullptr)
-      : radio_(radio), rtc_(rtc) {
+  explicit FakeGateway(hal::host::HostRadio& radio, const hal::host::HostRtc* rtc = nullptr) : radio_(radio), rtc_(rtc) {
     radio_.set_on_deliver([this](uint64_t, const uint8_t* p, size_t n) { OnDeliver(p, n); });
   }
   void set_acking(bool on) { acking_ = on; }
 
   std::map<uint32_t, protocol::SensorRecord> records;  // by seq, first copy kept
-  std::vector<uint32_t> arrival_order;                   // seqs as they arrived (with duplicates)
+  std::vector<uint32_t> arrival_order;                 // seqs as they arrived (with duplicates)
   uint16_t last_dropped_total = 0;
   uint32_t frames = 0;
   uint32_t bad_payloads = 0;

@@ -74,7 +74,9 @@ int ChildProcess::Stop(int signal, std::chrono::milliseconds timeout) {
   return status_;
 }
 
-void ChildProcess::Kill() { Stop(SIGKILL); }
+void ChildProcess::Kill() {
+  Stop(SIGKILL);
+}
 
 void ChildProcess::Signal(int signal) {
   if (pid_ > 0) kill(pid_, signal);
@@ -106,8 +108,7 @@ int FreeLoopbackPort() {
   a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
   a.sin_port = 0;
   socklen_t len = sizeof a;
-  if (bind(s, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 ||
-      getsockname(s, reinterpret_cast<sockaddr*>(&a), &len) != 0) {
+  if (bind(s, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || getsockname(s, reinterpret_cast<sockaddr*>(&a), &len) != 0) {
     close(s);
     throw std::runtime_error("cannot bind a loopback port");
   }
@@ -157,10 +158,10 @@ MosquittoFixture::MosquittoFixture(Options options, Access access)
     std::ofstream(d + "san.ext") << "subjectAltName=IP:127.0.0.1,DNS:localhost\n";
     run({"openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes", "-keyout",
          d + "ca.key", "-out", d + "ca.pem", "-days", "2", "-subj", "/CN=linerwatch test CA"});
-    run({"openssl", "req", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes", "-keyout",
-         d + "server.key", "-out", d + "server.csr", "-subj", "/CN=127.0.0.1"});
-    run({"openssl", "x509", "-req", "-in", d + "server.csr", "-CA", d + "ca.pem", "-CAkey", d + "ca.key",
-         "-CAcreateserial", "-out", d + "server.pem", "-days", "2", "-extfile", d + "san.ext"});
+    run({"openssl", "req", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes", "-keyout", d + "server.key",
+         "-out", d + "server.csr", "-subj", "/CN=127.0.0.1"});
+    run({"openssl", "x509", "-req", "-in", d + "server.csr", "-CA", d + "ca.pem", "-CAkey", d + "ca.key", "-CAcreateserial",
+         "-out", d + "server.pem", "-days", "2", "-extfile", d + "san.ext"});
     conf << "cafile " << d << "ca.pem\ncertfile " << d << "server.pem\nkeyfile " << d << "server.key\n";
   }
   if (!options_.username.empty()) {
@@ -187,7 +188,9 @@ MosquittoFixture::MosquittoFixture(Options options, Access access)
   conf << options_.extra_config << "\n";
 }
 
-MosquittoFixture::~MosquittoFixture() { process_.Kill(); }
+MosquittoFixture::~MosquittoFixture() {
+  process_.Kill();
+}
 
 std::string MosquittoFixture::uri() const {
   return (options_.tls ? "ssl://127.0.0.1:" : "tcp://127.0.0.1:") + std::to_string(port_);
@@ -213,12 +216,16 @@ void MosquittoFixture::Start() {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   process_.Kill();
-  throw std::runtime_error("mosquitto did not accept connections on port " + std::to_string(port_) + " within 5 s: " +
-                           FileTail(log_file()));
+  throw std::runtime_error("mosquitto did not accept connections on port " + std::to_string(port_) +
+                           " within 5 s: " + FileTail(log_file()));
 }
 
-void MosquittoFixture::Stop() { process_.Stop(SIGTERM); }
+void MosquittoFixture::Stop() {
+  process_.Stop(SIGTERM);
+}
 
-void MosquittoFixture::Kill() { process_.Kill(); }
+void MosquittoFixture::Kill() {
+  process_.Kill();
+}
 
 }  // namespace lw::test

@@ -70,14 +70,14 @@ std::string MosquittoBinary();
 class MosquittoFixture {
  public:
   struct Options {
-    bool persistence = false;   ///< persistence true + autosave every second in the temp dir
+    bool persistence = false;  ///< persistence true + autosave every second in the temp dir
     /// TLS listener: a throw-away CA and a server certificate for 127.0.0.1 are made with the
     /// openssl CLI in the temp dir; clients trust ca_file(). uri() becomes ssl://.
     bool tls = false;
     /// When set, clients must log in with these (password file made with mosquitto_passwd).
     std::string username;
     std::string password;
-    std::string extra_config;   ///< appended to mosquitto.conf verbatim
+    std::string extra_config;  ///< appended to mosquitto.conf verbatim
   };
   /// Several accounts and an ACL (kept out of Options, which callers fill by designated
   /// initializers).

@@ -36,11 +36,11 @@ long StoredCount(int http_port, const std::string& crusher);
 
 /// Ledger vs stored rows of one crusher, keyed by (sensor, seq).
 struct LedgerCheck {
-  size_t produced = 0;    ///< ledger readings
-  size_t stored = 0;      ///< rows
-  size_t lost = 0;        ///< ledger readings with no row
-  size_t duplicated = 0;  ///< rows beyond one per ledger reading (a key twice, or a key the ledger lacks)
-  size_t mismatched = 0;  ///< rows of a ledger reading with another time or thickness
+  size_t produced = 0;        ///< ledger readings
+  size_t stored = 0;          ///< rows
+  size_t lost = 0;            ///< ledger readings with no row
+  size_t duplicated = 0;      ///< rows beyond one per ledger reading (a key twice, or a key the ledger lacks)
+  size_t mismatched = 0;      ///< rows of a ledger reading with another time or thickness
   std::string first_problem;  ///< e.g. "lost 1003/57", empty when none
   bool exactly_once() const { return lost == 0 && duplicated == 0 && mismatched == 0; }
 };

@@ -17,8 +17,7 @@ enum class Durability {
 
 /// Writes `text` to `path` atomically. Throws std::runtime_error naming the path and the reason
 /// (the temporary is removed; the old file, if any, is untouched).
-void WriteFileAtomically(const std::filesystem::path& path, std::string_view text,
-                         Durability durability = Durability::kSynced);
+void WriteFileAtomically(const std::filesystem::path& path, std::string_view text, Durability durability = Durability::kSynced);
 
 /// The same, with the content streamed by `write` (for large files); an exception thrown by `write`
 /// removes the temporary and propagates.

@@ -69,7 +69,7 @@ struct Bundle {
   CrusherConfig crusher;
   WearMap map;
   MapValidation map_validation;
-  std::vector<Reading> readings;  ///< sorted by (sensor_id, time); duplicates kept
+  std::vector<Reading> readings;             ///< sorted by (sensor_id, time); duplicates kept
   std::vector<OperationsSample> operations;  ///< sorted by time; empty when no operations.csv
   std::vector<Scan> scans;                   ///< sorted by date
 };

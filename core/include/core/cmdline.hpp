@@ -71,16 +71,16 @@ enum class OptionType {
 
 /// One row of a program's option table.
 struct Option {
-  std::string name;        ///< without dashes, words joined by '-': "api-mode"
+  std::string name;  ///< without dashes, words joined by '-': "api-mode"
   OptionType type = OptionType::kText;
-  std::string value_name;  ///< in --help and the synopsis: "--baud N" ("" for switches)
-  std::string help;        ///< one line of --help; '\n' starts an indented continuation line
-  bool required = false;   ///< ParseOptions fails naming it when it is missing
-  bool repeatable = false; ///< may be given several times (a config file may give a JSON array)
+  std::string value_name;                             ///< in --help and the synopsis: "--baud N" ("" for switches)
+  std::string help;                                   ///< one line of --help; '\n' starts an indented continuation line
+  bool required = false;                              ///< ParseOptions fails naming it when it is missing
+  bool repeatable = false;                            ///< may be given several times (a config file may give a JSON array)
   int64_t min = std::numeric_limits<int64_t>::min();  ///< kWhole
   int64_t max = std::numeric_limits<int64_t>::max();  ///< kWhole
-  bool whole_unsigned = false;  ///< kWhole over all of uint64_t ([0, 2^64 - 1]) instead of min..max
-  NumberRange range;            ///< kNumber
+  bool whole_unsigned = false;                        ///< kWhole over all of uint64_t ([0, 2^64 - 1]) instead of min..max
+  NumberRange range;                                  ///< kNumber
 
   static Option Text(std::string name, std::string value_name, std::string help);
   static Option Whole(std::string name, std::string value_name, int64_t min, int64_t max, std::string help);
@@ -178,12 +178,11 @@ ParsedOptions ParseOptions(const OptionTable& table, const std::vector<std::stri
 /// `value` as a whole number in [min, max] (decimal, optional sign, nothing else); otherwise a
 /// UsageError naming --name, the value and the allowed range. Nothing is truncated: a value beyond
 /// the range (or beyond 64 bits) is refused, never wrapped into it.
-int64_t ParseWholeNumber(const std::string& name, const std::string& value,
-                         int64_t min = std::numeric_limits<int64_t>::min(),
+int64_t ParseWholeNumber(const std::string& name, const std::string& value, int64_t min = std::numeric_limits<int64_t>::min(),
                          int64_t max = std::numeric_limits<int64_t>::max());
 /// The same for unsigned 64-bit values (a '-' sign is refused), e.g. random seeds.
-uint64_t ParseUnsignedNumber(const std::string& name, const std::string& value,
-                             uint64_t min = 0, uint64_t max = std::numeric_limits<uint64_t>::max());
+uint64_t ParseUnsignedNumber(const std::string& name, const std::string& value, uint64_t min = 0,
+                             uint64_t max = std::numeric_limits<uint64_t>::max());
 /// ParseWholeNumber into an integer type T, within [min, max] (default: all of T).
 template <typename T>
 T ParseInteger(const std::string& name, const std::string& value, T min = std::numeric_limits<T>::min(),

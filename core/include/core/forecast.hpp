@@ -15,12 +15,12 @@
 namespace lw::core {
 
 struct ForecastOptions {
-  double window_min_days = 21.0;    ///< fit on at least the last 21 days of readings...
-  double window_fraction = 0.4;     ///< ...or the last 40 % of the campaign, whichever is longer
-  double band_sigmas = 2.0;         ///< band half-width in standard deviations
-  double rate_uncertainty = 0.10;   ///< extra relative uncertainty of the rate (operating changes)
-  double horizon_days = 1000.0;     ///< no date is reported beyond this many days after `now`
-  double curve_step_days = 1.0;     ///< spacing of the published curve points
+  double window_min_days = 21.0;   ///< fit on at least the last 21 days of readings...
+  double window_fraction = 0.4;    ///< ...or the last 40 % of the campaign, whichever is longer
+  double band_sigmas = 2.0;        ///< band half-width in standard deviations
+  double rate_uncertainty = 0.10;  ///< extra relative uncertainty of the rate (operating changes)
+  double horizon_days = 1000.0;    ///< no date is reported beyond this many days after `now`
+  double curve_step_days = 1.0;    ///< spacing of the published curve points
 };
 
 /// wear(t) = c0 + c1 s + c2 s^2 with s = t - t_ref (days since installation), c2 >= 0.
@@ -28,7 +28,7 @@ struct WearCurve {
   double t_ref_days = 0;
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();  ///< covariance of c
-  double sigma_mm = 0;                              ///< residual standard deviation (>= 1/sqrt(12))
+  double sigma_mm = 0;                            ///< residual standard deviation (>= 1/sqrt(12))
   double rate_uncertainty = 0.10;
 
   double Wear(double t_days) const;
@@ -46,7 +46,7 @@ struct CurvePoint {
 
 struct SensorForecast {
   std::string sensor_id;
-  bool ok = false;            ///< false: too few readings; `note` says why
+  bool ok = false;  ///< false: too few readings; `note` says why
   std::string note;
   size_t readings_used = 0;
   TimePoint last_time{};
@@ -59,17 +59,17 @@ struct SensorForecast {
 };
 
 /// Fits one sensor. `readings` may hold any sensor's readings: only `sensor.id`'s are used.
-SensorForecast ForecastSensor(const CrusherConfig& crusher, const SensorInfo& sensor,
-                              const std::vector<Reading>& readings, const ForecastOptions& options = {});
+SensorForecast ForecastSensor(const CrusherConfig& crusher, const SensorInfo& sensor, const std::vector<Reading>& readings,
+                              const ForecastOptions& options = {});
 
 struct RowForecast {
   std::string row;
   bool ok = false;
   std::string note;
-  double min_thickness_mm = 0;  ///< thinnest face now (reconstruction)
+  double min_thickness_mm = 0;     ///< thinnest face now (reconstruction)
   double min_thickness_lo_mm = 0;  ///< its band (reconstruction: map noise, quantisation, row scale)
   double min_thickness_hi_mm = 0;
-  double rate_mm_per_day = 0;   ///< thinning rate of that face
+  double rate_mm_per_day = 0;  ///< thinning rate of that face
   std::optional<TimePoint> reach, reach_earliest, reach_latest;
 };
 
@@ -78,8 +78,7 @@ struct RowForecast {
 /// The dates' band uses the thinnest point's band as well as the curves': "earliest" starts from
 /// the thin edge of the band and wears at its rate, "latest" from the thick edge.
 std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const Reconstruction& reconstruction,
-                                      const std::vector<SensorWear>& sensor_wear,
-                                      const std::vector<SensorForecast>& sensors, TimePoint now,
-                                      const ForecastOptions& options = {});
+                                      const std::vector<SensorWear>& sensor_wear, const std::vector<SensorForecast>& sensors,
+                                      TimePoint now, const ForecastOptions& options = {});
 
 }  // namespace lw::core

@@ -49,16 +49,16 @@ struct MapModelOptions {
 
 struct MapModel {
   const WearMap* map = nullptr;
-  double bandwidth_m = 0;          ///< Gaussian kernel sd along z, m (0: none)
-  double bandwidth_arc_m = 0;      ///< Gaussian kernel sd around the circumference (arc length), m
-  std::string bandwidth_method;    ///< "cross-validation", "fixed", "none"
-  bool local_linear = false;       ///< local-linear in z (chosen by the CV with the bandwidth), else a kernel mean
+  double bandwidth_m = 0;        ///< Gaussian kernel sd along z, m (0: none)
+  double bandwidth_arc_m = 0;    ///< Gaussian kernel sd around the circumference (arc length), m
+  std::string bandwidth_method;  ///< "cross-validation", "fixed", "none"
+  bool local_linear = false;     ///< local-linear in z (chosen by the CV with the bandwidth), else a kernel mean
   /// Candidate bandwidths and their leave-one-out mean squared error relative to the chosen one.
   std::vector<std::pair<double, double>> cv_curve;
-  double face_size_m = 0;          ///< median face edge
-  Eigen::VectorXd clean;           ///< per face: `wear` with outliers capped, negatives 0
-  size_t outlier_faces = 0;        ///< faces capped
-  double noise_phi = 0;            ///< per-face noise variance = noise_phi * m^noise_power (map units)
+  double face_size_m = 0;    ///< median face edge
+  Eigen::VectorXd clean;     ///< per face: `wear` with outliers capped, negatives 0
+  size_t outlier_faces = 0;  ///< faces capped
+  double noise_phi = 0;      ///< per-face noise variance = noise_phi * m^noise_power (map units)
   double noise_power = 1;
   std::string noise_source;        ///< "wear_stderr (K windows)" or "neighbour differences"
   double face_cv = 0;              ///< median relative noise of one face (sd / local mean)
@@ -69,8 +69,8 @@ struct MapModel {
   /// (without the smoothing's own error): what an independent measurement of the pattern, such as
   /// a scan, cannot tell from the map's pattern error.
   Eigen::VectorXd intensity_noise_sd;
-  Eigen::VectorXd normal_stress;   ///< per face, smoothed at normal_bandwidth_m; size 0 when absent
-  double normal_bandwidth_m = 0;   ///< 3 x bandwidth_m: stress noise shared with the wear's averaged out
+  Eigen::VectorXd normal_stress;  ///< per face, smoothed at normal_bandwidth_m; size 0 when absent
+  double normal_bandwidth_m = 0;  ///< 3 x bandwidth_m: stress noise shared with the wear's averaged out
 
   /// The model at a point: kernel-weighted like the faces (with the point's own surroundings).
   struct Point {
@@ -85,16 +85,16 @@ struct MapModel {
   double RelSd(Eigen::Index i) const;
   /// Noise variance of one face at local mean m (map units).
   double FaceVariance(double m) const;
-  Eigen::VectorXd face_var;                     ///< FaceVariance(intensity) per face
+  Eigen::VectorXd face_var;  ///< FaceVariance(intensity) per face
   /// Local scale along z (intersection of confidence intervals, "ICI"): the candidate kernels
   /// from the face size up to bandwidth_m (around: bandwidth_arc_m); at each face (and point) the
   /// largest one whose estimate stays inside the confidence intervals of every smaller one. Empty
   /// when the model is not cross-validated (fixed or no smoothing).
   std::vector<double> local_ladder_m;
-  double local_gamma = 0;                       ///< confidence-interval half width, in sd
-  Eigen::VectorXd local_bandwidth_m;            ///< per face: the scale along z chosen there
-  Eigen::VectorXd ref_var;                      ///< per-face noise variance the intervals are built on
-  std::shared_ptr<const SurfaceIndex> index;    ///< kernel-support index (bandwidth > 0)
+  double local_gamma = 0;                            ///< confidence-interval half width, in sd
+  Eigen::VectorXd local_bandwidth_m;                 ///< per face: the scale along z chosen there
+  Eigen::VectorXd ref_var;                           ///< per-face noise variance the intervals are built on
+  std::shared_ptr<const SurfaceIndex> index;         ///< kernel-support index (bandwidth > 0)
   std::shared_ptr<const SurfaceIndex> normal_index;  ///< the same for the stress kernel
 };
 

@@ -29,17 +29,17 @@ struct RowSummary {
   double min_theta_deg = 0;
   double mean_wear_mm = 0;
   size_t sensors_used = 0;
-  double scale_sd = 0;            ///< standard error of scale_mm_per_unit
+  double scale_sd = 0;             ///< standard error of scale_mm_per_unit
   double min_thickness_lo_mm = 0;  ///< band of the row's thinnest point (band_sigmas sd), in [0, new]
   double min_thickness_hi_mm = 0;
-  size_t worn_through_faces = 0;   ///< faces whose estimated wear reaches the as-new thickness
+  size_t worn_through_faces = 0;  ///< faces whose estimated wear reaches the as-new thickness
 };
 
 struct ReconstructionOptions {
   bool interpolate_between_rows = true;
-  MapModelOptions map_model;         ///< smoothing scale (default: chosen from the map's own noise), outliers
-  bool interval_centre = true;      ///< use thickness + 0.5 mm (centre of [n, n+1)) as the estimate
-  double band_sigmas = 2.0;         ///< half-width of the thinnest-point band in standard deviations
+  MapModelOptions map_model;    ///< smoothing scale (default: chosen from the map's own noise), outliers
+  bool interval_centre = true;  ///< use thickness + 0.5 mm (centre of [n, n+1)) as the estimate
+  double band_sigmas = 2.0;     ///< half-width of the thinnest-point band in standard deviations
   /// Above this relative standard error of the thinnest point's wear the number is not supported
   /// (status "unsupported"): the band is still given.
   double max_rel_sd = 0.5;
@@ -52,18 +52,18 @@ inline constexpr const char* kStatusUnsupported = "unsupported";
 inline constexpr const char* kStatusNoSensors = "no_sensors";
 
 struct Reconstruction {
-  Eigen::VectorXd wear_mm;       ///< per face, in [0, thickness_new]
-  Eigen::VectorXd remaining_mm;  ///< per face: thickness_new - wear, never negative
+  Eigen::VectorXd wear_mm;          ///< per face, in [0, thickness_new]
+  Eigen::VectorXd remaining_mm;     ///< per face: thickness_new - wear, never negative
   Eigen::VectorXd remaining_sd_mm;  ///< per face: standard error of remaining_mm
   std::vector<RowSummary> rows;
   double min_thickness_mm = 0;
   size_t min_face = 0;
-  double min_thickness_lo_mm = 0;  ///< band of the thinnest point: the true thinnest point lies in
-  double min_thickness_hi_mm = 0;  ///< [lo, hi] when every face is within band_sigmas sd
-  size_t worn_through_faces = 0;   ///< estimated wear >= thickness_new
+  double min_thickness_lo_mm = 0;       ///< band of the thinnest point: the true thinnest point lies in
+  double min_thickness_hi_mm = 0;       ///< [lo, hi] when every face is within band_sigmas sd
+  size_t worn_through_faces = 0;        ///< estimated wear >= thickness_new
   size_t maybe_worn_through_faces = 0;  ///< band reaches 0
-  std::string status = kStatusOk;  ///< kStatusOk, kStatusUnsupported, kStatusNoSensors
-  std::string status_detail;       ///< why, in words (empty when ok)
+  std::string status = kStatusOk;       ///< kStatusOk, kStatusUnsupported, kStatusNoSensors
+  std::string status_detail;            ///< why, in words (empty when ok)
 };
 
 /// Everything about a map and crusher that does not depend on the readings, computed once
@@ -72,12 +72,12 @@ struct ReconstructionPlan {
   const CrusherConfig* crusher = nullptr;
   const WearMap* map = nullptr;
   ReconstructionOptions options;
-  MapModel model;                      ///< the map as data with its uncertainty
-  Eigen::VectorXd intensity;           ///< per face: model.intensity
-  Eigen::VectorXd intensity_rel_sd;    ///< per face: relative standard error of `intensity`
-  Eigen::VectorXd sensor_intensity;    ///< per sensor (crusher order): the model at the sensor, same kernel
-  Eigen::VectorXd sensor_intensity_sd; ///< per sensor: its standard error
-  std::vector<int> face_row;           ///< row index of each face by z (-1 outside every row)
+  MapModel model;                       ///< the map as data with its uncertainty
+  Eigen::VectorXd intensity;            ///< per face: model.intensity
+  Eigen::VectorXd intensity_rel_sd;     ///< per face: relative standard error of `intensity`
+  Eigen::VectorXd sensor_intensity;     ///< per sensor (crusher order): the model at the sensor, same kernel
+  Eigen::VectorXd sensor_intensity_sd;  ///< per sensor: its standard error
+  std::vector<int> face_row;            ///< row index of each face by z (-1 outside every row)
 };
 
 ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const WearMap& map,
@@ -101,8 +101,8 @@ std::vector<size_t> LatestReadingIndices(const CrusherConfig& crusher, const std
 
 /// Current wear per sensor from readings up to `at` (latest reading of each sensor):
 /// wear = thickness_new - (reading + 0.5 when interval_centre). Sensors without readings are left out.
-std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings,
-                                     TimePoint at, bool interval_centre = true);
+std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
+                                     bool interval_centre = true);
 
 /// Raw map intensity at each sensor position (area-weighted over faces within `radius_m` of it, or
 /// the nearest face when none is that close). Same order as crusher.sensors. (The reconstruction
@@ -110,8 +110,7 @@ std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::ve
 Eigen::VectorXd IntensityAtSensors(const CrusherConfig& crusher, const WearMap& map, double radius_m = 0.05);
 
 /// Eq. 9 reconstruction from each sensor's current wear.
-Reconstruction Reconstruct(const CrusherConfig& crusher, const WearMap& map,
-                           const std::vector<SensorWear>& sensor_wear,
+Reconstruction Reconstruct(const CrusherConfig& crusher, const WearMap& map, const std::vector<SensorWear>& sensor_wear,
                            const ReconstructionOptions& options = {});
 
 }  // namespace lw::core

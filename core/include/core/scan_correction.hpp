@@ -32,9 +32,9 @@ ScanFaces ProjectScanToFaces(const WearMap& map, const Scan& scan, double floor_
 
 struct ScanCorrection {
   size_t faces_corrected = 0;
-  double median_ratio = 1;  ///< median over corrected faces of corrected / model intensity
+  double median_ratio = 1;         ///< median over corrected faces of corrected / model intensity
   double map_model_error_rel = 0;  ///< the map pattern's relative error the scan revealed (beyond noise)
-  std::string detail;       ///< why nothing was done (empty when applied)
+  std::string detail;              ///< why nothing was done (empty when applied)
 };
 
 /// The latest scan at or before `at` of `scans` (sorted by date, as LoadScans returns them); nullptr

@@ -81,8 +81,8 @@ class SurfaceIndex {
   double reach_z_, reach_arc_;
   double zmin_ = 0, cell_z_ = 1;
   long n_z_ = 1, n_a_ = 1;
-  std::vector<uint32_t> start_;  ///< per cell (z-major), first position in the arrays below; one past the end last
-  std::vector<uint32_t> ids_;    ///< face index, cell by cell
+  std::vector<uint32_t> start_;             ///< per cell (z-major), first position in the arrays below; one past the end last
+  std::vector<uint32_t> ids_;               ///< face index, cell by cell
   std::vector<double> z_, theta_, radius_;  ///< the face's coordinates, in the same order
 };
 

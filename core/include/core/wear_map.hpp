@@ -31,17 +31,17 @@ class InputError : public std::runtime_error {
 std::string Sha256Hex(const std::string& bytes);
 
 struct WearMap {
-  std::vector<Eigen::Vector3d> points;          ///< metres, crusher frame
-  std::vector<std::array<uint32_t, 3>> faces;   ///< triangles, indices into points
-  Eigen::VectorXd wear;                          ///< per face, relative intensity (required)
-  Eigen::VectorXd normal_stress;                 ///< per face; size 0 when absent
-  Eigen::VectorXd shear_stress;                  ///< per face; size 0 when absent
+  std::vector<Eigen::Vector3d> points;         ///< metres, crusher frame
+  std::vector<std::array<uint32_t, 3>> faces;  ///< triangles, indices into points
+  Eigen::VectorXd wear;                        ///< per face, relative intensity (required)
+  Eigen::VectorXd normal_stress;               ///< per face; size 0 when absent
+  Eigen::VectorXd shear_stress;                ///< per face; size 0 when absent
   /// Standard error of `wear` per face (same units), from the spread of the DEM run's K steady
   /// time windows (`wear_stderr`, docs/diagnosis.md "map model"); size 0 when the map has none.
   Eigen::VectorXd wear_stderr;
   /// K, the number of independent time windows `wear` sums (title `... windows=K ...`); 0 unknown.
   int windows = 0;
-  std::string title;  ///< the VTK title line (free text); empty for CSV maps
+  std::string title;                             ///< the VTK title line (free text); empty for CSV maps
   std::map<std::string, Eigen::VectorXd> extra;  ///< any other per-face arrays found
 
   // Derived by ComputeGeometry() (LoadWearMap calls it):
@@ -65,10 +65,10 @@ struct WearMap {
 
 /// Problems found while validating a map (not fatal: reported with the import).
 struct MapValidation {
-  size_t degenerate_faces = 0;        ///< zero-area triangles
-  size_t outward_faces_flipped = 0;   ///< normals that pointed away from the axis and were flipped
-  double zero_wear_fraction = 0.0;    ///< share of faces with wear == 0
-  bool looks_truncated = false;       ///< values look like %f-truncated (few distinct small values)
+  size_t degenerate_faces = 0;       ///< zero-area triangles
+  size_t outward_faces_flipped = 0;  ///< normals that pointed away from the axis and were flipped
+  double zero_wear_fraction = 0.0;   ///< share of faces with wear == 0
+  bool looks_truncated = false;      ///< values look like %f-truncated (few distinct small values)
   size_t negative_wear_faces = 0;
   std::vector<std::string> warnings;  ///< human-readable, one per problem
 };

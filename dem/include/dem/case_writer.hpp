@@ -13,12 +13,12 @@ struct CaseLayout {
   static constexpr const char* kConcaveStl = "concave.stl";
   static constexpr const char* kMantleStl = "mantle.stl";
   static constexpr const char* kHopperStl = "hopper.stl";
-  static constexpr const char* kInput = "in.crusher";         ///< fresh start
-  static constexpr const char* kResume = "in.resume";         ///< continue from a restart file
-  static constexpr const char* kCaseJson = "case.json";       ///< the chamber as run (defaults filled in)
-  static constexpr const char* kMassSeries = "mass.txt";      ///< t, particles and mass in chamber, inserted mass
-  static constexpr const char* kDumpDir = "post";             ///< concave_<step>.vtk mesh dumps
-  static constexpr const char* kRestartDir = "restart";       ///< crusher.<step>.restart
+  static constexpr const char* kInput = "in.crusher";     ///< fresh start
+  static constexpr const char* kResume = "in.resume";     ///< continue from a restart file
+  static constexpr const char* kCaseJson = "case.json";   ///< the chamber as run (defaults filled in)
+  static constexpr const char* kMassSeries = "mass.txt";  ///< t, particles and mass in chamber, inserted mass
+  static constexpr const char* kDumpDir = "post";         ///< concave_<step>.vtk mesh dumps
+  static constexpr const char* kRestartDir = "restart";   ///< crusher.<step>.restart
   static constexpr const char* kSlurm = "run.slurm";
   static constexpr const char* kHostfile = "hostfile.example";
 };

@@ -26,26 +26,26 @@ struct Profile {
 
 struct ChamberSpec {
   std::string name = "chamber";
-  Profile concave;  ///< inner surface of the concave, z = 0 at its bottom (discharge) edge
-  Profile mantle;   ///< outer surface of the mantle in its centred position
+  Profile concave;                  ///< inner surface of the concave, z = 0 at its bottom (discharge) edge
+  Profile mantle;                   ///< outer surface of the mantle in its centred position
   double eccentric_throw_m = 0.03;  ///< radius of the mantle's circular gyration
   double speed_rpm = 150;           ///< gyrations per minute
   double feed_rate_tph = 40000;     ///< insertion rate cap; above the chamber's capacity = choke fed
   std::vector<SizeClass> psd;       ///< feed size classes (no breakage: the product size range)
   double density_kg_m3 = 2700;
-  double simulated_s = 16;          ///< total simulated time, filling included
+  double simulated_s = 16;  ///< total simulated time, filling included
   double timestep_s = 4e-4;
-  double dump_interval_s = 0.5;     ///< mesh dumps (wear, stresses) every this many seconds
-  double youngs_modulus_pa = 1e7;   ///< soft contacts (the seed paper's value) allow ~1e-4 s steps
+  double dump_interval_s = 0.5;    ///< mesh dumps (wear, stresses) every this many seconds
+  double youngs_modulus_pa = 1e7;  ///< soft contacts (the seed paper's value) allow ~1e-4 s steps
   double poisson_ratio = 0.3;
   double restitution = 0.3;
   double friction = 0.6;
-  double rolling_friction = 0.3;    ///< EPSD2 rolling friction coefficient
+  double rolling_friction = 0.3;  ///< EPSD2 rolling friction coefficient
   double finnie_k = 1.0;
-  int mesh_n_theta = 96;            ///< concave faces around the circumference (x2 triangles)
-  int mesh_n_z = 36;                ///< concave face bands from discharge to feed edge
-  unsigned seed = 1;                ///< selects the insertion's random seeds
-  int windows = 0;                  ///< independent time windows for the uncertainty; 0 = automatic
+  int mesh_n_theta = 96;  ///< concave faces around the circumference (x2 triangles)
+  int mesh_n_z = 36;      ///< concave face bands from discharge to feed edge
+  unsigned seed = 1;      ///< selects the insertion's random seeds
+  int windows = 0;        ///< independent time windows for the uncertainty; 0 = automatic
 
   double height_m() const { return concave.z_max(); }
   /// Smallest gap at the discharge (z = 0) over a gyration: concave r - mantle r - throw.

@@ -12,19 +12,19 @@
 namespace lw::dem {
 
 struct RunOptions {
-  int np = 2;                        ///< MPI ranks
+  int np = 2;  ///< MPI ranks
   std::string mpirun = "mpirun";
   std::string liggghts = "liggghts";
-  double progress_every_s = 10;      ///< wall seconds between progress lines
+  double progress_every_s = 10;  ///< wall seconds between progress lines
 };
 
 struct RunResult {
-  bool completed = false;      ///< the last dump (the run's final step) exists
-  bool resumed = false;        ///< this call continued from a restart file
+  bool completed = false;  ///< the last dump (the run's final step) exists
+  bool resumed = false;    ///< this call continued from a restart file
   long resumed_from_step = 0;
-  int attempt = 0;             ///< number of this attempt (its log is log.<attempt>.liggghts)
+  int attempt = 0;  ///< number of this attempt (its log is log.<attempt>.liggghts)
   double wall_s = 0;
-  std::string message;         ///< one line: why it stopped when not completed
+  std::string message;  ///< one line: why it stopped when not completed
 };
 
 /// Step numbers of the files `<prefix><step><suffix>` in `dir`, ascending.
@@ -35,7 +35,6 @@ std::vector<long> StepsInFolder(const std::filesystem::path& dir, const std::str
 void RequestStop();
 
 /// Runs (or resumes, or, when already complete, does nothing for) the case in `dir`.
-RunResult RunCase(const ChamberSpec& spec, const std::filesystem::path& dir, const RunOptions& options,
-                  std::ostream& progress);
+RunResult RunCase(const ChamberSpec& spec, const std::filesystem::path& dir, const RunOptions& options, std::ostream& progress);
 
 }  // namespace lw::dem

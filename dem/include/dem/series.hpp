@@ -10,12 +10,12 @@ namespace lw::dem {
 
 struct SteadyWindow {
   bool found = false;
-  double t_start = 0;    ///< s: from here on the chamber mass stays within the band
-  double t_end = 0;      ///< s: last sample
-  double level = 0;      ///< plateau level (median of the last quarter of samples)
-  double band = 0;       ///< accepted deviation from the level
-  double drift = 0;      ///< relative change of the mass over the steady span (linear fit)
-  std::string reason;    ///< why not found, or a caution
+  double t_start = 0;  ///< s: from here on the chamber mass stays within the band
+  double t_end = 0;    ///< s: last sample
+  double level = 0;    ///< plateau level (median of the last quarter of samples)
+  double band = 0;     ///< accepted deviation from the level
+  double drift = 0;    ///< relative change of the mass over the steady span (linear fit)
+  std::string reason;  ///< why not found, or a caution
 };
 
 /// The steady span of a chamber-mass series m(t) (samples in time order): the plateau level is the

@@ -54,18 +54,19 @@ struct DiagnoseOptions {
 /// scan cell of the true model; diagonal, so an upper bound where errors are correlated).
 struct OracleResult {
   std::string model;
-  size_t effect_params = 0;        ///< the effect's parameter count (what a fit would be charged)
-  double log_n = 0;                ///< ln(observations), the BIC charge per parameter
-  double chi2_baseline = 0;        ///< refit baseline, the diagnosis' noise model
-  double chi2_true = 0;            ///< the true model, row scales refitted
-  double delta_chi2_sensors = 0;   ///< baseline - true, sensor events (with the per-sensor priors)
-  double delta_chi2_scan = 0;      ///< baseline - true, scan cells
-  double spread_sensors = 1;       ///< true model's chi-square per sensor event (empirical / modelled variance)
-  double spread_sensor_priors = 1; ///< ... per sensor intensity error (u^2 / sigma_u^2)
-  double spread_scan = 1;          ///< ... per scan cell
-  double delta_bic_model = 0;      ///< (delta chi2) - effect_params ln N, the diagnosis' noise
-  double delta_bic_empirical = 0;  ///< each part's delta chi2 / its spread (events, sensor priors, scan cells), - effect_params ln N
-  double min_delta_bic = 0;        ///< the diagnosis' threshold on delta BIC for a finding
+  size_t effect_params = 0;         ///< the effect's parameter count (what a fit would be charged)
+  double log_n = 0;                 ///< ln(observations), the BIC charge per parameter
+  double chi2_baseline = 0;         ///< refit baseline, the diagnosis' noise model
+  double chi2_true = 0;             ///< the true model, row scales refitted
+  double delta_chi2_sensors = 0;    ///< baseline - true, sensor events (with the per-sensor priors)
+  double delta_chi2_scan = 0;       ///< baseline - true, scan cells
+  double spread_sensors = 1;        ///< true model's chi-square per sensor event (empirical / modelled variance)
+  double spread_sensor_priors = 1;  ///< ... per sensor intensity error (u^2 / sigma_u^2)
+  double spread_scan = 1;           ///< ... per scan cell
+  double delta_bic_model = 0;       ///< (delta chi2) - effect_params ln N, the diagnosis' noise
+  double delta_bic_empirical =
+      0;                     ///< each part's delta chi2 / its spread (events, sensor priors, scan cells), - effect_params ln N
+  double min_delta_bic = 0;  ///< the diagnosis' threshold on delta BIC for a finding
 };
 
 /// Error of a model against the measurements (mm of wear depth).
@@ -85,9 +86,9 @@ struct Region {
   double theta_max_deg = 0;
   core::TimePoint from{};
   core::TimePoint to{};
-  std::string sign;     ///< "over" | "under"
-  double size_mm = 0;   ///< mean absolute residual over the region
-  std::string source;   ///< "scan:<file>" or "sensor:<id>"
+  std::string sign;    ///< "over" | "under"
+  double size_mm = 0;  ///< mean absolute residual over the region
+  std::string source;  ///< "scan:<file>" or "sensor:<id>"
 };
 
 struct Finding {
@@ -111,12 +112,12 @@ struct DataQualityIssue {
 struct SensorCurve {
   std::string sensor_id;
   std::string row;
-  double z_m = 0;         ///< position on the liner (crusher.json)
+  double z_m = 0;  ///< position on the liner (crusher.json)
   double theta_deg = 0;
   double thickness_new_mm = 0;
-  std::vector<double> reading_days;     ///< days since installation
-  std::vector<double> reading_mm;       ///< raw readings
-  std::vector<bool> reading_used;       ///< false when excluded as a fault
+  std::vector<double> reading_days;  ///< days since installation
+  std::vector<double> reading_mm;    ///< raw readings
+  std::vector<bool> reading_used;    ///< false when excluded as a fault
   std::vector<double> model_days;
   std::vector<double> baseline_thickness_mm;
   std::vector<double> improved_thickness_mm;
@@ -160,15 +161,15 @@ struct LinerSnapshot {
 
 /// A thinnest point on the liner: remaining thickness with its band, where, and when.
 struct ThinnestPoint {
-  std::string label;         ///< what it comes from, in words
+  std::string label;  ///< what it comes from, in words
   core::TimePoint time{};
   double thickness_mm = 0;
-  double lo_mm = 0;          ///< band (2 sd); lo == hi == thickness when no band is known
+  double lo_mm = 0;  ///< band (2 sd); lo == hi == thickness when no band is known
   double hi_mm = 0;
   double z_m = 0;
   double theta_deg = 0;
-  std::string row;           ///< crusher row at z (empty outside every row)
-  std::string status;        ///< reconstruction status ("ok", "unsupported", ...), empty for models
+  std::string row;     ///< crusher row at z (empty outside every row)
+  std::string status;  ///< reconstruction status ("ok", "unsupported", ...), empty for models
   std::string status_detail;
 };
 
@@ -186,11 +187,11 @@ struct LinerReport {
   double thickness_new_mm = 0;
   double thickness_min_mm = 0;
   std::vector<LinerTile> tiles;
-  bool tiles_are_faces = true;            ///< false: raster cells (large map)
-  std::vector<LinerSnapshot> snapshots;   ///< one per scan, else one at the latest reading
-  core::TimePoint now{};                  ///< latest reading the diagnosis used
-  std::vector<double> remaining_now_mm;   ///< per tile: the live reconstruction's remaining thickness at `now`
-  std::vector<ThinnestPoint> thinnest;    ///< now (reconstruction), models now, models at predict_at
+  bool tiles_are_faces = true;           ///< false: raster cells (large map)
+  std::vector<LinerSnapshot> snapshots;  ///< one per scan, else one at the latest reading
+  core::TimePoint now{};                 ///< latest reading the diagnosis used
+  std::vector<double> remaining_now_mm;  ///< per tile: the live reconstruction's remaining thickness at `now`
+  std::vector<ThinnestPoint> thinnest;   ///< now (reconstruction), models now, models at predict_at
   std::vector<RelineDate> reline;
 };
 
@@ -219,7 +220,7 @@ struct DiagnosisResult {
   std::vector<DataQualityIssue> data_quality;
   std::optional<Prediction> prediction;
   std::optional<OracleResult> oracle;  ///< when DiagnoseOptions::oracle was given
-  std::vector<std::string> notes;  ///< skipped hypotheses and why, noise estimates
+  std::vector<std::string> notes;      ///< skipped hypotheses and why, noise estimates
   nlohmann::ordered_json noise = nlohmann::ordered_json::object();
   nlohmann::ordered_json hypotheses = nlohmann::ordered_json::array();  ///< every model tried
   std::vector<SensorCurve> curves;
@@ -240,7 +241,6 @@ std::string RenderHtml(const DiagnosisResult& result);
 
 /// Writes OUT.json-style, HTML and VTK outputs; each file goes to a temporary and is renamed.
 void WriteHtml(const std::filesystem::path& path, const DiagnosisResult& result);
-void WritePredictionVtk(const std::filesystem::path& path, const core::Bundle& bundle,
-                        const DiagnosisResult& result);
+void WritePredictionVtk(const std::filesystem::path& path, const core::Bundle& bundle, const DiagnosisResult& result);
 
 }  // namespace lw::diagnosis

@@ -4,8 +4,8 @@
 
 namespace lw::firmware {
 namespace {
-constexpr uint16_t kFaultFlags = protocol::kFlagLoopHealed | protocol::kFlagNonContiguous |
-                                 protocol::kFlagAllOpen | protocol::kFlagSpiStuck;
+constexpr uint16_t kFaultFlags =
+    protocol::kFlagLoopHealed | protocol::kFlagNonContiguous | protocol::kFlagAllOpen | protocol::kFlagSpiStuck;
 }
 
 App::App(const Config& config, const hal::Board& board)

@@ -21,16 +21,26 @@ ConfigError CheckConfig(const Config& c) {
 
 const char* ConfigErrorText(ConfigError error) {
   switch (error) {
-    case ConfigError::kOk: return "ok";
-    case ConfigError::kLadderLoops: return "ladder_loops must be 1..128";
-    case ConfigError::kLoopPitch: return "loop_pitch_dmm must be at least 1";
-    case ConfigError::kThicknessRange: return "base_offset_dmm + ladder_loops x loop_pitch_dmm must not exceed 65535";
-    case ConfigError::kVotes: return "votes_per_poll must be 1..9";
-    case ConfigError::kPollPeriod: return "poll_period_s must be at least 1";
-    case ConfigError::kHeartbeat: return "heartbeat_period_s must be at least poll_period_s";
-    case ConfigError::kBackoff: return "backoff_min_s must be 1..backoff_max_s";
-    case ConfigError::kWatchdog: return "watchdog_timeout_s must be longer than poll_period_s (the longest sleep)";
-    case ConfigError::kSeqBlock: return "seq_reserve_block must be at least 1";
+    case ConfigError::kOk:
+      return "ok";
+    case ConfigError::kLadderLoops:
+      return "ladder_loops must be 1..128";
+    case ConfigError::kLoopPitch:
+      return "loop_pitch_dmm must be at least 1";
+    case ConfigError::kThicknessRange:
+      return "base_offset_dmm + ladder_loops x loop_pitch_dmm must not exceed 65535";
+    case ConfigError::kVotes:
+      return "votes_per_poll must be 1..9";
+    case ConfigError::kPollPeriod:
+      return "poll_period_s must be at least 1";
+    case ConfigError::kHeartbeat:
+      return "heartbeat_period_s must be at least poll_period_s";
+    case ConfigError::kBackoff:
+      return "backoff_min_s must be 1..backoff_max_s";
+    case ConfigError::kWatchdog:
+      return "watchdog_timeout_s must be longer than poll_period_s (the longest sleep)";
+    case ConfigError::kSeqBlock:
+      return "seq_reserve_block must be at least 1";
   }
   return "unknown config error";
 }

@@ -37,9 +37,15 @@ lw::firmware::Config MakeConfig() {
 
 }  // namespace
 
-extern "C" void SysTick_Handler() { clock.OnTick(); }
-extern "C" void Uart0Rx_Handler() { radio_uart.OnRxInterrupt(); }
-extern "C" void Uart1Rx_Handler() { ladder_uart.OnRxInterrupt(); }
+extern "C" void SysTick_Handler() {
+  clock.OnTick();
+}
+extern "C" void Uart0Rx_Handler() {
+  radio_uart.OnRxInterrupt();
+}
+extern "C" void Uart1Rx_Handler() {
+  ladder_uart.OnRxInterrupt();
+}
 
 int main() {
   radio_uart.Init(kBaudDiv);

@@ -44,7 +44,10 @@ __attribute__((section(".isr_vector"), used)) const Handler kVectors[16 + 8] = {
     Default_Handler,  // MemManage
     Default_Handler,  // BusFault
     Default_Handler,  // UsageFault
-    nullptr, nullptr, nullptr, nullptr,
+    nullptr,
+    nullptr,
+    nullptr,
+    nullptr,
     Default_Handler,  // SVCall
     Default_Handler,  // DebugMon
     nullptr,
@@ -53,5 +56,9 @@ __attribute__((section(".isr_vector"), used)) const Handler kVectors[16 + 8] = {
     Uart0Rx_Handler,  // IRQ 0
     Default_Handler,  // IRQ 1 UART0 TX
     Uart1Rx_Handler,  // IRQ 2
-    Default_Handler, Default_Handler, Default_Handler, Default_Handler, Default_Handler,
+    Default_Handler,
+    Default_Handler,
+    Default_Handler,
+    Default_Handler,
+    Default_Handler,
 };

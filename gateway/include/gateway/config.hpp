@@ -17,25 +17,25 @@ class ConfigError : public std::runtime_error {
 };
 
 struct Config {
-  std::string serial;          ///< serial device, pty or any readable path
+  std::string serial;  ///< serial device, pty or any readable path
   int baud = 9600;
-  int api_mode = 2;            ///< XBee AP setting of the coordinator: 1 or 2
-  std::string broker;          ///< tcp://host:port, ssl://host:port (mqtt:// and mqtts:// too)
+  int api_mode = 2;    ///< XBee AP setting of the coordinator: 1 or 2
+  std::string broker;  ///< tcp://host:port, ssl://host:port (mqtt:// and mqtts:// too)
   std::string site;
   std::string crusher;
-  std::string spool;           ///< SQLite file
+  std::string spool;  ///< SQLite file
   std::string username;
   std::string password;
-  std::string tls_ca;          ///< CA file for ssl:// brokers
-  std::string gateway_id;      ///< defaults to "gw-" + host name
+  std::string tls_ca;      ///< CA file for ssl:// brokers
+  std::string gateway_id;  ///< defaults to "gw-" + host name
   size_t spool_max_records = 1'000'000;
   size_t window = 1;
-  size_t max_devices = 1000;   ///< device registry entries (address, sensor) at most
+  size_t max_devices = 1000;  ///< device registry entries (address, sensor) at most
   double republish_after_s = 30;
   double stats_interval_s = 60;
   double reconnect_min_s = 1;
   double reconnect_max_s = 60;
-  std::string clock_file;      ///< simulation: reading times come from this virtual clock file
+  std::string clock_file;  ///< simulation: reading times come from this virtual clock file
 };
 
 enum class ParseResult { kRun, kHelp };

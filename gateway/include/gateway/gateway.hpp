@@ -48,28 +48,28 @@ struct GatewayOptions {
 
 /// Counters of the gateway's own work (the frame decoder's are in DecoderCounters).
 struct GatewayCounters {
-  uint64_t records_received = 0;    ///< records decoded from readings payloads (duplicates too)
-  uint64_t records_spooled = 0;     ///< new records stored
-  uint64_t records_duplicate = 0;   ///< retransmissions of records already spooled
-  uint64_t records_rejected = 0;    ///< spool full: not stored, not acked
-  uint64_t bad_payloads = 0;        ///< 0x90 frames whose payload failed to decode
-  uint64_t unknown_payloads = 0;    ///< 0x90 frames with a payload type we do not handle
-  uint64_t malformed_frames = 0;    ///< valid checksum but a known type failed to parse
-  uint64_t unknown_frames = 0;      ///< frames of a type the gateway does not handle
+  uint64_t records_received = 0;   ///< records decoded from readings payloads (duplicates too)
+  uint64_t records_spooled = 0;    ///< new records stored
+  uint64_t records_duplicate = 0;  ///< retransmissions of records already spooled
+  uint64_t records_rejected = 0;   ///< spool full: not stored, not acked
+  uint64_t bad_payloads = 0;       ///< 0x90 frames whose payload failed to decode
+  uint64_t unknown_payloads = 0;   ///< 0x90 frames with a payload type we do not handle
+  uint64_t malformed_frames = 0;   ///< valid checksum but a known type failed to parse
+  uint64_t unknown_frames = 0;     ///< frames of a type the gateway does not handle
   uint64_t acks_sent = 0;
   uint64_t ack_write_errors = 0;
-  uint64_t tx_failures = 0;         ///< 0x8B Transmit Status with a non-success delivery status
-  uint64_t spool_errors = 0;        ///< SQLite failures (records not acked)
-  uint64_t published = 0;           ///< first publications of a record
-  uint64_t republished = 0;         ///< publications after a reconnect or the republish timeout
-  uint64_t publish_refused = 0;     ///< readings the MQTT client refused to take (kept, tried again at the next Pump)
-  uint64_t link_resets = 0;         ///< reconnects asked for because the link carried nothing of QoS 1 (LinkStalled)
-  uint64_t committed = 0;           ///< records deleted after the server's commit ack
+  uint64_t tx_failures = 0;      ///< 0x8B Transmit Status with a non-success delivery status
+  uint64_t spool_errors = 0;     ///< SQLite failures (records not acked)
+  uint64_t published = 0;        ///< first publications of a record
+  uint64_t republished = 0;      ///< publications after a reconnect or the republish timeout
+  uint64_t publish_refused = 0;  ///< readings the MQTT client refused to take (kept, tried again at the next Pump)
+  uint64_t link_resets = 0;      ///< reconnects asked for because the link carried nothing of QoS 1 (LinkStalled)
+  uint64_t committed = 0;        ///< records deleted after the server's commit ack
   uint64_t bad_commit_acks = 0;
-  uint64_t commit_acks_ignored = 0; ///< acked seqs that were not published and awaiting an ack
-  uint64_t devices_refused = 0;     ///< new registry entries refused: registry full (max_devices)
+  uint64_t commit_acks_ignored = 0;  ///< acked seqs that were not published and awaiting an ack
+  uint64_t devices_refused = 0;      ///< new registry entries refused: registry full (max_devices)
   uint64_t connects = 0;
-  int64_t latency_last_ms = -1;     ///< receive -> commit ack of the last committed record
+  int64_t latency_last_ms = -1;  ///< receive -> commit ack of the last committed record
   int64_t latency_max_ms = -1;
   int64_t latency_sum_ms = 0;
 };
@@ -140,10 +140,10 @@ class Gateway {
   std::map<std::string, std::map<uint32_t, int64_t>> in_flight_;
   std::set<std::string> known_devices_;  // "address/sensor" already in the registry
   std::map<std::string, uint64_t> log_counts_;
-  bool records_dirty_ = true;               // every sensor's queue head must be looked at
-  std::set<std::string> dirty_sensors_;     // sensors whose queue head changed since the last look
-  bool all_devices_dirty_ = true;            // after a connect: every device's message
-  std::set<std::string> dirty_devices_;      // addresses whose message changed
+  bool records_dirty_ = true;            // every sensor's queue head must be looked at
+  std::set<std::string> dirty_sensors_;  // sensors whose queue head changed since the last look
+  bool all_devices_dirty_ = true;        // after a connect: every device's message
+  std::set<std::string> dirty_devices_;  // addresses whose message changed
   int64_t next_republish_check_ms_ = 0;
   int64_t last_progress_ms_ = 0;  ///< last accepted reading publication, released record or connect
   int64_t next_stats_ms_ = 0;

@@ -22,7 +22,7 @@ class SpoolError : public std::runtime_error {
 
 /// One sensor record as spooled: identity, bookkeeping and the JSON message to publish.
 struct SpoolRecord {
-  std::string sensor;       ///< decimal sensor id as on MQTT
+  std::string sensor;  ///< decimal sensor id as on MQTT
   uint32_t seq = 0;
   int64_t received_ms = 0;  ///< Unix ms when the gateway received it
   bool heartbeat = false;   ///< carries kFlagHeartbeat: the first to go when the spool is full

@@ -12,7 +12,9 @@ void HostLadder::SetIntactCount(uint8_t n) {
 void HostLadder::SetLoop(uint8_t index, bool intact) {
   if (index < loops_) intact_[index] = intact;
 }
-bool HostLadder::Loop(uint8_t index) const { return index < loops_ && intact_[index]; }
+bool HostLadder::Loop(uint8_t index) const {
+  return index < loops_ && intact_[index];
+}
 
 bool HostLadder::DoTransfer(const uint8_t* /*tx*/, uint8_t* rx, size_t len) {
   ++transfers_;
@@ -45,8 +47,12 @@ bool HostLadder::DoTransfer(const uint8_t* /*tx*/, uint8_t* rx, size_t len) {
 
 bool HostAdc::DoRead(AdcChannel channel, int32_t* value) {
   switch (channel) {
-    case AdcChannel::kBatteryMillivolts: *value = battery_mv_; return true;
-    case AdcChannel::kTemperatureCelsius: *value = temperature_c_; return true;
+    case AdcChannel::kBatteryMillivolts:
+      *value = battery_mv_;
+      return true;
+    case AdcChannel::kTemperatureCelsius:
+      *value = temperature_c_;
+      return true;
   }
   return false;
 }
@@ -110,8 +116,7 @@ bool HostFlash::DoRead(size_t page, size_t offset, uint8_t* data, size_t len) {
   return true;
 }
 
-HostRadio::HostRadio(uint64_t address64, protocol::ApiMode mode)
-    : address64_(address64), mode_(mode), decoder_(mode) {}
+HostRadio::HostRadio(uint64_t address64, protocol::ApiMode mode) : address64_(address64), mode_(mode), decoder_(mode) {}
 
 size_t HostRadio::DoWrite(const uint8_t* data, size_t len) {
   if (power_good_ && !power_good_()) {
@@ -168,13 +173,9 @@ size_t HostRadio::DoRead(uint8_t* out, size_t cap) {
   return n;
 }
 
-HostBoard::HostBoard(uint8_t ladder_loops, uint64_t radio_address64, protocol::ApiMode mode,
-                     size_t flash_page_size, size_t flash_pages)
-    : ladder(ladder_loops),
-      radio(radio_address64, mode),
-      power(rtc),
-      watchdog(rtc),
-      flash(flash_page_size, flash_pages) {
+HostBoard::HostBoard(uint8_t ladder_loops, uint64_t radio_address64, protocol::ApiMode mode, size_t flash_page_size,
+                     size_t flash_pages)
+    : ladder(ladder_loops), radio(radio_address64, mode), power(rtc), watchdog(rtc), flash(flash_page_size, flash_pages) {
   radio.set_power_good([this] { return !flash.power_lost(); });
 }
 

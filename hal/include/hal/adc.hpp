@@ -5,8 +5,8 @@ namespace lw::hal {
 
 /// What an analog read measures; the port converts to the unit named here.
 enum class AdcChannel : uint8_t {
-  kBatteryMillivolts = 0,  ///< battery terminal voltage, mV
-  kTemperatureCelsius = 1, ///< die or board temperature, whole degrees Celsius
+  kBatteryMillivolts = 0,   ///< battery terminal voltage, mV
+  kTemperatureCelsius = 1,  ///< die or board temperature, whole degrees Celsius
 };
 
 /// Analog inputs, already converted to the channel's unit. Blocking (one conversion, < 1 ms).

@@ -3,7 +3,9 @@
 namespace lw::hal::mps2 {
 namespace {
 
-inline volatile uint32_t& Reg(uintptr_t addr) { return *reinterpret_cast<volatile uint32_t*>(addr); }
+inline volatile uint32_t& Reg(uintptr_t addr) {
+  return *reinterpret_cast<volatile uint32_t*>(addr);
+}
 
 // CMSDK APB UART registers.
 constexpr uintptr_t kUartData = 0x00, kUartState = 0x04, kUartCtrl = 0x08, kUartIntClear = 0x0C, kUartBaudDiv = 0x10;
@@ -29,11 +31,17 @@ void CmsdkUartBase::Init(uint32_t baud_div) {
   Reg(base_ + kUartCtrl) = kCtrlTxEn | kCtrlRxEn | kCtrlRxIntEn;
 }
 
-bool CmsdkUartBase::RxReady() const { return (Reg(base_ + kUartState) & kStateRxFull) != 0; }
+bool CmsdkUartBase::RxReady() const {
+  return (Reg(base_ + kUartState) & kStateRxFull) != 0;
+}
 
-uint8_t CmsdkUartBase::RxByte() const { return static_cast<uint8_t>(Reg(base_ + kUartData)); }
+uint8_t CmsdkUartBase::RxByte() const {
+  return static_cast<uint8_t>(Reg(base_ + kUartData));
+}
 
-void CmsdkUartBase::ClearRxInterrupt() const { Reg(base_ + kUartIntClear) = kIntRx; }
+void CmsdkUartBase::ClearRxInterrupt() const {
+  Reg(base_ + kUartIntClear) = kIntRx;
+}
 
 size_t CmsdkUartBase::DoWrite(const uint8_t* data, size_t len) {
   for (size_t i = 0; i < len; ++i) {
@@ -71,14 +79,19 @@ void UartLadder::Drain() {
 bool UartLadder::DoTransfer(const uint8_t* /*tx*/, uint8_t* rx, size_t len) {
   Drain();
   for (size_t i = 0; i < len; ++i) {
-    if (i < image_len_) rx[i] = image_[i];
-    else if (i == image_len_) rx[i] = 0xA5;  // the chain's hard-wired signature register
-    else rx[i] = 0;
+    if (i < image_len_)
+      rx[i] = image_[i];
+    else if (i == image_len_)
+      rx[i] = 0xA5;  // the chain's hard-wired signature register
+    else
+      rx[i] = 0;
   }
   return image_len_ > 0;  // no image yet: the bus "fails", like an unpowered chain
 }
 
-void Led::DoSet(bool high) { Reg(kFpgaLed) = high ? 1u : 0u; }
+void Led::DoSet(bool high) {
+  Reg(kFpgaLed) = high ? 1u : 0u;
+}
 
 bool FixedAdc::DoRead(AdcChannel channel, int32_t* value) {
   *value = channel == AdcChannel::kBatteryMillivolts ? 3600 : 25;

@@ -42,9 +42,9 @@ struct ReadingMessage {
   std::optional<int64_t> ladder_loops;
   std::optional<std::string> loop_bitmap;  ///< lower-case hex, loop 0 in the first byte's top bit
   std::optional<int64_t> dropped_total;
-  std::optional<std::string> address;      ///< the radio's, AddressHex
+  std::optional<std::string> address;  ///< the radio's, AddressHex
   std::optional<std::string> gateway;
-  std::optional<std::string> received;     ///< when the gateway received it
+  std::optional<std::string> received;  ///< when the gateway received it
 
   bool operator==(const ReadingMessage&) const = default;
 };
@@ -105,7 +105,7 @@ struct StatsMessage {
   std::string gateway;
   std::string time;
   std::map<std::string, uint64_t> counters;  ///< frames_ok, spool_depth, ... (every whole-number field)
-  int64_t latency_last_ms = -1;               ///< `publish_latency_ms`: -1 before the first commit ack
+  int64_t latency_last_ms = -1;              ///< `publish_latency_ms`: -1 before the first commit ack
   int64_t latency_max_ms = -1;
   int64_t latency_mean_ms = -1;
 

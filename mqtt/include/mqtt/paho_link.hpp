@@ -13,12 +13,12 @@
 namespace lw::mqtt {
 
 struct LinkOptions {
-  std::string uri;        ///< tcp://, ssl://, mqtt://, mqtts://
+  std::string uri;  ///< tcp://, ssl://, mqtt://, mqtts://
   std::string client_id;
   std::string username;
   std::string password;
-  std::string tls_ca;     ///< trust store for ssl:// (empty: system default)
-  OutMessage will;        ///< last will (retained offline status)
+  std::string tls_ca;                      ///< trust store for ssl:// (empty: system default)
+  OutMessage will;                         ///< last will (retained offline status)
   std::vector<std::string> subscriptions;  ///< QoS 1, renewed after every connect
   int64_t reconnect_min_ms = 1000;
   int64_t reconnect_max_ms = 60'000;

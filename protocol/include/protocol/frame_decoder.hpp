@@ -14,17 +14,17 @@ namespace lw::protocol {
 /// 115200 Bd would wrap a 32-bit bytes_discarded within 5 days, inside a campaign.
 struct DecoderCounters {
   uint64_t frames_ok = 0;
-  uint64_t bytes_discarded = 0;    ///< bytes outside any frame (garbage before a delimiter)
+  uint64_t bytes_discarded = 0;  ///< bytes outside any frame (garbage before a delimiter)
   uint64_t checksum_errors = 0;
-  uint64_t escape_errors = 0;      ///< 0x7D followed by 0x7E, or an unescaped 0x7E inside a frame (mode 2)
-  uint64_t length_errors = 0;      ///< declared length 0 or above kMaxFrameData
-  uint64_t truncated_frames = 0;   ///< a new delimiter arrived before the frame was complete
-  uint64_t unknown_types = 0;      ///< valid frame whose API identifier is not a FrameType (still delivered)
+  uint64_t escape_errors = 0;     ///< 0x7D followed by 0x7E, or an unescaped 0x7E inside a frame (mode 2)
+  uint64_t length_errors = 0;     ///< declared length 0 or above kMaxFrameData
+  uint64_t truncated_frames = 0;  ///< a new delimiter arrived before the frame was complete
+  uint64_t unknown_types = 0;     ///< valid frame whose API identifier is not a FrameType (still delivered)
 };
 
 enum class DecodeEvent : uint8_t {
-  kNone = 0,         ///< byte consumed, no complete frame yet
-  kFrame,            ///< a valid frame is available through frame_data()/frame_length()
+  kNone = 0,  ///< byte consumed, no complete frame yet
+  kFrame,     ///< a valid frame is available through frame_data()/frame_length()
   kChecksumError,
   kEscapeError,
   kLengthError,
@@ -67,7 +67,7 @@ class FrameDecoder {
  private:
   enum class State : uint8_t { kIdle, kLengthHigh, kLengthLow, kData, kChecksum };
   static constexpr size_t kRawCapacity = kMaxFrameData + 3;  // length (2), data, checksum
-  DecodeEvent Accept(uint8_t byte);  // one unescaped byte
+  DecodeEvent Accept(uint8_t byte);                          // one unescaped byte
   DecodeEvent FeedEscaped(uint8_t byte);
   DecodeEvent FeedUnescaped(uint8_t byte);
   // API mode 1 only: after a checksum or length error the bytes of the failed frame may hold the

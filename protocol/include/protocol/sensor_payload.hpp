@@ -77,9 +77,9 @@ enum class PayloadStatus : uint8_t {
   kBadVersion,
   kBadType,
   kBadCrc,
-  kBadLadder,      ///< ladder_loops 0 or above kMaxLadderLoops
-  kTooManyRecords, ///< record_count above capacity or 0
-  kTrailingBytes,  ///< bytes between the last record and the CRC
+  kBadLadder,       ///< ladder_loops 0 or above kMaxLadderLoops
+  kTooManyRecords,  ///< record_count above capacity or 0
+  kTrailingBytes,   ///< bytes between the last record and the CRC
 };
 const char* PayloadStatusName(PayloadStatus status);
 
@@ -87,7 +87,9 @@ const char* PayloadStatusName(PayloadStatus status);
 uint16_t Crc16Ccitt(const uint8_t* data, size_t len, uint16_t crc = 0xFFFF);
 
 /// Size of one record on the wire for a ladder of `ladder_loops` loops.
-constexpr size_t RecordWireSize(uint8_t ladder_loops) { return kRecordFixedSize + (ladder_loops + 7u) / 8u; }
+constexpr size_t RecordWireSize(uint8_t ladder_loops) {
+  return kRecordFixedSize + (ladder_loops + 7u) / 8u;
+}
 /// How many records fit in one RF payload.
 constexpr size_t MaxRecordsPerPayload(uint8_t ladder_loops) {
   return (kMaxRfPayload - kReadingsHeaderSize - kCrcSize) / RecordWireSize(ladder_loops);
@@ -95,17 +97,19 @@ constexpr size_t MaxRecordsPerPayload(uint8_t ladder_loops) {
 
 /// Encodes a readings message with `count` records. Returns kTooManyRecords when they do not fit
 /// in kMaxRfPayload. `*written` receives the payload length.
-PayloadStatus EncodeReadings(const ReadingsHeader& header, const SensorRecord* records, size_t count,
-                             uint8_t* out, size_t out_cap, size_t* written);
+PayloadStatus EncodeReadings(const ReadingsHeader& header, const SensorRecord* records, size_t count, uint8_t* out,
+                             size_t out_cap, size_t* written);
 
 /// Decodes a readings message into `records` (capacity `records_cap`); `*count` receives how many.
-PayloadStatus DecodeReadings(const uint8_t* payload, size_t len, ReadingsHeader* header,
-                             SensorRecord* records, size_t records_cap, size_t* count);
+PayloadStatus DecodeReadings(const uint8_t* payload, size_t len, ReadingsHeader* header, SensorRecord* records,
+                             size_t records_cap, size_t* count);
 
 PayloadStatus EncodeAck(const Ack& ack, uint8_t* out, size_t out_cap, size_t* written);
 PayloadStatus DecodeAck(const uint8_t* payload, size_t len, Ack* ack);
 
 /// Message type of a payload (second byte) or 0 when too short.
-inline uint8_t PayloadType(const uint8_t* payload, size_t len) { return len >= 2 ? payload[1] : 0; }
+inline uint8_t PayloadType(const uint8_t* payload, size_t len) {
+  return len >= 2 ? payload[1] : 0;
+}
 
 }  // namespace lw::protocol

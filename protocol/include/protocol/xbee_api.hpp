@@ -166,7 +166,9 @@ size_t EncodeTransmitRequest(ApiMode mode, const TransmitRequest& req, uint8_t* 
 size_t EncodeReceivePacket(ApiMode mode, const ReceivePacket& rx, uint8_t* wire, size_t wire_cap);
 
 /// The frame id after `id`: 1..255 cycling (0 means "no Transmit Status wanted", so it is skipped).
-constexpr uint8_t NextFrameId(uint8_t id) { return id == 0xFF ? uint8_t{1} : static_cast<uint8_t>(id + 1); }
+constexpr uint8_t NextFrameId(uint8_t id) {
+  return id == 0xFF ? uint8_t{1} : static_cast<uint8_t>(id + 1);
+}
 Status BuildTransmitStatus(const TransmitStatus& st, uint8_t* out, size_t out_cap, size_t* written);
 Status BuildReceivePacket(const ReceivePacket& rx, uint8_t* out, size_t out_cap, size_t* written);
 Status BuildModemStatus(const ModemStatus& ms, uint8_t* out, size_t out_cap, size_t* written);

@@ -23,17 +23,17 @@ namespace lw::server {
 /// Limits the HTTP front end enforces as bytes arrive, before anything is buffered or parsed
 /// (docs/security.md). Exceeding one gets a JSON error and the connection is closed.
 struct HttpLimits {
-  size_t max_request_line = 8 * 1024;     ///< 414
-  size_t max_head_bytes = 32 * 1024;      ///< request line + headers: 431
-  size_t max_headers = 100;               ///< header fields: 431
-  uint64_t max_body_bytes = 16u << 20;    ///< Content-Length or chunked (as received): 413
-  int head_timeout_ms = 10'000;           ///< a request head must arrive whole within this: 408
-  int idle_timeout_ms = 5'000;            ///< a connection without a request in progress is closed
-  int body_timeout_ms = 60'000;           ///< a request body must arrive whole within this: 408
-  int io_timeout_ms = 5'000;              ///< one read or write waits at most this
-  size_t max_connections = 256;           ///< open connections in all: 503
-  size_t max_connections_per_client = 32; ///< open connections from one IP address: 503
-  size_t workers = 32;                    ///< threads serving complete requests
+  size_t max_request_line = 8 * 1024;      ///< 414
+  size_t max_head_bytes = 32 * 1024;       ///< request line + headers: 431
+  size_t max_headers = 100;                ///< header fields: 431
+  uint64_t max_body_bytes = 16u << 20;     ///< Content-Length or chunked (as received): 413
+  int head_timeout_ms = 10'000;            ///< a request head must arrive whole within this: 408
+  int idle_timeout_ms = 5'000;             ///< a connection without a request in progress is closed
+  int body_timeout_ms = 60'000;            ///< a request body must arrive whole within this: 408
+  int io_timeout_ms = 5'000;               ///< one read or write waits at most this
+  size_t max_connections = 256;            ///< open connections in all: 503
+  size_t max_connections_per_client = 32;  ///< open connections from one IP address: 503
+  size_t workers = 32;                     ///< threads serving complete requests
   size_t max_requests_per_connection = 100;
 };
 

@@ -33,9 +33,9 @@ class DiagnosisRunner {
  private:
   /// What this process knows of a crusher's runs (the database holds the latest result).
   enum class RunState {
-    kIdle,     ///< none started since the server started, or the last one succeeded
+    kIdle,  ///< none started since the server started, or the last one succeeded
     kRunning,
-    kFailed,   ///< the last run failed (RunStatus::error says why)
+    kFailed,  ///< the last run failed (RunStatus::error says why)
   };
   struct RunStatus {
     RunState state = RunState::kIdle;

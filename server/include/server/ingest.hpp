@@ -72,7 +72,7 @@ struct IngestResult {
   size_t duplicates = 0;
   size_t conflicts = 0;
   size_t rejected = 0;
-  std::vector<Ack> acks;                   ///< grouped per (site, crusher, sensor), seqs ascending
+  std::vector<Ack> acks;                    ///< grouped per (site, crusher, sensor), seqs ascending
   std::vector<StoredReading> new_readings;  ///< stored by this call (not duplicates)
   std::vector<std::string> log;             ///< one line per rejection or conflict
 };

@@ -60,10 +60,10 @@ class LiveState {
   };
   struct SensorState {
     int64_t count = 0;
-    std::optional<StoredReading> latest;      ///< by (time, seq), any flags
-    std::optional<int64_t> last_usable_s;     ///< newest usable reading's time
-    std::deque<Point> window;                 ///< usable readings the forecast may fit, by (time, seq)
-    std::vector<std::optional<Point>> anchor; ///< per scan: latest usable at or before its date (thinnest at that time)
+    std::optional<StoredReading> latest;       ///< by (time, seq), any flags
+    std::optional<int64_t> last_usable_s;      ///< newest usable reading's time
+    std::deque<Point> window;                  ///< usable readings the forecast may fit, by (time, seq)
+    std::vector<std::optional<Point>> anchor;  ///< per scan: latest usable at or before its date (thinnest at that time)
   };
   struct CrusherLive {
     const Crusher* crusher = nullptr;

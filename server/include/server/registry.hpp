@@ -28,8 +28,8 @@ struct CrusherScan {
 
 /// The crusher's plan corrected by one scan (core::ApplyScan), for the sensors' wear at its date.
 struct ScannedPlan {
-  size_t scan = 0;                              ///< index into Crusher::scans
-  std::vector<core::SensorWear> wear_at_scan;   ///< what the correction was computed from
+  size_t scan = 0;                             ///< index into Crusher::scans
+  std::vector<core::SensorWear> wear_at_scan;  ///< what the correction was computed from
   core::ReconstructionPlan plan;
   core::ScanCorrection correction;
 };

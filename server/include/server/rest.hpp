@@ -55,7 +55,7 @@ struct Response {
   int status = 200;
   nlohmann::ordered_json json;  ///< the body, sent as application/json, unless `raw` or `stream` is set
   std::optional<RawBody> raw;
-  std::shared_ptr<EventStream> stream;                        ///< set: a text/event-stream body
+  std::shared_ptr<EventStream> stream;                       ///< set: a text/event-stream body
   std::vector<std::pair<std::string, std::string>> headers;  ///< extra response headers
 };
 
@@ -73,8 +73,7 @@ class EventStream {
 
  private:
   friend class Resources;
-  EventStream(EventBus& events, const std::atomic<bool>& stopping, std::string crusher, int64_t after,
-              std::shared_ptr<void> slot)
+  EventStream(EventBus& events, const std::atomic<bool>& stopping, std::string crusher, int64_t after, std::shared_ptr<void> slot)
       : events_(events), stopping_(stopping), crusher_(std::move(crusher)), after_(after), slot_(std::move(slot)) {}
   EventBus& events_;
   const std::atomic<bool>& stopping_;

@@ -22,8 +22,8 @@ struct ServerOptions {
   std::string tls_ca;
   std::string client_id = "linerwatch-server";
   std::string topic_root{mqtt::kDefaultTopicPrefix};
-  std::string web_dir;     ///< default: the build's / installed dashboard folder
-  std::string clock_file;  ///< simulation: "now" (unix ms) is read from this file
+  std::string web_dir;                     ///< default: the build's / installed dashboard folder
+  std::string clock_file;                  ///< simulation: "now" (unix ms) is read from this file
   std::vector<std::string> allowed_hosts;  ///< host names the HTTP API answers to (besides addresses, localhost)
   int64_t wear_interval_ms = 1000;
   int64_t batch_max = 1000;

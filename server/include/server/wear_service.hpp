@@ -18,11 +18,11 @@ namespace lw::server {
 struct CrusherState {
   const Crusher* crusher = nullptr;
   bool has_wear = false;
-  core::TimePoint time{};                    ///< latest reading used
-  std::vector<StoredReading> used;           ///< the reading each sensor's wear came from
+  core::TimePoint time{};           ///< latest reading used
+  std::vector<StoredReading> used;  ///< the reading each sensor's wear came from
   std::vector<core::SensorWear> sensor_wear;
   core::Reconstruction reconstruction;
-  std::shared_ptr<const ScannedPlan> scan;   ///< the scan applied (nullptr: the map alone)
+  std::shared_ptr<const ScannedPlan> scan;  ///< the scan applied (nullptr: the map alone)
   std::vector<core::SensorForecast> sensor_forecasts;
   std::vector<core::RowForecast> row_forecasts;
   int64_t version = 0;

@@ -41,28 +41,28 @@ struct SensorSpec {
 struct CampaignSpec {
   std::string crusher_id = "sim-62-75";
   std::string installed_at = "2026-01-05T00:00:00Z";
-  double days = 95;               ///< length of the generated record
+  double days = 95;  ///< length of the generated record
   double thickness_new_mm = 120;
   double thickness_min_mm = 30;
-  double height_m = 3.0;          ///< concave height
-  double r_bottom_m = 1.6;        ///< inner radius at the discharge (z = 0)
-  double r_top_m = 2.6;           ///< inner radius at the feed opening
+  double height_m = 3.0;    ///< concave height
+  double r_bottom_m = 1.6;  ///< inner radius at the discharge (z = 0)
+  double r_top_m = 2.6;     ///< inner radius at the feed opening
   int n_theta = 72;
   int n_z = 36;
-  std::vector<core::Row> rows;    ///< default: LDWN, LMID, LUP thirds of the height
+  std::vector<core::Row> rows;      ///< default: LDWN, LMID, LUP thirds of the height
   std::vector<SensorSpec> sensors;  ///< default: 10 sensors (2 LUP, 4 LMID, 4 LDWN)
-  double reference_wear_mm = 85;  ///< mean LDWN sensor wear at `reference_day` without effects
+  double reference_wear_mm = 85;    ///< mean LDWN sensor wear at `reference_day` without effects
   double reference_day = 95;
-  double dem_noise = 0.08;        ///< relative per-face DEM noise (plus a smooth component)
+  double dem_noise = 0.08;  ///< relative per-face DEM noise (plus a smooth component)
   double poll_minutes = 15;
   double heartbeat_hours = 6;
   double throughput_tph = 3500;
-  double ore_ai = 0.35;           ///< Bond abrasion index of the ore
+  double ore_ai = 0.35;  ///< Bond abrasion index of the ore
   std::vector<EffectSpec> effects;
   std::vector<FaultSpec> faults;
   bool write_operations = true;
   bool write_scan = true;
-  double scan_day = -1;           ///< < 0: the last day
+  double scan_day = -1;  ///< < 0: the last day
   double scan_noise_mm = 1.5;
   int scan_points = 30000;
   double scan_occluded_deg = 40;  ///< one sector the scanner could not see
@@ -111,8 +111,8 @@ class Campaign {
   std::vector<double> throughput_q_;  ///< hourly wear-rate factor from tonnage x abrasiveness
   double k_mm_per_day_ = 0;
   // Integrated truth: wear per face and per sensor at every whole hour (lazily extended).
-  mutable std::vector<Eigen::VectorXd> face_daily_;    // index = day
-  mutable std::vector<double> sensor_hourly_flat_;     // [hour * n_sensors + s]
+  mutable std::vector<Eigen::VectorXd> face_daily_;  // index = day
+  mutable std::vector<double> sensor_hourly_flat_;   // [hour * n_sensors + s]
   mutable Eigen::VectorXd face_now_, sensor_now_;
   mutable long hours_done_ = 0;
 };

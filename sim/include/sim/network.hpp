@@ -12,9 +12,9 @@
 namespace lw::sim {
 
 struct NetworkParams {
-  double loss = 0;              ///< probability that one transmission attempt is lost (0..1)
-  double dup = 0;               ///< probability that a delivered packet is delivered twice (0..1)
-  double latency_s = 0.05;      ///< mean one-way latency; each packet takes 0.5x..1.5x of it
+  double loss = 0;          ///< probability that one transmission attempt is lost (0..1)
+  double dup = 0;           ///< probability that a delivered packet is delivered twice (0..1)
+  double latency_s = 0.05;  ///< mean one-way latency; each packet takes 0.5x..1.5x of it
   uint64_t seed = 1;
 };
 

@@ -24,7 +24,9 @@ namespace fs = std::filesystem;
 namespace {
 
 using Run = lw::test::CliRun;
-Run Cli(const std::vector<std::string>& args) { return lw::test::RunLinerwatch(args); }
+Run Cli(const std::vector<std::string>& args) {
+  return lw::test::RunLinerwatch(args);
+}
 
 }  // namespace
 

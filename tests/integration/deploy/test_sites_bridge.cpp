@@ -153,8 +153,10 @@ class LinkRelay {
           bool ok = n > 0;
           for (ssize_t off = 0; ok && off < n;) {
             const ssize_t w = write(to, buf + off, static_cast<size_t>(n - off));
-            if (w <= 0) ok = false;
-            else off += w;
+            if (w <= 0)
+              ok = false;
+            else
+              off += w;
           }
           if (!ok) {
             dead.push_back(i);
@@ -306,8 +308,8 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   const std::string db = dir.File("server.sqlite");
   lw::test::ChildProcess server;
   server.Start({LW_SERVER_BIN, "--broker", central.uri(), "--tls-ca", central.ca_file(), "--username", "linerwatch-server",
-                "--password", "server-pass", "--db", db, "--http", "127.0.0.1:" + std::to_string(http_port),
-                "--crusher-dir", crushers, "--web-dir", "", "--wear-interval-ms", "500"},
+                "--password", "server-pass", "--db", db, "--http", "127.0.0.1:" + std::to_string(http_port), "--crusher-dir",
+                crushers, "--web-dir", "", "--wear-interval-ms", "500"},
                dir.File("server.log"));
   for (int i = 0; i < 1200 && !lw::test::PortAccepts(http_port) && server.Running(); ++i) std::this_thread::sleep_for(50ms);
   if (!lw::test::PortAccepts(http_port)) FAIL(("server did not come up: " + lw::test::FileTail(dir.File("server.log"))).c_str());
@@ -327,9 +329,29 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   Coordinator coord_a, coord_b, coord_imp;
   auto gateway_argv = [&](const Site& s, const std::string& site, const std::string& crusher, const Coordinator& c,
                           const std::string& broker, const std::string& name) {
-    return std::vector<std::string>{LW_GATEWAY_BIN, "--serial", c.path(), "--broker", broker, "--site", site, "--crusher", crusher,
-                                    "--spool", dir.File(name + ".db"), "--gateway-id", name, "--username", s.id, "--password",
-                                    s.password, "--stats-interval", "0.5", "--republish-after", "5", "--reconnect-max", "2"};
+    return std::vector<std::string>{LW_GATEWAY_BIN,
+                                    "--serial",
+                                    c.path(),
+                                    "--broker",
+                                    broker,
+                                    "--site",
+                                    site,
+                                    "--crusher",
+                                    crusher,
+                                    "--spool",
+                                    dir.File(name + ".db"),
+                                    "--gateway-id",
+                                    name,
+                                    "--username",
+                                    s.id,
+                                    "--password",
+                                    s.password,
+                                    "--stats-interval",
+                                    "0.5",
+                                    "--republish-after",
+                                    "5",
+                                    "--reconnect-max",
+                                    "2"};
   };
   lw::test::ChildProcess gw_a, gw_b;
   gw_a.Start(gateway_argv(a, a.id, a.crusher, coord_a, broker_a->uri(), "gw-a"), dir.File("gw-a.log"));
@@ -349,7 +371,9 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   auto stored = [&](const Site& s) -> long {
     auto res = http.Get("/api/v1/crushers/" + s.crusher + "/sensors");
     if (!res || res->status != 200) {
-      if (std::getenv("LW_IT_VERBOSE")) std::printf("GET sensors: %s\n", res ? (std::to_string(res->status) + " " + res->body).c_str() : httplib::to_string(res.error()).c_str());
+      if (std::getenv("LW_IT_VERBOSE"))
+        std::printf("GET sensors: %s\n",
+                    res ? (std::to_string(res->status) + " " + res->body).c_str() : httplib::to_string(res.error()).c_str());
       return -1;
     }
     long total = 0;
@@ -430,9 +454,10 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   const size_t seen_site_a = site_a_obs.Count("linerwatch/v1/" + b.id + "/");
   const size_t seen_central = central_obs.Count("/sensors/", "\"seq\":9001");
   got_b = stored(b);
-  std::printf("  impostor (site A's account as %s): %zu messages under %s on site A's broker, %zu at the centre, "
-              "site B stored %ld of 32\n",
-              b.id.c_str(), seen_site_a, b.id.c_str(), seen_central, got_b);
+  std::printf(
+      "  impostor (site A's account as %s): %zu messages under %s on site A's broker, %zu at the centre, "
+      "site B stored %ld of 32\n",
+      b.id.c_str(), seen_site_a, b.id.c_str(), seen_central, got_b);
   CHECK_TEXT(gw_imp.Running(), imp_log.c_str());
   LONGS_EQUAL_TEXT(0, seen_site_a, imp_log.c_str());
   LONGS_EQUAL(0, seen_central);

@@ -31,7 +31,6 @@
 #include "support/mosquitto_fixture.hpp"
 #include "support/pipeline_ledger.hpp"
 
-
 #include <CppUTest/TestHarness.h>  // last
 
 using nlohmann::json;
@@ -43,7 +42,9 @@ constexpr const char* kSite = "e2e-site";
 constexpr const char* kUser = "linerwatch-e2e";
 constexpr const char* kPassword = "e2e-broker-secret";
 
-void SleepMs(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
+void SleepMs(int ms) {
+  std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+}
 
 int64_t WallMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -93,9 +94,25 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
   Program server;
   const int http_port = lw::test::FreeLoopbackPort();
   server.log = dir.File("server.log");
-  server.argv = {LW_SERVER_BIN, "--broker", broker.uri(), "--db", db, "--http", "127.0.0.1:" + std::to_string(http_port),
-                 "--crusher-dir", crushers, "--username", kUser, "--password", kPassword, "--clock-file", clock,
-                 "--wear-interval-ms", "200", "--web-dir", ""};
+  server.argv = {LW_SERVER_BIN,
+                 "--broker",
+                 broker.uri(),
+                 "--db",
+                 db,
+                 "--http",
+                 "127.0.0.1:" + std::to_string(http_port),
+                 "--crusher-dir",
+                 crushers,
+                 "--username",
+                 kUser,
+                 "--password",
+                 kPassword,
+                 "--clock-file",
+                 clock,
+                 "--wear-interval-ms",
+                 "200",
+                 "--web-dir",
+                 ""};
   // Up to 60 s: the server builds each crusher's map model before it listens (seconds on a loaded machine).
   auto wait_for_server = [&] {
     for (int i = 0; i < 1200 && !lw::test::PortAccepts(http_port); ++i) SleepMs(50);
@@ -107,9 +124,17 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
   Program sim;
   sim.log = dir.File("sim.log");
   const std::string tty = dir.File("tty");
-  sim.argv = {LW_SIM_BIN, "run", "--crusher-dir", crushers, "--serial-out", tty, "--days", std::to_string(kDays),
-              "--loss", "0.2", "--dup", "0.05", "--api-mode", "2", "--clock-out", clock, "--ledger", dir.File("ledger.csv"),
-              "--bundle-out", dir.File("bundle"), "--seed", std::to_string(seed % 1000)};
+  sim.argv = {LW_SIM_BIN,      "run",
+              "--crusher-dir", crushers,
+              "--serial-out",  tty,
+              "--days",        std::to_string(kDays),
+              "--loss",        "0.2",
+              "--dup",         "0.05",
+              "--api-mode",    "2",
+              "--clock-out",   clock,
+              "--ledger",      dir.File("ledger.csv"),
+              "--bundle-out",  dir.File("bundle"),
+              "--seed",        std::to_string(seed % 1000)};
   sim.Start();
   struct stat st {};
   for (int i = 0; i < 300 && ::lstat(tty.c_str(), &st) != 0; ++i) SleepMs(100);
@@ -117,9 +142,29 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
 
   Program gateway;
   gateway.log = dir.File("gateway.log");
-  gateway.argv = {LW_GATEWAY_BIN, "--serial", tty, "--api-mode", "2", "--broker", broker.uri(), "--site", kSite,
-                  "--crusher", crusher, "--spool", dir.File("spool.db"), "--clock-file", clock, "--gateway-id", "gw-e2e",
-                  "--username", kUser, "--password", kPassword, "--republish-after", "1"};
+  gateway.argv = {LW_GATEWAY_BIN,
+                  "--serial",
+                  tty,
+                  "--api-mode",
+                  "2",
+                  "--broker",
+                  broker.uri(),
+                  "--site",
+                  kSite,
+                  "--crusher",
+                  crusher,
+                  "--spool",
+                  dir.File("spool.db"),
+                  "--clock-file",
+                  clock,
+                  "--gateway-id",
+                  "gw-e2e",
+                  "--username",
+                  kUser,
+                  "--password",
+                  kPassword,
+                  "--republish-after",
+                  "1"};
   gateway.Start();
 
   // The faults, each at its own random virtual day while the campaign runs.
@@ -155,7 +200,8 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
   wait_for_server();
 
   const std::vector<lw::test::Produced> ledger = lw::test::LoadLedger(dir.File("ledger.csv"));
-  CHECK_TEXT(ledger.size() > static_cast<size_t>(10 * kDays * 4), context.c_str());  // ten sensors, at least the 6-hourly heartbeats
+  CHECK_TEXT(ledger.size() > static_cast<size_t>(10 * kDays * 4),
+             context.c_str());  // ten sensors, at least the 6-hourly heartbeats
   // The radio lost and duplicated packets on the way (the simulator's last progress line).
   const std::string sim_log = lw::test::FileTail(sim.log, 100000);
   const size_t last_day = sim_log.rfind("linerwatch-sim: day ");
@@ -174,7 +220,8 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
 
   // The retained global wear, as a client that connects now gets it (or the next one, when the
   // server has not yet published the last change), once it is made of each sensor's latest reading.
-  const auto last = std::max_element(ledger.begin(), ledger.end(), [](const auto& a, const auto& b) { return a.time < b.time; })->time;
+  const auto last =
+      std::max_element(ledger.begin(), ledger.end(), [](const auto& a, const auto& b) { return a.time < b.time; })->time;
   std::map<std::string, std::string> latest;  // sensor -> time of its latest reading
   for (const lw::test::Produced& p : ledger) latest[p.sensor] = std::max(latest[p.sensor], lw::core::FormatIsoTime(p.time));
   auto from_latest_readings = [&latest](const json& w) {
@@ -220,8 +267,8 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
   // The retained wear equals Eq. 9 computed offline from the ledger's readings.
   std::vector<lw::core::Reading> readings;
   for (const lw::test::Produced& p : ledger) readings.push_back({p.time, p.sensor, p.thickness_mm, 0});
-  const lw::core::Reconstruction offline = lw::core::Reconstruct(
-      crusher_folder.crusher, crusher_folder.map, lw::core::SensorWearAt(crusher_folder.crusher, readings, last));
+  const lw::core::Reconstruction offline = lw::core::Reconstruct(crusher_folder.crusher, crusher_folder.map,
+                                                                 lw::core::SensorWearAt(crusher_folder.crusher, readings, last));
   STRCMP_EQUAL(crusher_folder.map.sha256.c_str(), wear["map_sha256"].get<std::string>().c_str());
   DOUBLES_EQUAL(offline.min_thickness_mm, wear["min_thickness_mm"].get<double>(), 1e-3);
   LONGS_EQUAL(offline.rows.size(), wear["rows"].size());

@@ -57,7 +57,7 @@ int Relay(int from, FrameDecoder& dec, int to, uint64_t src64) {
 
 }  // namespace
 
-TEST_GROUP(FirmwareToGateway) {};
+TEST_GROUP(FirmwareToGateway){};
 
 TEST(FirmwareToGateway, ReadingsReachMqttAndGatewayAcksReachTheFirmware) {
   lw::test::TempDirectory dir("lw-fw-gw");
@@ -66,8 +66,8 @@ TEST(FirmwareToGateway, ReadingsReachMqttAndGatewayAcksReachTheFirmware) {
 
   // The firmware under QEMU: UART0 = its radio, UART1 = the ladder test path.
   lw::test::ChildProcess qemu;
-  qemu.Start({"qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none", "-kernel", LW_FIRMWARE_ELF,
-              "-serial", "pty", "-serial", "pty"},
+  qemu.Start({"qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none", "-kernel", LW_FIRMWARE_ELF, "-serial",
+              "pty", "-serial", "pty"},
              dir.File("qemu.log"));
   std::string radio_path, ladder_path;
   for (int i = 0; i < 200 && (radio_path.empty() || ladder_path.empty()); ++i) {
@@ -146,7 +146,8 @@ TEST(FirmwareToGateway, ReadingsReachMqttAndGatewayAcksReachTheFirmware) {
     last = mm;
     seen[mm] = true;
   }
-  for (double mm : {84.0, 83.0, 82.0, 81.0}) CHECK_TEXT(seen[mm], ("no reading of " + std::to_string(mm) + " mm; " + why).c_str());
+  for (double mm : {84.0, 83.0, 82.0, 81.0})
+    CHECK_TEXT(seen[mm], ("no reading of " + std::to_string(mm) + " mm; " + why).c_str());
   CHECK_TEXT(fw_frames_late <= 2, "the firmware kept retransmitting: the gateway's acks did not reach it");
   sub.disconnect()->wait_for(std::chrono::seconds(2));
   ::close(coord_master);

@@ -41,8 +41,8 @@ class Qemu {
       const int fd = ::open(log_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       ::dup2(fd, 1);
       ::dup2(fd, 2);
-      ::execlp("qemu-system-arm", "qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none",
-               "-kernel", LW_FIRMWARE_ELF, "-serial", "pty", "-serial", "pty", static_cast<char*>(nullptr));
+      ::execlp("qemu-system-arm", "qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none", "-kernel",
+               LW_FIRMWARE_ELF, "-serial", "pty", "-serial", "pty", static_cast<char*>(nullptr));
       ::_exit(127);
     }
     for (int i = 0; i < 200 && (radio_path_.empty() || ladder_path_.empty()); ++i) {
@@ -124,7 +124,7 @@ std::vector<Received> Listen(Qemu& q, FrameDecoder& dec, double seconds, bool ac
 
 }  // namespace
 
-TEST_GROUP(FirmwareOnQemu) {};
+TEST_GROUP(FirmwareOnQemu){};
 
 TEST(FirmwareOnQemu, BootsReportsWearAndStopsRetransmittingWhenAcked) {
   Qemu q;

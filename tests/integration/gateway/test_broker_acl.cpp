@@ -69,14 +69,32 @@ TEST(BrokerAcl, AGatewayAccountServesItsOwnSiteAndCannotForgeAcksOrOtherSites) {
   Client server(broker.uri(), "server", "linerwatch-server", "server-pass");
 
   // The real gateway with its site's account; its "serial port" is a file holding one frame.
-  const auto frame = lw::gateway::test::ReadingsFrame(pr::ApiMode::kEscaped, 0x0013A20040000001ull, 1001,
-                                                      {lw::gateway::test::MakeRecord(1)});
-  std::ofstream(dir.File("serial"), std::ios::binary).write(reinterpret_cast<const char*>(frame.data()),
-                                                            static_cast<std::streamsize>(frame.size()));
+  const auto frame =
+      lw::gateway::test::ReadingsFrame(pr::ApiMode::kEscaped, 0x0013A20040000001ull, 1001, {lw::gateway::test::MakeRecord(1)});
+  std::ofstream(dir.File("serial"), std::ios::binary)
+      .write(reinterpret_cast<const char*>(frame.data()), static_cast<std::streamsize>(frame.size()));
   lw::test::ChildProcess gateway;
-  gateway.Start({LW_GATEWAY_BIN, "--serial", dir.File("serial"), "--broker", broker.uri(), "--site", "mine-a",
-                 "--crusher", "cr1", "--spool", dir.File("spool.db"), "--gateway-id", "gw-a", "--username", "mine-a",
-                 "--password", "a-pass", "--stats-interval", "0.3", "--republish-after", "1"},
+  gateway.Start({LW_GATEWAY_BIN,
+                 "--serial",
+                 dir.File("serial"),
+                 "--broker",
+                 broker.uri(),
+                 "--site",
+                 "mine-a",
+                 "--crusher",
+                 "cr1",
+                 "--spool",
+                 dir.File("spool.db"),
+                 "--gateway-id",
+                 "gw-a",
+                 "--username",
+                 "mine-a",
+                 "--password",
+                 "a-pass",
+                 "--stats-interval",
+                 "0.3",
+                 "--republish-after",
+                 "1"},
                 dir.File("gateway.log"));
   const bool online = observer.WaitFor(kA + "gateway/status", "online");
   const bool reading = observer.WaitFor(kA + "sensors/1001/reading", "\"seq\":1");

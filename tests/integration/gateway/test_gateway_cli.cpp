@@ -44,16 +44,16 @@ size_t Lines(const std::string& s) {
 TEST_GROUP(GatewayCommandLine) {
   lw::test::TempDirectory dir{"lw-gateway-cli"};
   std::vector<std::string> Valid() {
-    return {"--serial", "/dev/null", "--broker", "tcp://127.0.0.1:1", "--site", "s", "--crusher", "c",
-            "--spool", dir.File("spool.db")};
+    return {"--serial", "/dev/null", "--broker", "tcp://127.0.0.1:1", "--site",
+            "s",        "--crusher", "c",        "--spool",           dir.File("spool.db")};
   }
 };
 
 TEST(GatewayCommandLine, HelpExitsZeroAndListsTheContractFlags) {
   const Result r = Run(dir, {"--help"});
   LONGS_EQUAL(0, r.exit_code);
-  for (const char* flag : {"--serial", "--baud", "--api-mode", "--broker", "--site", "--crusher", "--spool",
-                           "--username", "--password", "--config", "--tls-ca", "--gateway-id"}) {
+  for (const char* flag : {"--serial", "--baud", "--api-mode", "--broker", "--site", "--crusher", "--spool", "--username",
+                           "--password", "--config", "--tls-ca", "--gateway-id"}) {
     CHECK_TEXT(r.output.find(flag) != std::string::npos, flag);
   }
 }
@@ -76,8 +76,10 @@ TEST(GatewayCommandLine, BadInputExitsNonZeroWithOneLineAndNoSpool) {
     } else {
       // The changed flag replaces its valid value (a flag given twice is refused on its own).
       const auto it = std::find(args.begin(), args.end(), change[0]);
-      if (change.size() == 2 && it != args.end()) *(it + 1) = change[1];
-      else args.insert(args.end(), change.begin(), change.end());
+      if (change.size() == 2 && it != args.end())
+        *(it + 1) = change[1];
+      else
+        args.insert(args.end(), change.begin(), change.end());
     }
     const Result r = Run(dir, args);
     CHECK_TEXT(r.exit_code != 0, expected.c_str());
@@ -90,7 +92,8 @@ TEST(GatewayCommandLine, BadInputExitsNonZeroWithOneLineAndNoSpool) {
 TEST(GatewayCommandLine, JsonConfigErrorsNameFileAndKey) {
   const std::string file = dir.File("gw.json");
   std::ofstream(file) << R"({"serial": "/dev/null", "broker": "tcp://127.0.0.1:1", "site": "s", "crusher": "c",
-                            "spool": ")" << dir.File("spool.db") << R"(", "baud": "fast"})";
+                            "spool": ")"
+                      << dir.File("spool.db") << R"(", "baud": "fast"})";
   const Result r = Run(dir, {"--config", file});
   CHECK(r.exit_code == 2);
   CHECK_TEXT(r.output.find(file) != std::string::npos && r.output.find("'baud'") != std::string::npos, r.output.c_str());

@@ -45,7 +45,9 @@ namespace {
 int64_t NowMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
-void SleepMs(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
+void SleepMs(int ms) {
+  std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+}
 
 constexpr const char* kRoot = "linerwatch/v1/s1/c1/";
 constexpr int kSensors = 3;
@@ -59,7 +61,8 @@ class SensorSite {
  public:
   SensorSite() {
     for (int i = 0; i < kSensors; ++i) {
-      sensors_.push_back(Sensor{1001u + static_cast<uint32_t>(i), 0x0013A20040000000ull + static_cast<uint64_t>(i) * 0x1111, 0, {}, false, 0});
+      sensors_.push_back(
+          Sensor{1001u + static_cast<uint32_t>(i), 0x0013A20040000000ull + static_cast<uint64_t>(i) * 0x1111, 0, {}, false, 0});
     }
   }
   const std::string& slave_name() const { return pty_.slave_name(); }
@@ -159,7 +162,9 @@ class SensorSite {
 class TestServer {
  public:
   TestServer(const std::string& uri, std::string ca_file, std::string username, std::string password)
-      : client_(uri, "lw-it-server", nullptr), ca_file_(std::move(ca_file)), username_(std::move(username)),
+      : client_(uri, "lw-it-server", nullptr),
+        ca_file_(std::move(ca_file)),
+        username_(std::move(username)),
         password_(std::move(password)) {
     client_.start_consuming();
     thread_ = std::thread([this] { Run(); });
@@ -277,14 +282,34 @@ Outcome RunScenario(bool persistence, Disruption disruption, bool tls_and_login 
   SensorSite site;
   TestServer server(broker.uri(), tls_and_login ? broker.ca_file() : "", broker_options.username, broker_options.password);
   lw::test::ChildProcess gateway;
-  std::vector<std::string> args = {
-      LW_GATEWAY_BIN,  "--serial", site.slave_name(), "--baud", "115200", "--api-mode", "2",
-      "--broker", broker.uri(), "--site", "s1", "--crusher", "c1", "--spool", dir.File("spool.db"),
-      "--gateway-id", "gw-it", "--republish-after", "1.5", "--stats-interval", "0.3",
-      "--reconnect-min", "0.1", "--reconnect-max", "0.5"};
+  std::vector<std::string> args = {LW_GATEWAY_BIN,
+                                   "--serial",
+                                   site.slave_name(),
+                                   "--baud",
+                                   "115200",
+                                   "--api-mode",
+                                   "2",
+                                   "--broker",
+                                   broker.uri(),
+                                   "--site",
+                                   "s1",
+                                   "--crusher",
+                                   "c1",
+                                   "--spool",
+                                   dir.File("spool.db"),
+                                   "--gateway-id",
+                                   "gw-it",
+                                   "--republish-after",
+                                   "1.5",
+                                   "--stats-interval",
+                                   "0.3",
+                                   "--reconnect-min",
+                                   "0.1",
+                                   "--reconnect-max",
+                                   "0.5"};
   if (tls_and_login) {
-    args.insert(args.end(), {"--tls-ca", broker.ca_file(), "--username", broker_options.username, "--password",
-                             broker_options.password});
+    args.insert(args.end(),
+                {"--tls-ca", broker.ca_file(), "--username", broker_options.username, "--password", broker_options.password});
   }
   const std::string gateway_log = dir.File("gateway.log");
   gateway.Start(args, gateway_log);
@@ -322,11 +347,10 @@ Outcome RunScenario(bool persistence, Disruption disruption, bool tls_and_login 
     }
     if (now > deadline) {
       out.view = v;
-      out.failure = "timed out: " + std::to_string(delivered) + "/" + std::to_string(total) +
-                    " delivered, last spool depth " + std::to_string(v.last_spool_depth) +
-                    (site.AllProducedAndAcked() ? "" : ", sensors still hold unacked records") +
-                    "\n--- gateway log ---\n" + lw::test::FileTail(gateway_log) + "\n--- mosquitto log ---\n" +
-                    lw::test::FileTail(broker.log_file());
+      out.failure = "timed out: " + std::to_string(delivered) + "/" + std::to_string(total) + " delivered, last spool depth " +
+                    std::to_string(v.last_spool_depth) +
+                    (site.AllProducedAndAcked() ? "" : ", sensors still hold unacked records") + "\n--- gateway log ---\n" +
+                    lw::test::FileTail(gateway_log) + "\n--- mosquitto log ---\n" + lw::test::FileTail(broker.log_file());
       break;
     }
     if (!gateway.Running() && restored) {
@@ -343,7 +367,8 @@ Outcome RunScenario(bool persistence, Disruption disruption, bool tls_and_login 
   }
   if (std::getenv("LW_IT_VERBOSE")) {
     std::fprintf(stderr, "\n[scenario took %lld ms, disruption at +%lld ms]\n%s\n", static_cast<long long>(NowMs() - start),
-                 static_cast<long long>(disrupted_at < 0 ? -1 : disrupted_at - start), lw::test::FileTail(gateway_log, 6000).c_str());
+                 static_cast<long long>(disrupted_at < 0 ? -1 : disrupted_at - start),
+                 lw::test::FileTail(gateway_log, 6000).c_str());
   }
   return out;
 }
@@ -363,7 +388,8 @@ void CheckComplete(const Outcome& out) {
     for (size_t i = 0; i < first_seen.size(); ++i) {
       if (first_seen[i] != i + 1) {
         FAIL(("sensor " + sensor + ": record " + std::to_string(first_seen[i]) + " first seen at position " +
-              std::to_string(i + 1)).c_str());
+              std::to_string(i + 1))
+                 .c_str());
       }
     }
   }

@@ -36,7 +36,8 @@ struct ServerProcess {
   void Start() {
     process.Start(argv, log);
     // Up to 60 s: the map model is built at start-up, slow on a loaded machine.
-    for (int i = 0; i < 1200 && !lw::test::PortAccepts(http_port); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    for (int i = 0; i < 1200 && !lw::test::PortAccepts(http_port); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
     if (!lw::test::PortAccepts(http_port)) FAIL(("server did not come up: " + lw::test::FileTail(log)).c_str());
   }
 };
@@ -54,8 +55,19 @@ TEST(ServerExactlyOnce, SigkillMidStreamStoresEveryReadingOnceAndWearMatchesOffl
   server.http_port = lw::test::FreeLoopbackPort();
   server.log = folder.dir.File("server.log");
   const std::string db = folder.dir.File("server.sqlite");
-  server.argv = {LW_SERVER_BIN, "--broker", broker.uri(), "--db", db, "--http", "127.0.0.1:" + std::to_string(server.http_port),
-                 "--crusher-dir", folder.crushers, "--wear-interval-ms", "200", "--web-dir", ""};
+  server.argv = {LW_SERVER_BIN,
+                 "--broker",
+                 broker.uri(),
+                 "--db",
+                 db,
+                 "--http",
+                 "127.0.0.1:" + std::to_string(server.http_port),
+                 "--crusher-dir",
+                 folder.crushers,
+                 "--wear-interval-ms",
+                 "200",
+                 "--web-dir",
+                 ""};
   server.Start();
 
   mqtt::async_client client(broker.uri(), "test-gateway", nullptr);
@@ -147,7 +159,8 @@ TEST(ServerExactlyOnce, SigkillMidStreamStoresEveryReadingOnceAndWearMatchesOffl
 
   // Retained global wear (wait for the final publication) equals the offline reconstruction.
   const auto& b = folder.bundle;
-  const auto last = std::max_element(b.readings.begin(), b.readings.end(), [](const auto& x, const auto& y) { return x.time < y.time; })->time;
+  const auto last =
+      std::max_element(b.readings.begin(), b.readings.end(), [](const auto& x, const auto& y) { return x.time < y.time; })->time;
   // The crusher folder has a laser scan: the server applies the newest one, so does the offline plan.
   CHECK_FALSE(b.scans.empty());
   const auto offline = lw::test::OfflineLiveWear(b, last);

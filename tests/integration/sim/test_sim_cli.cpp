@@ -24,10 +24,14 @@ Result Run(lw::test::TempDirectory& dir, const std::vector<std::string>& args) {
   const int rc = lw::test::RunCommand(argv, log);
   return {rc, lw::test::FileTail(log, 100000)};
 }
-bool Contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+bool Contains(const std::string& s, const std::string& part) {
+  return s.find(part) != std::string::npos;
+}
 }  // namespace
 
-TEST_GROUP(SimCommandLine) { lw::test::TempDirectory dir{"lw-sim-cli"}; };
+TEST_GROUP(SimCommandLine) {
+  lw::test::TempDirectory dir{"lw-sim-cli"};
+};
 
 // Before: `campaign --seed -1` went through std::stoull and ran with seed 18446744073709551615;
 // `campaign --seed 12abc` ran with seed 12.
@@ -44,7 +48,9 @@ TEST(SimCommandLine, CampaignSeedIsAnUnsigned64BitNumber) {
 // Before: `run --seed` went through a double: 2^64 was cast to uint64_t (undefined behaviour) and
 // accepted, and seeds beyond 2^53 were silently rounded to another seed.
 TEST(SimCommandLine, RunSeedBeyond64BitsIsRefusedByName) {
-  const Result r = Run(dir, {"run", "--crusher-dir", dir.File("c"), "--serial-out", dir.File("tty"), "--seed", "18446744073709551616"});
+  const Result r =
+      Run(dir, {"run", "--crusher-dir", dir.File("c"), "--serial-out", dir.File("tty"), "--seed", "18446744073709551616"});
   LONGS_EQUAL(2, r.exit_code);
-  CHECK_TEXT(Contains(r.output, "--seed 18446744073709551616 is out of range (allowed: [0, 18446744073709551615])"), r.output.c_str());
+  CHECK_TEXT(Contains(r.output, "--seed 18446744073709551616 is out of range (allowed: [0, 18446744073709551615])"),
+             r.output.c_str());
 }

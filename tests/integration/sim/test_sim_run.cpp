@@ -34,7 +34,9 @@ namespace {
 
 constexpr const char* kRoot = "linerwatch/v1/s1/sim-62-75/";
 
-void SleepMs(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
+void SleepMs(int ms) {
+  std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+}
 
 // The server's part: every reading is noted (sensor, seq) -> (time, thickness) and acked.
 class TestServer {
@@ -111,23 +113,31 @@ std::vector<LedgerRow> ReadLedger(const std::string& path) {
 
 }  // namespace
 
-TEST_GROUP(SimRun) {};
+TEST_GROUP(SimRun){};
 
 TEST(SimRun, EveryLedgerReadingReachesTheServerWithItsTimeAndThicknessThrough20PercentLoss) {
   lw::test::TempDirectory dir("lw-it-sim");
   const std::string crushers = dir.File("crushers");
   ::mkdir(crushers.c_str(), 0755);
-  LONGS_EQUAL(0, lw::test::RunCommand({LW_SIM_BIN, "campaign", "--out", crushers + "/sim-62-75", "--days", "20", "--no-scan",
-                                       "--seed", "3"},
-                                      dir.File("campaign.log")));
+  LONGS_EQUAL(0, lw::test::RunCommand(
+                     {LW_SIM_BIN, "campaign", "--out", crushers + "/sim-62-75", "--days", "20", "--no-scan", "--seed", "3"},
+                     dir.File("campaign.log")));
   lw::test::MosquittoFixture broker;
   broker.Start();
   TestServer server(broker.uri());
 
   lw::test::ChildProcess sim;
-  sim.Start({LW_SIM_BIN, "run", "--crusher-dir", crushers, "--serial-out", dir.File("tty"), "--days", "20", "--loss", "0.2",
-             "--dup", "0.05", "--api-mode", "2", "--clock-out", dir.File("clock"), "--ledger", dir.File("ledger.csv"),
-             "--bundle-out", dir.File("bundle"), "--seed", "3"},
+  sim.Start({LW_SIM_BIN,      "run",
+             "--crusher-dir", crushers,
+             "--serial-out",  dir.File("tty"),
+             "--days",        "20",
+             "--loss",        "0.2",
+             "--dup",         "0.05",
+             "--api-mode",    "2",
+             "--clock-out",   dir.File("clock"),
+             "--ledger",      dir.File("ledger.csv"),
+             "--bundle-out",  dir.File("bundle"),
+             "--seed",        "3"},
             dir.File("sim.log"));
   struct stat st {};
   for (int i = 0; i < 300 && ::lstat(dir.File("tty").c_str(), &st) != 0; ++i) SleepMs(100);
@@ -135,8 +145,8 @@ TEST(SimRun, EveryLedgerReadingReachesTheServerWithItsTimeAndThicknessThrough20P
 
   lw::test::ChildProcess gateway;
   gateway.Start({LW_GATEWAY_BIN, "--serial", dir.File("tty"), "--api-mode", "2", "--broker", broker.uri(), "--site", "s1",
-                 "--crusher", "sim-62-75", "--spool", dir.File("spool.db"), "--clock-file", dir.File("clock"),
-                 "--gateway-id", "gw-it-sim", "--republish-after", "1"},
+                 "--crusher", "sim-62-75", "--spool", dir.File("spool.db"), "--clock-file", dir.File("clock"), "--gateway-id",
+                 "gw-it-sim", "--republish-after", "1"},
                 dir.File("gateway.log"));
   const int sim_exit = sim.Wait(std::chrono::seconds(80));
   CHECK_EQUAL_TEXT(0, sim_exit, lw::test::FileTail(dir.File("sim.log")).c_str());

@@ -22,9 +22,13 @@ namespace fs = std::filesystem;
 namespace {
 
 using Run = lw::test::CliRun;
-Run Cli(const std::vector<std::string>& args) { return lw::test::RunLinerwatch(args); }
+Run Cli(const std::vector<std::string>& args) {
+  return lw::test::RunLinerwatch(args);
+}
 
-bool OneLine(const std::string& s) { return !s.empty() && s.find('\n') == s.size() - 1; }
+bool OneLine(const std::string& s) {
+  return !s.empty() && s.find('\n') == s.size() - 1;
+}
 
 std::string Slurp(const fs::path& p) {
   std::ifstream in(p);

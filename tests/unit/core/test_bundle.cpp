@@ -16,12 +16,15 @@ std::string ErrorOf(const lw::test::TempDirectory& dir) {
 }
 }  // namespace
 
-TEST_GROUP(Bundle) { lw::test::TempDirectory dir; };
+TEST_GROUP(Bundle) {
+  lw::test::TempDirectory dir;
+};
 
 TEST(Bundle, LoadsEveryFileSortedAndIgnoresExtras) {
-  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm,comment\n"
-                             "2026-01-03T00:00:00Z,1002,118,x\n2026-01-02T00:00:00Z,1001,119,\n"
-                             "2026-01-01T00:00:00Z,1002,120,\n2026-01-02T00:00:00Z,1001,119,dup\n");
+  lw::test::WriteBundle(dir,
+                        "time,sensor_id,thickness_mm,comment\n"
+                        "2026-01-03T00:00:00Z,1002,118,x\n2026-01-02T00:00:00Z,1001,119,\n"
+                        "2026-01-01T00:00:00Z,1002,120,\n2026-01-02T00:00:00Z,1001,119,dup\n");
   dir.Write("operations.csv", "time,throughput_tph,ore_ai,mill\n2026-01-02T00:00:00Z,3400,0.3,a\n2026-01-01T00:00:00Z,3500,,b\n");
   dir.Write("scans/scan_2026-02-01.xyz", "1.01 0 0.5\n# comment\n0 1.02 1.5\n");
   dir.Write("notes.txt", "ignored");
@@ -119,7 +122,8 @@ TEST(Bundle, ImplausibleCrusherJsonIsRefused) {
   CHECK(with("\"crusher_id\": \"cr1\"", "\"crusher_id\": \"cr1\", \"site\": \"a/b\"").find("site 'a/b'") != std::string::npos);
   CHECK(with("\"z_m\": 0.5", "\"z_m\": 50").find("outside its row 'LDWN'") != std::string::npos);
   CHECK(with("\"theta_deg\": 0", "\"theta_deg\": 9999").find("theta_deg") != std::string::npos);
-  CHECK(with("\"z_min_m\": 1.0, \"z_max_m\": 2.0", "\"z_min_m\": 0.5, \"z_max_m\": 2.0").find("overlaps row") != std::string::npos);
+  CHECK(with("\"z_min_m\": 1.0, \"z_max_m\": 2.0", "\"z_min_m\": 0.5, \"z_max_m\": 2.0").find("overlaps row") !=
+        std::string::npos);
   CHECK(with("\"thickness_new_mm\": 120", "\"thickness_new_mm\": 1e999").find("crusher.json") != std::string::npos);
   CHECK(with("\"thickness_new_mm\": 120", "\"thickness_new_mm\": 120000").find("thickness") != std::string::npos);
   // Rows and sensors must lie on the map (z in [0, 2] m here): a row at 40-50 m is a units mistake.

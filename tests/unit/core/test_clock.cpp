@@ -14,7 +14,9 @@ using lw::core::WallClockMs;
 
 TEST_GROUP(Clock) {
   lw::test::TempDirectory dir{"lw-clock"};
-  void Set(const std::string& text) { lw::core::WriteFileAtomically(dir.File("clock"), text); }
+  void Set(const std::string& text) {
+    lw::core::WriteFileAtomically(dir.File("clock"), text);
+  }
 };
 
 TEST(Clock, WallClockIsTheSystemClock) {

@@ -35,7 +35,9 @@ std::string ErrorOf(const OptionTable& table, const std::vector<std::string>& ar
   }
   return "(no error)";
 }
-std::string ErrorOf(const std::vector<std::string>& args) { return ErrorOf(Table(), args); }
+std::string ErrorOf(const std::vector<std::string>& args) {
+  return ErrorOf(Table(), args);
+}
 
 std::vector<std::string> With(std::vector<std::string> extra) {
   std::vector<std::string> args{"--serial", "/dev/ttyUSB0"};
@@ -45,7 +47,9 @@ std::vector<std::string> With(std::vector<std::string> extra) {
 
 }  // namespace
 
-TEST_GROUP(CommandLine) { lw::test::TempDirectory dir; };
+TEST_GROUP(CommandLine) {
+  lw::test::TempDirectory dir;
+};
 
 TEST(CommandLine, TypedValuesAndDefaults) {
   const ParsedOptions o = ParseOptions(Table(), With({"--baud=115200", "--loss", "0.25", "--seed", "18446744073709551615",
@@ -110,7 +114,7 @@ TEST(CommandLine, ConfigFileUnderTheFlags) {
                                             "effect": ["x", "y"], "seed": 18446744073709551615})");
   const ParsedOptions o = ParseOptions(Table(), {"--config", file.string(), "--baud=19200", "--effect", "z"});
   STRCMP_EQUAL("/dev/ttyS1", o.Text("serial").c_str());  // required, given by the file
-  LONGS_EQUAL(19200, o.Integer<int>("baud", 0));          // the flag overrides the file
+  LONGS_EQUAL(19200, o.Integer<int>("baud", 0));         // the flag overrides the file
   DOUBLES_EQUAL(1.5, o.Number("republish-after", 0), 0);
   CHECK(o.Switch("quiet"));
   CHECK(o.Integer<uint64_t>("seed", 0) == UINT64_MAX);
@@ -181,12 +185,14 @@ TEST(CommandLine, HelpAndSynopsisComeFromTheTable) {
   CHECK(help.find("  --loss P              probability that a packet is lost\n"
                   "                        (default 0)\n") != std::string::npos);
   CHECK(help.find("  --republish-after S   seconds\n") != std::string::npos);
-  CHECK(Table().Help(12).find("  --serial PATH\n            coordinator serial port\n") != std::string::npos);  // too long: own line
+  CHECK(Table().Help(12).find("  --serial PATH\n            coordinator serial port\n") !=
+        std::string::npos);  // too long: own line
   CHECK(help.find("  --quiet               no progress lines\n") != std::string::npos);
   CHECK(help.find("  --config FILE") != std::string::npos && help.find("  --help") != std::string::npos);
-  STRCMP_EQUAL("--serial PATH [--baud N] [--loss P]\n    [--republish-after S] [--seed N] [--effect NAME]\n"
-               "    [--quiet] [--config FILE]",
-               Table().Synopsis(4, 60).c_str());
+  STRCMP_EQUAL(
+      "--serial PATH [--baud N] [--loss P]\n    [--republish-after S] [--seed N] [--effect NAME]\n"
+      "    [--quiet] [--config FILE]",
+      Table().Synopsis(4, 60).c_str());
 }
 
 namespace {
@@ -208,7 +214,8 @@ TEST(CommandLine, WholeNumbersAreRangeCheckedNeverTruncated) {
   LONGS_EQUAL(5, ParseWholeNumber("n", "+5", 0, 10));
   STRCMP_EQUAL("--api-mode 4294967297 is out of range (allowed: [1, 2])",
                RangeErrorOf([] { ParseWholeNumber("api-mode", "4294967297", 1, 2); }).c_str());
-  STRCMP_EQUAL("--api-mode 0 is out of range (allowed: [1, 2])", RangeErrorOf([] { ParseWholeNumber("api-mode", "0", 1, 2); }).c_str());
+  STRCMP_EQUAL("--api-mode 0 is out of range (allowed: [1, 2])",
+               RangeErrorOf([] { ParseWholeNumber("api-mode", "0", 1, 2); }).c_str());
   STRCMP_EQUAL("--n 99999999999999999999 is out of range (allowed: [0, 10])",
                RangeErrorOf([] { ParseWholeNumber("n", "99999999999999999999", 0, 10); }).c_str());
   for (const char* bad : {"", "1.5", "1e3", "12abc", " 3", "3 ", "0x10", "-", "+", "+-1"}) {
@@ -217,7 +224,8 @@ TEST(CommandLine, WholeNumbersAreRangeCheckedNeverTruncated) {
   }
   // The typed accessor: a whole range of the type by default, nothing wraps.
   LONGS_EQUAL(65535, ParseInteger<uint16_t>("port", "65535"));
-  STRCMP_EQUAL("--port 65536 is out of range (allowed: [0, 65535])", RangeErrorOf([] { ParseInteger<uint16_t>("port", "65536"); }).c_str());
+  STRCMP_EQUAL("--port 65536 is out of range (allowed: [0, 65535])",
+               RangeErrorOf([] { ParseInteger<uint16_t>("port", "65536"); }).c_str());
   STRCMP_EQUAL("--seed -1 is out of range (allowed: [0, 18446744073709551615])",
                RangeErrorOf([] { ParseInteger<uint64_t>("seed", "-1"); }).c_str());
   CHECK(ParseInteger<uint64_t>("seed", "18446744073709551615") == UINT64_MAX);

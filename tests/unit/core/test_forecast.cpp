@@ -30,7 +30,9 @@ std::vector<Reading> Ladder(const CrusherConfig& c, const std::string& id, doubl
   return out;
 }
 
-double DaysTo(const CrusherConfig& c, const std::optional<TimePoint>& t) { return DaysBetween(c.installed_at, *t); }
+double DaysTo(const CrusherConfig& c, const std::optional<TimePoint>& t) {
+  return DaysBetween(c.installed_at, *t);
+}
 
 }  // namespace
 

@@ -17,7 +17,8 @@ namespace {
 
 /// A noisy cone with a sharp band at the bottom (the local scale stops below the top there).
 WearMap NoisyBandedCone(int nt, int nz) {
-  WearMap m = lw::test::ConeMap(nt, nz, 0.9, 1.4, [](double z) { return 0.2 + std::pow(1.0 - z / 2.0, 1.5) + (z < 0.25 ? 2.0 : 0.0); });
+  WearMap m =
+      lw::test::ConeMap(nt, nz, 0.9, 1.4, [](double z) { return 0.2 + std::pow(1.0 - z / 2.0, 1.5) + (z < 0.25 ? 2.0 : 0.0); });
   std::mt19937 rng(11);
   std::gamma_distribution<double> noise(10.0, 0.1);
   for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] *= noise(rng);
@@ -33,7 +34,7 @@ bool Same(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
 
 }  // namespace
 
-TEST_GROUP(MapModel) {};
+TEST_GROUP(MapModel){};
 
 TEST(MapModel, SameResultWithOneOrTwoThreads) {
   const WearMap m = NoisyBandedCone(64, 36);  // 4608 faces: three work chunks

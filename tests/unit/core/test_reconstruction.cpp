@@ -8,7 +8,7 @@
 using namespace lw::core;
 using lw::test::TwoRows;
 
-TEST_GROUP(Reconstruction) {};
+TEST_GROUP(Reconstruction){};
 
 // Intensity 2 - z/2: 1.75 at the lower sensor, 1.25 at the upper one.
 TEST(Reconstruction, Eq9ScalesEachRowBySensorOverIntensity) {
@@ -108,7 +108,7 @@ TEST(Reconstruction, NoisyMapIsSmoothedAtADataChosenScaleAndOutputsArePhysical) 
     return static_cast<double>(state >> 11) / 9007199254740992.0;
   };
   for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] *= 0.2 + 1.6 * uniform();  // CV about 0.46
-  m.wear[5] *= 40;  // a discharge-edge spike
+  m.wear[5] *= 40;                                                                      // a discharge-edge spike
   const ReconstructionPlan plan = PrepareReconstruction(c, m);
   CHECK(plan.model.bandwidth_m > 0.05);  // smoothed, not left at face size
   CHECK(plan.model.outlier_faces >= 1);

@@ -16,7 +16,9 @@ namespace {
 
 // True wear (mm) at height z after `days`: the DEM map (uniform) missed that wear doubles towards
 // the discharge edge.
-double TrueWear(double z, double days) { return 0.4 * days * (2.0 - 0.5 * z) * (1.0 + 0.5 * std::max(0.0, 0.6 - z)); }
+double TrueWear(double z, double days) {
+  return 0.4 * days * (2.0 - 0.5 * z) * (1.0 + 0.5 * std::max(0.0, 0.6 - z));
+}
 
 Scan MakeScan(const WearMap& m, double days, double noise_mm, unsigned seed) {
   Scan s;
@@ -43,7 +45,7 @@ double Rms(const Reconstruction& r, const WearMap& m, double days) {
 
 }  // namespace
 
-TEST_GROUP(ScanCorrection) {};
+TEST_GROUP(ScanCorrection){};
 
 TEST(ScanCorrection, ProjectionRecoversEachFacesDepth) {
   const WearMap m = lw::test::CylinderMap(36, 40, [](double) { return 1.0; });

@@ -22,9 +22,12 @@ class ManagerSocket {
     sockaddr_un a{};
     a.sun_family = AF_UNIX;
     std::memcpy(a.sun_path, name.data(), name.size());
-    if (name[0] == '@') a.sun_path[0] = '\0';
-    else unlink(name.c_str());
-    bound_ = bind(fd_, reinterpret_cast<sockaddr*>(&a), static_cast<socklen_t>(offsetof(sockaddr_un, sun_path) + name.size())) == 0;
+    if (name[0] == '@')
+      a.sun_path[0] = '\0';
+    else
+      unlink(name.c_str());
+    bound_ =
+        bind(fd_, reinterpret_cast<sockaddr*>(&a), static_cast<socklen_t>(offsetof(sockaddr_un, sun_path) + name.size())) == 0;
     timeval tv{2, 0};
     setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
   }
@@ -47,9 +50,10 @@ class ManagerSocket {
 
 }  // namespace
 
-TEST_GROUP(SdNotify) {
-  void teardown() override { unsetenv("NOTIFY_SOCKET"); }
-};
+TEST_GROUP(SdNotify){void teardown() override{unsetenv("NOTIFY_SOCKET");
+}
+}
+;
 
 TEST(SdNotify, ReadyReachesThePathSocket) {
   const std::string path = "/tmp/lw-sd-notify-" + std::to_string(getpid());

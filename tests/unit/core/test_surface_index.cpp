@@ -72,7 +72,7 @@ size_t Compare(const WearMap& m, double rz, double ra, int queries, unsigned see
 
 }  // namespace
 
-TEST_GROUP(SurfaceIndex) {};
+TEST_GROUP(SurfaceIndex){};
 
 TEST(SurfaceIndex, SameFacesAsABruteForceScanOnACone) {
   const WearMap m = lw::test::ConeMap(60, 30, 0.8, 1.6, [](double z) { return 1.0 + z; });

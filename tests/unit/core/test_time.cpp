@@ -4,7 +4,7 @@
 
 using namespace lw::core;
 
-TEST_GROUP(Time) {};
+TEST_GROUP(Time){};
 
 TEST(Time, ParsesTheUsualIsoForms) {
   const auto base = ParseIsoTime("2026-03-01T12:00:00Z");
@@ -19,8 +19,8 @@ TEST(Time, ParsesTheUsualIsoForms) {
 }
 
 TEST(Time, RefusesImpossibleAndMalformedTimes) {
-  for (const char* bad : {"", "2026-02-30", "2026-13-01T00:00:00Z", "2026-03-01T25:00:00Z", "yesterday",
-                          "2026/03/01", "2026-03-01T12:00:00Q", "2026-03-01T12"}) {
+  for (const char* bad : {"", "2026-02-30", "2026-13-01T00:00:00Z", "2026-03-01T25:00:00Z", "yesterday", "2026/03/01",
+                          "2026-03-01T12:00:00Q", "2026-03-01T12"}) {
     CHECK_FALSE(ParseIsoTime(bad).has_value());
   }
 }

@@ -50,7 +50,7 @@ std::string LoadError(const lw::test::TempDirectory& dir, const std::string& nam
 }
 }  // namespace
 
-TEST_GROUP(WearMap) {};
+TEST_GROUP(WearMap){};
 
 TEST(WearMap, ReadsTheLiggghtsSampleExactly) {
   MapValidation v;
@@ -89,8 +89,9 @@ TEST(WearMap, WriterOutputReadsBackIdentically) {
 
 TEST(WearMap, Vtk42ScalarsAndFieldFormsBothRead) {
   lw::test::TempDirectory dir;
-  const std::string head = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n"
-                           "1 0 0  0 1 0  1 0 1  0 1 1\nPOLYGONS 2 8\n3 0 1 2\n3 1 3 2\nCELL_DATA 2\n";
+  const std::string head =
+      "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n"
+      "1 0 0  0 1 0  1 0 1  0 1 1\nPOLYGONS 2 8\n3 0 1 2\n3 1 3 2\nCELL_DATA 2\n";
   dir.Write("a.vtk", head + "SCALARS wear float 1\nLOOKUP_TABLE default\n0.5\n1.5\n");
   dir.Write("b.vtk", head + "FIELD FieldData 2\nwear 1 2 double\n0.5 1.5\nnormal_stress_average 1 2 double\n7 8\n");
   const WearMap a = LoadWearMap(dir.path() / "a.vtk");
@@ -105,8 +106,19 @@ TEST(WearMap, Vtk42ScalarsAndFieldFormsBothRead) {
 // double as strtod, to the last bit (both round correctly), and the rest is refused as before.
 TEST(WearMap, NumbersReadToTheSameDoubleAsStrtod) {
   lw::test::TempDirectory dir;
-  std::vector<std::string> spellings = {"0.5", "+1.25", "3", "1e-5", "2.5E+02", ".75", "7.", "0.1", "1e-320", "4.9406564584124654e-324",
-                                        "1.7976931348623157e308", "123456789012345678901234567890", "0.30000000000000004"};
+  std::vector<std::string> spellings = {"0.5",
+                                        "+1.25",
+                                        "3",
+                                        "1e-5",
+                                        "2.5E+02",
+                                        ".75",
+                                        "7.",
+                                        "0.1",
+                                        "1e-320",
+                                        "4.9406564584124654e-324",
+                                        "1.7976931348623157e308",
+                                        "123456789012345678901234567890",
+                                        "0.30000000000000004"};
   std::mt19937_64 rng(16);
   std::uniform_real_distribution<double> u(0.0, 5.0);
   for (int i = 0; i < 200; ++i) {
@@ -118,7 +130,8 @@ TEST(WearMap, NumbersReadToTheSameDoubleAsStrtod) {
   std::string text = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\nPOINTS " + std::to_string(n + 2) + " double\n";
   for (size_t i = 0; i < n + 2; ++i) text += std::to_string(i % 2) + " " + std::to_string(i / 2) + " 0.5\n";
   text += "POLYGONS " + std::to_string(n) + " " + std::to_string(4 * n) + "\n";
-  for (size_t i = 0; i < n; ++i) text += "3 " + std::to_string(i) + " " + std::to_string(i + 1) + " " + std::to_string(i + 2) + "\n";
+  for (size_t i = 0; i < n; ++i)
+    text += "3 " + std::to_string(i) + " " + std::to_string(i + 1) + " " + std::to_string(i + 2) + "\n";
   text += "CELL_DATA " + std::to_string(n) + "\nSCALARS wear double 1\nLOOKUP_TABLE default\n";
   for (const std::string& w : spellings) text += w + "\n";
   dir.Write("n.vtk", text);
@@ -136,8 +149,9 @@ TEST(WearMap, NumbersReadToTheSameDoubleAsStrtod) {
 
 TEST(WearMap, CsvExportReads) {
   lw::test::TempDirectory dir;
-  dir.Write("m.csv", "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear,normal_stress_average\n"
-                     "1,0,0,0,1,0,1,0,1,0.25,3\n0,1,0,0,1,1,1,0,1,0.75,4\n");
+  dir.Write("m.csv",
+            "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear,normal_stress_average\n"
+            "1,0,0,0,1,0,1,0,1,0.25,3\n0,1,0,0,1,1,1,0,1,0.75,4\n");
   const WearMap m = LoadWearMap(dir.path() / "m.csv");
   LONGS_EQUAL(2, m.face_count());
   DOUBLES_EQUAL(0.75, m.wear[1], 1e-12);
@@ -148,7 +162,8 @@ TEST(WearMap, BadMapsNameFileLineAndRule) {
   lw::test::TempDirectory dir;
   auto message = [&](const std::string& name, const std::string& text) { return LoadError(dir, name, text); };
   const std::string head = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n1 0 0 0 1 0 1 0 1 0 1 1\n";
-  std::string m = message("quad.vtk", head + "POLYGONS 1 5\n4 0 1 3 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n1\n");
+  std::string m =
+      message("quad.vtk", head + "POLYGONS 1 5\n4 0 1 3 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n1\n");
   CHECK(m.find("quad.vtk:8") != std::string::npos);
   CHECK(m.find("only triangles") != std::string::npos);
   m = message("nowear.vtk", head + "POLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\nSCALARS other float\nLOOKUP_TABLE default\n1\n");
@@ -174,20 +189,24 @@ TEST(WearMap, AbsurdCountsOffsetsAndCoordinatesAreInputErrors) {
   const std::string v42 = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\n";
   const std::string tail = "POLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n1\n";
   std::string m = message("points.vtk", v42 + "POINTS 4000000000 float\n1 0 0 0 1 0 1 0 1\n" + tail);
-  CHECK_TEXT(m.find("points.vtk:5") != std::string::npos && m.find("point count 4000000000 needs 3") != std::string::npos, m.c_str());
+  CHECK_TEXT(m.find("points.vtk:5") != std::string::npos && m.find("point count 4000000000 needs 3") != std::string::npos,
+             m.c_str());
   m = message("cast.vtk", v42 + "POINTS 1e19 float\n1 0 0\n");
   CHECK_TEXT(m.find("[0, 4294967295]") != std::string::npos, m.c_str());
   m = message("cells.vtk", v42 + "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3000000000 0 1 2\n");
   CHECK_TEXT(m.find("vertex count") != std::string::npos, m.c_str());
-  m = message("scalars.vtk", v42 + "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 3000000000\n"
-                                   "SCALARS wear float 3000000000\nLOOKUP_TABLE default\n1\n");
+  m = message("scalars.vtk", v42 +
+                                 "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 3000000000\n"
+                                 "SCALARS wear float 3000000000\nLOOKUP_TABLE default\n1\n");
   CHECK_TEXT(m.find("SCALARS wear: component count must be 1-9") != std::string::npos, m.c_str());
-  m = message("field.vtk", v42 + "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\n"
-                                 "FIELD FieldData 1\nwear 4000000000 1 double\n1\n");
+  m = message("field.vtk", v42 +
+                               "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\n"
+                               "FIELD FieldData 1\nwear 4000000000 1 double\n1\n");
   CHECK_TEXT(m.find("component count 4000000000 needs") != std::string::npos, m.c_str());
   const std::string v51 = "# vtk DataFile Version 5.1\nmap\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n1 0 0 0 1 0 1 0 1\n";
-  m = message("offsets.vtk", v51 + "POLYGONS 2 3\nOFFSETS vtktypeint64\n4000 4003\nCONNECTIVITY vtktypeint64\n0 1 2\n"
-                                   "CELL_DATA 1\nFIELD FieldData 1\nwear 1 1 double\n1\n");
+  m = message("offsets.vtk", v51 +
+                                 "POLYGONS 2 3\nOFFSETS vtktypeint64\n4000 4003\nCONNECTIVITY vtktypeint64\n0 1 2\n"
+                                 "CELL_DATA 1\nFIELD FieldData 1\nwear 1 1 double\n1\n");
   CHECK_TEXT(m.find("OFFSETS") != std::string::npos, m.c_str());
   m = message("far.vtk", v42 + "POINTS 3 float\n1e200 0 0 0 1e200 0 1 0 1e200\n" + tail);
   CHECK_TEXT(m.find("far.vtk:6: vertex (1e+200, 0, 0) is more than 1000 m") != std::string::npos, m.c_str());
@@ -229,14 +248,17 @@ TEST(WearMap, ImplausibleMapsAreRefusedNotLoaded) {
   lw::test::TempDirectory dir;
   auto message = [&](const std::string& name, const std::string& text) { return LoadError(dir, name, text); };
   const std::string head = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\n";
-  const std::string tri = "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n";
+  const std::string tri =
+      "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n";
   std::string m = message("neg.vtk", head + tri + "-0.5\n");
   CHECK(m.find("neg.vtk:12") != std::string::npos);
   CHECK(m.find(">= 0") != std::string::npos);
   m = message("zero.vtk", head + tri + "0\n");
   CHECK(m.find("zero.vtk") != std::string::npos);
   CHECK(m.find("zero wear") != std::string::npos);
-  m = message("far.vtk", head + "POINTS 3 float\n1 0 0 0 1 0 1e308 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\nSCALARS wear float\nLOOKUP_TABLE default\n1\n");
+  m = message("far.vtk", head +
+                             "POINTS 3 float\n1 0 0 0 1 0 1e308 0 1\nPOLYGONS 1 4\n3 0 1 2\nCELL_DATA 1\nSCALARS wear "
+                             "float\nLOOKUP_TABLE default\n1\n");
   CHECK(m.find("far.vtk:6") != std::string::npos);
   CHECK(m.find("from the crusher origin") != std::string::npos);
   m = message("huge.vtk", head + "POINTS 4000000000000 float\n1 0 0\n");

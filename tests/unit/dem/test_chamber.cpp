@@ -136,6 +136,6 @@ TEST(CaseWriter, StepsEndOnADumpAndRestartOften) {
   LONGS_EQUAL(0, st.total % st.dump_every);
   CHECK(static_cast<double>(st.total) * s.timestep_s >= 3.1 - 1e-9);
   LONGS_EQUAL(0, st.restart_every % st.gyration);  // restarts on whole gyrations: the mantle at its STL position
-  CHECK(st.total / st.restart_every >= 3);          // several chances to resume within one run
+  CHECK(st.total / st.restart_every >= 3);         // several chances to resume within one run
   DOUBLES_EQUAL(s.speed_rpm, 60 * st.omega_rad_s / (2 * 3.14159265358979), 0.01 * s.speed_rpm);
 }

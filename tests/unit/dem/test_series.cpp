@@ -96,10 +96,10 @@ TEST_GROUP(Windows){};
 
 TEST(Windows, CountFromSpan) {
   LONGS_EQUAL(6, lw::dem::ChooseWindowCount(12.0, 2.0, 0));
-  LONGS_EQUAL(8, lw::dem::ChooseWindowCount(40.0, 2.0, 0));      // capped
-  LONGS_EQUAL(4, lw::dem::ChooseWindowCount(12.0, 2.0, 4));      // as asked
-  LONGS_EQUAL(0, lw::dem::ChooseWindowCount(12.0, 2.0, 7));      // asked for more than fit
-  LONGS_EQUAL(0, lw::dem::ChooseWindowCount(3.0, 2.0, 0));       // not even 2
+  LONGS_EQUAL(8, lw::dem::ChooseWindowCount(40.0, 2.0, 0));  // capped
+  LONGS_EQUAL(4, lw::dem::ChooseWindowCount(12.0, 2.0, 4));  // as asked
+  LONGS_EQUAL(0, lw::dem::ChooseWindowCount(12.0, 2.0, 7));  // asked for more than fit
+  LONGS_EQUAL(0, lw::dem::ChooseWindowCount(3.0, 2.0, 0));   // not even 2
 }
 
 TEST(Windows, SplitCoversTheSpanContiguously) {

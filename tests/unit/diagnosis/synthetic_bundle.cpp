@@ -18,7 +18,9 @@ constexpr double kThickness = 100.0;
 constexpr int kNz = 20;
 constexpr int kNt = 48;
 
-double Radius(double z) { return 1.0 + 0.4 * z; }
+double Radius(double z) {
+  return 1.0 + 0.4 * z;
+}
 double TrueIntensity(double z, double theta) {
   return (0.25 + 1.75 * std::exp(-z / 0.7)) * (1.0 + 0.08 * std::cos(3.0 * theta) + 0.05 * std::sin(5.0 * theta));
 }
@@ -41,9 +43,8 @@ std::string Iso(double days) {
   const std::chrono::hh_mm_ss hms{t - d};
   char b[40];
   std::snprintf(b, sizeof b, "%04d-%02u-%02uT%02lld:%02lld:%02lldZ", static_cast<int>(ymd.year()),
-                static_cast<unsigned>(ymd.month()), static_cast<unsigned>(ymd.day()),
-                static_cast<long long>(hms.hours().count()), static_cast<long long>(hms.minutes().count()),
-                static_cast<long long>(hms.seconds().count()));
+                static_cast<unsigned>(ymd.month()), static_cast<unsigned>(ymd.day()), static_cast<long long>(hms.hours().count()),
+                static_cast<long long>(hms.minutes().count()), static_cast<long long>(hms.seconds().count()));
   return b;
 }
 
@@ -118,8 +119,7 @@ void WriteSyntheticBundle(const std::filesystem::path& dir, const SyntheticSpec&
     c << "]}, \"sensors\": [";
     for (size_t i = 0; i < sensors.size(); ++i) {
       c << (i ? ", " : "") << "{\"id\": \"" << sensors[i].id << "\", \"row\": \"" << sensors[i].row
-        << "\", \"z_m\": " << sensors[i].z << ", \"theta_deg\": " << sensors[i].theta_deg
-        << ", \"thickness_new_mm\": 100}";
+        << "\", \"z_m\": " << sensors[i].z << ", \"theta_deg\": " << sensors[i].theta_deg << ", \"thickness_new_mm\": 100}";
     }
     c << "]}\n";
   }
@@ -135,8 +135,7 @@ void WriteSyntheticBundle(const std::filesystem::path& dir, const SyntheticSpec&
   std::vector<std::array<int, 3>> faces;
   for (int iz = 0; iz < kNz; ++iz) {
     for (int it = 0; it < kNt; ++it) {
-      const int a = iz * kNt + it, b = iz * kNt + (it + 1) % kNt, c = (iz + 1) * kNt + it,
-                d = (iz + 1) * kNt + (it + 1) % kNt;
+      const int a = iz * kNt + it, b = iz * kNt + (it + 1) % kNt, c = (iz + 1) * kNt + it, d = (iz + 1) * kNt + (it + 1) % kNt;
       faces.push_back({a, b, d});
       faces.push_back({a, d, c});
     }
@@ -261,7 +260,8 @@ void WriteSyntheticBundle(const std::filesystem::path& dir, const SyntheticSpec&
         std::array<double, 3> p{};
         for (int d = 0; d < 3; ++d) {
           const auto dd = static_cast<size_t>(d);
-          p[dd] = pts[static_cast<size_t>(f[0])][dd] + a * (pts[static_cast<size_t>(f[1])][dd] - pts[static_cast<size_t>(f[0])][dd]) +
+          p[dd] = pts[static_cast<size_t>(f[0])][dd] +
+                  a * (pts[static_cast<size_t>(f[1])][dd] - pts[static_cast<size_t>(f[0])][dd]) +
                   b * (pts[static_cast<size_t>(f[2])][dd] - pts[static_cast<size_t>(f[0])][dd]);
         }
         const double th = std::atan2(p[1], p[0]);

@@ -15,22 +15,22 @@ struct SyntheticSpec {
   double map_smooth_error = 0;  ///< amplitude of a smooth (z, theta) DEM error no effect describes
   double scan_noise_mm = 0.3;
   bool with_scan = true;
-  double scan_day = -1;         ///< day of the scan (default: the last day)
+  double scan_day = -1;  ///< day of the scan (default: the last day)
   bool with_normal_stress = true;
   // How the DEM map is written. "vtk42": legacy VTK 4.2 with SCALARS; "liggghts": exactly as LIGGGHTS
   // `dump mesh/vtk` writes it (VTK 5.1 POLYDATA, OFFSETS/CONNECTIVITY, points repeated per triangle,
   // CELL_DATA as a FIELD).
   std::string map_format = "vtk42";
-  double map_zero_fraction = 0;   ///< share of faces no particle hit in a short DEM run (wear 0)
-  double map_scale = 3.7e-4;      ///< raw wear value of unit intensity
-  bool map_printf_f = false;      ///< print wear with "%f" (6 decimals: small values are truncated)
+  double map_zero_fraction = 0;  ///< share of faces no particle hit in a short DEM run (wear 0)
+  double map_scale = 3.7e-4;     ///< raw wear value of unit intensity
+  bool map_printf_f = false;     ///< print wear with "%f" (6 decimals: small values are truncated)
   bool with_operations = false;
-  double rate = 0.6;            ///< mm/day per unit of intensity
+  double rate = 0.6;  ///< mm/day per unit of intensity
   // Effects (0 = absent).
   double hardening_h = 0, hardening_tau_days = 6;
   double gradient_g = 0, gradient_onset_mm = 10;
   double squeeze_beta = 0;
-  double profile_p = 0;         ///< per 100 days, top vs bottom
+  double profile_p = 0;  ///< per 100 days, top vs bottom
   double feed_amplitude = 0, feed_theta_deg = 60;
   double throughput_phi = 0;
   // Faults / local events.

@@ -28,7 +28,9 @@ lw::diagnosis::DiagnosisResult Run(const lw::test::SyntheticSpec& spec, bool pai
   return result;
 }
 
-double Param(const lw::diagnosis::Finding& f, const char* name) { return f.parameters.at(name).get<double>(); }
+double Param(const lw::diagnosis::Finding& f, const char* name) {
+  return f.parameters.at(name).get<double>();
+}
 
 bool HasIssue(const lw::diagnosis::DiagnosisResult& r, const std::string& sensor, const std::string& issue) {
   for (const auto& d : r.data_quality)
@@ -60,7 +62,8 @@ TEST(Diagnose, WorkHardeningIsNamedWithSaturationTime) {
   CHECK_FALSE(r.findings.empty());
   STRCMP_EQUAL("work_hardening", r.findings[0].effect.c_str());
   // Truth normalises normal stress by its maximum, the diagnosis by a robust maximum: h within 0.3..0.65.
-  CHECK_TEXT(Param(r.findings[0], "h") > 0.3 && Param(r.findings[0], "h") < 0.65, ("h = " + std::to_string(Param(r.findings[0], "h"))).c_str());
+  CHECK_TEXT(Param(r.findings[0], "h") > 0.3 && Param(r.findings[0], "h") < 0.65,
+             ("h = " + std::to_string(Param(r.findings[0], "h"))).c_str());
   // Known regression (issue 14's map model, data-chosen smoothing): the saturation time comes out
   // 3.05 days on this bundle (true 6); within 2 days before. The held-out check below still holds.
   DOUBLES_EQUAL(6.0, Param(r.findings[0], "tau_days"), 3.5);
@@ -179,7 +182,6 @@ TEST(Diagnose, JsonHasEveryContractKeyAndPrediction) {
   CHECK_TRUE(html.find("<script") == std::string::npos);
   CHECK_TRUE(html.find("work_hardening") != std::string::npos);
 }
-
 
 namespace {
 

@@ -146,8 +146,7 @@ TEST(HtmlReport, ThinnestPointWithBandAndParametersWithUnits) {
   // The work-hardening finding's parameters as a table: names, values, units, uncertainties.
   const auto& f = run.result.findings.at(0);
   STRCMP_EQUAL("work_hardening", f.effect.c_str());
-  STRCMP_CONTAINS("<th>parameter</th><th>value</th><th>unit</th><th>uncertainty (1 sd)</th><th>meaning</th>",
-                  run.html.c_str());
+  STRCMP_CONTAINS("<th>parameter</th><th>value</th><th>unit</th><th>uncertainty (1 sd)</th><th>meaning</th>", run.html.c_str());
   char tau[160];
   std::snprintf(tau, sizeof tau, "<code>tau_days</code></td><td class='num'>%.*f</td><td>days</td><td class='num'>&plusmn; ",
                 f.parameters["tau_days"].get<double>() >= 10 ? 1 : 2, f.parameters["tau_days"].get<double>());

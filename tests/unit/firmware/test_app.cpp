@@ -17,7 +17,8 @@ namespace {
 constexpr uint32_t kDay = 86400;
 
 struct Rig {
-  explicit Rig(Config c = Config{}) : config(c), board(c.ladder_loops, 0x0013A20000001001ull, c.api_mode), gateway(board.radio, &board.rtc) {
+  explicit Rig(Config c = Config{})
+      : config(c), board(c.ladder_loops, 0x0013A20000001001ull, c.api_mode), gateway(board.radio, &board.rtc) {
     CHECK(firmware::CheckConfig(c) == firmware::ConfigError::kOk);
     board.ladder.SetIntactCount(c.ladder_loops);
     Boot();
@@ -77,7 +78,7 @@ uint8_t TrueLoops(uint32_t t) {
 
 }  // namespace
 
-TEST_GROUP(FirmwareApp) {};
+TEST_GROUP(FirmwareApp){};
 
 TEST(FirmwareApp, MonotonicWearOverAWholeCampaignReportsEveryStep) {
   Rig rig;
@@ -167,7 +168,8 @@ void OutageLosesNoStep(Rig& rig, F wear, int lowest) {
 TEST(FirmwareApp, RadioDownForDaysThenBackLosesNoThicknessStep) {
   Rig rig;
   // 20 days down: 20 steps of wear and ~80 heartbeats, more than the queue holds.
-  OutageLosesNoStep(rig, [&](uint32_t t) { rig.board.ladder.SetIntactCount(static_cast<uint8_t>(100 - (t - kDay) / kDay)); }, 81);
+  OutageLosesNoStep(
+      rig, [&](uint32_t t) { rig.board.ladder.SetIntactCount(static_cast<uint8_t>(100 - (t - kDay) / kDay)); }, 81);
   // The drops are reported to the gateway.
   LONGS_EQUAL(rig.app->queue().dropped_total(), rig.gateway.last_dropped_total);
   bool flagged = false;
@@ -182,7 +184,8 @@ TEST(FirmwareApp, RadioDownForDaysThenBackLosesNoThicknessStep) {
 // loses no thickness step; only heartbeats are given up.
 TEST(FirmwareApp, TwentyDaysDownAtThePeakWearRateLosesNoStep) {
   Rig rig;
-  OutageLosesNoStep(rig, [&](uint32_t t) { rig.board.ladder.SetIntactCount(static_cast<uint8_t>(100 - (t - kDay) * 4 / (3 * kDay))); }, 74);
+  OutageLosesNoStep(
+      rig, [&](uint32_t t) { rig.board.ladder.SetIntactCount(static_cast<uint8_t>(100 - (t - kDay) * 4 / (3 * kDay))); }, 74);
   CHECK(rig.app->queue().dropped_heartbeats() > 40);  // the queue was full for most of the outage
 }
 
@@ -263,7 +266,7 @@ TEST(FirmwareApp, StuckSpiBusAndAllOpenAreFaultsNotWear) {
   rig.board.ladder.SetIntactCount(0);  // cable cut: every loop reads open
   rig.RunUntil(3 * kDay);
   LONGS_EQUAL(700, rig.app->reported_thickness_dmm());  // 70 loops cannot all break at once
-  rig.board.ladder.SetIntactCount(69);  // cable repaired; wear went on meanwhile
+  rig.board.ladder.SetIntactCount(69);                  // cable repaired; wear went on meanwhile
   rig.RunUntil(4 * kDay);
   LONGS_EQUAL(690, rig.app->reported_thickness_dmm());
   rig.CheckMonotonicAtGateway();
@@ -307,7 +310,9 @@ Config PowerLossConfig() {
   c.seq_reserve_block = 2;
   return c;
 }
-uint8_t StepEvery3h(uint32_t t) { return static_cast<uint8_t>(100 - t / (3 * 3600)); }
+uint8_t StepEvery3h(uint32_t t) {
+  return static_cast<uint8_t>(100 - t / (3 * 3600));
+}
 }  // namespace
 
 // The board browns out at every byte of every flash erase/program during a day of wear (both

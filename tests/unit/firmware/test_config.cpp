@@ -7,9 +7,11 @@
 
 using namespace lw::firmware;
 
-TEST_GROUP(Config) {};
+TEST_GROUP(Config){};
 
-TEST(Config, DefaultsPass) { CHECK(CheckConfig(Config{}) == ConfigError::kOk); }
+TEST(Config, DefaultsPass) {
+  CHECK(CheckConfig(Config{}) == ConfigError::kOk);
+}
 
 TEST(Config, EachBrokenRuleIsNamed) {
   struct Case {

@@ -6,7 +6,7 @@
 using namespace lw::firmware;
 using lw::hal::host::HostFlash;
 
-TEST_GROUP(Persistence) {};
+TEST_GROUP(Persistence){};
 
 TEST(Persistence, FreshFlashHasNoState) {
   HostFlash flash(256, 2);

@@ -13,7 +13,9 @@ QueuedRecord Rec(uint32_t seq, bool heartbeat) {
 }
 }  // namespace
 
-TEST_GROUP(ReportQueue) { ReportQueue q; };
+TEST_GROUP(ReportQueue) {
+  ReportQueue q;
+};
 
 TEST(ReportQueue, HeartbeatsGoBeforeSteps) {
   for (uint32_t i = 0; i < kQueueCapacity; ++i) CHECK(q.Push(Rec(i, i % 2 == 0)));

@@ -24,8 +24,8 @@ TEST_GROUP(ClockFile) {
 
 TEST(ClockFile, OptionIsParsed) {
   gw::Config c;
-  gw::ParseCommandLine({"linerwatch-gateway", "--serial", "/dev/ttyUSB0", "--broker", "tcp://127.0.0.1:1883", "--site",
-                        "s1", "--crusher", "c1", "--spool", "/tmp/x.db", "--clock-file", "/tmp/clock"},
+  gw::ParseCommandLine({"linerwatch-gateway", "--serial", "/dev/ttyUSB0", "--broker", "tcp://127.0.0.1:1883", "--site", "s1",
+                        "--crusher", "c1", "--spool", "/tmp/x.db", "--clock-file", "/tmp/clock"},
                        &c);
   STRCMP_EQUAL("/tmp/clock", c.clock_file.c_str());
 }

@@ -14,8 +14,8 @@ using lw::gateway::ParseResult;
 
 namespace {
 std::vector<std::string> Base() {
-  return {"linerwatch-gateway", "--serial", "/dev/ttyUSB0", "--broker", "tcp://127.0.0.1:1883",
-          "--site", "s1", "--crusher", "c1", "--spool", "/tmp/x.db"};
+  return {"linerwatch-gateway", "--serial", "/dev/ttyUSB0", "--broker", "tcp://127.0.0.1:1883", "--site", "s1",
+          "--crusher",          "c1",       "--spool",      "/tmp/x.db"};
 }
 std::string ErrorOf(const std::vector<std::string>& args) {
   Config c;
@@ -26,7 +26,9 @@ std::string ErrorOf(const std::vector<std::string>& args) {
   }
   return "";
 }
-bool Contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+bool Contains(const std::string& s, const std::string& part) {
+  return s.find(part) != std::string::npos;
+}
 }  // namespace
 
 TEST_GROUP(Config) {

@@ -92,9 +92,7 @@ TEST(FirmwareInterop, EveryWearStepOfTheRealFirmwareReachesTheSpoolAcrossAGatewa
 
   // 12 days, 100 -> 89 loops (one loop a day); the gateway is off from day 4 to day 6, and its
   // acks are lost from day 8 to day 9.
-  const auto loops_at = [](uint32_t t) {
-    return static_cast<uint8_t>(100 - std::min<uint32_t>(12, t / kDay));
-  };
+  const auto loops_at = [](uint32_t t) { return static_cast<uint8_t>(100 - std::min<uint32_t>(12, t / kDay)); };
   while (board.rtc.now() < 12 * kDay) {
     const uint32_t t = board.rtc.now();
     coordinator.down = t >= 4 * kDay && t < 6 * kDay;

@@ -21,8 +21,12 @@ namespace {
 constexpr uint64_t kAddrA = 0x0013A20040A1B2C3ull;
 constexpr uint64_t kAddrB = 0x0013A20040FFEE01ull;
 constexpr auto kMode = pr::ApiMode::kEscaped;
-std::string Committed(uint32_t sensor) { return "linerwatch/v1/s1/c1/sensors/" + std::to_string(sensor) + "/committed"; }
-std::string AckJson(const std::vector<uint32_t>& seqs) { return json{{"seqs", seqs}}.dump(); }
+std::string Committed(uint32_t sensor) {
+  return "linerwatch/v1/s1/c1/sensors/" + std::to_string(sensor) + "/committed";
+}
+std::string AckJson(const std::vector<uint32_t>& seqs) {
+  return json{{"seqs", seqs}}.dump();
+}
 std::vector<uint8_t> NodeIdFrame(uint64_t address, const char* node_identifier) {
   pr::NodeIdentification ni;
   ni.remote64 = address;
@@ -46,7 +50,9 @@ TEST_GROUP(Gateway) {
   std::vector<std::string> log;
   int64_t now = 1'000'000;
 
-  void setup() override { Start(1'000); }
+  void setup() override {
+    Start(1'000);
+  }
   void Start(size_t capacity, size_t window = 1, size_t max_devices = 1000) {
     gateway.reset();
     spool.reset();
@@ -63,7 +69,9 @@ TEST_GROUP(Gateway) {
     o.log = [this](const std::string& line) { log.push_back(line); };
     gateway = std::make_unique<gw::Gateway>(o, *spool, publisher, radio);
   }
-  void Feed(const std::vector<uint8_t>& bytes) { gateway->OnBytes(bytes.data(), bytes.size(), now); }
+  void Feed(const std::vector<uint8_t>& bytes) {
+    gateway->OnBytes(bytes.data(), bytes.size(), now);
+  }
   /// A 0x95 Node Identification of kAddrB (an end device) with NI string `ni_string`.
   void FeedNodeIdentification(const char* ni_string) {
     pr::NodeIdentification ni;
@@ -78,7 +86,7 @@ TEST_GROUP(Gateway) {
     Feed(gw::test::Wire(kMode, frame));
   }
   // The gateway replaced by one on the same spool whose coordinator runs API mode 1.
-  gw::Gateway& ModeOneGateway(lw::test::FakeRadio& radio1) {
+  gw::Gateway& ModeOneGateway(lw::test::FakeRadio & radio1) {
     gw::GatewayOptions o;
     o.site = "s1";
     o.crusher = "c1";
@@ -296,15 +304,16 @@ TEST(Gateway, FullSpoolRecordIsNeitherStoredNorAcked) {
 }
 
 TEST(Gateway, GarbageAndMalformedFramesAreCountedNotFatal) {
-  Feed({0x7E, 0x00, 0x05, 0x90, 0x01, 0x02, 0x03, 0x04, 0x00});             // bad checksum
-  Feed(gw::test::Wire(kMode, {0x90, 0x01, 0x02}));                            // too short to parse
-  Feed(gw::test::Wire(kMode, {0x42, 0x01}));                                  // unknown type
+  Feed({0x7E, 0x00, 0x05, 0x90, 0x01, 0x02, 0x03, 0x04, 0x00});  // bad checksum
+  Feed(gw::test::Wire(kMode, {0x90, 0x01, 0x02}));               // too short to parse
+  Feed(gw::test::Wire(kMode, {0x42, 0x01}));                     // unknown type
   std::vector<uint8_t> bad_payload = ReadingsFrame(kMode, kAddrB, 1001, {MakeRecord(1)});
   const uint8_t bad_crc[] = {1, 0x01, 9, 9};  // a readings payload whose CRC does not match
   std::vector<uint8_t> wire(pr::kMaxWireFrame);
-  wire.resize(pr::EncodeReceivePacket(kMode, {0x0013A20040FFEE01ull, 0x1234, 0x01, bad_crc, sizeof bad_crc}, wire.data(), wire.size()));
+  wire.resize(
+      pr::EncodeReceivePacket(kMode, {0x0013A20040FFEE01ull, 0x1234, 0x01, bad_crc, sizeof bad_crc}, wire.data(), wire.size()));
   Feed(wire);
-  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));                  // still works afterwards
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));  // still works afterwards
   LONGS_EQUAL(1, gateway->spool_depth());
   const json stats = json::parse(gateway->StatsJson(now));
   LONGS_EQUAL(1, stats["checksum_errors"].get<int>());
@@ -369,14 +378,15 @@ TEST(Gateway, StatsArePublishedPeriodicallyWithLatency) {
 TEST(Gateway, StatsMessageKeepsItsBytes) {
   const uint8_t junk[] = {1, 2, 3, 0x7E, 0x00};
   gateway->OnBytes(junk, sizeof junk, now);
-  STRCMP_EQUAL(R"({"ack_write_errors":0,"acks_sent":0,"bad_commit_acks":0,"bad_payloads":0,"bytes_discarded":3,)"
-               R"("checksum_errors":0,"commit_acks_ignored":0,"committed":0,"connects":0,"devices":0,"devices_refused":0,)"
-               R"("escape_errors":0,"frames_ok":0,"gateway":"gw-test","in_flight":0,"length_errors":0,"link_resets":0,"malformed_frames":0,)"
-               R"("max_devices":1000,"publish_latency_ms":{"last":-1,"max":-1,"mean":-1},"publish_refused":0,"published":0,"records_duplicate":0,)"
-               R"("records_evicted":0,"records_received":0,"records_rejected":0,"records_spooled":0,"republished":0,)"
-               R"("spool_depth":0,"spool_errors":0,"spool_max_records":1000,"time":"2026-03-01T12:00:07Z","truncated_frames":0,)"
-               R"("tx_failures":0,"unknown_frames":0,"unknown_payloads":0,"unknown_types":0})",
-               gateway->StatsJson(1772366407000).c_str());
+  STRCMP_EQUAL(
+      R"({"ack_write_errors":0,"acks_sent":0,"bad_commit_acks":0,"bad_payloads":0,"bytes_discarded":3,)"
+      R"("checksum_errors":0,"commit_acks_ignored":0,"committed":0,"connects":0,"devices":0,"devices_refused":0,)"
+      R"("escape_errors":0,"frames_ok":0,"gateway":"gw-test","in_flight":0,"length_errors":0,"link_resets":0,"malformed_frames":0,)"
+      R"("max_devices":1000,"publish_latency_ms":{"last":-1,"max":-1,"mean":-1},"publish_refused":0,"published":0,"records_duplicate":0,)"
+      R"("records_evicted":0,"records_received":0,"records_rejected":0,"records_spooled":0,"republished":0,)"
+      R"("spool_depth":0,"spool_errors":0,"spool_max_records":1000,"time":"2026-03-01T12:00:07Z","truncated_frames":0,)"
+      R"("tx_failures":0,"unknown_frames":0,"unknown_payloads":0,"unknown_types":0})",
+      gateway->StatsJson(1772366407000).c_str());
 }
 
 TEST(Gateway, ApiModeOneIsDecodedAndAckedInModeOne) {

@@ -59,7 +59,9 @@ TEST(Messages, DeviceMessageOfOneAddress) {
   const std::string text = gw::DeviceJson({node, sensor}, "gw-1", 1772366407000);
   // Byte for byte what the gateway sent before lw::mqtt encoded it.
   STRCMP_EQUAL(R"({"address":"0013A20040A1B2C3","device_type":2,"first_seen":"2026-03-01T12:00:00Z","gateway":"gw-1",)"
-               R"("node_identifier":"ROW1)" "\xEF\xBF\xBD" R"(","sensors":["1001"],"time":"2026-03-01T12:00:07Z"})",
+               R"("node_identifier":"ROW1)"
+               "\xEF\xBF\xBD"
+               R"(","sensors":["1001"],"time":"2026-03-01T12:00:07Z"})",
                text.c_str());
   const json j = json::parse(text);
   STRCMP_EQUAL("0013A20040A1B2C3", j["address"].get<std::string>().c_str());

@@ -34,7 +34,9 @@ std::vector<uint32_t> Seqs(const std::vector<SpoolRecord>& records, const std::s
 
 TEST_GROUP(Spool) {
   lw::test::TempDirectory dir;
-  std::string path() { return dir.File("spool.db"); }
+  std::string path() {
+    return dir.File("spool.db");
+  }
 };
 
 TEST(Spool, StoredRecordsSurviveReopen) {

@@ -7,7 +7,7 @@
 using namespace lw::hal;
 using namespace lw::hal::host;
 
-TEST_GROUP(HostBoard) {};
+TEST_GROUP(HostBoard){};
 
 TEST(HostBoard, LadderServesLoopsAsShiftRegisterBytesThenSignature) {
   HostLadder ladder(12);
@@ -104,8 +104,8 @@ TEST(HostBoard, FlashTearsTheByteAndThePageThatPowerLossInterrupts) {
     for (int i = 0; i < 8; ++i) LONGS_EQUAL(0xFF, out[i]);
     if (partial >= 5) ++half_erased_pages;
   }
-  CHECK(torn_bytes > 40);          // most seeds leave a part-programmed byte
-  CHECK(half_erased_pages > 40);   // and a page of part-erased bytes
+  CHECK(torn_bytes > 40);         // most seeds leave a part-programmed byte
+  CHECK(half_erased_pages > 40);  // and a page of part-erased bytes
   // Without tearing the cut is clean (the existing model).
   HostFlash clean(16, 1);
   FlashPages& c = clean;

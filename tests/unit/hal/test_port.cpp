@@ -168,15 +168,30 @@ TEST(TickCounter64, ReadTwiceRetriesWhenACarryLandsBetweenTheLoads) {
 
 TEST(TickCounter64, ReadWithoutInterruptsTakesOnePass) {
   int loads = 0;
-  const uint64_t v = ReadTwice([&] { ++loads; return 1u; }, [] { return 5u; });
+  const uint64_t v = ReadTwice(
+      [&] {
+        ++loads;
+        return 1u;
+      },
+      [] { return 5u; });
   CHECK(v == ((1ull << 32) | 5u));
   LONGS_EQUAL(2, loads);
 }
 
 TEST(TickCounter64, SecondsWithoutA64BitDivisionMatchTheDivision) {
   constexpr uint64_t kWrap = 1ull << 32;
-  const uint64_t edges[] = {0, 999, 1000, kWrap - 1, kWrap, kWrap + 703, kWrap + 704, 2 * kWrap - 1, 2 * kWrap,
-                            95ull * 86'400'000, 1000ull * kWrap + 123, 14'500'000ull * kWrap - 1};
+  const uint64_t edges[] = {0,
+                            999,
+                            1000,
+                            kWrap - 1,
+                            kWrap,
+                            kWrap + 703,
+                            kWrap + 704,
+                            2 * kWrap - 1,
+                            2 * kWrap,
+                            95ull * 86'400'000,
+                            1000ull * kWrap + 123,
+                            14'500'000ull * kWrap - 1};
   for (uint64_t ms : edges) CHECK(MillisToSeconds(ms) == ms / 1000);
   std::mt19937_64 rng(15);
   for (int i = 0; i < 1'000'000; ++i) {

@@ -85,16 +85,20 @@ TEST(Messages, ReadingRoundTrips) {
 
 TEST(Messages, ReadingDecoderIgnoresUnknownFieldsAndNamesWhatIsWrong) {
   std::string error;
-  CHECK(mq::DecodeReading(R"({"sensor":1001,"seq":1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1,"new":[1]})",
-                          &error)
+  CHECK(mq::DecodeReading(
+            R"({"sensor":1001,"seq":1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1,"new":[1]})", &error)
             ->sensor == "1001");
-  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1","time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})", &error));
+  CHECK_FALSE(
+      mq::DecodeReading(R"({"sensor":"1","time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})", &error));
   STRCMP_EQUAL("missing \"seq\"", error.c_str());
-  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1","seq":-1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})", &error));
+  CHECK_FALSE(mq::DecodeReading(
+      R"({"sensor":"1","seq":-1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})", &error));
   STRCMP_EQUAL("\"seq\" must be a whole number in [0, 4294967295]", error.c_str());
-  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1","seq":1,"time":"t","thickness_mm":"9","loops_intact":9,"flags":0,"battery_mv":1})", &error));
+  CHECK_FALSE(mq::DecodeReading(
+      R"({"sensor":"1","seq":1,"time":"t","thickness_mm":"9","loops_intact":9,"flags":0,"battery_mv":1})", &error));
   STRCMP_EQUAL("\"thickness_mm\" must be a number", error.c_str());
-  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1","seq":1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":65536,"battery_mv":1})", &error));
+  CHECK_FALSE(mq::DecodeReading(
+      R"({"sensor":"1","seq":1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":65536,"battery_mv":1})", &error));
   STRCMP_EQUAL("\"flags\" must be a whole number in [0, 65535]", error.c_str());
   CHECK_FALSE(mq::DecodeReading("[1]", &error));
   STRCMP_EQUAL("not a JSON object", error.c_str());
@@ -157,7 +161,7 @@ TEST(Messages, DeeplyNestedCommitAckIsRefusedWithoutRecursing) {
   std::string error;
   CHECK_FALSE(mq::DecodeCommitAck(nested(100000), "1", &error).has_value());  // 200 kB: over the size limit
   CHECK(error.find("bytes (at most 65536)") != std::string::npos);
-  CHECK_FALSE(mq::DecodeCommitAck(nested(30000), "1", &error).has_value());   // 60 kB: the depth limit
+  CHECK_FALSE(mq::DecodeCommitAck(nested(30000), "1", &error).has_value());  // 60 kB: the depth limit
   STRCMP_EQUAL("JSON nested deeper than 8 levels", error.c_str());
   // Deep but within the byte limit, in a field the gateway does not use: refused all the same.
   const std::string nested_extra = R"({"seqs": [1], "x": )" + std::string(20, '[') + std::string(20, ']') + "}";
@@ -298,7 +302,8 @@ TEST(Messages, WearRoundTripsWithEveryFieldKept) {
   summary["map_sha256"] = "ab12";
   summary["status"] = "ok";
   summary["min_thickness_mm"] = 61.25;
-  summary["rows"] = {{{"row", "R1"}, {"min_thickness_mm", 61.25}, {"scale_sd", 0.1}}, {{"row", "R2"}, {"min_thickness_mm", nullptr}}};
+  summary["rows"] = {{{"row", "R1"}, {"min_thickness_mm", 61.25}, {"scale_sd", 0.1}},
+                     {{"row", "R2"}, {"min_thickness_mm", nullptr}}};
   summary["readings_used"] = {{{"sensor", "1001"}, {"seq", 42}, {"time", "2026-03-01T12:00:00Z"}, {"thickness_mm", 61.0}}};
   summary["note"] = "kept as it is";
   const std::string text = mq::EncodeWear(summary);
@@ -319,12 +324,15 @@ TEST(Messages, WearRoundTripsWithEveryFieldKept) {
 
 TEST(Messages, WearWithoutSupportAndMalformedWear) {
   std::string error;
-  const auto w = mq::DecodeWear(R"({"crusher_id":"c","time":"t","map_sha256":"h","min_thickness_mm":null,"rows":[],"readings_used":[]})", &error);
+  const auto w = mq::DecodeWear(
+      R"({"crusher_id":"c","time":"t","map_sha256":"h","min_thickness_mm":null,"rows":[],"readings_used":[]})", &error);
   CHECK_TEXT(w.has_value(), error.c_str());
   CHECK_FALSE(w->min_thickness_mm.has_value());
   CHECK_FALSE(mq::DecodeWear(R"({"crusher_id":"c","time":"t","min_thickness_mm":1,"rows":[],"readings_used":[]})", &error));
   STRCMP_EQUAL("missing \"map_sha256\"", error.c_str());
-  CHECK_FALSE(mq::DecodeWear(R"({"crusher_id":"c","time":"t","map_sha256":"h","min_thickness_mm":1,"rows":[{"min_thickness_mm":1}],"readings_used":[]})", &error));
+  CHECK_FALSE(mq::DecodeWear(
+      R"({"crusher_id":"c","time":"t","map_sha256":"h","min_thickness_mm":1,"rows":[{"min_thickness_mm":1}],"readings_used":[]})",
+      &error));
   STRCMP_EQUAL("missing \"row\"", error.c_str());
   CHECK_FALSE(mq::DecodeWear("not json", &error));
   STRCMP_EQUAL("not JSON", error.c_str());

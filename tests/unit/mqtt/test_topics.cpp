@@ -40,9 +40,12 @@ TEST(Topics, AnotherPrefixAsTheServersTopicRoot) {
 TEST(Topics, EveryBuiltTopicParsesBackToItsParts) {
   const Topics t("mine", "cr7");
   const std::vector<ParsedTopic> all = {
-      {TopicKind::kReading, "mine", "cr7", "1001"}, {TopicKind::kCommitted, "mine", "cr7", "1001"},
-      {TopicKind::kStatus, "mine", "cr7", ""},      {TopicKind::kStats, "mine", "cr7", ""},
-      {TopicKind::kDevice, "mine", "cr7", "0013A20040A1B2C3"}, {TopicKind::kWear, "mine", "cr7", ""},
+      {TopicKind::kReading, "mine", "cr7", "1001"},
+      {TopicKind::kCommitted, "mine", "cr7", "1001"},
+      {TopicKind::kStatus, "mine", "cr7", ""},
+      {TopicKind::kStats, "mine", "cr7", ""},
+      {TopicKind::kDevice, "mine", "cr7", "0013A20040A1B2C3"},
+      {TopicKind::kWear, "mine", "cr7", ""},
   };
   for (const ParsedTopic& want : all) {
     const std::string topic = t.Build(want.kind, want.id);

@@ -24,7 +24,7 @@ const std::vector<uint8_t> kDigiRx = Hex("7E 00 12 90 00 13 A2 00 40 52 2B AA 7D
 const std::vector<uint8_t> kDigiModem = Hex("7E 00 02 8A 06 6F");
 }  // namespace
 
-TEST_GROUP(FrameDecoder) {};
+TEST_GROUP(FrameDecoder){};
 
 TEST(FrameDecoder, DecodesDigiExamplesInMode1) {
   FrameDecoder dec(ApiMode::kUnescaped);
@@ -97,7 +97,9 @@ TEST(FrameDecoder, BadChecksumIsCountedAndNextFrameDecodes) {
 }
 
 namespace {
-std::vector<uint8_t> Data(const std::vector<uint8_t>& wire_mode1) { return {wire_mode1.begin() + 3, wire_mode1.end() - 1}; }
+std::vector<uint8_t> Data(const std::vector<uint8_t>& wire_mode1) {
+  return {wire_mode1.begin() + 3, wire_mode1.end() - 1};
+}
 }  // namespace
 
 TEST(FrameDecoder, TruncatedFrameDoesNotSwallowTheNextInMode1) {

@@ -17,12 +17,13 @@ SensorRecord MakeRecord(uint32_t seq, uint8_t ladder, uint8_t intact) {
   r.flags = kFlagHeartbeat | kFlagFlicker;
   r.battery_mv = 3550;
   r.temperature_c = -12;
-  for (uint8_t i = 0; i < intact && i < ladder; ++i) r.loop_bitmap[i / 8] = static_cast<uint8_t>(r.loop_bitmap[i / 8] | (1u << (i % 8)));
+  for (uint8_t i = 0; i < intact && i < ladder; ++i)
+    r.loop_bitmap[i / 8] = static_cast<uint8_t>(r.loop_bitmap[i / 8] | (1u << (i % 8)));
   return r;
 }
 }  // namespace
 
-TEST_GROUP(SensorPayload) {};
+TEST_GROUP(SensorPayload){};
 
 TEST(SensorPayload, CrcMatchesCcittFalseCheckValue) {
   const char* check = "123456789";
@@ -35,7 +36,8 @@ TEST(SensorPayload, ReadingsRoundTripForEveryCountAndSeveralLadders) {
     CHECK(max >= 2);
     for (size_t count = 1; count <= max; ++count) {
       std::vector<SensorRecord> recs;
-      for (size_t i = 0; i < count; ++i) recs.push_back(MakeRecord(static_cast<uint32_t>(1000 + i), ladder, static_cast<uint8_t>(ladder - i)));
+      for (size_t i = 0; i < count; ++i)
+        recs.push_back(MakeRecord(static_cast<uint32_t>(1000 + i), ladder, static_cast<uint8_t>(ladder - i)));
       ReadingsHeader h{4000000001u, ladder, 7};
       uint8_t buf[kMaxRfPayload];
       size_t n = 0;

@@ -11,7 +11,7 @@ using namespace lw::protocol;
 using lw::protocol::test::Encode;
 using lw::protocol::test::Hex;
 
-TEST_GROUP(XbeeApi) {};
+TEST_GROUP(XbeeApi){};
 
 // Digi XBee Zigbee user guide, 0x10 Transmit Request example: payload "TxData0A" to 0013A200400A0127.
 TEST(XbeeApi, DigiTransmitRequestExampleEncodesByteExact) {
@@ -67,8 +67,7 @@ TEST(XbeeApi, DigiReceivePacketExampleEncodesByteExact) {
   size_t n = EncodeReceivePacket(ApiMode::kUnescaped, rx, wire, sizeof wire);
   CHECK(std::vector<uint8_t>(wire, wire + n) == Hex("7E 00 12 90 00 13 A2 00 40 52 2B AA 7D 84 01 52 78 44 61 74 61 0D"));
   n = EncodeReceivePacket(ApiMode::kEscaped, rx, wire, sizeof wire);
-  CHECK(std::vector<uint8_t>(wire, wire + n) ==
-        Hex("7E 00 12 90 00 7D 33 A2 00 40 52 2B AA 7D 5D 84 01 52 78 44 61 74 61 0D"));
+  CHECK(std::vector<uint8_t>(wire, wire + n) == Hex("7E 00 12 90 00 7D 33 A2 00 40 52 2B AA 7D 5D 84 01 52 78 44 61 74 61 0D"));
   LONGS_EQUAL(0, EncodeReceivePacket(ApiMode::kUnescaped, rx, wire, 21));  // one byte short
   uint8_t big[kMaxRfPayload + 1] = {};
   const ReceivePacket too_big{1, 2, 0x01, big, sizeof big};
@@ -173,9 +172,9 @@ std::vector<uint8_t> ReencodeNodeIdentification(const std::vector<uint8_t>& wire
 // through parse and build. Vectors: Digi's XBee-PRO 900HP/XSC manual (DD + RSSI, NO set), a
 // DD-only frame from another project's XBee test suite, Digi's Zigbee manual (no optional field).
 TEST(XbeeApi, NodeIdentificationKeepsOptionalFieldsOnReencode) {
-  const auto digi_dd_rssi = Hex(
-      "7E 00 25 95 00 13 A2 00 40 74 02 AC FF FE C2 FF FE 00 13 A2 00 40 74 02 AC 20 00 FF FE 01 01 C1 05 10 1E"
-      " 00 0C 00 00 2E 33");
+  const auto digi_dd_rssi =
+      Hex("7E 00 25 95 00 13 A2 00 40 74 02 AC FF FE C2 FF FE 00 13 A2 00 40 74 02 AC 20 00 FF FE 01 01 C1 05 10 1E"
+          " 00 0C 00 00 2E 33");
   NodeIdentification ni;
   CHECK(ReencodeNodeIdentification(digi_dd_rssi, &ni) == digi_dd_rssi);
   CHECK(ni.remote64 == 0x0013A200407402ACull);
@@ -187,17 +186,17 @@ TEST(XbeeApi, NodeIdentificationKeepsOptionalFieldsOnReencode) {
   CHECK_TRUE(ni.has_rssi);
   LONGS_EQUAL(0x2E, ni.rssi);
 
-  const auto dd_only = Hex(
-      "7E 00 27 95 00 13 A2 00 12 34 56 78 FF FE C2 FF FE 00 13 A2 00 12 34 56 78 4C 48 37 35 00 FF FE 01 01 C1 05"
-      " 10 1E 00 14 00 08 0D");
+  const auto dd_only =
+      Hex("7E 00 27 95 00 13 A2 00 12 34 56 78 FF FE C2 FF FE 00 13 A2 00 12 34 56 78 4C 48 37 35 00 FF FE 01 01 C1 05"
+          " 10 1E 00 14 00 08 0D");
   CHECK(ReencodeNodeIdentification(dd_only, &ni) == dd_only);
   STRCMP_EQUAL("LH75", ni.node_identifier);
   CHECK_TRUE(ni.has_device_type_identifier);
   LONGS_EQUAL(0x00140008, ni.device_type_identifier);
   CHECK_FALSE(ni.has_rssi);
 
-  const auto zigbee_plain = Hex(
-      "7E 00 20 95 00 13 A2 00 40 52 2B AA 7D 84 02 7D 84 00 13 A2 00 40 52 2B AA 20 00 FF FE 01 01 C1 05 10 1E 1B");
+  const auto zigbee_plain =
+      Hex("7E 00 20 95 00 13 A2 00 40 52 2B AA 7D 84 02 7D 84 00 13 A2 00 40 52 2B AA 20 00 FF FE 01 01 C1 05 10 1E 1B");
   CHECK(ReencodeNodeIdentification(zigbee_plain, &ni) == zigbee_plain);
   LONGS_EQUAL(0x7D84, ni.remote16);
   CHECK_FALSE(ni.has_device_type_identifier);

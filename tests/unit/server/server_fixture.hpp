@@ -43,9 +43,12 @@ inline std::vector<server::Incoming> Messages(const core::Bundle& b, const std::
   std::vector<server::Incoming> out;
   std::map<std::string, int64_t> seq;
   for (const core::Reading& r : b.readings) {
-    const nlohmann::json j = {{"sensor", r.sensor_id},    {"seq", ++seq[r.sensor_id]},
-                              {"time", core::FormatIsoTime(r.time)}, {"thickness_mm", r.thickness_mm},
-                              {"loops_intact", static_cast<int>(r.thickness_mm)}, {"flags", 0},
+    const nlohmann::json j = {{"sensor", r.sensor_id},
+                              {"seq", ++seq[r.sensor_id]},
+                              {"time", core::FormatIsoTime(r.time)},
+                              {"thickness_mm", r.thickness_mm},
+                              {"loops_intact", static_cast<int>(r.thickness_mm)},
+                              {"flags", 0},
                               {"battery_mv", 3550}};
     out.push_back({site, b.crusher.crusher_id, r.sensor_id,
                    "linerwatch/v1/" + site + "/" + b.crusher.crusher_id + "/sensors/" + r.sensor_id + "/reading", j.dump()});
@@ -87,7 +90,8 @@ struct ServerParts {
     registry = server::Registry::Load(crushers, &errors);
     live = std::make_unique<server::LiveState>(*registry);
     read.With([&](server::Store& s) { live->Rebuild(s); });
-    ingestor = std::make_unique<server::Ingestor>(write, *registry, [] { return int64_t{4'000'000'000}; }, live.get());
+    ingestor = std::make_unique<server::Ingestor>(
+        write, *registry, [] { return int64_t{4'000'000'000}; }, live.get());
     wear = std::make_unique<server::WearService>(*registry, *live);
     diagnosis = std::make_unique<server::DiagnosisRunner>(*registry, read);
     if (with_tokens) {

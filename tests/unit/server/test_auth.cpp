@@ -19,7 +19,9 @@ std::string ErrorOf(const std::filesystem::path& file) {
 }
 }  // namespace
 
-TEST_GROUP(Tokens) { lw::test::TempDirectory dir{"lw-auth-test"}; };
+TEST_GROUP(Tokens) {
+  lw::test::TempDirectory dir{"lw-auth-test"};
+};
 
 TEST(Tokens, HashesAndScopesLoad) {
   // sha256("secret")

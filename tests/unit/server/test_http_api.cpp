@@ -193,7 +193,8 @@ TEST(HttpApi, BadRequestsGetJsonErrorsAndNothingStoredIsLost) {
   Get(c, "/api/v1/no/such/thing", 404);
   auto res = c.Post(a.Base() + "/readings", "{oops", "application/json");
   LONGS_EQUAL(400, res->status);
-  res = c.Post(a.Base() + "/readings", R"({"readings":[{"sensor":"1001","seq":1,"time":"2099-01-01T00:00:00Z"}]})", "application/json");
+  res = c.Post(a.Base() + "/readings", R"({"readings":[{"sensor":"1001","seq":1,"time":"2099-01-01T00:00:00Z"}]})",
+               "application/json");
   LONGS_EQUAL(422, res->status);
   LONGS_EQUAL(before, Get(c, a.Base())["counters"]["readings_stored"].get<long>());
   const json rejected = Get(c, "/api/v1/rejected");
@@ -337,7 +338,9 @@ int Connect(int port, const char* from) {
   return fd;
 }
 
-bool SendText(int fd, const std::string& s) { return ::send(fd, s.data(), s.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(s.size()); }
+bool SendText(int fd, const std::string& s) {
+  return ::send(fd, s.data(), s.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(s.size());
+}
 
 /// What arrives on `fd` until the peer closes or `timeout_ms` passes without data.
 std::string Receive(int fd, int timeout_ms) {
@@ -458,8 +461,9 @@ TEST(HttpApi, BodiesOverTheCapAreRefusedAsTheyArriveChunkedToo) {
   const long before = RssKiB();
   const int fd = Connect(a.port);
   std::thread sender([&] {
-    SendText(fd, "POST " + a.Base() + "/readings HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
-                 "Transfer-Encoding: chunked\r\n\r\n");
+    SendText(fd, "POST " + a.Base() +
+                     "/readings HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+                     "Transfer-Encoding: chunked\r\n\r\n");
     const std::string data(64 * 1024, ' ');
     char size_line[32];
     std::snprintf(size_line, sizeof size_line, "%zx\r\n", data.size());
@@ -477,11 +481,15 @@ TEST(HttpApi, BodiesOverTheCapAreRefusedAsTheyArriveChunkedToo) {
   // A Content-Length over the cap is refused before any of the body is read; so is a compressed body.
   auto c = a.Client();
   int fd2 = Connect(a.port);
-  SendText(fd2, "POST " + a.Base() + "/readings HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: 90000000000\r\n\r\n");
+  SendText(fd2,
+           "POST " + a.Base() +
+               "/readings HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: 90000000000\r\n\r\n");
   CHECK(Receive(fd2, 5000).rfind("HTTP/1.1 413", 0) == 0);
   ::close(fd2);
   fd2 = Connect(a.port);
-  SendText(fd2, "POST " + a.Base() + "/readings HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Encoding: gzip\r\nContent-Length: 10\r\n\r\n0123456789");
+  SendText(fd2, "POST " + a.Base() +
+                    "/readings HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Encoding: "
+                    "gzip\r\nContent-Length: 10\r\n\r\n0123456789");
   CHECK(Receive(fd2, 5000).rfind("HTTP/1.1 415", 0) == 0);
   ::close(fd2);
   LONGS_EQUAL(200, Healthz(a));
@@ -491,9 +499,10 @@ TEST(HttpApi, BodiesOverTheCapAreRefusedAsTheyArriveChunkedToo) {
 TEST(HttpApi, AnOverflowingNumberIsA400NamingTheField) {
   Api a(false);
   auto c = a.Client();
-  auto res = c.Post(a.Base() + "/readings",
-                    R"({"readings":[{"sensor":"1001","seq":1,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":1e999,"battery_mv":3500}]})",
-                    "application/json");
+  auto res = c.Post(
+      a.Base() + "/readings",
+      R"({"readings":[{"sensor":"1001","seq":1,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":1e999,"battery_mv":3500}]})",
+      "application/json");
   CHECK(res);
   LONGS_EQUAL(400, res->status);
   CHECK_TEXT(res->body.find("flags") != std::string::npos, res->body.c_str());

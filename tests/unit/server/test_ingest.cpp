@@ -15,7 +15,9 @@ lw::test::CrusherFolder& Folder() {
   static lw::test::CrusherFolder f(20);
   return f;
 }
-int64_t Now() { return Folder().bundle.readings.back().time.time_since_epoch().count() + 3600; }
+int64_t Now() {
+  return Folder().bundle.readings.back().time.time_since_epoch().count() + 3600;
+}
 
 Incoming With(const std::string& payload, const std::string& sensor = "1001") {
   return {"site1", Folder().id(), sensor, "linerwatch/v1/site1/" + Folder().id() + "/sensors/" + sensor + "/reading", payload};
@@ -55,13 +57,18 @@ TEST(Ingest, RejectsBadInputNamingTheRule) {
   CHECK(Reject(With(Reading(""), "1002")).find("differs from the topic") != std::string::npos);
   CHECK(Reject(With(R"({"sensor":"1001","seq":-1})")).find("\"seq\"") != std::string::npos);
   const std::string base = R"({"sensor":"1001","seq":5,"loops_intact":1,"flags":0,"battery_mv":1,)";
-  CHECK(Reject(With(base + R"("time":"2026-01-10T00:00:00Z","thickness_mm":500})")).find("\"thickness_mm\" 500") != std::string::npos);
+  CHECK(Reject(With(base + R"("time":"2026-01-10T00:00:00Z","thickness_mm":500})")).find("\"thickness_mm\" 500") !=
+        std::string::npos);
   CHECK(Reject(With(base + R"("time":"2026-01-10T00:00:00Z","thickness_mm":"ten"})")).find("thickness_mm") != std::string::npos);
-  CHECK(Reject(With(base + R"("time":"2019-01-01T00:00:00Z","thickness_mm":100})")).find("before the liner was installed") != std::string::npos);
+  CHECK(Reject(With(base + R"("time":"2019-01-01T00:00:00Z","thickness_mm":100})")).find("before the liner was installed") !=
+        std::string::npos);
   CHECK(Reject(With(base + R"("time":"2099-01-01T00:00:00Z","thickness_mm":100})")).find("future") != std::string::npos);
   CHECK(Reject(With(base + R"("time":"yesterday","thickness_mm":100})")).find("ISO-8601") != std::string::npos);
-  CHECK(Reject(With(R"({"sensor":"1001","seq":5,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":70000,"battery_mv":3500})"))
-            .find("\"flags\" 70000") != std::string::npos);
+  CHECK(
+      Reject(
+          With(
+              R"({"sensor":"1001","seq":5,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":70000,"battery_mv":3500})"))
+          .find("\"flags\" 70000") != std::string::npos);
   CHECK(Reject(With(R"({"sensor":"1001","seq":5,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":0})"))
             .find("missing \"battery_mv\"") != std::string::npos);
   CHECK(Reject(With("{\"a\":" + std::string(20, '[') + std::string(20, ']') + "}")).find("nested deeper") != std::string::npos);
@@ -139,8 +146,8 @@ TEST(Ingest, WearFromStoredReadingsEqualsTheOfflineReconstruction) {
   const CrusherState st = ComputeCrusherState(c, store.All(Folder().id()));
   CHECK_TRUE(st.has_wear);
   const auto& b = Folder().bundle;
-  const auto last = std::max_element(b.readings.begin(), b.readings.end(),
-                                     [](const auto& x, const auto& y) { return x.time < y.time; })->time;
+  const auto last =
+      std::max_element(b.readings.begin(), b.readings.end(), [](const auto& x, const auto& y) { return x.time < y.time; })->time;
   const auto offline = lw::core::Reconstruct(b.crusher, b.map, lw::core::SensorWearAt(b.crusher, b.readings, last));
   DOUBLES_EQUAL(offline.min_thickness_mm, st.reconstruction.min_thickness_mm, 1e-9);
   LONGS_EQUAL(offline.remaining_mm.size(), st.reconstruction.remaining_mm.size());
@@ -168,12 +175,12 @@ TEST(Ingest, LiveWearAppliesTheLatestScanAsReconstructDoes) {
   CHECK(st.scan != nullptr);
   CHECK_TRUE(st.scan->correction.detail.empty());
   CHECK(st.scan->correction.faces_corrected > 0);
-  const auto last = std::max_element(b.readings.begin(), b.readings.end(),
-                                     [](const auto& x, const auto& y) { return x.time < y.time; })->time;
+  const auto last =
+      std::max_element(b.readings.begin(), b.readings.end(), [](const auto& x, const auto& y) { return x.time < y.time; })->time;
   const lw::core::Scan* scan = lw::core::LatestScanAt(b.scans, lw::core::TimePoint::max());
   CHECK(scan != nullptr);
-  const lw::core::Reconstruction unscanned =
-      lw::core::Reconstruct(lw::core::PrepareReconstruction(b.crusher, b.map), lw::core::SensorWearAt(b.crusher, b.readings, last));
+  const lw::core::Reconstruction unscanned = lw::core::Reconstruct(lw::core::PrepareReconstruction(b.crusher, b.map),
+                                                                   lw::core::SensorWearAt(b.crusher, b.readings, last));
   const lw::core::Reconstruction scanned = lw::test::OfflineLiveWear(b, last);
   DOUBLES_EQUAL(scanned.min_thickness_mm, st.reconstruction.min_thickness_mm, 1e-9);
   DOUBLES_EQUAL(0, (scanned.remaining_mm - st.reconstruction.remaining_mm).cwiseAbs().maxCoeff(), 1e-9);
@@ -207,8 +214,8 @@ TEST(Ingest, AConsumedSensorIsWearACutCableIsNot) {
   CHECK_FALSE(IsFaultReading(1 << 3, 0));
   // every loop open while the board still holds loops intact: a cut cable
   CHECK_TRUE(IsFaultReading(1 << 3, 42));
-  CHECK_TRUE(IsFaultReading(1 << 4, 42));  // SPI stuck
-  CHECK_FALSE(IsFaultReading(1 << 0, 42)); // heartbeat
+  CHECK_TRUE(IsFaultReading(1 << 4, 42));   // SPI stuck
+  CHECK_FALSE(IsFaultReading(1 << 0, 42));  // heartbeat
   LONGS_EQUAL(3, JsonNestingDepth(R"({"a":[{"b":"[[[[{{"}]})"));
 }
 
@@ -220,7 +227,10 @@ TEST(Ingest, AnOverflowingNumberQuarantinesThatMessageOnly) {
   Ingestor ingestor(store, *registry, [] { return Now(); });
   const auto msgs = lw::test::Messages(Folder().bundle);
   std::vector<Incoming> batch(msgs.begin(), msgs.begin() + 20);
-  batch.insert(batch.begin() + 10, With(R"({"sensor":"1001","seq":777,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":1e999,"battery_mv":3500})"));
+  batch.insert(
+      batch.begin() + 10,
+      With(
+          R"({"sensor":"1001","seq":777,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":1e999,"battery_mv":3500})"));
   IngestResult r;
   try {
     r = ingestor.Ingest(batch);
@@ -233,7 +243,8 @@ TEST(Ingest, AnOverflowingNumberQuarantinesThatMessageOnly) {
   for (const Ack& a : r.acks) acked |= a.sensor == "1001" && std::count(a.seqs.begin(), a.seqs.end(), 777) == 1;
   CHECK_TRUE(acked);
   // An overflowing seq identifies nothing: quarantined, but no seq (0 or other) is acknowledged.
-  r = ingestor.Ingest({With(R"({"sensor":"1001","seq":1e999,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":0,"battery_mv":3500})")});
+  r = ingestor.Ingest({With(
+      R"({"sensor":"1001","seq":1e999,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":0,"battery_mv":3500})")});
   LONGS_EQUAL(1, r.rejected);
   LONGS_EQUAL(0, r.acks.size());
   const std::string reason = Reject(batch[10]);

@@ -23,7 +23,9 @@ lw::test::CrusherFolder& Folder() {
   static lw::test::CrusherFolder f(120, 5, 30);
   return f;
 }
-int64_t Now() { return Folder().bundle.readings.back().time.time_since_epoch().count() + 3600; }
+int64_t Now() {
+  return Folder().bundle.readings.back().time.time_since_epoch().count() + 3600;
+}
 
 /// The campaign's readings plus what the state must get right: cut-cable readings (stored, not
 /// used for wear) newer than everything else, a second reading at a sensor's latest time that is
@@ -32,15 +34,20 @@ std::vector<Incoming> Messages() {
   auto out = lw::test::Messages(Folder().bundle);
   const auto& b = Folder().bundle;
   const auto add = [&](const std::string& sensor, int64_t seq, int64_t time_s, double mm, int loops, int flags) {
-    const json j = {{"sensor", sensor}, {"seq", seq}, {"time", lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(time_s)))},
-                    {"thickness_mm", mm}, {"loops_intact", loops}, {"flags", flags}, {"battery_mv", 3300}};
+    const json j = {{"sensor", sensor},
+                    {"seq", seq},
+                    {"time", lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(time_s)))},
+                    {"thickness_mm", mm},
+                    {"loops_intact", loops},
+                    {"flags", flags},
+                    {"battery_mv", 3300}};
     out.push_back({"site1", b.crusher.crusher_id, sensor,
                    "linerwatch/v1/site1/" + b.crusher.crusher_id + "/sensors/" + sensor + "/reading", j.dump()});
   };
   const int64_t last = b.readings.back().time.time_since_epoch().count();
   const std::string s0 = b.crusher.sensors.at(0).id, s1 = b.crusher.sensors.at(1).id;
-  add(s0, 900001, last + 60, 0, 40, 8);        // all open with loops intact: a cut cable
-  add(s1, 900002, last + 120, 55, 55, 16);     // SPI stuck
+  add(s0, 900001, last + 60, 0, 40, 8);     // all open with loops intact: a cut cable
+  add(s1, 900002, last + 120, 55, 55, 16);  // SPI stuck
   int64_t s1_last = 0;
   double s1_mm = 0;
   for (const auto& r : b.readings) {
@@ -103,9 +110,11 @@ TEST(LiveState, EqualsAFullRecomputeAfterIngestAfterARestartAndAfterMore) {
     LONGS_EQUAL(0, live.CountReadings(Folder().id()));
     CHECK_FALSE(live.LatestUsableTime(Folder().id()));
     CHECK_TRUE(live.WearInputs(Folder().id()).empty());
-    Ingestor ingestor(store, *registry, [] { return Now(); }, &live);
+    Ingestor ingestor(
+        store, *registry, [] { return Now(); }, &live);
     for (size_t i = 0; i < half; i += 97) {
-      ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(i), messages.begin() + static_cast<std::ptrdiff_t>(std::min(half, i + 97))});
+      ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(i),
+                       messages.begin() + static_cast<std::ptrdiff_t>(std::min(half, i + 97))});
     }
     // Redelivered: duplicates change nothing.
     ingestor.Ingest({messages.begin(), messages.begin() + 50});
@@ -116,9 +125,11 @@ TEST(LiveState, EqualsAFullRecomputeAfterIngestAfterARestartAndAfterMore) {
   LiveState live(*registry);
   live.Rebuild(store);
   CheckEqualsFullRecompute(c, live, store, false);
-  Ingestor ingestor(store, *registry, [] { return Now(); }, &live);
+  Ingestor ingestor(
+      store, *registry, [] { return Now(); }, &live);
   for (size_t i = half; i < messages.size(); i += 211) {
-    ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(i), messages.begin() + static_cast<std::ptrdiff_t>(std::min(messages.size(), i + 211))});
+    ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(i),
+                     messages.begin() + static_cast<std::ptrdiff_t>(std::min(messages.size(), i + 211))});
   }
   CheckEqualsFullRecompute(c, live, store, true);
   LiveState rebuilt(*registry);
@@ -134,7 +145,8 @@ TEST(LiveState, WearServiceServesTheFullRecompute) {
   Store store(dir.File("db.sqlite"));
   LiveState live(*registry);
   live.Rebuild(store);
-  Ingestor ingestor(store, *registry, [] { return Now(); }, &live);
+  Ingestor ingestor(
+      store, *registry, [] { return Now(); }, &live);
   WearService wear(*registry, live);
   CHECK_FALSE(wear.Get(Folder().id())->has_wear);
   ingestor.Ingest(Messages());
@@ -163,9 +175,11 @@ TEST(LiveState, ALazyLoadCountsEveryCommitOnce) {
   Store store(dir.File("db.sqlite"));
   LiveState live(*registry);
   live.LoadLazily(std::make_unique<Store>(dir.File("db.sqlite")));
-  Ingestor ingestor(store, *registry, [] { return Now(); }, &live);
+  Ingestor ingestor(
+      store, *registry, [] { return Now(); }, &live);
   // Committed before the crusher was first asked for: not added, read at its load.
-  ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(third), messages.begin() + static_cast<std::ptrdiff_t>(2 * third)});
+  ingestor.Ingest(
+      {messages.begin() + static_cast<std::ptrdiff_t>(third), messages.begin() + static_cast<std::ptrdiff_t>(2 * third)});
   LONGS_EQUAL(store.CountReadings(Folder().id()), live.CountReadings(Folder().id()));
   ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(2 * third), messages.end()});
   CheckEqualsFullRecompute(c, live, store, true);

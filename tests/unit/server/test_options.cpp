@@ -39,8 +39,8 @@ TEST(ServerOptions, IntegerOptionsAreRangeChecked) {
                ErrorOf({"--commit-delay-ms", "4294967297"}).c_str());
   STRCMP_EQUAL("--http 65536 is out of range (allowed: [0, 65535])", ErrorOf({"--http", "127.0.0.1:65536"}).c_str());
   STRCMP_EQUAL("--batch-max '10k' is not a whole number (allowed: [1, 1000000])", ErrorOf({"--batch-max", "10k"}).c_str());
-  const auto o = lw::server::ParseServerOptions(
-      {"--broker", "tcp://h:1883", "--db", "d", "--crusher-dir", "c", "--wear-interval-ms", "86400000", "--batch-max", "1000000",
-       "--commit-delay-ms", "1000", "--http", "127.0.0.1:65535"});
+  const auto o = lw::server::ParseServerOptions({"--broker", "tcp://h:1883", "--db", "d", "--crusher-dir", "c",
+                                                 "--wear-interval-ms", "86400000", "--batch-max", "1000000", "--commit-delay-ms",
+                                                 "1000", "--http", "127.0.0.1:65535"});
   CHECK(o.wear_interval_ms == 86400000 && o.batch_max == 1000000 && o.commit_delay_ms == 1000);
 }

@@ -49,7 +49,8 @@ TEST(Registry, ScansAreLoadedSortedByDateAndABrokenOneIsAWarning) {
   LONGS_EQUAL(good->scans.size(), c->scans.size());
   bool warned = false;
   for (const auto& w : c->validation.warnings)
-    warned |= w.find("scans/scan_2020-01-01.xyz:1: expected three") != std::string::npos && w.find("scan ignored") != std::string::npos;
+    warned |=
+        w.find("scans/scan_2020-01-01.xyz:1: expected three") != std::string::npos && w.find("scan ignored") != std::string::npos;
   CHECK_TEXT(warned, "no warning naming the broken scan and its line");
   // A later scan is the one live wear applies (sorted by date).
   std::filesystem::copy_file(f.folder + "/" + f.bundle.scans.back().file, f.folder + "/scans/scan_2099-01-01.xyz");
@@ -108,7 +109,8 @@ TEST(Registry, LoadingFoldersInParallelGivesTheInOrderResult) {
   const auto reg = Registry::Load(f.crushers, &errors);
   LONGS_EQUAL(2, errors.size());
   CHECK_TEXT(errors[0].find("/twin2: ") != std::string::npos, errors[0].c_str());
-  CHECK_TEXT(errors[1].find("/twin4: crusher_id 'twin1' is already used by another folder") != std::string::npos, errors[1].c_str());
+  CHECK_TEXT(errors[1].find("/twin4: crusher_id 'twin1' is already used by another folder") != std::string::npos,
+             errors[1].c_str());
   LONGS_EQUAL(5, reg->All().size());  // f's own crusher, twin0, twin1, twin3, twin5
   CHECK(reg->Find("twin2") == nullptr);
   CHECK(reg->Find("twin1")->dir.filename() == "twin1");

@@ -52,7 +52,9 @@ struct Fixture {
   }
 };
 
-std::string ErrorOf(const rest::Response& r) { return r.json.value("error", std::string("(no error)")); }
+std::string ErrorOf(const rest::Response& r) {
+  return r.json.value("error", std::string("(no error)"));
+}
 
 }  // namespace
 
@@ -100,7 +102,8 @@ TEST(RestRoutes, PathTemplatesBecomeRoutingPatternsAndParameters) {
   STRCMP_EQUAL("/api/v1/crushers/([^/]+)/sensors/([^/]+)/readings",
                rest::PathPattern("/api/v1/crushers/{crusher}/sensors/{sensor}/readings").c_str());
   STRCMP_EQUAL("/healthz", rest::PathPattern("/healthz").c_str());
-  CHECK((std::vector<std::string>{"crusher", "sensor"}) == rest::PathParams("/api/v1/crushers/{crusher}/sensors/{sensor}/readings"));
+  CHECK((std::vector<std::string>{"crusher", "sensor"}) ==
+        rest::PathParams("/api/v1/crushers/{crusher}/sensors/{sensor}/readings"));
   CHECK(rest::PathParams("/api/v1/rejected").empty());
   CHECK_THROWS(std::invalid_argument, rest::PathPattern("/api/v1/crushers/{crusher"));
   CHECK_THROWS(std::invalid_argument, rest::PathParams("/api/v1/crushers/{crusher"));
@@ -298,7 +301,8 @@ TEST(RestHandlers, EventStreamsAreCountedAndCarryTheCrushersEvents) {
   const char* events = "/api/v1/crushers/{crusher}/events";
   rest::Response first = f.Get(events);
   CHECK(first.stream != nullptr);
-  CHECK(first.headers == (std::vector<std::pair<std::string, std::string>>{{"Cache-Control", "no-cache"}, {"X-Accel-Buffering", "no"}}));
+  CHECK(first.headers ==
+        (std::vector<std::pair<std::string, std::string>>{{"Cache-Control", "no-cache"}, {"X-Accel-Buffering", "no"}}));
   rest::Response refused = f.Get(events);
   LONGS_EQUAL(503, refused.status);
   STRCMP_EQUAL("too many open event streams (1); retry later", ErrorOf(refused).c_str());

@@ -31,7 +31,9 @@ StoredReading R(const std::string& sensor, int64_t seq, int64_t t, double mm) {
 
 TEST_GROUP(Store) {
   lw::test::TempDirectory dir{"lw-store"};
-  std::string db() { return dir.File("db.sqlite"); }
+  std::string db() {
+    return dir.File("db.sqlite");
+  }
 };
 
 TEST(Store, RedeliveryIsStoredOnceAndReportedAsDuplicate) {
@@ -206,7 +208,8 @@ TEST(Store, RejectedRowsAreCappedTruncatedAndEvictedOldestFirst) {
 TEST(Store, TenThousandRejectedReadingsCommitInSeconds) {
   Store s(db());
   std::vector<lw::server::Rejected> batch;
-  for (int i = 0; i < 10000; ++i) batch.push_back({i, "", "{\"n\":" + std::to_string(i) + ",\"pad\":\"" + std::string(6000, 'z') + "\"}", "bad"});
+  for (int i = 0; i < 10000; ++i)
+    batch.push_back({i, "", "{\"n\":" + std::to_string(i) + ",\"pad\":\"" + std::string(6000, 'z') + "\"}", "bad"});
   const auto start = std::chrono::steady_clock::now();
   s.Commit({}, batch);
   s.Commit({}, batch);  // all duplicates: found through the index

@@ -35,7 +35,7 @@ size_t Index(const sim::Campaign& c, const std::string& id) {
 }
 }  // namespace
 
-TEST_GROUP(SimCampaign) {};
+TEST_GROUP(SimCampaign){};
 
 TEST(SimCampaign, SameSeedSameCampaignOtherSeedOtherMap) {
   const auto a = GenerateCampaign(Small(), 7), b = GenerateCampaign(Small(), 7), c = GenerateCampaign(Small(), 8);

@@ -113,7 +113,7 @@ sim::FleetOptions Options(double loss, double dup, uint64_t seed) {
 
 }  // namespace
 
-TEST_GROUP(SimFleet) {};
+TEST_GROUP(SimFleet){};
 
 TEST(SimFleet, BoardsReportTheTruthsLadderMonotonicallyAndEveryReadingReachesTheGateway) {
   const sim::CampaignTruth truth(sim::GenerateCampaign(SmallSpec(6), 4));
@@ -170,10 +170,11 @@ TEST(SimFleet, SameSeedSameRunOtherSeedOtherRadioFate) {
     RunFleet(fleet, gw, 2);
     std::vector<std::string> out;
     for (const auto& e : fleet.ledger()) {
-      out.push_back(e.sensor_id + "/" + std::to_string(e.seq) + "/" + std::to_string(e.time_s) + "/" + std::to_string(e.thickness_mm));
+      out.push_back(e.sensor_id + "/" + std::to_string(e.seq) + "/" + std::to_string(e.time_s) + "/" +
+                    std::to_string(e.thickness_mm));
     }
-    out.push_back(std::to_string(fleet.network_counters().lost) + "/" + std::to_string(fleet.network_counters().duplicated) + "/" +
-                  std::to_string(fleet.counters().frames_to_gateway));
+    out.push_back(std::to_string(fleet.network_counters().lost) + "/" + std::to_string(fleet.network_counters().duplicated) +
+                  "/" + std::to_string(fleet.counters().frames_to_gateway));
     return out;
   };
   const auto a = run(5), b = run(5), c = run(6);
@@ -229,7 +230,8 @@ TEST(SimFleet, MapTruthWearsInProportionToTheMapAndCrusherFoldersChooseTheirTrut
     DOUBLES_EQUAL(cc.thickness_new_mm - 0.94 * (cc.thickness_new_mm - cc.thickness_min_mm),
                   mt->ThicknessMm(static_cast<size_t>(top), 95), 1e-6);
     for (size_t i = 0; i < cc.sensors.size(); ++i) {
-      DOUBLES_EQUAL(intensity[static_cast<Eigen::Index>(i)] / intensity[top], mt->rate_mm_per_day(i) / mt->rate_mm_per_day(static_cast<size_t>(top)), 1e-9);
+      DOUBLES_EQUAL(intensity[static_cast<Eigen::Index>(i)] / intensity[top],
+                    mt->rate_mm_per_day(i) / mt->rate_mm_per_day(static_cast<size_t>(top)), 1e-9);
       CHECK(mt->ThicknessMm(i, 10) <= mt->ThicknessMm(i, 5));
     }
   }

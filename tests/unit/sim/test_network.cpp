@@ -11,7 +11,7 @@ using lw::sim::NetworkParams;
 using lw::sim::Packet;
 using lw::sim::VirtualNetwork;
 
-TEST_GROUP(VirtualNetwork) {};
+TEST_GROUP(VirtualNetwork){};
 
 TEST(VirtualNetwork, LosslessNetworkDeliversEachPacketOnceWithinTheLatencyBand) {
   VirtualNetwork net({.loss = 0, .dup = 0, .latency_s = 0.2, .seed = 3});

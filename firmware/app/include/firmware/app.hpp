@@ -74,7 +74,7 @@ class App {
   uint16_t last_fault_flags_ = 0;
   uint8_t frame_id_ = 0;
   bool dirty_ = false;
-  uint32_t durable_seq_limit_ = 0;  // seqs below this are covered by a saved reservation
+  uint32_t durable_seq_limit_ = 0;    // seqs below this are covered by a saved reservation
   bool retry_record_ = false;         // a change record could not be queued: queue it next wake
   uint32_t dropped_before_boot_ = 0;  // dropped_total saved by earlier boots
   uint32_t jitter_state_;             // xorshift32 state for the retransmission jitter

@@ -8,18 +8,18 @@
 namespace lw::firmware {
 
 struct Config {
-  uint32_t sensor_id = 1001;              ///< reported in every payload; provisioned per board
-  uint8_t ladder_loops = 100;             ///< loops on the ladder (<= protocol::kMaxLadderLoops)
-  uint16_t loop_pitch_dmm = 10;           ///< distance between loops, 0.1 mm (1 mm ladder)
-  uint16_t base_offset_dmm = 0;           ///< liner thickness below loop 0's lower bound, 0.1 mm
-  uint8_t votes_per_poll = 5;             ///< ladder reads per poll, majority vote per loop
-  uint32_t poll_period_s = 900;           ///< wake and read the ladder every 15 min
-  uint32_t heartbeat_period_s = 6 * 3600; ///< send a record at least this often without change
-  uint32_t backoff_min_s = 900;           ///< first retransmission delay
-  uint32_t backoff_max_s = 6 * 3600;      ///< retransmission delay cap
-  uint16_t low_battery_mv = 3300;         ///< below: kFlagLowBattery
-  uint32_t watchdog_timeout_s = 2 * 900 + 60;  ///< longer than the longest sleep
-  uint32_t seq_reserve_block = 64;        ///< seqs reserved in flash per write (never reused)
+  uint32_t sensor_id = 1001;                                 ///< reported in every payload; provisioned per board
+  uint8_t ladder_loops = 100;                                ///< loops on the ladder (<= protocol::kMaxLadderLoops)
+  uint16_t loop_pitch_dmm = 10;                              ///< distance between loops, 0.1 mm (1 mm ladder)
+  uint16_t base_offset_dmm = 0;                              ///< liner thickness below loop 0's lower bound, 0.1 mm
+  uint8_t votes_per_poll = 5;                                ///< ladder reads per poll, majority vote per loop
+  uint32_t poll_period_s = 900;                              ///< wake and read the ladder every 15 min
+  uint32_t heartbeat_period_s = 6 * 3600;                    ///< send a record at least this often without change
+  uint32_t backoff_min_s = 900;                              ///< first retransmission delay
+  uint32_t backoff_max_s = 6 * 3600;                         ///< retransmission delay cap
+  uint16_t low_battery_mv = 3300;                            ///< below: kFlagLowBattery
+  uint32_t watchdog_timeout_s = 2 * 900 + 60;                ///< longer than the longest sleep
+  uint32_t seq_reserve_block = 64;                           ///< seqs reserved in flash per write (never reused)
   protocol::ApiMode api_mode = protocol::ApiMode::kEscaped;  ///< must match the radio's AP
   uint64_t coordinator_address64 = protocol::kCoordinatorAddress64;
 };

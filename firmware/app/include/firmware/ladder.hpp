@@ -16,9 +16,9 @@ inline constexpr uint8_t kMaxVotes = 9;
 
 struct LadderSample {
   uint8_t intact[protocol::kMaxBitmapBytes] = {};  ///< voted bitmap, bit i = loop i intact
-  uint8_t loops_intact = 0;  ///< highest intact loop + 1: loops below the broken run at the wear face
-  uint16_t flags = 0;        ///< protocol::RecordFlag bits: kFlagNonContiguous, kFlagAllOpen, kFlagFlicker, kFlagSpiStuck
-  bool valid = false;        ///< false when the bus was stuck or failed: no thickness from this sample
+  uint8_t loops_intact = 0;                        ///< highest intact loop + 1: loops below the broken run at the wear face
+  uint16_t flags = 0;  ///< protocol::RecordFlag bits: kFlagNonContiguous, kFlagAllOpen, kFlagFlicker, kFlagSpiStuck
+  bool valid = false;  ///< false when the bus was stuck or failed: no thickness from this sample
 };
 
 /// Votes over `votes` raw reads (each `(loops+7)/8 + 1` bytes including the signature byte).

@@ -23,8 +23,8 @@ struct StoredRecord {
 
 struct QueuedRecord {
   StoredRecord record;
-  uint32_t sampled_at_s = 0;   ///< RTC time of the sample (age_s is computed at transmission)
-  uint32_t next_try_s = 0;     ///< not sent again before this time
+  uint32_t sampled_at_s = 0;  ///< RTC time of the sample (age_s is computed at transmission)
+  uint32_t next_try_s = 0;    ///< not sent again before this time
   uint8_t attempts = 0;
   bool heartbeat = false;
   /// The record as transmitted at `now` (age_s = now - sampled_at_s).

@@ -224,8 +224,8 @@ class HostRadio final : public Uart {
 /// nothing until `flash.PowerRestored()` (the test then reboots the App, as the MCU would).
 /// Peripherals refer to each other, so a HostBoard is built in place and never copied or moved.
 struct HostBoard {
-  HostBoard(uint8_t ladder_loops, uint64_t radio_address64, protocol::ApiMode mode,
-            size_t flash_page_size = 256, size_t flash_pages = 2);
+  HostBoard(uint8_t ladder_loops, uint64_t radio_address64, protocol::ApiMode mode, size_t flash_page_size = 256,
+            size_t flash_pages = 2);
   HostBoard(const HostBoard&) = delete;
   HostBoard& operator=(const HostBoard&) = delete;
   HostLadder ladder;
