@@ -318,8 +318,11 @@ nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::
     summary["corr_wear_normal_stress"] = den > 0 ? cov / den : 0.0;
   }
   summary["chamber"] = ToJson(spec);
-  core::WriteFileAtomically(out_dir / MapFiles::kSummary, summary.dump(2) + "\n");
-  return summary;
+  // Text read from the case (the log's version line, attempts.txt's states) need not be UTF-8: replace
+  // what is not, rather than fail the whole map on it (found by fuzz/dem_case).
+  const std::string text = summary.dump(2, ' ', false, nlohmann::json::error_handler_t::replace);
+  core::WriteFileAtomically(out_dir / MapFiles::kSummary, text + "\n");
+  return nlohmann::json::parse(text);  // what was written, so that callers never meet the raw bytes
 }
 
 }  // namespace lw::dem

@@ -1,6 +1,9 @@
 // Campaign specs: JSON in and out, completion with defaults and checks, --effect/--fault/--preset.
 #include "sim/campaign.hpp"
 
+#include <cmath>
+#include <cstdio>
+#include <map>
 #include <set>
 #include <stdexcept>
 
@@ -142,6 +145,56 @@ CampaignSpec CampaignSpec::FromJson(const nlohmann::json& j) {
   return s;
 }
 
+namespace {
+
+/// One parameter of an effect: its name and the closed/open range it must lie in.
+struct ParamRange {
+  const char* key;
+  double lo, hi;
+  bool hi_open;  ///< hi itself refused (a factor that would reach zero wear or a negative rate)
+};
+
+/// Refuses an effect that is unknown, has a parameter the effect does not read, or a value outside
+/// what keeps the wear rate positive and finite (docs/sim.md's table of effects).
+void CheckEffect(const EffectSpec& e, size_t n_sensors, double height_m, double thickness_new_mm) {
+  static const std::map<std::string, std::vector<ParamRange>> kEffects = {
+      {"work_hardening", {{"h", 0, 1, true}, {"tau_days", 1e-3, 1e4, false}}},
+      {"hardness_gradient", {{"c", 0, 1, true}, {"onset_mm", 0, 1e4, false}, {"width_mm", 1e-3, 1e4, false}}},
+      {"squeeze_wear", {{"beta", 0, 10, false}}},
+      {"profile_evolution", {{"p", -5, 5, false}}},
+      {"feed_segregation", {{"amplitude", 0, 1, true}, {"theta_deg", -360, 720, false}}},
+      {"throughput_variation", {{"amplitude", 0, 1, true}}},
+      {"material_loss",
+       {{"depth_mm", 0, thickness_new_mm, false},
+        {"day", 0, 1e4, false},
+        {"radius_m", 1e-3, 10, false},
+        {"sensor_index", 0, static_cast<double>(n_sensors) - 1, false},
+        {"z_m", 0, height_m, false},
+        {"theta_deg", -360, 720, false}}},
+  };
+  const auto it = kEffects.find(e.name);
+  if (it == kEffects.end()) throw std::invalid_argument("unknown effect '" + e.name + "'");
+  for (const auto& [key, value] : e.params) {
+    const ParamRange* r = nullptr;
+    std::string known;
+    for (const ParamRange& p : it->second) {
+      if (key == p.key) r = &p;
+      known += (known.empty() ? "" : ", ") + std::string(p.key);
+    }
+    if (!r) throw std::invalid_argument("effect '" + e.name + "' has no parameter '" + key + "' (it has " + known + ")");
+    const bool ok =
+        value >= r->lo && (r->hi_open ? value < r->hi : value <= r->hi) && (key != "sensor_index" || value == std::floor(value));
+    if (!ok) {
+      char what[160];
+      std::snprintf(what, sizeof what, " = %g is outside [%g, %g%s%s", value, r->lo, r->hi, r->hi_open ? ")" : "]",
+                    key == "sensor_index" ? " or not a whole number" : "");
+      throw std::invalid_argument("effect '" + e.name + "': " + key + what);
+    }
+  }
+}
+
+}  // namespace
+
 void CampaignSpec::Complete() {
   auto require = [](bool ok, const std::string& what) {
     if (!ok) throw std::invalid_argument(what);
@@ -149,11 +202,20 @@ void CampaignSpec::Complete() {
   require(days > 0 && days <= 2000, "days must be in (0, 2000]");
   require(thickness_new_mm > thickness_min_mm && thickness_min_mm >= 0, "thickness_new_mm must exceed thickness_min_mm >= 0");
   require(height_m > 0 && r_bottom_m > 0 && r_top_m > 0, "height_m, r_bottom_m and r_top_m must be positive");
-  require(n_theta >= 8 && n_z >= 6 && n_theta * n_z <= 2000000, "n_theta >= 8, n_z >= 6, n_theta * n_z <= 2e6");
+  require(n_theta >= 8 && n_z >= 6 && static_cast<long long>(n_theta) * n_z <= 2000000,
+          "n_theta >= 8, n_z >= 6, n_theta * n_z <= 2e6");
   require(dem_noise >= 0 && dem_noise < 0.5, "dem_noise must be in [0, 0.5)");
   require(poll_minutes > 0 && heartbeat_hours > 0, "poll_minutes and heartbeat_hours must be positive");
   require(reference_wear_mm > 0 && reference_wear_mm < thickness_new_mm, "reference_wear_mm must be in (0, thickness_new_mm)");
   require(core::ParseIsoTime(installed_at).has_value(), "installed_at '" + installed_at + "' is not an ISO-8601 time");
+  require(poll_minutes >= 1 && heartbeat_hours >= 0.1, "poll_minutes must be >= 1 and heartbeat_hours >= 0.1");
+  require(reference_day > 0 && reference_day <= 2000, "reference_day must be in (0, 2000]");
+  require(throughput_tph > 0 && throughput_tph <= 1e5, "throughput_tph must be in (0, 1e5]");
+  require(ore_ai >= 0 && ore_ai <= 10, "ore_ai must be in [0, 10]");
+  require(scan_noise_mm >= 0 && scan_noise_mm <= 100, "scan_noise_mm must be in [0, 100]");
+  require(scan_points >= 0 && scan_points <= 10000000, "scan_points must be in [0, 1e7]");
+  require(scan_occluded_deg >= 0 && scan_occluded_deg < 360, "scan_occluded_deg must be in [0, 360)");
+  require(scan_day <= days, "scan_day must not be after the last day (days)");
   if (rows.empty()) {
     const double h = height_m / 3.0;
     rows = {{"LDWN", 0.0, h}, {"LMID", h, 2 * h}, {"LUP", 2 * h, height_m}};
@@ -173,18 +235,27 @@ void CampaignSpec::Complete() {
       for (double th : thetas) sensors.push_back({std::to_string(id++), row, centre(row), th});
     }
   }
+  std::set<std::string> row_names;
+  for (const auto& r : rows) {
+    require(row_names.insert(r.name).second, "row '" + r.name + "' is listed twice");
+    require(r.z_min_m < r.z_max_m, "row '" + r.name + "' needs z_min_m < z_max_m");
+  }
   std::set<std::string> ids;
   for (const auto& s : sensors) {
     require(ids.insert(s.id).second, "sensor id '" + s.id + "' is listed twice");
     require(s.z_m >= 0 && s.z_m <= height_m, "sensor '" + s.id + "' z_m is outside the concave");
+    require(row_names.count(s.row) == 1, "sensor '" + s.id + "' names unknown row '" + s.row + "'");
   }
-  static const std::set<std::string> kEffects = {"work_hardening",   "hardness_gradient",    "squeeze_wear", "profile_evolution",
-                                                 "feed_segregation", "throughput_variation", "material_loss"};
-  for (const auto& e : effects) require(kEffects.count(e.name) == 1, "unknown effect '" + e.name + "'");
+  // The generated record: one reading per poll per sensor must stay a file a machine can hold.
+  require(days * 1440.0 / poll_minutes * static_cast<double>(sensors.size()) <= 5e7,
+          "days x sensors / poll_minutes asks for more than 50,000,000 readings");
+  for (const auto& e : effects) CheckEffect(e, sensors.size(), height_m, thickness_new_mm);
   static const std::set<std::string> kFaults = {"dropout", "flicker", "crack", "stuck", "dead"};
   for (const auto& f : faults) {
     require(kFaults.count(f.kind) == 1, "unknown fault kind '" + f.kind + "'");
     require(ids.count(f.sensor) == 1, "fault names unknown sensor '" + f.sensor + "'");
+    require(f.day >= 0 && f.size >= 0 && f.size <= 1000,
+            "fault '" + f.sensor + ":" + f.kind + "' needs day >= 0 and size in [0, 1000]");
   }
 }
 

@@ -1,4 +1,5 @@
 #include <cmath>
+#include <functional>
 #include <cstdlib>
 #include <unistd.h>
 #include <filesystem>
@@ -157,4 +158,74 @@ TEST(SimCampaign, BadSpecsAreRefusedNamingTheField) {
   CHECK_THROWS(std::invalid_argument, sim::ParseFault("1001:stuck:40:inf"));
   DOUBLES_EQUAL(0.3, sim::ParseEffect("feed_segregation:amplitude=0.3").params.at("amplitude"), 0);
   CHECK_THROWS(std::invalid_argument, sim::CampaignSpec::FromJson(nlohmann::json{{"dayz", 3}}));
+}
+
+namespace {
+/// The message of the refusal `Complete()` gives for `s`, or "" when it accepts it.
+std::string Refusal(CampaignSpec s) {
+  try {
+    s.Complete();
+    return "";
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+}
+bool Mentions(const std::string& text, const char* what) {
+  return text.find(what) != std::string::npos;
+}
+}  // namespace
+
+// Found by fuzz/sim_campaign: parameters that turn the wear rate negative (a liner that grows
+// thicker), index past the sensors (out-of-bounds read), or overflow int were accepted.
+TEST(SimCampaign, EffectParametersOutsideTheirPhysicalRangeAreRefused) {
+  CampaignSpec s = Small();
+  s.effects = {{"work_hardening", {{"h", 5.4}}}};
+  CHECK_TEXT(Mentions(Refusal(s), "work_hardening': h = 5.4 is outside [0, 1)"), Refusal(s).c_str());
+  s.effects = {{"work_hardening", {{"h", 0.99}}}};
+  CHECK_EQUAL("", Refusal(s));
+  s.effects = {{"feed_segregation", {{"amplitude", 1.0}}}};
+  CHECK(Mentions(Refusal(s), "amplitude = 1 is outside [0, 1)"));
+  s.effects = {{"material_loss", {{"sensor_index", -1}}}};
+  CHECK(Mentions(Refusal(s), "sensor_index = -1"));
+  s.effects = {{"material_loss", {{"sensor_index", 1.5}}}};
+  CHECK(Mentions(Refusal(s), "not a whole number"));
+  s.effects = {{"squeeze_wear", {{"betta", 0.2}}}};
+  CHECK_TEXT(Mentions(Refusal(s), "has no parameter 'betta' (it has beta)"), Refusal(s).c_str());
+}
+
+TEST(SimCampaign, SpecFieldsOutsideTheirRangeAreRefusedNamingTheField) {
+  const std::vector<std::pair<std::function<void(CampaignSpec&)>, const char*>> cases = {
+      {[](CampaignSpec& s) { s.n_theta = 2000000000, s.n_z = 2000000000; }, "n_theta * n_z"},
+      {[](CampaignSpec& s) { s.poll_minutes = 1e-6; }, "poll_minutes"},
+      {[](CampaignSpec& s) { s.reference_day = 0; }, "reference_day"},
+      {[](CampaignSpec& s) { s.throughput_tph = -1; }, "throughput_tph"},
+      {[](CampaignSpec& s) { s.ore_ai = -0.3; }, "ore_ai"},
+      {[](CampaignSpec& s) { s.scan_noise_mm = -1; }, "scan_noise_mm"},
+      {[](CampaignSpec& s) { s.scan_points = -5; }, "scan_points"},
+      {[](CampaignSpec& s) { s.scan_occluded_deg = 400; }, "scan_occluded_deg"},
+      {[](CampaignSpec& s) { s.scan_day = s.days + 1; }, "scan_day"},
+      {[](CampaignSpec& s) {
+         s.rows = {{"A", 1.0, 0.5}};
+       },
+       "row 'A' needs z_min_m < z_max_m"},
+      {[](CampaignSpec& s) {
+         s.sensors = {{"x", "NOPE", 0.5, 0}};
+       },
+       "unknown row 'NOPE'"},
+      {[](CampaignSpec& s) {
+         s.days = 2000, s.poll_minutes = 1, s.sensors.clear();
+         s.Complete();  // the 10 default sensors
+         const std::vector<sim::SensorSpec> ten = s.sensors;
+         s.sensors.insert(s.sensors.end(), ten.begin(), ten.end());  // 20
+         for (size_t i = 0; i < s.sensors.size(); ++i) s.sensors[i].id = std::to_string(i);
+       },
+       "50,000,000 readings"},
+  };
+  for (const auto& [change, what] : cases) {
+    CampaignSpec s = Small();
+    change(s);
+    const std::string r = Refusal(s);
+    CHECK_TEXT(Mentions(r, what), (std::string(what) + " -> '" + r + "'").c_str());
+  }
+  CHECK_EQUAL("", Refusal(Small()));
 }
