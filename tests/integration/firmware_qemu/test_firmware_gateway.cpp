@@ -70,12 +70,14 @@ TEST(FirmwareToGateway, ReadingsReachMqttAndGatewayAcksReachTheFirmware) {
               "pty", "-serial", "pty"},
              dir.File("qemu.log"));
   std::string radio_path, ladder_path;
-  for (int i = 0; i < 200 && (radio_path.empty() || ladder_path.empty()); ++i) {
+  // QEMU names its ptys once it has started: seconds on a loaded machine.
+  for (int i = 0; i < 1200 && (radio_path.empty() || ladder_path.empty()); ++i) {
     lw::test::FindQemuPtys(lw::test::FileTail(dir.File("qemu.log"), 4000), &radio_path, &ladder_path);
     std::this_thread::sleep_for(std::chrono::milliseconds(25));
   }
   const int fw_radio = lw::test::OpenRawPty(radio_path), ladder = lw::test::OpenRawPty(ladder_path);
-  CHECK_TEXT(fw_radio >= 0 && ladder >= 0, "QEMU ptys not found");
+  CHECK_TEXT(fw_radio >= 0 && ladder >= 0,
+             ("QEMU ptys not found; QEMU log:\n" + lw::test::FileTail(dir.File("qemu.log"))).c_str());
 
   // The coordinator side: a pty whose slave the gateway opens.
   int coord_master = -1, coord_slave = -1;
@@ -128,15 +130,26 @@ TEST(FirmwareToGateway, ReadingsReachMqttAndGatewayAcksReachTheFirmware) {
   // The emulated boot can take many seconds on a loaded machine: wait for the first frame first.
   for (int i = 0; i < 120 && fw_frames == 0; ++i) pump(0.5, nullptr);
   pump(4.0, nullptr);
+  // Each step is held until its reading arrives at the broker (the firmware polls every second;
+  // a starved emulator or gateway can take longer than any fixed window), at most 60 s: a step
+  // that never arrives still fails below.
+  const auto seen_mm = [&](double mm) {
+    for (const auto& [seq, got] : readings)
+      if (got == mm) return true;
+    return false;
+  };
   for (int loops = 83; loops >= 81; --loops) {
     set_ladder(loops);
-    pump(2.5, nullptr);
+    for (int i = 0; i < 240 && !seen_mm(loops); ++i) pump(0.25, nullptr);
   }
   // Quiet period: with every record acked by the gateway, only heartbeats (every 5 s) go out.
   pump(3.0, &fw_frames_late);
 
   const std::string why = "gateway log:\n" + lw::test::FileTail(dir.File("gateway.log"));
-  CHECK_TEXT(fw_frames > 0, "the firmware sent no frame");
+  CHECK_TEXT(fw_frames > 0,
+             ("the firmware sent no frame (radio " + radio_path + ", ladder " + ladder_path +
+              (qemu.Running() ? ", QEMU running" : ", QEMU exited") + "); QEMU log:\n" + lw::test::FileTail(dir.File("qemu.log")))
+                 .c_str());
   CHECK_TEXT(gw_acks > 0, why.c_str());
   CHECK_TEXT(!readings.empty(), why.c_str());
   std::map<double, bool> seen;

@@ -45,7 +45,8 @@ class Qemu {
                LW_FIRMWARE_ELF, "-serial", "pty", "-serial", "pty", static_cast<char*>(nullptr));
       ::_exit(127);
     }
-    for (int i = 0; i < 200 && (radio_path_.empty() || ladder_path_.empty()); ++i) {
+    // QEMU names its ptys once it has started: seconds on a loaded machine.
+    for (int i = 0; i < 1200 && (radio_path_.empty() || ladder_path_.empty()); ++i) {
       std::ifstream in(log_);
       std::stringstream ss;
       ss << in.rdbuf();
@@ -146,11 +147,19 @@ TEST(FirmwareOnQemu, BootsReportsWearAndStopsRetransmittingWhenAcked) {
   CHECK_TEXT(retransmitted, "unacknowledged records must be sent again");
 
   // Wear proceeds: every step is reported, thickness never goes up, acks stop retransmission.
+  // Each step is held until its reading arrives (the firmware polls every second; an emulator
+  // starved by a loaded host can take longer than any fixed window), at most 60 s: a step that
+  // is never reported still fails below.
   std::vector<Received> all;
   for (int loops = 83; loops >= 80; --loops) {
     q.SetLadder(loops);
-    auto got = Listen(q, dec, 2.5, true);
-    all.insert(all.end(), got.begin(), got.end());
+    bool reported = false;
+    for (int i = 0; i < 240 && !reported; ++i) {
+      for (const auto& r : Listen(q, dec, 0.25, true)) {
+        all.push_back(r);
+        reported |= r.record.loops_intact == loops;
+      }
+    }
   }
   std::map<int, bool> seen;
   uint32_t last_seq = 0;
