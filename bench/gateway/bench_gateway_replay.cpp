@@ -15,10 +15,15 @@
 // sent (nothing lost: counted per (sensor, seq)). After it the gateway's stats must show every
 // record spooled and the spool drained by the commit acks.
 //   lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K]
-//   (defaults 20000, 100, 2, 1, 3; the bare run is repeated K times around the gateway runs)
+//                           [--gateway-bin PATH]
+//   (defaults 20000, 100, 2, 1, 3, the linerwatch-gateway of this build; the bare run is repeated K
+//   times around the gateway runs). Besides the rates it prints the CPU time of each party of the
+//   gateway run (the gateway, mosquitto, and this process's server-playing MQTT client), so that
+//   it shows which one the run waited for.
 #include <fcntl.h>
 #include <poll.h>
 #include <spawn.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -33,6 +38,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <ctime>
 #include <vector>
 
 #include <mqtt/async_client.h>
@@ -65,6 +71,7 @@ struct Options {
   int window = 1;
   int reps = 3;
   bool nodelay = true;  ///< the broker's set_tcp_nodelay (as packaging/mosquitto/*.conf set it)
+  std::string gateway_bin = LW_GATEWAY_BIN;
 };
 
 uint32_t SensorId(uint32_t s) {
@@ -178,6 +185,9 @@ class FakeServer {
     }
   }
   size_t distinct() const { return distinct_.load(); }
+  /// CPU seconds of the thread that takes the readings and publishes the acks (Paho's own
+  /// threads are in the process's total).
+  double thread_cpu_s() const { return thread_cpu_s_.load(); }
   size_t messages() const { return messages_.load(); }
   bool online() const { return online_.load(); }
   json last_stats() {
@@ -205,6 +215,9 @@ class FakeServer {
         client_.publish(std::string(kRoot) + "sensors/" + sensor + "/committed", ack.dump(), 1, false);
       }
       pending.clear();
+      timespec ts{};
+      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+      thread_cpu_s_ = static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) / 1e9;
     }
   }
   void Handle(const mqtt::message& msg, std::map<std::string, std::vector<uint32_t>>* pending) {
@@ -232,16 +245,20 @@ class FakeServer {
   std::atomic<bool> stop_{false};
   std::atomic<size_t> distinct_{0}, messages_{0};
   std::atomic<bool> online_{false};
+  std::atomic<double> thread_cpu_s_{0};
   std::mutex mutex_;
   std::set<std::pair<uint32_t, uint32_t>> seen_;
   json stats_;
 };
 
 struct GatewayResult {
-  double seconds = 0;        ///< first byte to every record acked on the radio and seen on MQTT
-  double drain_seconds = 0;  ///< to the stats showing the spool empty
-  double acked_seconds = 0;  ///< to the last radio ack (every record spooled)
-  double gateway_cpu_s = 0;  ///< the gateway process's user + system CPU over the whole run
+  double seconds = 0;              ///< first byte to every record acked on the radio and seen on MQTT
+  double drain_seconds = 0;        ///< to the stats showing the spool empty
+  double acked_seconds = 0;        ///< to the last radio ack (every record spooled)
+  double gateway_cpu_s = 0;        ///< the gateway process's user + system CPU over the whole run
+  double broker_cpu_s = 0;         ///< mosquitto's, over the whole run
+  double bench_cpu_s = 0;          ///< this process's (server-playing client with Paho's threads, radio side)
+  double server_thread_cpu_s = 0;  ///< of that, the server-playing thread's
   size_t radio_acked = 0, published = 0, messages = 0, spooled = 0;
   bool complete = false;
   std::string failure;
@@ -249,8 +266,15 @@ struct GatewayResult {
 
 double CpuSeconds(pid_t pid);
 
+double SelfCpuSeconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+         static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec) / 1e6;
+}
+
 /// (b) The same bytes through `cat` into the pty, the real gateway on the other side.
-GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total_records, const std::string& gateway_bin) {
+GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total_records) {
   GatewayResult out;
   lw::test::MosquittoFixture::Options bo;
   if (o.nodelay) bo.extra_config = "set_tcp_nodelay true\n";
@@ -261,7 +285,7 @@ GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total
   FakeServer server(broker.uri());
   lw::test::ChildProcess gateway;
   const std::string log = dir.File("gateway.log");
-  gateway.Start({gateway_bin,
+  gateway.Start({o.gateway_bin,
                  "--serial",
                  pty.slave_name(),
                  "--baud",
@@ -294,6 +318,7 @@ GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total
   std::set<std::pair<uint32_t, uint32_t>> acked;
   pr::FrameDecoder decoder(pr::ApiMode::kEscaped);
   std::vector<uint8_t> buf(1 << 16);
+  const double self_cpu0 = SelfCpuSeconds(), broker_cpu0 = CpuSeconds(broker.pid()), server_cpu0 = server.thread_cpu_s();
   const auto t0 = Clock::now();
   const pid_t cat = SpawnCat(file, pty.master());
   bool cat_done = false;
@@ -350,6 +375,9 @@ GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total
     for (uint32_t q = 1; q <= frames_of_s * o.per_frame; ++q) expected.insert({SensorId(s), q});
   }
   out.gateway_cpu_s = CpuSeconds(gateway.pid());
+  out.broker_cpu_s = CpuSeconds(broker.pid()) - broker_cpu0;
+  out.bench_cpu_s = SelfCpuSeconds() - self_cpu0;
+  out.server_thread_cpu_s = server.thread_cpu_s() - server_cpu0;
   out.complete = out.failure.empty() && acked == expected && server.seen() == expected && out.spooled == total_records;
   gateway.Stop(SIGTERM);
   return out;
@@ -381,7 +409,9 @@ int main(int argc, char** argv) {
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
     const long v = std::atol(argv[i + 1]);
-    if (a == "--frames" && v > 0)
+    if (a == "--gateway-bin")
+      o.gateway_bin = argv[i + 1];
+    else if (a == "--frames" && v > 0)
       o.frames = static_cast<size_t>(v);
     else if (a == "--sensors" && v > 0)
       o.sensors = static_cast<uint32_t>(v);
@@ -394,15 +424,16 @@ int main(int argc, char** argv) {
     else if (a == "--broker-nodelay" && (v == 0 || v == 1))
       o.nodelay = v == 1;
     else {
-      std::fprintf(
-          stderr,
-          "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K]\n");
+      std::fprintf(stderr,
+                   "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K] "
+                   "[--gateway-bin PATH]\n");
       return 2;
     }
   }
   if (argc % 2 == 0) {
     std::fprintf(stderr,
-                 "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K]\n");
+                 "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K] "
+                 "[--gateway-bin PATH]\n");
     return 2;
   }
   try {
@@ -412,22 +443,28 @@ int main(int argc, char** argv) {
     const std::string bytes = MakeFrames(o, file, &records);
     std::printf("replay: %zu frames (%zu records, %u sensors, %zu per frame), %.2f MB, API mode 2\n", o.frames, records,
                 o.sensors, o.per_frame, bytes.size() / 1e6);
-    std::vector<double> bare, gw, drain, cpu, intake;
+    std::printf("gateway: %s\n", o.gateway_bin.c_str());
+    std::vector<double> bare, gw, drain, cpu, intake, broker_cpu, bench_cpu, server_cpu;
     bool all_complete = true;
     for (int r = 0; r < o.reps; ++r) {
       bare.push_back(BareRun(file, bytes.size()));
-      const GatewayResult g = GatewayRun(o, file, records, LW_GATEWAY_BIN);
+      const GatewayResult g = GatewayRun(o, file, records);
       gw.push_back(g.seconds);
       drain.push_back(g.drain_seconds);
       cpu.push_back(g.gateway_cpu_s);
       intake.push_back(g.acked_seconds);
+      broker_cpu.push_back(g.broker_cpu_s);
+      bench_cpu.push_back(g.bench_cpu_s);
+      server_cpu.push_back(g.server_thread_cpu_s);
       all_complete = all_complete && g.complete;
       std::printf(
           "  rep %d: cat -> pty -> reader %.3f s; cat -> pty -> gateway -> spool + mosquitto %.3f s (all acked on the radio at "
           "%.3f s, drained %.3f s): "
-          "radio acked %zu, published %zu distinct (%zu messages), spooled %zu; gateway CPU %.2f s%s%s\n",
+          "radio acked %zu, published %zu distinct (%zu messages), spooled %zu; CPU: gateway %.2f s, mosquitto %.2f s, "
+          "bench %.2f s (server-playing thread %.2f s)%s%s\n",
           r + 1, bare.back(), g.seconds, g.acked_seconds, g.drain_seconds, g.radio_acked, g.published, g.messages, g.spooled,
-          g.gateway_cpu_s, g.complete ? ", complete" : ", INCOMPLETE ", g.failure.c_str());
+          g.gateway_cpu_s, g.broker_cpu_s, g.bench_cpu_s, g.server_thread_cpu_s, g.complete ? ", complete" : ", INCOMPLETE ",
+          g.failure.c_str());
     }
     bare.push_back(BareRun(file, bytes.size()));
     const double b = Median(bare), g = Median(gw);
@@ -439,6 +476,11 @@ int main(int argc, char** argv) {
     std::printf("gateway, spool drained by commit acks: median %.3f s\n", Median(drain));
     std::printf("gateway CPU (user + system)     median %.2f s: %.0f frames per CPU-second (the capacity on an idle core)\n",
                 Median(cpu), o.frames / Median(cpu));
+    std::printf("mosquitto CPU                   median %.2f s\n", Median(broker_cpu));
+    std::printf(
+        "bench CPU (server-playing client, Paho threads, radio side)  median %.2f s (server-playing thread %.2f s, "
+        "%.0f %% of the end-to-end time)\n",
+        Median(bench_cpu), Median(server_cpu), 100 * Median(server_cpu) / g);
     std::printf("ratio gateway / bare frames/s   %.3f\n", b / g);
     std::printf("nothing lost (every record acked on the radio, published, spooled): %s\n", all_complete ? "yes" : "NO");
     return all_complete ? 0 : 1;

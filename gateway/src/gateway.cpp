@@ -13,6 +13,8 @@ namespace lw::gateway {
 namespace {
 
 constexpr size_t kMaxRecordsPerMessage = 8;
+/// Released records waiting for their deletion at most (then deleted at once).
+constexpr size_t kMaxPendingReleases = 1000;
 
 std::string FrameTypeHex(uint8_t type) {
   char buf[8];
@@ -31,6 +33,24 @@ Gateway::Gateway(GatewayOptions options, Spool& spool, mqtt::Publisher& publishe
       topics_(options_.site, options_.crusher) {
   if (options_.window == 0) options_.window = 1;
   for (const DeviceEntry& d : spool_.Devices()) known_devices_.insert(d.address + "/" + d.sensor);
+}
+
+Gateway::~Gateway() {
+  FlushReleases();
+}
+
+void Gateway::FlushReleases() {
+  if (pending_release_.empty()) return;
+  try {
+    spool_.Confirm(pending_release_);
+  } catch (const std::exception& e) {
+    // Kept in the spool: read again with every head and published again, acked again.
+    ++counters_.spool_errors;
+    records_dirty_ = true;
+    LogLimited("spool_error", std::string("spool: deleting committed records failed (kept, will be republished): ") + e.what());
+  }
+  pending_release_.clear();
+  pending_release_count_ = 0;
 }
 
 void Gateway::Log(const std::string& line) const {
@@ -188,7 +208,10 @@ void Gateway::FlushReadings() {
   std::vector<InsertOutcome> outcomes;
   const uint64_t evicted_before = spool_.evicted();
   try {
-    outcomes = spool_.Insert(batch);
+    // The records released since the last deletion go in the same transaction (one fsync).
+    outcomes = spool_.Insert(batch, pending_release_);
+    pending_release_.clear();
+    pending_release_count_ = 0;
     // A full spool evicted the oldest heartbeat, maybe another sensor's head: look at every head.
     if (spool_.evicted() != evicted_before) records_dirty_ = true;
   } catch (const std::exception& e) {
@@ -346,29 +369,31 @@ void Gateway::OnMessages(const std::vector<std::pair<std::string_view, std::stri
     }
   }
   if (release.empty()) return;
-  std::vector<int64_t> received;
-  try {
-    received = spool_.Confirm(release);
-  } catch (const std::exception& e) {
-    ++counters_.spool_errors;
-    LogLimited("spool_error", std::string("spool: confirm failed (records kept, will be republished): ") + e.what());
-    return;
-  }
+  // Released at once: each sensor's next record is published at the next Pump. The deletions
+  // wait for the next spooled batch or release_delay_ms (FlushReleases), so that a hundred
+  // sensors' acks cost one transaction, not a hundred.
+  if (pending_release_count_ == 0) pending_release_since_ms_ = now_ms;
   for (const auto& [sensor, seqs] : release) {
     auto it = in_flight_.find(sensor);
     if (it == in_flight_.end()) continue;
-    for (uint32_t seq : seqs) it->second.erase(seq);
+    std::vector<uint32_t>& pending = pending_release_[sensor];
+    for (uint32_t seq : seqs) {
+      const auto flight = it->second.find(seq);
+      if (flight == it->second.end()) continue;  // named twice
+      pending.push_back(seq);
+      ++pending_release_count_;
+      const int64_t latency = std::max<int64_t>(0, now_ms - flight->second.received_ms);
+      ++counters_.committed;
+      counters_.latency_last_ms = latency;
+      counters_.latency_max_ms = std::max(counters_.latency_max_ms, latency);
+      counters_.latency_sum_ms += latency;
+      it->second.erase(flight);
+    }
     if (it->second.empty()) in_flight_.erase(it);
     dirty_sensors_.insert(sensor);
   }
-  if (!received.empty()) last_progress_ms_ = now_ms;
-  for (int64_t r : received) {
-    const int64_t latency = std::max<int64_t>(0, now_ms - r);
-    ++counters_.committed;
-    counters_.latency_last_ms = latency;
-    counters_.latency_max_ms = std::max(counters_.latency_max_ms, latency);
-    counters_.latency_sum_ms += latency;
-  }
+  last_progress_ms_ = now_ms;
+  if (pending_release_count_ >= kMaxPendingReleases) FlushReleases();
 }
 
 size_t Gateway::in_flight() const {
@@ -381,6 +406,10 @@ void Gateway::Pump(int64_t now_ms) {
   // The wall clock may step back (NTP on a box without RTC): never wait longer than one period.
   next_republish_check_ms_ = std::min(next_republish_check_ms_, now_ms + options_.republish_after_ms);
   next_stats_ms_ = std::min(next_stats_ms_, now_ms + options_.stats_interval_ms);
+  if (pending_release_count_ > 0 &&
+      (now_ms - pending_release_since_ms_ >= options_.release_delay_ms || now_ms < pending_release_since_ms_)) {
+    FlushReleases();
+  }
   if (publisher_.IsConnected()) {
     // Readings first: a registry of many radios must not delay them.
     if (records_dirty_ || !dirty_sensors_.empty() || now_ms >= next_republish_check_ms_) PublishRecords(now_ms);
@@ -393,7 +422,7 @@ void Gateway::Pump(int64_t now_ms) {
 }
 
 bool Gateway::LinkStalled(int64_t now_ms) const {
-  return publisher_.IsConnected() && spool_.depth() > 0 && now_ms - last_progress_ms_ > 3 * options_.republish_after_ms;
+  return publisher_.IsConnected() && spool_depth() > 0 && now_ms - last_progress_ms_ > 3 * options_.republish_after_ms;
 }
 
 void Gateway::OnLinkReset(int64_t now_ms) {
@@ -430,9 +459,22 @@ void Gateway::PublishRecords(int64_t now_ms) {
   // only the sensors whose queue head changed (a record spooled or confirmed): at a hundred
   // sensors, reading every head on each commit ack cost more than the rest of the round trip.
   const bool all = records_dirty_ || now_ms >= next_republish_check_ms_;
+  // Reading every head: the released records are deleted first. Else a sensor's released records
+  // (still in the spool) are read past: its next `window` records follow them.
+  if (all) FlushReleases();
   std::vector<SpoolRecord> heads;
   try {
-    heads = all ? spool_.Heads(options_.window) : spool_.Heads(options_.window, dirty_sensors_);
+    if (all) {
+      heads = spool_.Heads(options_.window);
+    } else {
+      std::map<std::string, size_t> limits;
+      for (const std::string& sensor : dirty_sensors_) {
+        const auto pending = pending_release_.find(sensor);
+        limits.emplace_hint(limits.end(), sensor,
+                            options_.window + (pending == pending_release_.end() ? 0 : pending->second.size()));
+      }
+      heads = spool_.Heads(limits);
+    }
   } catch (const std::exception& e) {
     ++counters_.spool_errors;
     LogLimited("spool_error", std::string("spool: reading records: ") + e.what());
@@ -442,16 +484,23 @@ void Gateway::PublishRecords(int64_t now_ms) {
   dirty_sensors_.clear();
   records_dirty_ = false;
   // Forget in-flight entries that are no longer at the head (committed or evicted).
-  std::map<std::string, std::map<uint32_t, int64_t>> kept;
+  std::map<std::string, std::map<uint32_t, InFlight>> kept;
   int64_t next_due = now_ms + options_.republish_after_ms;
   bool all_sent = true;
   for (const SpoolRecord& r : heads) {
+    if (!all) {
+      const auto pending = pending_release_.find(r.sensor);
+      if (pending != pending_release_.end() &&
+          std::find(pending->second.begin(), pending->second.end(), r.seq) != pending->second.end()) {
+        continue;  // committed, not deleted yet
+      }
+    }
     auto& sensor_flight = in_flight_[r.sensor];
     auto found = sensor_flight.find(r.seq);
     const bool first = found == sensor_flight.end();
-    if (!first && found->second <= now_ms && now_ms - found->second < options_.republish_after_ms) {
+    if (!first && found->second.published_ms <= now_ms && now_ms - found->second.published_ms < options_.republish_after_ms) {
       kept[r.sensor][r.seq] = found->second;
-      next_due = std::min(next_due, found->second + options_.republish_after_ms);
+      next_due = std::min(next_due, found->second.published_ms + options_.republish_after_ms);
       continue;
     }
     if (!publisher_.Publish({topics_.Reading(r.sensor), r.payload, 1, false})) {
@@ -466,7 +515,7 @@ void Gateway::PublishRecords(int64_t now_ms) {
       ++counters_.republished;
     }
     last_progress_ms_ = now_ms;
-    kept[r.sensor][r.seq] = now_ms;
+    kept[r.sensor][r.seq] = {now_ms, r.received_ms};
   }
   if (all) {
     in_flight_ = std::move(kept);
@@ -514,7 +563,7 @@ std::string Gateway::StatsJson(int64_t now_ms) const {
       {"ack_write_errors", counters_.ack_write_errors},
       {"tx_failures", counters_.tx_failures},
       {"spool_errors", counters_.spool_errors},
-      {"spool_depth", spool_.depth()},
+      {"spool_depth", spool_depth()},
       {"spool_max_records", spool_.max_records()},
       {"in_flight", in_flight()},
       {"published", counters_.published},

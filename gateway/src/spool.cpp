@@ -17,7 +17,39 @@ using Transaction = core::sqlite::Transaction<SpoolError>;
 
 struct Spool::Db {
   core::sqlite::Database<SpoolError> database;
+  // Statements of the hot paths, prepared once (created after the schema, see the constructor):
+  // preparing them on every call cost about as much as running them.
+  std::unique_ptr<Stmt> exists, insert, evict, del, head, sync_normal, sync_full;
   explicit Db(const std::string& path) : database(path, "spool") {}
+  void Prepare() {
+    exists = std::make_unique<Stmt>(database, "SELECT 1 FROM records WHERE sensor = ?1 AND seq = ?2");
+    insert = std::make_unique<Stmt>(
+        database, "INSERT INTO records(sensor, seq, received_ms, heartbeat, payload) VALUES (?1, ?2, ?3, ?4, ?5)");
+    evict = std::make_unique<Stmt>(
+        database, "DELETE FROM records WHERE id = (SELECT id FROM records WHERE heartbeat = 1 ORDER BY id LIMIT 1)");
+    del = std::make_unique<Stmt>(database, "DELETE FROM records WHERE sensor = ?1 AND seq = ?2 RETURNING received_ms");
+    head = std::make_unique<Stmt>(
+        database, "SELECT seq, received_ms, heartbeat, payload FROM records WHERE sensor = ?1 ORDER BY seq LIMIT ?2");
+    sync_normal = std::make_unique<Stmt>(database, "PRAGMA synchronous=NORMAL");
+    sync_full = std::make_unique<Stmt>(database, "PRAGMA synchronous=FULL");
+  }
+  /// A statement ready to bind: reset (also after a step that threw).
+  static Stmt& Fresh(const std::unique_ptr<Stmt>& s) {
+    s->Reset();
+    return *s;
+  }
+  /// Deletes the (sensor, seq) pairs inside the caller's transaction; appends the received_ms of
+  /// each record deleted.
+  void Delete(const std::map<std::string, std::vector<uint32_t>>& seqs_of, std::vector<int64_t>* received) {
+    Stmt& d = Fresh(del);
+    for (const auto& [sensor, seqs] : seqs_of) {
+      for (uint32_t seq : seqs) {
+        d.Bind(1, sensor).Bind(2, static_cast<int64_t>(seq));
+        while (d.Step()) received->push_back(d.Int(0));
+        d.Reset();
+      }
+    }
+  }
 };
 
 Spool::Spool(const std::string& path, size_t max_records)
@@ -39,20 +71,29 @@ Spool::Spool(const std::string& path, size_t max_records)
       " PRIMARY KEY(address, sensor));");
   Stmt count(db_->database, "SELECT COUNT(*) FROM records");
   if (count.Step()) depth_ = static_cast<size_t>(count.Int(0));
+  db_->Prepare();
 }
 
 Spool::~Spool() = default;
 
 std::vector<InsertOutcome> Spool::Insert(const std::vector<SpoolRecord>& records) {
+  return Insert(records, {});
+}
+
+std::vector<InsertOutcome> Spool::Insert(const std::vector<SpoolRecord>& records,
+                                         const std::map<std::string, std::vector<uint32_t>>& release) {
   std::vector<InsertOutcome> out;
   out.reserve(records.size());
-  const auto& db = db_->database;
-  Transaction tx(db);
-  Stmt exists(db, "SELECT 1 FROM records WHERE sensor = ?1 AND seq = ?2");
-  Stmt insert(db, "INSERT INTO records(sensor, seq, received_ms, heartbeat, payload) VALUES (?1, ?2, ?3, ?4, ?5)");
-  Stmt evict(db, "DELETE FROM records WHERE id = (SELECT id FROM records WHERE heartbeat = 1 ORDER BY id LIMIT 1)");
-  size_t depth = depth_;
+  Db& db = *db_;
+  Transaction tx(db.database);
+  // The released records go first: the full-spool policy below sees the room they make.
+  std::vector<int64_t> released;
+  db.Delete(release, &released);
+  size_t depth = depth_ - std::min(depth_, released.size());
   uint64_t evicted = 0;
+  Stmt& exists = Db::Fresh(db.exists);
+  Stmt& insert = Db::Fresh(db.insert);
+  Stmt& evict = Db::Fresh(db.evict);
   for (const SpoolRecord& r : records) {
     exists.Bind(1, r.sensor).Bind(2, static_cast<int64_t>(r.seq));
     const bool duplicate = exists.Step();
@@ -64,7 +105,7 @@ std::vector<InsertOutcome> Spool::Insert(const std::vector<SpoolRecord>& records
     if (depth >= max_records_) {
       evict.Step();
       evict.Reset();
-      if (sqlite3_changes(db.get()) == 0) {
+      if (sqlite3_changes(db.database.get()) == 0) {
         out.push_back(InsertOutcome::kRejectedFull);
         continue;
       }
@@ -96,25 +137,24 @@ std::vector<int64_t> Spool::Confirm(const std::map<std::string, std::vector<uint
   size_t any = 0;
   for (const auto& [sensor, seqs] : seqs_of) any += seqs.size();
   if (any == 0) return received;
-  const auto& db = db_->database;
+  Db& db = *db_;
   // A deletion need not wait for the disk: were it lost with the power, the record would only be
   // published again and the server, which stores by (sensor, seq), would ack it again. The next
   // insert's fsync (synchronous=FULL) makes it durable with the WAL frames before it. Without
   // this, every commit ack cost an fsync: 100 sensors at --window 1 made ~180 records/s.
-  db.Exec("PRAGMA synchronous=NORMAL");
+  Db::Fresh(db.sync_normal).Step();
   struct FullAgain {
-    const core::sqlite::Database<SpoolError>& db;
-    ~FullAgain() { sqlite3_exec(db.get(), "PRAGMA synchronous=FULL", nullptr, nullptr, nullptr); }
-  } full_again{db};
-  Transaction tx(db);
-  Stmt del(db, "DELETE FROM records WHERE sensor = ?1 AND seq = ?2 RETURNING received_ms");
-  for (const auto& [sensor, seqs] : seqs_of) {
-    for (uint32_t seq : seqs) {
-      del.Bind(1, sensor).Bind(2, static_cast<int64_t>(seq));
-      while (del.Step()) received.push_back(del.Int(0));
-      del.Reset();
+    Db& db;
+    ~FullAgain() {
+      try {
+        Db::Fresh(db.sync_full).Step();
+      } catch (const SpoolError&) {
+        sqlite3_exec(db.database.get(), "PRAGMA synchronous=FULL", nullptr, nullptr, nullptr);
+      }
     }
-  }
+  } full_again{db};
+  Transaction tx(db.database);
+  db.Delete(seqs_of, &received);
   tx.Commit();
   depth_ -= std::min(depth_, received.size());
   return received;
@@ -135,10 +175,16 @@ std::vector<SpoolRecord> Spool::Heads(size_t per_sensor) const {
 }
 
 std::vector<SpoolRecord> Spool::Heads(size_t per_sensor, const std::set<std::string>& sensors) const {
+  std::map<std::string, size_t> limits;
+  for (const std::string& sensor : sensors) limits.emplace_hint(limits.end(), sensor, per_sensor);
+  return Heads(limits);
+}
+
+std::vector<SpoolRecord> Spool::Heads(const std::map<std::string, size_t>& per_sensor) const {
   std::vector<SpoolRecord> out;
-  Stmt head(db_->database, "SELECT seq, received_ms, heartbeat, payload FROM records WHERE sensor = ?1 ORDER BY seq LIMIT ?2");
-  for (const std::string& sensor : sensors) {
-    head.Bind(1, sensor).Bind(2, static_cast<int64_t>(per_sensor));
+  Stmt& head = Db::Fresh(db_->head);
+  for (const auto& [sensor, limit] : per_sensor) {
+    head.Bind(1, sensor).Bind(2, static_cast<int64_t>(limit));
     while (head.Step()) {
       SpoolRecord r;
       r.sensor = sensor;

@@ -3,6 +3,7 @@
 /// a ByteSink, records into the Spool, messages out through an mqtt::Publisher, commit acks in. The caller
 /// (main) owns the threads: every method is called from one thread, with the current Unix time in
 /// ms passed in so tests control time.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -36,6 +37,11 @@ struct GatewayOptions {
   int64_t republish_after_ms = 30'000;
   /// Period of `gateway/stats` (0: never).
   int64_t stats_interval_ms = 60'000;
+  /// Records released by commit acks are deleted from the spool together: at the latest this long
+  /// after the first of them, with the next spooled batch (same transaction), before the spool is
+  /// read in full, or when the Gateway is destroyed. The sensor's next record is published at once
+  /// either way; a deletion lost with a crash only publishes the record again.
+  int64_t release_delay_ms = 50;
   /// Time (Unix ms) that stamps received records (`time` = it - age_s, `received`) and new
   /// devices, given the loop's `now_ms`; unset: `now_ms`. Set from --clock-file when a simulator
   /// runs virtual time; spool bookkeeping and every timer keep `now_ms`. Called synchronously from
@@ -77,6 +83,10 @@ struct GatewayCounters {
 class Gateway {
  public:
   Gateway(GatewayOptions options, Spool& spool, mqtt::Publisher& publisher, ByteSink& radio);
+  /// Deletes the records released by commit acks that are not deleted yet.
+  ~Gateway();
+  Gateway(const Gateway&) = delete;
+  Gateway& operator=(const Gateway&) = delete;
 
   /// Bytes read from the coordinator's serial port.
   void OnBytes(const uint8_t* data, size_t len, int64_t now_ms);
@@ -110,7 +120,8 @@ class Gateway {
 
   const GatewayCounters& counters() const { return counters_; }
   const protocol::DecoderCounters& decoder_counters() const { return decoder_.counters(); }
-  size_t spool_depth() const { return spool_.depth(); }
+  /// Records waiting for a commit ack (spooled, not released by one).
+  size_t spool_depth() const { return spool_.depth() - std::min(spool_.depth(), pending_release_count_); }
   size_t in_flight() const;
 
  private:
@@ -120,6 +131,8 @@ class Gateway {
   /// one (fsynced) transaction, then each frame is acked to its sensor; nothing is acked before
   /// it is on disk.
   void FlushReadings();
+  /// Deletes the records released by commit acks (pending_release_) in one transaction.
+  void FlushReleases();
   void SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, const std::vector<uint32_t>& seqs);
   void NoteDevice(const DeviceEntry& device);
   void PublishRecords(int64_t now_ms);
@@ -136,8 +149,17 @@ class Gateway {
   protocol::FrameDecoder decoder_;
   mqtt::Topics topics_;
   GatewayCounters counters_;
-  // Records published and awaiting a commit ack: sensor -> seq -> time of the last publication.
-  std::map<std::string, std::map<uint32_t, int64_t>> in_flight_;
+  // Records published and awaiting a commit ack: sensor -> seq -> when.
+  struct InFlight {
+    int64_t published_ms = 0;  ///< the last publication
+    int64_t received_ms = 0;   ///< arrival at the gateway (latency)
+  };
+  std::map<std::string, std::map<uint32_t, InFlight>> in_flight_;
+  // Records released by commit acks, not deleted from the spool yet (FlushReleases): sensor ->
+  // seqs. Never published again meanwhile (PublishRecords skips them).
+  std::map<std::string, std::vector<uint32_t>> pending_release_;
+  size_t pending_release_count_ = 0;
+  int64_t pending_release_since_ms_ = 0;
   std::set<std::string> known_devices_;  // "address/sensor" already in the registry
   std::map<std::string, uint64_t> log_counts_;
   bool records_dirty_ = true;            // every sensor's queue head must be looked at

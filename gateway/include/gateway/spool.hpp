@@ -58,6 +58,11 @@ class Spool {
   /// evicted()); when there is none, the new record is rejected. Returns one outcome per record.
   /// Throws SpoolError (nothing of the batch is stored then).
   std::vector<InsertOutcome> Insert(const std::vector<SpoolRecord>& records);
+  /// The same, and in the same transaction (before the records, so that the full-spool policy
+  /// sees the room they make) deletes the `release` pairs as Confirm does: released records
+  /// become durable with the batch's fsync. Throws SpoolError (nothing deleted or stored then).
+  std::vector<InsertOutcome> Insert(const std::vector<SpoolRecord>& records,
+                                    const std::map<std::string, std::vector<uint32_t>>& release);
 
   /// Deletes the confirmed (sensor, seq) pairs; returns the received_ms of each record actually
   /// deleted (unknown pairs are ignored). Throws SpoolError.
@@ -69,6 +74,8 @@ class Spool {
   std::vector<SpoolRecord> Heads(size_t per_sensor) const;
   /// The same for the named sensors only (one index seek each).
   std::vector<SpoolRecord> Heads(size_t per_sensor, const std::set<std::string>& sensors) const;
+  /// The same with a number of records of its own for each named sensor.
+  std::vector<SpoolRecord> Heads(const std::map<std::string, size_t>& per_sensor) const;
 
   size_t depth() const { return depth_; }
   size_t max_records() const { return max_records_; }

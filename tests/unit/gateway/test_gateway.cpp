@@ -527,3 +527,90 @@ TEST(Gateway, RegistryMessagesRefusedByAFullClientBufferGoOutLaterOnceEach) {
   for (const auto& m : publisher.sent) messages += m.topic.find("/gateway/devices/") != std::string::npos ? 1 : 0;
   LONGS_EQUAL(5, messages);
 }
+
+// Issue 16 (replay throughput): a commit ack releases its record at once (the sensor's next one
+// goes out on the next Pump), while the deletions of many acks are made together, within
+// release_delay_ms (default 50 ms): a hundred sensors' acks cost one spool transaction.
+TEST(Gateway, CommittedRecordsAreDeletedTogetherWithinTheReleaseDelay) {
+  const auto depth_on_disk = [&] { return gw::Spool(dir.File("spool.db"), 1000).depth(); };
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1), MakeRecord(2)}));
+  Feed(ReadingsFrame(kMode, kAddrB, 2002, {MakeRecord(10), MakeRecord(11)}));
+  gateway->Pump(now);
+  gateway->OnMessage(Committed(1001), AckJson({1}), now + 1);
+  gateway->OnMessage(Committed(2002), AckJson({10}), now + 2);
+  gateway->Pump(now + 2);
+  CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2}));
+  CHECK(PublishedSeqs(2002) == (std::vector<uint32_t>{10, 11}));
+  LONGS_EQUAL(2, gateway->spool_depth());  // waiting for a commit ack
+  LONGS_EQUAL(2, gateway->counters().committed);
+  LONGS_EQUAL(4, depth_on_disk());  // not deleted yet
+  gateway->Pump(now + 50);
+  LONGS_EQUAL(4, depth_on_disk());
+  gateway->Pump(now + 51);
+  LONGS_EQUAL(2, depth_on_disk());  // both deleted, 50 ms after the first ack
+  LONGS_EQUAL(2, gateway->spool_depth());
+  // The released records are not read again: nothing is republished, the next acks go on.
+  gateway->OnMessage(Committed(1001), AckJson({2}), now + 60);
+  gateway->Pump(now + 60);
+  CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2}));
+  LONGS_EQUAL(1, gateway->spool_depth());
+  LONGS_EQUAL(0, gateway->counters().republished);
+}
+
+// Records released by commit acks are deleted in the transaction of the next spooled batch: when
+// the new record is acked on the radio, the released one is already gone from the file.
+TEST(Gateway, ReleasedRecordsAreDeletedWithTheNextSpooledBatch) {
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));
+  gateway->Pump(now);
+  gateway->OnMessage(Committed(1001), AckJson({1}), now);
+  std::vector<size_t> depth_seen_at_ack;
+  radio.on_write = [&] { depth_seen_at_ack.push_back(gw::Spool(dir.File("spool.db"), 1000).depth()); };
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(2)}));
+  CHECK(depth_seen_at_ack == std::vector<size_t>{1});  // seq 2 stored, seq 1 deleted
+  LONGS_EQUAL(1, gateway->spool_depth());
+  gateway->Pump(now + 1);
+  CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2}));
+}
+
+// A full spool counts the released records as room: deleted before the new record is stored.
+TEST(Gateway, ReleasedRecordsMakeRoomInAFullSpool) {
+  Start(1);
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));
+  gateway->Pump(now);
+  gateway->OnMessage(Committed(1001), AckJson({1}), now);
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(2)}));
+  LONGS_EQUAL(0, gateway->counters().records_rejected);
+  LONGS_EQUAL(2, gateway->counters().records_spooled);
+  CHECK(radio.AckedSeqs() == (std::vector<uint32_t>{1, 2}));
+}
+
+// A gateway that stops deletes what commit acks released; one that restarts on the spool
+// publishes only what waits for an ack.
+TEST(Gateway, ReleasedRecordsAreDeletedWhenTheGatewayStops) {
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1), MakeRecord(2)}));
+  gateway->Pump(now);
+  gateway->OnMessage(Committed(1001), AckJson({1}), now);
+  Start(1'000);  // the old Gateway is destroyed: a clean stop
+  LONGS_EQUAL(1, spool->depth());
+  publisher.sent.clear();
+  gateway->OnConnected(now + 1);
+  CHECK(PublishedSeqs(1001) == std::vector<uint32_t>{2});
+}
+
+// A reconnect while released records wait for their deletion replays only the unconfirmed ones,
+// in order; with a window of several, a record acked out of order is not published again while
+// the one before it is still awaited.
+TEST(Gateway, ReleasedRecordsAreNeverPublishedAgain) {
+  Start(1'000, 2);
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1), MakeRecord(2), MakeRecord(3), MakeRecord(4)}));
+  gateway->Pump(now);
+  CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2}));
+  gateway->OnMessage(Committed(1001), AckJson({2}), now + 1);
+  gateway->Pump(now + 1);
+  CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2, 3}));
+  LONGS_EQUAL(2, gateway->in_flight());
+  gateway->OnConnected(now + 2);
+  CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2, 3, 1, 3}));
+  LONGS_EQUAL(3, gateway->spool_depth());
+  LONGS_EQUAL(3, spool->depth());  // the reconnect read every head: the release was deleted first
+}
