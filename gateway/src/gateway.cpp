@@ -473,7 +473,7 @@ void Gateway::PublishRecords(int64_t now_ms) {
         limits.emplace_hint(limits.end(), sensor,
                             options_.window + (pending == pending_release_.end() ? 0 : pending->second.size()));
       }
-      heads = spool_.Heads(limits);
+      heads = spool_.Heads(limits, pending_release_);
     }
   } catch (const std::exception& e) {
     ++counters_.spool_errors;
@@ -488,13 +488,6 @@ void Gateway::PublishRecords(int64_t now_ms) {
   int64_t next_due = now_ms + options_.republish_after_ms;
   bool all_sent = true;
   for (const SpoolRecord& r : heads) {
-    if (!all) {
-      const auto pending = pending_release_.find(r.sensor);
-      if (pending != pending_release_.end() &&
-          std::find(pending->second.begin(), pending->second.end(), r.seq) != pending->second.end()) {
-        continue;  // committed, not deleted yet
-      }
-    }
     auto& sensor_flight = in_flight_[r.sensor];
     auto found = sensor_flight.find(r.seq);
     const bool first = found == sensor_flight.end();

@@ -180,15 +180,21 @@ std::vector<SpoolRecord> Spool::Heads(size_t per_sensor, const std::set<std::str
   return Heads(limits);
 }
 
-std::vector<SpoolRecord> Spool::Heads(const std::map<std::string, size_t>& per_sensor) const {
+std::vector<SpoolRecord> Spool::Heads(const std::map<std::string, size_t>& per_sensor,
+                                      const std::map<std::string, std::vector<uint32_t>>& skip) const {
   std::vector<SpoolRecord> out;
   Stmt& head = Db::Fresh(db_->head);
+  static const std::vector<uint32_t> kNone;
   for (const auto& [sensor, limit] : per_sensor) {
+    const auto skipped = skip.find(sensor);
+    const std::vector<uint32_t>& left_out = skipped == skip.end() ? kNone : skipped->second;
     head.Bind(1, sensor).Bind(2, static_cast<int64_t>(limit));
     while (head.Step()) {
+      const auto seq = static_cast<uint32_t>(head.Int(0));
+      if (std::find(left_out.begin(), left_out.end(), seq) != left_out.end()) continue;
       SpoolRecord r;
       r.sensor = sensor;
-      r.seq = static_cast<uint32_t>(head.Int(0));
+      r.seq = seq;
       r.received_ms = head.Int(1);
       r.heartbeat = head.Int(2) != 0;
       r.payload = head.Text(3);

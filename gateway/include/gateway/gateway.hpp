@@ -40,8 +40,10 @@ struct GatewayOptions {
   /// Records released by commit acks are deleted from the spool together: at the latest this long
   /// after the first of them, with the next spooled batch (same transaction), before the spool is
   /// read in full, or when the Gateway is destroyed. The sensor's next record is published at once
-  /// either way; a deletion lost with a crash only publishes the record again.
-  int64_t release_delay_ms = 50;
+  /// either way; a deletion lost with a crash only publishes the record again. Each deletion
+  /// rewrites a page of the (sensor, seq) index: the longer the delay, the more of a sensor's
+  /// deletions share a page (50 ms: one page per record at 100 sensors).
+  int64_t release_delay_ms = 200;
   /// Time (Unix ms) that stamps received records (`time` = it - age_s, `received`) and new
   /// devices, given the loop's `now_ms`; unset: `now_ms`. Set from --clock-file when a simulator
   /// runs virtual time; spool bookkeeping and every timer keep `now_ms`. Called synchronously from

@@ -74,8 +74,10 @@ class Spool {
   std::vector<SpoolRecord> Heads(size_t per_sensor) const;
   /// The same for the named sensors only (one index seek each).
   std::vector<SpoolRecord> Heads(size_t per_sensor, const std::set<std::string>& sensors) const;
-  /// The same with a number of records of its own for each named sensor.
-  std::vector<SpoolRecord> Heads(const std::map<std::string, size_t>& per_sensor) const;
+  /// The same with a number of records of its own for each named sensor; records whose seq is in
+  /// `skip` (of their sensor) are left out of the result but count towards the number.
+  std::vector<SpoolRecord> Heads(const std::map<std::string, size_t>& per_sensor,
+                                 const std::map<std::string, std::vector<uint32_t>>& skip = {}) const;
 
   size_t depth() const { return depth_; }
   size_t max_records() const { return max_records_; }

@@ -530,7 +530,7 @@ TEST(Gateway, RegistryMessagesRefusedByAFullClientBufferGoOutLaterOnceEach) {
 
 // Issue 16 (replay throughput): a commit ack releases its record at once (the sensor's next one
 // goes out on the next Pump), while the deletions of many acks are made together, within
-// release_delay_ms (default 50 ms): a hundred sensors' acks cost one spool transaction.
+// release_delay_ms (default 200 ms): a hundred sensors' acks cost one spool transaction.
 TEST(Gateway, CommittedRecordsAreDeletedTogetherWithinTheReleaseDelay) {
   const auto depth_on_disk = [&] { return gw::Spool(dir.File("spool.db"), 1000).depth(); };
   Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1), MakeRecord(2)}));
@@ -544,14 +544,15 @@ TEST(Gateway, CommittedRecordsAreDeletedTogetherWithinTheReleaseDelay) {
   LONGS_EQUAL(2, gateway->spool_depth());  // waiting for a commit ack
   LONGS_EQUAL(2, gateway->counters().committed);
   LONGS_EQUAL(4, depth_on_disk());  // not deleted yet
-  gateway->Pump(now + 50);
+  const int64_t delay = gw::GatewayOptions{}.release_delay_ms;
+  gateway->Pump(now + delay);
   LONGS_EQUAL(4, depth_on_disk());
-  gateway->Pump(now + 51);
-  LONGS_EQUAL(2, depth_on_disk());  // both deleted, 50 ms after the first ack
+  gateway->Pump(now + 1 + delay);
+  LONGS_EQUAL(2, depth_on_disk());  // both deleted, release_delay_ms after the first ack
   LONGS_EQUAL(2, gateway->spool_depth());
   // The released records are not read again: nothing is republished, the next acks go on.
-  gateway->OnMessage(Committed(1001), AckJson({2}), now + 60);
-  gateway->Pump(now + 60);
+  gateway->OnMessage(Committed(1001), AckJson({2}), now + 2 + delay);
+  gateway->Pump(now + 2 + delay);
   CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2}));
   LONGS_EQUAL(1, gateway->spool_depth());
   LONGS_EQUAL(0, gateway->counters().republished);

@@ -154,3 +154,26 @@ TEST(Spool, UnopenablePathThrowsNamingTheFile) {
     CHECK(std::string(e.what()).find("missing-dir/spool.db") != std::string::npos);
   }
 }
+
+// Issue 16: records released by commit acks are deleted in the transaction that stores the next
+// batch, before it, so that a full spool sees the room they make.
+TEST(Spool, InsertDeletesTheReleasedRecordsFirstInTheSameTransaction) {
+  Spool spool(path(), 2);
+  spool.Insert({Rec("1001", 1), Rec("1002", 1)});
+  const auto out = spool.Insert({Rec("1001", 2), Rec("1002", 2)}, {{"1001", {1}}, {"1002", {1, 99}}});
+  CHECK(out == (std::vector<InsertOutcome>{InsertOutcome::kStored, InsertOutcome::kStored}));
+  LONGS_EQUAL(2, spool.depth());
+  LONGS_EQUAL(0, spool.evicted());
+  Spool reopened(path(), 2);
+  const auto heads = reopened.Heads(10);
+  CHECK(Seqs(heads, "1001") == std::vector<uint32_t>{2});
+  CHECK(Seqs(heads, "1002") == std::vector<uint32_t>{2});
+}
+
+TEST(Spool, HeadsLeaveOutSkippedSeqsWhichCountTowardsTheLimit) {
+  Spool spool(path(), 100);
+  spool.Insert({Rec("1001", 1), Rec("1001", 2), Rec("1001", 3), Rec("1001", 4), Rec("1002", 1)});
+  const auto heads = spool.Heads({{"1001", 3}, {"1002", 1}}, {{"1001", {2}}});
+  CHECK(Seqs(heads, "1001") == (std::vector<uint32_t>{1, 3}));
+  CHECK(Seqs(heads, "1002") == std::vector<uint32_t>{1});
+}
