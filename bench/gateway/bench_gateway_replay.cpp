@@ -15,9 +15,10 @@
 // sent (nothing lost: counted per (sensor, seq)). After it the gateway's stats must show every
 // record spooled and the spool drained by the commit acks.
 //   lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K]
-//                           [--gateway-bin PATH]
+//                           [--gateway-bin PATH] [--broker-nodelay 0|1] [--broker-inflight N]
 //   (defaults 20000, 100, 2, 1, 3, the linerwatch-gateway of this build; the bare run is repeated K
-//   times around the gateway runs). Besides the rates it prints the CPU time of each party of the
+//   times around the gateway runs; the broker as packaging/mosquitto/central.conf sets it: TCP_NODELAY,
+//   no in-flight limit, 100000 queued messages). Besides the rates it prints the CPU time of each party of the
 //   gateway run (the gateway, mosquitto, and this process's server-playing MQTT client), so that
 //   it shows which one the run waited for.
 #include <fcntl.h>
@@ -71,6 +72,9 @@ struct Options {
   int window = 1;
   int reps = 3;
   bool nodelay = true;  ///< the broker's set_tcp_nodelay (as packaging/mosquitto/*.conf set it)
+  /// The broker's max_inflight_messages: 0 (no limit) as packaging/mosquitto/*.conf set it;
+  /// mosquitto's default is 20 QoS 1 messages awaiting a PUBACK per client.
+  long broker_inflight = 0;
   std::string gateway_bin = LW_GATEWAY_BIN;
 };
 
@@ -278,6 +282,8 @@ GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total
   GatewayResult out;
   lw::test::MosquittoFixture::Options bo;
   if (o.nodelay) bo.extra_config = "set_tcp_nodelay true\n";
+  // As packaging/mosquitto/central.conf: the readings and acks of a whole site may be queued.
+  bo.extra_config += "max_inflight_messages " + std::to_string(o.broker_inflight) + "\nmax_queued_messages 100000\n";
   lw::test::MosquittoFixture broker(bo);
   broker.Start();
   lw::test::TempDirectory dir("lw-bench-gw");
@@ -423,17 +429,19 @@ int main(int argc, char** argv) {
       o.reps = static_cast<int>(v);
     else if (a == "--broker-nodelay" && (v == 0 || v == 1))
       o.nodelay = v == 1;
+    else if (a == "--broker-inflight" && v >= 0)
+      o.broker_inflight = v;
     else {
       std::fprintf(stderr,
                    "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K] "
-                   "[--gateway-bin PATH]\n");
+                   "[--gateway-bin PATH] [--broker-nodelay 0|1] [--broker-inflight N]\n");
       return 2;
     }
   }
   if (argc % 2 == 0) {
     std::fprintf(stderr,
                  "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K] "
-                 "[--gateway-bin PATH]\n");
+                 "[--gateway-bin PATH] [--broker-nodelay 0|1] [--broker-inflight N]\n");
     return 2;
   }
   try {
