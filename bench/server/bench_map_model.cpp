@@ -163,16 +163,15 @@ int main(int argc, char** argv) {
   std::printf("LoadWearMap + BuildMapModel    %8.2f s    %8.2f s   (%d threads)\n", model_s, model_c, used);
   std::printf("BuildMapModel alone, 1 thread  %8.2f s    %8.2f s\n", one.wall, one.cpu);
   if (exact)
-    std::printf("BuildMapModel face by face     %8.2f s    %8.2f s   (%d threads, binned_above_faces = max)\n", fbf.wall,
-                fbf.cpu, used);
+    std::printf("BuildMapModel face by face     %8.2f s    %8.2f s   (%d threads, binned_above_faces = max)\n", fbf.wall, fbf.cpu,
+                used);
   std::printf(
       "  chosen: bandwidth %.4f m along z, %.4f m around, %s, %zu outlier faces capped, %zu CV candidates, %zu local scales\n",
       last.bandwidth_m, last.bandwidth_arc_m, last.local_linear ? "local-linear" : "kernel mean", last.outlier_faces,
       last.cv_curve.size(), last.local_ladder_m.size());
   std::printf("ratio (load + model) / read the bytes   wall %.1f   CPU %.1f\n", model_s / bytes_s, model_c / bytes_c);
   std::printf("ratio (load + model) / LoadWearMap      wall %.2f   CPU %.2f\n", model_s / read_s, model_c / read_c);
-  if (exact)
-    std::printf("ratio face by face / (load + model)     wall %.1f   CPU %.1f\n", fbf.wall / model_s, fbf.cpu / model_c);
+  if (exact) std::printf("ratio face by face / (load + model)     wall %.1f   CPU %.1f\n", fbf.wall / model_s, fbf.cpu / model_c);
 
   // The binned sums against the face-by-face ones on a smaller map (the same field).
   if (compare_faces >= 100) {
