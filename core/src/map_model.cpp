@@ -308,12 +308,19 @@ void BinnedStep(const WearMap& map, const Eigen::VectorXd& y, const Eigen::Vecto
       }
     }
   }
-  // The sums at every node of the rows faces need, row by row along z. Around (periodic in angle,
-  // at the source row's mean radius) each source row is convolved once for every offset along z
-  // (the elliptical cut: a row |d| steps away reaches sqrt(kCutoff^2 - (d / kBinsPerSd)^2) sd
-  // around), cut by cut from the narrowest, kept for the 2 mz + 1 output rows that read it; then
-  // along z the moments of Sums (and the variance sums of Ici()) are summed from them.
+  // The sums at every node of the rows faces need, row by row along z. Around (periodic in angle)
+  // each source row is convolved once for every offset along z (the elliptical cut: a row |d|
+  // steps away reaches sqrt(kCutoff^2 - (d / kBinsPerSd)^2) sd around), cut by cut from the
+  // narrowest, kept for the 2 mz + 1 output rows that read it; then along z the moments of Sums
+  // (and the variance sums of Ici()) are summed from them. The arc length is taken at the mean of
+  // the output row's and the source row's radius, as face by face: each cut also holds the
+  // convolution with the kernel's derivative by the radius, and the output row adds it times half
+  // the radius difference (first order; on a cone the rows a kernel reaches differ by a few %).
   const long mz = static_cast<long>(std::floor(kCutoff * kBinsPerSd + 1e-9));
+  std::vector<double> radius(static_cast<size_t>(nz), 0.0);  // each row's mean radius (rows with faces)
+  for (long row = 0; row < nz; ++row)
+    if (wsum[static_cast<size_t>(row)] > 0)
+      radius[static_cast<size_t>(row)] = std::max(rsum[static_cast<size_t>(row)] / wsum[static_cast<size_t>(row)], 1e-9);
   const long slots = 2 * mz + 1, nlev = mz + 1, arrays = want_var ? 3 : 2;
   std::vector<double> val(cells, std::numeric_limits<double>::quiet_NaN()), vv(want_var ? cells : 0, 0.0);
   std::vector<double> ez(static_cast<size_t>(nlev));
@@ -323,17 +330,18 @@ void BinnedStep(const WearMap& map, const Eigen::VectorXd& y, const Eigen::Vecto
       nz, threads,
       [&](Eigen::Index begin, Eigen::Index end) {
         // ring[slot][array][level][column], slot = source row mod slots
-        std::vector<double> ring(static_cast<size_t>(slots * arrays * nlev * na));
+        std::vector<double> ring(static_cast<size_t>(slots * arrays * nlev * 2 * na));
         std::vector<long> held(static_cast<size_t>(slots), -1);
-        std::vector<double> buf, kern, acc(static_cast<size_t>(8 * na));
+        std::vector<double> buf, kern, dkern, acc(static_cast<size_t>(8 * na));
         std::vector<long> cut(static_cast<size_t>(nlev));
-        auto level = [&](long src, long arr, long lev) {
-          return ring.data() + (((src % slots) * arrays + arr) * nlev + lev) * na;
+        // The cut `lev` of source row src's convolution (deriv: by the radius) of array arr.
+        auto level = [&](long src, long arr, long lev, long deriv) {
+          return ring.data() + ((((src % slots) * arrays + arr) * nlev + lev) * 2 + deriv) * na;
         };
         auto load = [&](long src) {
           if (held[static_cast<size_t>(src % slots)] == src) return;
           held[static_cast<size_t>(src % slots)] = src;
-          const double r = std::max(rsum[static_cast<size_t>(src)] / wsum[static_cast<size_t>(src)], 1e-9);
+          const double r = radius[static_cast<size_t>(src)];
           const double ku = ha / (r * g.dth);  // kernel sd in columns
           for (long l = 0; l < nlev; ++l) {
             const double reach = std::sqrt(std::max(0.0, kCutoff * kCutoff - std::pow(static_cast<double>(l) / kBinsPerSd, 2)));
@@ -341,33 +349,40 @@ void BinnedStep(const WearMap& map, const Eigen::VectorXd& y, const Eigen::Vecto
           }
           const long m = cut[0];
           kern.resize(static_cast<size_t>(m + 1));
+          dkern.resize(static_cast<size_t>(m + 1));
           for (long arr = 0; arr < arrays; ++arr) {
             const double* data = (arr == 0 ? a0.data() : arr == 1 ? ay.data() : av.data()) + src * na;
             const double power = arr == 2 ? 1.0 : 0.5;  // the variance sums weigh by the squared kernel
-            for (long j = 0; j <= m; ++j)
-              kern[static_cast<size_t>(j)] = std::exp(-power * std::pow(static_cast<double>(j) / ku, 2));
+            for (long j = 0; j <= m; ++j) {
+              const double u2 = std::pow(static_cast<double>(j) / ku, 2);
+              kern[static_cast<size_t>(j)] = std::exp(-power * u2);
+              dkern[static_cast<size_t>(j)] = -2.0 * power * u2 / r * kern[static_cast<size_t>(j)];
+            }
             buf.resize(static_cast<size_t>(na + 2 * m));
             for (long c = 0; c < na + 2 * m; ++c) buf[static_cast<size_t>(c)] = data[((c - m) % na + na) % na];
             const double* mid = buf.data() + m;
             // From the narrowest cut (the farthest row) to the widest, adding the taps in between.
-            double* prev = nullptr;
-            long have = -1;
-            for (long l = nlev - 1; l >= 0; --l) {
-              double* out = level(src, arr, l);
-              if (prev)
-                std::copy(prev, prev + na, out);
-              else
-                std::fill(out, out + na, 0.0);
-              for (long j = have + 1; j <= cut[static_cast<size_t>(l)]; ++j) {
-                const double kj = kern[static_cast<size_t>(j)];
-                if (j == 0) {
-                  for (long c = 0; c < na; ++c) out[c] += kj * mid[c];
-                } else {
-                  for (long c = 0; c < na; ++c) out[c] += kj * (mid[c - j] + mid[c + j]);
+            for (long deriv = 0; deriv < 2; ++deriv) {
+              const std::vector<double>& kk = deriv ? dkern : kern;
+              double* prev = nullptr;
+              long have = -1;
+              for (long l = nlev - 1; l >= 0; --l) {
+                double* out = level(src, arr, l, deriv);
+                if (prev)
+                  std::copy(prev, prev + na, out);
+                else
+                  std::fill(out, out + na, 0.0);
+                for (long j = have + 1; j <= cut[static_cast<size_t>(l)]; ++j) {
+                  const double kj = kk[static_cast<size_t>(j)];
+                  if (j == 0) {
+                    for (long c = 0; c < na; ++c) out[c] += kj * mid[c];
+                  } else {
+                    for (long c = 0; c < na; ++c) out[c] += kj * (mid[c - j] + mid[c + j]);
+                  }
                 }
+                have = std::max(have, cut[static_cast<size_t>(l)]);
+                prev = out;
               }
-              have = std::max(have, cut[static_cast<size_t>(l)]);
-              prev = out;
             }
           }
         };
@@ -383,22 +398,27 @@ void BinnedStep(const WearMap& map, const Eigen::VectorXd& y, const Eigen::Vecto
             const long l = std::labs(d);
             const double x = static_cast<double>(d) * g.dz, e = ez[static_cast<size_t>(l)];
             const double e1 = e * x, e2 = e1 * x;
-            const double* p0 = level(src, 0, l);
-            const double* py = level(src, 1, l);
+            const double dr = wsum[static_cast<size_t>(row)] > 0
+                                  ? 0.5 * (radius[static_cast<size_t>(row)] - radius[static_cast<size_t>(src)])
+                                  : 0.0;
+            const double *p0 = level(src, 0, l, 0), *q0 = level(src, 0, l, 1);
+            const double *py = level(src, 1, l, 0), *qy = level(src, 1, l, 1);
             for (long c = 0; c < na; ++c) {
-              s0[c] += e * p0[c];
-              s1[c] += e1 * p0[c];
-              s2[c] += e2 * p0[c];
-              t0[c] += e * py[c];
-              t1[c] += e1 * py[c];
+              const double a = p0[c] + dr * q0[c], b = py[c] + dr * qy[c];
+              s0[c] += e * a;
+              s1[c] += e1 * a;
+              s2[c] += e2 * a;
+              t0[c] += e * b;
+              t1[c] += e1 * b;
             }
             if (want_var) {
               const double f = e * e, f1 = f * x, f2 = f1 * x;
-              const double* pv = level(src, 2, l);
+              const double *pv = level(src, 2, l, 0), *qv = level(src, 2, l, 1);
               for (long c = 0; c < na; ++c) {
-                v0[c] += f * pv[c];
-                v1[c] += f1 * pv[c];
-                v2[c] += f2 * pv[c];
+                const double a = pv[c] + dr * qv[c];
+                v0[c] += f * a;
+                v1[c] += f1 * a;
+                v2[c] += f2 * a;
               }
             }
           }
