@@ -119,8 +119,8 @@ TEST(MapModel, StandardErrorsEqualABruteForceSumOverEveryFace) {
 // on a grid (linear binning); forced here on a medium map with a sharp band and compared with the
 // face-by-face sums. The pilot, the noise law, the outlier caps and the cross-validation are the
 // same code on both paths, so the chosen model is identical. Measured when written (57,600 faces):
-// intensity differs by median 0.017 / p99 0.16 exact noise sd, intensity_noise_sd by median 0.16 % /
-// p99 0.47 %, 18 faces (0.03 %) at the adjacent step of the local-scale ladder (where the ICI rule
+// intensity differs by median 0.017 / p99 0.17 exact noise sd, intensity_noise_sd by median 0.15 % /
+// p99 0.45 %, 16 faces (0.03 %) at the adjacent step of the local-scale ladder (where the ICI rule
 // is on the edge of stopping, a small change of the sums moves a face by one step, and its value by
 // up to ~5 sd); the tolerances below are about 3-4x those.
 TEST(MapModel, BinnedSumsAgreeWithTheFaceByFaceSums) {
