@@ -25,8 +25,7 @@ double Median(std::vector<double> v) {
 /// result depends only on the inputs, never on the split, so every value is the same for any
 /// thread count (test MapModel.SameResultWithOneOrTwoThreads).
 template <typename Fn>
-void ParallelFor(Eigen::Index n, int threads, Fn&& fn) {
-  constexpr Eigen::Index kChunk = 2048;
+void ParallelFor(Eigen::Index n, int threads, Fn&& fn, Eigen::Index kChunk = 2048) {
   if (threads <= 1 || n <= kChunk) {
     fn(Eigen::Index{0}, n);
     return;
@@ -158,6 +157,15 @@ struct Kernel {
   }
 };
 
+/// Variance of Sums::Value() from the sums over the faces of w^2 var, w^2 var dz and w^2 var dz^2.
+double EstimateVariance(const Sums& s, double v0, double v1, double v2) {
+  if (s.Linear()) {
+    const double d = s.s0 * s.s2 - s.s1 * s.s1;
+    return (s.s2 * s.s2 * v0 - 2.0 * s.s2 * s.s1 * v1 + s.s1 * s.s1 * v2) / (d * d);
+  }
+  return v0 / (s.s0 * s.s0);
+}
+
 /// Intersection of confidence intervals over a ladder of kernels (increasing scale along z): the
 /// estimate of the largest kernel whose confidence interval still intersects those of every smaller
 /// one (Goldenshluger-Nemirovski / Katkovnik). Where the field is flat the noise decides and the
@@ -168,6 +176,24 @@ struct IciResult {
   double value = std::numeric_limits<double>::quiet_NaN();
   double var = 0;
   size_t level = 0;
+};
+/// The ladder's steps in increasing order: Step() until done; `out` is the estimate chosen.
+struct IciState {
+  double lo = -std::numeric_limits<double>::max(), hi = std::numeric_limits<double>::max();
+  IciResult out;
+  bool done = false;
+  void Step(size_t k, double v, double vv, double gamma) {
+    const double sd = std::sqrt(std::max(vv, 0.0));
+    lo = std::max(lo, v - gamma * sd);
+    hi = std::min(hi, v + gamma * sd);
+    if (lo > hi && std::isfinite(out.value)) {
+      done = true;
+      return;
+    }
+    out.value = v;
+    out.var = vv;
+    out.level = k;
+  }
 };
 /// All steps of the ladder in one pass over the neighbours of (z, theta): the steps share the
 /// circumferential scale `ha` and the top step's index covers them all; per step the kernel sums
@@ -205,28 +231,237 @@ IciResult Ici(const WearMap& map, const Eigen::VectorXd& y, const std::vector<do
       a.v2 += w2v * dz2;
     }
   });
-  IciResult out;
-  double lo = -std::numeric_limits<double>::max(), hi = std::numeric_limits<double>::max();
-  for (size_t k = 0; k < nk; ++k) {
+  IciState st;
+  for (size_t k = 0; k < nk && !st.done; ++k) {
     const Acc& a = acc[k];
     if (!(a.s.s0 > 0)) continue;
-    const double v = a.s.Value();
-    double vv;
-    if (a.s.Linear()) {
-      const double d = a.s.s0 * a.s.s2 - a.s.s1 * a.s.s1;
-      vv = (a.s.s2 * a.s.s2 * a.v0 - 2.0 * a.s.s2 * a.s.s1 * a.v1 + a.s.s1 * a.s.s1 * a.v2) / (d * d);
-    } else {
-      vv = a.v0 / (a.s.s0 * a.s.s0);
-    }
-    const double sd = std::sqrt(std::max(vv, 0.0));
-    lo = std::max(lo, v - gamma * sd);
-    hi = std::min(hi, v + gamma * sd);
-    if (lo > hi && std::isfinite(out.value)) break;
-    out.value = v;
-    out.var = vv;
-    out.level = k;
+    st.Step(k, a.s.Value(), EstimateVariance(a.s, a.v0, a.v1, a.v2), gamma);
   }
-  return out;
+  return st.out;
+}
+
+/// Kernel sums of one scale (sd h along z, ha around) on a regular grid over the unwrapped surface
+/// instead of face by face: linear binning for kernel smoothers (Wand 1994; Fan and Marron 1994).
+/// Each face's area, area x value and area^2 x variance are spread onto the four grid nodes around
+/// it (z, angle), bilinearly; the Gaussian is separable, so the sums every node needs (the
+/// local-linear moments and the variance sums of Ici()) are two 1-D convolutions: around each row
+/// of nodes (periodic, in angle, at the row's mean radius), then along z. Each node's estimate and
+/// its variance are then interpolated back to the faces with the same bilinear weights. The grid
+/// has kBinsPerSd steps per sd along z and around (at the largest radius); the kernel is cut at
+/// kCutoff sd along each axis (a rectangle: the face-by-face kernel's cut is an ellipse). Rows of
+/// nodes no face is next to are not computed. `variance`/`var`: null when only the value is needed.
+constexpr double kBinsPerSd = 4.0;
+
+struct BinnedGrid {
+  double zmin = 0, dz = 1, dth = 1;  // dth: radians per column
+  long nz = 1, na = 1;
+  BinnedGrid(const WearMap& map, double h, double ha) {
+    zmin = map.z.minCoeff();
+    dz = h / kBinsPerSd;
+    nz = static_cast<long>(std::ceil((map.z.maxCoeff() - zmin) / dz)) + 2;
+    const double rmax = std::max(map.radius.maxCoeff(), 1e-6);
+    na = std::max<long>(4, static_cast<long>(std::ceil(2.0 * M_PI * rmax / (ha / kBinsPerSd))));
+    dth = 2.0 * M_PI / static_cast<double>(na);
+  }
+  double Cells() const { return static_cast<double>(nz) * static_cast<double>(na); }
+  /// Face i's lower-left node (row, column) and its fractions towards the next row and column.
+  void Locate(const WearMap& map, Eigen::Index i, long& iz, double& fz, long& ia, double& fa) const {
+    const double u = (map.z[i] - zmin) / dz;
+    iz = std::clamp<long>(static_cast<long>(std::floor(u)), 0, nz - 2);
+    fz = std::clamp(u - static_cast<double>(iz), 0.0, 1.0);
+    double t = std::fmod(map.theta_deg[i], 360.0) / 360.0 * static_cast<double>(na);
+    if (!(t >= 0)) t = std::isfinite(t) ? t + static_cast<double>(na) : 0.0;
+    const double ft = std::floor(t);
+    ia = static_cast<long>(ft) % na;
+    fa = std::clamp(t - ft, 0.0, 1.0);
+  }
+};
+
+void BinnedStep(const WearMap& map, const Eigen::VectorXd& y, const Eigen::VectorXd* var, double h, double ha, bool linear,
+                int threads, Eigen::VectorXd& value, Eigen::VectorXd* variance) {
+  const Eigen::Index n = map.z.size();
+  const BinnedGrid g(map, h, ha);
+  const long nz = g.nz, na = g.na;
+  const auto cells = static_cast<size_t>(nz * na);
+  const bool want_var = var && variance;
+  std::vector<double> a0(cells, 0.0), ay(cells, 0.0), av(want_var ? cells : 0, 0.0);
+  std::vector<double> rsum(static_cast<size_t>(nz), 0.0), wsum(static_cast<size_t>(nz), 0.0);
+  std::vector<char> need(static_cast<size_t>(nz), 0);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    long iz, ia;
+    double fz, fa;
+    g.Locate(map, i, iz, fz, ia, fa);
+    const long ib = (ia + 1) % na;
+    const double a = map.areas[i], ayi = a * y[i], avi = want_var ? a * a * (*var)[i] : 0.0;
+    for (int dzr = 0; dzr < 2; ++dzr) {
+      const long row = iz + dzr;
+      const double wz = dzr ? fz : 1.0 - fz;
+      need[static_cast<size_t>(row)] = 1;
+      rsum[static_cast<size_t>(row)] += wz * a * map.radius[i];
+      wsum[static_cast<size_t>(row)] += wz * a;
+      for (int dc = 0; dc < 2; ++dc) {
+        const double w = wz * (dc ? fa : 1.0 - fa);
+        const size_t cell = static_cast<size_t>(row * na + (dc ? ib : ia));
+        a0[cell] += w * a;
+        ay[cell] += w * ayi;
+        if (want_var) av[cell] += w * avi;
+      }
+    }
+  }
+  // The sums at every node of the rows faces need, row by row along z. Around (periodic in angle)
+  // each source row is convolved once for every offset along z (the elliptical cut: a row |d|
+  // steps away reaches sqrt(kCutoff^2 - (d / kBinsPerSd)^2) sd around), cut by cut from the
+  // narrowest, kept for the 2 mz + 1 output rows that read it; then along z the moments of Sums
+  // (and the variance sums of Ici()) are summed from them. The arc length is taken at the mean of
+  // the output row's and the source row's radius, as face by face: each cut also holds the
+  // convolution with the kernel's derivative by the radius, and the output row adds it times half
+  // the radius difference (first order; on a cone the rows a kernel reaches differ by a few %).
+  const long mz = static_cast<long>(std::floor(kCutoff * kBinsPerSd + 1e-9));
+  std::vector<double> radius(static_cast<size_t>(nz), 0.0);  // each row's mean radius (rows with faces)
+  for (long row = 0; row < nz; ++row)
+    if (wsum[static_cast<size_t>(row)] > 0)
+      radius[static_cast<size_t>(row)] = std::max(rsum[static_cast<size_t>(row)] / wsum[static_cast<size_t>(row)], 1e-9);
+  const long slots = 2 * mz + 1, nlev = mz + 1, arrays = want_var ? 3 : 2;
+  std::vector<double> val(cells, std::numeric_limits<double>::quiet_NaN()), vv(want_var ? cells : 0, 0.0);
+  std::vector<double> ez(static_cast<size_t>(nlev));
+  for (long d = 0; d <= mz; ++d) ez[static_cast<size_t>(d)] = std::exp(-0.5 * std::pow(static_cast<double>(d) / kBinsPerSd, 2));
+  const Eigen::Index chunk = std::max<Eigen::Index>(4 * mz, (nz + 2 * threads - 1) / std::max(1, 2 * threads));
+  ParallelFor(
+      nz, threads,
+      [&](Eigen::Index begin, Eigen::Index end) {
+        // ring[slot][array][level][column], slot = source row mod slots
+        std::vector<double> ring(static_cast<size_t>(slots * arrays * nlev * 2 * na));
+        std::vector<long> held(static_cast<size_t>(slots), -1);
+        std::vector<double> buf, kern, dkern, acc(static_cast<size_t>(8 * na));
+        std::vector<long> cut(static_cast<size_t>(nlev));
+        // The cut `lev` of source row src's convolution (deriv: by the radius) of array arr.
+        auto level = [&](long src, long arr, long lev, long deriv) {
+          return ring.data() + ((((src % slots) * arrays + arr) * nlev + lev) * 2 + deriv) * na;
+        };
+        auto load = [&](long src) {
+          if (held[static_cast<size_t>(src % slots)] == src) return;
+          held[static_cast<size_t>(src % slots)] = src;
+          const double r = radius[static_cast<size_t>(src)];
+          const double ku = ha / (r * g.dth);  // kernel sd in columns
+          for (long l = 0; l < nlev; ++l) {
+            const double reach = std::sqrt(std::max(0.0, kCutoff * kCutoff - std::pow(static_cast<double>(l) / kBinsPerSd, 2)));
+            cut[static_cast<size_t>(l)] = std::min<long>(static_cast<long>(std::floor(reach * ku + 1e-9)), (na - 1) / 2);
+          }
+          const long m = cut[0];
+          kern.resize(static_cast<size_t>(m + 1));
+          dkern.resize(static_cast<size_t>(m + 1));
+          for (long arr = 0; arr < arrays; ++arr) {
+            const double* data = (arr == 0 ? a0.data() : arr == 1 ? ay.data() : av.data()) + src * na;
+            const double power = arr == 2 ? 1.0 : 0.5;  // the variance sums weigh by the squared kernel
+            for (long j = 0; j <= m; ++j) {
+              const double u2 = std::pow(static_cast<double>(j) / ku, 2);
+              kern[static_cast<size_t>(j)] = std::exp(-power * u2);
+              dkern[static_cast<size_t>(j)] = -2.0 * power * u2 / r * kern[static_cast<size_t>(j)];
+            }
+            buf.resize(static_cast<size_t>(na + 2 * m));
+            for (long c = 0; c < na + 2 * m; ++c) buf[static_cast<size_t>(c)] = data[((c - m) % na + na) % na];
+            const double* mid = buf.data() + m;
+            // From the narrowest cut (the farthest row) to the widest, adding the taps in between.
+            for (long deriv = 0; deriv < 2; ++deriv) {
+              const std::vector<double>& kk = deriv ? dkern : kern;
+              double* prev = nullptr;
+              long have = -1;
+              for (long l = nlev - 1; l >= 0; --l) {
+                double* out = level(src, arr, l, deriv);
+                if (prev)
+                  std::copy(prev, prev + na, out);
+                else
+                  std::fill(out, out + na, 0.0);
+                for (long j = have + 1; j <= cut[static_cast<size_t>(l)]; ++j) {
+                  const double kj = kk[static_cast<size_t>(j)];
+                  if (j == 0) {
+                    for (long c = 0; c < na; ++c) out[c] += kj * mid[c];
+                  } else {
+                    for (long c = 0; c < na; ++c) out[c] += kj * (mid[c - j] + mid[c + j]);
+                  }
+                }
+                have = std::max(have, cut[static_cast<size_t>(l)]);
+                prev = out;
+              }
+            }
+          }
+        };
+        for (Eigen::Index row = begin; row < end; ++row) {
+          if (!need[static_cast<size_t>(row)]) continue;
+          std::fill(acc.begin(), acc.end(), 0.0);
+          double* s0 = acc.data();
+          double *s1 = s0 + na, *s2 = s1 + na, *t0 = s2 + na, *t1 = t0 + na, *v0 = t1 + na, *v1 = v0 + na, *v2 = v1 + na;
+          for (long d = -mz; d <= mz; ++d) {
+            const long src = row + d;
+            if (src < 0 || src >= nz || !(wsum[static_cast<size_t>(src)] > 0)) continue;
+            load(src);
+            const long l = std::labs(d);
+            const double x = static_cast<double>(d) * g.dz, e = ez[static_cast<size_t>(l)];
+            const double e1 = e * x, e2 = e1 * x;
+            const double dr = wsum[static_cast<size_t>(row)] > 0
+                                  ? 0.5 * (radius[static_cast<size_t>(row)] - radius[static_cast<size_t>(src)])
+                                  : 0.0;
+            const double *p0 = level(src, 0, l, 0), *q0 = level(src, 0, l, 1);
+            const double *py = level(src, 1, l, 0), *qy = level(src, 1, l, 1);
+            for (long c = 0; c < na; ++c) {
+              const double a = p0[c] + dr * q0[c], b = py[c] + dr * qy[c];
+              s0[c] += e * a;
+              s1[c] += e1 * a;
+              s2[c] += e2 * a;
+              t0[c] += e * b;
+              t1[c] += e1 * b;
+            }
+            if (want_var) {
+              const double f = e * e, f1 = f * x, f2 = f1 * x;
+              const double *pv = level(src, 2, l, 0), *qv = level(src, 2, l, 1);
+              for (long c = 0; c < na; ++c) {
+                const double a = pv[c] + dr * qv[c];
+                v0[c] += f * a;
+                v1[c] += f1 * a;
+                v2[c] += f2 * a;
+              }
+            }
+          }
+          for (long c = 0; c < na; ++c) {
+            Sums s;
+            s.s0 = s0[c];
+            s.s1 = s1[c];
+            s.s2 = s2[c];
+            s.t0 = t0[c];
+            s.t1 = t1[c];
+            s.linear = linear;
+            if (!(s.s0 > 0)) continue;
+            const auto cell = static_cast<size_t>(row * na + c);
+            val[cell] = s.Value();
+            if (want_var) vv[cell] = EstimateVariance(s, v0[c], v1[c], v2[c]);
+          }
+        }
+      },
+      chunk);
+  // Back to the faces: the nodes around each, with the weights it was spread with.
+  value.resize(n);
+  if (variance) variance->resize(n);
+  ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
+    for (Eigen::Index i = begin; i < end; ++i) {
+      long iz, ia;
+      double fz, fa;
+      g.Locate(map, i, iz, fz, ia, fa);
+      const long ib = (ia + 1) % na;
+      double sw = 0, sv = 0, svv = 0;
+      for (int dzr = 0; dzr < 2; ++dzr) {
+        for (int dc = 0; dc < 2; ++dc) {
+          const double w = (dzr ? fz : 1.0 - fz) * (dc ? fa : 1.0 - fa);
+          const auto cell = static_cast<size_t>((iz + dzr) * na + (dc ? ib : ia));
+          if (!(w > 0) || !std::isfinite(val[cell])) continue;
+          sw += w;
+          sv += w * val[cell];
+          if (want_var) svv += w * vv[cell];
+        }
+      }
+      value[i] = sw > 0 ? sv / sw : std::numeric_limits<double>::quiet_NaN();
+      if (variance) (*variance)[i] = sw > 0 && want_var ? svv / sw : std::numeric_limits<double>::quiet_NaN();
+    }
+  });
 }
 
 }  // namespace
@@ -519,14 +754,32 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   {
     Kernel k(map, model.clean, nrm, model.bandwidth_m, model.bandwidth_arc_m);
     k.linear = model.local_linear;
-    std::vector<Sums> sums(static_cast<size_t>(n));
-    ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
-      for (Eigen::Index i = begin; i < end; ++i) {
-        sums[static_cast<size_t>(i)] = k.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
-        const Sums& s = sums[static_cast<size_t>(i)];
-        model.intensity[i] = s.s0 > 0 ? std::max(0.0, s.Value()) : model.clean[i];
-      }
-    });
+    model.index = k.owned;
+    // The ladder of the local scale (6.).
+    if (model.bandwidth_method == "cross-validation" && options.local_scale) {
+      for (double h = 0.25 * model.face_size_m; h < model.bandwidth_m * 0.999; h *= 1.4) model.local_ladder_m.push_back(h);
+      model.local_ladder_m.push_back(model.bandwidth_m);
+    }
+    const bool ici = model.local_ladder_m.size() > 1;
+    // Large maps: the kernel sums on a grid (BinnedStep), unless the finest scale's grid would be
+    // much larger than the map (a map very long along z for its face size).
+    const double finest = ici ? model.local_ladder_m.front() : model.bandwidth_m;
+    const bool binned = static_cast<size_t>(n) > options.binned_above_faces &&
+                        BinnedGrid(map, finest, model.bandwidth_arc_m).Cells() <= 16.0 * static_cast<double>(n) + 1e6;
+    std::vector<Sums> sums(binned ? 0 : static_cast<size_t>(n));
+    if (binned) {
+      Eigen::VectorXd v;
+      BinnedStep(map, model.clean, nullptr, model.bandwidth_m, model.bandwidth_arc_m, model.local_linear, threads, v, nullptr);
+      for (Eigen::Index i = 0; i < n; ++i) model.intensity[i] = std::isfinite(v[i]) ? std::max(0.0, v[i]) : model.clean[i];
+    } else {
+      ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
+        for (Eigen::Index i = begin; i < end; ++i) {
+          sums[static_cast<size_t>(i)] = k.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
+          const Sums& s = sums[static_cast<size_t>(i)];
+          model.intensity[i] = s.s0 > 0 ? std::max(0.0, s.Value()) : model.clean[i];
+        }
+      });
+    }
     // Normal stress at three times the wear's scale: its sampling noise is shared with the wear's
     // (the same contacts), and at the wear's own scale it would carry the wear map's error into
     // every stress-based hypothesis (a map over-predicting where it happened to sample more
@@ -536,59 +789,81 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
       Kernel kn(map, *nrm, nullptr, model.normal_bandwidth_m, 3.0 * model.bandwidth_arc_m);
       kn.linear = false;
       model.normal_index = kn.owned;
-      ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
-        for (Eigen::Index i = begin; i < end; ++i) {
-          const Sums sn = kn.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
-          model.normal_stress[i] = sn.s0 > 0 ? sn.t0 / sn.s0 : (*nrm)[i];
-        }
-      });
+      if (binned) {
+        Eigen::VectorXd v;
+        BinnedStep(map, *nrm, nullptr, kn.h, kn.ha, false, threads, v, nullptr);
+        for (Eigen::Index i = 0; i < n; ++i) model.normal_stress[i] = std::isfinite(v[i]) ? v[i] : (*nrm)[i];
+      } else {
+        ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
+          for (Eigen::Index i = begin; i < end; ++i) {
+            const Sums sn = kn.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
+            model.normal_stress[i] = sn.s0 > 0 ? sn.t0 / sn.s0 : (*nrm)[i];
+          }
+        });
+      }
     }
     Eigen::VectorXd& var = model.face_var;
     var.resize(n);
     for (Eigen::Index i = 0; i < n; ++i) var[i] = model.FaceVariance(model.intensity[i]);
-    model.index = k.owned;
     // With the local scale (6.) the variance comes from its pass over the neighbours (its top step
     // is this kernel, on the same face variances); without it, or where that pass finds no
     // estimate, from this kernel here.
-    if (model.bandwidth_method == "cross-validation" && options.local_scale) {
-      for (double h = 0.25 * model.face_size_m; h < model.bandwidth_m * 0.999; h *= 1.4) model.local_ladder_m.push_back(h);
-      model.local_ladder_m.push_back(model.bandwidth_m);
-    }
-    const bool ici = model.local_ladder_m.size() > 1;
     if (ici) {
       model.local_gamma = options.local_gamma;
       model.ref_var = model.face_var;
       model.local_bandwidth_m = Eigen::VectorXd::Zero(n);
     }
-    ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
-      for (Eigen::Index i = begin; i < end; ++i) {
-        double v = std::numeric_limits<double>::quiet_NaN();
-        if (ici) {
-          // 6. Local scale along z (ICI): the cross-validated scale is right on average over the
-          //    liner, and the average is dominated by the many faces where the field is flat; where
-          //    it changes within a kernel (a real map's discharge-edge band holds several times the
-          //    wear of the band above), a smaller scale is used, as small as the data show the
-          //    change to be real.
-          const IciResult r = Ici(map, model.clean, model.local_ladder_m, model.bandwidth_arc_m, model.local_linear, *model.index,
-                                  map.z[i], map.theta_deg[i], map.radius[i], -1, model.ref_var, model.local_gamma);
-          if (std::isfinite(r.value)) {
-            model.local_bandwidth_m[i] = model.local_ladder_m[r.level];
-            if (r.level + 1 < model.local_ladder_m.size()) {
-              model.intensity[i] = std::max(0.0, r.value);
-              // Stopped below the top: the estimate's bias is bounded by about its own sd (that is
-              // where the intervals stop intersecting), so its error is counted twice.
-              model.intensity_sd[i] = std::sqrt(2.0 * r.var);
-              model.intensity_noise_sd[i] = std::sqrt(r.var);
-              continue;
-            }
-            v = r.var;  // the global scale: the value of 5., its variance from the top step
-          }
+    // Face i's result from its local-scale estimate r (none: no local scale, or no estimate) and
+    // the variance at the chosen bandwidth (called only when needed).
+    auto finish = [&](Eigen::Index i, const IciResult* r, auto&& top_variance) {
+      double v = std::numeric_limits<double>::quiet_NaN();
+      if (r && std::isfinite(r->value)) {
+        model.local_bandwidth_m[i] = model.local_ladder_m[r->level];
+        if (r->level + 1 < model.local_ladder_m.size()) {
+          model.intensity[i] = std::max(0.0, r->value);
+          // Stopped below the top: the estimate's bias is bounded by about its own sd (that is
+          // where the intervals stop intersecting), so its error is counted twice.
+          model.intensity_sd[i] = std::sqrt(2.0 * r->var);
+          model.intensity_noise_sd[i] = std::sqrt(r->var);
+          return;
         }
-        if (!std::isfinite(v)) v = k.Variance(sums[static_cast<size_t>(i)], map.z[i], map.theta_deg[i], map.radius[i], -1, var);
-        model.intensity_sd[i] = std::sqrt(v + std::pow(model.smoothing_error_rel * model.intensity[i], 2));
-        model.intensity_noise_sd[i] = std::sqrt(v);
+        v = r->var;  // the global scale: the value of 5., its variance from the top step
       }
-    });
+      if (!std::isfinite(v)) v = top_variance();
+      model.intensity_sd[i] = std::sqrt(v + std::pow(model.smoothing_error_rel * model.intensity[i], 2));
+      model.intensity_noise_sd[i] = std::sqrt(v);
+    };
+    // 6. Local scale along z (ICI): the cross-validated scale is right on average over the liner,
+    //    and the average is dominated by the many faces where the field is flat; where it changes
+    //    within a kernel (a real map's discharge-edge band holds several times the wear of the
+    //    band above), a smaller scale is used, as small as the data show the change to be real.
+    if (binned) {
+      // Step by step over the whole map, each face's intervals kept between steps.
+      std::vector<IciState> state(ici ? static_cast<size_t>(n) : 0);
+      Eigen::VectorXd val, top_var;
+      const size_t nk = ici ? model.local_ladder_m.size() : 1;
+      for (size_t s = 0; s < nk; ++s) {
+        const double h = ici ? model.local_ladder_m[s] : model.bandwidth_m;
+        BinnedStep(map, model.clean, &var, h, model.bandwidth_arc_m, model.local_linear, threads, val, &top_var);
+        for (Eigen::Index i = 0; ici && i < n; ++i) {
+          IciState& st = state[static_cast<size_t>(i)];
+          if (!st.done && std::isfinite(val[i])) st.Step(s, val[i], top_var[i], model.local_gamma);
+        }
+      }
+      for (Eigen::Index i = 0; i < n; ++i)
+        finish(i, ici ? &state[static_cast<size_t>(i)].out : nullptr, [&] { return top_var[i]; });
+    } else {
+      ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
+        for (Eigen::Index i = begin; i < end; ++i) {
+          IciResult r;
+          if (ici)
+            r = Ici(map, model.clean, model.local_ladder_m, model.bandwidth_arc_m, model.local_linear, *model.index, map.z[i],
+                    map.theta_deg[i], map.radius[i], -1, model.ref_var, model.local_gamma);
+          finish(i, ici ? &r : nullptr,
+                 [&] { return k.Variance(sums[static_cast<size_t>(i)], map.z[i], map.theta_deg[i], map.radius[i], -1, var); });
+        }
+      });
+    }
     if (ici) {
       for (Eigen::Index i = 0; i < n; ++i) model.face_var[i] = model.FaceVariance(model.intensity[i]);
     }

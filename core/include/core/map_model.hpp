@@ -45,6 +45,12 @@ struct MapModelOptions {
   double local_gamma = 2.5;
   /// Threads for the per-face kernel sums (0: one per core). The result does not depend on it.
   int threads = 0;
+  /// Maps with more faces than this compute the smoothed field, its standard errors and the local
+  /// scale (not the pilot, the noise law or the cross-validation, which stay exact) from kernel sums
+  /// on a regular grid over the unwrapped surface (linear binning, a few grid steps per kernel sd):
+  /// seconds instead of minutes for a million faces, within a small fraction of the noise of the
+  /// exact sums (docs/performance.md, "Maps"). Every map at or below it is computed face by face.
+  size_t binned_above_faces = 200000;
 };
 
 struct MapModel {

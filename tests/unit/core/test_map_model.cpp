@@ -3,6 +3,7 @@
 // from the local-scale pass's top step when that runs; issue 16).
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <vector>
 
@@ -112,4 +113,89 @@ TEST(MapModel, StandardErrorsEqualABruteForceSumOverEveryFace) {
   CHECK(top > static_cast<size_t>(n) / 2);
   CHECK(below > 0);  // the band: a smaller scale there
   CHECK(worst < 1e-12);
+}
+
+// Large maps compute the smoothed field, its standard errors and the local scale from kernel sums
+// on a grid (linear binning); forced here on a medium map with a sharp band and compared with the
+// face-by-face sums. The pilot, the noise law, the outlier caps and the cross-validation are the
+// same code on both paths, so the chosen model is identical. Measured when written (57,600 faces):
+// intensity differs by median 0.017 / p99 0.17 exact noise sd, intensity_noise_sd by median 0.15 % /
+// p99 0.45 %, 16 faces (0.03 %) at the adjacent step of the local-scale ladder (where the ICI rule
+// is on the edge of stopping, a small change of the sums moves a face by one step, and its value by
+// up to ~5 sd); the tolerances below are about 3-4x those.
+TEST(MapModel, BinnedSumsAgreeWithTheFaceByFaceSums) {
+  const WearMap m = NoisyBandedCone(240, 120);  // 57,600 faces
+  MapModelOptions exact_opt, binned_opt;
+  binned_opt.binned_above_faces = 1000;
+  const MapModel a = BuildMapModel(m, exact_opt), b = BuildMapModel(m, binned_opt);
+  CHECK(a.local_ladder_m.size() > 1);
+  CHECK(a.bandwidth_m == b.bandwidth_m && a.bandwidth_arc_m == b.bandwidth_arc_m && a.local_linear == b.local_linear);
+  CHECK(a.smoothing_error_rel == b.smoothing_error_rel && a.noise_phi == b.noise_phi && a.outlier_faces == b.outlier_faces);
+  CHECK(a.cv_curve == b.cv_curve && a.local_ladder_m == b.local_ladder_m);
+  CHECK(Same(a.clean, b.clean));
+  const Eigen::Index n = m.z.size();
+  std::vector<double> d_int, d_sd, d_noise;
+  double d_int_same_scale = 0;  // the largest intensity difference where both chose the same scale
+  size_t other_scale = 0, far_scale = 0, stopped = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    // Differences in units of the exact noise sd (the noise the smoothing leaves).
+    const double di = std::fabs(a.intensity[i] - b.intensity[i]) / a.intensity_noise_sd[i];
+    d_int.push_back(di);
+    d_sd.push_back(std::fabs(a.intensity_sd[i] - b.intensity_sd[i]) / a.intensity_sd[i]);
+    d_noise.push_back(std::fabs(a.intensity_noise_sd[i] - b.intensity_noise_sd[i]) / a.intensity_noise_sd[i]);
+    const double la = a.local_bandwidth_m[i], lb = b.local_bandwidth_m[i];
+    if (la < a.bandwidth_m) ++stopped;
+    if (la != lb) {
+      ++other_scale;
+      if (std::max(la, lb) > 1.5 * std::min(la, lb)) ++far_scale;  // ladder steps are 1.4x apart
+    } else {
+      d_int_same_scale = std::max(d_int_same_scale, di);
+    }
+  }
+  auto q = [](std::vector<double> v, double p) {
+    std::sort(v.begin(), v.end());
+    return v[static_cast<size_t>(p * static_cast<double>(v.size() - 1))];
+  };
+  std::printf(
+      "\n  binned vs face by face: intensity / noise sd median %.3g p99 %.3g (same scale: max %.3g); noise sd rel median %.3g "
+      "p99 %.3g; sd rel median %.3g p99 %.3g; %zu faces at another scale (%zu stopped below the top)\n",
+      q(d_int, 0.5), q(d_int, 0.99), d_int_same_scale, q(d_noise, 0.5), q(d_noise, 0.99), q(d_sd, 0.5), q(d_sd, 0.99),
+      other_scale, stopped);
+  CHECK(stopped > 1000);  // the band: the local scale is exercised
+  CHECK(q(d_int, 0.5) < 0.05);
+  CHECK(q(d_int, 0.99) < 0.5);
+  CHECK(d_int_same_scale < 1.0);
+  CHECK(q(d_noise, 0.5) < 0.005);
+  CHECK(q(d_noise, 0.99) < 0.02);
+  CHECK(q(d_sd, 0.5) < 0.005);
+  CHECK(q(d_sd, 0.99) < 0.02);
+  CHECK(other_scale < static_cast<size_t>(n) / 1000);  // < 0.1 % of the faces
+  CHECK_EQUAL(0u, far_scale);
+}
+
+// binned_above_faces: a map with that many faces is still summed face by face (bit for bit the
+// default result), one more face's worth of threshold lower and it is binned.
+TEST(MapModel, MapsAtOrBelowTheThresholdAreSummedFaceByFace) {
+  const WearMap m = NoisyBandedCone(48, 24);  // 2,304 faces
+  MapModelOptions at, below;
+  at.binned_above_faces = 2304;
+  below.binned_above_faces = 2303;
+  const MapModel d = BuildMapModel(m), a = BuildMapModel(m, at), b = BuildMapModel(m, below);
+  CHECK(MapModelOptions{}.binned_above_faces == 200000);
+  CHECK(Same(d.intensity, a.intensity) && Same(d.intensity_sd, a.intensity_sd) && Same(d.local_bandwidth_m, a.local_bandwidth_m));
+  CHECK_FALSE(Same(d.intensity, b.intensity));
+}
+
+TEST(MapModel, BinnedSameResultWithOneOrTwoThreads) {
+  const WearMap m = NoisyBandedCone(64, 36);
+  MapModelOptions one, two;
+  one.threads = 1;
+  two.threads = 2;
+  one.binned_above_faces = two.binned_above_faces = 0;
+  const MapModel a = BuildMapModel(m, one), b = BuildMapModel(m, two);
+  CHECK(a.local_ladder_m.size() > 1);
+  CHECK(Same(a.intensity, b.intensity));
+  CHECK(Same(a.intensity_sd, b.intensity_sd));
+  CHECK(Same(a.intensity_noise_sd, b.intensity_noise_sd));
+  CHECK(Same(a.local_bandwidth_m, b.local_bandwidth_m));
 }
