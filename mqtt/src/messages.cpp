@@ -1,7 +1,10 @@
 #include "mqtt/messages.hpp"
 
 #include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 
 namespace lw::mqtt {
@@ -222,28 +225,218 @@ std::string EncodeReading(const ReadingMessage& r) {
   return Dump(j);
 }
 
-std::optional<ReadingMessage> DecodeReading(std::string_view payload, std::string* error) {
-  const auto j = ParseObject(payload, error);
-  if (!j) return std::nullopt;
-  Fields f(*j, error);
+namespace {
+
+/// A whole-number field in [lo, hi] (a float without a fraction counts); sets *error naming the
+/// field otherwise (the server's texts: `missing "seq"`, `"seq" must be a whole number`,
+/// `"flags" 70000 is outside [0, 65535]`).
+std::optional<int64_t> WholeField(const json& j, const char* name, int64_t lo, int64_t hi, std::string* error) {
+  const auto it = j.find(name);
+  if (it == j.end()) {
+    *error = std::string("missing \"") + name + "\"";
+    return std::nullopt;
+  }
+  const auto outside = [&](const std::string& value) {
+    *error = std::string("\"") + name + "\" " + value + " is outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+    return std::nullopt;
+  };
+  int64_t v = 0;
+  if (it->is_number_unsigned() && it->get<uint64_t>() > static_cast<uint64_t>(INT64_MAX)) {
+    return outside(std::to_string(it->get<uint64_t>()));  // beyond every range a field has
+  } else if (it->is_number_integer()) {
+    v = it->get<int64_t>();
+  } else if (it->is_number_float() && std::floor(it->get<double>()) == it->get<double>() && std::fabs(it->get<double>()) < 9e15) {
+    v = static_cast<int64_t>(it->get<double>());
+  } else {
+    *error = std::string("\"") + name + "\" must be a whole number";
+    return std::nullopt;
+  }
+  if (v < lo || v > hi) return outside(std::to_string(v));
+  return v;
+}
+
+/// The identity of a reading object: its sensor (a string or a whole number) and a valid seq.
+void Identify(const json& j, ReadingIdentity* id) {
+  const auto s = j.find("sensor");
+  if (s != j.end() && s->is_string())
+    id->sensor = s->get<std::string>();
+  else if (s != j.end() && s->is_number_unsigned())
+    id->sensor = std::to_string(s->get<uint64_t>());
+  else if (s != j.end() && s->is_number_integer())
+    id->sensor = std::to_string(s->get<int64_t>());
+  std::string ignored;
+  if (const auto seq = WholeField(j, "seq", 0, 0xFFFFFFFFLL, &ignored)) id->seq = static_cast<uint32_t>(*seq);
+}
+
+/// The quoted token of a number overflow message ("... parsing '1e999'"), or empty.
+std::string OverflowToken(const std::string& what) {
+  const size_t a = what.find('\'');
+  const size_t b = a == std::string::npos ? a : what.find('\'', a + 1);
+  return b == std::string::npos ? std::string() : what.substr(a + 1, b - a - 1);
+}
+
+/// A message whose numbers overflow a double still names its sensor and seq: read them from a copy
+/// with each overflowing number replaced by 0 (at most 16), so the rejection can be acknowledged.
+void IdentifyDespiteOverflow(std::string_view payload, ReadingIdentity* id) {
+  std::string text(payload);
+  for (int tries = 0; tries < 16; ++tries) {
+    try {
+      const json j = json::parse(text);
+      if (j.is_object()) Identify(j, id);
+      return;
+    } catch (const json::out_of_range& e) {
+      const std::string token = OverflowToken(e.what());
+      if (token.empty()) return;
+      bool replaced = false;
+      for (size_t at = text.find(token); at != std::string::npos; at = text.find(token, at + 1)) {
+        // Only a whole number token (after ':' ',' or '[' and optional spaces), not text in a string.
+        size_t before = at;
+        while (before > 0 && std::isspace(static_cast<unsigned char>(text[before - 1]))) --before;
+        const char prev = before > 0 ? text[before - 1] : '\0';
+        const size_t after = at + token.size();
+        const bool ends = after >= text.size() || std::strchr(",]} \t\r\n", text[after]) != nullptr;
+        if ((prev == ':' || prev == ',' || prev == '[') && ends) {
+          // Never invent the identity itself: an overflowing "seq" or "sensor" identifies nothing.
+          if (prev == ':') {
+            const size_t quote = text.rfind('"', before - 1);
+            const size_t open = quote == std::string::npos || quote == 0 ? std::string::npos : text.rfind('"', quote - 1);
+            const std::string key = open == std::string::npos ? std::string() : text.substr(open + 1, quote - open - 1);
+            if (key == "seq" || key == "sensor") return;
+          }
+          text.replace(at, token.size(), "0");
+          replaced = true;
+          break;
+        }
+      }
+      if (!replaced) return;
+    } catch (const json::exception&) {
+      return;
+    }
+  }
+}
+
+/// Optional fields: set when present with docs/mqtt.md's type, left absent otherwise.
+void OptionalString(const json& j, const char* name, std::optional<std::string>* out) {
+  const auto it = j.find(name);
+  if (it != j.end() && it->is_string()) *out = it->get<std::string>();
+}
+void OptionalWhole(const json& j, const char* name, std::optional<int64_t>* out) {
+  std::string ignored;
+  if (j.contains(name)) *out = WholeField(j, name, INT64_MIN, INT64_MAX, &ignored);
+}
+
+}  // namespace
+
+bool ParseJsonNamingField(std::string_view text, nlohmann::json* out, std::string* error) {
+  try {
+    *out = json::parse(text);  // the common case: no callback per token
+    return true;
+  } catch (const json::out_of_range&) {
+    // Parse again to learn which field holds the overflowing number (below).
+  } catch (const json::exception&) {
+    *error = "malformed JSON";
+    return false;
+  }
+  std::string key;  // the last object key seen: names the field a number overflow sits in
+  try {
+    *out = json::parse(text, [&key](int, json::parse_event_t event, json& parsed) {
+      if (event == json::parse_event_t::key && parsed.is_string()) key = parsed.get<std::string>();
+      return true;
+    });
+    return true;
+  } catch (const json::out_of_range& e) {
+    // nlohmann: "[json.exception.out_of_range.406] number overflow parsing '1e999'"
+    const std::string what = e.what();
+    const size_t q = what.find('\'');
+    const std::string number = q == std::string::npos ? std::string() : what.substr(q);
+    *error = (key.empty() ? std::string("a number") : "\"" + key + "\"") + (number.empty() ? "" : " " + number) +
+             " does not fit a double (number overflow)";
+  } catch (const json::exception&) {
+    *error = "malformed JSON";
+  }
+  return false;
+}
+
+size_t JsonNestingDepth(std::string_view text) {
+  size_t depth = 0, deepest = 0;
+  bool in_string = false, escaped = false;
+  for (const char ch : text) {
+    if (in_string) {
+      if (escaped)
+        escaped = false;
+      else if (ch == '\\')
+        escaped = true;
+      else if (ch == '"')
+        in_string = false;
+    } else if (ch == '"') {
+      in_string = true;
+    } else if (ch == '[' || ch == '{') {
+      deepest = std::max(deepest, ++depth);
+    } else if ((ch == ']' || ch == '}') && depth > 0) {
+      --depth;
+    }
+  }
+  return deepest;
+}
+
+std::optional<ReadingMessage> DecodeReading(std::string_view payload, std::string* error, ReadingIdentity* identity) {
+  ReadingIdentity local;
+  ReadingIdentity& id = identity ? *identity : local;
+  id = {};
+  if (payload.size() > kMaxReadingBytes) {
+    *error = "message of " + std::to_string(payload.size()) + " bytes (at most " + std::to_string(kMaxReadingBytes) + ")";
+    return std::nullopt;
+  }
+  if (JsonNestingDepth(payload) > kMaxReadingDepth) {
+    *error = "JSON nested deeper than " + std::to_string(kMaxReadingDepth) + " levels";
+    return std::nullopt;
+  }
+  json j;
+  if (!ParseJsonNamingField(payload, &j, error)) {
+    IdentifyDespiteOverflow(payload, &id);  // so that the quarantined message can be acknowledged
+    return std::nullopt;
+  }
+  if (!j.is_object()) {
+    *error = "not a JSON object";
+    return std::nullopt;
+  }
+  id.object = true;
+  // Identify first, so that even a rejected message can be acknowledged once quarantined.
+  Identify(j, &id);
+  if (id.sensor.empty()) {
+    *error = "missing or invalid \"sensor\"";
+    return std::nullopt;
+  }
   ReadingMessage r;
-  int64_t seq = 0, flags = 0;
-  // The sensor id is a string on the wire; a bare number names the same sensor.
-  if (const auto s = j->find("sensor"); s != j->end() && s->is_number_unsigned()) {
-    r.sensor = std::to_string(s->get<uint64_t>());
-  } else if (!f.String("sensor", &r.sensor)) {
+  r.sensor = id.sensor;
+  if (!WholeField(j, "seq", 0, 0xFFFFFFFFLL, error)) return std::nullopt;
+  r.seq = *id.seq;
+  const auto t = j.find("time");
+  if (t == j.end() || !t->is_string()) {
+    *error = "missing or non-string \"time\"";
     return std::nullopt;
   }
-  if (!f.Integer("seq", 0, 0xFFFFFFFFLL, &seq) || !f.String("time", &r.time) || !f.Number("thickness_mm", &r.thickness_mm) ||
-      !f.Integer("loops_intact", 0, INT64_MAX, &r.loops_intact) || !f.Integer("flags", 0, 0xFFFF, &flags) ||
-      !f.Integer("battery_mv", INT64_MIN, INT64_MAX, &r.battery_mv) || !f.Integer("temperature_c", &r.temperature_c) ||
-      !f.Integer("ladder_loops", &r.ladder_loops) || !f.String("loop_bitmap", &r.loop_bitmap) ||
-      !f.Integer("dropped_total", &r.dropped_total) || !f.String("address", &r.address) || !f.String("gateway", &r.gateway) ||
-      !f.String("received", &r.received)) {
+  r.time = t->get<std::string>();
+  const auto th = j.find("thickness_mm");
+  if (th == j.end() || !th->is_number()) {
+    *error = "missing or non-numeric \"thickness_mm\"";
     return std::nullopt;
   }
-  r.seq = static_cast<uint32_t>(seq);
-  r.flags = static_cast<uint16_t>(flags);
+  r.thickness_mm = th->get<double>();
+  const auto loops = WholeField(j, "loops_intact", 0, 4096, error);
+  const auto flags = loops ? WholeField(j, "flags", 0, 0xFFFF, error) : std::nullopt;
+  const auto battery = flags ? WholeField(j, "battery_mv", 0, 10000, error) : std::nullopt;
+  if (!battery) return std::nullopt;
+  r.loops_intact = *loops;
+  r.flags = static_cast<uint16_t>(*flags);
+  r.battery_mv = *battery;
+  OptionalWhole(j, "temperature_c", &r.temperature_c);
+  OptionalWhole(j, "ladder_loops", &r.ladder_loops);
+  OptionalString(j, "loop_bitmap", &r.loop_bitmap);
+  OptionalWhole(j, "dropped_total", &r.dropped_total);
+  OptionalString(j, "address", &r.address);
+  OptionalString(j, "gateway", &r.gateway);
+  OptionalString(j, "received", &r.received);
   return r;
 }
 

@@ -74,13 +74,18 @@ struct PahoLink::Impl {
     }
   }
 
+  // Wakes the poller only when the queue was empty: Poll() reads the descriptor before it takes
+  // the whole queue, so an event queued behind others is taken with them (one write per burst of
+  // messages instead of one system call per message).
   void Push(LinkEvent e) {
+    bool was_empty = false;
     {
       std::lock_guard<std::mutex> lock(mutex);
+      was_empty = events.empty();
       events.push_back(std::move(e));
     }
     const uint64_t one = 1;
-    if (wake.fd >= 0) (void)!write(wake.fd, &one, sizeof one);
+    if (was_empty && wake.fd >= 0) (void)!write(wake.fd, &one, sizeof one);
   }
 };
 

@@ -197,6 +197,9 @@ std::vector<StoredReading> LiveState::WearInputs(const std::string& crusher) con
   const CrusherLive* c = Find(crusher);
   if (!c) return out;
   std::lock_guard<std::mutex> lock(c->mutex);
+  size_t total = 0;  // reserved at once: the copies are this function's cost, not the vector's growth
+  for (const auto& entry : c->sensors) total += entry.second.window.size() + entry.second.anchor.size();
+  out.reserve(total);
   for (const auto& entry : c->sensors) {
     const std::string& sensor = entry.first;  // not a structured binding: clang 14 cannot capture one
     const auto& s = entry.second;

@@ -11,6 +11,7 @@
 
 #include "core/time.hpp"
 #include "core/wear_map.hpp"
+#include "mqtt/messages.hpp"
 #include "server/openapi.hpp"
 
 namespace lw::server::rest {
@@ -349,11 +350,11 @@ Response Resources::PostReadings(const Request& req) {
   Response error;
   const Crusher* c = CrusherOf(req, &error);
   if (!c) return error;
-  if (JsonNestingDepth(req.body) > kMaxJsonDepth + 2) return Error(400, "body is nested too deeply");
+  if (mqtt::JsonNestingDepth(req.body) > mqtt::kMaxReadingDepth + 2) return Error(400, "body is nested too deeply");
   std::lock_guard<std::mutex> one_at_a_time(post_mutex_);
   nlohmann::json body;
   std::string parse_error;
-  if (!ParseJsonNamingField(req.body, &body, &parse_error)) {
+  if (!mqtt::ParseJsonNamingField(req.body, &body, &parse_error)) {
     return Error(400, parse_error == "malformed JSON" ? "body is not valid JSON" : "body: " + parse_error);
   }
   if (!body.is_object() || !body.contains("readings") || !body["readings"].is_array()) {

@@ -207,11 +207,13 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   const auto on_committed = [&](const IngestResult& r) {
     std::set<std::string> changed;
     for (const StoredReading& s : r.new_readings) {
-      nlohmann::json j = nlohmann::json::parse(s.payload, nullptr, false);
-      if (!j.is_object()) j = nlohmann::json::object();
-      j["sensor"] = s.sensor;
-      j["time"] = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(s.time_s)));
-      events.Publish(s.crusher, "reading", j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+      events.PublishLazy(s.crusher, "reading", [payload = s.payload, sensor = s.sensor, time_s = s.time_s] {
+        nlohmann::json j = nlohmann::json::parse(payload, nullptr, false);
+        if (!j.is_object()) j = nlohmann::json::object();
+        j["sensor"] = sensor;
+        j["time"] = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(time_s)));
+        return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+      });
       changed.insert(s.crusher);
     }
     for (const auto& line : r.log) log(line);

@@ -109,7 +109,7 @@ class MosquittoFixture {
   bool running() { return process_.Running(); }
 
   int port() const { return port_; }
-  /// The broker's process id (-1 when not started).
+  /// The broker's process id (-1 when not started; for CPU accounting in benchmarks).
   pid_t pid() const { return process_.pid(); }
   /// "tcp://127.0.0.1:PORT" ("ssl://..." with tls).
   std::string uri() const;

@@ -50,9 +50,37 @@ struct ReadingMessage {
 };
 
 std::string EncodeReading(const ReadingMessage& reading);
-/// Nullopt with `*error` naming the field when a required field is missing or of the wrong type,
-/// or the text is not a JSON object.
-std::optional<ReadingMessage> DecodeReading(std::string_view payload, std::string* error);
+
+/// Limits on a reading message, checked before it is parsed into a tree.
+inline constexpr size_t kMaxReadingBytes = 64 * 1024;
+inline constexpr size_t kMaxReadingDepth = 8;
+
+/// What identifies a reading message, read even from one DecodeReading refuses, so that a
+/// quarantined message can still be acknowledged (docs/server.md, *Bad input*).
+struct ReadingIdentity {
+  bool object = false;          ///< the payload is a JSON object within the limits
+  std::string sensor;           ///< "sensor" as a string or a whole number; empty otherwise
+  std::optional<uint32_t> seq;  ///< "seq" when it is a whole number in [0, 2^32-1]
+};
+
+/// The reading decoder (the server ingests through it). Nullopt with `*error` naming what is
+/// wrong, checked in this order: size (kMaxReadingBytes) and nesting (kMaxReadingDepth) before
+/// parsing; JSON (a number that overflows a double is named by its field: `"flags" '1e999' does
+/// not fit a double (number overflow)`); an object; then the required fields: `sensor` (a string,
+/// or a whole number naming the same sensor), `seq` in [0, 2^32-1], `time` a string (not parsed
+/// here), `thickness_mm` a number, `loops_intact` in [0, 4096], `flags` in [0, 65535],
+/// `battery_mv` in [0, 10000]. Whole-number fields also accept a float with no fraction (`5.0`).
+/// Optional fields of another type than docs/mqtt.md's are left absent, as unknown fields are
+/// ignored: they never cost the reading. `identity`, when given, is filled whatever the outcome.
+std::optional<ReadingMessage> DecodeReading(std::string_view payload, std::string* error, ReadingIdentity* identity = nullptr);
+
+/// Parses `text`; false with *error set when it is not JSON ("malformed JSON"). A number that
+/// overflows a double (`1e999`) is named by its field: `"flags" '1e999' does not fit a double
+/// (number overflow)`. No size or nesting limit: see JsonNestingDepth.
+bool ParseJsonNamingField(std::string_view text, nlohmann::json* out, std::string* error);
+
+/// Deepest nesting of [ and { in a JSON text (outside strings); no parsing, no recursion.
+size_t JsonNestingDepth(std::string_view text);
 
 // ---- commit ack: `sensors/{sensor}/committed`, server -> gateway ----
 

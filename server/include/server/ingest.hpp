@@ -25,16 +25,6 @@ namespace lw::server {
 /// holds loops intact (a cut cable). Every loop open with none intact is a consumed sensor: real wear.
 bool IsFaultReading(int64_t flags, int64_t loops_intact);
 
-/// Parses `text`; false with *error set when it is not JSON. A number that overflows a double
-/// (`1e999`) is named by its field: `"flags" '1e999' does not fit a double (number overflow)`.
-bool ParseJsonNamingField(std::string_view text, nlohmann::json* out, std::string* error);
-
-/// Deepest nesting of [ and { in a JSON text (outside strings); no parsing, no recursion.
-size_t JsonNestingDepth(std::string_view text);
-/// Reading messages nested deeper, or longer than kMaxPayloadBytes, are refused before parsing.
-inline constexpr size_t kMaxJsonDepth = 8;
-inline constexpr size_t kMaxPayloadBytes = 64 * 1024;
-
 struct Incoming {
   std::string site;
   std::string crusher;
@@ -52,10 +42,10 @@ struct Validation {
   std::optional<int64_t> seq;
 };
 
-/// Validates a reading message against the registry: JSON object; `sensor` (matching the topic's),
-/// `seq` (0..2^32-1), `time` (ISO-8601, not before the liner's installation minus a day, not more
-/// than a day after `now_s`), `thickness_mm` (0..thickness_new + 1), `loops_intact` (>= 0), `flags`
-/// (0..65535), `battery_mv` (0..10000); crusher and sensor known.
+/// Validates a reading message: decoded by mqtt::DecodeReading (size, nesting, JSON object, the
+/// required fields and their ranges), then checked against the registry: `sensor` matching the
+/// topic's, crusher and sensor known, `time` ISO-8601, not before the liner's installation minus a
+/// day and not more than a day after `now_s`, `thickness_mm` in 0..thickness_new + 1.
 Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t now_s);
 
 /// What the gateway of `site` may drop: sent as mqtt::EncodeCommitAcks on the sensor's

@@ -93,17 +93,82 @@ TEST(Messages, ReadingDecoderIgnoresUnknownFieldsAndNamesWhatIsWrong) {
   STRCMP_EQUAL("missing \"seq\"", error.c_str());
   CHECK_FALSE(mq::DecodeReading(
       R"({"sensor":"1","seq":-1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})", &error));
-  STRCMP_EQUAL("\"seq\" must be a whole number in [0, 4294967295]", error.c_str());
+  STRCMP_EQUAL("\"seq\" -1 is outside [0, 4294967295]", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(
+      R"({"sensor":"1","seq":1.5,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})", &error));
+  STRCMP_EQUAL("\"seq\" must be a whole number", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(
+      R"({"sensor":"1","seq":18446744073709551615,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})",
+      &error));
+  STRCMP_EQUAL("\"seq\" 18446744073709551615 is outside [0, 4294967295]", error.c_str());
   CHECK_FALSE(mq::DecodeReading(
       R"({"sensor":"1","seq":1,"time":"t","thickness_mm":"9","loops_intact":9,"flags":0,"battery_mv":1})", &error));
-  STRCMP_EQUAL("\"thickness_mm\" must be a number", error.c_str());
+  STRCMP_EQUAL("missing or non-numeric \"thickness_mm\"", error.c_str());
+  CHECK_FALSE(
+      mq::DecodeReading(R"({"sensor":"1","seq":1,"time":5,"thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})", &error));
+  STRCMP_EQUAL("missing or non-string \"time\"", error.c_str());
   CHECK_FALSE(mq::DecodeReading(
       R"({"sensor":"1","seq":1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":65536,"battery_mv":1})", &error));
-  STRCMP_EQUAL("\"flags\" must be a whole number in [0, 65535]", error.c_str());
+  STRCMP_EQUAL("\"flags\" 65536 is outside [0, 65535]", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(
+      R"({"sensor":"1","seq":1,"time":"t","thickness_mm":9,"loops_intact":4097,"flags":0,"battery_mv":1})", &error));
+  STRCMP_EQUAL("\"loops_intact\" 4097 is outside [0, 4096]", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(
+      R"({"sensor":"1","seq":1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":10001})", &error));
+  STRCMP_EQUAL("\"battery_mv\" 10001 is outside [0, 10000]", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(R"({"seq":1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})", &error));
+  STRCMP_EQUAL("missing or invalid \"sensor\"", error.c_str());
   CHECK_FALSE(mq::DecodeReading("[1]", &error));
   STRCMP_EQUAL("not a JSON object", error.c_str());
+  CHECK_FALSE(mq::DecodeReading("{not json", &error));
+  STRCMP_EQUAL("malformed JSON", error.c_str());
   CHECK_FALSE(mq::DecodeReading(std::string(70000, ' '), &error));
   STRCMP_EQUAL("message of 70000 bytes (at most 65536)", error.c_str());
+  CHECK_FALSE(mq::DecodeReading("{\"a\":" + std::string(20, '[') + std::string(20, ']') + "}", &error));
+  STRCMP_EQUAL("JSON nested deeper than 8 levels", error.c_str());
+}
+
+TEST(Messages, ReadingDecoderAcceptsWholeFloatsAndLeavesMistypedOptionalFieldsAbsent) {
+  std::string error;
+  const auto r =
+      mq::DecodeReading(R"({"sensor":"1","seq":5.0,"time":"t","thickness_mm":9,"loops_intact":9.0,"flags":0,"battery_mv":1,)"
+                        R"("temperature_c":"warm","gateway":7,"address":"0013A20040A1B2C3","ladder_loops":12.0})",
+                        &error);
+  CHECK_TEXT(r.has_value(), error.c_str());
+  LONGS_EQUAL(5, r->seq);
+  LONGS_EQUAL(9, r->loops_intact);
+  CHECK_FALSE(r->temperature_c.has_value());
+  CHECK_FALSE(r->gateway.has_value());
+  STRCMP_EQUAL("0013A20040A1B2C3", r->address.value_or("").c_str());
+  LONGS_EQUAL(12, r->ladder_loops.value_or(0));
+}
+
+TEST(Messages, ReadingDecoderIdentifiesARefusedMessageSoItCanBeAcknowledged) {
+  std::string error;
+  mq::ReadingIdentity id;
+  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1001","seq":77,"time":"garbage"})", &error, &id));
+  STRCMP_EQUAL("missing or non-numeric \"thickness_mm\"", error.c_str());
+  CHECK_TRUE(id.object);
+  STRCMP_EQUAL("1001", id.sensor.c_str());
+  LONGS_EQUAL(77, id.seq.value_or(0));
+  // A number overflowing a double is named by its field; the identity is still read.
+  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1001","seq":78,"flags":1e999})", &error, &id));
+  STRCMP_EQUAL("\"flags\" '1e999' does not fit a double (number overflow)", error.c_str());
+  CHECK_FALSE(id.object);
+  STRCMP_EQUAL("1001", id.sensor.c_str());
+  LONGS_EQUAL(78, id.seq.value_or(0));
+  // An overflowing seq identifies nothing (never 0 or another invented seq).
+  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1001","seq":1e999})", &error, &id));
+  CHECK_FALSE(id.seq.has_value());
+  // Not JSON: no identity.
+  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1001","seq":78,)", &error, &id));
+  CHECK_TRUE(id.sensor.empty());
+  CHECK_FALSE(id.seq.has_value());
+}
+
+TEST(Messages, JsonNestingDepthCountsOutsideStringsOnly) {
+  LONGS_EQUAL(3, mq::JsonNestingDepth(R"({"a":[{"b":"[[[[{{"}]})"));
+  LONGS_EQUAL(0, mq::JsonNestingDepth(R"("\"[")"));
 }
 
 // ---- commit ack ----
