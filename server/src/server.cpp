@@ -19,6 +19,7 @@
 #include "core/clock.hpp"
 #include "core/time.hpp"
 #include "mqtt/messages.hpp"
+#include "mqtt/outbox.hpp"
 #include "mqtt/paho_link.hpp"
 #include "mqtt/topics.hpp"
 #include "server/diagnosis_runner.hpp"
@@ -348,8 +349,18 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       }
     }
   };
+  // Commit acks the link refused (Paho's in-flight window full, or not connected) wait here and go
+  // first at the next turn, instead of being dropped (the gateway would wait for its republication).
+  mqtt::Outbox acks;
+  uint64_t acks_dropped_logged = 0;
   while (!stop) {
     const int64_t now = WallMs();
+    acks.Flush(link);
+    if (acks.dropped() != acks_dropped_logged) {
+      log("commit acks waiting for the broker beyond " + std::to_string(acks.size()) + ": dropped the oldest " +
+          std::to_string(acks.dropped() - acks_dropped_logged) + " (their gateways republish those records)");
+      acks_dropped_logged = acks.dropped();
+    }
     std::vector<Incoming> batch;
     collect(now, &batch);
     // Group commit: one fsync'ed transaction per batch, so when readings are arriving give the
@@ -376,7 +387,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
         const std::string topic = mqtt::Topics(a.site, a.crusher, o.topic_root).Committed(a.sensor);
         // Seqs are validated to 0..2^32-1 before they are stored or acked.
         for (std::string& m : mqtt::EncodeCommitAcks({a.sensor, {a.seqs.begin(), a.seqs.end()}, when})) {
-          link.Publish({topic, std::move(m), 1, false});
+          acks.Send(link, {topic, std::move(m), 1, false});
         }
       }
       on_committed(r);
