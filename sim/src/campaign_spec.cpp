@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <map>
 #include <set>
+#include <type_traits>
 #include <stdexcept>
 
 #include "core/cmdline.hpp"
@@ -91,7 +92,20 @@ CampaignSpec CampaignSpec::FromJson(const nlohmann::json& j) {
   }
   try {
     auto get = [&](const char* key, auto& field) {
-      if (j.contains(key)) field = j.at(key).get<std::decay_t<decltype(field)>>();
+      if (!j.contains(key)) return;
+      using T = std::decay_t<decltype(field)>;
+      if constexpr (std::is_same_v<T, int>) {
+        // nlohmann converts any number to int unchecked (2.4e98 -> undefined behaviour; found by
+        // fuzz/sim_campaign): a count must be a whole number that fits.
+        const nlohmann::json& v = j.at(key);
+        const double d = v.is_number() ? v.get<double>() : 0.5;
+        if (!v.is_number() || d != std::floor(d) || d < -2147483648.0 || d > 2147483647.0)
+          throw std::invalid_argument(std::string("campaign spec: \"") + key +
+                                      "\" must be a whole number that fits an int, not " + v.dump());
+        field = static_cast<int>(d);
+      } else {
+        field = j.at(key).get<T>();
+      }
     };
     get("crusher_id", s.crusher_id);
     get("installed_at", s.installed_at);

@@ -4,8 +4,8 @@
 
 #include <CppUTest/TestHarness.h>
 
-using lw::mqtt::OutMessage;
 using lw::mqtt::Outbox;
+using lw::mqtt::OutMessage;
 
 TEST_GROUP(Outbox){};
 

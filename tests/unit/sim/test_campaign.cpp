@@ -228,4 +228,14 @@ TEST(SimCampaign, SpecFieldsOutsideTheirRangeAreRefusedNamingTheField) {
     CHECK_TEXT(Mentions(r, what), (std::string(what) + " -> '" + r + "'").c_str());
   }
   CHECK_EQUAL("", Refusal(Small()));
+  // Counts in the JSON must be whole numbers that fit (2.4e98 was converted to int unchecked).
+  for (const char* bad : {R"({"n_theta": 2.4e98})", R"({"n_z": 12.5})", R"({"scan_points": "many"})"}) {
+    try {
+      (void)CampaignSpec::FromJson(nlohmann::json::parse(bad));
+      FAIL(bad);
+    } catch (const std::invalid_argument& e) {
+      CHECK_TEXT(Mentions(e.what(), "whole number"), e.what());
+    }
+  }
+  LONGS_EQUAL(40, CampaignSpec::FromJson(nlohmann::json::parse(R"({"n_theta": 40.0})")).n_theta);
 }
