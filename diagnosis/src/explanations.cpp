@@ -8,8 +8,12 @@
 namespace lw::diagnosis::detail {
 namespace {
 
-double Param(const FitResult& f, Effect e, size_t k) { return f.x[f.spec.Offset(e) + static_cast<Eigen::Index>(k)]; }
-double ParamSe(const FitResult& f, Effect e, size_t k) { return f.stderr_x[f.spec.Offset(e) + static_cast<Eigen::Index>(k)]; }
+double Param(const FitResult& f, Effect e, size_t k) {
+  return f.x[f.spec.Offset(e) + static_cast<Eigen::Index>(k)];
+}
+double ParamSe(const FitResult& f, Effect e, size_t k) {
+  return f.stderr_x[f.spec.Offset(e) + static_cast<Eigen::Index>(k)];
+}
 
 void DescribeWorkHardening(const ExplainContext& c, const FitResult& f, Effect e, Finding& out) {
   const double h = Param(f, e, 0), tau = std::exp(Param(f, e, 1));

@@ -33,7 +33,6 @@ std::optional<double> ProfiledU(const Problem& p, const Eigen::MatrixXd& w, size
 
 }  // namespace
 
-
 std::string Fmt(const char* format, ...) {
   char buffer[512];
   va_list args;

@@ -45,7 +45,7 @@ struct Obs {
   int sensor = -1;  ///< usable-sensor index, -1 for scan cells
   int scan = -1;
   int cell = -1;
-  size_t j = 0;  ///< time step of `t` on the grid ...
+  size_t j = 0;     ///< time step of `t` on the grid ...
   double frac = 0;  ///< ... and the fraction of the step after it
 };
 

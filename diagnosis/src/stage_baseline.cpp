@@ -80,7 +80,8 @@ Baseline FitBaseline(const Problem& prob) {
     for (size_t i : list) b.sensors_only[i] = true;
   std::vector<double> ks;
   for (const Obs& o : prob.obs)
-    if (o.sensor >= 0 && o.t > 0 && prob.points[o.point].intensity > 0) ks.push_back(o.raw / (prob.points[o.point].intensity * o.t));
+    if (o.sensor >= 0 && o.t > 0 && prob.points[o.point].intensity > 0)
+      ks.push_back(o.raw / (prob.points[o.point].intensity * o.t));
   std::sort(ks.begin(), ks.end());
   b.k_scale = ks.empty() ? 1.0 : ks[ks.size() / 2];
   if (!(b.k_scale > 0)) b.k_scale = 1.0;

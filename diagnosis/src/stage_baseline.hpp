@@ -13,21 +13,21 @@
 namespace lw::diagnosis::detail {
 
 struct Baseline {
-  ModelSpec spec;        ///< row scales only
-  double k_scale = 1;    ///< median wear / (intensity x time) of the sensor events: the scale of a row's k
-  Mask all;              ///< every observation
-  Mask sensors_only;     ///< the sensor events
+  ModelSpec spec;                    ///< row scales only
+  double k_scale = 1;                ///< median wear / (intensity x time) of the sensor events: the scale of a row's k
+  Mask all;                          ///< every observation
+  Mask sensors_only;                 ///< the sensor events
   EvalOptions eq9_opt{false, true};  ///< raw wear, no intensity error: the Eq. 9 reconstruction
-  FitResult eq9;         ///< fitted to the sensors only
+  FitResult eq9;                     ///< fitted to the sensors only
 };
 
 /// Fits the Eq. 9 baseline to the sensor events of `prob`.
 Baseline FitBaseline(const Problem& prob);
 
 struct NoiseModel {
-  double map_tau = 0;           ///< relative pattern error of the smoothed map
-  std::string tau_source;       ///< "scan", "sensors" or "map cross-validation"
-  double corr_cells = 1;        ///< scan cells sharing one map error
+  double map_tau = 0;      ///< relative pattern error of the smoothed map
+  std::string tau_source;  ///< "scan", "sensors" or "map cross-validation"
+  double corr_cells = 1;   ///< scan cells sharing one map error
 };
 
 /// Cells of the scan grid within one correlation area of the smoothed map's error (kernel support).

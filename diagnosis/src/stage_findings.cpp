@@ -33,8 +33,7 @@ double Confidence(const ModelEval& ev, double runner_up_score) {
   return std::clamp(s1 * s2 * (0.5 + 0.5 * share) * 1.2, 0.0, 0.99);
 }
 
-std::vector<Finding> ModelFindings(const Hypotheses& h, const ModelEval& null_eval, const ExplainContext& context,
-                                   size_t n_obs) {
+std::vector<Finding> ModelFindings(const Hypotheses& h, const ModelEval& null_eval, const ExplainContext& context, size_t n_obs) {
   std::vector<Finding> findings;
   const ModelEval* chosen = h.Chosen();
   if (!chosen) return findings;
@@ -217,7 +216,8 @@ std::vector<Finding> RankFindings(const FindingsInput& in) {
   context.corr_depth = evidence.corr_depth;
   std::vector<Finding> findings = ModelFindings(in.hypotheses, in.null.eval, context, s.prob.obs.size());
   for (Finding& f : MaterialLossFindings(s.sensors, in.bundle.crusher.installed_at)) findings.push_back(std::move(f));
-  std::stable_sort(findings.begin(), findings.end(), [](const Finding& a, const Finding& b) { return a.confidence > b.confidence; });
+  std::stable_sort(findings.begin(), findings.end(),
+                   [](const Finding& a, const Finding& b) { return a.confidence > b.confidence; });
   if (in.null.mismatch_z > th.mismatch_z && findings.empty())
     findings.push_back(UnexplainedFinding(in.null.mismatch_z, in.hypotheses.evals));
   return findings;

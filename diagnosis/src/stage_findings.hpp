@@ -26,8 +26,7 @@ ResidualEvidence BaselineResidualEvidence(const Problem& prob, const NullModel& 
 double Confidence(const ModelEval& ev, double runner_up_score);
 
 /// One finding per effect of the chosen model, strongest contribution first; none without a chosen model.
-std::vector<Finding> ModelFindings(const Hypotheses& h, const ModelEval& null_eval, const ExplainContext& context,
-                                   size_t n_obs);
+std::vector<Finding> ModelFindings(const Hypotheses& h, const ModelEval& null_eval, const ExplainContext& context, size_t n_obs);
 
 /// One material_loss finding per loss step a sensor saw.
 std::vector<Finding> MaterialLossFindings(const std::vector<SensorData>& sensors, core::TimePoint installed_at);

@@ -13,8 +13,8 @@
 namespace lw::diagnosis::detail {
 
 struct Hypotheses {
-  std::vector<ModelEval> evals;  ///< single effects (in Effect order), then pairs
-  size_t singles = 0;            ///< how many of `evals` are single effects
+  std::vector<ModelEval> evals;                       ///< single effects (in Effect order), then pairs
+  size_t singles = 0;                                 ///< how many of `evals` are single effects
   std::vector<std::pair<size_t, size_t>> pair_parts;  ///< per pair (evals[singles + k]): its single effects
   double dispersion = 1;  ///< best reduced chi-square, at least 1: every chi-square gain is divided by it
   int best = -1;          ///< index of the chosen model in `evals`, -1 when none is accepted

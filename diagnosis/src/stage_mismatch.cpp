@@ -88,8 +88,7 @@ OracleResult MeasureOracle(const Problem& prob, const Baseline& base, const Null
   Eigen::VectorXd lower, upper, scale, initial;
   spec.Bounds(lower, upper, scale, initial, base.k_scale);
   const std::vector<ParamSpec> ps = EffectParams(effect);
-  for (size_t k = 0; k < ps.size(); ++k)
-    initial[static_cast<Eigen::Index>(prob.rows + k)] = oracle.parameters.at(ps[k].name);
+  for (size_t k = 0; k < ps.size(); ++k) initial[static_cast<Eigen::Index>(prob.rows + k)] = oracle.parameters.at(ps[k].name);
   const auto rows = static_cast<Eigen::Index>(prob.rows);
   Eigen::MatrixXd w;
   auto fn = [&](const Eigen::VectorXd& k, Eigen::VectorXd& r) {
@@ -97,8 +96,7 @@ OracleResult MeasureOracle(const Problem& prob, const Baseline& base, const Null
     x.head(rows) = k;
     Residuals(prob, spec, x, all, joint, r, nullptr, w);
   };
-  const LmResult lm =
-      MinimiseLeastSquares(fn, null.fit.x.head(rows), lower.head(rows), upper.head(rows), scale.head(rows), 40);
+  const LmResult lm = MinimiseLeastSquares(fn, null.fit.x.head(rows), lower.head(rows), upper.head(rows), scale.head(rows), 40);
   Eigen::VectorXd x = initial;
   x.head(rows) = lm.x;
   const KindChi2 baseline = Chi2ByKind(prob, base.spec, null.fit.x), truth = Chi2ByKind(prob, spec, x);

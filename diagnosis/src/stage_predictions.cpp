@@ -21,7 +21,9 @@ double SensorU(const PredictionInput& in, const SensorData& s) {
   return (in.use_improved && s.usable) ? in.model.u[static_cast<size_t>(s.usable_index)] : 0.0;
 }
 
-double Days(const PredictionInput& in, core::TimePoint t) { return core::DaysBetween(in.bundle.crusher.installed_at, t); }
+double Days(const PredictionInput& in, core::TimePoint t) {
+  return core::DaysBetween(in.bundle.crusher.installed_at, t);
+}
 
 SensorCurve CurveOf(const PredictionInput& in, size_t i, const Eigen::MatrixXd& w_base, const Eigen::MatrixXd& w_best) {
   const ProblemSetup& setup = in.setup;
@@ -138,8 +140,7 @@ Prediction PredictAt(const PredictionInput& in, const std::vector<ModelPoint>& f
   // Physical: a face's wear is at most the as-new thickness (worn through).
   const Eigen::VectorXd fb =
       SimulateAt(in.base.spec, in.base.eq9.x, face_points, grid, t).cwiseMax(0.0).cwiseMin(thickness_new_mm);
-  const Eigen::VectorXd fi =
-      SimulateAt(in.model.spec, in.model.x, face_points, grid, t).cwiseMax(0.0).cwiseMin(thickness_new_mm);
+  const Eigen::VectorXd fi = SimulateAt(in.model.spec, in.model.x, face_points, grid, t).cwiseMax(0.0).cwiseMin(thickness_new_mm);
   pred.face_wear_baseline_mm.assign(fb.data(), fb.data() + fb.size());
   pred.face_wear_improved_mm.assign(fi.data(), fi.data() + fi.size());
   return pred;

@@ -15,9 +15,9 @@ struct PredictionInput {
   const core::Bundle& bundle;
   const DiagnoseOptions& options;
   const ProblemSetup& setup;
-  const Baseline& base;      ///< the Eq. 9 baseline (curves and predictions "baseline")
-  const NullModel& null;     ///< the refit baseline (residual grids "before")
-  const FitResult& model;    ///< the improved model: the chosen one, else the refit baseline, else Eq. 9
+  const Baseline& base;       ///< the Eq. 9 baseline (curves and predictions "baseline")
+  const NullModel& null;      ///< the refit baseline (residual grids "before")
+  const FitResult& model;     ///< the improved model: the chosen one, else the refit baseline, else Eq. 9
   bool use_improved = false;  ///< a model was chosen or something found: intensity errors and material loss applied
 };
 

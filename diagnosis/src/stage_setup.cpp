@@ -255,7 +255,6 @@ void AddSensorObservations(const MapFields& fields, const Interpolator& interp, 
     for (const auto& list : prob.sensor_obs)
       for (size_t i : list) prob.obs[i].sigma = std::sqrt(prob.obs[i].sigma * prob.obs[i].sigma + x);
   }
-
 }
 
 std::vector<ScanCells> AddScanObservations(const core::Bundle& bundle, const MapFields& fields, const Interpolator& interp,
