@@ -4,8 +4,6 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
-#include <cstdarg>
-#include <cstdio>
 #include <optional>
 
 #include "levenberg_marquardt.hpp"
@@ -32,15 +30,6 @@ std::optional<double> ProfiledU(const Problem& p, const Eigen::MatrixXd& w, size
 }
 
 }  // namespace
-
-std::string Fmt(const char* format, ...) {
-  char buffer[512];
-  va_list args;
-  va_start(args, format);
-  std::vsnprintf(buffer, sizeof buffer, format, args);
-  va_end(args);
-  return buffer;
-}
 
 double Round(double v, double digits) {
   const double f = std::pow(10.0, digits);

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "text_format.hpp"
 #include "wear_model.hpp"
 
 namespace lw::diagnosis::detail {
@@ -30,8 +31,6 @@ struct Thresholds {
   double u_floor_rel = 0.02;  ///< per-sensor intensity error floor (placement, local geometry)
 };
 
-/// printf into a std::string (at most 511 characters).
-__attribute__((format(printf, 1, 2))) std::string Fmt(const char* format, ...);
 /// `v` rounded to `digits` decimals (the JSON output's precision).
 double Round(double v, double digits = 4);
 

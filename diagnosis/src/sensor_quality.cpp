@@ -4,19 +4,18 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdarg>
-#include <cstdio>
 
 #include "sensor_steps.hpp"
+#include "text_format.hpp"
 
 namespace lw::diagnosis::detail {
 
 std::string IssueFmt(const char* format, ...) {
-  char buffer[160];
   va_list args;
   va_start(args, format);
-  std::vsnprintf(buffer, sizeof buffer, format, args);
+  std::string s = VFormat(159, format, args);
   va_end(args);
-  return buffer;
+  return s;
 }
 
 void AddRuns(const std::vector<RawReading>& readings, const std::vector<bool>& mark, const std::string& issue,
