@@ -11,7 +11,7 @@ namespace lw::diagnosis::detail {
 ResidualEvidence BaselineResidualEvidence(const Problem& prob, const NullModel& null) {
   const FitResult& null_fit = null.fit;
   const Eigen::MatrixXd& w = null.w;
-  std::vector<double> res_null, f_normal, f_depth, f_cos, f_time;
+  std::vector<double> res_null, f_normal, f_depth;
   for (const Obs& o : prob.obs) {
     double pred = Interp(w, o);
     if (o.sensor >= 0) pred *= 1.0 + null_fit.u[static_cast<size_t>(o.sensor)];
@@ -19,8 +19,6 @@ ResidualEvidence BaselineResidualEvidence(const Problem& prob, const NullModel& 
     res_null.push_back((pred - o.wear) / pred);
     f_normal.push_back(prob.points[o.point].normal_tilde);
     f_depth.push_back(o.wear);
-    f_cos.push_back(prob.points[o.point].cos_t);
-    f_time.push_back(o.t);
   }
   return {Correlation(res_null, f_normal), Correlation(res_null, f_depth)};
 }
