@@ -1,0 +1,263 @@
+// The diagnosis' fitting primitives (model_fit.hpp).
+#include "model_fit.hpp"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <optional>
+
+#include "levenberg_marquardt.hpp"
+
+namespace lw::diagnosis::detail {
+namespace {
+
+// The per-sensor intensity error u minimising sum((pred (1 + u) - target)^2 / sigma^2) + u^2 prior_inv_var
+// over the sensor's observations in `mask`; nullopt when the mask holds none of them.
+std::optional<double> ProfiledU(const Problem& p, const Eigen::MatrixXd& w, size_t sensor, const Mask& mask, bool raw,
+                                double prior_inv_var) {
+  double num = 0, den = prior_inv_var;
+  bool any = false;
+  for (size_t i : p.sensor_obs[sensor]) {
+    if (!mask[i]) continue;
+    any = true;
+    const Obs& o = p.obs[i];
+    const double pred = Interp(w, o);
+    num += (pred - (raw ? o.raw : o.wear)) * pred / (o.sigma * o.sigma);
+    den += pred * pred / (o.sigma * o.sigma);
+  }
+  if (!any) return std::nullopt;
+  return den > 0 ? -num / den : 0.0;
+}
+
+}  // namespace
+
+double Round(double v, double digits) {
+  const double f = std::pow(10.0, digits);
+  return std::round(v * f) / f;
+}
+
+double Interp(const Eigen::MatrixXd& w, const Obs& o) {
+  const auto r = static_cast<Eigen::Index>(o.point);
+  const auto j = static_cast<Eigen::Index>(o.j);
+  if (j + 1 >= w.cols()) return w(r, w.cols() - 1);
+  return w(r, j) * (1.0 - o.frac) + w(r, j + 1) * o.frac;
+}
+
+// Whitened residuals over the training observations; per-sensor random intensity error u_s is
+// profiled out analytically (prior N(0, sigma_u^2)).
+void Residuals(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x, const Mask& train, const EvalOptions& opt,
+               Eigen::VectorXd& r, std::vector<double>* u_out, Eigen::MatrixXd& w) {
+  Simulate(spec, x, p.points, p.grid, w);
+  size_t count = 0;
+  for (size_t s = 0; s < p.sensor_obs.size(); ++s) {
+    bool any = false;
+    for (size_t i : p.sensor_obs[s]) {
+      if (train[i]) {
+        ++count;
+        any = true;
+      }
+    }
+    if (opt.use_u && any) ++count;
+  }
+  for (size_t i : p.scan_obs)
+    if (train[i]) ++count;
+  r.resize(static_cast<Eigen::Index>(count));
+  if (u_out) u_out->assign(p.sensor_obs.size(), 0.0);
+  Eigen::Index k = 0;
+  for (size_t s = 0; s < p.sensor_obs.size(); ++s) {
+    const std::optional<double> profiled =
+        opt.use_u ? ProfiledU(p, w, s, train, opt.raw, 1.0 / (p.sigma_u[s] * p.sigma_u[s])) : std::nullopt;
+    const bool any = profiled.has_value();
+    const double u = profiled.value_or(0.0);
+    if (u_out) (*u_out)[s] = u;
+    for (size_t i : p.sensor_obs[s]) {
+      if (!train[i]) continue;
+      const Obs& o = p.obs[i];
+      const double target = opt.raw ? o.raw : o.wear;
+      r[k++] = (Interp(w, o) * (1.0 + u) - target) / o.sigma;
+    }
+    if (opt.use_u && any) r[k++] = u / p.sigma_u[s];
+  }
+  for (size_t i : p.scan_obs) {
+    if (!train[i]) continue;
+    const Obs& o = p.obs[i];
+    r[k++] = (Interp(w, o) - (opt.raw ? o.raw : o.wear)) / o.sigma;
+  }
+}
+
+FitResult Fit(const Problem& p, const ModelSpec& spec, const Mask& train, const EvalOptions& opt,
+              const std::vector<Eigen::VectorXd>& starts, int max_iterations, double k_scale) {
+  Eigen::VectorXd lower, upper, scale, initial;
+  spec.Bounds(lower, upper, scale, initial, k_scale);
+  Eigen::MatrixXd w;
+  auto fn = [&](const Eigen::VectorXd& x, Eigen::VectorXd& r) { Residuals(p, spec, x, train, opt, r, nullptr, w); };
+  FitResult best;
+  best.chi2 = std::numeric_limits<double>::max();
+  for (const Eigen::VectorXd& start : starts) {
+    LmResult lm = MinimiseLeastSquares(fn, start, lower, upper, scale, max_iterations);
+    if (lm.cost < best.chi2) {
+      best.chi2 = lm.cost;
+      best.x = lm.x;
+      Eigen::MatrixXd jtj = lm.jtj;
+      for (Eigen::Index d = 0; d < jtj.rows(); ++d) jtj(d, d) += 1e-12;
+      const Eigen::MatrixXd cov = jtj.ldlt().solve(Eigen::MatrixXd::Identity(jtj.rows(), jtj.cols()));
+      best.stderr_x = cov.diagonal().cwiseAbs().cwiseSqrt();
+    }
+  }
+  best.spec = spec;
+  Eigen::VectorXd r;
+  Residuals(p, spec, best.x, train, opt, r, &best.u, w);
+  best.chi2 = r.squaredNorm();
+  best.n_train = 0;
+  for (size_t i = 0; i < p.obs.size(); ++i)
+    if (train[i]) ++best.n_train;
+  return best;
+}
+
+TestScore Score(const Problem& p, const FitResult& f, const Mask& test, const Mask& train, bool raw) {
+  Eigen::MatrixXd w;
+  Simulate(f.spec, f.x, p.points, p.grid, w);
+  TestScore s;
+  std::vector<bool> seen(p.sensor_obs.size(), false);
+  for (size_t k = 0; k < p.sensor_obs.size(); ++k)
+    for (size_t i : p.sensor_obs[k])
+      if (train[i]) seen[k] = true;
+  for (size_t k = 0; k < p.sensor_obs.size(); ++k) {
+    if (seen[k]) continue;
+    const std::optional<double> profiled = ProfiledU(p, w, k, test, raw, 1.0 / (p.sigma_u[k] * p.sigma_u[k]));
+    if (!profiled) continue;
+    const double u = *profiled;
+    s.chi2 += u * u / (p.sigma_u[k] * p.sigma_u[k]);
+    for (size_t i : p.sensor_obs[k]) {
+      if (!test[i]) continue;
+      const Obs& o = p.obs[i];
+      const double pred = Interp(w, o);
+      const double e = pred * (1.0 + u) - (raw ? o.raw : o.wear);
+      const double e0 = pred - (raw ? o.raw : o.wear);
+      s.chi2 += e * e / (o.sigma * o.sigma);
+      s.sq_mm += e0 * e0;
+      s.n += 1;
+    }
+  }
+  for (size_t i = 0; i < p.obs.size(); ++i) {
+    if (!test[i]) continue;
+    const Obs& o = p.obs[i];
+    if (o.sensor >= 0 && !seen[static_cast<size_t>(o.sensor)]) continue;
+    double pred = Interp(w, o);
+    if (o.sensor >= 0) pred *= 1.0 + f.u[static_cast<size_t>(o.sensor)];
+    const double e = pred - (raw ? o.raw : o.wear);
+    s.chi2 += e * e / (o.sigma * o.sigma);
+    s.sq_mm += e * e;
+    s.n += 1;
+  }
+  return s;
+}
+
+double Significance(const FitResult& f, Effect e, double dispersion) {
+  const int o = f.spec.Offset(e);
+  if (o < 0 || f.stderr_x.size() != f.x.size()) return 0;
+  // An effect size pinned at the limit of its physical range: the data want something this effect
+  // cannot be, so it is not the explanation.
+  const ParamSpec main = EffectParams(e).front();
+  if (e != Effect::kFeedSegregation) {
+    const double span = main.upper - main.lower;
+    if (f.x[o] <= main.lower + 1e-3 * span && main.lower < 0) return 0;
+    if (f.x[o] >= main.upper - 1e-3 * span) return 0;
+  } else if (std::max(std::fabs(f.x[o]), std::fabs(f.x[o + 1])) >= 0.999 * main.upper) {
+    return 0;
+  }
+  const double inflate = std::sqrt(std::max(1.0, dispersion));
+  if (e == Effect::kFeedSegregation) {
+    const double amp = std::hypot(f.x[o], f.x[o + 1]);
+    const double se = std::hypot(f.stderr_x[o], f.stderr_x[o + 1]) / std::sqrt(2.0) * inflate;
+    return se > 0 ? amp / se : 0;
+  }
+  const double se = f.stderr_x[o] * inflate;
+  return se > 0 ? std::fabs(f.x[o]) / se : 0;
+}
+
+std::vector<Eigen::VectorXd> Starts(const ModelSpec& spec, const Eigen::VectorXd& k, const std::vector<const FitResult*>& seeds,
+                                    double k_scale) {
+  Eigen::VectorXd lower, upper, scale, initial;
+  spec.Bounds(lower, upper, scale, initial, k_scale);
+  initial.head(static_cast<Eigen::Index>(spec.rows)) = k;
+  std::vector<Eigen::VectorXd> starts;
+  // Seed effect parameters from earlier fits of the same effects.
+  Eigen::VectorXd seeded = initial;
+  for (const FitResult* seed : seeds) {
+    for (Effect e : seed->spec.effects) {
+      const int from = seed->spec.Offset(e), to = spec.Offset(e);
+      if (from < 0 || to < 0) continue;
+      const auto n = static_cast<Eigen::Index>(EffectParams(e).size());
+      seeded.segment(to, n) = seed->x.segment(from, n);
+    }
+  }
+  starts.push_back(seeded);
+  if (seeds.empty()) {
+    const int wh = spec.Offset(Effect::kWorkHardening);
+    if (wh >= 0) {
+      for (double tau : {2.0, 30.0}) {
+        Eigen::VectorXd s = seeded;
+        s[wh + 1] = std::log(tau);
+        starts.push_back(s);
+      }
+    }
+    const int hg = spec.Offset(Effect::kHardnessGradient);
+    if (hg >= 0) {
+      for (double d0 : {0.02, 0.7}) {
+        Eigen::VectorXd s = seeded;
+        s[hg + 1] = d0;
+        starts.push_back(s);
+      }
+    }
+    const int fs = spec.Offset(Effect::kFeedSegregation);
+    if (fs >= 0) {
+      for (double ang : {0.0, 90.0, 180.0, 270.0}) {
+        Eigen::VectorXd s = seeded;
+        s[fs] = 0.1 * std::cos(ang * kPi / 180.0);
+        s[fs + 1] = 0.1 * std::sin(ang * kPi / 180.0);
+        starts.push_back(s);
+      }
+    }
+  }
+  return starts;
+}
+
+double Correlation(const std::vector<double>& a, const std::vector<double>& b) {
+  const size_t n = std::min(a.size(), b.size());
+  if (n < 3) return 0;
+  double ma = 0, mb = 0;
+  for (size_t i = 0; i < n; ++i) {
+    ma += a[i];
+    mb += b[i];
+  }
+  ma /= static_cast<double>(n);
+  mb /= static_cast<double>(n);
+  double sab = 0, saa = 0, sbb = 0;
+  for (size_t i = 0; i < n; ++i) {
+    sab += (a[i] - ma) * (b[i] - mb);
+    saa += (a[i] - ma) * (a[i] - ma);
+    sbb += (b[i] - mb) * (b[i] - mb);
+  }
+  return (saa > 0 && sbb > 0) ? sab / std::sqrt(saa * sbb) : 0.0;
+}
+
+ModelEval Evaluate(const Problem& p, const ModelSpec& spec, const std::vector<const FitResult*>& seeds, const FitResult& null_fit,
+                   const std::vector<Fold>& folds, double k_scale) {
+  const Mask all(p.obs.size(), true);
+  const EvalOptions joint{true, false};
+  ModelEval ev;
+  ev.full =
+      Fit(p, spec, all, joint, Starts(spec, null_fit.x.head(static_cast<Eigen::Index>(p.rows)), seeds, k_scale), 40, k_scale);
+  for (const Fold& fold : folds) {
+    FitResult ff = Fit(p, spec, fold.train, joint, {ev.full.x}, 15, k_scale);
+    const TestScore sc = Score(p, ff, fold.test, fold.train, false);
+    ev.ho_chi2 += sc.chi2;
+    ev.ho_sq_mm += sc.sq_mm;
+    ev.ho_n += sc.n;
+    ev.fold_fits.push_back(std::move(ff));
+  }
+  return ev;
+}
+
+}  // namespace lw::diagnosis::detail

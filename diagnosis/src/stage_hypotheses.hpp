@@ -1,0 +1,48 @@
+#pragma once
+/// Diagnosis stage 5, hypotheses: every available effect fitted and judged against the refit
+/// baseline (information criterion, held-out gain, significance), pairs of the most promising
+/// ones, the over-dispersion of the best model, and the chosen model.
+#include <utility>
+#include <vector>
+
+#include "diagnosis/diagnose.hpp"
+#include "model_fit.hpp"
+#include "stage_baseline.hpp"
+#include "stage_mismatch.hpp"
+
+namespace lw::diagnosis::detail {
+
+struct Hypotheses {
+  std::vector<ModelEval> evals;                       ///< single effects (in Effect order), then pairs
+  size_t singles = 0;                                 ///< how many of `evals` are single effects
+  std::vector<std::pair<size_t, size_t>> pair_parts;  ///< per pair (evals[singles + k]): its single effects
+  double dispersion = 1;  ///< best reduced chi-square, at least 1: every chi-square gain is divided by it
+  int best = -1;          ///< index of the chosen model in `evals`, -1 when none is accepted
+  const ModelEval* Chosen() const { return best >= 0 ? &evals[static_cast<size_t>(best)] : nullptr; }
+};
+
+/// The effects the data can test: squeeze_wear needs normal stress, throughput_variation a varying tonnage log.
+std::vector<Effect> AvailableEffects(bool has_normal, bool throughput_available);
+
+/// Sets ev's delta_bic, held-out gain, significance, score and accepted, against `null_eval`.
+void Judge(ModelEval& ev, const ModelEval& null_eval, size_t rows, double log_n, double dispersion);
+
+/// Up to three single effects (indices into `evals`), best score first, with delta_bic > 0 and one
+/// form per effect: the candidates for pairs.
+std::vector<size_t> PairCandidates(const std::vector<ModelEval>& evals);
+
+/// Over-dispersion: the smallest reduced chi-square over the baseline and `evals`, at least 1.
+double Dispersion(const ModelEval& null_eval, const std::vector<ModelEval>& evals, size_t rows);
+
+/// A pair stays accepted only when it beats both its single effects (pair_delta_bic and held out)
+/// and predicts held-out data no worse than any accepted single effect.
+void ApplyPairRules(Hypotheses& h, double log_n);
+
+/// The accepted model with the highest score, -1 when none.
+int BestAccepted(const std::vector<ModelEval>& evals);
+
+/// The whole stage (writes noise["dispersion"]).
+Hypotheses TestHypotheses(const Problem& prob, const Baseline& base, const NullModel& null, const std::vector<Fold>& folds,
+                          const std::vector<Effect>& available, bool try_pairs, DiagnosisResult& result);
+
+}  // namespace lw::diagnosis::detail

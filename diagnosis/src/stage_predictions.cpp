@@ -1,0 +1,167 @@
+// Diagnosis stage 8, predictions and report data (stage_predictions.hpp).
+#include "stage_predictions.hpp"
+
+#include <algorithm>
+
+#include "report_maps.hpp"
+
+namespace lw::diagnosis::detail {
+namespace {
+
+// Material the sensor lost in steps up to time t.
+double LossOffset(const SensorData& s, double t) {
+  double off = 0;
+  for (const auto& l : s.analysis.losses)
+    if (t >= l.t_days) off += l.depth_mm;
+  return off;
+}
+
+// The improved model's intensity error at the sensor (0 for the baseline or an unused sensor).
+double SensorU(const PredictionInput& in, const SensorData& s) {
+  return (in.use_improved && s.usable) ? in.model.u[static_cast<size_t>(s.usable_index)] : 0.0;
+}
+
+double Days(const PredictionInput& in, core::TimePoint t) {
+  return core::DaysBetween(in.bundle.crusher.installed_at, t);
+}
+
+SensorCurve CurveOf(const PredictionInput& in, size_t i, const Eigen::MatrixXd& w_base, const Eigen::MatrixXd& w_best) {
+  const ProblemSetup& setup = in.setup;
+  const TimeGrid& grid = setup.prob.grid;
+  const SensorData& s = setup.sensors[i];
+  SensorCurve c;
+  c.sensor_id = s.id;
+  c.row = s.row;
+  c.thickness_new_mm = s.thickness;
+  c.used = s.usable;
+  for (size_t k = 0; k < s.analysis.readings.size(); ++k) {
+    c.reading_days.push_back(s.analysis.readings[k].t_days);
+    c.reading_mm.push_back(s.analysis.readings[k].value_mm);
+    c.reading_used.push_back(s.analysis.used[k]);
+  }
+  const size_t stride = std::max<size_t>(1, grid.steps / 120);
+  const double t_end = std::max(setup.time.t_obs_end, in.options.predict_at ? Days(in, *in.options.predict_at) : 0.0);
+  for (size_t j = 0; j <= grid.steps; j += stride) {
+    const double t = static_cast<double>(j) * grid.dt;
+    if (t > t_end + grid.dt) break;
+    c.model_days.push_back(t);
+    const auto r = static_cast<Eigen::Index>(i);
+    const auto jj = static_cast<Eigen::Index>(j);
+    c.baseline_thickness_mm.push_back(s.thickness - w_base(r, jj));
+    c.improved_thickness_mm.push_back(s.thickness - w_best(r, jj) * (1.0 + SensorU(in, s)) -
+                                      (in.use_improved ? LossOffset(s, t) : 0.0));
+  }
+  return c;
+}
+
+}  // namespace
+
+std::vector<ModelPoint> SensorPoints(const ProblemSetup& setup) {
+  std::vector<ModelPoint> points;
+  for (const SensorData& s : setup.sensors) points.push_back(MakePoint(setup.fields, setup.interp, s.field, 0.5 * s.thickness));
+  return points;
+}
+
+std::vector<ModelPoint> FacePoints(const core::Bundle& bundle, const ProblemSetup& setup) {
+  const MapFields& fields = setup.fields;
+  std::vector<ModelPoint> face_points;
+  face_points.reserve(bundle.map.face_count());
+  for (Eigen::Index f = 0; f < static_cast<Eigen::Index>(bundle.map.face_count()); ++f) {
+    PointField pf;
+    pf.z = bundle.map.z[f];
+    pf.theta_deg = bundle.map.theta_deg[f];
+    pf.intensity = fields.intensity[f];
+    pf.normal_tilde = fields.normal_tilde[f];
+    pf.normal_i = fields.normal_i[f];
+    face_points.push_back(MakePoint(fields, setup.interp, pf, 0.5 * bundle.crusher.thickness_new_mm));
+  }
+  return face_points;
+}
+
+std::vector<SensorCurve> SensorCurves(const PredictionInput& in) {
+  const std::vector<ModelPoint> points = SensorPoints(in.setup);
+  Eigen::MatrixXd w_base, w_best;
+  Simulate(in.base.spec, in.base.eq9.x, points, in.setup.prob.grid, w_base);
+  Simulate(in.model.spec, in.model.x, points, in.setup.prob.grid, w_best);
+  std::vector<SensorCurve> curves;
+  for (size_t i = 0; i < in.setup.sensors.size(); ++i) curves.push_back(CurveOf(in, i, w_base, w_best));
+  return curves;
+}
+
+std::vector<ResidualGrid> ResidualGrids(const PredictionInput& in) {
+  const Problem& prob = in.setup.prob;
+  const CellGrid& grid = in.setup.grid;
+  const Eigen::MatrixXd& w_null = in.null.w;
+  Eigen::MatrixXd w_best;
+  Simulate(in.model.spec, in.model.x, prob.points, prob.grid, w_best);
+  std::vector<ResidualGrid> grids;
+  for (size_t si = 0; si < in.setup.scans.size(); ++si) {
+    ResidualGrid g;
+    g.scan_file = in.setup.scans[si].file;
+    g.date = in.bundle.scans[si].date;
+    g.nz = grid.nz;
+    g.ntheta = grid.nt;
+    g.z_min_m = grid.z0;
+    g.z_max_m = grid.z0 + grid.dz * static_cast<double>(grid.nz);
+    g.theta_min_deg = grid.t0_deg;
+    g.theta_max_deg = grid.t0_deg + grid.dt_deg * static_cast<double>(grid.nt);
+    g.measured_mm.assign(grid.cells.size(), kNaN);
+    g.before_mm.assign(grid.cells.size(), kNaN);
+    g.after_mm.assign(grid.cells.size(), kNaN);
+    for (size_t i : prob.scan_obs) {
+      const Obs& o = prob.obs[i];
+      if (o.scan != static_cast<int>(si)) continue;
+      const auto c = static_cast<size_t>(o.cell);
+      g.measured_mm[c] = o.wear;
+      g.before_mm[c] = Interp(w_null, o) - o.wear;
+      g.after_mm[c] = Interp(w_best, o) - o.wear;
+    }
+    grids.push_back(std::move(g));
+  }
+  return grids;
+}
+
+Prediction PredictAt(const PredictionInput& in, const std::vector<ModelPoint>& face_points, core::TimePoint at) {
+  const TimeGrid& grid = in.setup.prob.grid;
+  const double thickness_new_mm = in.bundle.crusher.thickness_new_mm;
+  const std::vector<ModelPoint> sensor_points = SensorPoints(in.setup);
+  Prediction pred;
+  pred.time = at;
+  const double t = Days(in, at);
+  const Eigen::VectorXd wb = SimulateAt(in.base.spec, in.base.eq9.x, sensor_points, grid, t);
+  const Eigen::VectorXd wi = SimulateAt(in.model.spec, in.model.x, sensor_points, grid, t);
+  for (size_t i = 0; i < in.setup.sensors.size(); ++i) {
+    const SensorData& s = in.setup.sensors[i];
+    const auto r = static_cast<Eigen::Index>(i);
+    pred.sensors.push_back(
+        {s.id, std::max(0.0, s.thickness - wb[r]),
+         std::max(0.0, s.thickness - wi[r] * (1.0 + SensorU(in, s)) - (in.use_improved ? LossOffset(s, t) : 0.0))});
+  }
+  // Physical: a face's wear is at most the as-new thickness (worn through).
+  const Eigen::VectorXd fb =
+      SimulateAt(in.base.spec, in.base.eq9.x, face_points, grid, t).cwiseMax(0.0).cwiseMin(thickness_new_mm);
+  const Eigen::VectorXd fi = SimulateAt(in.model.spec, in.model.x, face_points, grid, t).cwiseMax(0.0).cwiseMin(thickness_new_mm);
+  pred.face_wear_baseline_mm.assign(fb.data(), fb.data() + fb.size());
+  pred.face_wear_improved_mm.assign(fi.data(), fi.data() + fi.size());
+  return pred;
+}
+
+void Predict(const PredictionInput& in, DiagnosisResult& result) {
+  result.curves = SensorCurves(in);
+  result.grids = ResidualGrids(in);
+  // Model points of every map face (the prediction and the report's liner maps).
+  const std::vector<ModelPoint> face_points = FacePoints(in.bundle, in.setup);
+  if (in.options.predict_at) result.prediction = PredictAt(in, face_points, *in.options.predict_at);
+  // Unwrapped-liner maps and thinnest points for the HTML report (report_maps.cpp).
+  const double thickness_new_mm = in.bundle.crusher.thickness_new_mm;
+  FillLinerReport(
+      in.bundle, in.setup.fields, in.setup.scans,
+      [&](bool improved, double t) {
+        const Eigen::VectorXd w = improved ? SimulateAt(in.model.spec, in.model.x, face_points, in.setup.prob.grid, t)
+                                           : SimulateAt(in.base.spec, in.base.eq9.x, face_points, in.setup.prob.grid, t);
+        return Eigen::VectorXd(w.cwiseMax(0.0).cwiseMin(thickness_new_mm));
+      },
+      result);
+}
+
+}  // namespace lw::diagnosis::detail

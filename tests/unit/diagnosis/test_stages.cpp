@@ -1,0 +1,416 @@
+// The stages of Diagnose() (diagnosis/src/stage_*.hpp) through their headers: each stage's typed
+// result on a small synthetic campaign (a null one and one with strong work hardening, built once),
+// and the stages' pure parts on hand-made inputs.
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/bundle.hpp"
+#include "stage_baseline.hpp"
+#include "stage_findings.hpp"
+#include "stage_folds.hpp"
+#include "stage_hypotheses.hpp"
+#include "stage_mismatch.hpp"
+#include "stage_predictions.hpp"
+#include "stage_regions.hpp"
+#include "stage_setup.hpp"
+#include "support/temp_directory.hpp"
+#include "unit/diagnosis/synthetic_bundle.hpp"
+
+// CppUTest last: its leak-detector macros redefine new.
+#include <CppUTest/TestHarness.h>
+
+namespace {
+
+namespace d = lw::diagnosis::detail;
+
+// One campaign run through the stages up to the mismatch test (and, when `full`, all of them).
+struct Run {
+  lw::core::Bundle bundle;
+  lw::diagnosis::DiagnoseOptions options;
+  lw::diagnosis::DiagnosisResult result;
+  d::ProblemSetup setup;
+  std::vector<double> scan_sigma_before;  ///< scan cells' sigma before the noise model
+  d::Baseline base;
+  d::NoiseModel noise;
+  std::vector<d::Fold> folds;
+  d::NullModel null;
+  d::Hypotheses hyp;
+};
+
+std::unique_ptr<Run> Build(const lw::test::SyntheticSpec& spec, bool full) {
+  auto r = std::make_unique<Run>();
+  const lw::test::TempDirectory tmp("lw-diag-stages");
+  lw::test::WriteSyntheticBundle(tmp.path(), spec);
+  r->bundle = lw::core::LoadBundle(tmp.path());
+  r->options.try_pairs = false;
+  r->setup = d::SetUpProblem(r->bundle, r->options, r->result);
+  for (size_t i : r->setup.prob.scan_obs) r->scan_sigma_before.push_back(r->setup.prob.obs[i].sigma);
+  r->base = d::FitBaseline(r->setup.prob);
+  r->noise = d::CalibrateNoise(r->setup, r->base, r->result);
+  r->folds = d::BuildFolds(r->setup, r->options.holdout_fraction);
+  r->null = d::TestMismatch(r->setup.prob, r->base, r->folds);
+  if (full) {
+    r->hyp =
+        d::TestHypotheses(r->setup.prob, r->base, r->null, r->folds,
+                          d::AvailableEffects(r->setup.fields.has_normal, r->setup.time.throughput_available), false, r->result);
+  }
+  return r;
+}
+
+const Run& Null() {
+  static const std::unique_ptr<Run> run = [] {
+    lw::test::SyntheticSpec spec;
+    spec.seed = 7;
+    return Build(spec, false);
+  }();
+  return *run;
+}
+
+const Run& Hardening() {
+  static const std::unique_ptr<Run> run = [] {
+    lw::test::SyntheticSpec spec;
+    spec.hardening_h = 0.5;
+    spec.hardening_tau_days = 6;
+    return Build(spec, true);
+  }();
+  return *run;
+}
+
+d::SensorData Sensor(const std::string& id, const std::string& row, bool usable) {
+  d::SensorData s;
+  s.id = id;
+  s.row = row;
+  s.usable = usable;
+  return s;
+}
+
+}  // namespace
+
+TEST_GROUP(StageSetup){};
+
+TEST(StageSetup, EverySensorAnalysedAndObservationsOnTheTimeGrid) {
+  const d::ProblemSetup& s = Null().setup;
+  CHECK_TRUE(s.Diagnosable());
+  LONGS_EQUAL(12, s.sensors.size());
+  LONGS_EQUAL(3, s.prob.rows);
+  CHECK_TRUE((s.anchor_rows == std::vector<std::string>{"LDWN", "LMID", "LUP"}));
+  LONGS_EQUAL(12, s.prob.sensor_obs.size());
+  CHECK_TRUE(s.prob.scan_obs.size() > 100);
+  double t_last = 0;
+  for (const d::SensorData& sd : s.sensors) {
+    CHECK_TRUE(sd.usable);
+    t_last = std::max(t_last, sd.analysis.last_time_days);
+  }
+  CHECK_TRUE(static_cast<double>(s.prob.grid.steps - 1) * s.prob.grid.dt >= t_last);
+  for (const d::Obs& o : s.prob.obs) {
+    DOUBLES_EQUAL(o.t, (static_cast<double>(o.j) + o.frac) * s.prob.grid.dt, 1e-9);
+    CHECK_TRUE(o.point < s.prob.points.size());
+    if (o.sensor >= 0) CHECK_TRUE(o.sigma > 0.1);
+  }
+  // Scan cells get their noise only from the baseline stage.
+  for (double sigma : Null().scan_sigma_before) DOUBLES_EQUAL(0, sigma, 0);
+  // Without operations.csv the throughput is flat and the note says so.
+  CHECK_FALSE(s.time.throughput_available);
+  for (double q : s.prob.grid.throughput) DOUBLES_EQUAL(1, q, 0);
+}
+
+TEST(StageSetup, AnchorRowsAreTheRowsWithAUsableSensorBottomToTop) {
+  lw::core::CrusherConfig crusher;
+  crusher.rows = {{"TOP", 2.0, 3.0}, {"MID", 1.0, 2.0}, {"LOW", 0.0, 1.0}};
+  const std::vector<d::SensorData> sensors = {Sensor("a", "TOP", true), Sensor("b", "MID", false), Sensor("c", "LOW", true)};
+  d::Interpolator interp;
+  const auto rows = d::AnchorRows(crusher, sensors, interp);
+  CHECK_TRUE((rows == std::vector<std::string>{"LOW", "TOP"}));
+  LONGS_EQUAL(2, interp.centres.size());
+  DOUBLES_EQUAL(0.5, interp.centres[0], 1e-12);
+  DOUBLES_EQUAL(2.5, interp.centres[1], 1e-12);
+  int a = -1, b = -1;
+  double wa = 0;
+  interp.Weights(1.0, a, b, wa);  // a quarter of the way from LOW to TOP
+  LONGS_EQUAL(0, a);
+  LONGS_EQUAL(1, b);
+  DOUBLES_EQUAL(0.75, wa, 1e-12);
+  interp.Weights(3.0, a, b, wa);  // above the top centre: the top row alone
+  LONGS_EQUAL(1, a);
+  LONGS_EQUAL(1, b);
+  DOUBLES_EQUAL(1, wa, 0);
+}
+
+TEST_GROUP(StageBaseline){};
+
+TEST(StageBaseline, Eq9FitsANullCampaignAndMissesAHardenedOne) {
+  const Run& null = Null();
+  const Run& hard = Hardening();
+  // The baseline is fitted to the sensor events only.
+  size_t n_sensor = 0;
+  for (const auto& list : null.setup.prob.sensor_obs) n_sensor += list.size();
+  LONGS_EQUAL(n_sensor, null.base.eq9.n_train);
+  CHECK_TRUE(null.base.k_scale > 0);
+  const lw::diagnosis::ErrorSummary m_null = d::BaselineMetrics(null.setup.prob, null.base, null.folds);
+  const lw::diagnosis::ErrorSummary m_hard = d::BaselineMetrics(hard.setup.prob, hard.base, hard.folds);
+  LONGS_EQUAL(null.setup.prob.obs.size(), m_null.observations);
+  CHECK_TRUE(m_null.holdout_observations > 0);
+  CHECK_TRUE(m_null.rmse_mm < 2.0);
+  CHECK_TRUE(m_hard.rmse_mm > 1.5 * m_null.rmse_mm);
+}
+
+TEST(StageBaseline, NoiseModelSetsEveryScanSigmaAndSensorPrior) {
+  const Run& r = Null();
+  const d::Thresholds th;
+  CHECK_TRUE(r.noise.map_tau >= 0);
+  CHECK_TRUE(r.noise.corr_cells >= 1);
+  CHECK_TRUE(r.noise.corr_cells <= d::KernelCorrelationCells(r.setup.fields, r.setup.grid) + 1e-9);
+  // The smaller of the map's cross-validated error and what the scan measured.
+  CHECK_TRUE(r.noise.map_tau <= r.setup.fields.model.smoothing_error_rel);
+  CHECK_TRUE(r.noise.tau_source == "scan" || r.noise.tau_source == "map cross-validation");
+  for (size_t i : r.setup.prob.scan_obs) CHECK_TRUE(r.setup.prob.obs[i].sigma >= th.scan_floor_mm);
+  for (double su : r.setup.prob.sigma_u) CHECK_TRUE(su >= th.u_floor_rel);
+  CHECK_TRUE(r.result.noise.contains("map_pattern_error_relative"));
+  DOUBLES_EQUAL(d::Round(r.noise.map_tau, 3), r.result.noise["map_pattern_error_relative"].get<double>(), 0);
+}
+
+TEST_GROUP(StageFolds){};
+
+TEST(StageFolds, FoldsHoldOutLaterReadingsSensorsAndScanSectors) {
+  const Run& r = Null();
+  const d::Problem& p = r.setup.prob;
+  LONGS_EQUAL(3, r.folds.size());
+  STRCMP_EQUAL("later_readings", r.folds[0].name.c_str());
+  STRCMP_EQUAL("left_out_sensors", r.folds[1].name.c_str());
+  STRCMP_EQUAL("scan_sectors", r.folds[2].name.c_str());
+  for (const d::Fold& f : r.folds)
+    for (size_t i = 0; i < p.obs.size(); ++i) CHECK_FALSE(f.train[i] && f.test[i]);
+  // later_readings: only sensor events, all later than every training sensor event.
+  double last_train = 0, first_test = 1e300;
+  for (size_t i = 0; i < p.obs.size(); ++i) {
+    if (p.obs[i].sensor < 0) {
+      CHECK_TRUE(r.folds[0].train[i]);
+      continue;
+    }
+    if (r.folds[0].test[i]) first_test = std::min(first_test, p.obs[i].t);
+    if (r.folds[0].train[i]) last_train = std::max(last_train, p.obs[i].t);
+  }
+  CHECK_TRUE(first_test > last_train);
+  // left_out_sensors: two of four sensors per row, each wholly.
+  size_t left = 0;
+  for (const auto& list : p.sensor_obs) {
+    const bool out = r.folds[1].test[list.front()];
+    for (size_t i : list) CHECK_EQUAL(out, r.folds[1].test[i]);
+    left += out ? 1 : 0;
+  }
+  LONGS_EQUAL(6, left);
+  // scan_sectors: scan cells only, about half of them.
+  size_t held = 0;
+  for (size_t i = 0; i < p.obs.size(); ++i)
+    if (r.folds[2].test[i]) {
+      CHECK_TRUE(p.obs[i].sensor < 0);
+      ++held;
+    }
+  CHECK_TRUE(held > p.scan_obs.size() / 4 && held < 3 * p.scan_obs.size() / 4);
+  // A problem without scan cells has no scan fold.
+  d::Problem no_scan;
+  CHECK_FALSE(d::ScanSectorsFold(no_scan, r.setup.grid).has_value());
+}
+
+TEST_GROUP(StageMismatch){};
+
+TEST(StageMismatch, NullIsWithinTheNoiseAndHardeningIsNot) {
+  const d::Thresholds th;
+  CHECK_TRUE(Null().null.mismatch_z < th.mismatch_z);
+  CHECK_TRUE(Hardening().null.mismatch_z > th.mismatch_z);
+  const d::NullModel& n = Null().null;
+  LONGS_EQUAL(Null().setup.prob.obs.size(), n.fit.n_train);
+  LONGS_EQUAL(Null().folds.size(), n.eval.fold_fits.size());
+  CHECK_TRUE(n.eval.ho_n > 0);
+  DOUBLES_EQUAL(std::log(static_cast<double>(Null().setup.prob.obs.size())), n.log_n, 1e-12);
+}
+
+TEST(StageMismatch, OracleNamesAreCheckedBeforeAnyWork) {
+  CHECK_FALSE(d::ParseOracle(std::nullopt).has_value());
+  lw::diagnosis::OracleEffect o{"profile_evolution:shift", {{"v", 0.1}}};
+  CHECK_TRUE(d::ParseOracle(o) == d::Effect::kProfileShift);
+  o = {"profile_evolution", {{"p", 0.1}}};
+  CHECK_TRUE(d::ParseOracle(o) == d::Effect::kProfileEvolution);
+  o = {"no_such_effect", {}};
+  CHECK_THROWS(std::invalid_argument, d::ParseOracle(o));
+  o = {"work_hardening", {{"h", 0.3}}};  // log_tau missing
+  CHECK_THROWS(std::invalid_argument, d::ParseOracle(o));
+}
+
+TEST_GROUP(StageHypotheses){};
+
+TEST(StageHypotheses, HardeningIsChosenAmongTheAvailableEffects) {
+  const Run& r = Hardening();
+  const auto available = d::AvailableEffects(r.setup.fields.has_normal, r.setup.time.throughput_available);
+  LONGS_EQUAL(available.size(), r.hyp.singles);
+  LONGS_EQUAL(r.hyp.singles, r.hyp.evals.size());  // no pairs asked
+  CHECK_TRUE(r.hyp.dispersion >= 1);
+  const d::ModelEval* chosen = r.hyp.Chosen();
+  CHECK_TRUE(chosen != nullptr);
+  CHECK_TRUE(chosen->accepted);
+  CHECK_TRUE(chosen->full.spec.effects.front() == d::Effect::kWorkHardening);
+  for (const d::ModelEval& ev : r.hyp.evals)
+    if (ev.accepted) CHECK_TRUE(ev.score <= chosen->score);
+  DOUBLES_EQUAL(d::Round(r.hyp.dispersion, 3), r.result.noise["dispersion"].get<double>(), 0);
+}
+
+TEST(StageHypotheses, AvailableEffectsNeedTheirData) {
+  const auto all = d::AvailableEffects(true, true);
+  LONGS_EQUAL(d::kEffectCount, all.size());
+  const auto some = d::AvailableEffects(false, false);
+  LONGS_EQUAL(d::kEffectCount - 2, some.size());
+  CHECK_TRUE(std::find(some.begin(), some.end(), d::Effect::kSqueezeWear) == some.end());
+  CHECK_TRUE(std::find(some.begin(), some.end(), d::Effect::kThroughputVariation) == some.end());
+}
+
+TEST(StageHypotheses, BestAcceptedAndPairCandidates) {
+  std::vector<d::ModelEval> evals(4);
+  const d::Effect effects[4] = {d::Effect::kWorkHardening, d::Effect::kProfileEvolution, d::Effect::kProfileShift,
+                                d::Effect::kFeedSegregation};
+  const double scores[4] = {5, 30, 20, 12};
+  for (size_t k = 0; k < 4; ++k) {
+    evals[k].full.spec.effects = {effects[k]};
+    evals[k].score = scores[k];
+    evals[k].delta_bic = scores[k];
+  }
+  LONGS_EQUAL(-1, d::BestAccepted(evals));
+  evals[0].accepted = evals[3].accepted = true;
+  LONGS_EQUAL(3, d::BestAccepted(evals));
+  // Best first; the shift form is the weaker form of profile_evolution, already in.
+  const auto top = d::PairCandidates(evals);
+  CHECK_TRUE((top == std::vector<size_t>{1, 3, 0}));
+  evals[0].delta_bic = -1;  // no gain: not a candidate
+  CHECK_TRUE((d::PairCandidates(evals) == std::vector<size_t>{1, 3}));
+}
+
+TEST_GROUP(StageFindings){};
+
+TEST(StageFindings, HardeningIsTheTopFindingWithEvidence) {
+  const Run& r = Hardening();
+  const auto findings = d::RankFindings({r.bundle, r.setup, r.null, r.hyp});
+  CHECK_TRUE(!findings.empty());
+  STRCMP_EQUAL("work_hardening", findings.front().effect.c_str());
+  CHECK_TRUE(findings.front().confidence > 0.5 && findings.front().confidence < 1);
+  CHECK_TRUE(findings.front().explanation.find("hardening") != std::string::npos);
+  CHECK_TRUE(findings.front().parameters.contains("tau_days"));
+  CHECK_TRUE(findings.front().evidence.contains("holdout_chi2_model"));
+  for (size_t k = 1; k < findings.size(); ++k) CHECK_TRUE(findings[k].confidence <= findings[k - 1].confidence);
+  CHECK_TRUE(d::MismatchDetected(r.null.mismatch_z, findings));
+  const auto table = d::HypothesesTable(r.hyp.evals, r.setup.prob.rows);
+  LONGS_EQUAL(r.hyp.evals.size(), table.size());
+  STRCMP_EQUAL(r.hyp.evals[0].full.spec.Name().c_str(), table[0]["model"].get<std::string>().c_str());
+  // The chosen model explains the observations better than the refit baseline.
+  const auto improved = d::ModelMetrics(r.setup.prob, *r.hyp.Chosen());
+  const auto refit = d::ModelMetrics(r.setup.prob, r.null.eval);
+  CHECK_TRUE(improved.rmse_mm < refit.rmse_mm);
+}
+
+TEST(StageFindings, MaterialLossUnexplainedAndConfidence) {
+  d::SensorData s = Sensor("S7", "LMID", true);
+  s.analysis.rate_mm_per_day = 0.5;
+  s.analysis.losses.push_back({40, 5, 5.5});
+  const auto losses = d::MaterialLossFindings({s}, lw::core::TimePoint{});
+  LONGS_EQUAL(1, losses.size());
+  STRCMP_EQUAL(lw::diagnosis::kMaterialLoss, losses[0].effect.c_str());
+  DOUBLES_EQUAL(0.9, losses[0].confidence, 1e-12);  // 0.5 + 0.08 x 5 mm
+  CHECK_TRUE(losses[0].explanation.rfind("Sensor S7 lost 5 mm", 0) == 0);
+  const lw::diagnosis::Finding u = d::UnexplainedFinding(12.0, {});
+  STRCMP_EQUAL(lw::diagnosis::kUnexplained, u.effect.c_str());
+  CHECK_TRUE(u.confidence > 0.3 && u.confidence < 0.95);
+  CHECK_FALSE(d::MismatchDetected(3.9, {}));
+  CHECK_TRUE(d::MismatchDetected(4.1, {}));
+  // Confidence grows with the gain and falls with a strong runner-up.
+  d::ModelEval weak, strong;
+  weak.delta_bic = 12;
+  weak.ho_rel = 0.05;
+  weak.score = 20;
+  strong = weak;
+  strong.delta_bic = 60;
+  strong.ho_rel = 0.3;
+  strong.score = 100;
+  CHECK_TRUE(d::Confidence(strong, 0) > d::Confidence(weak, 0));
+  CHECK_TRUE(d::Confidence(strong, 100) < d::Confidence(strong, 0));
+  CHECK_TRUE(d::Confidence(strong, 0) <= 0.99);
+}
+
+TEST_GROUP(StageRegions){};
+
+TEST(StageRegions, ARunOfThreeEventsBeyondThreeSigmaAtASensor) {
+  d::ProblemSetup setup;
+  d::SensorData s = Sensor("S1", "LOW", true);
+  s.usable_index = 0;
+  s.z = 1.0;
+  s.theta = 90;
+  setup.sensors = {s};
+  setup.prob.sensor_obs = {{}};
+  d::NullModel null;
+  null.fit.u = {0.0};
+  null.w = Eigen::MatrixXd::Zero(1, 8);
+  // The model predicts 5 mm at every step; events 2-4 measured 4 mm (1 mm = 10 sigma over), the rest 5.
+  null.w.setConstant(5.0);
+  for (size_t k = 0; k < 7; ++k) {
+    d::Obs o;
+    o.t = static_cast<double>(k);
+    o.j = k;
+    o.wear = (k >= 2 && k <= 4) ? 4.0 : 5.0;
+    o.sigma = 0.1;
+    o.sensor = 0;
+    setup.prob.sensor_obs[0].push_back(setup.prob.obs.size());
+    setup.prob.obs.push_back(o);
+  }
+  const auto regions = d::SensorRegions(setup, null, lw::core::TimePoint{});
+  LONGS_EQUAL(1, regions.size());
+  STRCMP_EQUAL("over", regions[0].sign.c_str());
+  DOUBLES_EQUAL(1.0, regions[0].size_mm, 1e-12);
+  STRCMP_EQUAL("sensor:S1", regions[0].source.c_str());
+  CHECK_TRUE(regions[0].from == lw::core::AddDays(lw::core::TimePoint{}, 2));
+  CHECK_TRUE(regions[0].to == lw::core::AddDays(lw::core::TimePoint{}, 4));
+  // Two events beyond 3 sigma are not a region.
+  setup.prob.obs[4].wear = 5.0;
+  CHECK_TRUE(d::SensorRegions(setup, null, lw::core::TimePoint{}).empty());
+}
+
+TEST(StageRegions, RegionsOfTheHardenedCampaignAreOrderedAndCapped) {
+  const Run& r = Hardening();
+  const auto regions = d::FindRegions(r.bundle, r.setup, r.null);
+  CHECK_TRUE(!regions.empty());
+  CHECK_TRUE(regions.size() <= 30);
+  for (size_t k = 1; k < regions.size(); ++k) CHECK_TRUE(regions[k].size_mm <= regions[k - 1].size_mm);
+  for (const auto& g : regions) CHECK_TRUE(g.z_min_m < g.z_max_m);
+}
+
+TEST_GROUP(StagePredictions){};
+
+TEST(StagePredictions, PredictionFollowsTheReadingsAndStaysPhysical) {
+  const Run& r = Hardening();
+  const d::ModelEval& chosen = *r.hyp.Chosen();
+  const d::PredictionInput in{r.bundle, r.options, r.setup, r.base, r.null, chosen.full, true};
+  const lw::core::TimePoint last = r.bundle.scans.back().date;
+  const auto faces = d::FacePoints(r.bundle, r.setup);
+  LONGS_EQUAL(r.bundle.map.face_count(), faces.size());
+  const lw::diagnosis::Prediction p = d::PredictAt(in, faces, last);
+  LONGS_EQUAL(r.setup.sensors.size(), p.sensors.size());
+  for (double w : p.face_wear_improved_mm) CHECK_TRUE(w >= 0 && w <= 100);
+  // At the last scan the improved model reads what the sensors read (within a few mm); the
+  // baseline, which misses the hardening, is further off on average.
+  double err_improved = 0, err_base = 0;
+  for (size_t i = 0; i < p.sensors.size(); ++i) {
+    const double measured = r.setup.sensors[i].analysis.last_thickness_mm;
+    err_improved += std::fabs(p.sensors[i].improved_thickness_mm - measured);
+    err_base += std::fabs(p.sensors[i].baseline_thickness_mm - measured);
+  }
+  err_improved /= static_cast<double>(p.sensors.size());
+  err_base /= static_cast<double>(p.sensors.size());
+  CHECK_TRUE(err_improved < 3.0);
+  CHECK_TRUE(err_improved < err_base);
+  const auto curves = d::SensorCurves(in);
+  LONGS_EQUAL(r.setup.sensors.size(), curves.size());
+  for (const auto& c : curves)
+    for (size_t k = 1; k < c.baseline_thickness_mm.size(); ++k)
+      CHECK_TRUE(c.baseline_thickness_mm[k] <= c.baseline_thickness_mm[k - 1]);
+  const auto grids = d::ResidualGrids(in);
+  LONGS_EQUAL(r.bundle.scans.size(), grids.size());
+}
