@@ -75,6 +75,33 @@ Timed Time(Fn&& fn) {
   return {Seconds(std::chrono::steady_clock::now() - t0), Cpu() - c0};
 }
 
+/// The binned path (forced) against the face-by-face path on `small`, face by face.
+void CompareBinned(const lw::core::WearMap& small, const lw::core::MapModelOptions& face_by_face) {
+  lw::core::MapModelOptions binned = face_by_face;
+  binned.binned_above_faces = 0;
+  lw::core::MapModel a, b;
+  const Timed ta = Time([&] { a = lw::core::BuildMapModel(small, face_by_face); });
+  const Timed tb = Time([&] { b = lw::core::BuildMapModel(small, binned); });
+  std::vector<double> d_int, d_noise, d_sd;
+  size_t other_scale = 0;
+  for (Eigen::Index i = 0; i < small.z.size(); ++i) {
+    d_int.push_back(std::fabs(a.intensity[i] - b.intensity[i]) / std::max(a.intensity_noise_sd[i], 1e-300));
+    d_noise.push_back(std::fabs(b.intensity_noise_sd[i] / a.intensity_noise_sd[i] - 1));
+    d_sd.push_back(std::fabs(b.intensity_sd[i] / a.intensity_sd[i] - 1));
+    if (a.local_bandwidth_m.size() && a.local_bandwidth_m[i] != b.local_bandwidth_m[i]) ++other_scale;
+  }
+  std::printf("\ncompare on %zu faces: face by face %.2f s wall %.2f s CPU, binned %.2f s wall %.2f s CPU (%s chosen model)\n",
+              small.face_count(), ta.wall, ta.cpu, tb.wall, tb.cpu,
+              a.bandwidth_m == b.bandwidth_m && a.local_linear == b.local_linear ? "the same" : "a DIFFERENT");
+  std::printf("  |binned - exact| intensity / exact noise sd   median %.3g  p99 %.3g  max %.3g\n", Median(d_int),
+              Quantile(d_int, 0.99), Quantile(d_int, 1.0));
+  std::printf("  relative difference of intensity_noise_sd     median %.3g  p99 %.3g  max %.3g\n", Median(d_noise),
+              Quantile(d_noise, 0.99), Quantile(d_noise, 1.0));
+  std::printf("  relative difference of intensity_sd           median %.3g  p99 %.3g  max %.3g\n", Median(d_sd),
+              Quantile(d_sd, 0.99), Quantile(d_sd, 1.0));
+  std::printf("  faces at another local scale                  %zu of %zu\n", other_scale, small.face_count());
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -82,7 +109,7 @@ int main(int argc, char** argv) {
   int reps = 3;
   int threads = 0;
   bool exact = true;
-  std::string dir = "/var/tmp";
+  std::string dir = "/var/tmp", compare_map;
   for (int i = 1; i < argc; ++i) {
     const bool has_value = i + 1 < argc;
     if (!std::strcmp(argv[i], "--no-exact")) {
@@ -91,6 +118,8 @@ int main(int argc, char** argv) {
       faces = std::atol(argv[++i]);
     } else if (has_value && !std::strcmp(argv[i], "--compare-faces")) {
       compare_faces = std::atol(argv[++i]);
+    } else if (has_value && !std::strcmp(argv[i], "--compare-map")) {
+      compare_map = argv[++i];
     } else if (has_value && !std::strcmp(argv[i], "--reps")) {
       reps = std::atoi(argv[++i]);
     } else if (has_value && !std::strcmp(argv[i], "--dir")) {
@@ -99,9 +128,18 @@ int main(int argc, char** argv) {
       threads = std::atoi(argv[++i]);
     } else {
       std::fprintf(stderr,
-                   "usage: lw_bench_map_model [--faces N] [--reps R] [--dir D] [--threads T] [--compare-faces M] [--no-exact]\n");
+                   "usage: lw_bench_map_model [--faces N] [--reps R] [--dir D] [--threads T] [--compare-faces M] [--no-exact] "
+                   "[--compare-map FILE]\n");
       return 2;
     }
+  }
+  if (!compare_map.empty()) {
+    // Only the comparison, on a map file (e.g. a real LIGGGHTS map, far below the binning threshold).
+    lw::core::MapModelOptions face_by_face;
+    face_by_face.threads = threads;
+    face_by_face.binned_above_faces = std::numeric_limits<size_t>::max();
+    CompareBinned(lw::core::LoadWearMap(compare_map), face_by_face);
+    return 0;
   }
   if (faces < 100 || reps < 1) {
     std::fprintf(stderr, "lw_bench_map_model: --faces must be >= 100 and --reps >= 1\n");
@@ -176,30 +214,7 @@ int main(int argc, char** argv) {
   // The binned sums against the face-by-face ones on a smaller map (the same field).
   if (compare_faces >= 100) {
     int ct = 0, cz = 0;
-    const lw::core::WearMap small = NoisyCone(compare_faces, ct, cz);
-    lw::core::MapModelOptions binned = options;
-    binned.binned_above_faces = 0;
-    lw::core::MapModel a, b;
-    const Timed ta = Time([&] { a = lw::core::BuildMapModel(small, face_by_face); });
-    const Timed tb = Time([&] { b = lw::core::BuildMapModel(small, binned); });
-    std::vector<double> d_int, d_noise, d_sd;
-    size_t other_scale = 0;
-    for (Eigen::Index i = 0; i < small.z.size(); ++i) {
-      d_int.push_back(std::fabs(a.intensity[i] - b.intensity[i]) / std::max(a.intensity_noise_sd[i], 1e-300));
-      d_noise.push_back(std::fabs(b.intensity_noise_sd[i] / a.intensity_noise_sd[i] - 1));
-      d_sd.push_back(std::fabs(b.intensity_sd[i] / a.intensity_sd[i] - 1));
-      if (a.local_bandwidth_m.size() && a.local_bandwidth_m[i] != b.local_bandwidth_m[i]) ++other_scale;
-    }
-    std::printf("\ncompare on %zu faces: face by face %.2f s wall %.2f s CPU, binned %.2f s wall %.2f s CPU (%s chosen model)\n",
-                small.face_count(), ta.wall, ta.cpu, tb.wall, tb.cpu,
-                a.bandwidth_m == b.bandwidth_m && a.local_linear == b.local_linear ? "the same" : "a DIFFERENT");
-    std::printf("  |binned - exact| intensity / exact noise sd   median %.3g  p99 %.3g  max %.3g\n", Median(d_int),
-                Quantile(d_int, 0.99), Quantile(d_int, 1.0));
-    std::printf("  relative difference of intensity_noise_sd     median %.3g  p99 %.3g  max %.3g\n", Median(d_noise),
-                Quantile(d_noise, 0.99), Quantile(d_noise, 1.0));
-    std::printf("  relative difference of intensity_sd           median %.3g  p99 %.3g  max %.3g\n", Median(d_sd),
-                Quantile(d_sd, 0.99), Quantile(d_sd, 1.0));
-    std::printf("  faces at another local scale                  %zu of %zu\n", other_scale, small.face_count());
+    CompareBinned(NoisyCone(compare_faces, ct, cz), face_by_face);
   }
   return checksum > 0 ? 0 : 1;
 }
