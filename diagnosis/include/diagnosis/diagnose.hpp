@@ -229,8 +229,9 @@ struct DiagnosisResult {
 };
 
 /// Runs the whole diagnosis on a loaded bundle. Never throws on physically odd data (faults are
-/// reported); throws std::invalid_argument only when nothing can be diagnosed (no usable sensor) or
-/// options.oracle names an unknown effect or misses one of its parameters.
+/// reported). A bundle with no usable sensor readings gives a result whose note says "no usable
+/// sensor readings: nothing to diagnose". Throws std::invalid_argument only when options.oracle
+/// names an unknown effect or misses one of its parameters.
 DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& options = {});
 
 /// The JSON document of docs/diagnosis.md "Output" (plus optional extra keys).
