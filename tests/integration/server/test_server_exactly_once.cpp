@@ -34,7 +34,17 @@ struct ServerProcess {
   lw::test::ChildProcess process;
   std::vector<std::string> argv;
   std::string log;
+  std::string db;
   int http_port = 0;
+  /// The server on `broker_uri` with `folder`'s crushers, its database and log in the folder.
+  void Configure(const std::string& broker_uri, const lw::test::CrusherFolder& folder, const std::vector<std::string>& extra) {
+    http_port = lw::test::FreeLoopbackPort();
+    log = folder.dir.File("server.log");
+    db = folder.dir.File("server.sqlite");
+    argv = {LW_SERVER_BIN,   "--broker",      broker_uri,  "--db", db, "--http", "127.0.0.1:" + std::to_string(http_port),
+            "--crusher-dir", folder.crushers, "--web-dir", ""};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+  }
   void Start() {
     process.Start(argv, log);
     // Up to 60 s: the map model is built at start-up, slow on a loaded machine.
@@ -43,6 +53,15 @@ struct ServerProcess {
     if (!lw::test::PortAccepts(http_port)) FAIL(("server did not come up: " + lw::test::FileTail(log)).c_str());
   }
 };
+
+/// Connects `client` as a gateway would (a clean session) and subscribes to `root`'s commit acks.
+void ConnectAsGateway(mqtt::async_client& client, const std::string& root) {
+  mqtt::connect_options opts;
+  opts.set_clean_session(true);
+  client.start_consuming();
+  client.connect(opts)->wait();
+  client.subscribe(root + "sensors/+/committed", 1)->wait();
+}
 
 }  // namespace
 
@@ -54,31 +73,13 @@ TEST(ServerExactlyOnce, SigkillMidStreamStoresEveryReadingOnceAndWearMatchesOffl
   lw::test::CrusherFolder folder(30, 5);
   const auto messages = lw::test::Messages(folder.bundle, "site1");
   ServerProcess server;
-  server.http_port = lw::test::FreeLoopbackPort();
-  server.log = folder.dir.File("server.log");
-  const std::string db = folder.dir.File("server.sqlite");
-  server.argv = {LW_SERVER_BIN,
-                 "--broker",
-                 broker.uri(),
-                 "--db",
-                 db,
-                 "--http",
-                 "127.0.0.1:" + std::to_string(server.http_port),
-                 "--crusher-dir",
-                 folder.crushers,
-                 "--wear-interval-ms",
-                 "200",
-                 "--web-dir",
-                 ""};
+  server.Configure(broker.uri(), folder, {"--wear-interval-ms", "200"});
+  const std::string db = server.db;
   server.Start();
 
   mqtt::async_client client(broker.uri(), "test-gateway", nullptr);
-  mqtt::connect_options opts;
-  opts.set_clean_session(true);
-  client.start_consuming();
-  client.connect(opts)->wait();
   const std::string root = "linerwatch/v1/site1/" + folder.id() + "/";
-  client.subscribe(root + "sensors/+/committed", 1)->wait();
+  ConnectAsGateway(client, root);
   client.subscribe(root + "wear", 1)->wait();
 
   std::set<std::pair<std::string, int64_t>> confirmed;
@@ -205,20 +206,12 @@ TEST(ServerExactlyOnce, ABatchIsStoredRecordByRecordAndAckedWithTheAnnouncement)
   lw::test::CrusherFolder folder(30, 5);
   const auto messages = lw::test::Messages(folder.bundle, "site1");
   ServerProcess server;
-  server.http_port = lw::test::FreeLoopbackPort();
-  server.log = folder.dir.File("server.log");
-  const std::string db = folder.dir.File("server.sqlite");
-  server.argv = {
-      LW_SERVER_BIN,   "--broker",      broker.uri(), "--db", db, "--http", "127.0.0.1:" + std::to_string(server.http_port),
-      "--crusher-dir", folder.crushers, "--web-dir",  ""};
+  server.Configure(broker.uri(), folder, {});
+  const std::string db = server.db;
   server.Start();
   mqtt::async_client client(broker.uri(), "test-gateway", nullptr);
-  mqtt::connect_options opts;
-  opts.set_clean_session(true);
-  client.start_consuming();
-  client.connect(opts)->wait();
   const std::string root = "linerwatch/v1/site1/" + folder.id() + "/";
-  client.subscribe(root + "sensors/+/committed", 1)->wait();
+  ConnectAsGateway(client, root);
 
   // Five records of the first sensor, in seq order, and one record whose time is not a time.
   const std::string sensor = messages.front().sensor;
