@@ -65,14 +65,17 @@ void ConnectAsGateway(mqtt::async_client& client, const std::string& root) {
 
 }  // namespace
 
-TEST_GROUP(ServerExactlyOnce){};
+TEST_GROUP(ServerExactlyOnce) {
+  lw::test::MosquittoFixture broker;
+  lw::test::CrusherFolder folder{30, 5};
+  std::vector<lw::server::Incoming> messages = lw::test::Messages(folder.bundle, "site1");
+  ServerProcess server;
+  void setup() override {
+    broker.Start();
+  }
+};
 
 TEST(ServerExactlyOnce, SigkillMidStreamStoresEveryReadingOnceAndWearMatchesOffline) {
-  lw::test::MosquittoFixture broker;
-  broker.Start();
-  lw::test::CrusherFolder folder(30, 5);
-  const auto messages = lw::test::Messages(folder.bundle, "site1");
-  ServerProcess server;
   server.Configure(broker.uri(), folder, {"--wear-interval-ms", "200"});
   const std::string db = server.db;
   server.Start();
@@ -201,11 +204,6 @@ TEST(ServerExactlyOnce, SigkillMidStreamStoresEveryReadingOnceAndWearMatchesOffl
 // The real server takes a batch of one sensor's records: each record is stored (or quarantined)
 // on its own, one commit ack names every seq, and the ack announces batches ("batch": 64).
 TEST(ServerExactlyOnce, ABatchIsStoredRecordByRecordAndAckedWithTheAnnouncement) {
-  lw::test::MosquittoFixture broker;
-  broker.Start();
-  lw::test::CrusherFolder folder(30, 5);
-  const auto messages = lw::test::Messages(folder.bundle, "site1");
-  ServerProcess server;
   server.Configure(broker.uri(), folder, {});
   const std::string db = server.db;
   server.Start();
