@@ -7,7 +7,7 @@
 namespace lw::diagnosis::detail {
 
 /// `format` with `args`, at most `max_chars` characters (the rest cut off).
-std::string VFormat(size_t max_chars, const char* format, va_list args);
+__attribute__((format(printf, 2, 0))) std::string VFormat(size_t max_chars, const char* format, va_list args);
 /// printf into a std::string of at most 511 characters.
 __attribute__((format(printf, 1, 2))) std::string Fmt(const char* format, ...);
 
