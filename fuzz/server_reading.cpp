@@ -4,8 +4,11 @@
 // Properties: ValidateReading and Ingest never throw; a message is stored, a duplicate, a conflict
 // or rejected (exactly one); a message that named its sensor (the topic's) and seq under the crusher's
 // own site is acknowledged with that seq (a rejected one too, once quarantined); the commit ack the server publishes for it
-// parses in the gateway (mqtt::DecodeCommitAck) to the same sensor and seqs.
+// parses in the gateway (mqtt::DecodeCommitAck) to the same sensor and seqs. A batch (several
+// records in one message, docs/mqtt.md *Batches*) counts as its records, each judged as if it had
+// come alone; a malformed batch is one rejected message and acknowledged by no seq.
 #include <memory>
+#include <set>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -36,8 +39,21 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const auto t = mqtt::Topics::ParseAny(topic);
   if (!t || t->kind != mqtt::TopicKind::kReading) return 0;
   const server::Incoming msg{t->site, t->crusher, t->id, topic, payload};
-  const server::Validation v = server::ValidateReading(msg, fuzz::FixtureRegistry(), fuzz::kNowS);
-  Check(v.reading.has_value() || !v.error.empty(), "a refused reading without a reason");
+  // What the message holds: its records (a batch) or itself.
+  std::vector<std::string> records;
+  std::string batch_error;
+  const bool batch_ok = mqtt::SplitReadingMessage(payload, &records, &batch_error);
+  Check(batch_ok || !batch_error.empty(), "a refused batch without a reason");
+  if (records.empty()) records.push_back(payload);
+  size_t valid = 0;
+  std::set<int64_t> to_ack;  // the seqs of records that named the topic's sensor
+  for (const std::string& record : records) {
+    const server::Validation v =
+        server::ValidateReading({t->site, t->crusher, t->id, topic, record}, fuzz::FixtureRegistry(), fuzz::kNowS);
+    Check(v.reading.has_value() || !v.error.empty(), "a refused reading without a reason");
+    if (batch_ok && v.reading) ++valid;
+    if (batch_ok && v.sensor == t->id && v.seq) to_ack.insert(*v.seq);
+  }
 
   // The crusher's site before this message (a first valid reading binds it): a message under
   // another site is quarantined and, by design, never acknowledged (docs/security.md).
@@ -45,12 +61,15 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const server::IngestResult r = ingestor->Ingest({msg});
   const std::optional<std::string> site_after = ingestor->SiteOf(t->crusher);
   const bool own_site = (site_before && *site_before == t->site) || (site_after && *site_after == t->site);
-  Check(r.stored + r.duplicates + r.conflicts + r.rejected == 1, "one message was not counted exactly once");
+  Check(r.stored + r.duplicates + r.conflicts + r.rejected == records.size(), "a record was not counted exactly once");
+  if (!batch_ok) Check(r.rejected == 1 && r.acks.empty(), "a malformed batch was not rejected whole, or was acknowledged");
   // ValidateReading knows no site binding: under a foreign site Ingest may reject a valid reading.
-  if (own_site) Check(v.reading.has_value() == (r.rejected == 0), "Ingest and ValidateReading disagree on the message");
-  if (v.sensor == t->id && v.seq && own_site) {
-    Check(r.acks.size() == 1 && r.acks[0].sensor == v.sensor && r.acks[0].seqs == std::vector<int64_t>{*v.seq},
-          "a message naming sensor " + v.sensor + " seq " + std::to_string(*v.seq) + " was not acknowledged");
+  if (own_site) Check(valid == r.stored + r.duplicates + r.conflicts, "Ingest and ValidateReading disagree on the message");
+  if (own_site && !to_ack.empty()) {
+    Check(
+        r.acks.size() == 1 && r.acks[0].sensor == t->id &&
+            std::set<int64_t>(r.acks[0].seqs.begin(), r.acks[0].seqs.end()) == to_ack,
+        "a message naming sensor " + t->id + " and " + std::to_string(to_ack.size()) + " seq(s) was not acknowledged with them");
   }
   for (const server::Ack& a : r.acks) {
     const std::string json = mqtt::EncodeCommitAck({a.sensor, {a.seqs.begin(), a.seqs.end()}, "2026-06-01T00:00:00Z"});

@@ -10,7 +10,10 @@
 //   (b) gateway: the gateway reads the slave, spools every record (fsynced) and acks it to its
 //       sensor (0x10 frames back through the pty, read here), and publishes it; this program plays
 //       the server: it subscribes to the readings and answers with commit acks, one per sensor per
-//       batch as linerwatch-server does after a group commit.
+//       batch as linerwatch-server does after a group commit. Run (b) is done twice per repetition,
+//       interleaved: with the server-playing side announcing batches in its acks (`"batch": 64`, as
+//       linerwatch-server does: the gateway then sends several records of a sensor per reading
+//       message, docs/mqtt.md *Batches*) and without (the one-record form, as an older server).
 // Run (b) is done when every record was acked on the radio and seen on MQTT, each exactly the set
 // sent (nothing lost: counted per (sensor, seq)). After it the gateway's stats must show every
 // record spooled and the spool drained by the commit acks.
@@ -45,6 +48,7 @@
 #include <mqtt/async_client.h>
 #include <nlohmann/json.hpp>
 
+#include "mqtt/messages.hpp"
 #include "mqtt/paho_link.hpp"
 #include "protocol/frame_decoder.hpp"
 #include "protocol/sensor_payload.hpp"
@@ -170,7 +174,8 @@ double BareRun(const std::string& file, size_t total_bytes) {
 /// server's group commit sends), watches the gateway's status and stats.
 class FakeServer {
  public:
-  explicit FakeServer(const std::string& uri) : client_(uri, "lw-bench-server", nullptr) {
+  /// `batch`: announced in every commit ack (0: not announced, the one-record form only).
+  FakeServer(const std::string& uri, uint32_t batch) : client_(uri, "lw-bench-server", nullptr), batch_(batch) {
     client_.start_consuming();
     mqtt::connect_options opts;
     opts.set_clean_session(true);
@@ -215,8 +220,9 @@ class FakeServer {
         continue;
       }
       for (auto& [sensor, seqs] : pending) {
-        const json ack = {{"sensor", sensor}, {"seqs", seqs}, {"time", "2026-01-01T00:00:00Z"}};
-        client_.publish(std::string(kRoot) + "sensors/" + sensor + "/committed", ack.dump(), 1, false);
+        for (std::string& ack : lw::mqtt::EncodeCommitAcks({sensor, seqs, "2026-01-01T00:00:00Z", batch_})) {
+          client_.publish(std::string(kRoot) + "sensors/" + sensor + "/committed", std::move(ack), 1, false);
+        }
       }
       pending.clear();
       timespec ts{};
@@ -226,18 +232,27 @@ class FakeServer {
   }
   void Handle(const mqtt::message& msg, std::map<std::string, std::vector<uint32_t>>* pending) {
     const std::string topic = msg.get_topic();
+    if (topic.size() > 8 && topic.compare(topic.size() - 8, 8, "/reading") == 0) {
+      // As linerwatch-server: a batch is split into its records, each decoded on its own.
+      std::vector<std::string> records;
+      std::string error;
+      if (!lw::mqtt::SplitReadingMessage(msg.to_string(), &records, &error)) return;
+      if (records.empty()) records.push_back(msg.to_string());
+      ++messages_;
+      for (const std::string& text : records) {
+        const auto r = lw::mqtt::DecodeReading(text, &error);
+        if (!r) continue;
+        {
+          std::lock_guard<std::mutex> lock(mutex_);
+          if (seen_.insert({static_cast<uint32_t>(std::stoul(r->sensor)), r->seq}).second) ++distinct_;
+        }
+        (*pending)[r->sensor].push_back(r->seq);
+      }
+      return;
+    }
     const json j = json::parse(msg.to_string(), nullptr, false);
     if (j.is_discarded()) return;
-    if (topic.size() > 8 && topic.compare(topic.size() - 8, 8, "/reading") == 0) {
-      const std::string sensor = j.value("sensor", "");
-      const uint32_t seq = j.value("seq", 0u);
-      ++messages_;
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        if (seen_.insert({static_cast<uint32_t>(std::stoul(sensor)), seq}).second) ++distinct_;
-      }
-      (*pending)[sensor].push_back(seq);
-    } else if (topic == std::string(kRoot) + "gateway/status") {
+    if (topic == std::string(kRoot) + "gateway/status") {
       online_ = j.value("state", "") == "online";
     } else if (topic == std::string(kRoot) + "gateway/stats") {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -245,6 +260,7 @@ class FakeServer {
     }
   }
   mqtt::async_client client_;
+  uint32_t batch_ = 0;
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<size_t> distinct_{0}, messages_{0};
@@ -278,7 +294,7 @@ double SelfCpuSeconds() {
 }
 
 /// (b) The same bytes through `cat` into the pty, the real gateway on the other side.
-GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total_records) {
+GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total_records, uint32_t batch) {
   GatewayResult out;
   lw::test::MosquittoFixture::Options bo;
   if (o.nodelay) bo.extra_config = "set_tcp_nodelay true\n";
@@ -288,7 +304,7 @@ GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total
   broker.Start();
   lw::test::TempDirectory dir("lw-bench-gw");
   lw::test::RawPty pty;
-  FakeServer server(broker.uri());
+  FakeServer server(broker.uri(), batch);
   lw::test::ChildProcess gateway;
   const std::string log = dir.File("gateway.log");
   gateway.Start({o.gateway_bin,
@@ -452,44 +468,60 @@ int main(int argc, char** argv) {
     std::printf("replay: %zu frames (%zu records, %u sensors, %zu per frame), %.2f MB, API mode 2\n", o.frames, records,
                 o.sensors, o.per_frame, bytes.size() / 1e6);
     std::printf("gateway: %s\n", o.gateway_bin.c_str());
-    std::vector<double> bare, gw, drain, cpu, intake, broker_cpu, bench_cpu, server_cpu;
+    // Per mode: [0] the one-record form (the server-playing side announces nothing), [1] batches.
+    struct Series {
+      std::vector<double> gw, drain, cpu, intake, broker_cpu, bench_cpu, server_cpu;
+    };
+    Series series[2];
+    const char* const kMode[2] = {"one record per message", "batches of up to 64"};
+    std::vector<double> bare;
     bool all_complete = true;
     for (int r = 0; r < o.reps; ++r) {
       bare.push_back(BareRun(file, bytes.size()));
-      const GatewayResult g = GatewayRun(o, file, records);
-      gw.push_back(g.seconds);
-      drain.push_back(g.drain_seconds);
-      cpu.push_back(g.gateway_cpu_s);
-      intake.push_back(g.acked_seconds);
-      broker_cpu.push_back(g.broker_cpu_s);
-      bench_cpu.push_back(g.bench_cpu_s);
-      server_cpu.push_back(g.server_thread_cpu_s);
-      all_complete = all_complete && g.complete;
-      std::printf(
-          "  rep %d: cat -> pty -> reader %.3f s; cat -> pty -> gateway -> spool + mosquitto %.3f s (all acked on the radio at "
-          "%.3f s, drained %.3f s): "
-          "radio acked %zu, published %zu distinct (%zu messages), spooled %zu; CPU: gateway %.2f s, mosquitto %.2f s, "
-          "bench %.2f s (server-playing thread %.2f s)%s%s\n",
-          r + 1, bare.back(), g.seconds, g.acked_seconds, g.drain_seconds, g.radio_acked, g.published, g.messages, g.spooled,
-          g.gateway_cpu_s, g.broker_cpu_s, g.bench_cpu_s, g.server_thread_cpu_s, g.complete ? ", complete" : ", INCOMPLETE ",
-          g.failure.c_str());
+      for (int mode = 0; mode < 2; ++mode) {
+        const GatewayResult g = GatewayRun(o, file, records, mode == 0 ? 0 : static_cast<uint32_t>(lw::mqtt::kMaxReadingBatch));
+        Series& s = series[mode];
+        s.gw.push_back(g.seconds);
+        s.drain.push_back(g.drain_seconds);
+        s.cpu.push_back(g.gateway_cpu_s);
+        s.intake.push_back(g.acked_seconds);
+        s.broker_cpu.push_back(g.broker_cpu_s);
+        s.bench_cpu.push_back(g.bench_cpu_s);
+        s.server_cpu.push_back(g.server_thread_cpu_s);
+        all_complete = all_complete && g.complete;
+        std::printf(
+            "  rep %d (%s): cat -> pty -> reader %.3f s; cat -> pty -> gateway -> spool + mosquitto %.3f s (all acked on the "
+            "radio at %.3f s, drained %.3f s): radio acked %zu, published %zu distinct (%zu messages), spooled %zu; CPU: "
+            "gateway %.2f s, mosquitto %.2f s, bench %.2f s (server-playing thread %.2f s)%s%s\n",
+            r + 1, kMode[mode], bare.back(), g.seconds, g.acked_seconds, g.drain_seconds, g.radio_acked, g.published, g.messages,
+            g.spooled, g.gateway_cpu_s, g.broker_cpu_s, g.bench_cpu_s, g.server_thread_cpu_s,
+            g.complete ? ", complete" : ", INCOMPLETE ", g.failure.c_str());
+        std::fflush(stdout);
+      }
     }
     bare.push_back(BareRun(file, bytes.size()));
-    const double b = Median(bare), g = Median(gw);
+    const double b = Median(bare);
     std::printf("bare (cat into the pty)         median %.3f s  %10.0f frames/s\n", b, o.frames / b);
-    std::printf("gateway intake (spooled, fsynced, acked on the radio)  median %.3f s  %10.0f frames/s\n", Median(intake),
-                o.frames / Median(intake));
-    std::printf("gateway end to end (spooled + published)   median %.3f s  %10.0f frames/s  (%.0f records/s)\n", g, o.frames / g,
-                records / g);
-    std::printf("gateway, spool drained by commit acks: median %.3f s\n", Median(drain));
-    std::printf("gateway CPU (user + system)     median %.2f s: %.0f frames per CPU-second (the capacity on an idle core)\n",
-                Median(cpu), o.frames / Median(cpu));
-    std::printf("mosquitto CPU                   median %.2f s\n", Median(broker_cpu));
-    std::printf(
-        "bench CPU (server-playing client, Paho threads, radio side)  median %.2f s (server-playing thread %.2f s, "
-        "%.0f %% of the end-to-end time)\n",
-        Median(bench_cpu), Median(server_cpu), 100 * Median(server_cpu) / g);
-    std::printf("ratio gateway / bare frames/s   %.3f\n", b / g);
+    for (int mode = 0; mode < 2; ++mode) {
+      const Series& s = series[mode];
+      const double g = Median(s.gw);
+      std::printf("-- %s --\n", kMode[mode]);
+      std::printf("gateway intake (spooled, fsynced, acked on the radio)  median %.3f s  %10.0f frames/s\n", Median(s.intake),
+                  o.frames / Median(s.intake));
+      std::printf("gateway end to end (spooled + published)   median %.3f s  %10.0f frames/s  (%.0f records/s)\n", g,
+                  o.frames / g, records / g);
+      std::printf("gateway, spool drained by commit acks: median %.3f s\n", Median(s.drain));
+      std::printf("gateway CPU (user + system)     median %.2f s: %.0f frames per CPU-second (the capacity on an idle core)\n",
+                  Median(s.cpu), o.frames / Median(s.cpu));
+      std::printf("mosquitto CPU                   median %.2f s\n", Median(s.broker_cpu));
+      std::printf(
+          "bench CPU (server-playing client, Paho threads, radio side)  median %.2f s (server-playing thread %.2f s, "
+          "%.0f %% of the end-to-end time)\n",
+          Median(s.bench_cpu), Median(s.server_cpu), 100 * Median(s.server_cpu) / g);
+      std::printf("ratio gateway / bare frames/s   %.3f\n", b / g);
+    }
+    std::printf("end to end, batches / one record per message: %.2fx the frames/s\n",
+                Median(series[0].gw) / Median(series[1].gw));
     std::printf("nothing lost (every record acked on the radio, published, spooled): %s\n", all_complete ? "yes" : "NO");
     return all_complete ? 0 : 1;
   } catch (const std::exception& e) {

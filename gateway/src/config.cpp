@@ -26,7 +26,9 @@ const core::OptionTable& Table() {
       Option::Text("gateway-id", "ID", "gateway id in messages and MQTT client id (default gw-HOSTNAME)"),
       Option::Whole("spool-max-records", "N", 1, 1'000'000'000, "spool capacity in records (default 1000000)"),
       Option::Whole("window", "N", 1, static_cast<int64_t>(kMaxCommitAckSeqs),
-                    "records per sensor awaiting a commit ack (default 1: strict order)"),
+                    "reading messages per sensor awaiting a commit ack (default 1: strict order)"),
+      Option::Whole("max-batch", "N", 1, static_cast<int64_t>(mqtt::kMaxReadingBatch),
+                    "records per reading message at most once the server announces batches\n(default 64; 1: never batch)"),
       Option::Whole("max-devices", "N", 1, 1'000'000,
                     "device registry entries at most; new radios beyond are not registered\n(default 1000)"),
       Option::Number("republish-after", "S", NumberRange::Positive(),
@@ -95,6 +97,7 @@ ParseResult ParseCommandLine(const std::vector<std::string>& args, Config* confi
   c.gateway_id = o.Text("gateway-id");
   c.spool_max_records = o.Integer<size_t>("spool-max-records", c.spool_max_records);
   c.window = o.Integer<size_t>("window", c.window);
+  c.max_batch = o.Integer<size_t>("max-batch", c.max_batch);
   c.max_devices = o.Integer<size_t>("max-devices", c.max_devices);
   c.republish_after_s = o.Number("republish-after", c.republish_after_s);
   c.stats_interval_s = o.Number("stats-interval", c.stats_interval_s);

@@ -32,6 +32,7 @@ Gateway::Gateway(GatewayOptions options, Spool& spool, mqtt::Publisher& publishe
       decoder_(options_.api_mode),
       topics_(options_.site, options_.crusher) {
   if (options_.window == 0) options_.window = 1;
+  options_.max_batch = std::clamp<size_t>(options_.max_batch, 1, mqtt::kMaxReadingBatch);
   for (const DeviceEntry& d : spool_.Devices()) known_devices_.insert(d.address + "/" + d.sensor);
 }
 
@@ -320,6 +321,9 @@ void Gateway::OnConnected(int64_t now_ms) {
   // Whatever was in flight may have been lost with the old connection (or the broker): start
   // every sensor's queue over, in order.
   in_flight_.clear();
+  // The server behind the broker may have changed: one record per message until it announces
+  // batches again (in a commit ack).
+  batch_records_ = 1;
   last_progress_ms_ = now_ms;
   records_dirty_ = true;  // every sensor
   all_devices_dirty_ = true;
@@ -347,6 +351,15 @@ void Gateway::OnMessages(const std::vector<std::pair<std::string_view, std::stri
       ++counters_.bad_commit_acks;
       LogLimited("bad_commit", "mqtt: bad commit ack on " + std::string(topic) + ": " + error);
       continue;
+    }
+    // The latest ack says what the server takes: an ack without "batch" (a server that does not
+    // know the batch form) turns batches off at once.
+    const size_t batch = std::min<size_t>(std::max<uint32_t>(ack->batch, 1), options_.max_batch);
+    if (batch != batch_records_) {
+      Log("mqtt: the server takes " + (batch > 1 ? "up to " + std::to_string(batch) + " records" : std::string("one record")) +
+          " per reading message");
+      batch_records_ = batch;
+      records_dirty_ = true;  // every sensor's next records may now go together
     }
     // Only records this gateway published and is waiting for are released. The server acks what
     // it received; anything else (a seq never published since the last connect, or not spooled)
@@ -462,16 +475,17 @@ void Gateway::PublishRecords(int64_t now_ms) {
   // Reading every head: the released records are deleted first. Else a sensor's released records
   // (still in the spool) are read past: its next `window` records follow them.
   if (all) FlushReleases();
+  // `window` messages per sensor in flight, each of up to batch_records_ records.
+  const size_t per_sensor = options_.window * batch_records_;
   std::vector<SpoolRecord> heads;
   try {
     if (all) {
-      heads = spool_.Heads(options_.window);
+      heads = spool_.Heads(per_sensor);
     } else {
       std::map<std::string, size_t> limits;
       for (const std::string& sensor : dirty_sensors_) {
         const auto pending = pending_release_.find(sensor);
-        limits.emplace_hint(limits.end(), sensor,
-                            options_.window + (pending == pending_release_.end() ? 0 : pending->second.size()));
+        limits.emplace_hint(limits.end(), sensor, per_sensor + (pending == pending_release_.end() ? 0 : pending->second.size()));
       }
       heads = spool_.Heads(limits, pending_release_);
     }
@@ -487,6 +501,44 @@ void Gateway::PublishRecords(int64_t now_ms) {
   std::map<std::string, std::map<uint32_t, InFlight>> kept;
   int64_t next_due = now_ms + options_.republish_after_ms;
   bool all_sent = true;
+  // Records to publish go out in messages of up to batch_records_ records of one sensor in seq
+  // order (heads are sorted so), within the reading message's size limit. A republication (no
+  // commit ack within republish_after_ms) goes alone in the one-record form: a server that lost
+  // the batch form (replaced by an older one) still takes it and acks it.
+  std::vector<const SpoolRecord*> group;
+  size_t group_bytes = 0;
+  const auto publish_group = [&] {
+    if (group.empty()) return;
+    const SpoolRecord& head = *group.front();
+    const bool first = in_flight_[head.sensor].count(head.seq) == 0;
+    std::string payload;
+    if (group.size() == 1) {
+      payload = head.payload;
+    } else {
+      std::vector<std::string_view> texts;
+      texts.reserve(group.size());
+      for (const SpoolRecord* r : group) texts.push_back(r->payload);
+      payload = mqtt::EncodeReadingBatch(head.sensor, texts);
+    }
+    if (!publisher_.Publish({topics_.Reading(head.sensor), std::move(payload), 1, false})) {
+      ++counters_.publish_refused;
+      all_sent = false;
+      if (!first) kept[head.sensor][head.seq] = in_flight_[head.sensor][head.seq];  // a republication is alone
+    } else {
+      for (const SpoolRecord* r : group) kept[r->sensor][r->seq] = {now_ms, r->received_ms};
+      if (first) {
+        counters_.published += group.size();
+      } else {
+        counters_.republished += group.size();
+      }
+      if (group.size() > 1) ++counters_.batches_published;
+      last_progress_ms_ = now_ms;
+    }
+    group.clear();
+    group_bytes = 0;
+  };
+  // Batch envelope: `{"records":[` ... `],"sensor":"..."}` and a comma per record.
+  const auto envelope = [](const SpoolRecord& r) { return r.sensor.size() + 32; };
   for (const SpoolRecord& r : heads) {
     auto& sensor_flight = in_flight_[r.sensor];
     auto found = sensor_flight.find(r.seq);
@@ -496,20 +548,16 @@ void Gateway::PublishRecords(int64_t now_ms) {
       next_due = std::min(next_due, found->second.published_ms + options_.republish_after_ms);
       continue;
     }
-    if (!publisher_.Publish({topics_.Reading(r.sensor), r.payload, 1, false})) {
-      ++counters_.publish_refused;
-      all_sent = false;
-      if (!first) kept[r.sensor][r.seq] = found->second;
-      continue;
+    if (!group.empty() && (!first || group.front()->sensor != r.sensor || group.size() >= batch_records_ ||
+                           group_bytes + r.payload.size() + 1 > mqtt::kMaxReadingBytes)) {
+      publish_group();
     }
-    if (first) {
-      ++counters_.published;
-    } else {
-      ++counters_.republished;
-    }
-    last_progress_ms_ = now_ms;
-    kept[r.sensor][r.seq] = {now_ms, r.received_ms};
+    if (group.empty()) group_bytes = envelope(r);
+    group.push_back(&r);
+    group_bytes += r.payload.size() + 1;
+    if (!first) publish_group();
   }
+  publish_group();
   if (all) {
     in_flight_ = std::move(kept);
     next_republish_check_ms_ = next_due;
@@ -560,6 +608,8 @@ std::string Gateway::StatsJson(int64_t now_ms) const {
       {"spool_max_records", spool_.max_records()},
       {"in_flight", in_flight()},
       {"published", counters_.published},
+      {"batches_published", counters_.batches_published},
+      {"batch_records", batch_records_},
       {"republished", counters_.republished},
       {"publish_refused", counters_.publish_refused},
       {"link_resets", counters_.link_resets},

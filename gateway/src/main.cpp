@@ -79,6 +79,7 @@ int Run(const lw::gateway::Config& config) {
   options.gateway_id = config.gateway_id;
   options.api_mode = config.api_mode == 1 ? lw::protocol::ApiMode::kUnescaped : lw::protocol::ApiMode::kEscaped;
   options.window = config.window;
+  options.max_batch = config.max_batch;
   options.max_devices = config.max_devices;
   options.republish_after_ms = static_cast<int64_t>(config.republish_after_s * 1000);
   options.stats_interval_ms = static_cast<int64_t>(config.stats_interval_s * 1000);

@@ -440,15 +440,69 @@ std::optional<ReadingMessage> DecodeReading(std::string_view payload, std::strin
   return r;
 }
 
+// ---- batches of readings ----
+
+std::string EncodeReadingBatch(const std::string& sensor, const std::vector<std::string_view>& records) {
+  // The records are spooled texts, copied as they are: no parse, no re-encoding. Keys in sorted
+  // order as every encoder here: "records" before "sensor".
+  std::string out = "{\"records\":[";
+  size_t bytes = out.size() + sensor.size() + 16;
+  for (const std::string_view r : records) bytes += r.size() + 1;
+  out.reserve(bytes);
+  for (size_t i = 0; i < records.size(); ++i) {
+    if (i) out += ',';
+    out.append(records[i]);
+  }
+  out += "],\"sensor\":";
+  out += Dump(json(sensor));
+  out += '}';
+  return out;
+}
+
+bool SplitReadingMessage(std::string_view payload, std::vector<std::string>* records, std::string* error) {
+  records->clear();
+  // The one-record form (every message of a gateway that has not seen the server's announcement)
+  // is not parsed here: DecodeReading does that once.
+  if (payload.find("\"records\"") == std::string_view::npos) return true;
+  if (payload.size() > kMaxReadingBytes || JsonNestingDepth(payload) > kMaxReadingDepth) return true;
+  json j = json::parse(payload, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded() || !j.is_object()) return true;
+  const auto list = j.find("records");
+  if (list == j.end()) return true;  // "records" was text inside a string
+  ReadingIdentity id;
+  Identify(j, &id);
+  if (id.sensor.empty()) {
+    *error = "batch: missing or invalid \"sensor\"";
+    return false;
+  }
+  if (j.contains("seq")) {
+    *error = "batch: both \"records\" and \"seq\" (a batch carries its seqs in its records)";
+    return false;
+  }
+  if (!list->is_array() || list->empty() || list->size() > kMaxReadingBatch) {
+    *error = "batch: \"records\" must be an array of 1 to " + std::to_string(kMaxReadingBatch) + " records, not " +
+             (list->is_array() ? std::to_string(list->size()) + " records" : Describe(*list));
+    return false;
+  }
+  records->reserve(list->size());
+  for (json& r : *list) {
+    if (r.is_object() && !r.contains("sensor")) r["sensor"] = id.sensor;
+    records->push_back(Dump(r));
+  }
+  return true;
+}
+
 // ---- commit ack ----
 
 std::string EncodeCommitAck(const CommitAck& ack) {
-  return Dump({{"sensor", ack.sensor}, {"seqs", ack.seqs}, {"time", ack.time}});
+  json j = {{"sensor", ack.sensor}, {"seqs", ack.seqs}, {"time", ack.time}};
+  if (ack.batch != 0) j["batch"] = ack.batch;
+  return Dump(j);
 }
 
 std::vector<std::string> EncodeCommitAcks(const CommitAck& ack) {
   std::vector<std::string> out;
-  CommitAck part{ack.sensor, {}, ack.time};
+  CommitAck part{ack.sensor, {}, ack.time, ack.batch};
   const size_t empty = EncodeCommitAck(part).size();
   if (empty + 10 > kMaxCommitAckBytes) return out;  // not even one seq fits
   size_t bytes = empty;
@@ -511,6 +565,10 @@ std::optional<CommitAck> DecodeCommitAck(std::string_view payload, const std::st
   }
   // The time is informative: the gateway acts on the seqs whatever it says.
   if (const auto t = j.find("time"); t != j.end() && t->is_string()) ack.time = t->get<std::string>();
+  // An announcement the gateway cannot read is no announcement: the one-record form stays.
+  if (const auto b = j.find("batch"); b != j.end() && b->is_number_unsigned() && b->get<uint64_t>() <= 0xFFFFFFFFull) {
+    ack.batch = static_cast<uint32_t>(b->get<uint64_t>());
+  }
   return ack;
 }
 

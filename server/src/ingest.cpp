@@ -89,6 +89,40 @@ Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t
   return v;
 }
 
+namespace {
+
+/// `messages` with every batch (several records of one sensor in one message, docs/mqtt.md)
+/// replaced by its records, in order, each a message of its own: validated, stored and acked
+/// alone. `messages` itself when it holds no batch. A malformed batch stays one message and
+/// `(*malformed)[i]` says what is wrong with it (then `malformed` has an entry per message).
+const std::vector<Incoming>& SplitBatches(const std::vector<Incoming>& messages, std::vector<Incoming>* expanded,
+                                          std::vector<std::string>* malformed) {
+  std::vector<std::string> records;
+  std::string error;
+  for (size_t i = 0; i < messages.size(); ++i) {
+    const bool ok = mqtt::SplitReadingMessage(messages[i].payload, &records, &error);
+    if (ok && records.empty() && expanded->empty() && malformed->empty()) continue;  // none so far
+    if (expanded->empty() && malformed->empty()) {
+      expanded->assign(messages.begin(), messages.begin() + static_cast<std::ptrdiff_t>(i));
+      malformed->assign(i, std::string());
+    }
+    if (!ok || records.empty()) {
+      expanded->push_back(messages[i]);
+      malformed->push_back(ok ? std::string() : error);
+      continue;
+    }
+    for (std::string& r : records) {
+      Incoming one = messages[i];
+      one.payload = std::move(r);
+      expanded->push_back(std::move(one));
+      malformed->emplace_back();
+    }
+  }
+  return malformed->empty() ? messages : *expanded;
+}
+
+}  // namespace
+
 Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s, LiveState* live)
     : store_(store), registry_(registry), live_(live), now_s_(std::move(now_s)) {
   for (const auto& [crusher, site] : store_.CrusherSites()) sites_[crusher] = site;
@@ -105,7 +139,10 @@ std::optional<std::string> Ingestor::SiteOf(const std::string& crusher) const {
   return it->second;
 }
 
-IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
+IngestResult Ingestor::Ingest(const std::vector<Incoming>& messages) {
+  std::vector<Incoming> expanded;
+  std::vector<std::string> malformed;
+  const std::vector<Incoming>& batch = SplitBatches(messages, &expanded, &malformed);
   std::lock_guard<std::mutex> lock(mutex_);
   IngestResult result;
   const int64_t now = now_s_();
@@ -122,7 +159,13 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& batch) {
     const Incoming& in = batch[i];
     // A message must never fail the batch: whatever validation throws quarantines this one only.
     try {
-      validations.push_back(ValidateReading(in, registry_, now));
+      if (!malformed.empty() && !malformed[i].empty()) {
+        validations.push_back({});
+        validations.back().sensor = in.sensor;  // no seq: nothing to acknowledge
+        validations.back().error = malformed[i];
+      } else {
+        validations.push_back(ValidateReading(in, registry_, now));
+      }
     } catch (const std::exception& e) {
       validations.push_back({});
       validations.back().error = std::string("cannot validate: ") + e.what();

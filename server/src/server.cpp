@@ -386,7 +386,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       for (const Ack& a : r.acks) {
         const std::string topic = mqtt::Topics(a.site, a.crusher, o.topic_root).Committed(a.sensor);
         // Seqs are validated to 0..2^32-1 before they are stored or acked.
-        for (std::string& m : mqtt::EncodeCommitAcks({a.sensor, {a.seqs.begin(), a.seqs.end()}, when})) {
+        for (std::string& m : mqtt::EncodeCommitAcks({a.sensor, {a.seqs.begin(), a.seqs.end()}, when, mqtt::kMaxReadingBatch})) {
           acks.Send(link, {topic, std::move(m), 1, false});
         }
       }

@@ -30,6 +30,7 @@ struct Config {
   std::string gateway_id;  ///< defaults to "gw-" + host name
   size_t spool_max_records = 1'000'000;
   size_t window = 1;
+  size_t max_batch = 64;      ///< records per reading message at most (when the server announces batches)
   size_t max_devices = 1000;  ///< device registry entries (address, sensor) at most
   double republish_after_s = 30;
   double stats_interval_s = 60;

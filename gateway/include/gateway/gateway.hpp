@@ -26,9 +26,14 @@ struct GatewayOptions {
   std::string crusher;
   std::string gateway_id;
   protocol::ApiMode api_mode = protocol::ApiMode::kEscaped;
-  /// Records of one sensor published and awaiting the server's commit ack at a time. 1 keeps the
-  /// server's first sight of a sensor's records in seq order whatever the broker loses.
+  /// Reading messages of one sensor published and awaiting the server's commit ack at a time. 1
+  /// keeps the server's first sight of a sensor's records in seq order whatever the broker loses.
+  /// A message holds one record, or up to the server's announced batch size once it has announced
+  /// one since the last connect (docs/mqtt.md, *Batches*).
   size_t window = 1;
+  /// Records in one reading message at most when the server announces batches (its commit acks'
+  /// `"batch"`); 1: the one-record form always. Also capped by mqtt::kMaxReadingBatch.
+  size_t max_batch = 64;
   /// Device registry entries (address, sensor) at most: a radio network can announce any number
   /// of addresses. Beyond it new devices are not registered (counted, logged); their readings
   /// are still spooled and acked.
@@ -66,13 +71,14 @@ struct GatewayCounters {
   uint64_t unknown_frames = 0;     ///< frames of a type the gateway does not handle
   uint64_t acks_sent = 0;
   uint64_t ack_write_errors = 0;
-  uint64_t tx_failures = 0;      ///< 0x8B Transmit Status with a non-success delivery status
-  uint64_t spool_errors = 0;     ///< SQLite failures (records not acked)
-  uint64_t published = 0;        ///< first publications of a record
-  uint64_t republished = 0;      ///< publications after a reconnect or the republish timeout
-  uint64_t publish_refused = 0;  ///< readings the MQTT client refused to take (kept, tried again at the next Pump)
-  uint64_t link_resets = 0;      ///< reconnects asked for because the link carried nothing of QoS 1 (LinkStalled)
-  uint64_t committed = 0;        ///< records deleted after the server's commit ack
+  uint64_t tx_failures = 0;        ///< 0x8B Transmit Status with a non-success delivery status
+  uint64_t spool_errors = 0;       ///< SQLite failures (records not acked)
+  uint64_t published = 0;          ///< first publications of a record
+  uint64_t batches_published = 0;  ///< reading messages that carried more than one record
+  uint64_t republished = 0;        ///< publications after a reconnect or the republish timeout
+  uint64_t publish_refused = 0;    ///< readings the MQTT client refused to take (kept, tried again at the next Pump)
+  uint64_t link_resets = 0;        ///< reconnects asked for because the link carried nothing of QoS 1 (LinkStalled)
+  uint64_t committed = 0;          ///< records deleted after the server's commit ack
   uint64_t bad_commit_acks = 0;
   uint64_t commit_acks_ignored = 0;  ///< acked seqs that were not published and awaiting an ack
   uint64_t devices_refused = 0;      ///< new registry entries refused: registry full (max_devices)
@@ -125,6 +131,9 @@ class Gateway {
   /// Records waiting for a commit ack (spooled, not released by one).
   size_t spool_depth() const { return spool_.depth() - std::min(spool_.depth(), pending_release_count_); }
   size_t in_flight() const;
+  /// Records per reading message now: 1 until a commit ack announced batches since the last
+  /// connect; then min(announced, max_batch, mqtt::kMaxReadingBatch).
+  size_t batch_records() const { return batch_records_; }
 
  private:
   void OnFrame(const uint8_t* frame, size_t len, int64_t now_ms);
@@ -168,6 +177,7 @@ class Gateway {
   std::set<std::string> dirty_sensors_;  // sensors whose queue head changed since the last look
   bool all_devices_dirty_ = true;        // after a connect: every device's message
   std::set<std::string> dirty_devices_;  // addresses whose message changed
+  size_t batch_records_ = 1;             ///< records per reading message (batch_records())
   int64_t next_republish_check_ms_ = 0;
   int64_t last_progress_ms_ = 0;  ///< last accepted reading publication, released record or connect
   int64_t next_stats_ms_ = 0;

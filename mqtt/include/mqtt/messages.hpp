@@ -74,6 +74,28 @@ struct ReadingIdentity {
 /// ignored: they never cost the reading. `identity`, when given, is filled whatever the outcome.
 std::optional<ReadingMessage> DecodeReading(std::string_view payload, std::string* error, ReadingIdentity* identity = nullptr);
 
+// ---- several records of one sensor in one reading message (docs/mqtt.md, *Batches*) ----
+
+/// Records in one batch at most: what the server announces in its commit acks (`"batch"`) and
+/// accepts. A batch also keeps within kMaxReadingBytes and kMaxReadingDepth.
+inline constexpr size_t kMaxReadingBatch = 64;
+
+/// `{"records": [r1, r2, ...], "sensor": S}` where each `records[i]` is the text of a one-record
+/// reading message of `sensor` (EncodeReading's, as the gateway spools them), copied as it is, in
+/// the order given (seq order). Empty `records`: an empty batch (which decoders refuse).
+std::string EncodeReadingBatch(const std::string& sensor, const std::vector<std::string_view>& records);
+
+/// The records of a batch as one-record messages, for DecodeReading one by one, so that each
+/// record goes through the same checks and is stored, a duplicate or refused on its own: each
+/// element of "records", with the batch's "sensor" added when it names none (an element naming
+/// another sensor keeps it: the topic check refuses that record). A payload that is not the batch
+/// form (no "records" key in a JSON object within the limits, or not JSON at all) leaves
+/// `*records` empty and returns true: it is a one-record message, DecodeReading's to judge, and is
+/// not parsed here. False with `*error` when the batch itself is malformed: "sensor" missing or not
+/// a string or whole number, "seq" beside "records", "records" not an array, empty, or longer
+/// than kMaxReadingBatch.
+bool SplitReadingMessage(std::string_view payload, std::vector<std::string>* records, std::string* error);
+
 /// Parses `text`; false with *error set when it is not JSON ("malformed JSON"). A number that
 /// overflows a double (`1e999`) is named by its field: `"flags" '1e999' does not fit a double
 /// (number overflow)`. No size or nesting limit: see JsonNestingDepth.
@@ -88,6 +110,9 @@ struct CommitAck {
   std::string sensor;
   std::vector<uint32_t> seqs;
   std::string time;  ///< when the server sent it (decoded: empty when absent)
+  /// The server takes reading messages of up to this many records (`"batch"`; 0: absent, the
+  /// one-record form only). Encoded only when not 0: an ack without it is byte for byte as before.
+  uint32_t batch = 0;
 
   bool operator==(const CommitAck&) const = default;
 };
@@ -98,7 +123,7 @@ inline constexpr size_t kMaxCommitAckBytes = 64 * 1024;
 inline constexpr size_t kMaxCommitAckDepth = 8;
 inline constexpr size_t kMaxCommitAckSeqs = 10000;
 
-/// `{"sensor": S, "seqs": [...], "time": ISO}`.
+/// `{"batch": N (when not 0), "sensor": S, "seqs": [...], "time": ISO}`.
 std::string EncodeCommitAck(const CommitAck& ack);
 
 /// The ack as messages the gateway accepts (at most kMaxCommitAckSeqs seqs and kMaxCommitAckBytes

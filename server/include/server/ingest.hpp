@@ -79,9 +79,12 @@ class Ingestor {
   /// `now_s` (validation's "now", unix seconds) is called by Ingest() on its caller's thread (the
   /// server's MQTT loop or an HTTP worker) with the ingestor's lock held: one call at a time.
   Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s, LiveState* live = nullptr);
-  /// Validates and commits `batch` in one transaction. Throws std::runtime_error on a database
-  /// failure (then nothing of the batch is stored and nothing may be acked).
-  IngestResult Ingest(const std::vector<Incoming>& batch);
+  /// Validates and commits `messages` in one transaction. A message carrying several records
+  /// (docs/mqtt.md, *Batches*) counts as its records, each validated, stored, a duplicate or
+  /// rejected, and acked on its own; a malformed batch is rejected whole (it names no seq to ack).
+  /// Throws std::runtime_error on a database failure (then nothing is stored and nothing may be
+  /// acked).
+  IngestResult Ingest(const std::vector<Incoming>& messages);
   IngestCounters Counters() const;
   /// The site `crusher` belongs to: crusher.json's "site", else the first site a valid reading
   /// was heard from (kept in the database). Readings, acks and wear go only to this site's topics;

@@ -217,6 +217,11 @@ TEST(EndToEnd, LossDuplicatesBrokerRestartAndKilledGatewayAndServerStoreEveryRea
     if (stored >= static_cast<long>(ledger.size())) break;
   }
   LONGS_EQUAL_TEXT(ledger.size(), stored, (context + lw::test::FileTail(gateway.log)).c_str());
+  // The server announces batches in its commit acks and the gateway heard it (docs/mqtt.md,
+  // *Batches*): from then on a sensor's backlog goes several records per reading message.
+  const std::string gateway_log = lw::test::FileTail(gateway.log, 1'000'000);
+  CHECK_TEXT(gateway_log.find("mqtt: the server takes up to 64 records per reading message") != std::string::npos,
+             lw::test::FileTail(gateway.log).c_str());
 
   // The retained global wear, as a client that connects now gets it (or the next one, when the
   // server has not yet published the last change), once it is made of each sensor's latest reading.

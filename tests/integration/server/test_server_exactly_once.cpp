@@ -2,7 +2,8 @@
 // (publishes readings QoS 1, republishes what the server has not confirmed), SIGKILLs the server
 // twice mid-stream and restarts it. Every reading must end up stored exactly once, confirmed, and
 // the retained global wear must equal the reconstruction computed offline from the same readings
-// (and the folder's laser scan).
+// (and the folder's laser scan). And a batch (docs/mqtt.md, *Batches*): stored record by record,
+// acked with the server's announcement.
 #include <mqtt/async_client.h>
 
 #include <chrono>
@@ -12,6 +13,7 @@
 #include <thread>
 
 #include "core/reconstruction.hpp"
+#include "mqtt/messages.hpp"
 #include "server/store.hpp"
 #include "support/mosquitto_fixture.hpp"
 #include "unit/server/server_fixture.hpp"
@@ -32,7 +34,17 @@ struct ServerProcess {
   lw::test::ChildProcess process;
   std::vector<std::string> argv;
   std::string log;
+  std::string db;
   int http_port = 0;
+  /// The server on `broker_uri` with `folder`'s crushers, its database and log in the folder.
+  void Configure(const std::string& broker_uri, const lw::test::CrusherFolder& folder, const std::vector<std::string>& extra) {
+    http_port = lw::test::FreeLoopbackPort();
+    log = folder.dir.File("server.log");
+    db = folder.dir.File("server.sqlite");
+    argv = {LW_SERVER_BIN,   "--broker",      broker_uri,  "--db", db, "--http", "127.0.0.1:" + std::to_string(http_port),
+            "--crusher-dir", folder.crushers, "--web-dir", ""};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+  }
   void Start() {
     process.Start(argv, log);
     // Up to 60 s: the map model is built at start-up, slow on a loaded machine.
@@ -42,41 +54,35 @@ struct ServerProcess {
   }
 };
 
-}  // namespace
-
-TEST_GROUP(ServerExactlyOnce){};
-
-TEST(ServerExactlyOnce, SigkillMidStreamStoresEveryReadingOnceAndWearMatchesOffline) {
-  lw::test::MosquittoFixture broker;
-  broker.Start();
-  lw::test::CrusherFolder folder(30, 5);
-  const auto messages = lw::test::Messages(folder.bundle, "site1");
-  ServerProcess server;
-  server.http_port = lw::test::FreeLoopbackPort();
-  server.log = folder.dir.File("server.log");
-  const std::string db = folder.dir.File("server.sqlite");
-  server.argv = {LW_SERVER_BIN,
-                 "--broker",
-                 broker.uri(),
-                 "--db",
-                 db,
-                 "--http",
-                 "127.0.0.1:" + std::to_string(server.http_port),
-                 "--crusher-dir",
-                 folder.crushers,
-                 "--wear-interval-ms",
-                 "200",
-                 "--web-dir",
-                 ""};
-  server.Start();
-
-  mqtt::async_client client(broker.uri(), "test-gateway", nullptr);
+/// Connects `client` as a gateway would (a clean session) and subscribes to `root`'s commit acks.
+void ConnectAsGateway(mqtt::async_client& client, const std::string& root) {
   mqtt::connect_options opts;
   opts.set_clean_session(true);
   client.start_consuming();
   client.connect(opts)->wait();
-  const std::string root = "linerwatch/v1/site1/" + folder.id() + "/";
   client.subscribe(root + "sensors/+/committed", 1)->wait();
+}
+
+}  // namespace
+
+TEST_GROUP(ServerExactlyOnce) {
+  lw::test::MosquittoFixture broker;
+  lw::test::CrusherFolder folder{30, 5};
+  std::vector<lw::server::Incoming> messages = lw::test::Messages(folder.bundle, "site1");
+  ServerProcess server;
+  void setup() override {
+    broker.Start();
+  }
+};
+
+TEST(ServerExactlyOnce, SigkillMidStreamStoresEveryReadingOnceAndWearMatchesOffline) {
+  server.Configure(broker.uri(), folder, {"--wear-interval-ms", "200"});
+  const std::string db = server.db;
+  server.Start();
+
+  mqtt::async_client client(broker.uri(), "test-gateway", nullptr);
+  const std::string root = "linerwatch/v1/site1/" + folder.id() + "/";
+  ConnectAsGateway(client, root);
   client.subscribe(root + "wear", 1)->wait();
 
   std::set<std::pair<std::string, int64_t>> confirmed;
@@ -190,6 +196,58 @@ TEST(ServerExactlyOnce, SigkillMidStreamStoresEveryReadingOnceAndWearMatchesOffl
   STRCMP_EQUAL(b.map.sha256.c_str(), wear["map_sha256"].get<std::string>().c_str());
   for (size_t r = 0; r < offline.rows.size(); ++r) {
     DOUBLES_EQUAL(offline.rows[r].min_thickness_mm, wear["rows"][r]["min_thickness_mm"].get<double>(), 1e-3);
+  }
+  client.disconnect()->wait();
+  CHECK(server.process.Stop(SIGTERM) == 0);
+}
+
+// The real server takes a batch of one sensor's records: each record is stored (or quarantined)
+// on its own, one commit ack names every seq, and the ack announces batches ("batch": 64).
+TEST(ServerExactlyOnce, ABatchIsStoredRecordByRecordAndAckedWithTheAnnouncement) {
+  server.Configure(broker.uri(), folder, {});
+  const std::string db = server.db;
+  server.Start();
+  mqtt::async_client client(broker.uri(), "test-gateway", nullptr);
+  const std::string root = "linerwatch/v1/site1/" + folder.id() + "/";
+  ConnectAsGateway(client, root);
+
+  // Five records of the first sensor, in seq order, and one record whose time is not a time.
+  const std::string sensor = messages.front().sensor;
+  std::vector<std::string> texts;
+  std::set<int64_t> expected;
+  for (const auto& m : messages) {
+    if (m.sensor != sensor || texts.size() == 5) continue;
+    texts.push_back(m.payload);
+    expected.insert(json::parse(m.payload)["seq"].get<int64_t>());
+  }
+  LONGS_EQUAL(5, texts.size());
+  const int64_t bad_seq = *expected.rbegin() + 1000;
+  texts.push_back(R"({"seq":)" + std::to_string(bad_seq) +
+                  R"(,"time":"yesterday","thickness_mm":1,"loops_intact":1,"flags":0,"battery_mv":3000})");
+  expected.insert(bad_seq);
+  const std::string batch = lw::mqtt::EncodeReadingBatch(sensor, {texts.begin(), texts.end()});
+  client.publish(root + "sensors/" + sensor + "/reading", batch, 1, false)->wait();
+
+  std::set<int64_t> acked;
+  uint32_t announced = 0;
+  const int64_t deadline = NowMs() + 30'000;
+  while (acked != expected && NowMs() < deadline) {
+    mqtt::const_message_ptr msg;
+    if (!client.try_consume_message_for(&msg, std::chrono::milliseconds(100)) || !msg) continue;
+    std::string error;
+    const auto ack = lw::mqtt::DecodeCommitAck(msg->to_string(), sensor, &error);
+    CHECK_TEXT(ack.has_value(), error.c_str());
+    acked.insert(ack->seqs.begin(), ack->seqs.end());
+    announced = ack->batch;
+  }
+  CHECK_TEXT(acked == expected, lw::test::FileTail(server.log).c_str());
+  LONGS_EQUAL(lw::mqtt::kMaxReadingBatch, announced);
+  {
+    lw::server::Store store(db);
+    const auto stored = store.All(folder.id());
+    LONGS_EQUAL(5, stored.size());
+    for (const auto& r : stored) CHECK(expected.count(r.seq) && r.seq != bad_seq);
+    LONGS_EQUAL(1, store.CountRejected());
   }
   client.disconnect()->wait();
   CHECK(server.process.Stop(SIGTERM) == 0);

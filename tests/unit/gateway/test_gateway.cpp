@@ -6,6 +6,7 @@
 
 #include "gateway/gateway.hpp"
 #include "gateway/spool.hpp"
+#include "mqtt/messages.hpp"
 #include "unit/gateway/gateway_test_support.hpp"
 
 // CppUTest last: its new/delete macros break standard headers included after it.
@@ -26,6 +27,10 @@ std::string Committed(uint32_t sensor) {
 }
 std::string AckJson(const std::vector<uint32_t>& seqs) {
   return json{{"seqs", seqs}}.dump();
+}
+/// A commit ack announcing that the server takes up to `batch` records per reading message.
+std::string BatchAckJson(const std::vector<uint32_t>& seqs, uint32_t batch) {
+  return json{{"seqs", seqs}, {"batch", batch}}.dump();
 }
 std::vector<uint8_t> NodeIdFrame(uint64_t address, const char* node_identifier) {
   pr::NodeIdentification ni;
@@ -53,7 +58,7 @@ TEST_GROUP(Gateway) {
   void setup() override {
     Start(1'000);
   }
-  void Start(size_t capacity, size_t window = 1, size_t max_devices = 1000) {
+  void Start(size_t capacity, size_t window = 1, size_t max_devices = 1000, size_t max_batch = 64) {
     gateway.reset();
     spool.reset();
     spool = std::make_unique<gw::Spool>(dir.File("spool.db"), capacity);
@@ -64,6 +69,7 @@ TEST_GROUP(Gateway) {
     o.api_mode = kMode;
     o.window = window;
     o.max_devices = max_devices;
+    o.max_batch = max_batch;
     o.republish_after_ms = 10'000;
     o.stats_interval_ms = 60'000;
     o.log = [this](const std::string& line) { log.push_back(line); };
@@ -71,6 +77,15 @@ TEST_GROUP(Gateway) {
   }
   void Feed(const std::vector<uint8_t>& bytes) {
     gateway->OnBytes(bytes.data(), bytes.size(), now);
+  }
+  /// Records `first`..`last` of sensor 1001 (at kAddrA), two per frame (what fits a frame).
+  void FeedSeqs(uint32_t first, uint32_t last) {
+    for (uint32_t seq = first; seq <= last; seq += 2) {
+      const auto frame = seq < last ? ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(seq), MakeRecord(seq + 1)})
+                                    : ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(seq)});
+      CHECK_FALSE(frame.empty());
+      Feed(frame);
+    }
   }
   /// A 0x95 Node Identification of kAddrB (an end device) with NI string `ni_string`.
   void FeedNodeIdentification(const char* ni_string) {
@@ -94,6 +109,26 @@ TEST_GROUP(Gateway) {
     o.log = [](const std::string&) {};
     gateway = std::make_unique<gw::Gateway>(o, *spool, publisher, radio1);
     return *gateway;
+  }
+  /// The seqs of each reading message of `sensor`, message by message; a batch (docs/mqtt.md) is
+  /// read through lw::mqtt as the server reads it, and must name the sensor of its topic.
+  std::vector<std::vector<uint32_t>> PublishedMessages(uint32_t sensor) {
+    std::vector<std::vector<uint32_t>> out;
+    for (const auto& m : publisher.SentOn("sensors/" + std::to_string(sensor) + "/reading")) {
+      std::vector<std::string> records;
+      std::string error;
+      CHECK_TEXT(lw::mqtt::SplitReadingMessage(m.payload, &records, &error), error.c_str());
+      if (records.empty()) records.push_back(m.payload);
+      std::vector<uint32_t> seqs;
+      for (const std::string& r : records) {
+        const auto reading = lw::mqtt::DecodeReading(r, &error);
+        CHECK_TEXT(reading.has_value(), error.c_str());
+        STRCMP_EQUAL(std::to_string(sensor).c_str(), reading->sensor.c_str());
+        seqs.push_back(reading->seq);
+      }
+      out.push_back(seqs);
+    }
+    return out;
   }
   std::vector<uint32_t> PublishedSeqs(uint32_t sensor) {
     std::vector<uint32_t> out;
@@ -209,6 +244,91 @@ TEST(Gateway, WiderWindowPublishesSeveralInOrder) {
   Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(2), MakeRecord(1), MakeRecord(3)}));
   gateway->Pump(now);
   CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2, 3}));
+}
+
+using Messages = std::vector<std::vector<uint32_t>>;
+
+// docs/mqtt.md, *Batches*: one record per message until a commit ack announces batches; then
+// the sensor's next records (up to the announced number) go in one message, in seq order, and
+// each is released only by an ack naming it.
+TEST(Gateway, RecordsGoTogetherOnlyAfterTheServerAnnouncedBatches) {
+  FeedSeqs(1, 8);
+  gateway->Pump(now);
+  CHECK(PublishedMessages(1001) == (Messages{{1}}));
+  CHECK(json::parse(publisher.SentOn("sensors/1001/reading").back().payload).contains("seq"));  // the one-record form
+  gateway->OnMessage(Committed(1001), BatchAckJson({1}, 3), now);
+  gateway->Pump(now);
+  CHECK(PublishedMessages(1001) == (Messages{{1}, {2, 3, 4}}));
+  LONGS_EQUAL(3, gateway->batch_records());
+  LONGS_EQUAL(3, gateway->in_flight());
+  // Only the seqs named are released: 4 stays in flight, the next message starts after it.
+  gateway->OnMessage(Committed(1001), BatchAckJson({2, 3}, 3), now);
+  gateway->Pump(now);
+  CHECK(PublishedMessages(1001) == (Messages{{1}, {2, 3, 4}, {5, 6}}));
+  LONGS_EQUAL(5, gateway->spool_depth());  // 4, 5, 6, 7, 8
+  gateway->OnMessage(Committed(1001), BatchAckJson({4, 5, 6}, 3), now);
+  gateway->Pump(now);
+  CHECK(PublishedMessages(1001) == (Messages{{1}, {2, 3, 4}, {5, 6}, {7, 8}}));
+  LONGS_EQUAL(3, gateway->counters().batches_published);  // {2, 3, 4}, {5, 6}, {7, 8}
+  gateway->OnMessage(Committed(1001), BatchAckJson({7, 8}, 3), now);
+  gateway->Pump(now + 1'000);
+  LONGS_EQUAL(0, gateway->spool_depth());
+  LONGS_EQUAL(8, gateway->counters().committed);
+  LONGS_EQUAL(8, gateway->counters().published);
+}
+
+TEST(Gateway, AReconnectOrAnAckWithoutTheAnnouncementGoesBackToOneRecordPerMessage) {
+  FeedSeqs(1, 12);
+  gateway->Pump(now);
+  gateway->OnMessage(Committed(1001), BatchAckJson({1}, 64), now);
+  gateway->Pump(now);
+  CHECK(PublishedMessages(1001) == (Messages{{1}, {2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12}}));
+  // The connection drops: whoever answers now may not know batches.
+  publisher.connected = false;
+  gateway->Pump(now + 1);
+  publisher.connected = true;
+  gateway->OnConnected(now + 2);
+  LONGS_EQUAL(1, gateway->batch_records());
+  CHECK(PublishedMessages(1001).back() == std::vector<uint32_t>{2});
+  // Announced again, then an ack from a server that does not announce it: one record again.
+  gateway->OnMessage(Committed(1001), BatchAckJson({2}, 4), now + 3);
+  gateway->Pump(now + 3);
+  CHECK(PublishedMessages(1001).back() == (std::vector<uint32_t>{3, 4, 5, 6}));
+  gateway->OnMessage(Committed(1001), AckJson({3, 4, 5, 6}), now + 4);
+  gateway->Pump(now + 4);
+  LONGS_EQUAL(1, gateway->batch_records());
+  CHECK(PublishedMessages(1001).back() == std::vector<uint32_t>{7});
+}
+
+// A batch without an ack (lost, or a server that cannot read it) is republished one record per
+// message: an older server behind the broker takes and acks those.
+TEST(Gateway, AnUnackedBatchIsRepublishedOneRecordPerMessage) {
+  FeedSeqs(1, 3);
+  gateway->Pump(now);
+  gateway->OnMessage(Committed(1001), BatchAckJson({1}, 8), now);
+  gateway->Pump(now);
+  CHECK(PublishedMessages(1001) == (Messages{{1}, {2, 3}}));
+  gateway->Pump(now + 10'000);  // the fixture's republish_after_ms
+  CHECK(PublishedMessages(1001) == (Messages{{1}, {2, 3}, {2}, {3}}));
+  LONGS_EQUAL(2, gateway->counters().republished);
+  gateway->OnMessage(Committed(1001), AckJson({2, 3}), now + 10'001);
+  LONGS_EQUAL(0, gateway->spool_depth());
+}
+
+TEST(Gateway, MaxBatchBoundsTheRecordsPerMessageAndOneNeverBatches) {
+  Start(1'000, 2, 1000, 2);  // window 2, at most 2 records per message
+  FeedSeqs(1, 6);
+  gateway->Pump(now);
+  CHECK(PublishedMessages(1001) == (Messages{{1}, {2}}));
+  gateway->OnMessage(Committed(1001), BatchAckJson({1, 2}, 64), now);
+  gateway->Pump(now);
+  CHECK(PublishedMessages(1001) == (Messages{{1}, {2}, {3, 4}, {5, 6}}));  // two messages in flight
+  Start(1'000, 1, 1000, 1);
+  publisher.sent.clear();
+  gateway->OnConnected(now);
+  gateway->OnMessage(Committed(1001), BatchAckJson({3}, 64), now);
+  gateway->Pump(now);
+  CHECK(PublishedMessages(1001) == (Messages{{3}, {4}}));
 }
 
 TEST(Gateway, UnconfirmedRecordIsRepublishedAfterTheTimeoutOnly) {
@@ -379,7 +499,8 @@ TEST(Gateway, StatsMessageKeepsItsBytes) {
   const uint8_t junk[] = {1, 2, 3, 0x7E, 0x00};
   gateway->OnBytes(junk, sizeof junk, now);
   STRCMP_EQUAL(
-      R"({"ack_write_errors":0,"acks_sent":0,"bad_commit_acks":0,"bad_payloads":0,"bytes_discarded":3,)"
+      R"({"ack_write_errors":0,"acks_sent":0,"bad_commit_acks":0,"bad_payloads":0,"batch_records":1,"batches_published":0,)"
+      R"("bytes_discarded":3,)"
       R"("checksum_errors":0,"commit_acks_ignored":0,"committed":0,"connects":0,"devices":0,"devices_refused":0,)"
       R"("escape_errors":0,"frames_ok":0,"gateway":"gw-test","in_flight":0,"length_errors":0,"link_resets":0,"malformed_frames":0,)"
       R"("max_devices":1000,"publish_latency_ms":{"last":-1,"max":-1,"mean":-1},"publish_refused":0,"published":0,"records_duplicate":0,)"

@@ -283,6 +283,111 @@ TEST(Messages, AcksAreSplitIntoMessagesTheGatewayAccepts) {
   CHECK(mq::EncodeCommitAcks({std::string(20000, '\x17'), {1}, "t"}).empty());
 }
 
+// ---- batches: several records of one sensor in one reading message ----
+
+TEST(Messages, ReadingBatchCarriesTheSpooledTextsAndSplitsBackIntoTheSameRecords) {
+  std::vector<mq::ReadingMessage> readings;
+  std::vector<std::string> texts;
+  for (uint32_t seq = 41; seq <= 43; ++seq) {
+    readings.push_back(FullReading());
+    readings.back().seq = seq;
+    texts.push_back(mq::EncodeReading(readings.back()));
+  }
+  const std::string batch = mq::EncodeReadingBatch("1001", {texts[0], texts[1], texts[2]});
+  STRCMP_EQUAL(("{\"records\":[" + texts[0] + "," + texts[1] + "," + texts[2] + "],\"sensor\":\"1001\"}").c_str(), batch.c_str());
+  std::vector<std::string> records;
+  std::string error;
+  CHECK_TEXT(mq::SplitReadingMessage(batch, &records, &error), error.c_str());
+  CHECK(records == texts);  // each record exactly as the gateway encoded it, in order
+  for (size_t i = 0; i < records.size(); ++i) {
+    const auto back = mq::DecodeReading(records[i], &error);
+    CHECK_TEXT(back.has_value(), error.c_str());
+    CHECK(*back == readings[i]);
+  }
+}
+
+TEST(Messages, ABatchRecordWithoutASensorIsTheBatchsAndOneNamingAnotherKeepsIt) {
+  std::vector<std::string> records;
+  std::string error;
+  CHECK(mq::SplitReadingMessage(
+      R"({"sensor": 1001, "records": [{"seq": 7, "time": "t", "thickness_mm": 5, "loops_intact": 5, "flags": 0,
+          "battery_mv": 3000}, {"sensor": "1002", "seq": 8}, 5]})",
+      &records, &error));
+  LONGS_EQUAL(3, records.size());
+  const auto first = mq::DecodeReading(records[0], &error);
+  CHECK_TEXT(first.has_value(), error.c_str());
+  STRCMP_EQUAL("1001", first->sensor.c_str());
+  LONGS_EQUAL(7, first->seq);
+  mq::ReadingIdentity id;
+  CHECK_FALSE(mq::DecodeReading(records[1], &error, &id).has_value());
+  STRCMP_EQUAL("1002", id.sensor.c_str());  // the server's topic check refuses it, on its own
+  CHECK_FALSE(mq::DecodeReading(records[2], &error, &id).has_value());
+  STRCMP_EQUAL("not a JSON object", error.c_str());
+}
+
+TEST(Messages, OneRecordMessagesAreNotBatches) {
+  const std::string payloads[] = {
+      mq::EncodeReading(FullReading()),
+      R"({"sensor": "1001", "seq": 1, "gateway": "\"records\""})",        // the word in a string
+      R"({"records": [)",                                                 // not JSON: DecodeReading names it
+      R"(["records"])",                                                   // not an object
+      "{\"records\": [" + std::string(mq::kMaxReadingBytes, ' ') + "]}",  // too long: DecodeReading names it
+  };
+  for (const std::string& p : payloads) {
+    std::vector<std::string> records{"left over"};
+    std::string error;
+    CHECK_TEXT(mq::SplitReadingMessage(p, &records, &error), p.substr(0, 60).c_str());
+    CHECK_TEXT(records.empty(), p.substr(0, 60).c_str());
+  }
+}
+
+TEST(Messages, MalformedBatchesAreRefusedWithAReason) {
+  const std::string record = mq::EncodeReading(FullReading());
+  std::string many = "{\"sensor\": \"1001\", \"records\": [" + record;
+  for (size_t i = 1; i <= mq::kMaxReadingBatch; ++i) many += "," + record;
+  many += "]}";
+  const std::pair<std::string, std::string> cases[] = {
+      {"{\"records\": [" + record + "]}", "batch: missing or invalid \"sensor\""},
+      {"{\"sensor\": [1], \"records\": [" + record + "]}", "batch: missing or invalid \"sensor\""},
+      {"{\"sensor\": \"1001\", \"seq\": 4, \"records\": [" + record + "]}",
+       "batch: both \"records\" and \"seq\" (a batch carries its seqs in its records)"},
+      {R"({"sensor": "1001", "records": {"seq": 1}})", "batch: \"records\" must be an array of 1 to 64 records, not an object"},
+      {R"({"sensor": "1001", "records": []})", "batch: \"records\" must be an array of 1 to 64 records, not 0 records"},
+      {many, "batch: \"records\" must be an array of 1 to 64 records, not 65 records"},
+  };
+  for (const auto& [payload, expected] : cases) {
+    std::vector<std::string> records;
+    std::string error;
+    CHECK_FALSE_TEXT(mq::SplitReadingMessage(payload, &records, &error), expected.c_str());
+    STRCMP_EQUAL(expected.c_str(), error.c_str());
+  }
+}
+
+TEST(Messages, CommitAckAnnouncesBatchesOnlyWhenAsked) {
+  const mq::CommitAck ack{"1001", {41, 42}, "2026-06-01T00:00:00Z", 64};
+  STRCMP_EQUAL(R"({"batch":64,"sensor":"1001","seqs":[41,42],"time":"2026-06-01T00:00:00Z"})", mq::EncodeCommitAck(ack).c_str());
+  std::string error;
+  const auto back = mq::DecodeCommitAck(mq::EncodeCommitAck(ack), "1001", &error);
+  CHECK_TEXT(back.has_value(), error.c_str());
+  CHECK(*back == ack);
+  // Split acks each carry the announcement.
+  mq::CommitAck big{"1001", {}, "t", 64};
+  for (uint32_t s = 0; s < 25000; ++s) big.seqs.push_back(s);
+  for (const std::string& m : mq::EncodeCommitAcks(big)) {
+    const auto part = mq::DecodeCommitAck(m, "1001", &error);
+    CHECK_TEXT(part.has_value(), error.c_str());
+    LONGS_EQUAL(64, part->batch);
+  }
+  // An announcement that cannot be read is none; the ack itself still counts.
+  for (const char* bad : {R"({"seqs": [1], "batch": "64"})", R"({"seqs": [1], "batch": -1})", R"({"seqs": [1], "batch": 6.5})",
+                          R"({"seqs": [1], "batch": 4294967296})"}) {
+    const auto a = mq::DecodeCommitAck(bad, "1001", &error);
+    CHECK_TEXT(a.has_value(), bad);
+    LONGS_EQUAL(0, a->batch);
+    CHECK(a->seqs == std::vector<uint32_t>{1});
+  }
+}
+
 // ---- gateway status ----
 
 TEST(Messages, StatusEncodesTheBytesTheGatewayAlwaysSent) {

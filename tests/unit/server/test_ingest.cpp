@@ -118,6 +118,40 @@ TEST(Ingest, StoresOnceAcksEveryCommittedOrQuarantinedMessageAndCounts) {
   LONGS_EQUAL(1, c.rejected);
 }
 
+// docs/mqtt.md, *Batches*: each record of a batch is validated, stored (or a duplicate, or
+// quarantined) and acked on its own, as if it had come alone; a malformed batch is quarantined
+// whole and names no seq to ack.
+TEST(Ingest, EachRecordOfABatchIsValidatedStoredAndAckedOnItsOwn) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  Ingestor ingestor(store, *registry, [] { return Now(); });
+  const auto record = [](int seq, const char* time) {
+    return R"({"seq":)" + std::to_string(seq) + R"(,"time":")" + time +
+           R"(","thickness_mm":100,"loops_intact":100,"flags":0,"battery_mv":3500})";
+  };
+  LONGS_EQUAL(1, ingestor.Ingest({With(Reading(""))}).stored);  // seq 5
+  const std::string batch = R"({"sensor":"1001","records":[)" + record(5, "2026-01-10T00:00:00Z") + "," +
+                            record(6, "2026-01-10T00:10:00Z") + "," + record(7, "yesterday") + R"(,{"sensor":"1002","seq":8}]})";
+  const IngestResult r = ingestor.Ingest({With(batch), With(R"({"sensor":"1001","records":[]})")});
+  LONGS_EQUAL(1, r.stored);
+  LONGS_EQUAL(1, r.duplicates);
+  LONGS_EQUAL(3, r.rejected);  // seq 7 (its time), the record of sensor 1002, the empty batch
+  LONGS_EQUAL(1, r.acks.size());
+  STRCMP_EQUAL("1001", r.acks[0].sensor.c_str());
+  CHECK(r.acks[0].seqs == (std::vector<int64_t>{5, 6, 7}));  // not 8: another sensor than the topic's
+  LONGS_EQUAL(2, store.CountReadings(Folder().id()));
+  LONGS_EQUAL(3, store.CountRejected());
+  bool named_time = false, named_topic = false, named_batch = false;
+  for (const std::string& line : r.log) {
+    named_time |= line.find("ISO-8601") != std::string::npos;
+    named_topic |= line.find("payload sensor '1002' differs from the topic's '1001'") != std::string::npos;
+    named_batch |= line.find("batch: \"records\" must be an array of 1 to 64 records, not 0 records") != std::string::npos;
+  }
+  CHECK_TRUE(named_time);
+  CHECK_TRUE(named_topic);
+  CHECK_TRUE(named_batch);
+}
+
 TEST(Ingest, RestReadingsAreNotAckedOverMqtt) {
   lw::test::TempDirectory dir{"lw-ingest"};
   Store store(dir.File("db.sqlite"));
