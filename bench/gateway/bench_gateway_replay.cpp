@@ -18,8 +18,11 @@
 // sent (nothing lost: counted per (sensor, seq)). After it the gateway's stats must show every
 // record spooled and the spool drained by the commit acks.
 //   lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K]
-//                           [--gateway-bin PATH] [--broker-nodelay 0|1] [--broker-inflight N]
-//   (defaults 20000, 100, 2, 1, 3, the linerwatch-gateway of this build; the bare run is repeated K
+//                           [--gateway-bin PATH] [--baseline-bin PATH] [--forms both|one|batch]
+//                           [--broker-nodelay 0|1] [--broker-inflight N]
+//   (defaults 20000, 100, 2, 1, 3, the linerwatch-gateway of this build, no baseline, both forms;
+//   --baseline-bin runs another gateway build in the same forms, interleaved with this one in every
+//   repetition, and prints the ratios of the two builds side by side; the bare run is repeated K
 //   times around the gateway runs; the broker as packaging/mosquitto/central.conf sets it: TCP_NODELAY,
 //   no in-flight limit, 100000 queued messages). Besides the rates it prints the CPU time of each party of the
 //   gateway run (the gateway, mosquitto, and this process's server-playing MQTT client), so that
