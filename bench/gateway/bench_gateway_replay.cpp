@@ -18,8 +18,11 @@
 // sent (nothing lost: counted per (sensor, seq)). After it the gateway's stats must show every
 // record spooled and the spool drained by the commit acks.
 //   lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K]
-//                           [--gateway-bin PATH] [--broker-nodelay 0|1] [--broker-inflight N]
-//   (defaults 20000, 100, 2, 1, 3, the linerwatch-gateway of this build; the bare run is repeated K
+//                           [--gateway-bin PATH] [--baseline-bin PATH] [--forms both|one|batch]
+//                           [--broker-nodelay 0|1] [--broker-inflight N]
+//   (defaults 20000, 100, 2, 1, 3, the linerwatch-gateway of this build, no baseline, both forms;
+//   --baseline-bin runs another gateway build in the same forms, interleaved with this one in every
+//   repetition, and prints the ratios of the two builds side by side; the bare run is repeated K
 //   times around the gateway runs; the broker as packaging/mosquitto/central.conf sets it: TCP_NODELAY,
 //   no in-flight limit, 100000 queued messages). Besides the rates it prints the CPU time of each party of the
 //   gateway run (the gateway, mosquitto, and this process's server-playing MQTT client), so that
@@ -80,6 +83,10 @@ struct Options {
   /// mosquitto's default is 20 QoS 1 messages awaiting a PUBACK per client.
   long broker_inflight = 0;
   std::string gateway_bin = LW_GATEWAY_BIN;
+  /// Another gateway build run interleaved with gateway_bin, same runs (empty: none).
+  std::string baseline_bin;
+  bool one_record = true;  ///< run the one-record form (the server-playing side announces nothing)
+  bool batches = true;     ///< run with batches announced
 };
 
 uint32_t SensorId(uint32_t s) {
@@ -294,7 +301,8 @@ double SelfCpuSeconds() {
 }
 
 /// (b) The same bytes through `cat` into the pty, the real gateway on the other side.
-GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total_records, uint32_t batch) {
+GatewayResult GatewayRun(const Options& o, const std::string& gateway_bin, const std::string& file, size_t total_records,
+                         uint32_t batch) {
   GatewayResult out;
   lw::test::MosquittoFixture::Options bo;
   if (o.nodelay) bo.extra_config = "set_tcp_nodelay true\n";
@@ -307,7 +315,7 @@ GatewayResult GatewayRun(const Options& o, const std::string& file, size_t total
   FakeServer server(broker.uri(), batch);
   lw::test::ChildProcess gateway;
   const std::string log = dir.File("gateway.log");
-  gateway.Start({o.gateway_bin,
+  gateway.Start({gateway_bin,
                  "--serial",
                  pty.slave_name(),
                  "--baud",
@@ -428,12 +436,21 @@ double Median(std::vector<double> v) {
 
 int main(int argc, char** argv) {
   Options o;
+  const char* const kUsage =
+      "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K] "
+      "[--gateway-bin PATH] [--baseline-bin PATH] [--forms both|one|batch] [--broker-nodelay 0|1] [--broker-inflight N]\n";
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
+    const std::string value = argv[i + 1];
     const long v = std::atol(argv[i + 1]);
     if (a == "--gateway-bin")
-      o.gateway_bin = argv[i + 1];
-    else if (a == "--frames" && v > 0)
+      o.gateway_bin = value;
+    else if (a == "--baseline-bin")
+      o.baseline_bin = value;
+    else if (a == "--forms" && (value == "both" || value == "one" || value == "batch")) {
+      o.one_record = value != "batch";
+      o.batches = value != "one";
+    } else if (a == "--frames" && v > 0)
       o.frames = static_cast<size_t>(v);
     else if (a == "--sensors" && v > 0)
       o.sensors = static_cast<uint32_t>(v);
@@ -448,16 +465,12 @@ int main(int argc, char** argv) {
     else if (a == "--broker-inflight" && v >= 0)
       o.broker_inflight = v;
     else {
-      std::fprintf(stderr,
-                   "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K] "
-                   "[--gateway-bin PATH] [--broker-nodelay 0|1] [--broker-inflight N]\n");
+      std::fprintf(stderr, "lw_bench_gateway_replay: bad option %s %s\n%s", a.c_str(), value.c_str(), kUsage);
       return 2;
     }
   }
   if (argc % 2 == 0) {
-    std::fprintf(stderr,
-                 "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K] "
-                 "[--gateway-bin PATH] [--broker-nodelay 0|1] [--broker-inflight N]\n");
+    std::fputs(kUsage, stderr);
     return 2;
   }
   try {
@@ -467,20 +480,35 @@ int main(int argc, char** argv) {
     const std::string bytes = MakeFrames(o, file, &records);
     std::printf("replay: %zu frames (%zu records, %u sensors, %zu per frame), %.2f MB, API mode 2\n", o.frames, records,
                 o.sensors, o.per_frame, bytes.size() / 1e6);
-    std::printf("gateway: %s\n", o.gateway_bin.c_str());
-    // Per mode: [0] the one-record form (the server-playing side announces nothing), [1] batches.
-    struct Series {
+    // Each variant (a gateway build in a form) is run once per repetition, interleaved.
+    struct Variant {
+      std::string label, bin;
+      bool batches = false;
       std::vector<double> gw, drain, cpu, intake, broker_cpu, bench_cpu, server_cpu;
     };
-    Series series[2];
-    const char* const kMode[2] = {"one record per message", "batches of up to 64"};
+    std::vector<Variant> variants;
+    std::vector<std::pair<std::string, std::string>> builds;
+    if (!o.baseline_bin.empty()) builds.emplace_back("baseline", o.baseline_bin);
+    builds.emplace_back(o.baseline_bin.empty() ? "" : "this build", o.gateway_bin);
+    for (const auto& build : builds) {
+      std::printf("gateway%s%s: %s\n", build.first.empty() ? "" : " ", build.first.c_str(), build.second.c_str());
+      for (int form = 0; form < 2; ++form) {
+        if (form == 0 ? !o.one_record : !o.batches) continue;
+        Variant v;
+        v.label = std::string(form == 0 ? "one record per message" : "batches of up to 64") +
+                  (build.first.empty() ? "" : ", " + build.first);
+        v.bin = build.second;
+        v.batches = form == 1;
+        variants.push_back(std::move(v));
+      }
+    }
     std::vector<double> bare;
     bool all_complete = true;
     for (int r = 0; r < o.reps; ++r) {
       bare.push_back(BareRun(file, bytes.size()));
-      for (int mode = 0; mode < 2; ++mode) {
-        const GatewayResult g = GatewayRun(o, file, records, mode == 0 ? 0 : static_cast<uint32_t>(lw::mqtt::kMaxReadingBatch));
-        Series& s = series[mode];
+      for (Variant& s : variants) {
+        const GatewayResult g =
+            GatewayRun(o, s.bin, file, records, s.batches ? static_cast<uint32_t>(lw::mqtt::kMaxReadingBatch) : 0);
         s.gw.push_back(g.seconds);
         s.drain.push_back(g.drain_seconds);
         s.cpu.push_back(g.gateway_cpu_s);
@@ -493,8 +521,8 @@ int main(int argc, char** argv) {
             "  rep %d (%s): cat -> pty -> reader %.3f s; cat -> pty -> gateway -> spool + mosquitto %.3f s (all acked on the "
             "radio at %.3f s, drained %.3f s): radio acked %zu, published %zu distinct (%zu messages), spooled %zu; CPU: "
             "gateway %.2f s, mosquitto %.2f s, bench %.2f s (server-playing thread %.2f s)%s%s\n",
-            r + 1, kMode[mode], bare.back(), g.seconds, g.acked_seconds, g.drain_seconds, g.radio_acked, g.published, g.messages,
-            g.spooled, g.gateway_cpu_s, g.broker_cpu_s, g.bench_cpu_s, g.server_thread_cpu_s,
+            r + 1, s.label.c_str(), bare.back(), g.seconds, g.acked_seconds, g.drain_seconds, g.radio_acked, g.published,
+            g.messages, g.spooled, g.gateway_cpu_s, g.broker_cpu_s, g.bench_cpu_s, g.server_thread_cpu_s,
             g.complete ? ", complete" : ", INCOMPLETE ", g.failure.c_str());
         std::fflush(stdout);
       }
@@ -502,10 +530,9 @@ int main(int argc, char** argv) {
     bare.push_back(BareRun(file, bytes.size()));
     const double b = Median(bare);
     std::printf("bare (cat into the pty)         median %.3f s  %10.0f frames/s\n", b, o.frames / b);
-    for (int mode = 0; mode < 2; ++mode) {
-      const Series& s = series[mode];
+    for (const Variant& s : variants) {
       const double g = Median(s.gw);
-      std::printf("-- %s --\n", kMode[mode]);
+      std::printf("-- %s --\n", s.label.c_str());
       std::printf("gateway intake (spooled, fsynced, acked on the radio)  median %.3f s  %10.0f frames/s\n", Median(s.intake),
                   o.frames / Median(s.intake));
       std::printf("gateway end to end (spooled + published)   median %.3f s  %10.0f frames/s  (%.0f records/s)\n", g,
@@ -520,8 +547,17 @@ int main(int argc, char** argv) {
           Median(s.bench_cpu), Median(s.server_cpu), 100 * Median(s.server_cpu) / g);
       std::printf("ratio gateway / bare frames/s   %.3f\n", b / g);
     }
-    std::printf("end to end, batches / one record per message: %.2fx the frames/s\n",
-                Median(series[0].gw) / Median(series[1].gw));
+    // Side by side: the same form of the two builds, and the two forms of one build.
+    for (const Variant& x : variants) {
+      for (const Variant& y : variants) {
+        if (&x == &y) continue;
+        const bool same_build = x.bin == y.bin && x.batches && !y.batches;
+        const bool same_form = x.batches == y.batches && x.bin == o.gateway_bin && y.bin != o.gateway_bin;
+        if (!same_build && !same_form) continue;
+        std::printf("end to end, %s / %s: %.2fx the frames/s (intake %.2fx)\n", x.label.c_str(), y.label.c_str(),
+                    Median(y.gw) / Median(x.gw), Median(y.intake) / Median(x.intake));
+      }
+    }
     std::printf("nothing lost (every record acked on the radio, published, spooled): %s\n", all_complete ? "yes" : "NO");
     return all_complete ? 0 : 1;
   } catch (const std::exception& e) {

@@ -13,6 +13,8 @@ namespace lw::gateway {
 namespace {
 
 constexpr size_t kMaxRecordsPerMessage = 8;
+/// Ack bytes written to the radio in one write at most (a few dozen acks).
+constexpr size_t kAckWriteBytes = 1024;
 /// Released records waiting for their deletion at most (then deleted at once).
 constexpr size_t kMaxPendingReleases = 1000;
 
@@ -206,11 +208,21 @@ void Gateway::FlushReadings() {
   std::vector<SpoolRecord> batch;
   frames.swap(pending_frames_);
   batch.swap(pending_records_);
+  // A sender's first registry entry goes into the same transaction (no fsync of its own).
+  std::vector<DeviceEntry> devices;
+  for (const PendingFrame& f : frames) {
+    DeviceEntry d;
+    d.address = mqtt::AddressHex(f.src64);
+    d.sensor = std::to_string(f.sensor_id);
+    d.first_seen_ms = f.stamp_ms;
+    if (AdmitDevice(d, devices)) devices.push_back(std::move(d));
+  }
   std::vector<InsertOutcome> outcomes;
+  std::vector<bool> devices_changed;
   const uint64_t evicted_before = spool_.evicted();
   try {
     // The records released since the last deletion go in the same transaction (one fsync).
-    outcomes = spool_.Insert(batch, pending_release_);
+    outcomes = spool_.Insert(batch, pending_release_, devices, &devices_changed);
     pending_release_.clear();
     pending_release_count_ = 0;
     // A full spool evicted the oldest heartbeat, maybe another sensor's head: look at every head.
@@ -245,16 +257,13 @@ void Gateway::FlushReadings() {
           break;
       }
     }
-    if (!ack_seqs.empty()) SendAck(f.src64, f.src16, f.sensor_id, ack_seqs);
-    DeviceEntry d;
-    d.address = mqtt::AddressHex(f.src64);
-    d.sensor = sensor;
-    d.first_seen_ms = f.stamp_ms;
-    NoteDevice(d);
+    if (!ack_seqs.empty()) QueueAck(f.src64, f.src16, f.sensor_id, ack_seqs);
   }
+  WriteAcks();
+  for (size_t i = 0; i < devices.size(); ++i) DeviceRecorded(devices[i], devices_changed[i]);
 }
 
-void Gateway::SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, const std::vector<uint32_t>& seqs) {
+void Gateway::QueueAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, const std::vector<uint32_t>& seqs) {
   for (size_t start = 0; start < seqs.size(); start += protocol::kMaxAckSeqs) {
     protocol::Ack ack;
     ack.sensor_id = sensor_id;
@@ -273,36 +282,51 @@ void Gateway::SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, cons
     req.payload = payload;
     req.payload_len = payload_len;
     const size_t wire_len = protocol::EncodeTransmitRequest(options_.api_mode, req, wire, sizeof wire);
-    if (wire_len == 0 || !radio_.Write(wire, wire_len)) {
+    if (wire_len == 0) {
       ++counters_.ack_write_errors;
-      LogLimited("ack_write", "serial: writing an ack to " + mqtt::AddressHex(dest64) + " failed (the sensor retransmits)");
+      LogLimited("ack_write", "serial: encoding an ack to " + mqtt::AddressHex(dest64) + " failed (the sensor retransmits)");
       continue;
     }
-    ++counters_.acks_sent;
+    if (ack_out_.size() + wire_len > kAckWriteBytes) WriteAcks();
+    ack_out_.insert(ack_out_.end(), wire, wire + wire_len);
+    ++ack_out_count_;
   }
 }
 
-void Gateway::NoteDevice(const DeviceEntry& device) {
+void Gateway::WriteAcks() {
+  if (ack_out_.empty()) return;
+  // The acks of a group commit in one write (a few hundred bytes at most each): one system call
+  // instead of one per frame. Each write may wait up to its bound for the port to drain.
+  if (radio_.Write(ack_out_.data(), ack_out_.size())) {
+    counters_.acks_sent += ack_out_count_;
+  } else {
+    counters_.ack_write_errors += ack_out_count_;
+    LogLimited("ack_write", "serial: writing " + std::to_string(ack_out_count_) + " ack(s) failed (the sensors retransmit)");
+  }
+  ack_out_.clear();
+  ack_out_count_ = 0;
+}
+
+bool Gateway::AdmitDevice(const DeviceEntry& device, const std::vector<DeviceEntry>& admitted) {
   const std::string key = device.address + "/" + device.sensor;
   // Sensors are checked in memory on every frame; the database is touched only for news.
   const bool known = known_devices_.count(key) != 0;
-  if (!device.sensor.empty() && known) return;
-  if (!known && known_devices_.size() >= options_.max_devices) {
+  if (!device.sensor.empty() && known) return false;
+  for (const DeviceEntry& a : admitted) {
+    if (a.address == device.address && a.sensor == device.sensor) return false;  // already in this batch
+  }
+  if (!known && known_devices_.size() + admitted.size() >= options_.max_devices) {
     ++counters_.devices_refused;
     LogLimited("registry_full", "registry: full (" + std::to_string(known_devices_.size()) + " entries, --max-devices); " +
                                     (device.sensor.empty() ? std::string("node") : "sensor " + device.sensor) + " at " +
                                     device.address + " not registered (its readings are still spooled)");
-    return;
+    return false;
   }
-  bool changed = false;
-  try {
-    changed = spool_.RecordDevice(device);
-  } catch (const std::exception& e) {
-    ++counters_.spool_errors;
-    LogLimited("spool_error", std::string("spool: device registry: ") + e.what());
-    return;
-  }
-  known_devices_.insert(key);
+  return true;
+}
+
+void Gateway::DeviceRecorded(const DeviceEntry& device, bool changed) {
+  const bool known = !known_devices_.insert(device.address + "/" + device.sensor).second;
   if (!changed) return;
   // New entries are logged each (at most --max-devices lines); changes of a known node's
   // identification are rate limited (a radio can send them without end).
@@ -314,6 +338,19 @@ void Gateway::NoteDevice(const DeviceEntry& device) {
     Log(line);
   }
   dirty_devices_.insert(device.address);
+}
+
+void Gateway::NoteDevice(const DeviceEntry& device) {
+  if (!AdmitDevice(device, {})) return;
+  bool changed = false;
+  try {
+    changed = spool_.RecordDevice(device);
+  } catch (const std::exception& e) {
+    ++counters_.spool_errors;
+    LogLimited("spool_error", std::string("spool: device registry: ") + e.what());
+    return;
+  }
+  DeviceRecorded(device, changed);
 }
 
 void Gateway::OnConnected(int64_t now_ms) {

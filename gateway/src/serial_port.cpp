@@ -91,6 +91,19 @@ long SerialPort::Read(uint8_t* buffer, size_t cap) {
   return -1;
 }
 
+long SerialPort::ReadWaiting(uint8_t* buffer, size_t cap) {
+  size_t got = 0;
+  while (got < cap) {
+    const long n = Read(buffer + got, cap - got);
+    if (n <= 0) {
+      if (got == 0) return n;
+      break;
+    }
+    got += static_cast<size_t>(n);
+  }
+  return static_cast<long>(got);
+}
+
 bool SerialPort::Write(const uint8_t* data, size_t len) {
   if (fd_ < 0) return false;
   size_t done = 0;

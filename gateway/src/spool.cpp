@@ -19,19 +19,32 @@ struct Spool::Db {
   core::sqlite::Database<SpoolError> database;
   // Statements of the hot paths, prepared once (created after the schema, see the constructor):
   // preparing them on every call cost about as much as running them.
-  std::unique_ptr<Stmt> exists, insert, evict, del, head, sync_normal, sync_full;
+  std::unique_ptr<Stmt> exists, insert, evict, del, head, sync_normal, sync_full, device_exists, device_upsert;
   explicit Db(const std::string& path) : database(path, "spool") {}
   void Prepare() {
     exists = std::make_unique<Stmt>(database, "SELECT 1 FROM records WHERE sensor = ?1 AND seq = ?2");
-    insert = std::make_unique<Stmt>(
-        database, "INSERT INTO records(sensor, seq, received_ms, heartbeat, payload) VALUES (?1, ?2, ?3, ?4, ?5)");
+    // A retransmission of a spooled record changes nothing (sqlite3_changes() tells it apart).
+    insert =
+        std::make_unique<Stmt>(database,
+                               "INSERT INTO records(sensor, seq, received_ms, heartbeat, payload) VALUES (?1, ?2, ?3, ?4, ?5)"
+                               " ON CONFLICT(sensor, seq) DO NOTHING");
     evict = std::make_unique<Stmt>(
         database, "DELETE FROM records WHERE id = (SELECT id FROM records WHERE heartbeat = 1 ORDER BY id LIMIT 1)");
-    del = std::make_unique<Stmt>(database, "DELETE FROM records WHERE sensor = ?1 AND seq = ?2 RETURNING received_ms");
+    // A run of consecutive seqs in one statement (a batch's commit ack names a run).
+    del =
+        std::make_unique<Stmt>(database, "DELETE FROM records WHERE sensor = ?1 AND seq BETWEEN ?2 AND ?3 RETURNING received_ms");
     head = std::make_unique<Stmt>(
         database, "SELECT seq, received_ms, heartbeat, payload FROM records WHERE sensor = ?1 ORDER BY seq LIMIT ?2");
     sync_normal = std::make_unique<Stmt>(database, "PRAGMA synchronous=NORMAL");
     sync_full = std::make_unique<Stmt>(database, "PRAGMA synchronous=FULL");
+    device_exists = std::make_unique<Stmt>(database, "SELECT 1 FROM devices WHERE address = ?1 AND sensor = ?2");
+    device_upsert =
+        std::make_unique<Stmt>(database,
+                               "INSERT INTO devices(address, sensor, node_identifier, device_type, first_seen_ms)"
+                               " VALUES (?1, ?2, ?3, ?4, ?5)"
+                               " ON CONFLICT(address, sensor) DO UPDATE SET"
+                               "  node_identifier = excluded.node_identifier, device_type = excluded.device_type"
+                               " WHERE excluded.node_identifier != node_identifier OR excluded.device_type != device_type");
   }
   /// A statement ready to bind: reset (also after a step that threw).
   static Stmt& Fresh(const std::unique_ptr<Stmt>& s) {
@@ -42,13 +55,38 @@ struct Spool::Db {
   /// each record deleted.
   void Delete(const std::map<std::string, std::vector<uint32_t>>& seqs_of, std::vector<int64_t>* received) {
     Stmt& d = Fresh(del);
+    std::vector<uint32_t> sorted;
     for (const auto& [sensor, seqs] : seqs_of) {
-      for (uint32_t seq : seqs) {
-        d.Bind(1, sensor).Bind(2, static_cast<int64_t>(seq));
+      sorted.assign(seqs.begin(), seqs.end());
+      std::sort(sorted.begin(), sorted.end());
+      sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
+      // Each run of consecutive seqs [first, last]: exactly the seqs named there.
+      for (size_t i = 0; i < sorted.size();) {
+        size_t j = i + 1;
+        while (j < sorted.size() && sorted[j] == sorted[j - 1] + 1) ++j;
+        d.Bind(1, sensor).Bind(2, static_cast<int64_t>(sorted[i])).Bind(3, static_cast<int64_t>(sorted[j - 1]));
         while (d.Step()) received->push_back(d.Int(0));
         d.Reset();
+        i = j;
       }
     }
+  }
+  /// Records a registry entry inside the caller's transaction (or on its own); true when the
+  /// (address, sensor) pair was new or its node identification changed.
+  bool RecordDevice(const DeviceEntry& device) {
+    Stmt& known_stmt = Fresh(device_exists);
+    known_stmt.Bind(1, device.address).Bind(2, device.sensor);
+    const bool known = known_stmt.Step();
+    known_stmt.Reset();
+    Stmt& upsert = Fresh(device_upsert);
+    upsert.Bind(1, device.address)
+        .Bind(2, device.sensor)
+        .Bind(3, device.node_identifier)
+        .Bind(4, static_cast<int64_t>(device.device_type))
+        .Bind(5, device.first_seen_ms);
+    upsert.Step();
+    upsert.Reset();
+    return !known || sqlite3_changes(database.get()) > 0;
   }
 };
 
@@ -82,6 +120,12 @@ std::vector<InsertOutcome> Spool::Insert(const std::vector<SpoolRecord>& records
 
 std::vector<InsertOutcome> Spool::Insert(const std::vector<SpoolRecord>& records,
                                          const std::map<std::string, std::vector<uint32_t>>& release) {
+  return Insert(records, release, {}, nullptr);
+}
+
+std::vector<InsertOutcome> Spool::Insert(const std::vector<SpoolRecord>& records,
+                                         const std::map<std::string, std::vector<uint32_t>>& release,
+                                         const std::vector<DeviceEntry>& devices, std::vector<bool>* devices_changed) {
   std::vector<InsertOutcome> out;
   out.reserve(records.size());
   Db& db = *db_;
@@ -95,14 +139,16 @@ std::vector<InsertOutcome> Spool::Insert(const std::vector<SpoolRecord>& records
   Stmt& insert = Db::Fresh(db.insert);
   Stmt& evict = Db::Fresh(db.evict);
   for (const SpoolRecord& r : records) {
-    exists.Bind(1, r.sensor).Bind(2, static_cast<int64_t>(r.seq));
-    const bool duplicate = exists.Step();
-    exists.Reset();
-    if (duplicate) {
-      out.push_back(InsertOutcome::kDuplicate);
-      continue;
-    }
     if (depth >= max_records_) {
+      // Full: a retransmission of a spooled record is still a duplicate (acked again); only a
+      // new record gives up the oldest heartbeat, or is rejected.
+      exists.Bind(1, r.sensor).Bind(2, static_cast<int64_t>(r.seq));
+      const bool duplicate = exists.Step();
+      exists.Reset();
+      if (duplicate) {
+        out.push_back(InsertOutcome::kDuplicate);
+        continue;
+      }
       evict.Step();
       evict.Reset();
       if (sqlite3_changes(db.database.get()) == 0) {
@@ -119,12 +165,20 @@ std::vector<InsertOutcome> Spool::Insert(const std::vector<SpoolRecord>& records
         .Bind(5, r.payload);
     insert.Step();
     insert.Reset();
+    if (sqlite3_changes(db.database.get()) == 0) {
+      out.push_back(InsertOutcome::kDuplicate);
+      continue;
+    }
     ++depth;
     out.push_back(InsertOutcome::kStored);
   }
+  std::vector<bool> changed;
+  changed.reserve(devices.size());
+  for (const DeviceEntry& d : devices) changed.push_back(db.RecordDevice(d));
   tx.Commit();
   depth_ = depth;
   evicted_ += evicted;
+  if (devices_changed) *devices_changed = std::move(changed);
   return out;
 }
 
@@ -206,22 +260,7 @@ std::vector<SpoolRecord> Spool::Heads(const std::map<std::string, size_t>& per_s
 }
 
 bool Spool::RecordDevice(const DeviceEntry& device) {
-  Stmt insert(db_->database,
-              "INSERT INTO devices(address, sensor, node_identifier, device_type, first_seen_ms)"
-              " VALUES (?1, ?2, ?3, ?4, ?5)"
-              " ON CONFLICT(address, sensor) DO UPDATE SET"
-              "  node_identifier = excluded.node_identifier, device_type = excluded.device_type"
-              " WHERE excluded.node_identifier != node_identifier OR excluded.device_type != device_type");
-  Stmt exists(db_->database, "SELECT 1 FROM devices WHERE address = ?1 AND sensor = ?2");
-  exists.Bind(1, device.address).Bind(2, device.sensor);
-  const bool known = exists.Step();
-  insert.Bind(1, device.address)
-      .Bind(2, device.sensor)
-      .Bind(3, device.node_identifier)
-      .Bind(4, static_cast<int64_t>(device.device_type))
-      .Bind(5, device.first_seen_ms);
-  insert.Step();
-  return !known || sqlite3_changes(db_->database.get()) > 0;
+  return db_->RecordDevice(device);
 }
 
 std::vector<DeviceEntry> Spool::Devices(const std::string& address) const {

@@ -144,7 +144,18 @@ class Gateway {
   void FlushReadings();
   /// Deletes the records released by commit acks (pending_release_) in one transaction.
   void FlushReleases();
-  void SendAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, const std::vector<uint32_t>& seqs);
+  /// Encodes the ack frames for `seqs` into ack_out_ (written by WriteAcks).
+  void QueueAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, const std::vector<uint32_t>& seqs);
+  /// Writes the queued acks to the radio in one write.
+  void WriteAcks();
+  /// Whether `device` goes into the registry: a sensor entry not known yet and not in `admitted`,
+  /// or a node's identification (may have changed); false when the registry is full (counted,
+  /// logged).
+  bool AdmitDevice(const DeviceEntry& device, const std::vector<DeviceEntry>& admitted);
+  /// After the spool recorded an admitted `device`: known from now on; logged and its retained
+  /// message due when `changed`.
+  void DeviceRecorded(const DeviceEntry& device, bool changed);
+  /// AdmitDevice, then the spool records it on its own (node identification frames).
   void NoteDevice(const DeviceEntry& device);
   void PublishRecords(int64_t now_ms);
   void PublishDevices(int64_t now_ms);
@@ -192,6 +203,8 @@ class Gateway {
   };
   std::vector<PendingFrame> pending_frames_;
   std::vector<SpoolRecord> pending_records_;
+  std::vector<uint8_t> ack_out_;  ///< encoded ack frames not written yet (WriteAcks)
+  size_t ack_out_count_ = 0;      ///< acks in ack_out_
 };
 
 }  // namespace lw::gateway

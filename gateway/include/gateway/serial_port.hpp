@@ -28,6 +28,12 @@ class SerialPort : public ByteSink {
   /// Reads what is available without blocking. Returns the byte count (0: nothing now), or -1
   /// when the port is gone (EOF, hang-up, I/O error): Close() and Open() again later.
   long Read(uint8_t* buffer, size_t cap);
+  /// Reads everything waiting, up to `cap` bytes, in as many reads as that takes (a tty or pty
+  /// hands out at most ~4 KiB per read), without blocking: the frames that arrived together are
+  /// then spooled together, under one fsync. Returns the byte count (0: nothing now), or -1 when
+  /// the port is gone and nothing was read; bytes read before a hang-up are returned first (the
+  /// next call reports the hang-up).
+  long ReadWaiting(uint8_t* buffer, size_t cap);
 
   /// Writes all bytes, waiting up to 1 s in total for the port to drain. False on failure.
   bool Write(const uint8_t* data, size_t len) override;

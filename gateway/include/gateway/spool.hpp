@@ -63,6 +63,12 @@ class Spool {
   /// become durable with the batch's fsync. Throws SpoolError (nothing deleted or stored then).
   std::vector<InsertOutcome> Insert(const std::vector<SpoolRecord>& records,
                                     const std::map<std::string, std::vector<uint32_t>>& release);
+  /// The same, and records the registry `devices` in that transaction too (a sender's first
+  /// entry costs no fsync of its own); (*devices_changed)[i] is what RecordDevice(devices[i])
+  /// would have returned. Throws SpoolError (nothing deleted, stored or recorded then).
+  std::vector<InsertOutcome> Insert(const std::vector<SpoolRecord>& records,
+                                    const std::map<std::string, std::vector<uint32_t>>& release,
+                                    const std::vector<DeviceEntry>& devices, std::vector<bool>* devices_changed);
 
   /// Deletes the confirmed (sensor, seq) pairs; returns the received_ms of each record actually
   /// deleted (unknown pairs are ignored). Throws SpoolError.
@@ -84,7 +90,8 @@ class Spool {
   /// Heartbeat records deleted to make room since this Spool was opened.
   uint64_t evicted() const { return evicted_; }
 
-  /// Records a device; returns true when this (address, sensor) pair was new.
+  /// Records a device; returns true when this (address, sensor) pair was new or its node
+  /// identification changed.
   bool RecordDevice(const DeviceEntry& device);
   /// Registry entries, oldest first; only those of `address` when it is not empty.
   std::vector<DeviceEntry> Devices(const std::string& address = "") const;

@@ -155,11 +155,16 @@ TEST(Gateway, RecordIsSpooledThenAckedToItsSourceAddress) {
 }
 
 // Frames read together are spooled in one transaction (group commit) and each is acked to its
-// sensor only after it: at every ack another connection already sees every record of the read.
+// sensor only after it: at the ack write another connection already sees every record of the
+// read, and the new senders' registry entries. The acks go out together, in one write.
 TEST(Gateway, FramesOfOneReadAreSpooledTogetherBeforeAnyAck) {
   publisher.connected = false;
-  std::vector<size_t> depth_seen_at_ack;
-  radio.on_write = [&] { depth_seen_at_ack.push_back(gw::Spool(dir.File("spool.db"), 1000).depth()); };
+  std::vector<size_t> depth_seen_at_ack, devices_seen_at_ack;
+  radio.on_write = [&] {
+    const gw::Spool other(dir.File("spool.db"), 1000);
+    depth_seen_at_ack.push_back(other.depth());
+    devices_seen_at_ack.push_back(other.Devices().size());
+  };
   std::vector<uint8_t> bytes = ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1), MakeRecord(2)});
   const std::vector<uint8_t> second = ReadingsFrame(kMode, kAddrB, 2002, {MakeRecord(7)});
   const std::vector<uint8_t> again = ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(2)});  // a retransmission in the same read
@@ -168,11 +173,39 @@ TEST(Gateway, FramesOfOneReadAreSpooledTogetherBeforeAnyAck) {
   Feed(bytes);
   LONGS_EQUAL(3, gateway->spool_depth());
   LONGS_EQUAL(3, radio.acks.size());
-  CHECK(depth_seen_at_ack == (std::vector<size_t>{3, 3, 3}));
+  CHECK(depth_seen_at_ack == std::vector<size_t>{3});
+  CHECK(devices_seen_at_ack == std::vector<size_t>{2});  // 1001 at A, 2002 at B
   CHECK(radio.acks[1].dest64 == kAddrB);
   LONGS_EQUAL(2002, radio.acks[1].ack.sensor_id);
   LONGS_EQUAL(3, gateway->counters().records_spooled);
   LONGS_EQUAL(1, gateway->counters().records_duplicate);
+}
+
+// The acks of a long read go out in a few writes, not one per frame; a failed write counts every
+// ack in it (the sensors keep their records and retransmit; the spooled ones are acked again).
+TEST(Gateway, AcksOfALongReadGoOutInFewWritesAndAFailedWriteCountsEachAck) {
+  publisher.connected = false;
+  size_t writes = 0;
+  radio.on_write = [&] { ++writes; };
+  std::vector<uint8_t> bytes;
+  for (uint32_t seq = 1; seq <= 120; seq += 2) {
+    const auto frame = ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(seq), MakeRecord(seq + 1)});
+    bytes.insert(bytes.end(), frame.begin(), frame.end());
+  }
+  Feed(bytes);
+  LONGS_EQUAL(60, radio.acks.size());
+  LONGS_EQUAL(60, gateway->counters().acks_sent);
+  CHECK_TEXT(writes >= 1 && writes <= 6, std::to_string(writes).c_str());
+  radio.fail = true;
+  std::vector<uint8_t> more;
+  for (uint32_t seq = 121; seq <= 140; seq += 2) {
+    const auto frame = ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(seq), MakeRecord(seq + 1)});
+    more.insert(more.end(), frame.begin(), frame.end());
+  }
+  Feed(more);
+  LONGS_EQUAL(10, gateway->counters().ack_write_errors);
+  LONGS_EQUAL(60, gateway->counters().acks_sent);
+  LONGS_EQUAL(140, gateway->spool_depth());
 }
 
 // Commit acks that arrive together release their records in one spool transaction; each sensor

@@ -60,6 +60,36 @@ TEST(SerialPort, BinaryBytesPassUnchangedBothWays) {
   CHECK(ReadMaster(bytes.size()) == bytes);
 }
 
+TEST(SerialPort, EverythingWaitingIsReadInOneCallUpToTheBuffer) {
+  // A pty (like a tty) hands out at most ~4 KiB per read(); ReadWaiting takes all that waits, so
+  // that the frames that arrived together are spooled together (one fsync), and stops at `cap`.
+  lw::gateway::SerialPort port(name, 115200);
+  std::string error;
+  CHECK_TRUE_TEXT(port.Open(&error), error.c_str());
+  // As much as the pty holds (~20 KiB on Linux 6), written without blocking: several reads' worth.
+  CHECK(fcntl(master, F_SETFL, fcntl(master, F_GETFL) | O_NONBLOCK) == 0);
+  std::vector<uint8_t> bytes(64 * 1024);
+  for (size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<uint8_t>(i * 7 + i / 256);
+  size_t written = 0;
+  for (int tries = 0; tries < 20; ++tries) {
+    const ssize_t n = write(master, bytes.data() + written, bytes.size() - written);
+    if (n > 0) written += static_cast<size_t>(n);
+    poll(nullptr, 0, 5);
+  }
+  CHECK_TEXT(written > 12000, std::to_string(written).c_str());
+  bytes.resize(written);
+  pollfd p{port.fd(), POLLIN, 0};
+  CHECK(poll(&p, 1, 2000) == 1);
+  std::vector<uint8_t> got(bytes.size() + 1000);
+  const long first = port.ReadWaiting(got.data(), 10000);
+  LONGS_EQUAL(10000, first);
+  const long rest = port.ReadWaiting(got.data() + first, got.size() - static_cast<size_t>(first));
+  LONGS_EQUAL(written - 10000, rest);
+  got.resize(bytes.size());
+  CHECK(got == bytes);
+  LONGS_EQUAL(0, port.ReadWaiting(got.data(), got.size()));  // nothing waits: no blocking, 0
+}
+
 TEST(SerialPort, MissingDeviceIsReportedWithItsPath) {
   lw::gateway::SerialPort port("/dev/does-not-exist-lw", 9600);
   std::string error;
@@ -77,4 +107,5 @@ TEST(SerialPort, HangUpIsReportedSoTheCallerReopens) {
   master = -1;
   uint8_t b[16];
   LONGS_EQUAL(-1, port.Read(b, sizeof b));
+  LONGS_EQUAL(-1, port.ReadWaiting(b, sizeof b));
 }

@@ -86,6 +86,42 @@ TEST(Spool, ConfirmDeletesOnlyNamedRecordsAndReturnsTheirReceiveTimes) {
   LONGS_EQUAL(1, spool.depth());
 }
 
+// Commit acks of batches name runs of seqs: each run is deleted in one statement, and only the
+// seqs named (unsorted, repeated, with gaps, beyond what is spooled) go.
+TEST(Spool, ConfirmOfRunsWithGapsDeletesExactlyTheNamedSeqs) {
+  Spool spool(path(), 100);
+  std::vector<SpoolRecord> records;
+  for (uint32_t seq = 1; seq <= 12; ++seq) records.push_back(Rec("1", seq));
+  records.push_back(Rec("2", 4));
+  spool.Insert(records);
+  const auto received = spool.Confirm("1", {8, 2, 3, 1, 5, 3, 7, 10, 11, 12, 13, 14});
+  LONGS_EQUAL(9, received.size());  // 1 2 3 5 7 8 10 11 12 (13, 14 are not spooled; 3 is named twice)
+  LONGS_EQUAL(4, spool.depth());
+  CHECK(Seqs(spool.Heads(20), "1") == (std::vector<uint32_t>{4, 6, 9}));
+  CHECK(Seqs(spool.Heads(20), "2") == std::vector<uint32_t>{4});
+}
+
+// A sender's first registry entry is recorded in the transaction of its records.
+TEST(Spool, InsertRecordsDevicesInTheSameTransaction) {
+  DeviceEntry d;
+  d.address = "0013A20040A1B2C3";
+  d.sensor = "1001";
+  d.first_seen_ms = 5;
+  {
+    Spool spool(path(), 10);
+    std::vector<bool> changed;
+    spool.Insert({Rec("1001", 1)}, {}, {d}, &changed);
+    CHECK(changed == std::vector<bool>{true});
+    spool.Insert({Rec("1001", 2)}, {}, {d}, &changed);
+    CHECK(changed == std::vector<bool>{false});  // known: no news
+  }
+  Spool reopened(path(), 10);
+  const auto devices = reopened.Devices();
+  LONGS_EQUAL(1, devices.size());
+  STRCMP_EQUAL("1001", devices[0].sensor.c_str());
+  LONGS_EQUAL(2, reopened.depth());
+}
+
 // Several sensors' commit acks in one transaction; the heads of named sensors only.
 TEST(Spool, ConfirmOfSeveralSensorsAndHeadsOfSomeSensors) {
   Spool spool(path(), 100);
