@@ -145,6 +145,7 @@ RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : r
   }
   const double height = std::max(zhi - zlo, 1e-3);
   const double radius = spec.truth_radius_frac * height;
+  truth_radius_m_ = radius;
   const Eigen::VectorXd T = core::SmoothOverSurface(tm, tsum.cwiseMax(0.0), radius);
   const Eigen::VectorXd N = run.normal_w.empty() ? Eigen::VectorXd::Ones(n) : core::SmoothOverSurface(tm, tn, radius);
   std::vector<double> pos, nv;
@@ -184,6 +185,7 @@ RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : r
         best = i;
       }
     }
+    sensor_face_.push_back(best);
     Point p = make(best);
     p.zn = (s.z_m - z_mid) / height;
     p.theta = s.theta_deg * kPi / 180.0;
@@ -201,6 +203,12 @@ RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : r
     ++qn;
   }
   q_mean_ = qs / qn;
+}
+
+void RealDemCampaign::TruthConstruction(Eigen::VectorXd& faces, Eigen::VectorXd& sensors) const {
+  faces = core::SmoothOverSurface(map_, map_.wear.cwiseMax(0.0), truth_radius_m_);
+  sensors.resize(static_cast<Eigen::Index>(sensor_face_.size()));
+  for (size_t s = 0; s < sensor_face_.size(); ++s) sensors[static_cast<Eigen::Index>(s)] = faces[sensor_face_[s]];
 }
 
 double RealDemCampaign::Throughput(double t) const {
