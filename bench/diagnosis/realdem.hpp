@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/bundle.hpp"
+#include "core/reconstruction.hpp"
 
 namespace lw::bench {
 
@@ -50,6 +51,14 @@ struct RealDemSpec {
   std::string loss_sensor;
   double loss_day = 0, loss_mm = 0;
 };
+
+/// Prototype measured on the live figures, not in the product (docs/diagnosis.md, live wear): each
+/// intensity of `plan` (faces and sensors) moves towards a finer kernel estimate L (Gaussian, sd
+/// `hz_m` along z and `ha_m` around, kernel mean of the model's capped wear) by the empirical-Bayes
+/// factor tau^2 / (tau^2 + var L): var L from the model's noise law, tau^2 (relative) the excess
+/// of (L - I)^2 over var L pooled over each 0.1 m band of z (the real variation the broad estimate
+/// misses there, from the map itself).
+void ShrinkTowardsFinerPrototype(core::ReconstructionPlan& plan, double hz_m, double ha_m);
 
 class RealDemCampaign {
  public:
