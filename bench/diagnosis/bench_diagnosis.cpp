@@ -215,6 +215,7 @@ int main(int argc, char** argv) {
   std::string keep, generator = "test", only, level_filter, json_dir, dem_dir;
   double truth_radius = 0.12;
   bool live_only = false, oracle = false;
+  double shrink_hz = 0, shrink_ha = 0;  // --live-shrink HZ,HA: the prototype's finer kernel (0: not run)
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--generator" && i + 1 < argc)
@@ -239,13 +240,16 @@ int main(int argc, char** argv) {
       truth_radius = std::stod(argv[++i]);
     else if (a == "--live-only")
       live_only = true;
+    else if (a == "--live-shrink" && i + 1 < argc && std::sscanf(argv[i + 1], "%lf,%lf", &shrink_hz, &shrink_ha) == 2 &&
+             shrink_hz > 0 && shrink_ha > 0)
+      ++i;
     else if (a == "--oracle")
       oracle = true;
     else {
-      std::fprintf(
-          stderr,
-          "usage: lw_bench_diagnosis [--generator test|sim|realdem] [--dem-dir DIR] [--truth-radius F] [--live-only] [--oracle] "
-          "[--cases N] [--only TRUTH] [--level L[,L...]] [--seed S] [--keep DIR] [--json-dir DIR] [--threads N]\n");
+      std::fprintf(stderr,
+                   "usage: lw_bench_diagnosis [--generator test|sim|realdem] [--dem-dir DIR] [--truth-radius F] [--live-only] "
+                   "[--live-shrink HZ,HA] [--oracle] "
+                   "[--cases N] [--only TRUTH] [--level L[,L...]] [--seed S] [--keep DIR] [--json-dir DIR] [--threads N]\n");
       return 2;
     }
   }
@@ -469,8 +473,10 @@ int main(int argc, char** argv) {
   // Cases run on `threads` workers (Diagnose is re-entrant); results are printed in case order.
   struct Live {
     bool done = false;
-    double thin_err = 0, thin_err_plain = 0;  // estimate - truth of the thinnest point, mm
-    double rmse = 0, rmse_plain = 0;          // per face against the truth, mm
+    double thin_err = 0, thin_err_plain = 0;      // estimate - truth of the thinnest point, mm
+    double thin_err_ref = 0, rmse_ref = 0;        // the truth's own construction on the map's windows
+    double thin_err_shrink = 0, rmse_shrink = 0;  // prototype: shrinkage towards a finer kernel
+    double rmse = 0, rmse_plain = 0;              // per face against the truth, mm
     bool in_band = false;
     double band_lo = 0, band_hi = 0, truth_min = 0;
     double low_only_thin = 0;  // thinnest point with only the lowest row reporting
@@ -522,6 +528,13 @@ int main(int argc, char** argv) {
       plain.intensity = lw::core::SmoothOverSurface(bundle.map, bundle.map.wear, 0.15);
       plain.sensor_intensity = lw::core::IntensityAtSensors(bundle.crusher, bundle.map, 0.15);
       const lw::core::Reconstruction prec = lw::core::Reconstruct(plain, wear);
+      // Reference: the truth's own smoothing on the map's windows (a second truth), Eq. 9 at the sensors.
+      lw::core::ReconstructionPlan ref = plain;
+      real->TruthConstruction(ref.intensity, ref.sensor_intensity);
+      const lw::core::Reconstruction rref = lw::core::Reconstruct(ref, wear);
+      lw::core::ReconstructionPlan shrunk = plan;
+      if (shrink_hz > 0) lw::bench::ShrinkTowardsFinerPrototype(shrunk, shrink_hz, shrink_ha);
+      const lw::core::Reconstruction rshr = lw::core::Reconstruct(shrunk, wear);
       const Eigen::VectorXd tw = real->TrueFaceWear(day);
       const double new_mm = bundle.crusher.thickness_new_mm;
       lv.truth_min = new_mm - tw.maxCoeff();
@@ -534,6 +547,10 @@ int main(int argc, char** argv) {
       const Eigen::VectorXd truth_rem = (new_mm - tw.array()).matrix();
       lv.thin_err = rec.min_thickness_mm - lv.truth_min;
       lv.thin_err_plain = prec.min_thickness_mm - lv.truth_min;
+      lv.thin_err_ref = rref.min_thickness_mm - lv.truth_min;
+      lv.rmse_ref = std::sqrt((rref.remaining_mm - truth_rem).squaredNorm() / static_cast<double>(tw.size()));
+      lv.thin_err_shrink = rshr.min_thickness_mm - lv.truth_min;
+      lv.rmse_shrink = std::sqrt((rshr.remaining_mm - truth_rem).squaredNorm() / static_cast<double>(tw.size()));
       lv.rmse = std::sqrt((rec.remaining_mm - truth_rem).squaredNorm() / static_cast<double>(tw.size()));
       lv.rmse_plain = std::sqrt((prec.remaining_mm - truth_rem).squaredNorm() / static_cast<double>(tw.size()));
       lv.band_lo = rec.min_thickness_lo_mm;
@@ -627,11 +644,11 @@ int main(int argc, char** argv) {
 
   if (use_real) {
     // Live wear on the nulls (item 5 of issue 14): the map model vs a plain top-hat smoothing.
-    std::vector<double> e, ep, rm, rmp, ratio;
+    std::vector<double> e, ep, rm, rmp, ratio, eref, rmref, eshr, rmshr, ratio_shr;
     int in_band = 0, n = 0, low_neg = 0;
     std::printf("\nLive wear at the inspection day (nulls; thinnest point estimate - truth, per-face RMSE, mm):\n");
-    std::printf("%-6s %-22s %11s %9s %9s %9s %9s %17s %9s %s\n", "case", "run", "bw_z/arc_m", "thin_err", "plain", "rmse",
-                "plain", "band", "truth", "lowest-row-only");
+    std::printf("%-6s %-22s %11s %9s %9s %9s %9s %17s %9s %-18s %9s %9s\n", "case", "run", "bw_z/arc_m", "thin_err", "plain",
+                "rmse", "plain", "band", "truth", "lowest-row-only", "ref_err", shrink_hz > 0 ? "shrink" : "");
     for (size_t k = 0; k < cases.size(); ++k) {
       const Live& lv = outcomes[k].live;
       if (!lv.done) continue;
@@ -641,11 +658,20 @@ int main(int argc, char** argv) {
       rm.push_back(lv.rmse);
       rmp.push_back(lv.rmse_plain);
       ratio.push_back(lv.rmse / lv.rmse_plain);
+      eref.push_back(std::fabs(lv.thin_err_ref));
+      rmref.push_back(lv.rmse_ref);
+      eshr.push_back(std::fabs(lv.thin_err_shrink));
+      rmshr.push_back(lv.rmse_shrink);
+      ratio_shr.push_back(lv.rmse_shrink / lv.rmse_plain);
       in_band += lv.in_band;
       low_neg += !(lv.low_only_thin >= 0);
-      std::printf("%-6zu %-22s %5.2f/%-5.2f %9.2f %9.2f %9.2f %9.2f %8.1f..%-8.1f %9.2f %.1f (%s)\n", k,
+      char low_only[64];
+      std::snprintf(low_only, sizeof low_only, "%.1f (%s)", lv.low_only_thin, lv.low_only_status.c_str());
+      char shrink_col[32] = "";
+      if (shrink_hz > 0) std::snprintf(shrink_col, sizeof shrink_col, "%9.2f", lv.thin_err_shrink);
+      std::printf("%-6zu %-22s %5.2f/%-5.2f %9.2f %9.2f %9.2f %9.2f %8.1f..%-8.1f %9.2f %-18s %9.2f %s\n", k,
                   runs[cases[k].run].name.c_str(), lv.bandwidth, lv.bandwidth_arc, lv.thin_err, lv.thin_err_plain, lv.rmse,
-                  lv.rmse_plain, lv.band_lo, lv.band_hi, lv.truth_min, lv.low_only_thin, lv.low_only_status.c_str());
+                  lv.rmse_plain, lv.band_lo, lv.band_hi, lv.truth_min, low_only, lv.thin_err_ref, shrink_col);
     }
     if (n) {
       std::sort(e.begin(), e.end());
@@ -656,6 +682,19 @@ int main(int argc, char** argv) {
                   Median(rm), Median(rmp), Median(ratio), *std::max_element(ratio.begin(), ratio.end()));
       std::printf("truth's thinnest point inside the +/-2 sd band: %d / %d; lowest-row-only thinnest negative or NaN: %d / %d\n",
                   in_band, n, low_neg, n);
+      std::sort(eref.begin(), eref.end());
+      std::printf(
+          "reference, the truth's own smoothing on the map's windows (a second truth, Eq. 9 at the sensors): thinnest-point "
+          "|error| median %.2f mm, worst %.2f mm; per-face RMSE median %.2f mm\n",
+          Median(eref), eref.back(), Median(rmref));
+      std::sort(eshr.begin(), eshr.end());
+      if (shrink_hz > 0)
+        std::printf(
+            "prototype, not in the product (shrinkage towards a %.2f x %.2f m kernel by the excess variance of each 0.1 m "
+            "band): thinnest-point |error| median %.2f mm, worst %.2f mm; per-face RMSE median %.2f mm, ratio to plain median "
+            "%.3f, worst %.3f\n",
+            shrink_hz, shrink_ha, Median(eshr), eshr.back(), Median(rmshr), Median(ratio_shr),
+            *std::max_element(ratio_shr.begin(), ratio_shr.end()));
     }
     std::vector<double> se, sn, sr, snr;
     for (size_t k = 0; k < cases.size(); ++k) {

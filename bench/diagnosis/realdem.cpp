@@ -98,6 +98,55 @@ std::vector<DemRun> LoadDemRuns(const std::filesystem::path& dir) {
   return runs;
 }
 
+void ShrinkTowardsFinerPrototype(core::ReconstructionPlan& plan, double hz_m, double ha_m) {
+  const core::WearMap& m = *plan.map;
+  const core::MapModel& model = plan.model;
+  const Eigen::Index n = m.z.size();
+  // Kernel mean and its noise variance at (z, theta), brute force (a measurement, 4,320 faces).
+  auto fine = [&](double z, double th, double& value, double& var) {
+    double s0 = 0, s1 = 0, s2 = 0;
+    for (Eigen::Index j = 0; j < n; ++j) {
+      const double dz = m.z[j] - z;
+      if (std::fabs(dz) > 3 * hz_m) continue;
+      const double arc = m.radius[j] * (std::fmod(m.theta_deg[j] - th + 540.0, 360.0) - 180.0) * kPi / 180.0;
+      const double q = dz * dz / (hz_m * hz_m) + arc * arc / (ha_m * ha_m);
+      if (q > 9) continue;
+      const double w = m.areas[j] * std::exp(-0.5 * q);
+      s0 += w;
+      s1 += w * model.clean[j];
+      s2 += w * w * model.face_var[j];
+    }
+    value = s0 > 0 ? s1 / s0 : 0.0;
+    var = s0 > 0 ? s2 / (s0 * s0) : 0.0;
+  };
+  auto band = [](double z) { return static_cast<long>(std::floor(z / 0.1)); };
+  Eigen::VectorXd L(n), VL(n);
+  std::map<long, std::pair<double, double>> excess;  // band -> (sum of relative excess, faces)
+  for (Eigen::Index i = 0; i < n; ++i) {
+    fine(m.z[i], m.theta_deg[i], L[i], VL[i]);
+    const double B = plan.intensity[i];
+    if (!(B > 0)) continue;
+    const double d = (L[i] - B) / B;
+    auto& e = excess[band(m.z[i])];
+    e.first += d * d - VL[i] / (B * B);
+    e.second += 1;
+  }
+  auto shrink = [&](double B, double l, double vl, double z) {
+    const auto it = excess.find(band(z));
+    if (!(B > 0) || it == excess.end()) return B;
+    const double tau2 = std::max(0.0, it->second.first / it->second.second) * B * B;
+    return tau2 + vl > 0 ? B + tau2 / (tau2 + vl) * (l - B) : B;
+  };
+  for (Eigen::Index i = 0; i < n; ++i) plan.intensity[i] = shrink(plan.intensity[i], L[i], VL[i], m.z[i]);
+  for (size_t s = 0; s < plan.crusher->sensors.size(); ++s) {
+    const auto& sn = plan.crusher->sensors[s];
+    double l = 0, vl = 0;
+    fine(sn.z_m, sn.theta_deg, l, vl);
+    const auto k = static_cast<Eigen::Index>(s);
+    plan.sensor_intensity[k] = shrink(plan.sensor_intensity[k], l, vl, sn.z_m);
+  }
+}
+
 RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : run_(run), spec_(spec) {
   const size_t K = run.wear_w.size();
   std::vector<int> order(K);
@@ -145,6 +194,7 @@ RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : r
   }
   const double height = std::max(zhi - zlo, 1e-3);
   const double radius = spec.truth_radius_frac * height;
+  truth_radius_m_ = radius;
   const Eigen::VectorXd T = core::SmoothOverSurface(tm, tsum.cwiseMax(0.0), radius);
   const Eigen::VectorXd N = run.normal_w.empty() ? Eigen::VectorXd::Ones(n) : core::SmoothOverSurface(tm, tn, radius);
   std::vector<double> pos, nv;
@@ -184,6 +234,7 @@ RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : r
         best = i;
       }
     }
+    sensor_face_.push_back(best);
     Point p = make(best);
     p.zn = (s.z_m - z_mid) / height;
     p.theta = s.theta_deg * kPi / 180.0;
@@ -201,6 +252,12 @@ RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : r
     ++qn;
   }
   q_mean_ = qs / qn;
+}
+
+void RealDemCampaign::TruthConstruction(Eigen::VectorXd& faces, Eigen::VectorXd& sensors) const {
+  faces = core::SmoothOverSurface(map_, map_.wear.cwiseMax(0.0), truth_radius_m_);
+  sensors.resize(static_cast<Eigen::Index>(sensor_face_.size()));
+  for (size_t s = 0; s < sensor_face_.size(); ++s) sensors[static_cast<Eigen::Index>(s)] = faces[sensor_face_[s]];
 }
 
 double RealDemCampaign::Throughput(double t) const {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/bundle.hpp"
+#include "core/reconstruction.hpp"
 
 namespace lw::bench {
 
@@ -51,6 +52,14 @@ struct RealDemSpec {
   double loss_day = 0, loss_mm = 0;
 };
 
+/// Prototype measured on the live figures, not in the product (docs/diagnosis.md, live wear): each
+/// intensity of `plan` (faces and sensors) moves towards a finer kernel estimate L (Gaussian, sd
+/// `hz_m` along z and `ha_m` around, kernel mean of the model's capped wear) by the empirical-Bayes
+/// factor tau^2 / (tau^2 + var L): var L from the model's noise law, tau^2 (relative) the excess
+/// of (L - I)^2 over var L pooled over each 0.1 m band of z (the real variation the broad estimate
+/// misses there, from the map itself).
+void ShrinkTowardsFinerPrototype(core::ReconstructionPlan& plan, double hz_m, double ha_m);
+
 class RealDemCampaign {
  public:
   RealDemCampaign(const DemRun& run, const RealDemSpec& spec);
@@ -59,6 +68,12 @@ class RealDemCampaign {
   double TrueSensorThickness(size_t index, double day) const;
   /// True wear (mm) per face at `day`, in [0, new].
   Eigen::VectorXd TrueFaceWear(double day) const;
+  /// The truth's own construction applied to the bundle's map, i.e. a second truth from the map's
+  /// windows: per face the map smoothed with the truth's top-hat, per sensor (crusher order) the
+  /// nearest face's value, as the truth's sensors get. Eq. 9 on these is what an estimator that knew
+  /// the benchmark's smoothing would report; its error against the truth is the part of the figures
+  /// the two halves' independent noise leaves, whatever the map model (docs/diagnosis.md).
+  void TruthConstruction(Eigen::VectorXd& faces, Eigen::VectorXd& sensors) const;
   const core::WearMap& map() const { return map_; }
   const core::CrusherConfig& crusher() const { return run_.crusher; }
   std::vector<int> map_windows, truth_windows;
@@ -75,6 +90,8 @@ class RealDemCampaign {
   std::vector<Point> faces_, sensors_;
   double rate_ = 1;
   double q_mean_ = 1;
+  double truth_radius_m_ = 0;
+  std::vector<Eigen::Index> sensor_face_;  ///< per sensor: the face whose truth it reads
 };
 
 }  // namespace lw::bench
