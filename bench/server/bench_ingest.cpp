@@ -304,8 +304,12 @@ int main(int argc, char** argv) {
         acks.start_consuming();
         acks.connect(po)->wait();
         acks.subscribe("linerwatch/v1/bench/+/sensors/+/committed", 1)->wait();
-        for (int i = 0; i < 100 && !lw::test::PortAccepts(http); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
-        std::this_thread::sleep_for(std::chrono::milliseconds(800));  // MQTT connect and subscribe
+        // Up once it is connected to the broker (loading the crusher's map takes seconds, more on a
+        // loaded machine); then a moment for its subscription.
+        for (int i = 0; i < 1200 && lw::test::FileTail(log).find("connected to ") == std::string::npos; ++i) {
+          std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(800));
         lw::test::ChildProcess profiler;
         if (!perf.empty()) {
           profiler.Start({"perf", "record", "-e", "cpu-clock", "-g", "-p", std::to_string(server.pid()), "-o", perf + "." + run},
