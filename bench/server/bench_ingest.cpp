@@ -38,6 +38,10 @@
 
 #include "core/time.hpp"
 #include "mqtt/messages.hpp"
+#include "mqtt/topics.hpp"
+#include "server/ingest.hpp"
+#include "server/registry.hpp"
+#include "server/store.hpp"
 #include "sim/campaign.hpp"
 #include "support/mosquitto_fixture.hpp"
 
@@ -66,6 +70,13 @@ double ProcessCpuSeconds(pid_t pid) {
     if (i == 15) stime = std::stoull(field);
   }
   return static_cast<double>(utime + stime) / static_cast<double>(::sysconf(_SC_CLK_TCK));
+}
+
+/// CPU seconds this thread has used.
+double ThreadCpuSeconds() {
+  timespec t{};
+  ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + static_cast<double>(t.tv_nsec) / 1e9;
 }
 
 /// CPU seconds of the children this process has reaped so far.
@@ -132,6 +143,53 @@ std::vector<Message> MakeMessages(const lw::core::CrusherConfig& c, long n, size
       out.push_back({root + id + "/reading", std::move(payload), id, records[first].first, count});
     }
   }
+  return out;
+}
+
+/// What the server's own code costs without MQTT: the messages ingested in this process through
+/// lw::server::Ingestor (decode, validate, one SQLite transaction with synchronous=FULL, acks; no
+/// live state, no broker) about 1000 readings per transaction, then the readings it stored
+/// committed again into another fresh database through Store::Commit alone (the SQLite part).
+struct InProcess {
+  double ingest_s, ingest_cpu_s, store_s, store_cpu_s;
+};
+InProcess IngestInProcess(const std::vector<Message>& msgs, const lw::server::Registry& registry, const std::string& db_prefix) {
+  InProcess out{};
+  std::vector<lw::server::StoredReading> stored;
+  {
+    lw::server::Store store(db_prefix + "-ingest.sqlite");
+    lw::server::Ingestor ingestor(store, registry, [] {
+      return std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+    });
+    const double cpu0 = ThreadCpuSeconds();
+    const auto t0 = Clock::now();
+    std::vector<lw::server::Incoming> part;
+    size_t records = 0;
+    for (size_t i = 0; i < msgs.size(); ++i) {
+      const auto t = lw::mqtt::Topics::ParseAny(msgs[i].topic);
+      part.push_back({t->site, t->crusher, t->id, msgs[i].topic, msgs[i].payload});
+      records += msgs[i].records;
+      if (records >= 1000 || i + 1 == msgs.size()) {
+        lw::server::IngestResult r = ingestor.Ingest(std::move(part));
+        for (auto& reading : r.new_readings) stored.push_back(std::move(reading));
+        part.clear();
+        records = 0;
+      }
+    }
+    out.ingest_s = std::chrono::duration<double>(Clock::now() - t0).count();
+    out.ingest_cpu_s = ThreadCpuSeconds() - cpu0;
+  }
+  lw::server::Store store(db_prefix + "-store.sqlite");
+  const double cpu0 = ThreadCpuSeconds();
+  const auto t0 = Clock::now();
+  for (size_t a = 0; a < stored.size(); a += 1000) {
+    const std::vector<lw::server::StoredReading> part(
+        stored.begin() + static_cast<std::ptrdiff_t>(a),
+        stored.begin() + static_cast<std::ptrdiff_t>(std::min(stored.size(), a + 1000)));
+    store.Commit(part, {});
+  }
+  out.store_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  out.store_cpu_s = ThreadCpuSeconds() - cpu0;
   return out;
 }
 
@@ -221,6 +279,13 @@ int main(int argc, char** argv) {
   const auto campaign = lw::sim::GenerateCampaign(spec, 1);
   campaign.WriteBundle(dir.File("crushers/bench"));
   const lw::core::CrusherConfig crusher = lw::core::LoadCrusherConfig(dir.File("crushers/bench/crusher.json"));
+  std::vector<std::string> registry_errors;
+  const auto registry = lw::server::Registry::Load(dir.File("crushers"), &registry_errors);
+  if (registry->All().empty()) {
+    std::fprintf(stderr, "lw_bench_ingest: the bench crusher did not load: %s\n",
+                 registry_errors.empty() ? "" : registry_errors.front().c_str());
+    return 1;
+  }
 
   mqtt::async_client pub(broker.uri(), "bench-publisher", 100000, nullptr);
   mqtt::connect_options po;
@@ -241,6 +306,7 @@ int main(int argc, char** argv) {
     std::vector<Message> msgs;
     std::vector<double> t_bare, cpu_bare, broker_cpu_bare;
     std::vector<Variant> variants;
+    std::vector<InProcess> in_process;
   };
   std::vector<Form> forms;
   const std::vector<std::string> bins = split(servers), delays = split(commit_delay);
@@ -250,7 +316,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "lw_bench_ingest: --batch %s is outside [1, %zu]\n", b.c_str(), lw::mqtt::kMaxReadingBatch);
       return 2;
     }
-    Form f{static_cast<size_t>(batch), MakeMessages(crusher, n, static_cast<size_t>(batch)), {}, {}, {}, {}};
+    Form f{static_cast<size_t>(batch), MakeMessages(crusher, n, static_cast<size_t>(batch)), {}, {}, {}, {}, {}};
     for (size_t k = 0; k < bins.size(); ++k) {
       for (const std::string& d : delays) {
         std::string label = "--commit-delay-ms " + d;
@@ -344,12 +410,17 @@ int main(int argc, char** argv) {
         acks.disconnect()->wait();
         server.Stop(SIGTERM);
       }
+      f.in_process.push_back(
+          IngestInProcess(f.msgs, *registry, dir.File("in-process-" + std::to_string(r) + "-" + std::to_string(fi))));
       std::fprintf(stderr, " batch %zu: bare %.2f s (subscriber CPU %.2f s, broker %.2f s)", f.batch, f.t_bare.back(),
                    f.cpu_bare.back(), f.broker_cpu_bare.back());
       for (const Variant& v : f.variants) {
         std::fprintf(stderr, "; %s: %.2f s, ratio %.2f, server CPU %.2f s, broker %.2f s", v.label.c_str(), v.seconds.back(),
                      f.t_bare.back() / v.seconds.back(), v.cpu.back(), v.broker_cpu.back());
       }
+      std::fprintf(stderr, "; in process: ingest %.2f s (CPU %.2f s), store alone %.2f s (CPU %.2f s)",
+                   f.in_process.back().ingest_s, f.in_process.back().ingest_cpu_s, f.in_process.back().store_s,
+                   f.in_process.back().store_cpu_s);
       std::fprintf(stderr, fi + 1 < forms.size() ? ";" : "\n");
     }
   }
@@ -380,6 +451,20 @@ int main(int argc, char** argv) {
           bare / srv, Median(ratios), *std::min_element(ratios.begin(), ratios.end()),
           *std::max_element(ratios.begin(), ratios.end()), bare / srv >= 0.9 ? "MET" : "MISSED");
     }
+    std::vector<double> ingest_s, ingest_cpu, store_s, store_cpu;
+    for (const InProcess& p : f.in_process) {
+      ingest_s.push_back(p.ingest_s);
+      ingest_cpu.push_back(p.ingest_cpu_s);
+      store_s.push_back(p.store_s);
+      store_cpu.push_back(p.store_cpu_s);
+    }
+    std::printf("  in process, no MQTT (this build's code, ~1000 readings a transaction):\n");
+    std::printf(
+        "    Ingestor::Ingest              %.0f readings/s  (median of %d); CPU per 10k readings %.0f ms; ratio to bare %.2f\n",
+        static_cast<double>(n) / Median(ingest_s), reps, Median(ingest_cpu) * per10k * 1000, bare / Median(ingest_s));
+    std::printf(
+        "    Store::Commit alone           %.0f readings/s  (median of %d); CPU per 10k readings %.0f ms; ratio to bare %.2f\n",
+        static_cast<double>(n) / Median(store_s), reps, Median(store_cpu) * per10k * 1000, bare / Median(store_s));
   }
   return 0;
 }
