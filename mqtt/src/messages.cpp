@@ -379,23 +379,10 @@ size_t JsonNestingDepth(std::string_view text) {
   return deepest;
 }
 
-std::optional<ReadingMessage> DecodeReading(std::string_view payload, std::string* error, ReadingIdentity* identity) {
-  ReadingIdentity local;
-  ReadingIdentity& id = identity ? *identity : local;
-  id = {};
-  if (payload.size() > kMaxReadingBytes) {
-    *error = "message of " + std::to_string(payload.size()) + " bytes (at most " + std::to_string(kMaxReadingBytes) + ")";
-    return std::nullopt;
-  }
-  if (JsonNestingDepth(payload) > kMaxReadingDepth) {
-    *error = "JSON nested deeper than " + std::to_string(kMaxReadingDepth) + " levels";
-    return std::nullopt;
-  }
-  json j;
-  if (!ParseJsonNamingField(payload, &j, error)) {
-    IdentifyDespiteOverflow(payload, &id);  // so that the quarantined message can be acknowledged
-    return std::nullopt;
-  }
+namespace {
+
+/// DecodeReading's checks on a parsed JSON value, from "an object" on.
+std::optional<ReadingMessage> DecodeReadingValue(const json& j, std::string* error, ReadingIdentity& id) {
   if (!j.is_object()) {
     *error = "not a JSON object";
     return std::nullopt;
@@ -440,6 +427,34 @@ std::optional<ReadingMessage> DecodeReading(std::string_view payload, std::strin
   return r;
 }
 
+/// Size and nesting of a reading message, checked before it is parsed.
+bool ReadingWithinLimits(std::string_view payload, std::string* error) {
+  if (payload.size() > kMaxReadingBytes) {
+    *error = "message of " + std::to_string(payload.size()) + " bytes (at most " + std::to_string(kMaxReadingBytes) + ")";
+    return false;
+  }
+  if (JsonNestingDepth(payload) > kMaxReadingDepth) {
+    *error = "JSON nested deeper than " + std::to_string(kMaxReadingDepth) + " levels";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+std::optional<ReadingMessage> DecodeReading(std::string_view payload, std::string* error, ReadingIdentity* identity) {
+  ReadingIdentity local;
+  ReadingIdentity& id = identity ? *identity : local;
+  id = {};
+  if (!ReadingWithinLimits(payload, error)) return std::nullopt;
+  json j;
+  if (!ParseJsonNamingField(payload, &j, error)) {
+    IdentifyDespiteOverflow(payload, &id);  // so that the quarantined message can be acknowledged
+    return std::nullopt;
+  }
+  return DecodeReadingValue(j, error, id);
+}
+
 // ---- batches of readings ----
 
 std::string EncodeReadingBatch(const std::string& sensor, const std::vector<std::string_view>& records) {
@@ -459,8 +474,13 @@ std::string EncodeReadingBatch(const std::string& sensor, const std::vector<std:
   return out;
 }
 
-bool SplitReadingMessage(std::string_view payload, std::vector<std::string>* records, std::string* error) {
-  records->clear();
+namespace {
+
+/// The batch form's checks: calls `each(record)` for every element of "records", with the batch's
+/// "sensor" added to an object naming none, in order. Returns as SplitReadingMessage does (false
+/// with *error for a malformed batch; true without calling `each` for a one-record message).
+template <typename Each>
+bool ForEachBatchRecord(std::string_view payload, std::string* error, Each each) {
   // The one-record form (every message of a gateway that has not seen the server's announcement)
   // is not parsed here: DecodeReading does that once.
   if (payload.find("\"records\"") == std::string_view::npos) return true;
@@ -484,12 +504,31 @@ bool SplitReadingMessage(std::string_view payload, std::vector<std::string>* rec
              (list->is_array() ? std::to_string(list->size()) + " records" : Describe(*list));
     return false;
   }
-  records->reserve(list->size());
   for (json& r : *list) {
     if (r.is_object() && !r.contains("sensor")) r["sensor"] = id.sensor;
-    records->push_back(Dump(r));
+    each(r);
   }
   return true;
+}
+
+}  // namespace
+
+bool SplitReadingMessage(std::string_view payload, std::vector<std::string>* records, std::string* error) {
+  records->clear();
+  return ForEachBatchRecord(payload, error, [&](const json& r) { records->push_back(Dump(r)); });
+}
+
+bool SplitAndDecodeReadingMessage(std::string_view payload, std::vector<BatchRecord>* records, std::string* error) {
+  records->clear();
+  return ForEachBatchRecord(payload, error, [&](const json& r) {
+    BatchRecord& out = records->emplace_back();
+    out.text = Dump(r);
+    // What DecodeReading(out.text) finds, from the tree the text was made from: the text of a
+    // record within a batch is never nested too deep and always parses back to this tree (a
+    // parsed number prints back to the same number); only its size can exceed the limit (the
+    // batch's "sensor" added to a one-record batch of nearly 64 KiB).
+    if (ReadingWithinLimits(out.text, &out.error)) out.reading = DecodeReadingValue(r, &out.error, out.identity);
+  });
 }
 
 // ---- commit ack ----

@@ -17,11 +17,13 @@ bool IsFaultReading(int64_t flags, int64_t loops_intact) {
   return (flags & kAllOpen) && loops_intact > 0;
 }
 
-Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t now_s) {
+namespace {
+
+/// ValidateReading's checks once the payload is decoded (`m`, `decode_error` and `id`: DecodeReading's
+/// verdict on it). The reading it returns has no payload yet.
+Validation CheckReading(const Incoming& in, const std::optional<mqtt::ReadingMessage>& m, const std::string& decode_error,
+                        const mqtt::ReadingIdentity& id, const Registry& registry, int64_t now_s) {
   Validation v;
-  mqtt::ReadingIdentity id;
-  std::string decode_error;
-  const std::optional<mqtt::ReadingMessage> m = mqtt::DecodeReading(in.payload, &decode_error, &id);
   // The identity even of a refused message, so that it can be acknowledged once quarantined.
   v.sensor = id.sensor;
   if (id.seq) v.seq = *id.seq;
@@ -84,44 +86,20 @@ Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t
   r.loops_intact = m->loops_intact;
   r.flags = m->flags;
   r.battery_mv = m->battery_mv;
-  r.payload = in.payload;
   v.reading = std::move(r);
   return v;
 }
 
-namespace {
-
-/// `messages` with every batch (several records of one sensor in one message, docs/mqtt.md)
-/// replaced by its records, in order, each a message of its own: validated, stored and acked
-/// alone. `messages` itself when it holds no batch. A malformed batch stays one message and
-/// `(*malformed)[i]` says what is wrong with it (then `malformed` has an entry per message).
-const std::vector<Incoming>& SplitBatches(const std::vector<Incoming>& messages, std::vector<Incoming>* expanded,
-                                          std::vector<std::string>* malformed) {
-  std::vector<std::string> records;
-  std::string error;
-  for (size_t i = 0; i < messages.size(); ++i) {
-    const bool ok = mqtt::SplitReadingMessage(messages[i].payload, &records, &error);
-    if (ok && records.empty() && expanded->empty() && malformed->empty()) continue;  // none so far
-    if (expanded->empty() && malformed->empty()) {
-      expanded->assign(messages.begin(), messages.begin() + static_cast<std::ptrdiff_t>(i));
-      malformed->assign(i, std::string());
-    }
-    if (!ok || records.empty()) {
-      expanded->push_back(messages[i]);
-      malformed->push_back(ok ? std::string() : error);
-      continue;
-    }
-    for (std::string& r : records) {
-      Incoming one = messages[i];
-      one.payload = std::move(r);
-      expanded->push_back(std::move(one));
-      malformed->emplace_back();
-    }
-  }
-  return malformed->empty() ? messages : *expanded;
-}
-
 }  // namespace
+
+Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t now_s) {
+  mqtt::ReadingIdentity id;
+  std::string decode_error;
+  const std::optional<mqtt::ReadingMessage> m = mqtt::DecodeReading(in.payload, &decode_error, &id);
+  Validation v = CheckReading(in, m, decode_error, id, registry, now_s);
+  if (v.reading) v.reading->payload = in.payload;
+  return v;
+}
 
 Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s, LiveState* live)
     : store_(store), registry_(registry), live_(live), now_s_(std::move(now_s)) {
@@ -139,38 +117,76 @@ std::optional<std::string> Ingestor::SiteOf(const std::string& crusher) const {
   return it->second;
 }
 
-IngestResult Ingestor::Ingest(const std::vector<Incoming>& messages) {
-  std::vector<Incoming> expanded;
-  std::vector<std::string> malformed;
-  const std::vector<Incoming>& batch = SplitBatches(messages, &expanded, &malformed);
+IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
   std::lock_guard<std::mutex> lock(mutex_);
   IngestResult result;
   const int64_t now = now_s_();
   const int64_t wall = static_cast<int64_t>(
       std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count());
-  std::vector<StoredReading> readings;
-  std::vector<size_t> reading_index;  // batch index of each reading
-  std::vector<Rejected> rejected;
-  std::vector<Validation> validations;
-  std::vector<bool> foreign_site(batch.size(), false);  // a known crusher heard under another site
-  std::map<std::string, std::string> new_sites;         // bound by this batch (first site heard)
-  validations.reserve(batch.size());
-  for (size_t i = 0; i < batch.size(); ++i) {
-    const Incoming& in = batch[i];
-    // A message must never fail the batch: whatever validation throws quarantines this one only.
+  // One entry per record: a one-record message, or each record of a batch (docs/mqtt.md), each
+  // validated, stored and acked alone. A malformed batch is one entry, rejected whole.
+  struct Record {
+    size_t message = 0;   ///< its message in `messages`
+    std::string payload;  ///< its text: the message's, or the record's within its batch
+    Validation v;
+    bool foreign_site = false;  ///< a known crusher heard under another site
+  };
+  std::vector<Record> records;
+  records.reserve(messages.size());
+  std::vector<mqtt::BatchRecord> parts;
+  // A record must never fail the others: whatever its validation throws quarantines it alone.
+  const auto add = [&](size_t message, std::string payload, const auto& validate) {
+    Record& r = records.emplace_back();
+    r.message = message;
+    r.payload = std::move(payload);
     try {
-      if (!malformed.empty() && !malformed[i].empty()) {
-        validations.push_back({});
-        validations.back().sensor = in.sensor;  // no seq: nothing to acknowledge
-        validations.back().error = malformed[i];
-      } else {
-        validations.push_back(ValidateReading(in, registry_, now));
-      }
+      r.v = validate(r.payload);
     } catch (const std::exception& e) {
-      validations.push_back({});
-      validations.back().error = std::string("cannot validate: ") + e.what();
+      r.v = {};
+      r.v.error = std::string("cannot validate: ") + e.what();
     }
-    Validation& v = validations.back();
+  };
+  for (size_t i = 0; i < messages.size(); ++i) {
+    Incoming& in = messages[i];
+    std::string malformed;
+    bool well_formed = false;
+    try {
+      well_formed = mqtt::SplitAndDecodeReadingMessage(in.payload, &parts, &malformed);
+    } catch (const std::exception& e) {
+      parts.clear();
+      malformed = std::string("cannot validate: ") + e.what();
+    }
+    if (!well_formed) {
+      add(i, std::move(in.payload), [&](const std::string&) {
+        Validation v;
+        v.sensor = in.sensor;  // no seq: nothing to acknowledge
+        v.error = malformed;
+        return v;
+      });
+    } else if (parts.empty()) {
+      add(i, std::move(in.payload), [&](const std::string& text) {
+        mqtt::ReadingIdentity id;
+        std::string error;
+        const std::optional<mqtt::ReadingMessage> m = mqtt::DecodeReading(text, &error, &id);
+        return CheckReading(in, m, error, id, registry_, now);
+      });
+    } else {
+      for (mqtt::BatchRecord& part : parts) {
+        add(i, std::move(part.text),
+            [&](const std::string&) { return CheckReading(in, part.reading, part.error, part.identity, registry_, now); });
+      }
+    }
+  }
+  std::vector<StoredReading> readings;
+  std::vector<size_t> reading_index;  // index in `records` of each reading
+  readings.reserve(records.size());
+  reading_index.reserve(records.size());
+  std::vector<Rejected> rejected;
+  std::map<std::string, std::string> new_sites;  // bound by this call (first site heard)
+  for (size_t k = 0; k < records.size(); ++k) {
+    Record& rec = records[k];
+    const Incoming& in = messages[rec.message];
+    Validation& v = rec.v;
     // Sites are identities: a crusher's readings count only under its own site's topics.
     if (!in.site.empty() && registry_.Find(in.crusher)) {
       auto bound = sites_.find(in.crusher);
@@ -178,7 +194,7 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& messages) {
       const std::string* site = bound != sites_.end() ? &bound->second : pending != new_sites.end() ? &pending->second : nullptr;
       if (!site && v.reading) site = &new_sites.emplace(in.crusher, in.site).first->second;
       if (site && *site != in.site) {
-        foreign_site[i] = true;
+        rec.foreign_site = true;
         v.reading.reset();
         v.error =
             "site '" + in.site + "' is not crusher " + in.crusher + "'s site '" + *site + "' (quarantined, not acknowledged)";
@@ -186,10 +202,11 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& messages) {
     }
     if (v.reading) {
       v.reading->received_s = wall;
+      v.reading->payload = std::move(rec.payload);
       readings.push_back(std::move(*v.reading));  // v.reading stays set: "valid" for the loops below
-      reading_index.push_back(i);
+      reading_index.push_back(k);
     } else {
-      rejected.push_back({wall, in.topic, in.payload, v.error});
+      rejected.push_back({wall, in.topic, rec.payload, v.error});
     }
   }
   std::unique_lock<std::mutex> commit_order;  // from the commit to live_->Add (LiveState::CommitGuard)
@@ -202,26 +219,42 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& messages) {
                          "' (the first site it was heard from; set \"site\" in its crusher.json to choose)");
   }
 
-  std::map<std::tuple<std::string, std::string, std::string>, std::set<int64_t>> acks;
-  auto& crusher_counters = per_crusher_;
+  // Acks per (site, crusher, sensor); records come sensor by sensor, so the last key is tried first.
+  using AckKey = std::tuple<std::string, std::string, std::string>;
+  std::map<AckKey, std::vector<int64_t>> acks;
+  auto last_ack = acks.end();
+  const auto ack = [&](const std::string& site, const std::string& crusher, const std::string& sensor, int64_t seq) {
+    if (last_ack == acks.end() || std::get<2>(last_ack->first) != sensor || std::get<1>(last_ack->first) != crusher ||
+        std::get<0>(last_ack->first) != site) {
+      last_ack = acks.try_emplace(AckKey{site, crusher, sensor}).first;
+    }
+    last_ack->second.push_back(seq);
+  };
+  // Per-crusher counters, the last crusher's tried first.
+  std::map<std::string, IngestCounters>::iterator last_counters = per_crusher_.end();
+  const auto counters_of = [&](const std::string& crusher) -> IngestCounters& {
+    if (last_counters == per_crusher_.end() || last_counters->first != crusher)
+      last_counters = per_crusher_.try_emplace(crusher).first;
+    return last_counters->second;
+  };
+  result.new_readings.reserve(readings.size());
   for (size_t k = 0; k < outcomes.size(); ++k) {
     StoredReading& r = readings[k];
-    const Incoming& in = batch[reading_index[k]];
-    IngestCounters& cc = crusher_counters[r.crusher];
-    acks[{in.site, r.crusher, r.sensor}].insert(r.seq);
+    const Incoming& in = messages[records[reading_index[k]].message];
+    ack(in.site, r.crusher, r.sensor, r.seq);
     switch (outcomes[k]) {
       case InsertOutcome::kStored:
         ++result.stored;
-        ++cc.stored;
+        ++counters_of(r.crusher).stored;
         result.new_readings.push_back(std::move(r));  // not used below
         break;
       case InsertOutcome::kDuplicate:
         ++result.duplicates;
-        ++cc.duplicates;
+        ++counters_of(r.crusher).duplicates;
         break;
       case InsertOutcome::kConflict:
         ++result.conflicts;
-        ++cc.conflicts;
+        ++counters_of(r.crusher).conflicts;
         result.log.push_back("conflict: " + r.crusher + "/" + r.sensor + " seq " + std::to_string(r.seq) +
                              " was stored before with another time or thickness; the first is kept");
         break;
@@ -231,21 +264,24 @@ IngestResult Ingestor::Ingest(const std::vector<Incoming>& messages) {
     live_->Add(result.new_readings);
     commit_order.unlock();
   }
-  for (size_t i = 0; i < batch.size(); ++i) {
-    const Validation& v = validations[i];
+  for (const Record& rec : records) {
+    const Validation& v = rec.v;
     if (v.reading) continue;
+    const Incoming& in = messages[rec.message];
     ++result.rejected;
-    ++crusher_counters[batch[i].crusher].rejected;
-    result.log.push_back("rejected " + (batch[i].topic.empty() ? std::string("REST reading") : batch[i].topic) + ": " + v.error);
+    ++counters_of(in.crusher).rejected;
+    result.log.push_back("rejected " + (in.topic.empty() ? std::string("REST reading") : in.topic) + ": " + v.error);
     // Quarantined in the database: the gateway may drop it (resending cannot make it valid). Not
     // under a site the crusher does not belong to: that publisher is not its gateway.
-    if (!foreign_site[i] && v.seq && !v.sensor.empty() && (batch[i].sensor.empty() || batch[i].sensor == v.sensor)) {
-      acks[{batch[i].site, batch[i].crusher, v.sensor}].insert(*v.seq);
+    if (!rec.foreign_site && v.seq && !v.sensor.empty() && (in.sensor.empty() || in.sensor == v.sensor)) {
+      ack(in.site, in.crusher, v.sensor, *v.seq);
     }
   }
   for (auto& [key, seqs] : acks) {
     if (std::get<0>(key).empty()) continue;  // REST: no gateway to tell
-    result.acks.push_back({std::get<0>(key), std::get<1>(key), std::get<2>(key), {seqs.begin(), seqs.end()}});
+    std::sort(seqs.begin(), seqs.end());
+    seqs.erase(std::unique(seqs.begin(), seqs.end()), seqs.end());
+    result.acks.push_back({std::get<0>(key), std::get<1>(key), std::get<2>(key), std::move(seqs)});
   }
   totals_.stored += static_cast<int64_t>(result.stored);
   totals_.duplicates += static_cast<int64_t>(result.duplicates);

@@ -79,8 +79,9 @@ void LiveState::AddLocked(CrusherLive& c, const StoredReading& r) {
   if (s.anchor.size() != c.crusher->scans.size()) s.anchor.resize(c.crusher->scans.size());
   ++s.count;
   if (!s.latest || r.time_s > s.latest->time_s || (r.time_s == s.latest->time_s && r.seq > s.latest->seq)) {
-    s.latest = r;
-    s.latest->payload.clear();
+    // Without its payload (not kept here): not copied only to be cleared.
+    s.latest = StoredReading{r.crusher,      r.sensor, r.seq,        r.time_s,     r.thickness_mm,
+                             r.loops_intact, r.flags,  r.battery_mv, r.received_s, {}};
   }
   if (IsFaultReading(r.flags, r.loops_intact)) return;
   const Point p{r.time_s, r.seq, r.thickness_mm, r.loops_intact, r.flags};

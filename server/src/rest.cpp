@@ -365,9 +365,10 @@ Response Resources::PostReadings(const Request& req) {
   for (const auto& r : body["readings"]) {
     batch.push_back({"", c->config.crusher_id, "", "", r.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)});
   }
+  const size_t posted = batch.size();
   IngestResult result;
   try {
-    result = ctx_.ingestor->Ingest(batch);
+    result = ctx_.ingestor->Ingest(std::move(batch));
   } catch (const std::exception& e) {
     return Error(503, std::string("not stored: ") + e.what());
   }
@@ -377,7 +378,7 @@ Response Resources::PostReadings(const Request& req) {
                     {"conflicts", result.conflicts},
                     {"rejected", result.rejected},
                     {"errors", result.log}};
-  const bool all_rejected = result.rejected > 0 && result.rejected == batch.size();
+  const bool all_rejected = result.rejected > 0 && result.rejected == posted;
   if (all_rejected) j["error"] = "every reading was rejected";
   return Json(all_rejected ? 422 : 200, std::move(j));
 }

@@ -372,11 +372,11 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     }
     for (size_t start = 0; start < batch.size(); start += static_cast<size_t>(o.batch_max)) {
       const size_t end = std::min(batch.size(), start + static_cast<size_t>(o.batch_max));
-      const std::vector<Incoming> part(std::make_move_iterator(batch.begin() + static_cast<std::ptrdiff_t>(start)),
-                                       std::make_move_iterator(batch.begin() + static_cast<std::ptrdiff_t>(end)));
+      std::vector<Incoming> part(std::make_move_iterator(batch.begin() + static_cast<std::ptrdiff_t>(start)),
+                                 std::make_move_iterator(batch.begin() + static_cast<std::ptrdiff_t>(end)));
       IngestResult r;
       try {
-        r = ingestor.Ingest(part);
+        r = ingestor.Ingest(std::move(part));
       } catch (const std::exception& e) {
         // Nothing of the batch is stored and nothing is acked: the gateway republishes it.
         log(std::string("database error, batch not stored (the gateway will resend it): ") + e.what());

@@ -96,6 +96,19 @@ std::string EncodeReadingBatch(const std::string& sensor, const std::vector<std:
 /// than kMaxReadingBatch.
 bool SplitReadingMessage(std::string_view payload, std::vector<std::string>* records, std::string* error);
 
+/// One record of a batch: its text, as SplitReadingMessage gives it, and what DecodeReading says
+/// of that text (`reading`, or `error`; `identity` either way).
+struct BatchRecord {
+  std::string text;
+  std::optional<ReadingMessage> reading;
+  std::string error;
+  ReadingIdentity identity;
+};
+
+/// SplitReadingMessage with every record also decoded, as DecodeReading(text, &error, &identity)
+/// would, from the batch's one parse (the server's ingest: a record's text is not parsed again).
+bool SplitAndDecodeReadingMessage(std::string_view payload, std::vector<BatchRecord>* records, std::string* error);
+
 /// Parses `text`; false with *error set when it is not JSON ("malformed JSON"). A number that
 /// overflows a double (`1e999`) is named by its field: `"flags" '1e999' does not fit a double
 /// (number overflow)`. No size or nesting limit: see JsonNestingDepth.

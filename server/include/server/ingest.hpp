@@ -84,7 +84,7 @@ class Ingestor {
   /// rejected, and acked on its own; a malformed batch is rejected whole (it names no seq to ack).
   /// Throws std::runtime_error on a database failure (then nothing is stored and nothing may be
   /// acked).
-  IngestResult Ingest(const std::vector<Incoming>& messages);
+  IngestResult Ingest(std::vector<Incoming> messages);
   IngestCounters Counters() const;
   /// The site `crusher` belongs to: crusher.json's "site", else the first site a valid reading
   /// was heard from (kept in the database). Readings, acks and wear go only to this site's topics;

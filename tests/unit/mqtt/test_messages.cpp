@@ -363,6 +363,68 @@ TEST(Messages, MalformedBatchesAreRefusedWithAReason) {
   }
 }
 
+// The server decodes a batch's records from the batch's one parse: what it finds must be what
+// DecodeReading finds in each record's text (docs/mqtt.md: each record as if it had come alone).
+TEST(Messages, DecodingABatchFindsWhatDecodingEachOfItsRecordsFinds) {
+  const std::string full = mq::EncodeReading(FullReading());
+  std::string expanding = R"({"seq":9,"time":"t","thickness_mm":1,"loops_intact":1,"flags":0,"battery_mv":1,"x":[)";
+  for (int i = 0; i < 9000; ++i) expanding += i ? ",1E5" : "1E5";  // each prints back as 100000.0
+  expanding += "]}";
+  const std::string payloads[] = {
+      // The gateway's batch.
+      "{\"records\":[" + full + "," + full + "],\"sensor\":\"1001\"}",
+      // Records of every kind: whole-number floats, -0, a numeric sensor, another sensor, not an
+      // object, a seq out of range or negative, a duplicate key, optional fields of another type,
+      // a missing field, escapes, spaces.
+      R"({"sensor": 1001, "records": [
+          {"seq": 5.0, "time": "t", "thickness_mm": -0, "loops_intact": 9.0, "flags": 0, "battery_mv": 1},
+          {"sensor": 1002, "seq": 8}, 5, "text", null, [1, 2],
+          {"seq": -1, "time": "t"}, {"seq": 18446744073709551615}, {"seq": 4294967296},
+          {"seq": 1, "seq": 2, "time": "t", "thickness_mm": 1e308, "loops_intact": 0, "flags": 65535, "battery_mv": 10000},
+          {"seq": 3, "time": "t\u00e9\/\n", "thickness_mm": 1.5E-3, "loops_intact": 1, "flags": 0, "battery_mv": 0,
+           "temperature_c": "hot", "ladder_loops": 1.5, "loop_bitmap": 7, "received": "r", "gateway": ["g"]},
+          {"seq": 6, "time": "t", "thickness_mm": "1", "loops_intact": 1, "flags": 0, "battery_mv": 0},
+          {"seq": 7, "time": "t", "thickness_mm": 1, "loops_intact": 5000, "flags": 0, "battery_mv": 0},
+          {"seq": 8, "time": "t", "thickness_mm": 1, "loops_intact": 1, "battery_mv": 0},
+          {"sensor": "", "seq": 9}, {"sensor": -3, "seq": 10}, {}]})",
+      // A batch within the limit whose record's text is not (its numbers print back longer).
+      "{\"records\":[" + expanding + "],\"sensor\":\"1001\"}",
+  };
+  for (const std::string& p : payloads) {
+    CHECK(p.size() <= mq::kMaxReadingBytes);
+    std::vector<std::string> texts;
+    std::vector<mq::BatchRecord> records;
+    std::string split_error, error;
+    CHECK_TEXT(mq::SplitReadingMessage(p, &texts, &split_error), split_error.c_str());
+    CHECK_TEXT(mq::SplitAndDecodeReadingMessage(p, &records, &error), error.c_str());
+    CHECK(!texts.empty());
+    LONGS_EQUAL(texts.size(), records.size());
+    for (size_t i = 0; i < texts.size(); ++i) {
+      mq::ReadingIdentity id;
+      std::string alone_error;
+      const auto alone = mq::DecodeReading(texts[i], &alone_error, &id);
+      STRCMP_EQUAL(texts[i].substr(0, 80).c_str(), records[i].text.substr(0, 80).c_str());
+      CHECK_TEXT(texts[i] == records[i].text, texts[i].substr(0, 80).c_str());
+      CHECK_TEXT(alone == records[i].reading, texts[i].substr(0, 80).c_str());
+      if (!alone) STRCMP_EQUAL(alone_error.c_str(), records[i].error.c_str());
+      CHECK_EQUAL(id.object, records[i].identity.object);
+      STRCMP_EQUAL(id.sensor.c_str(), records[i].identity.sensor.c_str());
+      CHECK(id.seq == records[i].identity.seq);
+    }
+  }
+  // The last record is too long on its own: refused as DecodeReading refuses it.
+  std::vector<mq::BatchRecord> records;
+  std::string error;
+  CHECK(mq::SplitAndDecodeReadingMessage(payloads[2], &records, &error));
+  CHECK(records.at(0).text.size() > mq::kMaxReadingBytes);
+  CHECK(records[0].error.find("bytes (at most 65536)") != std::string::npos);
+  // One-record messages and malformed batches: as SplitReadingMessage says.
+  CHECK(mq::SplitAndDecodeReadingMessage(full, &records, &error));
+  CHECK(records.empty());
+  CHECK_FALSE(mq::SplitAndDecodeReadingMessage(R"({"sensor": "1001", "records": []})", &records, &error));
+  STRCMP_EQUAL("batch: \"records\" must be an array of 1 to 64 records, not 0 records", error.c_str());
+}
+
 TEST(Messages, CommitAckAnnouncesBatchesOnlyWhenAsked) {
   const mq::CommitAck ack{"1001", {41, 42}, "2026-06-01T00:00:00Z", 64};
   STRCMP_EQUAL(R"({"batch":64,"sensor":"1001","seqs":[41,42],"time":"2026-06-01T00:00:00Z"})", mq::EncodeCommitAck(ack).c_str());

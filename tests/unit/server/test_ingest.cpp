@@ -2,6 +2,7 @@
 #include <filesystem>
 
 #include "core/scan_correction.hpp"
+#include "mqtt/messages.hpp"
 #include "server/ingest.hpp"
 #include "server/wear_service.hpp"
 #include "unit/server/server_fixture.hpp"
@@ -150,6 +151,59 @@ TEST(Ingest, EachRecordOfABatchIsValidatedStoredAndAckedOnItsOwn) {
   CHECK_TRUE(named_time);
   CHECK_TRUE(named_topic);
   CHECK_TRUE(named_batch);
+}
+
+// The server decodes a batch once (mqtt::SplitAndDecodeReadingMessage): what it stores, rejects,
+// logs and acks is what the same records sent alone (SplitReadingMessage's texts) give.
+TEST(Ingest, ABatchGivesWhatItsRecordsSentAloneGive) {
+  const auto record = [](const std::string& seq, const std::string& time, const std::string& more = "") {
+    return R"({"seq":)" + seq + R"(, "time":")" + time + R"(", "thickness_mm":99.5, "loops_intact":99, "flags":0,)" +
+           R"( "battery_mv":3500)" + more + "}";
+  };
+  const std::string batch = R"({"sensor":"1001","records":[)" + record("5", "2026-01-10T00:00:00Z") + "," +
+                            record("6.0", "2026-01-10T00:10:00Z", R"(, "gateway":"gw\u00e9", "x":1E2)") + "," +
+                            record("6", "2026-01-10T00:10:00Z") + "," +                    // a duplicate within the batch
+                            record("7", "2026-01-10T00:20:00Z", R"(, "flags":1)") + "," +  // a duplicate key: the last counts
+                            record("8", "yesterday") + "," + record("9", "2026-01-10T00:30:00Z", R"(, "sensor":"1002")") +
+                            R"(, 5, {"seq": 10}, )" + record("11", "2026-01-10T00:40:00Z", R"(, "battery_mv": 20000)") + "]}";
+  std::vector<std::string> texts;
+  std::string error;
+  CHECK_TEXT(lw::mqtt::SplitReadingMessage(batch, &texts, &error), error.c_str());
+  LONGS_EQUAL(9, texts.size());
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store batched(dir.File("batched.sqlite")), alone(dir.File("alone.sqlite"));
+  Ingestor by_batch(batched, *registry, [] { return Now(); }), one_by_one(alone, *registry, [] { return Now(); });
+  const IngestResult a = by_batch.Ingest({With(batch)});
+  std::vector<Incoming> singles;
+  for (const std::string& t : texts) singles.push_back(With(t));
+  const IngestResult b = one_by_one.Ingest(singles);
+  LONGS_EQUAL(3, a.stored);  // seqs 5, 6, 7; 6 again is a duplicate
+  LONGS_EQUAL(b.stored, a.stored);
+  LONGS_EQUAL(1, a.duplicates);
+  LONGS_EQUAL(b.duplicates, a.duplicates);
+  LONGS_EQUAL(b.conflicts, a.conflicts);
+  LONGS_EQUAL(5, a.rejected);
+  LONGS_EQUAL(b.rejected, a.rejected);
+  CHECK(a.log == b.log);
+  LONGS_EQUAL(1, a.acks.size());
+  LONGS_EQUAL(b.acks.size(), a.acks.size());
+  CHECK(a.acks[0].seqs == b.acks[0].seqs);
+  CHECK(a.acks[0].seqs == (std::vector<int64_t>{5, 6, 7, 8, 10, 11}));  // not 9: another sensor's
+  LONGS_EQUAL(b.new_readings.size(), a.new_readings.size());
+  for (size_t i = 0; i < a.new_readings.size(); ++i) {
+    const StoredReading &x = a.new_readings[i], &y = b.new_readings[i];
+    CHECK(x.sensor == y.sensor && x.seq == y.seq && x.time_s == y.time_s && x.thickness_mm == y.thickness_mm &&
+          x.loops_intact == y.loops_intact && x.flags == y.flags && x.battery_mv == y.battery_mv);
+    STRCMP_EQUAL(y.payload.c_str(), x.payload.c_str());
+    STRCMP_EQUAL(texts[i == 0 ? 0 : i == 1 ? 1 : 3].c_str(), x.payload.c_str());  // the record's text, as split
+  }
+  const std::vector<Rejected> ra = batched.RejectedMessages(100), rb = alone.RejectedMessages(100);
+  LONGS_EQUAL(rb.size(), ra.size());
+  for (size_t i = 0; i < ra.size(); ++i) {
+    STRCMP_EQUAL(rb[i].payload.c_str(), ra[i].payload.c_str());
+    STRCMP_EQUAL(rb[i].reason.c_str(), ra[i].reason.c_str());
+    STRCMP_EQUAL(rb[i].topic.c_str(), ra[i].topic.c_str());
+  }
 }
 
 TEST(Ingest, RestReadingsAreNotAckedOverMqtt) {
