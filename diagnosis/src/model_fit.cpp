@@ -36,6 +36,26 @@ double Round(double v, double digits) {
   return std::round(v * f) / f;
 }
 
+Eigen::VectorXd StderrGivenShape(const ModelSpec& spec, const Eigen::MatrixXd& jtj) {
+  std::vector<Eigen::Index> free;
+  for (Eigen::Index k = 0; k < static_cast<Eigen::Index>(spec.rows); ++k) free.push_back(k);
+  for (Effect e : spec.effects) {
+    Eigen::Index k = spec.Offset(e);
+    for (const ParamSpec& ps : EffectParams(e)) {
+      if (!ps.shape) free.push_back(k);
+      ++k;
+    }
+  }
+  const auto n = static_cast<Eigen::Index>(free.size());
+  Eigen::MatrixXd sub(n, n);
+  for (Eigen::Index a = 0; a < n; ++a)
+    for (Eigen::Index b = 0; b < n; ++b) sub(a, b) = jtj(free[static_cast<size_t>(a)], free[static_cast<size_t>(b)]);
+  const Eigen::MatrixXd cov = sub.ldlt().solve(Eigen::MatrixXd::Identity(n, n));
+  Eigen::VectorXd se = Eigen::VectorXd::Constant(jtj.rows(), kNaN);
+  for (Eigen::Index a = 0; a < n; ++a) se[free[static_cast<size_t>(a)]] = std::sqrt(std::fabs(cov(a, a)));
+  return se;
+}
+
 double Interp(const Eigen::MatrixXd& w, const Obs& o) {
   const auto r = static_cast<Eigen::Index>(o.point);
   const auto j = static_cast<Eigen::Index>(o.j);
@@ -102,6 +122,7 @@ FitResult Fit(const Problem& p, const ModelSpec& spec, const Mask& train, const 
       for (Eigen::Index d = 0; d < jtj.rows(); ++d) jtj(d, d) += 1e-12;
       const Eigen::MatrixXd cov = jtj.ldlt().solve(Eigen::MatrixXd::Identity(jtj.rows(), jtj.cols()));
       best.stderr_x = cov.diagonal().cwiseAbs().cwiseSqrt();
+      best.stderr_given_shape = StderrGivenShape(spec, jtj);
     }
   }
   best.spec = spec;
@@ -155,7 +176,7 @@ TestScore Score(const Problem& p, const FitResult& f, const Mask& test, const Ma
 
 double Significance(const FitResult& f, Effect e, double dispersion) {
   const int o = f.spec.Offset(e);
-  if (o < 0 || f.stderr_x.size() != f.x.size()) return 0;
+  if (o < 0 || f.stderr_given_shape.size() != f.x.size()) return 0;
   // An effect size pinned at the limit of its physical range: the data want something this effect
   // cannot be, so it is not the explanation.
   const ParamSpec main = EffectParams(e).front();
@@ -169,10 +190,10 @@ double Significance(const FitResult& f, Effect e, double dispersion) {
   const double inflate = std::sqrt(std::max(1.0, dispersion));
   if (e == Effect::kFeedSegregation) {
     const double amp = std::hypot(f.x[o], f.x[o + 1]);
-    const double se = std::hypot(f.stderr_x[o], f.stderr_x[o + 1]) / std::sqrt(2.0) * inflate;
+    const double se = std::hypot(f.stderr_given_shape[o], f.stderr_given_shape[o + 1]) / std::sqrt(2.0) * inflate;
     return se > 0 ? amp / se : 0;
   }
-  const double se = f.stderr_x[o] * inflate;
+  const double se = f.stderr_given_shape[o] * inflate;
   return se > 0 ? std::fabs(f.x[o]) / se : 0;
 }
 

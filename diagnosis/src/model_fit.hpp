@@ -64,8 +64,11 @@ struct FitResult {
   ModelSpec spec;
   Eigen::VectorXd x;
   double chi2 = 0;
-  std::vector<double> u;  ///< per usable sensor
-  Eigen::VectorXd stderr_x;
+  std::vector<double> u;     ///< per usable sensor
+  Eigen::VectorXd stderr_x;  ///< standard errors from the fit's curvature, every parameter free
+  /// Standard errors with the shape parameters (ParamSpec::shape) held at their fitted values; NaN
+  /// for the shape parameters themselves. What tests an effect's size against zero (Significance).
+  Eigen::VectorXd stderr_given_shape;
   size_t n_train = 0;
 };
 
@@ -122,9 +125,19 @@ struct ModelEval {
   double significance = 0;  ///< smallest |effect size| / standard error over the model's effects
 };
 
+/// Standard errors from a fit's curvature `jtj` (J^T J of the whitened residuals) with the shape
+/// parameters of `spec`'s effects held fixed: the inverse of the curvature restricted to the other
+/// parameters; NaN for the shape parameters themselves.
+Eigen::VectorXd StderrGivenShape(const ModelSpec& spec, const Eigen::MatrixXd& jtj);
+
 /// |effect size| / standard error of an effect's main parameter in a fit (feed segregation: the
 /// amplitude of its cosine). A finding needs its effect size determined by the data, not just a
 /// better chi-square (two sensors can always be "explained" by a two-parameter angle pattern).
+/// The standard error is the one with the shape parameters held at their fitted values: a shape
+/// parameter (a time constant, an onset depth) is not identified when the size is zero, so its
+/// trade-off with the size says nothing about whether the size is zero (Davies' problem of a
+/// nuisance parameter present only under the alternative; the search over it is paid for by its
+/// ln N in delta BIC).
 double Significance(const FitResult& f, Effect e, double dispersion);
 
 /// Start points of a fit of `spec`: row scales `k`, effect parameters seeded from earlier fits of

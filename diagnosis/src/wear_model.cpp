@@ -41,11 +41,11 @@ std::vector<ParamSpec> EffectParams(Effect effect) {
     case Effect::kWorkHardening:
       // h: wear-rate reduction where normal stress is at its robust maximum, once saturated;
       // log_tau: log of the saturation time constant in days.
-      return {{"h", 0.0, 0.95, 0.2, 0.3}, {"log_tau", std::log(0.5), std::log(300.0), std::log(8.0), 1.0}};
+      return {{"h", 0.0, 0.95, 0.2, 0.3}, {"log_tau", std::log(0.5), std::log(300.0), std::log(8.0), 1.0, true}};
     case Effect::kHardnessGradient:
       // g: wear-rate increase at mid-thickness (softer core); d0: depth where softening starts, as a
       // share of half the thickness.
-      return {{"g", 0.0, 2.0, 0.2, 0.3}, {"d0", 0.0, 0.9, 0.3, 0.3}};
+      return {{"g", 0.0, 2.0, 0.2, 0.3}, {"d0", 0.0, 0.9, 0.3, 0.3, true}};
     case Effect::kSqueezeWear:
       // beta: squeeze (normal-stress) wear per unit of normal stress, relative to the map's wear.
       return {{"beta", 0.0, 5.0, 0.3, 0.3}};

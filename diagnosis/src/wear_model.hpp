@@ -29,6 +29,9 @@ struct ParamSpec {
   double upper = 0;
   double initial = 0;
   double scale = 1;  ///< typical magnitude, for numeric derivatives
+  /// A shape parameter (work hardening's time constant, the hardness gradient's onset depth): it
+  /// exists only when the effect's size is not zero, so it is not identified at zero size.
+  bool shape = false;
 };
 std::vector<ParamSpec> EffectParams(Effect effect);
 

@@ -1,6 +1,7 @@
 // The stages of Diagnose() (diagnosis/src/stage_*.hpp) through their headers: each stage's typed
 // result on a small synthetic campaign (a null one and one with strong work hardening, built once),
 // and the stages' pure parts on hand-made inputs.
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <memory>
@@ -284,6 +285,31 @@ TEST(StageHypotheses, BestAcceptedAndPairCandidates) {
   CHECK_TRUE((top == std::vector<size_t>{1, 3, 0}));
   evals[0].delta_bic = -1;  // no gain: not a candidate
   CHECK_TRUE((d::PairCandidates(evals) == std::vector<size_t>{1, 3}));
+}
+
+TEST(StageHypotheses, EffectSizeIsTestedWithItsShapeHeldAtTheFit) {
+  // Row scale, h, log_tau: h and the time constant trade off (correlation 0.99).
+  d::ModelSpec spec;
+  spec.effects = {d::Effect::kWorkHardening};
+  Eigen::MatrixXd jtj(3, 3);
+  jtj << 4, 0, 0, 0, 1, 0.99, 0, 0.99, 1;
+  const Eigen::VectorXd given = d::StderrGivenShape(spec, jtj);
+  DOUBLES_EQUAL(0.5, given[0], 1e-12);
+  DOUBLES_EQUAL(1.0, given[1], 1e-12);  // the marginal one is 1 / sqrt(1 - 0.99^2) = 7.1
+  CHECK_TRUE(std::isnan(given[2]));     // log_tau: a shape parameter
+  d::FitResult f;
+  f.spec = spec;
+  f.x = Eigen::Vector3d(1.0, 0.3, std::log(5.0));
+  f.stderr_x = jtj.inverse().diagonal().cwiseSqrt();
+  f.stderr_given_shape = given;
+  DOUBLES_EQUAL(0.3, d::Significance(f, d::Effect::kWorkHardening, 1.0), 1e-12);
+  DOUBLES_EQUAL(0.15, d::Significance(f, d::Effect::kWorkHardening, 4.0), 1e-12);  // over-dispersion inflates
+  // Without a shape parameter (feed segregation's two amplitudes) nothing is held: the marginal errors.
+  d::ModelSpec feed;
+  feed.effects = {d::Effect::kFeedSegregation};
+  const Eigen::VectorXd marginal = jtj.inverse().diagonal().cwiseSqrt();
+  const Eigen::VectorXd same = d::StderrGivenShape(feed, jtj);
+  for (Eigen::Index k = 0; k < 3; ++k) DOUBLES_EQUAL(marginal[k], same[k], 1e-9);
 }
 
 TEST_GROUP(StageFindings){};
