@@ -528,6 +528,29 @@ TEST(Gateway, FullSpoolRecordIsNeitherStoredNorAcked) {
   LONGS_EQUAL(1, json::parse(gateway->StatsJson(now))["records_rejected"].get<int>());
 }
 
+// The spool fills in the middle of one read (one transaction): the records that fit are stored
+// and acked, the rest of the same frame is not acked (the sensor keeps it), and a retransmission
+// of a stored record later in the same read is still a duplicate, acked again.
+TEST(Gateway, SpoolFullInTheMiddleOfOneReadAcksExactlyWhatWasStored) {
+  Start(3);
+  publisher.connected = false;
+  std::vector<uint8_t> bytes = ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1), MakeRecord(2)});
+  for (const auto& frame :
+       {ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(3), MakeRecord(4)}), ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(2)}),
+        ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(5)})}) {
+    bytes.insert(bytes.end(), frame.begin(), frame.end());
+  }
+  Feed(bytes);
+  LONGS_EQUAL(3, gateway->spool_depth());
+  LONGS_EQUAL(3, radio.acks.size());  // {1, 2}, {3}, {2}; none for the frame of 5
+  CHECK(radio.AckedSeqs() == (std::vector<uint32_t>{1, 2, 3, 2}));
+  LONGS_EQUAL(2, gateway->counters().records_rejected);  // 4 and 5
+  LONGS_EQUAL(1, gateway->counters().records_duplicate);
+  const auto heads = spool->Heads(10);
+  LONGS_EQUAL(3, heads.size());
+  LONGS_EQUAL(3, heads.back().seq);
+}
+
 TEST(Gateway, GarbageAndMalformedFramesAreCountedNotFatal) {
   Feed({0x7E, 0x00, 0x05, 0x90, 0x01, 0x02, 0x03, 0x04, 0x00});  // bad checksum
   Feed(gw::test::Wire(kMode, {0x90, 0x01, 0x02}));               // too short to parse
