@@ -1,7 +1,9 @@
 // linerwatch-gateway end to end without I/O: arbitrary bytes from the coordinator's serial port
-// (first byte: API mode, odd = 1, even = 2) into gateway::Gateway with an in-memory spool, then the
-// server's side of the conversation: every published reading is validated by the server's
-// ValidateReading and acknowledged with the server's commit ack (mqtt::EncodeCommitAck) until nothing is left.
+// (first byte: bit 0 the API mode, 1 = 1, 0 = 2; bit 1 the server announces batches) into
+// gateway::Gateway with an in-memory spool, then the server's side of the conversation: every
+// published reading (each record of a batch, split by mqtt::SplitReadingMessage) is validated by
+// the server's ValidateReading and acknowledged with the server's commit ack
+// (mqtt::EncodeCommitAck, announcing 64 records per message or not) until nothing is left.
 // Properties: every message the gateway publishes (reading, status, devices, stats) is JSON; a
 // reading it builds is never refused by the server as malformed or unidentifiable; each ack it
 // writes to the radio decodes with the firmware's protocol library; no spool error; once every
@@ -24,6 +26,7 @@ using lw::fuzz::Check;
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size == 0) return 0;
   const protocol::ApiMode mode = (data[0] & 1) ? protocol::ApiMode::kUnescaped : protocol::ApiMode::kEscaped;
+  const uint32_t announce = (data[0] & 2) ? static_cast<uint32_t>(mqtt::kMaxReadingBatch) : 0;
   gateway::Spool spool(":memory:", 1000);
   lw::test::FakePublisher publisher;
   lw::test::FakeRadio radio(mode);
@@ -51,11 +54,20 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       const auto topic = mqtt::Topics::ParseAny(m.topic);
       if (!topic || topic->kind != mqtt::TopicKind::kReading) continue;
       ++readings;
-      const server::Validation v =
-          server::ValidateReading({topic->site, topic->crusher, topic->id, m.topic, m.payload}, registry, fuzz::kNowS);
-      Check(!v.sensor.empty() && v.seq.has_value(), "the server cannot identify a reading the gateway built: " + v.error);
-      gw.OnMessage(gw.topics().Committed(topic->id),
-                   mqtt::EncodeCommitAck({topic->id, {static_cast<uint32_t>(*v.seq)}, "2026-06-01T00:00:00Z"}), now_ms);
+      std::vector<std::string> records;
+      std::string error;
+      Check(mqtt::SplitReadingMessage(m.payload, &records, &error), "the server refuses the gateway's batch: " + error);
+      Check(announce != 0 || records.empty(), "a batch published to a server that did not announce batches");
+      Check(records.size() <= mqtt::kMaxReadingBatch && m.payload.size() <= mqtt::kMaxReadingBytes, "a batch over the limits");
+      if (records.empty()) records.push_back(m.payload);
+      mqtt::CommitAck ack{topic->id, {}, "2026-06-01T00:00:00Z", announce};
+      for (const std::string& r : records) {
+        const server::Validation v =
+            server::ValidateReading({topic->site, topic->crusher, topic->id, m.topic, r}, registry, fuzz::kNowS);
+        Check(!v.sensor.empty() && v.seq.has_value(), "the server cannot identify a reading the gateway built: " + v.error);
+        ack.seqs.push_back(static_cast<uint32_t>(*v.seq));
+      }
+      gw.OnMessage(gw.topics().Committed(topic->id), mqtt::EncodeCommitAck(ack), now_ms);
       ++checked;
     }
     if (readings == 0) break;

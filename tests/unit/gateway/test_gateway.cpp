@@ -181,6 +181,39 @@ TEST(Gateway, FramesOfOneReadAreSpooledTogetherBeforeAnyAck) {
   LONGS_EQUAL(1, gateway->counters().records_duplicate);
 }
 
+// The serial loop reads whatever the port holds (SerialPort::ReadWaiting), so a read can end
+// anywhere: inside a frame, between an API-2 escape byte (0x7D) and the byte it escapes. At every
+// cut of a stream of two frames full of escaped bytes, each record is spooled once and acked once.
+TEST(Gateway, AReadEndingAnywhereInAFrameLosesAndDuplicatesNothing) {
+  publisher.connected = false;
+  constexpr uint64_t kEscapy = 0x0013A2007E7D1113ull;  // every byte API mode 2 escapes
+  constexpr uint32_t kBase = 0x7E7D1100u;
+  size_t cuts = 0, escapes = 0;
+  for (uint32_t k = 0;; ++k) {
+    std::vector<uint8_t> bytes = ReadingsFrame(kMode, kEscapy, 0x137D, {MakeRecord(kBase + 2 * k, 0x117E)});
+    const auto second = ReadingsFrame(kMode, kEscapy, 0x137D, {MakeRecord(kBase + 2 * k + 1, 0x7D13)});
+    bytes.insert(bytes.end(), second.begin(), second.end());
+    if (k == 0) escapes = static_cast<size_t>(std::count(bytes.begin(), bytes.end(), 0x7D));
+    const size_t cut = k + 1;
+    if (cut >= bytes.size()) break;
+    gateway->OnBytes(bytes.data(), cut, now);
+    gateway->OnBytes(bytes.data() + cut, bytes.size() - cut, now);
+    ++cuts;
+  }
+  CHECK_TEXT(escapes >= 8, std::to_string(escapes).c_str());
+  CHECK(cuts > 100);
+  LONGS_EQUAL(2 * cuts, gateway->spool_depth());
+  LONGS_EQUAL(2 * cuts, gateway->counters().records_spooled);
+  LONGS_EQUAL(0, gateway->counters().records_duplicate);
+  std::vector<uint32_t> acked = radio.AckedSeqs();
+  std::sort(acked.begin(), acked.end());
+  LONGS_EQUAL(2 * cuts, acked.size());
+  for (uint32_t i = 0; i < acked.size(); ++i) LONGS_EQUAL(kBase + i, acked[i]);
+  for (const auto& a : radio.acks) CHECK(a.dest64 == kEscapy);
+  const pr::DecoderCounters& d = gateway->decoder_counters();
+  LONGS_EQUAL(0, d.checksum_errors + d.escape_errors);
+}
+
 // The acks of a long read go out in a few writes, not one per frame; a failed write counts every
 // ack in it (the sensors keep their records and retransmit; the spooled ones are acked again).
 TEST(Gateway, AcksOfALongReadGoOutInFewWritesAndAFailedWriteCountsEachAck) {
@@ -348,6 +381,45 @@ TEST(Gateway, AnUnackedBatchIsRepublishedOneRecordPerMessage) {
   LONGS_EQUAL(0, gateway->spool_depth());
 }
 
+// A server that stops announcing batches while batches are in flight (an older one took over
+// behind the broker, or two servers answer in turn): the records beyond the one-record window are
+// published again, never lost; every record ends committed and the spool empty.
+TEST(Gateway, AServerThatStopsAnnouncingBatchesMidFlightLosesNoRecord) {
+  FeedSeqs(1, 40);
+  FeedSeqs(41, 41);
+  size_t served = 0;
+  // Plays the server: acks every seq of every reading message not served yet, announcing
+  // batches or not as `announce` says.
+  const auto serve = [&](bool announce, int64_t at) {
+    const auto sent = publisher.SentOn("sensors/1001/reading");
+    for (; served < sent.size(); ++served) {
+      std::vector<std::string> records;
+      std::string error;
+      CHECK_TEXT(lw::mqtt::SplitReadingMessage(sent[served].payload, &records, &error), error.c_str());
+      if (records.empty()) records.push_back(sent[served].payload);
+      std::vector<uint32_t> seqs;
+      for (const std::string& r : records) seqs.push_back(json::parse(r)["seq"].get<uint32_t>());
+      gateway->OnMessage(Committed(1001), announce ? BatchAckJson(seqs, 64) : AckJson(seqs), at);
+    }
+  };
+  gateway->Pump(now);
+  serve(true, now);
+  gateway->Pump(now);
+  CHECK(PublishedMessages(1001).back().size() > 1);  // a batch in flight
+  // Another sensor's ack from a server without the announcement arrives first.
+  gateway->OnMessage(Committed(2002), AckJson({1}), now + 1);
+  LONGS_EQUAL(1, gateway->batch_records());
+  for (int round = 0; round < 200 && gateway->spool_depth() > 0; ++round) {
+    now += 20'000;  // past republish_after_ms: whatever waits is published again
+    gateway->Pump(now);
+    serve(round % 3 == 0, now);
+    gateway->Pump(now);
+  }
+  gateway->Pump(now + 1'000'000);
+  LONGS_EQUAL(0, gateway->spool_depth());
+  LONGS_EQUAL(41, gateway->counters().committed);
+}
+
 TEST(Gateway, MaxBatchBoundsTheRecordsPerMessageAndOneNeverBatches) {
   Start(1'000, 2, 1000, 2);  // window 2, at most 2 records per message
   FeedSeqs(1, 6);
@@ -454,6 +526,29 @@ TEST(Gateway, FullSpoolRecordIsNeitherStoredNorAcked) {
   CHECK(radio.AckedSeqs() == std::vector<uint32_t>{1});
   LONGS_EQUAL(1, gateway->counters().records_rejected);
   LONGS_EQUAL(1, json::parse(gateway->StatsJson(now))["records_rejected"].get<int>());
+}
+
+// The spool fills in the middle of one read (one transaction): the records that fit are stored
+// and acked, the rest of the same frame is not acked (the sensor keeps it), and a retransmission
+// of a stored record later in the same read is still a duplicate, acked again.
+TEST(Gateway, SpoolFullInTheMiddleOfOneReadAcksExactlyWhatWasStored) {
+  Start(3);
+  publisher.connected = false;
+  std::vector<uint8_t> bytes = ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1), MakeRecord(2)});
+  for (const auto& frame :
+       {ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(3), MakeRecord(4)}), ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(2)}),
+        ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(5)})}) {
+    bytes.insert(bytes.end(), frame.begin(), frame.end());
+  }
+  Feed(bytes);
+  LONGS_EQUAL(3, gateway->spool_depth());
+  LONGS_EQUAL(3, radio.acks.size());  // {1, 2}, {3}, {2}; none for the frame of 5
+  CHECK(radio.AckedSeqs() == (std::vector<uint32_t>{1, 2, 3, 2}));
+  LONGS_EQUAL(2, gateway->counters().records_rejected);  // 4 and 5
+  LONGS_EQUAL(1, gateway->counters().records_duplicate);
+  const auto heads = spool->Heads(10);
+  LONGS_EQUAL(3, heads.size());
+  LONGS_EQUAL(3, heads.back().seq);
 }
 
 TEST(Gateway, GarbageAndMalformedFramesAreCountedNotFatal) {

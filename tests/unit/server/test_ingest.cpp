@@ -1,5 +1,6 @@
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 
 #include "core/scan_correction.hpp"
 #include "mqtt/messages.hpp"
@@ -394,4 +395,62 @@ TEST(Ingest, CrusherJsonSiteBindsBeforeAnyReading) {
   r = ingestor.Ingest({lw::test::Messages(folder.bundle, "plant")[0]});
   LONGS_EQUAL(1, r.stored);
   STRCMP_EQUAL("plant", r.acks.at(0).site.c_str());
+}
+
+// docs/mqtt.md, *Batches*: a batch that does not parse as JSON as a whole (here a number in one
+// record overflows a double) is judged as one message: quarantined, nothing stored, nothing acked
+// (no seq), so the gateway republishes its records one per message, and then each is judged alone:
+// the good ones stored, the overflowing one quarantined and acked. Nothing is lost either way.
+TEST(Ingest, ABatchWithAnOverflowingNumberIsQuarantinedWholeAndItsRecordsAloneAreJudgedAlone) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  Ingestor ingestor(store, *registry, [] { return Now(); });
+  const auto record = [](int seq, const char* flags) {
+    return R"({"sensor":"1001","seq":)" + std::to_string(seq) +
+           R"(,"time":"2026-01-10T00:00:00Z","thickness_mm":100,"loops_intact":100,"flags":)" + flags + R"(,"battery_mv":3500})";
+  };
+  const std::string batch =
+      R"({"records":[)" + record(5, "0") + "," + record(6, "1e999") + "," + record(7, "0") + R"(],"sensor":"1001"})";
+  IngestResult r = ingestor.Ingest({With(batch)});
+  LONGS_EQUAL(0, r.stored);
+  LONGS_EQUAL(1, r.rejected);
+  LONGS_EQUAL(0, r.acks.size());
+  CHECK(r.log.back().find("1e999") != std::string::npos);
+  // The gateway's republication, one record per message.
+  r = ingestor.Ingest({With(record(5, "0")), With(record(6, "1e999")), With(record(7, "0"))});
+  LONGS_EQUAL(2, r.stored);
+  LONGS_EQUAL(1, r.rejected);
+  LONGS_EQUAL(1, r.acks.size());
+  CHECK(r.acks[0].seqs == (std::vector<int64_t>{5, 6, 7}));
+  LONGS_EQUAL(2, store.CountReadings(Folder().id()));
+}
+
+// Hostile batches: a seq twice in one batch (the same record, then another thickness), elements
+// that are no records at all (a number, a string, an array, a batch inside the batch), a record of
+// another sensor. Each element is judged alone: one stored, its repetitions a duplicate and a
+// conflict (acked, the first kept), the rest quarantined; only the topic sensor's seqs are acked.
+TEST(Ingest, HostileElementsOfABatchAreEachJudgedAloneAndNothingElseIsAcked) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  Ingestor ingestor(store, *registry, [] { return Now(); });
+  const auto record = [](int seq, int thickness) {
+    return R"({"seq":)" + std::to_string(seq) + R"(,"time":"2026-01-10T00:00:00Z","thickness_mm":)" + std::to_string(thickness) +
+           R"(,"loops_intact":100,"flags":0,"battery_mv":3500})";
+  };
+  const std::string inner = R"({"records":[)" + record(9, 100) + R"(],"sensor":"1001"})";
+  const std::string batch = R"({"records":[)" + record(5, 100) + "," + record(5, 100) + "," + record(5, 90) +
+                            R"(,7,"text",[1,2],)" + inner +
+                            R"(,{"sensor":"1002","seq":6,"time":"2026-01-10T00:00:00Z","thickness_mm":100}],"sensor":"1001"})";
+  const IngestResult r = ingestor.Ingest({With(batch)});
+  LONGS_EQUAL(1, r.stored);
+  LONGS_EQUAL(1, r.duplicates);
+  LONGS_EQUAL(1, r.conflicts);
+  LONGS_EQUAL(5, r.rejected);
+  LONGS_EQUAL(1, r.acks.size());
+  STRCMP_EQUAL("1001", r.acks[0].sensor.c_str());
+  CHECK(r.acks[0].seqs == (std::vector<int64_t>{5}));  // not 6 (sensor 1002), not 9 (a batch in a batch)
+  LONGS_EQUAL(1, store.CountReadings(Folder().id()));
+  const Page page = store.Range(Folder().id(), "1001", 0, std::numeric_limits<int64_t>::max(), 10, "");
+  LONGS_EQUAL(1, page.readings.size());
+  DOUBLES_EQUAL(100, page.readings[0].thickness_mm, 0);  // the first of seq 5 is kept
 }
