@@ -36,24 +36,40 @@ double Round(double v, double digits) {
   return std::round(v * f) / f;
 }
 
-Eigen::VectorXd StderrGivenShape(const ModelSpec& spec, const Eigen::MatrixXd& jtj) {
-  std::vector<Eigen::Index> free;
-  for (Eigen::Index k = 0; k < static_cast<Eigen::Index>(spec.rows); ++k) free.push_back(k);
+namespace {
+
+/// Standard errors from J'J: the square roots of the diagonal of the inverse of its rows and
+/// columns `keep` (every parameter when empty); NaN for the others.
+Eigen::VectorXd Stderr(const Eigen::MatrixXd& jtj, const std::vector<Eigen::Index>& keep) {
+  if (keep.empty()) return jtj.ldlt().solve(Eigen::MatrixXd::Identity(jtj.rows(), jtj.cols())).diagonal().cwiseAbs().cwiseSqrt();
+  const auto n = static_cast<Eigen::Index>(keep.size());
+  Eigen::MatrixXd sub(n, n);
+  for (Eigen::Index a = 0; a < n; ++a)
+    for (Eigen::Index b = 0; b < n; ++b) sub(a, b) = jtj(keep[static_cast<size_t>(a)], keep[static_cast<size_t>(b)]);
+  const Eigen::MatrixXd cov = sub.ldlt().solve(Eigen::MatrixXd::Identity(n, n));
+  Eigen::VectorXd se = Eigen::VectorXd::Constant(jtj.rows(), kNaN);
+  for (Eigen::Index a = 0; a < n; ++a) se[keep[static_cast<size_t>(a)]] = std::sqrt(std::fabs(cov(a, a)));
+  return se;
+}
+
+/// The parameters that are not an effect's shape (spec.rows' scales and every effect size).
+std::vector<Eigen::Index> NonShapeParams(const ModelSpec& spec) {
+  std::vector<Eigen::Index> keep;
+  for (Eigen::Index k = 0; k < static_cast<Eigen::Index>(spec.rows); ++k) keep.push_back(k);
   for (Effect e : spec.effects) {
     Eigen::Index k = spec.Offset(e);
     for (const ParamSpec& ps : EffectParams(e)) {
-      if (!ps.shape) free.push_back(k);
+      if (!ps.shape) keep.push_back(k);
       ++k;
     }
   }
-  const auto n = static_cast<Eigen::Index>(free.size());
-  Eigen::MatrixXd sub(n, n);
-  for (Eigen::Index a = 0; a < n; ++a)
-    for (Eigen::Index b = 0; b < n; ++b) sub(a, b) = jtj(free[static_cast<size_t>(a)], free[static_cast<size_t>(b)]);
-  const Eigen::MatrixXd cov = sub.ldlt().solve(Eigen::MatrixXd::Identity(n, n));
-  Eigen::VectorXd se = Eigen::VectorXd::Constant(jtj.rows(), kNaN);
-  for (Eigen::Index a = 0; a < n; ++a) se[free[static_cast<size_t>(a)]] = std::sqrt(std::fabs(cov(a, a)));
-  return se;
+  return keep;
+}
+
+}  // namespace
+
+Eigen::VectorXd StderrGivenShape(const ModelSpec& spec, const Eigen::MatrixXd& jtj) {
+  return Stderr(jtj, NonShapeParams(spec));
 }
 
 double Interp(const Eigen::MatrixXd& w, const Obs& o) {
@@ -113,17 +129,21 @@ FitResult Fit(const Problem& p, const ModelSpec& spec, const Mask& train, const 
   auto fn = [&](const Eigen::VectorXd& x, Eigen::VectorXd& r) { Residuals(p, spec, x, train, opt, r, nullptr, w); };
   FitResult best;
   best.chi2 = std::numeric_limits<double>::max();
+  Eigen::MatrixXd jtj;  // the best start's
   for (const Eigen::VectorXd& start : starts) {
     LmResult lm = MinimiseLeastSquares(fn, start, lower, upper, scale, max_iterations);
     if (lm.cost < best.chi2) {
       best.chi2 = lm.cost;
       best.x = lm.x;
-      Eigen::MatrixXd jtj = lm.jtj;
-      for (Eigen::Index d = 0; d < jtj.rows(); ++d) jtj(d, d) += 1e-12;
-      const Eigen::MatrixXd cov = jtj.ldlt().solve(Eigen::MatrixXd::Identity(jtj.rows(), jtj.cols()));
-      best.stderr_x = cov.diagonal().cwiseAbs().cwiseSqrt();
-      best.stderr_given_shape = StderrGivenShape(spec, jtj);
+      jtj = std::move(lm.jtj);
     }
+  }
+  if (jtj.size() > 0) {
+    for (Eigen::Index d = 0; d < jtj.rows(); ++d) jtj(d, d) += 1e-12;
+    best.stderr_x = Stderr(jtj, {});
+    // With an effect's shape held at its fitted value; the same when the model has no shape parameter.
+    const std::vector<Eigen::Index> keep = NonShapeParams(spec);
+    best.stderr_given_shape = keep.size() == static_cast<size_t>(jtj.rows()) ? best.stderr_x : Stderr(jtj, keep);
   }
   best.spec = spec;
   Eigen::VectorXd r;
