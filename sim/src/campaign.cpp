@@ -203,7 +203,9 @@ Campaign GenerateCampaign(const CampaignSpec& input, uint64_t seed) {
         if (f->kind == "dropout" && day < f->day + std::max(0.5, f->size)) silent = true;
         if (f->kind == "flicker" && day < f->day + std::max(1.0, f->size) && truth - std::floor(truth) < 0.35) {
           flicker_phase = !flicker_phase;
-          if (flicker_phase) value += 1;  // the loop at the face is still half-cut
+          // The loop at the face is still half-cut; a new liner has no loop above its face, so the
+          // ladder never reads more than its top.
+          if (flicker_phase) value = std::min(value + 1, std::floor(s.thickness_new_mm));
         }
         if (f->kind == "crack") {
           if (crack_level < 0)

@@ -125,6 +125,22 @@ TEST(SimCampaign, FaultsShowInTheReadings) {
   CHECK(last_stuck > 0);
 }
 
+// A flicker from day 0 (found by fuzz_sim_campaign): the unworn ladder cannot read a loop above
+// its top, so no reading is thicker than a new liner.
+TEST(SimCampaign, AFlickerOnANewLinerNeverReadsAboveItsTop) {
+  CampaignSpec s = Small();
+  s.days = 10;
+  s.poll_minutes = 67;
+  s.faults = {{"1001", "flicker", 0, 2}};
+  const auto c = GenerateCampaign(s, 1);
+  size_t flicker_readings = 0;
+  for (const auto& r : c.readings()) {
+    CHECK(r.thickness_mm <= s.thickness_new_mm);
+    if (r.sensor_id == "1001") ++flicker_readings;
+  }
+  CHECK(flicker_readings > 0);
+}
+
 TEST(SimCampaign, BundleReadsBackAndIsWrittenAtomically) {
   const lw::test::TempDirectory tmp("lw-sim");
   const auto dir = tmp.path() / "bundle";
