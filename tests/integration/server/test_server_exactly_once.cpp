@@ -226,12 +226,17 @@ TEST(ServerExactlyOnce, ABatchIsStoredRecordByRecordAndAckedWithTheAnnouncement)
                   R"(,"time":"yesterday","thickness_mm":1,"loops_intact":1,"flags":0,"battery_mv":3000})");
   expected.insert(bad_seq);
   const std::string batch = lw::mqtt::EncodeReadingBatch(sensor, {texts.begin(), texts.end()});
-  client.publish(root + "sensors/" + sensor + "/reading", batch, 1, false)->wait();
-
+  // Published again every 1.5 s until every seq is acked, as the gateway republishes: a server that
+  // has only just connected may not have subscribed yet (seen once in CI on a loaded machine).
+  int64_t published_at = 0;
   std::set<int64_t> acked;
   uint32_t announced = 0;
   const int64_t deadline = NowMs() + 30'000;
   while (acked != expected && NowMs() < deadline) {
+    if (NowMs() - published_at > 1500) {
+      client.publish(root + "sensors/" + sensor + "/reading", batch, 1, false)->wait();
+      published_at = NowMs();
+    }
     mqtt::const_message_ptr msg;
     if (!client.try_consume_message_for(&msg, std::chrono::milliseconds(100)) || !msg) continue;
     std::string error;
