@@ -112,6 +112,44 @@ int CellGrid::CellOf(double z, double theta_deg) const {
   return static_cast<int>(iz * static_cast<long>(nt) + it);
 }
 
+namespace {
+
+// RMS of the cosine and sine parts of the raw map's first circumferential harmonic, relative to the
+// area-weighted mean of each band of z (ten bands over the rows): one two-component sample of the
+// map's own asymmetry. A run of an axisymmetric chamber should have none, so what it shows is error.
+double OwnHarmonic1(const core::WearMap& map, const MapFields& f) {
+  constexpr int kBands = 10;
+  const double height = f.z_top - f.z_bottom;
+  if (!(height > 0)) return 0.0;
+  const auto nf = static_cast<Eigen::Index>(map.face_count());
+  std::vector<double> sum_aw(kBands, 0.0), sum_a(kBands, 0.0);
+  auto band_of = [&](Eigen::Index i) {
+    return std::clamp(static_cast<int>((map.z[i] - f.z_bottom) / height * kBands), 0, kBands - 1);
+  };
+  for (Eigen::Index i = 0; i < nf; ++i) {
+    if (!(map.wear[i] >= 0) || !(map.areas[i] > 0)) continue;
+    sum_aw[static_cast<size_t>(band_of(i))] += map.areas[i] * map.wear[i];
+    sum_a[static_cast<size_t>(band_of(i))] += map.areas[i];
+  }
+  double a = 0, b = 0, weight = 0;
+  for (Eigen::Index i = 0; i < nf; ++i) {
+    if (!(map.wear[i] >= 0) || !(map.areas[i] > 0)) continue;
+    const auto k = static_cast<size_t>(band_of(i));
+    const double mean = sum_a[k] > 0 ? sum_aw[k] / sum_a[k] : 0.0;
+    if (!(mean > 0)) continue;
+    const double dev = map.wear[i] / mean - 1.0, th = map.theta_deg[i] * kPi / 180.0;
+    a += map.areas[i] * dev * std::cos(th);
+    b += map.areas[i] * dev * std::sin(th);
+    weight += map.areas[i];
+  }
+  if (!(weight > 0)) return 0.0;
+  a *= 2.0 / weight;
+  b *= 2.0 / weight;
+  return std::sqrt(0.5 * (a * a + b * b));
+}
+
+}  // namespace
+
 MapFields ComputeMapFields(const core::Bundle& bundle) {
   const core::WearMap& map = bundle.map;
   const auto nf = static_cast<Eigen::Index>(map.face_count());
@@ -252,6 +290,8 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
     f.rel_sd.setConstant(kUnestimatedFaceNoise);
     f.rel_noise_sd.setConstant(kUnestimatedFaceNoise);
   }
+  f.harmonic1_rel_sd =
+      f.theta_span_deg >= 359.0 ? std::max(kHarmonic1PerFaceNoise * f.face_rel_noise, OwnHarmonic1(map, f)) : 0.0;
   return f;
 }
 

@@ -11,6 +11,13 @@
 namespace lw::diagnosis::detail {
 
 inline constexpr double kUnestimatedFaceNoise = 0.25;
+/// A DEM map's standard error of its first circumferential harmonic (cosine or sine part, relative
+/// to the ring mean) per unit of its faces' relative noise. The load sloshes around the chamber, so
+/// over a finite span that harmonic scatters far more than independent face noise would let it:
+/// measured on five LIGGGHTS runs of four chambers (docs/diagnosis.md, "The map's own asymmetry")
+/// as 0.036-0.080 of the per-face relative scatter between time windows, median 0.07. Both fall as
+/// one over the root of the simulated span, so the ratio carries to maps of other lengths.
+inline constexpr double kHarmonic1PerFaceNoise = 0.07;
 
 struct MapFields {
   /// The map model (core/map_model.hpp) every intensity here comes from: smoothed at the
@@ -24,8 +31,12 @@ struct MapFields {
   Eigen::VectorXd normal_tilde;    ///< per face, normal stress / robust max, clipped to [0, 1.5]; 1 when absent
   Eigen::VectorXd normal_i;        ///< per face, normal stress in intensity units (same area-weighted mean)
   bool has_normal = false;
-  double intensity_median = 1;   ///< raw intensity that maps to 1
-  double face_rel_noise = 0;     ///< relative noise of one raw face (the model's noise law), for notes
+  double intensity_median = 1;  ///< raw intensity that maps to 1
+  double face_rel_noise = 0;    ///< relative noise of one raw face (the model's noise law), for notes
+  /// Standard error of the map's first circumferential harmonic (cosine or sine part, relative):
+  /// the larger of kHarmonic1PerFaceNoise x face_rel_noise and the harmonic the raw map itself
+  /// shows (an axisymmetric chamber's map should show none). 0 when the map is not a full ring.
+  double harmonic1_rel_sd = 0;
   bool noise_estimated = false;  ///< false: too few faces to estimate it; kUnestimatedFaceNoise assumed
   double face_size_m = 0.05;     ///< typical face edge
   double z_bottom = 0;           ///< concave extent along z (rows)

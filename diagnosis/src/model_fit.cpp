@@ -194,7 +194,21 @@ TestScore Score(const Problem& p, const FitResult& f, const Mask& test, const Ma
   return s;
 }
 
-double Significance(const FitResult& f, Effect e, double dispersion) {
+double RayleighToZ(double r) {
+  if (!(r > 0)) return 0;
+  const double log_p = -0.5 * r * r;  // P(R > r), as a log (tiny for large r)
+  if (log_p < -700) return 37.5;      // beyond double precision: far past any threshold
+  const double p = std::exp(log_p);
+  // z with erfc(z / sqrt 2) = p, by bisection (erfc falls monotonically).
+  double lo = 0, hi = 40;
+  for (int it = 0; it < 200 && hi - lo > 1e-10; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (std::erfc(mid / std::sqrt(2.0)) > p ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+double Significance(const FitResult& f, Effect e, double dispersion, double map_harmonic1_sd) {
   const int o = f.spec.Offset(e);
   if (o < 0 || f.stderr_given_shape.size() != f.x.size()) return 0;
   // An effect size pinned at the limit of its physical range: the data want something this effect
@@ -209,9 +223,13 @@ double Significance(const FitResult& f, Effect e, double dispersion) {
   }
   const double inflate = std::sqrt(std::max(1.0, dispersion));
   if (e == Effect::kFeedSegregation) {
+    // The amplitude against the recordings' noise and the map's own first-harmonic error (a DEM
+    // map's load sloshes around the chamber: its cosine and sine parts scatter from one time window
+    // to the next far more than independent face noise allows), judged at the one-parameter level.
     const double amp = std::hypot(f.x[o], f.x[o + 1]);
-    const double se = std::hypot(f.stderr_given_shape[o], f.stderr_given_shape[o + 1]) / std::sqrt(2.0) * inflate;
-    return se > 0 ? amp / se : 0;
+    const double se_fit = std::hypot(f.stderr_given_shape[o], f.stderr_given_shape[o + 1]) / std::sqrt(2.0) * inflate;
+    const double se = std::hypot(se_fit, std::max(0.0, map_harmonic1_sd));
+    return se > 0 ? RayleighToZ(amp / se) : 0;
   }
   const double se = f.stderr_given_shape[o] * inflate;
   return se > 0 ? std::fabs(f.x[o]) / se : 0;

@@ -56,6 +56,10 @@ struct Problem {
   std::vector<size_t> scan_obs;
   std::vector<double> sigma_u;  ///< per usable sensor
   size_t rows = 1;
+  /// The map's own standard error of its first circumferential harmonic (each of the cosine and
+  /// sine amplitudes, relative to the ring mean): what a feed-segregation amplitude must exceed
+  /// besides the recordings' noise (MapFields::harmonic1_rel_sd).
+  double map_harmonic1_sd = 0;
 };
 
 using Mask = std::vector<bool>;
@@ -138,7 +142,11 @@ Eigen::VectorXd StderrGivenShape(const ModelSpec& spec, const Eigen::MatrixXd& j
 /// trade-off with the size says nothing about whether the size is zero (Davies' problem of a
 /// nuisance parameter present only under the alternative; the search over it is paid for by its
 /// ln N in delta BIC).
-double Significance(const FitResult& f, Effect e, double dispersion);
+double Significance(const FitResult& f, Effect e, double dispersion, double map_harmonic1_sd = 0);
+/// The one-parameter z with the same two-sided false-alarm rate as amplitude / per-component
+/// standard error `r` of a two-component (cosine, sine) amplitude, whose null law is Rayleigh:
+/// P(R > r) = exp(-r^2 / 2). So every effect is held to the same 2-sd level.
+double RayleighToZ(double r);
 
 /// Start points of a fit of `spec`: row scales `k`, effect parameters seeded from earlier fits of
 /// the same effects, and (unseeded) a few spread starts for the effects with several minima.

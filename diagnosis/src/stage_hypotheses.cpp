@@ -26,14 +26,15 @@ std::vector<Effect> AvailableEffects(bool has_normal, bool throughput_available)
   return available;
 }
 
-void Judge(ModelEval& ev, const ModelEval& null_eval, size_t rows, double log_n, double dispersion) {
+void Judge(ModelEval& ev, const ModelEval& null_eval, size_t rows, double log_n, double dispersion, double map_harmonic1_sd) {
   const Thresholds th;
   const double p_extra = static_cast<double>(ev.full.spec.ParamCount() - rows);
   ev.delta_bic = (null_eval.full.chi2 - ev.full.chi2) / dispersion - p_extra * log_n;
   ev.ho_gain = (null_eval.ho_chi2 - ev.ho_chi2) / dispersion;
   ev.ho_rel = null_eval.ho_chi2 > 0 ? ev.ho_gain / null_eval.ho_chi2 : 0;
   ev.significance = std::numeric_limits<double>::max();
-  for (Effect e : ev.full.spec.effects) ev.significance = std::min(ev.significance, Significance(ev.full, e, dispersion));
+  for (Effect e : ev.full.spec.effects)
+    ev.significance = std::min(ev.significance, Significance(ev.full, e, dispersion, map_harmonic1_sd));
   ev.accepted = ev.delta_bic > th.min_delta_bic && ev.ho_gain > th.min_holdout_gain && ev.ho_rel > th.min_holdout_rel &&
                 ev.significance > th.min_significance;
   ev.score = ev.delta_bic + ev.ho_gain;
@@ -100,7 +101,7 @@ Hypotheses TestHypotheses(const Problem& prob, const Baseline& base, const NullM
   // Over-dispersion (quasi-likelihood): when even the best model leaves chi2/dof > 1, the noise model
   // is too optimistic for this data, and every chi-square gain is divided by that factor. 1 until
   // every model is fitted.
-  auto judge = [&](ModelEval& ev) { Judge(ev, null.eval, prob.rows, null.log_n, h.dispersion); };
+  auto judge = [&](ModelEval& ev) { Judge(ev, null.eval, prob.rows, null.log_n, h.dispersion, prob.map_harmonic1_sd); };
   for (Effect e : available) {
     ModelSpec spec = base.spec;
     spec.effects = {e};

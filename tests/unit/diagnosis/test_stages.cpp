@@ -312,6 +312,38 @@ TEST(StageHypotheses, EffectSizeIsTestedWithItsShapeHeldAtTheFit) {
   for (Eigen::Index k = 0; k < 3; ++k) DOUBLES_EQUAL(marginal[k], same[k], 1e-9);
 }
 
+TEST(StageHypotheses, FeedSegregationIsJudgedAgainstTheMapsOwnAsymmetryAtTheOneParameterLevel) {
+  // A two-component amplitude over its per-component error is Rayleigh under the null:
+  // P(R > r) = exp(-r^2 / 2); it is converted to the one-parameter z of the same tail.
+  DOUBLES_EQUAL(1.959964, d::RayleighToZ(std::sqrt(2.0 * std::log(20.0))), 1e-5);  // p = 0.05
+  DOUBLES_EQUAL(0.0, d::RayleighToZ(0.0), 1e-12);
+  CHECK_TRUE(d::RayleighToZ(2.0) < 2.0);  // amplitude / error 2 happens 13.5 % of the time by chance
+  CHECK_TRUE(d::RayleighToZ(3.0) > d::RayleighToZ(2.5));
+  d::ModelSpec feed;
+  feed.effects = {d::Effect::kFeedSegregation};
+  d::FitResult f;
+  f.spec = feed;
+  f.x = Eigen::Vector3d(1.0, 0.06, 0.08);  // amplitude 0.1
+  f.stderr_given_shape = Eigen::Vector3d(0.01, 0.02, 0.02);
+  DOUBLES_EQUAL(d::RayleighToZ(5.0), d::Significance(f, d::Effect::kFeedSegregation, 1.0), 1e-9);
+  // The same fit on a map whose own first harmonic is uncertain by 0.04: not significant.
+  const double with_map = d::Significance(f, d::Effect::kFeedSegregation, 1.0, 0.04);
+  DOUBLES_EQUAL(d::RayleighToZ(0.1 / std::hypot(0.02, 0.04)), with_map, 1e-9);
+  CHECK_TRUE(with_map < d::Thresholds{}.min_significance);
+}
+
+TEST(StageSetup, TheMapsOwnFirstHarmonicIsMeasured) {
+  // The null campaign's map, and the same map made 20 % asymmetric (cos theta, every height).
+  lw::core::Bundle bundle = Null().bundle;
+  const d::MapFields plain = d::ComputeMapFields(bundle);
+  CHECK_TRUE(plain.harmonic1_rel_sd >= d::kHarmonic1PerFaceNoise * plain.face_rel_noise - 1e-12);
+  CHECK_TRUE(plain.harmonic1_rel_sd < 0.05);
+  for (Eigen::Index i = 0; i < bundle.map.wear.size(); ++i)
+    bundle.map.wear[i] *= 1.0 + 0.2 * std::cos(bundle.map.theta_deg[i] * 3.14159265358979323846 / 180.0);
+  const d::MapFields skewed = d::ComputeMapFields(bundle);
+  DOUBLES_EQUAL(0.2 / std::sqrt(2.0), skewed.harmonic1_rel_sd, 0.02);
+}
+
 TEST_GROUP(StageFindings){};
 
 TEST(StageFindings, HardeningIsTheTopFindingWithEvidence) {
