@@ -216,6 +216,8 @@ int main(int argc, char** argv) {
   double truth_radius = 0.12;
   bool live_only = false, oracle = false;
   double shrink_hz = 0, shrink_ha = 0;  // --live-shrink HZ,HA: the prototype's finer kernel (0: not run)
+  double fixed_hz = 0, fixed_ha = 0;    // --live-fixed HZ,HA: the map model at a fixed kernel (0: not run)
+  bool window_cv = false;               // --live-window-cv: the scale chosen by window-split cross-validation
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--generator" && i + 1 < argc)
@@ -243,12 +245,17 @@ int main(int argc, char** argv) {
     else if (a == "--live-shrink" && i + 1 < argc && std::sscanf(argv[i + 1], "%lf,%lf", &shrink_hz, &shrink_ha) == 2 &&
              shrink_hz > 0 && shrink_ha > 0)
       ++i;
+    else if (a == "--live-fixed" && i + 1 < argc && std::sscanf(argv[i + 1], "%lf,%lf", &fixed_hz, &fixed_ha) == 2 &&
+             fixed_hz > 0 && fixed_ha > 0)
+      ++i;
+    else if (a == "--live-window-cv")
+      window_cv = true;
     else if (a == "--oracle")
       oracle = true;
     else {
       std::fprintf(stderr,
                    "usage: lw_bench_diagnosis [--generator test|sim|realdem] [--dem-dir DIR] [--truth-radius F] [--live-only] "
-                   "[--live-shrink HZ,HA] [--oracle] "
+                   "[--live-shrink HZ,HA] [--live-fixed HZ,HA] [--live-window-cv] [--oracle] "
                    "[--cases N] [--only TRUTH] [--level L[,L...]] [--seed S] [--keep DIR] [--json-dir DIR] [--threads N]\n");
       return 2;
     }
@@ -476,7 +483,12 @@ int main(int argc, char** argv) {
     double thin_err = 0, thin_err_plain = 0;      // estimate - truth of the thinnest point, mm
     double thin_err_ref = 0, rmse_ref = 0;        // the truth's own construction on the map's windows
     double thin_err_shrink = 0, rmse_shrink = 0;  // prototype: shrinkage towards a finer kernel
-    double rmse = 0, rmse_plain = 0;              // per face against the truth, mm
+    double thin_err_fixed = 0, rmse_fixed = 0;    // the map model at the --live-fixed kernel
+    bool in_band_fixed = false;
+    double thin_err_wcv = 0, rmse_wcv = 0;  // prototype: scale by window-split cross-validation
+    bool in_band_wcv = false;
+    double wcv_hz = 0, wcv_ha = 0;
+    double rmse = 0, rmse_plain = 0;  // per face against the truth, mm
     bool in_band = false;
     double band_lo = 0, band_hi = 0, truth_min = 0;
     double low_only_thin = 0;  // thinnest point with only the lowest row reporting
@@ -538,6 +550,26 @@ int main(int argc, char** argv) {
       const Eigen::VectorXd tw = real->TrueFaceWear(day);
       const double new_mm = bundle.crusher.thickness_new_mm;
       lv.truth_min = new_mm - tw.maxCoeff();
+      const Eigen::VectorXd truth_rem0 = (new_mm - tw.array()).matrix();
+      // The map model at a fixed kernel (no cross-validation, no local scale): thinnest-point error,
+      // per-face RMSE and band coverage.
+      auto at_fixed = [&](double hz, double ha, double& thin_err, double& rmse, bool& in_band) {
+        lw::core::ReconstructionOptions o;
+        o.map_model.bandwidth_m = hz;
+        o.map_model.bandwidth_arc_m = ha;
+        const lw::core::Reconstruction r =
+            lw::core::Reconstruct(lw::core::PrepareReconstruction(bundle.crusher, bundle.map, o), wear);
+        thin_err = r.min_thickness_mm - lv.truth_min;
+        rmse = std::sqrt((r.remaining_mm - truth_rem0).squaredNorm() / static_cast<double>(tw.size()));
+        in_band = lv.truth_min >= r.min_thickness_lo_mm && lv.truth_min <= r.min_thickness_hi_mm;
+      };
+      if (fixed_hz > 0) at_fixed(fixed_hz, fixed_ha, lv.thin_err_fixed, lv.rmse_fixed, lv.in_band_fixed);
+      if (window_cv) {
+        const lw::bench::WindowSplitChoice ch = lw::bench::ChooseScaleByWindowSplit(bundle.map, real->MapWindowWear());
+        lv.wcv_hz = ch.hz;
+        lv.wcv_ha = ch.ha;
+        at_fixed(ch.hz, ch.ha, lv.thin_err_wcv, lv.rmse_wcv, lv.in_band_wcv);
+      }
       if (std::getenv("LW_DEBUG")) {
         Eigen::Index im;
         tw.maxCoeff(&im);
@@ -644,8 +676,8 @@ int main(int argc, char** argv) {
 
   if (use_real) {
     // Live wear on the nulls (item 5 of issue 14): the map model vs a plain top-hat smoothing.
-    std::vector<double> e, ep, rm, rmp, ratio, eref, rmref, eshr, rmshr, ratio_shr;
-    int in_band = 0, n = 0, low_neg = 0;
+    std::vector<double> e, ep, rm, rmp, ratio, eref, rmref, eshr, rmshr, ratio_shr, efix, rmfix, ewcv, rmwcv;
+    int in_band = 0, n = 0, low_neg = 0, in_band_fix = 0, in_band_wcv = 0;
     std::printf("\nLive wear at the inspection day (nulls; thinnest point estimate - truth, per-face RMSE, mm):\n");
     std::printf("%-6s %-22s %11s %9s %9s %9s %9s %17s %9s %-18s %9s %9s\n", "case", "run", "bw_z/arc_m", "thin_err", "plain",
                 "rmse", "plain", "band", "truth", "lowest-row-only", "ref_err", shrink_hz > 0 ? "shrink" : "");
@@ -663,15 +695,25 @@ int main(int argc, char** argv) {
       eshr.push_back(std::fabs(lv.thin_err_shrink));
       rmshr.push_back(lv.rmse_shrink);
       ratio_shr.push_back(lv.rmse_shrink / lv.rmse_plain);
+      efix.push_back(std::fabs(lv.thin_err_fixed));
+      rmfix.push_back(lv.rmse_fixed);
+      ewcv.push_back(std::fabs(lv.thin_err_wcv));
+      rmwcv.push_back(lv.rmse_wcv);
+      in_band_fix += lv.in_band_fixed;
+      in_band_wcv += lv.in_band_wcv;
       in_band += lv.in_band;
       low_neg += !(lv.low_only_thin >= 0);
       char low_only[64];
       std::snprintf(low_only, sizeof low_only, "%.1f (%s)", lv.low_only_thin, lv.low_only_status.c_str());
       char shrink_col[32] = "";
       if (shrink_hz > 0) std::snprintf(shrink_col, sizeof shrink_col, "%9.2f", lv.thin_err_shrink);
-      std::printf("%-6zu %-22s %5.2f/%-5.2f %9.2f %9.2f %9.2f %9.2f %8.1f..%-8.1f %9.2f %-18s %9.2f %s\n", k,
+      char extra_col[96] = "";
+      if (fixed_hz > 0 || window_cv)
+        std::snprintf(extra_col, sizeof extra_col, " fixed %7.2f  window-cv %5.2f/%-5.2f %7.2f", lv.thin_err_fixed, lv.wcv_hz,
+                      lv.wcv_ha, lv.thin_err_wcv);
+      std::printf("%-6zu %-22s %5.2f/%-5.2f %9.2f %9.2f %9.2f %9.2f %8.1f..%-8.1f %9.2f %-18s %9.2f %s%s\n", k,
                   runs[cases[k].run].name.c_str(), lv.bandwidth, lv.bandwidth_arc, lv.thin_err, lv.thin_err_plain, lv.rmse,
-                  lv.rmse_plain, lv.band_lo, lv.band_hi, lv.truth_min, low_only, lv.thin_err_ref, shrink_col);
+                  lv.rmse_plain, lv.band_lo, lv.band_hi, lv.truth_min, low_only, lv.thin_err_ref, shrink_col, extra_col);
     }
     if (n) {
       std::sort(e.begin(), e.end());
@@ -695,6 +737,21 @@ int main(int argc, char** argv) {
             "%.3f, worst %.3f\n",
             shrink_hz, shrink_ha, Median(eshr), eshr.back(), Median(rmshr), Median(ratio_shr),
             *std::max_element(ratio_shr.begin(), ratio_shr.end()));
+    }
+    if (n && fixed_hz > 0) {
+      std::sort(efix.begin(), efix.end());
+      std::printf(
+          "the map model at a fixed %.2f x %.2f m kernel (no cross-validation, no local scale): thinnest-point |error| median "
+          "%.2f mm, worst %.2f mm; per-face RMSE median %.2f mm; truth inside the band %d / %d\n",
+          fixed_hz, fixed_ha, Median(efix), efix.back(), Median(rmfix), in_band_fix, n);
+    }
+    if (n && window_cv) {
+      std::sort(ewcv.begin(), ewcv.end());
+      std::printf(
+          "prototype, not in the product (the kernel chosen by window-split cross-validation on the map's own windows, then "
+          "fixed): thinnest-point |error| median %.2f mm, worst %.2f mm; per-face RMSE median %.2f mm; truth inside the band "
+          "%d / %d\n",
+          Median(ewcv), ewcv.back(), Median(rmwcv), in_band_wcv, n);
     }
     std::vector<double> se, sn, sr, snr;
     for (size_t k = 0; k < cases.size(); ++k) {

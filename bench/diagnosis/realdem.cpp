@@ -147,6 +147,80 @@ void ShrinkTowardsFinerPrototype(core::ReconstructionPlan& plan, double hz_m, do
   }
 }
 
+WindowSplitChoice ChooseScaleByWindowSplit(const core::WearMap& m, const std::vector<Eigen::VectorXd>& windows) {
+  WindowSplitChoice out;
+  const size_t K = windows.size();
+  const Eigen::Index n = m.z.size();
+  if (K < 2 || n == 0) return out;
+  std::vector<double> sizes;
+  for (Eigen::Index i = 0; i < n; ++i) sizes.push_back(std::sqrt(2.0 * std::max(m.areas[i], 0.0)));
+  const double face = std::max(Median(sizes), 1e-4);
+  const double extent = std::max(m.z.maxCoeff() - m.z.minCoeff(), 10 * face);
+  const double half_circ = kPi * std::max(1e-3, m.radius.mean());
+  // Faces by z, so each face visits only the band of z its kernel reaches.
+  std::vector<Eigen::Index> order(static_cast<size_t>(n));
+  std::iota(order.begin(), order.end(), Eigen::Index{0});
+  std::sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return m.z[a] < m.z[b]; });
+  std::vector<double> zs;
+  for (Eigen::Index i : order) zs.push_back(m.z[i]);
+  double best = std::numeric_limits<double>::max();
+  std::vector<std::tuple<double, double, double>> curve;
+  for (double hz = face; hz <= 0.2 * extent + 1e-12; hz *= 1.4) {
+    for (double ratio : {1.0, 3.0, 8.0, 24.0}) {
+      const double ha = std::min(ratio * hz, half_circ);
+      if (ratio > 1.0 && ha <= hz * 1.01) continue;
+      std::vector<Eigen::VectorXd> S(K, Eigen::VectorXd::Zero(n));
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const auto b = std::lower_bound(zs.begin(), zs.end(), m.z[i] - 2.5 * hz) - zs.begin();
+        const auto e = std::upper_bound(zs.begin(), zs.end(), m.z[i] + 2.5 * hz) - zs.begin();
+        double s0 = 0;
+        std::vector<double> sy(K, 0.0);
+        for (auto p = b; p < e; ++p) {
+          const Eigen::Index j = order[static_cast<size_t>(p)];
+          const double dz = m.z[j] - m.z[i];
+          const double arc = 0.5 * (m.radius[i] + m.radius[j]) *
+                             (std::fmod(m.theta_deg[j] - m.theta_deg[i] + 540.0, 360.0) - 180.0) * kPi / 180.0;
+          const double q = dz * dz / (hz * hz) + arc * arc / (ha * ha);
+          if (q > 6.25) continue;
+          const double w = m.areas[j] * std::exp(-0.5 * q);
+          s0 += w;
+          for (size_t k = 0; k < K; ++k) sy[k] += w * std::max(0.0, windows[k][j]);
+        }
+        for (size_t k = 0; k < K; ++k) S[k][i] = s0 > 0 ? sy[k] / s0 : std::max(0.0, windows[k][i]);
+      }
+      const double kd = static_cast<double>(K);
+      double cv = 0, var1 = 0;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        double mean = 0;
+        for (size_t k = 0; k < K; ++k) mean += S[k][i];
+        mean /= kd;
+        double ss = 0;
+        for (size_t k = 0; k < K; ++k) {
+          const double train = (mean * kd - S[k][i]) / (kd - 1.0);
+          cv += m.areas[i] * std::pow(train - std::max(0.0, windows[k][i]), 2);
+          ss += std::pow(S[k][i] - mean, 2);
+        }
+        var1 += m.areas[i] * ss / (kd - 1.0);
+      }
+      const double score = cv / kd - var1 * (1.0 / (kd - 1.0) - 1.0 / kd);
+      curve.emplace_back(hz, ha, score);
+      if (score < best) {
+        best = score;
+        out.hz = hz;
+        out.ha = ha;
+      }
+    }
+  }
+  for (auto& [hz, ha, sc] : curve) out.curve.emplace_back(hz, ha, best > 0 ? sc / best : 1.0);
+  return out;
+}
+
+std::vector<Eigen::VectorXd> RealDemCampaign::MapWindowWear() const {
+  std::vector<Eigen::VectorXd> out;
+  for (int w : map_windows) out.push_back(run_.wear_w[static_cast<size_t>(w)]);
+  return out;
+}
+
 RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : run_(run), spec_(spec) {
   const size_t K = run.wear_w.size();
   std::vector<int> order(K);

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "core/bundle.hpp"
@@ -60,6 +61,21 @@ struct RealDemSpec {
 /// misses there, from the map itself).
 void ShrinkTowardsFinerPrototype(core::ReconstructionPlan& plan, double hz_m, double ha_m);
 
+/// Prototype measured on the live figures, not in the product (docs/diagnosis.md, live wear): the
+/// kernel scale (sd `hz` along z, `ha` around) chosen by window-split cross-validation on the map's
+/// own K time windows: each window in turn is predicted by the Gaussian kernel mean of the others,
+/// the squared error (area-weighted) less the part of it that comes from training on K - 1 windows
+/// instead of all K (the across-window variance of the smoothed windows, which holds any spatial
+/// correlation of the noise). The windows' noise is independent, so the score estimates the error of
+/// the K-window smoothing against the run's own noise-free field (up to a constant). Candidates: the
+/// face size x 1.4^k up to a fifth of the map's height, around 1, 3, 8 or 24 times that.
+struct WindowSplitChoice {
+  double hz = 0, ha = 0;
+  /// (hz, ha, score relative to the chosen one) per candidate.
+  std::vector<std::tuple<double, double, double>> curve;
+};
+WindowSplitChoice ChooseScaleByWindowSplit(const core::WearMap& map, const std::vector<Eigen::VectorXd>& windows);
+
 class RealDemCampaign {
  public:
   RealDemCampaign(const DemRun& run, const RealDemSpec& spec);
@@ -75,6 +91,8 @@ class RealDemCampaign {
   /// the two halves' independent noise leaves, whatever the map model (docs/diagnosis.md).
   void TruthConstruction(Eigen::VectorXd& faces, Eigen::VectorXd& sensors) const;
   const core::WearMap& map() const { return map_; }
+  /// The per-window wear of the windows the bundle's map sums (map_windows, in order).
+  std::vector<Eigen::VectorXd> MapWindowWear() const;
   const core::CrusherConfig& crusher() const { return run_.crusher; }
   std::vector<int> map_windows, truth_windows;
 

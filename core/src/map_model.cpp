@@ -644,7 +644,7 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   //    wear changes much faster along z than around; the data decide how much).
   std::vector<std::pair<double, double>> candidates;  // (along z, around)
   if (options.bandwidth_m > 0) {
-    candidates.push_back({options.bandwidth_m, options.bandwidth_m});
+    candidates.push_back({options.bandwidth_m, options.bandwidth_arc_m > 0 ? options.bandwidth_arc_m : options.bandwidth_m});
     model.bandwidth_method = "fixed";
   } else if (options.bandwidth_m < 0) {
     const double mean_area = map.areas.sum() / static_cast<double>(n);

@@ -35,6 +35,9 @@ struct MapModelOptions {
   /// Gaussian kernel standard deviation along z (m): < 0 chosen from the data (leave-one-out
   /// cross-validation, with the circumferential scale), 0 no smoothing, > 0 fixed (isotropic).
   double bandwidth_m = -1;
+  /// With a fixed bandwidth_m (> 0): the kernel sd around the circumference (arc length, m); 0 the
+  /// same as bandwidth_m (isotropic). Ignored when the scale is chosen from the data.
+  double bandwidth_arc_m = 0;
   /// Cap faces above their neighbourhood's mean + outlier_z noise standard deviations.
   bool robust = true;
   double outlier_z = 5.0;

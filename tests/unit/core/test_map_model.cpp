@@ -199,3 +199,29 @@ TEST(MapModel, BinnedSameResultWithOneOrTwoThreads) {
   CHECK(Same(a.intensity_noise_sd, b.intensity_noise_sd));
   CHECK(Same(a.local_bandwidth_m, b.local_bandwidth_m));
 }
+
+// A fixed kernel may be anisotropic: bandwidth_arc_m sets its scale around the circumference (a
+// chamber's wear changes much faster along z than around), and each face's value is then the
+// kernel mean over an ellipse 3x wider around than along z (compared with an isotropic kernel of
+// the same z scale, which averages fewer faces around: a different value where the wear varies
+// around the circumference).
+TEST(MapModel, AFixedKernelTakesItsOwnScaleAroundTheCircumference) {
+  WearMap m = lw::test::ConeMap(48, 24, 0.9, 1.4, [](double z) { return 1.0 + z; });
+  for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] *= 1.0 + 0.5 * std::cos(3.0 * m.theta_deg[i] * M_PI / 180.0);
+  MapModelOptions iso, wide;
+  iso.bandwidth_m = wide.bandwidth_m = 0.1;
+  wide.bandwidth_arc_m = 0.3;
+  const MapModel a = BuildMapModel(m, iso), b = BuildMapModel(m, wide);
+  CHECK_EQUAL(std::string("fixed"), b.bandwidth_method);
+  DOUBLES_EQUAL(0.1, a.bandwidth_arc_m, 1e-15);
+  DOUBLES_EQUAL(0.3, b.bandwidth_arc_m, 1e-15);
+  DOUBLES_EQUAL(0.1, b.bandwidth_m, 1e-15);
+  // The wider kernel around flattens the cos(3 theta) pattern more.
+  auto spread = [&](const Eigen::VectorXd& v) {
+    double lo = 1e300, hi = -1e300;
+    for (Eigen::Index i = 0; i < v.size(); ++i)
+      if (std::fabs(m.z[i] - 1.0) < 0.05) lo = std::min(lo, v[i]), hi = std::max(hi, v[i]);
+    return hi - lo;
+  };
+  CHECK(spread(b.intensity) < 0.9 * spread(a.intensity));
+}
