@@ -3,6 +3,7 @@
 #include "core/sd_notify.hpp"
 
 #include <poll.h>
+#include <pthread.h>
 #include <sys/statvfs.h>
 #include <time.h>
 #include <unistd.h>
@@ -268,6 +269,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   std::vector<std::pair<std::string, std::string>> computed;  // (crusher, wear summary JSON)
   std::atomic<bool> worker_stop{false};
   std::thread wear_worker([&] {
+    pthread_setname_np(pthread_self(), "lw-wear");  // named in top -H, perf and lw_bench_ingest's CPU by thread
     // Once at startup, every crusher's state and then its wear and forecast (not published: nothing
     // changed), so that requests find them loaded and computed.
     const int64_t load_start_ms = WallMs(), load_start_cpu_ms = CpuMs(CLOCK_THREAD_CPUTIME_ID);
