@@ -80,7 +80,9 @@ double StatCpuSeconds(const std::string& path, std::string* comm = nullptr) {
   return static_cast<double>(utime + stime) / static_cast<double>(::sysconf(_SC_CLK_TCK));
 }
 
-double ProcessCpuSeconds(pid_t pid) { return StatCpuSeconds("/proc/" + std::to_string(pid) + "/stat"); }
+double ProcessCpuSeconds(pid_t pid) {
+  return StatCpuSeconds("/proc/" + std::to_string(pid) + "/stat");
+}
 
 /// The server's CPU by thread, summed by the thread's name: Paho C's receive thread
 /// ("MQTTAsync_rcv": every message's receive and PUBACK), its send thread ("MQTTAsync_send"), the
@@ -416,8 +418,7 @@ int main(int argc, char** argv) {
           }
           for (const std::string& a : {std::string("-p"), std::to_string(server.pid()), std::string("-o"), perf + "." + run})
             args.push_back(a);
-          profiler.Start(args,
-                         dir.File("perf.log"));
+          profiler.Start(args, dir.File("perf.log"));
           std::this_thread::sleep_for(std::chrono::milliseconds(300));
         }
         // Counted by (sensor, seq): a reading is confirmed when a commit ack names it.
