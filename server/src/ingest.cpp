@@ -131,29 +131,9 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
     Validation v;
     bool foreign_site = false;  ///< a known crusher heard under another site
   };
-  // Each message split (and its records decoded) first, so that `records` is sized once: grown
-  // record by record, its reallocations moved every record again and again, into fresh pages
-  // (7.7 % of the server's main loop with batches of 64).
-  struct Split {
-    bool well_formed = false;
-    std::string malformed;
-    std::vector<mqtt::BatchRecord> parts;
-  };
-  std::vector<Split> splits(messages.size());
-  size_t record_count = 0;
-  for (size_t i = 0; i < messages.size(); ++i) {
-    Split& sp = splits[i];
-    try {
-      sp.well_formed = mqtt::SplitAndDecodeReadingMessage(messages[i].payload, &sp.parts, &sp.malformed);
-    } catch (const std::exception& e) {
-      sp.well_formed = false;
-      sp.parts.clear();
-      sp.malformed = std::string("cannot validate: ") + e.what();
-    }
-    record_count += sp.well_formed && !sp.parts.empty() ? sp.parts.size() : 1;
-  }
   std::vector<Record> records;
-  records.reserve(record_count);
+  records.reserve(messages.size());
+  std::vector<mqtt::BatchRecord> parts;
   // A record must never fail the others: whatever its validation throws quarantines it alone.
   const auto add = [&](size_t message, std::string payload, const auto& validate) {
     Record& r = records.emplace_back();
@@ -168,9 +148,15 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
   };
   for (size_t i = 0; i < messages.size(); ++i) {
     Incoming& in = messages[i];
-    const std::string& malformed = splits[i].malformed;
-    std::vector<mqtt::BatchRecord>& parts = splits[i].parts;
-    if (!splits[i].well_formed) {
+    std::string malformed;
+    bool well_formed = false;
+    try {
+      well_formed = mqtt::SplitAndDecodeReadingMessage(in.payload, &parts, &malformed);
+    } catch (const std::exception& e) {
+      parts.clear();
+      malformed = std::string("cannot validate: ") + e.what();
+    }
+    if (!well_formed) {
       add(i, std::move(in.payload), [&](const std::string&) {
         Validation v;
         v.sensor = in.sensor;  // no seq: nothing to acknowledge
@@ -189,7 +175,6 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
         add(i, std::move(part.text),
             [&](const std::string&) { return CheckReading(in, part.reading, part.error, part.identity, registry_, now); });
       }
-      std::vector<mqtt::BatchRecord>().swap(parts);  // its decoded records are in `records` now
     }
   }
   std::vector<StoredReading> readings;
