@@ -14,7 +14,8 @@
 // --server: the server binaries to compare (default: this build's linerwatch-server); each runs in
 // every repetition (with every delay), so two builds are compared side by side in one run.
 // --perf FILE: `perf record -e cpu-clock -g` attached to the server during the server's runs
-// (FILE.REP-FORM-VARIANT).
+// (FILE.REP-FORM-VARIANT). --perf-call-graph MODE: perf's --call-graph instead of -g (frame
+// pointers): `dwarf` unwinds the whole chain of code built without frame pointers (larger files).
 // Besides wall time, it reports CPU time (user + system, from /proc/PID/stat) per 10,000 readings
 // of the server, the broker and the bare subscriber: on a loaded machine the ratio moves with
 // what else runs, CPU per reading much less. A server run that does not confirm every reading
@@ -28,7 +29,9 @@
 #include <cstdio>
 #include <cstring>
 #include <deque>
+#include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -56,12 +59,17 @@ double Median(std::vector<double> v) {
 }
 
 /// CPU seconds (user + system) a running process has used: /proc/PID/stat fields 14 and 15.
-double ProcessCpuSeconds(pid_t pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+/// utime + stime of a /proc stat file (a process's or one thread's), in seconds; `comm` gets its name.
+double StatCpuSeconds(const std::string& path, std::string* comm = nullptr) {
+  std::ifstream in(path);
   std::string text;
   std::getline(in, text);                // one line
   const size_t close = text.rfind(')');  // the command name may hold spaces
   if (close == std::string::npos) return 0;
+  if (comm) {
+    const size_t open = text.find('(');
+    *comm = open < close ? text.substr(open + 1, close - open - 1) : std::string();
+  }
   std::istringstream rest(text.substr(close + 2));
   std::string field;
   unsigned long long utime = 0, stime = 0;
@@ -70,6 +78,26 @@ double ProcessCpuSeconds(pid_t pid) {
     if (i == 15) stime = std::stoull(field);
   }
   return static_cast<double>(utime + stime) / static_cast<double>(::sysconf(_SC_CLK_TCK));
+}
+
+double ProcessCpuSeconds(pid_t pid) {
+  return StatCpuSeconds("/proc/" + std::to_string(pid) + "/stat");
+}
+
+/// The server's CPU by thread, summed by the thread's name: Paho C's receive thread
+/// ("MQTTAsync_rcv": every message's receive and PUBACK), its send thread ("MQTTAsync_send"), the
+/// wear worker ("lw-wear") and the rest ("linerwatch-serv": the main loop that ingests, the HTTP
+/// threads).
+std::map<std::string, double> ThreadCpuSeconds(pid_t pid) {
+  std::map<std::string, double> out;
+  const std::filesystem::path tasks = "/proc/" + std::to_string(pid) + "/task";
+  std::error_code ec;
+  for (const auto& t : std::filesystem::directory_iterator(tasks, ec)) {
+    std::string comm;
+    const double cpu = StatCpuSeconds((t.path() / "stat").string(), &comm);
+    out[comm] += cpu;
+  }
+  return out;
 }
 
 /// CPU seconds this thread has used.
@@ -237,7 +265,7 @@ void PublishAll(mqtt::async_client& client, const std::vector<Message>& msgs) {
 int main(int argc, char** argv) {
   long n = 20000;
   int reps = 5;
-  std::string perf, commit_delay = "5", servers = LW_SERVER_BIN, batches = "1";
+  std::string perf, perf_call_graph, commit_delay = "5", servers = LW_SERVER_BIN, batches = "1";
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--readings"))
       n = std::atol(argv[i + 1]);
@@ -245,6 +273,8 @@ int main(int argc, char** argv) {
       reps = std::atoi(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--perf"))
       perf = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--perf-call-graph"))
+      perf_call_graph = argv[i + 1];
     else if (!std::strcmp(argv[i], "--commit-delay-ms"))
       commit_delay = argv[i + 1];
     else if (!std::strcmp(argv[i], "--server"))
@@ -253,7 +283,7 @@ int main(int argc, char** argv) {
       batches = argv[i + 1];
     else {
       std::fprintf(stderr,
-                   "usage: lw_bench_ingest [--readings N] [--reps R] [--batch N[,N...]] [--perf FILE] "
+                   "usage: lw_bench_ingest [--readings N] [--reps R] [--batch N[,N...]] [--perf FILE [--perf-call-graph MODE]] "
                    "[--commit-delay-ms N[,N...]] [--server BIN[,BIN...]]\n");
       return 2;
     }
@@ -298,6 +328,7 @@ int main(int argc, char** argv) {
     std::string bin, delay, label;
     std::vector<double> seconds, cpu, broker_cpu;
     std::vector<size_t> ack_messages;
+    std::vector<std::map<std::string, double>> thread_cpu;  // per run, by thread name
   };
   // One form per --batch value: the same readings as messages of up to `batch` records; its own
   // bare run and server runs in every repetition (bare, server..., bare, server..., per form).
@@ -321,7 +352,7 @@ int main(int argc, char** argv) {
       for (const std::string& d : delays) {
         std::string label = "--commit-delay-ms " + d;
         if (bins.size() > 1) label = "server " + std::string(1, static_cast<char>('A' + k)) + " (" + bins[k] + "), " + label;
-        f.variants.push_back({bins[k], d, label, {}, {}, {}, {}});
+        f.variants.push_back({bins[k], d, label, {}, {}, {}, {}, {}});
       }
     }
     forms.push_back(std::move(f));
@@ -378,14 +409,23 @@ int main(int argc, char** argv) {
         std::this_thread::sleep_for(std::chrono::milliseconds(800));
         lw::test::ChildProcess profiler;
         if (!perf.empty()) {
-          profiler.Start({"perf", "record", "-e", "cpu-clock", "-g", "-p", std::to_string(server.pid()), "-o", perf + "." + run},
-                         dir.File("perf.log"));
+          std::vector<std::string> args = {"perf", "record", "-e", "cpu-clock"};
+          if (perf_call_graph.empty()) {
+            args.push_back("-g");
+          } else {
+            args.push_back("--call-graph");
+            args.push_back(perf_call_graph);
+          }
+          for (const std::string& a : {std::string("-p"), std::to_string(server.pid()), std::string("-o"), perf + "." + run})
+            args.push_back(a);
+          profiler.Start(args, dir.File("perf.log"));
           std::this_thread::sleep_for(std::chrono::milliseconds(300));
         }
         // Counted by (sensor, seq): a reading is confirmed when a commit ack names it.
         std::set<std::pair<std::string, int64_t>> confirmed;
         size_t ack_messages = 0;
         const double cpu0 = ProcessCpuSeconds(server.pid()), broker0 = ProcessCpuSeconds(broker.pid());
+        const std::map<std::string, double> threads0 = ThreadCpuSeconds(server.pid());
         const auto t0 = Clock::now();
         std::thread publisher([&] { PublishAll(pub, f.msgs); });
         const auto deadline = t0 + std::chrono::seconds(300);
@@ -398,6 +438,12 @@ int main(int argc, char** argv) {
         }
         v.seconds.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
         v.cpu.push_back(ProcessCpuSeconds(server.pid()) - cpu0);
+        std::map<std::string, double> threads = ThreadCpuSeconds(server.pid());
+        for (auto& [name, cpu] : threads) {
+          const auto before = threads0.find(name);
+          if (before != threads0.end()) cpu -= before->second;
+        }
+        v.thread_cpu.push_back(std::move(threads));
         v.broker_cpu.push_back(ProcessCpuSeconds(broker.pid()) - broker0);
         v.ack_messages.push_back(ack_messages);
         publisher.join();
@@ -415,8 +461,14 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, " batch %zu: bare %.2f s (subscriber CPU %.2f s, broker %.2f s)", f.batch, f.t_bare.back(),
                    f.cpu_bare.back(), f.broker_cpu_bare.back());
       for (const Variant& v : f.variants) {
-        std::fprintf(stderr, "; %s: %.2f s, ratio %.2f, server CPU %.2f s, broker %.2f s", v.label.c_str(), v.seconds.back(),
-                     f.t_bare.back() / v.seconds.back(), v.cpu.back(), v.broker_cpu.back());
+        std::fprintf(stderr, "; %s: %.2f s, ratio %.2f, server CPU %.2f s (", v.label.c_str(), v.seconds.back(),
+                     f.t_bare.back() / v.seconds.back(), v.cpu.back());
+        const char* sep = "";
+        for (const auto& [name, cpu] : v.thread_cpu.back()) {
+          std::fprintf(stderr, "%s%s %.2f", sep, name.c_str(), cpu);
+          sep = ", ";
+        }
+        std::fprintf(stderr, "), broker %.2f s", v.broker_cpu.back());
       }
       std::fprintf(stderr, "; in process: ingest %.2f s (CPU %.2f s), store alone %.2f s (CPU %.2f s)",
                    f.in_process.back().ingest_s, f.in_process.back().ingest_cpu_s, f.in_process.back().store_s,
@@ -443,6 +495,16 @@ int main(int argc, char** argv) {
       std::printf("    CPU per 10k readings          server %.0f ms (range %.0f-%.0f), broker %.0f ms\n",
                   Median(v.cpu) * per10k * 1000, *std::min_element(v.cpu.begin(), v.cpu.end()) * per10k * 1000,
                   *std::max_element(v.cpu.begin(), v.cpu.end()) * per10k * 1000, Median(v.broker_cpu) * per10k * 1000);
+      std::map<std::string, std::vector<double>> by_thread;
+      for (const auto& run : v.thread_cpu)
+        for (const auto& [name, cpu] : run) by_thread[name].push_back(cpu);
+      std::printf("      by thread (median)          ");
+      const char* sep = "";
+      for (auto& [name, cpus] : by_thread) {
+        std::printf("%s%s %.0f ms", sep, name.c_str(), Median(cpus) * per10k * 1000);
+        sep = ", ";
+      }
+      std::printf("\n");
       std::printf("    confirmed                     every reading in every run (%ld of %ld; %.0f commit-ack messages, median)\n",
                   n, n, Median(acks));
       std::printf(

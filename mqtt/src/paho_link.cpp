@@ -1,5 +1,6 @@
 #include "mqtt/paho_link.hpp"
 
+#include <MQTTAsync.h>
 #include <dirent.h>
 #include <mqtt/async_client.h>
 #include <netinet/in.h>
@@ -90,6 +91,18 @@ struct PahoLink::Impl {
 };
 
 namespace {
+/// Paho C (Debian's build, without HIGH_PERFORMANCE) records its own trace in memory by default:
+/// every function entry and exit on its threads takes a mutex, reads the clock and copies the
+/// function's name into a ring of trace entries, and every packet's protocol line is formatted with
+/// vsnprintf, whether or not anything ever reads the ring (only MQTT_C_CLIENT_TRACE prints it).
+/// With the level at ERROR that ring keeps only errors: what Paho's HIGH_PERFORMANCE build does by
+/// default. Left alone when the operator asked for Paho's trace (MQTT_C_CLIENT_TRACE or
+/// MQTT_C_CLIENT_TRACE_LEVEL set). Process-wide; the library reads the variables at its first client.
+void QuietPahoTrace() {
+  if (std::getenv("MQTT_C_CLIENT_TRACE") || std::getenv("MQTT_C_CLIENT_TRACE_LEVEL")) return;
+  MQTTAsync_setTraceLevel(MQTTASYNC_TRACE_ERROR);
+}
+
 /// A persistent session whose connections keep dropping within this long of being made (seen
 /// after a SIGKILL + restart with a broker restart in between) is reset: the next attempt uses a
 /// clean session once. Nothing is lost: the gateway resends every reading not yet committed.
@@ -107,6 +120,7 @@ PahoLink::PahoLink(LinkOptions options) {
   } catch (const ::mqtt::exception& e) {
     throw std::runtime_error("broker: " + std::string(e.what()));
   }
+  QuietPahoTrace();  // after the client: its creation initialises Paho's trace settings
   Impl& im = *impl_;
   im.backoff_ms = im.options.reconnect_min_ms;
   auto& co = im.connect_options;

@@ -171,6 +171,12 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
         return CheckReading(in, m, error, id, registry_, now);
       });
     } else {
+      // Sized for the rest of the call at the first batch, assuming the messages still to come
+      // carry as many records as this one: grown record by record, the reallocations moved every
+      // record again into fresh pages (7.7 % of the main loop with batches of 64).
+      if (records.capacity() < records.size() + parts.size()) {
+        records.reserve(std::max(2 * records.capacity(), records.size() + parts.size() * (messages.size() - i)));
+      }
       for (mqtt::BatchRecord& part : parts) {
         add(i, std::move(part.text),
             [&](const std::string&) { return CheckReading(in, part.reading, part.error, part.identity, registry_, now); });
