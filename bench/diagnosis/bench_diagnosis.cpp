@@ -679,8 +679,8 @@ int main(int argc, char** argv) {
     std::vector<double> e, ep, rm, rmp, ratio, eref, rmref, eshr, rmshr, ratio_shr, efix, rmfix, ewcv, rmwcv;
     int in_band = 0, n = 0, low_neg = 0, in_band_fix = 0, in_band_wcv = 0;
     std::printf("\nLive wear at the inspection day (nulls; thinnest point estimate - truth, per-face RMSE, mm):\n");
-    std::printf("%-6s %-22s %11s %9s %9s %9s %9s %17s %9s %-18s %9s %9s\n", "case", "run", "bw_z/arc_m", "thin_err", "plain",
-                "rmse", "plain", "band", "truth", "lowest-row-only", "ref_err", shrink_hz > 0 ? "shrink" : "");
+    std::printf("%-6s %-22s %11s %9s %9s %9s %9s %17s %9s %-18s %9s %9s %9s\n", "case", "run", "bw_z/arc_m", "thin_err", "plain",
+                "rmse", "plain", "band", "truth", "lowest-row-only", "ref_err", "scan_err", shrink_hz > 0 ? "shrink" : "");
     for (size_t k = 0; k < cases.size(); ++k) {
       const Live& lv = outcomes[k].live;
       if (!lv.done) continue;
@@ -705,15 +705,18 @@ int main(int argc, char** argv) {
       low_neg += !(lv.low_only_thin >= 0);
       char low_only[64];
       std::snprintf(low_only, sizeof low_only, "%.1f (%s)", lv.low_only_thin, lv.low_only_status.c_str());
+      char scan_col[16] = "        -";  // 15 days after the scan, with it applied
+      if (lv.scan_done) std::snprintf(scan_col, sizeof scan_col, "%9.2f", lv.scan_thin_err);
       char shrink_col[32] = "";
       if (shrink_hz > 0) std::snprintf(shrink_col, sizeof shrink_col, "%9.2f", lv.thin_err_shrink);
       char extra_col[96] = "";
       if (fixed_hz > 0 || window_cv)
         std::snprintf(extra_col, sizeof extra_col, " fixed %7.2f  window-cv %5.2f/%-5.2f %7.2f", lv.thin_err_fixed, lv.wcv_hz,
                       lv.wcv_ha, lv.thin_err_wcv);
-      std::printf("%-6zu %-22s %5.2f/%-5.2f %9.2f %9.2f %9.2f %9.2f %8.1f..%-8.1f %9.2f %-18s %9.2f %s%s\n", k,
+      std::printf("%-6zu %-22s %5.2f/%-5.2f %9.2f %9.2f %9.2f %9.2f %8.1f..%-8.1f %9.2f %-18s %9.2f %s %s%s\n", k,
                   runs[cases[k].run].name.c_str(), lv.bandwidth, lv.bandwidth_arc, lv.thin_err, lv.thin_err_plain, lv.rmse,
-                  lv.rmse_plain, lv.band_lo, lv.band_hi, lv.truth_min, low_only, lv.thin_err_ref, shrink_col, extra_col);
+                  lv.rmse_plain, lv.band_lo, lv.band_hi, lv.truth_min, low_only, lv.thin_err_ref, scan_col, shrink_col,
+                  extra_col);
     }
     if (n) {
       std::sort(e.begin(), e.end());

@@ -233,9 +233,10 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
       char buf[320];
       if (c.detail.empty())
         std::snprintf(buf, sizeof buf,
-                      "scan %s (%s): %zu of %zu points on the map, %zu faces corrected, median corrected/map intensity %.2f\n",
+                      "scan %s (%s): %zu of %zu points on the map, %zu faces corrected (%zu more from their neighbours), "
+                      "median corrected/map intensity %.2f\n",
                       latest->file.c_str(), core::FormatIsoTime(latest->date).c_str(), sf.points_used, sf.points_total,
-                      c.faces_corrected, c.median_ratio);
+                      c.faces_corrected, c.faces_filled, c.median_ratio);
       else
         std::snprintf(buf, sizeof buf, "scan %s not applied: %s\n", latest->file.c_str(), c.detail.c_str());
       scan_line = buf;

@@ -110,9 +110,13 @@ ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const 
     // is the scan's alone: the scale's error is shared by the row and cancels, because the sensors'
     // intensities are corrected from the same scan below (later wear = scan wear x the sensors'
     // wear since then over their wear at the scan, whatever the scale was).
+    // Where Eq. 9 says the face is worn through its wear is clamped at the liner's thickness, so the
+    // face's scale is its row's: those are the faces where the map is most likely wrong and the
+    // scan matters most (a hot spot of the map's noise the scan does not see).
     const double i_m = plan.intensity[i], pred = at_scan.wear_mm[i];
-    if (!(i_m > 0) || !(pred > 0) || !(pred < crusher.thickness_new_mm)) continue;
-    const double k = pred / i_m;
+    if (!(i_m > 0) || !(pred > 0)) continue;
+    const double k = pred < crusher.thickness_new_mm ? pred / i_m : at_scan.rows[static_cast<size_t>(row)].scale_mm_per_unit;
+    if (!(k > 0)) continue;
     faces.push_back({i, i_m, plan.intensity_rel_sd[i] * i_m, std::max(scan.wear_mm[i], 0.0) / k, scan.sd_mm[i] / k});
   }
   // The map's own model error: a DEM map's pattern can be wrong beyond its sampling noise (the
@@ -148,28 +152,56 @@ ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const 
     return out;
   }
   out.median_ratio = Median(ratios);
-  // Sensors: their intensity corrected by the mean ratio of the corrected faces around them (the
-  // kernel the faces were smoothed with, up to the map's face size), so the row scale after the
-  // scan divides the sensors' wear by the intensity the scan measured there.
+  // Places the scan measured no face at, from the corrected faces around them (Gaussian weights of
+  // the map's face size, within 1.5 of it):
+  // - sensors: the mean ratio (corrected / map), so the row scale after the scan divides the
+  //   sensors' wear by the intensity the scan measured there;
+  // - faces no point fell on (a scan of a few points per face leaves a few per cent of faces empty,
+  //   and one of them keeping the map's hot spot would be the liner's thinnest point): the mean of
+  //   the corrected intensities, the scan's pattern interpolated.
   std::vector<double> sizes;
   for (Eigen::Index i = 0; i < n; ++i) sizes.push_back(std::sqrt(2.0 * std::max(map.areas[i], 0.0)));
   const double face = std::max(Median(sizes), 1e-4);
   const SurfaceIndex index(map, 1.5 * face);
-  for (size_t s = 0; s < crusher.sensors.size(); ++s) {
-    const auto& sn = crusher.sensors[s];
-    double sw = 0, sr = 0, s_rel2 = 0;
-    index.ForEachWithin(sn.z_m, sn.theta_deg, -1, [&](uint32_t j, double d2) {
+  // Mean ratio, corrected intensity and relative sd of the corrected faces around (z, theta); false
+  // when there is none.
+  struct Around {
+    double ratio = 1, intensity = 0, rel_sd = 0;
+  };
+  auto around = [&](double z, double theta_deg, Around& a) {
+    double sw = 0, sr = 0, si = 0, s_rel2 = 0;
+    index.ForEachWithin(z, theta_deg, -1, [&](uint32_t j, double d2) {
       const auto jj = static_cast<Eigen::Index>(j);
       if (!std::isfinite(ratio[jj])) return;
       const double w = map.areas[jj] * std::exp(-0.5 * d2 / (face * face));
       sw += w;
       sr += w * ratio[jj];
+      si += w * plan.intensity[jj];
       s_rel2 += w * plan.intensity_rel_sd[jj] * plan.intensity_rel_sd[jj];
     });
-    if (!(sw > 0)) continue;
+    if (!(sw > 0)) return false;
+    a = {sr / sw, si / sw, std::sqrt(s_rel2 / sw)};
+    return true;
+  };
+  std::vector<std::pair<Eigen::Index, Around>> filled;  // applied after, so none feeds another
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (std::isfinite(ratio[i]) || plan.face_row[static_cast<size_t>(i)] < 0 || !(plan.intensity[i] > 0)) continue;
+    Around a;
+    if (around(map.z[i], map.theta_deg[i], a) && a.intensity > 0) filled.push_back({i, a});
+  }
+  for (const auto& [i, a] : filled) {
+    plan.intensity[i] = a.intensity;
+    plan.intensity_rel_sd[i] = a.rel_sd;
+  }
+  out.faces_filled = filled.size();
+  for (size_t s = 0; s < crusher.sensors.size(); ++s) {
+    const auto& sn = crusher.sensors[s];
+    Around a;
+    if (!around(sn.z_m, sn.theta_deg, a)) continue;
+    const double r = a.ratio, rel_sd = a.rel_sd;
     const auto ss = static_cast<Eigen::Index>(s);
-    plan.sensor_intensity[ss] *= sr / sw;
-    plan.sensor_intensity_sd[ss] = std::min(plan.sensor_intensity_sd[ss], std::sqrt(s_rel2 / sw) * plan.sensor_intensity[ss]);
+    plan.sensor_intensity[ss] *= r;
+    plan.sensor_intensity_sd[ss] = std::min(plan.sensor_intensity_sd[ss], rel_sd * plan.sensor_intensity[ss]);
   }
   return out;
 }

@@ -147,6 +147,7 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
                          {"applied", k.detail.empty()}};
     if (k.detail.empty()) {
       scan["faces_corrected"] = k.faces_corrected;
+      scan["faces_filled"] = k.faces_filled;
       scan["median_ratio"] = Num(k.median_ratio, 1e-3);
       scan["map_model_error_relative"] = Num(k.map_model_error_rel, 1e-3);
     } else {

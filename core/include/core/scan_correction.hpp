@@ -32,6 +32,7 @@ ScanFaces ProjectScanToFaces(const WearMap& map, const Scan& scan, double floor_
 
 struct ScanCorrection {
   size_t faces_corrected = 0;
+  size_t faces_filled = 0;         ///< faces no scan point fell on, given their corrected neighbours' ratio
   double median_ratio = 1;         ///< median over corrected faces of corrected / model intensity
   double map_model_error_rel = 0;  ///< the map pattern's relative error the scan revealed (beyond noise)
   std::string detail;              ///< why nothing was done (empty when applied)

@@ -20,11 +20,12 @@ double TrueWear(double z, double days) {
   return 0.4 * days * (2.0 - 0.5 * z) * (1.0 + 0.5 * std::max(0.0, 0.6 - z));
 }
 
-Scan MakeScan(const WearMap& m, double days, double noise_mm, unsigned seed) {
+Scan MakeScan(const WearMap& m, double days, double noise_mm, unsigned seed, long skip_face = -1) {
   Scan s;
   std::mt19937 rng(seed);
   std::normal_distribution<double> g(0.0, noise_mm);
   for (size_t f = 0; f < m.faces.size(); ++f) {
+    if (static_cast<long>(f) == skip_face) continue;  // no point fell on this face
     const double w = TrueWear(m.z[static_cast<Eigen::Index>(f)], days);
     for (int k = 0; k < 3; ++k) s.points.push_back(m.centroids[f] - m.normals[f] * (w + g(rng)) / 1000.0);
   }
@@ -88,4 +89,48 @@ TEST(ScanCorrection, ScanOfAnotherMapOrWithoutSensorReadingsLeavesThePlanAlone) 
   const ScanCorrection b = ApplyScan(plan, ProjectScanToFaces(m, MakeScan(m, 50, 0.3, 4)), {});
   CHECK(!b.detail.empty());
   CHECK((plan.intensity - before).cwiseAbs().maxCoeff() == 0.0);
+}
+
+TEST(ScanCorrection, AFaceNoScanPointFellOnTakesItsNeighboursCorrection) {
+  // The map model has a hot spot (up to 3x, a few faces across, as its smoothing makes any) in the
+  // lowest ring that the truth does not have, and the scan (3 points a face) happens to put no point
+  // on the face at its centre: that face must not stay the thinnest point of the liner.
+  const CrusherConfig c = TwoRows();
+  const WearMap m = lw::test::CylinderMap(36, 40, [](double) { return 1.0; });
+  ReconstructionPlan plan = PrepareReconstruction(c, m);
+  Eigen::Index hot = 0;
+  for (Eigen::Index i = 0; i < m.z.size(); ++i)
+    if (m.z[i] < m.z[hot] || (m.z[i] == m.z[hot] && std::fabs(m.theta_deg[i] - 100.0) < std::fabs(m.theta_deg[hot] - 100.0)))
+      hot = i;
+  for (Eigen::Index i = 0; i < m.z.size(); ++i) {
+    const double dz = m.z[i] - m.z[hot], da = std::remainder(m.theta_deg[i] - m.theta_deg[hot], 360.0) * 3.14159265 / 180.0;
+    plan.intensity[i] *= 1.0 + 2.0 * std::exp(-0.5 * (dz * dz + da * da) / (0.15 * 0.15));
+  }
+  const ScanFaces f = ProjectScanToFaces(m, MakeScan(m, 50, 0.3, 5, static_cast<long>(hot)));
+  CHECK_FALSE(std::isfinite(f.wear_mm[hot]));
+  const ScanCorrection corr = ApplyScan(plan, f, SensorsAt(c, 50));
+  CHECK(corr.detail.empty());
+  LONGS_EQUAL(m.face_count() - 1, corr.faces_corrected);
+  LONGS_EQUAL(1, corr.faces_filled);
+  const Reconstruction after = Reconstruct(plan, SensorsAt(c, 80));
+  const double truth_min = 120.0 - TrueWear(m.z.minCoeff(), 80);
+  DOUBLES_EQUAL(truth_min, after.min_thickness_mm, 1.5);
+  // Its neighbours' scanned intensities, interpolated: within 5 mm of the truth at the bottom edge,
+  // where the neighbours all lie above it and the truth wears more downwards (was 3x: worn through).
+  DOUBLES_EQUAL(TrueWear(m.z[hot], 80), after.wear_mm[hot], 5.0);
+}
+
+TEST(ScanCorrection, AFaceEq9HadWornThroughAtTheScanIsCorrectedByTheScan) {
+  // A hot spot so strong (20x) that Eq. 9 has the face worn through at the scan's date: its wear is
+  // clamped there, so the scan's intensity must use the row's scale, not the clamped wear.
+  const CrusherConfig c = TwoRows();
+  const WearMap m = lw::test::CylinderMap(36, 40, [](double) { return 1.0; });
+  ReconstructionPlan plan = PrepareReconstruction(c, m);
+  const Eigen::Index hot = 5;
+  plan.intensity[hot] *= 20.0;
+  CHECK(Reconstruct(plan, SensorsAt(c, 50)).wear_mm[hot] >= c.thickness_new_mm);
+  const ScanCorrection corr = ApplyScan(plan, ProjectScanToFaces(m, MakeScan(m, 50, 0.3, 6)), SensorsAt(c, 50));
+  LONGS_EQUAL(m.face_count(), corr.faces_corrected);
+  const Reconstruction after = Reconstruct(plan, SensorsAt(c, 80));
+  DOUBLES_EQUAL(TrueWear(m.z[hot], 80), after.wear_mm[hot], 1.5);
 }
