@@ -120,22 +120,46 @@ ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const 
     faces.push_back({i, i_m, plan.intensity_rel_sd[i] * i_m, std::max(scan.wear_mm[i], 0.0) / k, scan.sd_mm[i] / k});
   }
   // The map's own model error: a DEM map's pattern can be wrong beyond its sampling noise (the
-  // physics it left out, the chamber it assumed). Its relative variance tau^2 is what the scan's
-  // differences from the map hold beyond both noises (moment estimate, top 2 % trimmed, >= 0).
-  {
-    std::vector<double> excess;
-    for (const Face& f : faces)
-      if (f.i_m > 0) excess.push_back((std::pow(f.i_s - f.i_m, 2) - f.sd_m * f.sd_m - f.sd_s * f.sd_s) / (f.i_m * f.i_m));
+  // physics it left out, the chamber it assumed, a discharge edge it resolves worst). Its relative
+  // variance tau^2 is what the scan's differences from the map hold beyond both noises (moment
+  // estimate, top 2 % trimmed, >= 0), over the whole scan (reported) and per band of z one face
+  // high: the error is not the same everywhere, and a global figure set by the many faces where the
+  // map is right would let the map outweigh the scan where it is wrong. A face's own excess counts
+  // too when it is larger: a hot spot narrower than the map model's kernel (a discharge-edge sector
+  // smoothed around the ring) is a few faces of a band, too few to move the band's mean, and there
+  // the scan, ground truth at its date, must win.
+  std::vector<double> sizes;
+  for (Eigen::Index i = 0; i < n; ++i) sizes.push_back(std::sqrt(2.0 * std::max(map.areas[i], 0.0)));
+  const double face = std::max(Median(sizes), 1e-4);
+  auto tau_of = [](std::vector<double> excess) {
     std::sort(excess.begin(), excess.end());
     const size_t keep = excess.size() - excess.size() / 50;
     double sum = 0;
     for (size_t k = 0; k < keep; ++k) sum += excess[k];
-    out.map_model_error_rel = keep ? std::sqrt(std::max(0.0, sum / static_cast<double>(keep))) : 0.0;
+    return keep ? std::sqrt(std::max(0.0, sum / static_cast<double>(keep))) : 0.0;
+  };
+  const double z0 = map.z.size() ? map.z.minCoeff() : 0.0;
+  auto band_of = [&](Eigen::Index i) { return static_cast<long>(std::floor((map.z[i] - z0) / face)); };
+  std::map<long, std::vector<double>> band_excess;
+  {
+    std::vector<double> excess;
+    for (const Face& f : faces) {
+      if (!(f.i_m > 0)) continue;
+      const double e = (std::pow(f.i_s - f.i_m, 2) - f.sd_m * f.sd_m - f.sd_s * f.sd_s) / (f.i_m * f.i_m);
+      excess.push_back(e);
+      band_excess[band_of(f.i)].push_back(e);
+    }
+    out.map_model_error_rel = tau_of(std::move(excess));
   }
+  constexpr size_t kMinBandFaces = 20;  // fewer: the band takes the whole scan's figure
+  std::map<long, double> band_tau;
+  for (auto& [b, e] : band_excess) band_tau[b] = e.size() >= kMinBandFaces ? tau_of(std::move(e)) : out.map_model_error_rel;
   Eigen::VectorXd ratio = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
   std::vector<double> ratios;
   for (const Face& f : faces) {
-    const double var_m = f.sd_m * f.sd_m + std::pow(out.map_model_error_rel * f.i_m, 2);
+    const double tau = band_tau.count(band_of(f.i)) ? band_tau[band_of(f.i)] : out.map_model_error_rel;
+    const double own = std::pow(f.i_s - f.i_m, 2) - f.sd_m * f.sd_m - f.sd_s * f.sd_s;  // this face's excess
+    const double var_m = f.sd_m * f.sd_m + std::max(std::pow(tau * f.i_m, 2), own);
     const double wm = var_m > 0 ? 1.0 / var_m : 0.0, ws = 1.0 / (f.sd_s * f.sd_s);
     const double i_new = wm > 0 ? (wm * f.i_m + ws * f.i_s) / (wm + ws) : f.i_s;
     const double sd_new = std::sqrt(1.0 / (wm + ws));
@@ -159,9 +183,6 @@ ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const 
   // - faces no point fell on (a scan of a few points per face leaves a few per cent of faces empty,
   //   and one of them keeping the map's hot spot would be the liner's thinnest point): the mean of
   //   the corrected intensities, the scan's pattern interpolated.
-  std::vector<double> sizes;
-  for (Eigen::Index i = 0; i < n; ++i) sizes.push_back(std::sqrt(2.0 * std::max(map.areas[i], 0.0)));
-  const double face = std::max(Median(sizes), 1e-4);
   const SurfaceIndex index(map, 1.5 * face);
   // Mean ratio, corrected intensity and relative sd of the corrected faces around (z, theta); false
   // when there is none.
