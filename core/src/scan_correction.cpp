@@ -98,6 +98,8 @@ ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const 
   struct Face {
     Eigen::Index i;
     double i_m, sd_m, i_s, sd_s;
+    /// What the scan's difference from the map holds beyond both noises (a variance; < 0 when less).
+    double Excess() const { return (i_s - i_m) * (i_s - i_m) - sd_m * sd_m - sd_s * sd_s; }
   };
   std::vector<Face> faces;
   for (Eigen::Index i = 0; i < n; ++i) {
@@ -128,9 +130,7 @@ ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const 
   // too when it is larger: a hot spot narrower than the map model's kernel (a discharge-edge sector
   // smoothed around the ring) is a few faces of a band, too few to move the band's mean, and there
   // the scan, ground truth at its date, must win.
-  std::vector<double> sizes;
-  for (Eigen::Index i = 0; i < n; ++i) sizes.push_back(std::sqrt(2.0 * std::max(map.areas[i], 0.0)));
-  const double face = std::max(Median(sizes), 1e-4);
+  const double face = std::max(plan.model.face_size_m, 1e-4);  // the map's median face edge
   auto tau_of = [](std::vector<double> excess) {
     std::sort(excess.begin(), excess.end());
     const size_t keep = excess.size() - excess.size() / 50;
@@ -140,14 +140,12 @@ ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const 
   };
   const double z0 = map.z.size() ? map.z.minCoeff() : 0.0;
   auto band_of = [&](Eigen::Index i) { return static_cast<long>(std::floor((map.z[i] - z0) / face)); };
-  std::map<long, std::vector<double>> band_excess;
+  std::map<long, std::vector<double>> band_excess;  // relative excess (over i_m^2) of every face (i_m > 0)
   {
     std::vector<double> excess;
     for (const Face& f : faces) {
-      if (!(f.i_m > 0)) continue;
-      const double e = (std::pow(f.i_s - f.i_m, 2) - f.sd_m * f.sd_m - f.sd_s * f.sd_s) / (f.i_m * f.i_m);
-      excess.push_back(e);
-      band_excess[band_of(f.i)].push_back(e);
+      excess.push_back(f.Excess() / (f.i_m * f.i_m));
+      band_excess[band_of(f.i)].push_back(excess.back());
     }
     out.map_model_error_rel = tau_of(std::move(excess));
   }
@@ -157,16 +155,13 @@ ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const 
   Eigen::VectorXd ratio = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
   std::vector<double> ratios;
   for (const Face& f : faces) {
-    const double tau = band_tau.count(band_of(f.i)) ? band_tau[band_of(f.i)] : out.map_model_error_rel;
-    const double own = std::pow(f.i_s - f.i_m, 2) - f.sd_m * f.sd_m - f.sd_s * f.sd_s;  // this face's excess
-    const double var_m = f.sd_m * f.sd_m + std::max(std::pow(tau * f.i_m, 2), own);
+    const double tau = band_tau.at(band_of(f.i));
+    const double var_m = f.sd_m * f.sd_m + std::max(std::pow(tau * f.i_m, 2), f.Excess());
     const double wm = var_m > 0 ? 1.0 / var_m : 0.0, ws = 1.0 / (f.sd_s * f.sd_s);
     const double i_new = wm > 0 ? (wm * f.i_m + ws * f.i_s) / (wm + ws) : f.i_s;
     const double sd_new = std::sqrt(1.0 / (wm + ws));
-    if (f.i_m > 0) {
-      ratio[f.i] = i_new / f.i_m;
-      ratios.push_back(ratio[f.i]);
-    }
+    ratio[f.i] = i_new / f.i_m;  // i_m > 0: faces hold only those
+    ratios.push_back(ratio[f.i]);
     plan.intensity[f.i] = i_new;
     plan.intensity_rel_sd[f.i] = i_new > 0 ? sd_new / i_new : 1.0;
     ++out.faces_corrected;

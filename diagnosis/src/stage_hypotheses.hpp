@@ -27,7 +27,7 @@ std::vector<Effect> AvailableEffects(bool has_normal, bool throughput_available)
 /// Sets ev's delta_bic, held-out gain, significance, score and accepted, against `null_eval`.
 /// `map_harmonic1_sd`: the map's own first-harmonic error (Problem::map_harmonic1_sd), added to
 /// feed segregation's standard error.
-void Judge(ModelEval& ev, const ModelEval& null_eval, size_t rows, double log_n, double dispersion, double map_harmonic1_sd = 0);
+void Judge(ModelEval& ev, const ModelEval& null_eval, size_t rows, double log_n, double dispersion, double map_harmonic1_sd);
 
 /// Up to three single effects (indices into `evals`), best score first, with delta_bic > 0 and one
 /// form per effect: the candidates for pairs.
