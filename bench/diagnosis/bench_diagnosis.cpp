@@ -14,6 +14,7 @@
 // "squeeze_wear", "+" for pairs);
 // --level keeps weak|moderate|strong single-effect cases (and drops the others). For quick iteration; the
 // reported results are from a run without filters.
+// --forms alt (realdem): the effects in other shapes than the diagnosis fits (RealDemSpec::alt_forms).
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -157,6 +158,12 @@ double MainParam(const lw::diagnosis::Finding& f, bool sim) {
   if (it == kKey.end() || !f.parameters.contains(it->second)) return kNaN;
   return f.parameters.at(it->second).get<double>();
 }
+// --forms alt: the generator's alternative shapes (RealDemSpec::alt_forms); the hardness step at the
+// test spec's onset (5-21 mm), which the sensors' 25-35 mm of wear pass.
+void SetForms(bool alt, const lw::test::SyntheticSpec& s, lw::bench::RealDemSpec& r) {
+  r.alt_forms = alt;
+  if (alt) r.gradient_onset_mm = s.gradient_onset_mm;
+}
 
 // The case's true effect in the diagnosis' own parameters (--oracle), for single effects of the
 // generators that use the diagnosis' documented forms (test, realdem); none for material loss (a
@@ -173,6 +180,7 @@ std::optional<lw::diagnosis::OracleEffect> TrueEffect(const Case& c, bool real, 
   } else if (c.truth == "hardness_gradient") {
     p["g"] = real ? r.gradient_g : t.gradient_g;
     p["d0"] = (real ? r.gradient_onset_mm : t.gradient_onset_mm) / (0.5 * thickness_new_mm);
+    p["w"] = 1.0;  // the generators' ramp runs to mid-thickness
   } else if (c.truth == "squeeze_wear") {
     p["beta"] = real ? r.squeeze_beta : t.squeeze_beta;
   } else if (c.truth == "profile_evolution") {
@@ -214,7 +222,7 @@ int main(int argc, char** argv) {
   unsigned seed0 = 1;
   std::string keep, generator = "test", only, level_filter, json_dir, dem_dir;
   double truth_radius = 0.12;
-  bool live_only = false, oracle = false;
+  bool live_only = false, oracle = false, alt_forms = false;
   double shrink_hz = 0, shrink_ha = 0;  // --live-shrink HZ,HA: the prototype's finer kernel (0: not run)
   double fixed_hz = 0, fixed_ha = 0;    // --live-fixed HZ,HA: the map model at a fixed kernel (0: not run)
   bool window_cv = false;               // --live-window-cv: the scale chosen by window-split cross-validation
@@ -252,11 +260,14 @@ int main(int argc, char** argv) {
       window_cv = true;
     else if (a == "--oracle")
       oracle = true;
+    else if (a == "--forms" && i + 1 < argc && (std::string(argv[i + 1]) == "alt" || std::string(argv[i + 1]) == "diagnosis"))
+      alt_forms = std::string(argv[++i]) == "alt";
     else {
       std::fprintf(stderr,
                    "usage: lw_bench_diagnosis [--generator test|sim|realdem] [--dem-dir DIR] [--truth-radius F] [--live-only] "
                    "[--live-shrink HZ,HA] [--live-fixed HZ,HA] [--live-window-cv] [--oracle] "
-                   "[--cases N] [--only TRUTH] [--level L[,L...]] [--seed S] [--keep DIR] [--json-dir DIR] [--threads N]\n");
+                   "[--forms diagnosis|alt] [--cases N] [--only TRUTH] [--level L[,L...]] [--seed S] [--keep DIR] [--json-dir "
+                   "DIR] [--threads N]\n");
       return 2;
     }
   }
@@ -271,6 +282,12 @@ int main(int argc, char** argv) {
   }
   const bool use_sim = generator == "sim";
   const bool use_real = generator == "realdem";
+  if (alt_forms && (!use_real || oracle)) {
+    std::fprintf(stderr,
+                 "lw_bench_diagnosis: --forms alt is for --generator realdem, without --oracle (the oracle fits the "
+                 "diagnosis' own forms)\n");
+    return 2;
+  }
   std::vector<lw::bench::DemRun> runs;
   if (use_real) {
     runs = lw::bench::LoadDemRuns(dem_dir);
@@ -396,6 +413,7 @@ int main(int argc, char** argv) {
             c.rd.with_scan = rep != 2;
             Apply(e, level, c.spec, c.param);
             ToRealDem(c.spec, c.rd);
+            SetForms(alt_forms, c.spec, c.rd);
             if (e == "material_loss") c.rd.loss_sensor = sensor_of(c.run, rs, true);
             if (e == "hardness_gradient") c.param = c.spec.gradient_g;
             cases.push_back(c);
@@ -414,6 +432,7 @@ int main(int argc, char** argv) {
           Apply(p.first, 1, c.spec, c.param);
           Apply(p.second, 1, c.spec, dummy);
           ToRealDem(c.spec, c.rd);
+          SetForms(alt_forms, c.spec, c.rd);
           cases.push_back(c);
         }
       }

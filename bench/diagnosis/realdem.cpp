@@ -326,6 +326,12 @@ RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : r
     ++qn;
   }
   q_mean_ = qs / qn;
+  double nt = 0, at = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    nt += tm.areas[i] * faces_[static_cast<size_t>(i)].normal_tilde;
+    at += tm.areas[i];
+  }
+  normal_tilde_mean_ = nt > 0 ? nt / at : 1.0;
 }
 
 void RealDemCampaign::TruthConstruction(Eigen::VectorXd& faces, Eigen::VectorXd& sensors) const {
@@ -341,19 +347,37 @@ double RealDemCampaign::Throughput(double t) const {
 
 double RealDemCampaign::Wear(const Point& p, double day, double new_mm) const {
   const RealDemSpec& s = spec_;
-  double base = rate_ * (p.intensity + s.squeeze_beta * p.normal_i);
-  base *= 1.0 + s.feed_amplitude * std::cos(p.theta - s.feed_theta_deg * kPi / 180.0);
+  const double dth = std::remainder(p.theta - s.feed_theta_deg * kPi / 180.0, 2 * kPi);
+  double base;
+  if (!s.alt_forms) {
+    base = rate_ * (p.intensity + s.squeeze_beta * p.normal_i);
+    base *= 1.0 + s.feed_amplitude * std::cos(dth);
+  } else {
+    // Squeeze quadratic in normal stress (mean-matched to the linear form's size); segregation a
+    // 120-degree sector (+A there, -A/2 elsewhere: mean 1), edges smoothed over 10 degrees.
+    base = rate_ * (p.intensity + s.squeeze_beta * p.normal_i * p.normal_tilde / normal_tilde_mean_);
+    const double in = 1.0 / (1.0 + std::exp((std::fabs(dth) - kPi / 3) / (10.0 * kPi / 180.0)));
+    base *= 1.0 + s.feed_amplitude * (1.5 * in - 0.5);
+  }
   const double dt = 0.25;
   double w = 0;
   for (double t = 0; t < day - 1e-12; t += dt) {
     const double step = std::min(dt, day - t), tm = t + 0.5 * step;
     double f = base;
-    if (s.hardening_h > 0) f *= 1.0 - s.hardening_h * p.normal_tilde * (1.0 - std::exp(-tm / s.hardening_tau_days));
-    if (s.profile_p != 0) f *= std::max(0.05, 1.0 + s.profile_p * p.zn * tm / 100.0);
-    if (s.throughput_phi > 0) f *= 1.0 + s.throughput_phi * (Throughput(tm) / q_mean_ - 1.0);
-    if (s.gradient_g > 0) {
-      const double x = std::clamp((w - s.gradient_onset_mm) / (new_mm / 2 - s.gradient_onset_mm), 0.0, 1.0);
-      f *= 1.0 + s.gradient_g * x;
+    if (!s.alt_forms) {
+      if (s.hardening_h > 0) f *= 1.0 - s.hardening_h * p.normal_tilde * (1.0 - std::exp(-tm / s.hardening_tau_days));
+      if (s.profile_p != 0) f *= std::max(0.05, 1.0 + s.profile_p * p.zn * tm / 100.0);
+      if (s.throughput_phi > 0) f *= 1.0 + s.throughput_phi * (Throughput(tm) / q_mean_ - 1.0);
+      if (s.gradient_g > 0) {
+        const double x = std::clamp((w - s.gradient_onset_mm) / (new_mm / 2 - s.gradient_onset_mm), 0.0, 1.0);
+        f *= 1.0 + s.gradient_g * x;
+      }
+    } else {
+      if (s.hardening_h > 0) f *= 1.0 - s.hardening_h * p.normal_tilde * tm / (tm + s.hardening_tau_days);
+      if (s.profile_p != 0) f *= std::exp(s.profile_p * p.zn * tm / 100.0);
+      if (s.throughput_phi > 0) f *= std::pow(std::max(Throughput(tm), 0.0) / q_mean_, s.throughput_phi);
+      // A softer layer below the onset: a step (over 2 mm), at a depth the sensors reach.
+      if (s.gradient_g > 0) f *= 1.0 + s.gradient_g / (1.0 + std::exp(-(w - s.gradient_onset_mm) / 1.0));
     }
     w += step * f;
   }

@@ -51,6 +51,11 @@ struct RealDemSpec {
   double stuck_from_day = 0;
   std::string loss_sensor;
   double loss_day = 0, loss_mm = 0;
+  /// Alternative effect forms (--forms alt): the same seven effects in shapes the diagnosis does not
+  /// fit (what a held-out generator may use): hardening hyperbolic in time, hardness as a step at the
+  /// onset, squeeze wear quadratic in normal stress, the profile changing exponentially, segregation
+  /// as a 120-degree sector, throughput as a power law. For "is the right effect named, or none".
+  bool alt_forms = false;
 };
 
 /// Prototype measured on the live figures, not in the product (docs/diagnosis.md, live wear): each
@@ -108,6 +113,7 @@ class RealDemCampaign {
   std::vector<Point> faces_, sensors_;
   double rate_ = 1;
   double q_mean_ = 1;
+  double normal_tilde_mean_ = 1;  ///< area mean of the truth's normal_tilde (alt squeeze form)
   double truth_radius_m_ = 0;
   std::vector<Eigen::Index> sensor_face_;  ///< per sensor: the face whose truth it reads
 };

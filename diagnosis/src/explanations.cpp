@@ -37,18 +37,19 @@ void DescribeWorkHardening(const ExplainContext& c, const FitResult& f, Effect e
 }
 
 void DescribeHardnessGradient(const ExplainContext& c, const FitResult& f, Effect e, Finding& out) {
-  const double g = Param(f, e, 0), d0 = Param(f, e, 1);
+  const double g = Param(f, e, 0), d0 = Param(f, e, 1), wrel = Param(f, e, 2);
   const double half = 0.5 * c.thickness_new_mm;
+  const double onset = d0 * half, full = onset + std::max(wrel * (half - onset), 1.0);
   out.parameters["g"] = Round(g, 3);
   out.parameters["g_stderr"] = Round(ParamSe(f, e, 0), 3);
-  out.parameters["onset_depth_mm"] = Round(d0 * half, 1);
+  out.parameters["onset_depth_mm"] = Round(onset, 1);
   out.parameters["onset_depth_mm_stderr"] = Round(ParamSe(f, e, 1) * half, 1);
-  out.parameters["full_depth_mm"] = Round(std::max(half, d0 * half + 3.0), 1);
-  out.explanation =
-      Fmt("Wear accelerated once the surface reached about %.0f mm of worn depth, at every sensor alike, so the "
-          "high-wear rows accelerated earlier in time: the wear rate is %.0f %% higher by %.0f mm depth. This is a "
-          "softer casting core (hardness falling with depth), not a change in time.",
-          d0 * half, 100.0 * g, std::max(half, d0 * half + 3.0));
+  out.parameters["full_depth_mm"] = Round(full, 1);
+  out.explanation = Fmt(
+      "Wear accelerated once the surface reached about %.0f mm of worn depth, at every sensor alike, so the "
+      "high-wear rows accelerated earlier in time: the wear rate is %.0f %% higher by %.0f mm depth. This is a "
+      "%s (hardness falling with depth), not a change in time.",
+      onset, 100.0 * g, full, full - onset < 0.25 * (half - onset) ? "softer layer under the surface" : "softer casting core");
   out.explanation += Fmt(" Baseline residual vs worn depth: correlation %.2f.", c.corr_depth);
 }
 

@@ -211,6 +211,10 @@ std::string HypothesisParams(const nlohmann::ordered_json& p, double thickness_n
   if (p.contains("log_tau")) add("&tau; = " + Sig(std::exp(get("log_tau"))) + " days");
   if (p.contains("g")) add("g = " + Sig(get("g")));
   if (p.contains("d0")) add("d0 = " + Num(get("d0") * 0.5 * thickness_new_mm, 1) + " mm");
+  if (p.contains("d0") && p.contains("w")) {
+    const double half = 0.5 * thickness_new_mm, onset = get("d0") * half;
+    add("full by " + Num(onset + std::max(get("w") * (half - onset), 1.0), 1) + " mm");
+  }
   if (p.contains("beta")) add("&beta; = " + Sig(get("beta")));
   if (p.contains("p")) add("p = " + Sig(get("p")) + " per 100 days");
   if (p.contains("v")) add("v = " + Sig(get("v")) + " heights per 100 days");

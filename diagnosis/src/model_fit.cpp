@@ -81,9 +81,41 @@ double Interp(const Eigen::MatrixXd& w, const Obs& o) {
 
 // Whitened residuals over the training observations; per-sensor random intensity error u_s is
 // profiled out analytically (prior N(0, sigma_u^2)).
+void SensorDepthRows(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x, const std::vector<double>& u,
+                     Eigen::MatrixXd& w) {
+  if (!DepthDependent(spec)) return;
+  std::vector<ModelPoint> points;
+  std::vector<std::pair<Eigen::Index, double>> rows;
+  for (size_t s = 0; s < p.sensor_obs.size() && s < u.size(); ++s) {
+    if (p.sensor_obs[s].empty() || u[s] == 0) continue;
+    const double factor = std::max(0.05, 1.0 + u[s]);
+    const size_t point = p.obs[p.sensor_obs[s].front()].point;
+    points.push_back(ScaledRate(p.points[point], factor));
+    rows.push_back({static_cast<Eigen::Index>(point), factor});
+  }
+  if (points.empty()) return;
+  Eigen::MatrixXd ws;
+  Simulate(spec, x, points, p.grid, ws);
+  for (size_t k = 0; k < rows.size(); ++k) w.row(rows[k].first) = ws.row(static_cast<Eigen::Index>(k)) / rows[k].second;
+}
+
 void Residuals(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x, const Mask& train, const EvalOptions& opt,
                Eigen::VectorXd& r, std::vector<double>* u_out, Eigen::MatrixXd& w) {
   Simulate(spec, x, p.points, p.grid, w);
+  if (opt.use_u && DepthDependent(spec)) {
+    // A sensor's intensity error changes when it reaches a depth, not only how much it wears: its
+    // curve is simulated at its own rate (u profiled on the plain curves, then once more on its own).
+    std::vector<double> u(p.sensor_obs.size(), 0.0);
+    for (int pass = 0; pass < 2; ++pass) {
+      for (size_t s = 0; s < p.sensor_obs.size(); ++s) {
+        const std::optional<double> pu = ProfiledU(p, w, s, train, opt.raw, 1.0 / (p.sigma_u[s] * p.sigma_u[s]));
+        // Rows divided by their factor: the u profiled on them is again the whole intensity error.
+        if (pu) u[s] = *pu;
+      }
+      Simulate(spec, x, p.points, p.grid, w);
+      SensorDepthRows(p, spec, x, u, w);
+    }
+  }
   size_t count = 0;
   for (size_t s = 0; s < p.sensor_obs.size(); ++s) {
     bool any = false;
@@ -163,6 +195,15 @@ TestScore Score(const Problem& p, const FitResult& f, const Mask& test, const Ma
   for (size_t k = 0; k < p.sensor_obs.size(); ++k)
     for (size_t i : p.sensor_obs[k])
       if (train[i]) seen[k] = true;
+  // Each sensor on its own depth curve (depth-dependent models): the fitted u where the sensor was
+  // trained, else the u its held-out events imply (marginalised below), found on the plain curve.
+  std::vector<double> u_all(f.u.begin(), f.u.end());
+  u_all.resize(p.sensor_obs.size(), 0.0);
+  if (DepthDependent(f.spec)) {
+    for (size_t k = 0; k < p.sensor_obs.size(); ++k)
+      if (!seen[k]) u_all[k] = ProfiledU(p, w, k, test, raw, 1.0 / (p.sigma_u[k] * p.sigma_u[k])).value_or(0.0);
+    SensorDepthRows(p, f.spec, f.x, u_all, w);
+  }
   for (size_t k = 0; k < p.sensor_obs.size(); ++k) {
     if (seen[k]) continue;
     const std::optional<double> profiled = ProfiledU(p, w, k, test, raw, 1.0 / (p.sigma_u[k] * p.sigma_u[k]));
@@ -263,10 +304,15 @@ std::vector<Eigen::VectorXd> Starts(const ModelSpec& spec, const Eigen::VectorXd
     }
     const int hg = spec.Offset(Effect::kHardnessGradient);
     if (hg >= 0) {
-      for (double d0 : {0.02, 0.7}) {
-        Eigen::VectorXd s = seeded;
-        s[hg + 1] = d0;
-        starts.push_back(s);
+      // Gradual (w = 1) and step-like (a softer layer: w = 0.1), each from a shallow and a deep onset.
+      for (double w : {1.0, 0.1}) {
+        for (double d0 : {0.02, 0.3, 0.7}) {
+          if (w == 1.0 && d0 == 0.3) continue;  // the default start, already in
+          Eigen::VectorXd s = seeded;
+          s[hg + 1] = d0;
+          s[hg + 2] = w;
+          starts.push_back(s);
+        }
       }
     }
     const int fs = spec.Offset(Effect::kFeedSegregation);

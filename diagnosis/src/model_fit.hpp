@@ -90,6 +90,12 @@ double Interp(const Eigen::MatrixXd& w, const Obs& o);
 void Residuals(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x, const Mask& train, const EvalOptions& opt,
                Eigen::VectorXd& r, std::vector<double>* u_out, Eigen::MatrixXd& w);
 
+/// For a depth-dependent model (DepthDependent): the rows of `w` of each sensor with u[s] != 0,
+/// simulated at its rate times 1 + u[s] and divided by 1 + u[s], so that Interp(w, o) * (1 + u[s]) is
+/// the sensor's wear on its own depth curve. Leaves `w` alone for any other model.
+void SensorDepthRows(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x, const std::vector<double>& u,
+                     Eigen::MatrixXd& w);
+
 /// Least-squares fit of `spec` on the observations in `train`, best of the `starts`.
 FitResult Fit(const Problem& p, const ModelSpec& spec, const Mask& train, const EvalOptions& opt,
               const std::vector<Eigen::VectorXd>& starts, int max_iterations, double k_scale);

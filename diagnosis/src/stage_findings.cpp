@@ -182,6 +182,7 @@ ErrorSummary ModelMetrics(const Problem& prob, const ModelEval& ev) {
   ErrorSummary m;
   Eigen::MatrixXd w;
   Simulate(ev.full.spec, ev.full.x, prob.points, prob.grid, w);
+  SensorDepthRows(prob, ev.full.spec, ev.full.x, ev.full.u, w);
   double sq = 0, mx = 0;
   for (const Obs& o : prob.obs) {
     double pred = Interp(w, o);

@@ -21,6 +21,21 @@ double SensorU(const PredictionInput& in, const SensorData& s) {
   return (in.use_improved && s.usable) ? in.model.u[static_cast<size_t>(s.usable_index)] : 0.0;
 }
 
+// Per sensor, the factor its improved-model point's rate is scaled by so that it wears along its
+// own depth curve (1 + u under a depth-dependent model, else 1; SensorDepthRows); the simulated
+// wear is divided by it again, since the callers multiply by 1 + u.
+std::vector<double> DepthFactors(const PredictionInput& in) {
+  std::vector<double> f(in.setup.sensors.size(), 1.0);
+  if (in.use_improved && DepthDependent(in.model.spec))
+    for (size_t i = 0; i < f.size(); ++i) f[i] = std::max(0.05, 1.0 + SensorU(in, in.setup.sensors[i]));
+  return f;
+}
+
+std::vector<ModelPoint> Scaled(std::vector<ModelPoint> points, const std::vector<double>& factors) {
+  for (size_t i = 0; i < points.size(); ++i) points[i] = ScaledRate(points[i], factors[i]);
+  return points;
+}
+
 double Days(const PredictionInput& in, core::TimePoint t) {
   return core::DaysBetween(in.bundle.crusher.installed_at, t);
 }
@@ -82,7 +97,9 @@ std::vector<SensorCurve> SensorCurves(const PredictionInput& in) {
   const std::vector<ModelPoint> points = SensorPoints(in.setup);
   Eigen::MatrixXd w_base, w_best;
   Simulate(in.base.spec, in.base.eq9.x, points, in.setup.prob.grid, w_base);
-  Simulate(in.model.spec, in.model.x, points, in.setup.prob.grid, w_best);
+  const std::vector<double> factors = DepthFactors(in);
+  Simulate(in.model.spec, in.model.x, Scaled(points, factors), in.setup.prob.grid, w_best);
+  for (size_t i = 0; i < factors.size(); ++i) w_best.row(static_cast<Eigen::Index>(i)) /= factors[i];
   std::vector<SensorCurve> curves;
   for (size_t i = 0; i < in.setup.sensors.size(); ++i) curves.push_back(CurveOf(in, i, w_base, w_best));
   return curves;
@@ -129,7 +146,9 @@ Prediction PredictAt(const PredictionInput& in, const std::vector<ModelPoint>& f
   pred.time = at;
   const double t = Days(in, at);
   const Eigen::VectorXd wb = SimulateAt(in.base.spec, in.base.eq9.x, sensor_points, grid, t);
-  const Eigen::VectorXd wi = SimulateAt(in.model.spec, in.model.x, sensor_points, grid, t);
+  const std::vector<double> factors = DepthFactors(in);
+  Eigen::VectorXd wi = SimulateAt(in.model.spec, in.model.x, Scaled(sensor_points, factors), grid, t);
+  for (size_t i = 0; i < factors.size(); ++i) wi[static_cast<Eigen::Index>(i)] /= factors[i];
   for (size_t i = 0; i < in.setup.sensors.size(); ++i) {
     const SensorData& s = in.setup.sensors[i];
     const auto r = static_cast<Eigen::Index>(i);

@@ -43,9 +43,10 @@ std::vector<ParamSpec> EffectParams(Effect effect) {
       // log_tau: log of the saturation time constant in days.
       return {{"h", 0.0, 0.95, 0.2, 0.3}, {"log_tau", std::log(0.5), std::log(300.0), std::log(8.0), 1.0, true}};
     case Effect::kHardnessGradient:
-      // g: wear-rate increase at mid-thickness (softer core); d0: depth where softening starts, as a
-      // share of half the thickness.
-      return {{"g", 0.0, 2.0, 0.2, 0.3}, {"d0", 0.0, 0.9, 0.3, 0.3, true}};
+      // g: wear-rate increase once the ramp is complete (softer core); d0: depth where softening
+      // starts, as a share of half the thickness; w: the ramp's width as a share of the rest of the
+      // way to mid-thickness (1: a gradual fall to mid-thickness; small: a step, a softer layer).
+      return {{"g", 0.0, 2.0, 0.2, 0.3}, {"d0", 0.0, 0.9, 0.3, 0.3, true}, {"w", 0.03, 1.0, 1.0, 0.2, true}};
     case Effect::kSqueezeWear:
       // beta: squeeze (normal-stress) wear per unit of normal stress, relative to the map's wear.
       return {{"beta", 0.0, 5.0, 0.3, 0.3}};
@@ -120,7 +121,7 @@ namespace {
 
 struct Resolved {
   bool wh = false, hg = false, sq = false, pe = false, fs = false, tv = false, ps = false;
-  double h = 0, tau = 1, g = 0, d0 = 0, beta = 0, p = 0, a = 0, b = 0, phi = 0, v = 0;
+  double h = 0, tau = 1, g = 0, d0 = 0, wrel = 1, beta = 0, p = 0, a = 0, b = 0, phi = 0, v = 0;
 };
 
 Resolved Resolve(const ModelSpec& spec, const Eigen::VectorXd& x) {
@@ -135,6 +136,7 @@ Resolved Resolve(const ModelSpec& spec, const Eigen::VectorXd& x) {
     r.hg = true;
     r.g = x[o];
     r.d0 = x[o + 1];
+    r.wrel = x[o + 2];
   }
   if ((o = spec.Offset(Effect::kSqueezeWear)) >= 0) {
     r.sq = true;
@@ -176,7 +178,7 @@ void IntegratePoint(const Resolved& r, const Eigen::VectorXd& x, const ModelPoin
   if (r.fs) base *= std::max(0.05, 1.0 + r.a * pt.cos_t + r.b * pt.sin_t);
   const double dt = grid.dt;
   const double onset = r.d0 * pt.half_thickness_mm;
-  const double width = std::max(pt.half_thickness_mm - onset, 3.0);
+  const double width = std::max(r.wrel * (pt.half_thickness_mm - onset), 1.0);
   double w = 0;
   for (size_t j = 0; j < n_steps; ++j) {
     double f = base;
@@ -221,6 +223,16 @@ void Simulate(const ModelSpec& spec, const Eigen::VectorXd& params, const std::v
     IntegratePoint(r, params, points[i], grid, hard, grid.steps,
                    [&](size_t j, double w) { wear(row, static_cast<Eigen::Index>(j)) = w; });
   }
+}
+
+bool DepthDependent(const ModelSpec& spec) {
+  return spec.Has(Effect::kHardnessGradient);
+}
+
+ModelPoint ScaledRate(ModelPoint point, double factor) {
+  point.intensity *= factor;
+  point.normal_i *= factor;
+  return point;
 }
 
 Eigen::VectorXd SimulateAt(const ModelSpec& spec, const Eigen::VectorXd& params, const std::vector<ModelPoint>& points,

@@ -75,4 +75,13 @@ void Simulate(const ModelSpec& spec, const Eigen::VectorXd& params, const std::v
 Eigen::VectorXd SimulateAt(const ModelSpec& spec, const Eigen::VectorXd& params, const std::vector<ModelPoint>& points,
                            const TimeGrid& grid, double t_days);
 
+/// Whether `spec` makes the wear rate depend on the depth already worn (the hardness gradient).
+/// Then a point whose intensity is off by a factor 1 + u (a sensor's intensity error) does not wear
+/// along the same curve scaled by 1 + u: it reaches the onset earlier or later.
+bool DepthDependent(const ModelSpec& spec);
+
+/// The point with its rate scaled by `factor` (intensity and normal stress): a sensor with
+/// intensity error u (factor 1 + u) simulated on its own depth curve.
+ModelPoint ScaledRate(ModelPoint point, double factor);
+
 }  // namespace lw::diagnosis::detail

@@ -78,7 +78,8 @@ struct Truth {
       if (s.profile_p != 0) f *= std::max(0.05, 1.0 + s.profile_p * zn * tm / 100.0);
       if (s.throughput_phi > 0) f *= 1.0 + s.throughput_phi * (Throughput(tm) / q_mean - 1.0);
       if (s.gradient_g > 0) {
-        const double x = std::clamp((w - s.gradient_onset_mm) / (kThickness / 2 - s.gradient_onset_mm), 0.0, 1.0);
+        const double width = s.gradient_width_mm > 0 ? s.gradient_width_mm : kThickness / 2 - s.gradient_onset_mm;
+        const double x = std::clamp((w - s.gradient_onset_mm) / width, 0.0, 1.0);
         f *= 1.0 + s.gradient_g * x;
       }
       w += step * f;

@@ -29,6 +29,7 @@ struct SyntheticSpec {
   // Effects (0 = absent).
   double hardening_h = 0, hardening_tau_days = 6;
   double gradient_g = 0, gradient_onset_mm = 10;
+  double gradient_width_mm = 0;  ///< ramp width; 0: to mid-thickness (the diagnosis' documented form)
   double squeeze_beta = 0;
   double profile_p = 0;  ///< per 100 days, top vs bottom
   double feed_amplitude = 0, feed_theta_deg = 60;

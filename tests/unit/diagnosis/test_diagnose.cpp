@@ -102,6 +102,21 @@ TEST(Diagnose, HardnessGradientOnsetDepth) {
   DOUBLES_EQUAL(10.0, Param(r.findings[0], "onset_depth_mm"), 4.0);
 }
 
+TEST(Diagnose, HardnessStepIsNamedWithTheDepthWhereItIsComplete) {
+  // A softer layer: the rate rises by 30 % over 4 mm from 12 mm of worn depth, not gradually to
+  // mid-thickness. The fitted ramp must end near the step, not at mid-thickness.
+  lw::test::SyntheticSpec spec;
+  spec.gradient_g = 0.3;
+  spec.gradient_onset_mm = 12;
+  spec.gradient_width_mm = 4;
+  const auto r = Run(spec);
+  CHECK_FALSE(r.findings.empty());
+  STRCMP_EQUAL("hardness_gradient", r.findings[0].effect.c_str());
+  DOUBLES_EQUAL(0.3, Param(r.findings[0], "g"), 0.1);
+  DOUBLES_EQUAL(12.0, Param(r.findings[0], "onset_depth_mm"), 5.0);
+  DOUBLES_EQUAL(16.0, Param(r.findings[0], "full_depth_mm"), 8.0);
+}
+
 TEST(Diagnose, ProfileEvolutionDrift) {
   lw::test::SyntheticSpec spec;
   spec.profile_p = 1.0;

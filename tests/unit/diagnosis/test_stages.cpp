@@ -472,3 +472,40 @@ TEST(StagePredictions, PredictionFollowsTheReadingsAndStaysPhysical) {
   const auto grids = d::ResidualGrids(in);
   LONGS_EQUAL(r.bundle.scans.size(), grids.size());
 }
+
+TEST_GROUP(ModelFit){};
+
+TEST(ModelFit, ASensorsIntensityErrorMovesItsHardnessOnsetInTime) {
+  // Under a hardness gradient a sensor whose map intensity is 30 % low in fact wears faster and so
+  // reaches the softer layer earlier: its curve is simulated at its own rate (factor 1.3), not the
+  // plain curve scaled by 1.3. Without a depth-dependent effect both are the same.
+  const d::Problem& prob = Null().setup.prob;
+  const std::vector<double> u(prob.sensor_obs.size(), 0.3);
+  const size_t point = prob.obs[prob.sensor_obs[0].front()].point;
+  const auto last = static_cast<Eigen::Index>(prob.grid.steps);
+  for (const bool gradient : {false, true}) {
+    d::ModelSpec spec;
+    spec.rows = prob.rows;
+    if (gradient) spec.effects = {d::Effect::kHardnessGradient};
+    Eigen::VectorXd lower, upper, scale, x;
+    spec.Bounds(lower, upper, scale, x, 0.3);
+    if (gradient) {
+      const int o = spec.Offset(d::Effect::kHardnessGradient);
+      x[o] = 0.5;      // g
+      x[o + 1] = 0.9;  // onset: 90 % of half the thickness, reached late in the campaign
+      x[o + 2] = 0.1;  // a step
+    }
+    Eigen::MatrixXd plain, own;
+    d::Simulate(spec, x, prob.points, prob.grid, plain);
+    own = plain;
+    d::SensorDepthRows(prob, spec, x, u, own);
+    const double ratio = own(static_cast<Eigen::Index>(point), last) / plain(static_cast<Eigen::Index>(point), last);
+    if (gradient)
+      CHECK_TRUE(ratio > 1.02);  // earlier onset: more wear per unit of rate
+    else
+      DOUBLES_EQUAL(1.0, ratio, 1e-12);
+    // The other rows are untouched.
+    DOUBLES_EQUAL(plain(static_cast<Eigen::Index>(prob.points.size() - 1), last),
+                  own(static_cast<Eigen::Index>(prob.points.size() - 1), last), 1e-12);
+  }
+}
