@@ -96,6 +96,7 @@ struct MosquittoLink::Impl {
   std::vector<LinkEvent> events;  // from the callbacks and Reconnect(), taken by Poll()
   bool subscribe_due = false;
   int last_acked_mid = -1;  // the last of our QoS 1 messages the broker acknowledged
+  uint64_t packets = 0;     // packets handled with a callback (CONNACK, PUBLISH, PUBACK, SUBACK)
 
   explicit Impl(LinkOptions o) : options(std::move(o)), endpoint(ParseUri(options.uri)), schedule(options) {}
   ~Impl() {
@@ -148,11 +149,13 @@ struct MosquittoLink::Impl {
     mosquitto_disconnect_callback_set(client, &Impl::OnDisconnect);
     mosquitto_message_callback_set(client, &Impl::OnMessage);
     mosquitto_publish_callback_set(client, &Impl::OnPublish);
+    mosquitto_subscribe_callback_set(client, &Impl::OnSubscribe);
   }
 
   // Callbacks: run inside libmosquitto's calls on the owner's thread (this link runs no thread).
   static void OnConnect(mosquitto*, void* self, int rc) {
     Impl& im = *static_cast<Impl*>(self);
+    ++im.packets;
     if (rc == 0) {
       im.state = State::kConnected;
       im.schedule.Connected(im.now_ms);
@@ -174,10 +177,16 @@ struct MosquittoLink::Impl {
   }
   static void OnMessage(mosquitto*, void* self, const mosquitto_message* m) {
     Impl& im = *static_cast<Impl*>(self);
+    ++im.packets;
     im.events.push_back({LinkEvent::Kind::kMessage, m->topic,
                          std::string(static_cast<const char*>(m->payload), static_cast<size_t>(std::max(m->payloadlen, 0)))});
   }
-  static void OnPublish(mosquitto*, void* self, int mid) { static_cast<Impl*>(self)->last_acked_mid = mid; }
+  static void OnPublish(mosquitto*, void* self, int mid) {
+    Impl& im = *static_cast<Impl*>(self);
+    ++im.packets;
+    im.last_acked_mid = mid;
+  }
+  static void OnSubscribe(mosquitto*, void* self, int, int, const int*) { ++static_cast<Impl*>(self)->packets; }
 
   void Failed(const std::string& why) {
     state = State::kIdle;
@@ -187,15 +196,18 @@ struct MosquittoLink::Impl {
   }
 
   /// Reads and handles every packet the socket holds (each QoS 1 message acknowledged as it is
-  /// read), at most kMaxPacketsPerPoll. libmosquitto reads one packet per call and leaves EAGAIN in
-  /// errno when the socket had no more; EAGAIN is also what it leaves after writing a byte to its
-  /// full wake-up socket pair (one per packet sent, for a loop thread this link does not run), so
-  /// the socket itself is asked before stopping.
+  /// read), at most kMaxPacketsPerPoll. libmosquitto reads at most one packet per call and does
+  /// not say whether it found one: its errno (EAGAIN) is no answer either, as it is also what
+  /// libmosquitto leaves after writing a byte to its full wake-up socket pair (one per packet sent,
+  /// for a loop thread this link does not run). So a call that handled no packet ends the reading:
+  /// the socket had nothing whole left (or the packet has no callback, a PINGRESP: the socket stays
+  /// readable and the next Poll() goes on). One read that finds nothing per Poll(), not a poll()
+  /// per message.
   void Read() {
     for (int n = 0; n < kMaxPacketsPerPoll && state != State::kIdle; ++n) {
-      errno = 0;
+      const uint64_t before = packets;
       if (mosquitto_loop_read(client, 1) != MOSQ_ERR_SUCCESS) return;  // OnDisconnect said why
-      if ((errno == EAGAIN || errno == EWOULDBLOCK) && !Ready(mosquitto_socket(client), POLLIN)) return;
+      if (packets == before) return;
     }
   }
 
