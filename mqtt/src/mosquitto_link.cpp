@@ -23,9 +23,7 @@ struct Endpoint {
 /// tcp://host[:port], mqtt://, ssl://, mqtts:// (IPv6 hosts in brackets); the default port is
 /// 1883, 8883 with TLS. Throws std::runtime_error naming what is wrong.
 Endpoint ParseUri(const std::string& uri) {
-  const auto bad = [&uri](const std::string& why) {
-    return std::runtime_error("broker URI '" + uri + "': " + why);
-  };
+  const auto bad = [&uri](const std::string& why) { return std::runtime_error("broker URI '" + uri + "': " + why); };
   const size_t sep = uri.find("://");
   if (sep == std::string::npos) throw bad("no scheme (tcp://, mqtt://, ssl:// or mqtts://)");
   Endpoint e;
@@ -118,8 +116,9 @@ struct MosquittoLink::Impl {
     if (!client) {
       client = mosquitto_new(options.client_id.empty() ? nullptr : options.client_id.c_str(), clean, this);
       if (!client) {
-        throw std::runtime_error("broker " + options.uri + ": libmosquitto client: " +
-                                 (errno == EINVAL ? std::string("a persistent session needs a client id") : std::strerror(errno)));
+        throw std::runtime_error(
+            "broker " + options.uri + ": libmosquitto client: " +
+            (errno == EINVAL ? std::string("a persistent session needs a client id") : std::strerror(errno)));
       }
     } else {
       Check(mosquitto_reinitialise(client, options.client_id.empty() ? nullptr : options.client_id.c_str(), clean, this),
@@ -272,7 +271,8 @@ std::vector<LinkEvent> MosquittoLink::Poll(int64_t now_ms) {
     for (const std::string& filter : im.options.subscriptions) {
       const int rc = mosquitto_subscribe(im.client, nullptr, filter.c_str(), 1);
       if (rc != MOSQ_ERR_SUCCESS) {
-        im.events.push_back({LinkEvent::Kind::kDisconnected, "", "subscribe to " + filter + " failed: " + mosquitto_strerror(rc)});
+        im.events.push_back(
+            {LinkEvent::Kind::kDisconnected, "", "subscribe to " + filter + " failed: " + mosquitto_strerror(rc)});
       }
     }
   }

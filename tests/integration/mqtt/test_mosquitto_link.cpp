@@ -67,7 +67,8 @@ std::function<bool(const std::vector<LinkEvent>&)> Has(LinkEvent::Kind kind, siz
 void Connect(MosquittoLink& link) {
   const auto events = PollUntil(link, Has(LinkEvent::Kind::kConnected));
   LONGS_EQUAL(1, Count(events, LinkEvent::Kind::kConnected));
-  PollUntil(link, [](const auto&) { return false; }, 200);
+  PollUntil(
+      link, [](const auto&) { return false; }, 200);
 }
 
 std::string Text(const std::vector<LinkEvent>& events) {
@@ -106,8 +107,8 @@ TEST(MosquittoLink, CarriesMessagesBothWaysInOrderWithTheirBytes) {
 }
 
 TEST(MosquittoLink, APersistentSessionReceivesEverythingPublishedWhileItWasAway) {
-  lw::test::MosquittoFixture broker({.persistence = false, .tls = false, .username = "", .password = "",
-                                     .extra_config = "max_queued_messages 0\n"});
+  lw::test::MosquittoFixture broker(
+      {.persistence = false, .tls = false, .username = "", .password = "", .extra_config = "max_queued_messages 0\n"});
   broker.Start();
   MosquittoLink publisher(Options(broker.uri(), "publisher"));
   Connect(publisher);
@@ -117,7 +118,8 @@ TEST(MosquittoLink, APersistentSessionReceivesEverythingPublishedWhileItWasAway)
   }  // gone: the broker keeps its session and queues for it
   constexpr int kMessages = 5000;
   for (int i = 0; i < kMessages; ++i) CHECK(publisher.Publish({"readings/s", std::to_string(i), 1, false}));
-  PollUntil(publisher, [](const auto&) { return false; }, 2000);  // everything written and acknowledged
+  PollUntil(
+      publisher, [](const auto&) { return false; }, 2000);  // everything written and acknowledged
   MosquittoLink server(Options(broker.uri(), "server", {"readings/#"}));
   const auto events = PollUntil(server, Has(LinkEvent::Kind::kMessage, kMessages), 30'000);
   LONGS_EQUAL(kMessages, Count(events, LinkEvent::Kind::kMessage));
@@ -162,7 +164,8 @@ TEST(MosquittoLink, ReconnectReportsTheReasonAndTheSessionKeepsWhatCameMeanwhile
   server.Reconnect("the connection carried nothing");
   CHECK_FALSE(server.IsConnected());
   for (int i = 0; i < 10; ++i) CHECK(publisher.Publish({"readings/s", std::to_string(i), 1, false}));
-  PollUntil(publisher, [](const auto&) { return false; }, 200);
+  PollUntil(
+      publisher, [](const auto&) { return false; }, 200);
   const auto events = PollUntil(server, Has(LinkEvent::Kind::kMessage, 10));
   CHECK(!events.empty());
   CHECK(events.front().kind == LinkEvent::Kind::kDisconnected);
@@ -172,7 +175,8 @@ TEST(MosquittoLink, ReconnectReportsTheReasonAndTheSessionKeepsWhatCameMeanwhile
 }
 
 TEST(MosquittoLink, ARefusedLoginIsReportedAndRetriedAndTheRightOneConnects) {
-  lw::test::MosquittoFixture broker({.persistence = false, .tls = false, .username = "server", .password = "right", .extra_config = ""});
+  lw::test::MosquittoFixture broker(
+      {.persistence = false, .tls = false, .username = "server", .password = "right", .extra_config = ""});
   broker.Start();
   LinkOptions wrong = Options(broker.uri(), "server");
   wrong.username = "server";
