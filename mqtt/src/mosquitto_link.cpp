@@ -165,13 +165,14 @@ struct MosquittoLink::Impl {
     }
   }
   static void OnDisconnect(mosquitto*, void* self, int rc) {
+    const int saved_errno = errno;  // what a socket error was (libmosquitto only closed the socket since)
     Impl& im = *static_cast<Impl*>(self);
     if (im.state == State::kConnected) {
       im.state = State::kIdle;
       im.schedule.Lost(im.now_ms);
-      im.events.push_back({LinkEvent::Kind::kDisconnected, "", std::string("connection lost: ") + mosquitto_strerror(rc)});
+      im.events.push_back({LinkEvent::Kind::kDisconnected, "", "connection lost: " + Reason(rc, saved_errno)});
     } else if (im.state == State::kConnecting) {
-      im.Failed(mosquitto_strerror(rc));
+      im.Failed(Reason(rc, saved_errno));
     }  // kIdle: this link dropped it and said why
   }
   static void OnMessage(mosquitto*, void* self, const mosquitto_message* m) {
