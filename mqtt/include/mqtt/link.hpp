@@ -63,7 +63,7 @@ class ConnectSchedule {
  public:
   explicit ConnectSchedule(const LinkOptions& options);
 
-  /// True when no connection is up or being made and the next attempt is due.
+  /// True when the next attempt is due (the link asks only while no connection is up or being made).
   bool Due(int64_t now_ms) const { return now_ms >= next_attempt_ms_; }
 
   struct Attempt {
