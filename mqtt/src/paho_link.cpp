@@ -60,14 +60,11 @@ struct PahoLink::Impl {
   std::deque<LinkEvent> events;  // filled by Paho's threads, drained by Poll()
   std::atomic<bool> connected{false};
   ::mqtt::token_ptr pending_connect;
-  int64_t next_attempt_ms = 0;
-  int64_t backoff_ms = 0;
-  int64_t last_connected_ms = -1;
-  int flaps = 0;  // connections lost within kFlapMs of being made, in a row
+  ConnectSchedule schedule;
   WakeFd wake;
   ::mqtt::async_client client;
 
-  explicit Impl(LinkOptions o) : options(std::move(o)), client(options.uri, options.client_id, nullptr) {}
+  explicit Impl(LinkOptions o) : options(std::move(o)), schedule(options), client(options.uri, options.client_id, nullptr) {}
   ~Impl() {
     try {
       client.disable_callbacks();
@@ -103,12 +100,6 @@ void QuietPahoTrace() {
   MQTTAsync_setTraceLevel(MQTTASYNC_TRACE_ERROR);
 }
 
-/// A persistent session whose connections keep dropping within this long of being made (seen
-/// after a SIGKILL + restart with a broker restart in between) is reset: the next attempt uses a
-/// clean session once. Nothing is lost: the gateway resends every reading not yet committed.
-constexpr int64_t kFlapMs = 5000;
-constexpr int kFlapsBeforeReset = 2;
-
 bool IsTls(const std::string& uri) {
   return uri.rfind("ssl://", 0) == 0 || uri.rfind("mqtts://", 0) == 0 || uri.rfind("wss://", 0) == 0;
 }
@@ -122,7 +113,6 @@ PahoLink::PahoLink(LinkOptions options) {
   }
   QuietPahoTrace();  // after the client: its creation initialises Paho's trace settings
   Impl& im = *impl_;
-  im.backoff_ms = im.options.reconnect_min_ms;
   auto& co = im.connect_options;
   co.set_clean_session(im.options.clean_session);
   co.set_keep_alive_interval(im.options.keep_alive_s);
@@ -173,13 +163,10 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
     im.pending_connect.reset();
     // rc 0: connected (the connected handler may run just before or after the token completes).
     if (rc != 0) {
+      const std::string why = ::mqtt::exception::error_str(rc) + " (code " + std::to_string(rc) + ")";
+      const int64_t wait = im.schedule.Failed(now_ms);
       out.push_back({LinkEvent::Kind::kDisconnected, "",
-                     "connect to " + im.options.uri + " failed: " + ::mqtt::exception::error_str(rc) + " (code " +
-                         std::to_string(rc) + "); retrying in " + std::to_string(im.backoff_ms) + " ms"});
-      im.next_attempt_ms = now_ms + im.backoff_ms;
-      im.backoff_ms = std::min(im.backoff_ms * 2, im.options.reconnect_max_ms);
-    } else {
-      im.backoff_ms = im.options.reconnect_min_ms;
+                     "connect to " + im.options.uri + " failed: " + why + "; retrying in " + std::to_string(wait) + " ms"});
     }
   }
   if (im.wake.fd >= 0) {
@@ -194,37 +181,26 @@ std::vector<LinkEvent> PahoLink::Poll(int64_t now_ms) {
   for (LinkEvent& e : queued) {
     if (e.kind == LinkEvent::Kind::kConnected) {
       NoDelayOnTcpSockets();
-      im.last_connected_ms = now_ms;
-      im.backoff_ms = im.options.reconnect_min_ms;
+      im.schedule.Connected(now_ms);
       try {
         for (const std::string& filter : im.options.subscriptions) im.client.subscribe(filter, 1);
       } catch (const ::mqtt::exception& ex) {
         out.push_back({LinkEvent::Kind::kDisconnected, "", std::string("subscribe failed: ") + ex.what()});
       }
     } else if (e.kind == LinkEvent::Kind::kDisconnected) {
-      const bool flap = im.last_connected_ms >= 0 && now_ms - im.last_connected_ms < kFlapMs;
-      im.flaps = flap ? im.flaps + 1 : 0;
-      im.last_connected_ms = -1;
-      im.next_attempt_ms = now_ms + im.backoff_ms;
-      im.backoff_ms = std::min(im.backoff_ms * 2, im.options.reconnect_max_ms);
+      im.schedule.Lost(now_ms);
     }
     out.push_back(std::move(e));
   }
-  if (!im.connected && !im.pending_connect && now_ms >= im.next_attempt_ms) {
-    const bool reset = !im.options.clean_session && im.flaps >= kFlapsBeforeReset;
-    im.connect_options.set_clean_session(im.options.clean_session || reset);
-    if (reset) {
-      im.flaps = 0;
-      out.push_back({LinkEvent::Kind::kDisconnected, "",
-                     "the persistent session keeps dropping right after connecting: connecting once with a clean "
-                     "session (readings queued at the broker are dropped; the gateway resends what is not committed)"});
-    }
+  if (!im.connected && !im.pending_connect && im.schedule.Due(now_ms)) {
+    const ConnectSchedule::Attempt attempt = im.schedule.Start();
+    im.connect_options.set_clean_session(attempt.clean_session);
+    if (!attempt.notice.empty()) out.push_back({LinkEvent::Kind::kDisconnected, "", attempt.notice});
     try {
       im.pending_connect = im.client.connect(im.connect_options);
     } catch (const ::mqtt::exception& ex) {
       out.push_back({LinkEvent::Kind::kDisconnected, "", std::string("connect: ") + ex.what()});
-      im.next_attempt_ms = now_ms + im.backoff_ms;
-      im.backoff_ms = std::min(im.backoff_ms * 2, im.options.reconnect_max_ms);
+      im.schedule.Failed(now_ms);
     }
   }
   return out;

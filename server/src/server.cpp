@@ -21,7 +21,7 @@
 #include "core/time.hpp"
 #include "mqtt/messages.hpp"
 #include "mqtt/outbox.hpp"
-#include "mqtt/paho_link.hpp"
+#include "mqtt/mosquitto_link.hpp"
 #include "mqtt/topics.hpp"
 #include "server/diagnosis_runner.hpp"
 #include "server/http_api.hpp"
@@ -235,7 +235,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   lo.tls_ca = o.tls_ca;
   lo.clean_session = false;  // persistent session: the broker queues readings while we are away
   lo.subscriptions = {mqtt::Topics::ReadingsFilter(o.topic_root)};
-  mqtt::PahoLink link(lo);
+  mqtt::MosquittoLink link(lo);  // read on this thread: docs/performance.md, *Ingest*
   std::atomic<bool> connected{false};
 
   ApiContext ctx = MakeApiContext(o, *registry, read, wear, live, ingestor, events, tokens);
@@ -351,7 +351,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       }
     }
   };
-  // Commit acks the link refused (Paho's in-flight window full, or not connected) wait here and go
+  // Commit acks the link refused (not connected) wait here and go
   // first at the next turn, instead of being dropped (the gateway would wait for its republication).
   mqtt::Outbox acks;
   uint64_t acks_dropped_logged = 0;

@@ -1,0 +1,335 @@
+#include "mqtt/mosquitto_link.hpp"
+
+#include <mosquitto.h>
+#include <poll.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <mutex>
+#include <stdexcept>
+#include <utility>
+
+namespace lw::mqtt {
+namespace {
+
+struct Endpoint {
+  std::string host;
+  int port = 0;
+  bool tls = false;
+};
+
+/// tcp://host[:port], mqtt://, ssl://, mqtts:// (IPv6 hosts in brackets); the default port is
+/// 1883, 8883 with TLS. Throws std::runtime_error naming what is wrong.
+Endpoint ParseUri(const std::string& uri) {
+  const auto bad = [&uri](const std::string& why) { return std::runtime_error("broker URI '" + uri + "': " + why); };
+  const size_t sep = uri.find("://");
+  if (sep == std::string::npos) throw bad("no scheme (tcp://, mqtt://, ssl:// or mqtts://)");
+  Endpoint e;
+  const std::string scheme = uri.substr(0, sep);
+  if (scheme == "ssl" || scheme == "mqtts") {
+    e.tls = true;
+  } else if (scheme != "tcp" && scheme != "mqtt") {
+    throw bad("scheme '" + scheme + "://' is not supported by the server's MQTT client (tcp://, mqtt://, ssl:// or mqtts://)");
+  }
+  std::string rest = uri.substr(sep + 3);
+  rest = rest.substr(0, rest.find('/'));
+  std::string port_text;
+  if (!rest.empty() && rest.front() == '[') {
+    const size_t close = rest.find(']');
+    if (close == std::string::npos) throw bad("'[' without ']' around the host");
+    e.host = rest.substr(1, close - 1);
+    const std::string after = rest.substr(close + 1);
+    if (!after.empty() && after.front() != ':') throw bad("'" + after + "' after the host");
+    if (!after.empty()) port_text = after.substr(1);
+  } else {
+    const size_t colon = rest.rfind(':');
+    e.host = rest.substr(0, colon);
+    if (colon != std::string::npos) port_text = rest.substr(colon + 1);
+  }
+  if (e.host.empty()) throw bad("no host");
+  e.port = e.tls ? 8883 : 1883;
+  if (!port_text.empty()) {
+    size_t used = 0;
+    long port = -1;
+    try {
+      port = std::stol(port_text, &used);
+    } catch (const std::exception&) {
+    }
+    if (used != port_text.size() || port < 1 || port > 65535) throw bad("port '" + port_text + "' is not a number in 1..65535");
+    e.port = static_cast<int>(port);
+  }
+  return e;
+}
+
+/// libmosquitto's text for `rc`, or errno's when the error is in errno (saved at the call).
+std::string Reason(int rc, int saved_errno) {
+  if (rc == MOSQ_ERR_ERRNO) return std::strerror(saved_errno);
+  return mosquitto_strerror(rc);
+}
+
+/// True when poll() says the socket is ready for `events` now (or failed: the next read says how).
+bool Ready(int fd, short events) {
+  if (fd < 0) return false;
+  pollfd p{fd, events, 0};
+  return ::poll(&p, 1, 0) > 0 && (p.revents & (events | POLLHUP | POLLERR)) != 0;
+}
+
+/// Packets read in one Poll() at most, so a flood cannot keep the owner's loop from its other work.
+constexpr int kMaxPacketsPerPoll = 4096;
+
+}  // namespace
+
+struct MosquittoLink::Impl {
+  enum class State { kIdle, kConnecting, kConnected };
+
+  LinkOptions options;
+  Endpoint endpoint;
+  ConnectSchedule schedule;
+  mosquitto* client = nullptr;
+  bool session_clean = false;  // the session `client` was made for
+  State state = State::kIdle;
+  int64_t now_ms = 0;             // the current Poll()'s time, for the callbacks
+  std::vector<LinkEvent> events;  // from the callbacks and Reconnect(), taken by Poll()
+  bool subscribe_due = false;
+  int last_acked_mid = -1;  // the last of our QoS 1 messages the broker acknowledged
+  uint64_t packets = 0;     // packets handled with a callback (CONNACK, PUBLISH, PUBACK, SUBACK)
+
+  explicit Impl(LinkOptions o) : options(std::move(o)), endpoint(ParseUri(options.uri)), schedule(options) {}
+  ~Impl() {
+    if (!client) return;
+    if (state == State::kConnected) {
+      state = State::kIdle;
+      (void)mosquitto_disconnect(client);  // written at once when the socket takes it
+    }
+    mosquitto_destroy(client);
+  }
+
+  void Check(int rc, const std::string& what) const {
+    if (rc != MOSQ_ERR_SUCCESS) throw std::runtime_error("broker " + options.uri + ": " + what + ": " + mosquitto_strerror(rc));
+  }
+
+  /// Makes the client for a clean or persistent session with every option (libmosquitto fixes the
+  /// session when the client is made; anything it held, as a socket, is dropped).
+  void MakeClient(bool clean) {
+    if (!client) {
+      client = mosquitto_new(options.client_id.empty() ? nullptr : options.client_id.c_str(), clean, this);
+      if (!client) {
+        throw std::runtime_error(
+            "broker " + options.uri + ": libmosquitto client: " +
+            (errno == EINVAL ? std::string("a persistent session needs a client id") : std::strerror(errno)));
+      }
+    } else {
+      Check(mosquitto_reinitialise(client, options.client_id.empty() ? nullptr : options.client_id.c_str(), clean, this),
+            "libmosquitto client");
+    }
+    session_clean = clean;
+    Check(mosquitto_int_option(client, MOSQ_OPT_PROTOCOL_VERSION, MQTT_PROTOCOL_V311), "MQTT 3.1.1");
+    Check(mosquitto_int_option(client, MOSQ_OPT_TCP_NODELAY, 1), "TCP_NODELAY");
+    Check(mosquitto_max_inflight_messages_set(client, 1000), "in-flight window");
+    if (!options.username.empty()) {
+      Check(mosquitto_username_pw_set(client, options.username.c_str(), options.password.c_str()), "username");
+    }
+    if (!options.will.topic.empty()) {
+      Check(mosquitto_will_set(client, options.will.topic.c_str(), static_cast<int>(options.will.payload.size()),
+                               options.will.payload.data(), options.will.qos, options.will.retained),
+            "last will");
+    }
+    if (endpoint.tls) {
+      if (options.tls_ca.empty()) {
+        Check(mosquitto_int_option(client, MOSQ_OPT_TLS_USE_OS_CERTS, 1), "TLS with the system's trust store");
+      } else {
+        Check(mosquitto_tls_set(client, options.tls_ca.c_str(), nullptr, nullptr, nullptr, nullptr),
+              "TLS trust store '" + options.tls_ca + "'");
+      }
+    }
+    mosquitto_connect_callback_set(client, &Impl::OnConnect);
+    mosquitto_disconnect_callback_set(client, &Impl::OnDisconnect);
+    mosquitto_message_callback_set(client, &Impl::OnMessage);
+    mosquitto_publish_callback_set(client, &Impl::OnPublish);
+    mosquitto_subscribe_callback_set(client, &Impl::OnSubscribe);
+  }
+
+  // Callbacks: run inside libmosquitto's calls on the owner's thread (this link runs no thread).
+  static void OnConnect(mosquitto*, void* self, int rc) {
+    Impl& im = *static_cast<Impl*>(self);
+    ++im.packets;
+    if (rc == 0) {
+      im.state = State::kConnected;
+      im.schedule.Connected(im.now_ms);
+      im.subscribe_due = true;
+      im.events.push_back({LinkEvent::Kind::kConnected, "", ""});
+    } else {
+      im.Failed(std::string(mosquitto_connack_string(rc)) + " (code " + std::to_string(rc) + ")");
+    }
+  }
+  static void OnDisconnect(mosquitto*, void* self, int rc) {
+    const int saved_errno = errno;  // what a socket error was (libmosquitto only closed the socket since)
+    Impl& im = *static_cast<Impl*>(self);
+    if (im.state == State::kConnected) {
+      im.state = State::kIdle;
+      im.schedule.Lost(im.now_ms);
+      im.events.push_back({LinkEvent::Kind::kDisconnected, "", "connection lost: " + Reason(rc, saved_errno)});
+    } else if (im.state == State::kConnecting) {
+      im.Failed(Reason(rc, saved_errno));
+    }  // kIdle: this link dropped it and said why
+  }
+  static void OnMessage(mosquitto*, void* self, const mosquitto_message* m) {
+    Impl& im = *static_cast<Impl*>(self);
+    ++im.packets;
+    im.events.push_back({LinkEvent::Kind::kMessage, m->topic,
+                         std::string(static_cast<const char*>(m->payload), static_cast<size_t>(std::max(m->payloadlen, 0)))});
+  }
+  static void OnPublish(mosquitto*, void* self, int mid) {
+    Impl& im = *static_cast<Impl*>(self);
+    ++im.packets;
+    im.last_acked_mid = mid;
+  }
+  static void OnSubscribe(mosquitto*, void* self, int, int, const int*) { ++static_cast<Impl*>(self)->packets; }
+
+  void Failed(const std::string& why) {
+    state = State::kIdle;
+    const int64_t wait = schedule.Failed(now_ms);
+    events.push_back({LinkEvent::Kind::kDisconnected, "",
+                      "connect to " + options.uri + " failed: " + why + "; retrying in " + std::to_string(wait) + " ms"});
+  }
+
+  /// Reads and handles every packet the socket holds (each QoS 1 message acknowledged as it is
+  /// read), at most kMaxPacketsPerPoll. libmosquitto reads at most one packet per call and does
+  /// not say whether it found one: its errno (EAGAIN) is no answer either, as it is also what
+  /// libmosquitto leaves after writing a byte to its full wake-up socket pair (one per packet sent,
+  /// for a loop thread this link does not run). So a call that handled no packet ends the reading:
+  /// the socket had nothing whole left (or the packet has no callback, a PINGRESP: the socket stays
+  /// readable and the next Poll() goes on). One read that finds nothing per Poll(), not a poll()
+  /// per message.
+  void Read() {
+    for (int n = 0; n < kMaxPacketsPerPoll && state != State::kIdle; ++n) {
+      const uint64_t before = packets;
+      if (mosquitto_loop_read(client, 1) != MOSQ_ERR_SUCCESS) return;  // OnDisconnect said why
+      if (packets == before) return;
+    }
+  }
+
+  /// Sends what libmosquitto could not write at once (a full socket, a connection being made).
+  void Write() {
+    for (int n = 0; n < kMaxPacketsPerPoll && state != State::kIdle && mosquitto_want_write(client); ++n) {
+      errno = 0;
+      if (mosquitto_loop_write(client, 1) != MOSQ_ERR_SUCCESS) return;  // OnDisconnect said why
+      if ((errno == EAGAIN || errno == EWOULDBLOCK) && !Ready(mosquitto_socket(client), POLLOUT)) return;
+    }
+  }
+
+  void Pump() {
+    Read();
+    Write();
+    if (state != State::kIdle) (void)mosquitto_loop_misc(client);  // keep-alive; a dead link is closed here
+  }
+
+  void Connect() {
+    const ConnectSchedule::Attempt attempt = schedule.Start();
+    if (!attempt.notice.empty()) events.push_back({LinkEvent::Kind::kDisconnected, "", attempt.notice});
+    if (attempt.clean_session != session_clean) MakeClient(attempt.clean_session);
+    state = State::kConnecting;
+    const int rc = mosquitto_connect_async(client, endpoint.host.c_str(), endpoint.port, options.keep_alive_s);
+    const int saved_errno = errno;
+    if (rc != MOSQ_ERR_SUCCESS) Failed(Reason(rc, saved_errno));
+  }
+
+  /// Drops the connection without reporting it (the caller does): a DISCONNECT when the socket
+  /// takes it (the broker keeps a persistent session and sends no last will), else the socket is
+  /// closed by making the client again.
+  void Drop() {
+    state = State::kIdle;
+    subscribe_due = false;
+    (void)mosquitto_disconnect(client);
+    if (mosquitto_socket(client) >= 0) MakeClient(session_clean);
+  }
+};
+
+namespace {
+void InitLibraryOnce() {
+  static std::once_flag once;
+  std::call_once(once, [] { mosquitto_lib_init(); });
+}
+}  // namespace
+
+MosquittoLink::MosquittoLink(LinkOptions options) {
+  InitLibraryOnce();
+  if (options.keep_alive_s != 0 && options.keep_alive_s < 5) options.keep_alive_s = 5;  // libmosquitto's least
+  impl_ = std::make_unique<Impl>(std::move(options));
+  impl_->MakeClient(impl_->options.clean_session);
+}
+
+MosquittoLink::~MosquittoLink() = default;
+
+std::vector<LinkEvent> MosquittoLink::Poll(int64_t now_ms) {
+  Impl& im = *impl_;
+  im.now_ms = now_ms;
+  if (im.state != Impl::State::kIdle) im.Pump();
+  if (im.subscribe_due && im.state == Impl::State::kConnected) {
+    im.subscribe_due = false;
+    for (const std::string& filter : im.options.subscriptions) {
+      const int rc = mosquitto_subscribe(im.client, nullptr, filter.c_str(), 1);
+      if (rc != MOSQ_ERR_SUCCESS) {
+        im.events.push_back(
+            {LinkEvent::Kind::kDisconnected, "", "subscribe to " + filter + " failed: " + mosquitto_strerror(rc)});
+      }
+    }
+  }
+  if (im.state == Impl::State::kIdle && im.schedule.Due(now_ms)) im.Connect();
+  std::vector<LinkEvent> out;
+  out.swap(im.events);
+  return out;
+}
+
+void MosquittoLink::Reconnect(const std::string& reason) {
+  Impl& im = *impl_;
+  if (im.state != Impl::State::kIdle) im.Drop();
+  im.schedule.Lost(im.now_ms);
+  im.events.push_back({LinkEvent::Kind::kDisconnected, "", reason});
+}
+
+int MosquittoLink::wake_fd() const {
+  return mosquitto_socket(impl_->client);
+}
+
+void MosquittoLink::Shutdown(const OutMessage& final_message, int timeout_ms) {
+  Impl& im = *impl_;
+  if (im.state != Impl::State::kConnected) return;
+  using Steady = std::chrono::steady_clock;
+  const Steady::time_point deadline = Steady::now() + std::chrono::milliseconds(timeout_ms);
+  // The final message waits for its PUBACK (as long as the deadline allows), as PahoLink's does.
+  int mid = -1;
+  if (!final_message.topic.empty() &&
+      mosquitto_publish(im.client, &mid, final_message.topic.c_str(), static_cast<int>(final_message.payload.size()),
+                        final_message.payload.data(), final_message.qos, final_message.retained) == MOSQ_ERR_SUCCESS &&
+      final_message.qos > 0) {
+    while (im.state == Impl::State::kConnected && im.last_acked_mid != mid && Steady::now() < deadline) {
+      pollfd p{mosquitto_socket(im.client), static_cast<short>(POLLIN | (mosquitto_want_write(im.client) ? POLLOUT : 0)), 0};
+      (void)::poll(&p, 1, 10);
+      im.Pump();
+    }
+  }
+  if (im.state == Impl::State::kIdle) return;
+  im.state = Impl::State::kIdle;
+  (void)mosquitto_disconnect(im.client);
+  while (mosquitto_socket(im.client) >= 0 && mosquitto_want_write(im.client) && Steady::now() < deadline) {
+    pollfd p{mosquitto_socket(im.client), POLLOUT, 0};
+    (void)::poll(&p, 1, 10);
+    (void)mosquitto_loop_write(im.client, 1);
+  }
+}
+
+bool MosquittoLink::DoPublish(const OutMessage& message) {
+  Impl& im = *impl_;
+  if (im.state != Impl::State::kConnected) return false;
+  return mosquitto_publish(im.client, nullptr, message.topic.c_str(), static_cast<int>(message.payload.size()),
+                           message.payload.data(), message.qos, message.retained) == MOSQ_ERR_SUCCESS;
+}
+
+bool MosquittoLink::DoIsConnected() const {
+  return impl_->state == Impl::State::kConnected;
+}
+
+}  // namespace lw::mqtt
