@@ -207,9 +207,12 @@ TEST(MosquittoLink, TlsConnectsWithTheBrokersCaAndIsRefusedWithoutIt) {
   STRCMP_EQUAL("over tls", events.back().payload.c_str());
 
   MosquittoLink untrusted(Options(broker.uri(), "stranger"));  // the system's trust store: not this CA
-  const auto refused = PollUntil(untrusted, Has(LinkEvent::Kind::kDisconnected), 5000);
+  const auto refused = PollUntil(untrusted, Has(LinkEvent::Kind::kDisconnected));
   LONGS_EQUAL(0, Count(refused, LinkEvent::Kind::kConnected));
-  CHECK_TEXT(Text(refused).find("failed") != std::string::npos, Text(refused).c_str());
+  // The handshake fails either in the connect call or on the first read after it, depending on
+  // timing (a loaded machine): "connect to ... failed: ..." or "connection lost: ...".
+  const std::string text = Text(refused);
+  CHECK_TEXT(text.find("failed") != std::string::npos || text.find("connection lost") != std::string::npos, text.c_str());
 }
 
 TEST(MosquittoLink, ShutdownDeliversTheFinalMessage) {
