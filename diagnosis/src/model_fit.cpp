@@ -106,13 +106,14 @@ void Residuals(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x
     // A sensor's intensity error changes when it reaches a depth, not only how much it wears: its
     // curve is simulated at its own rate (u profiled on the plain curves, then once more on its own).
     std::vector<double> u(p.sensor_obs.size(), 0.0);
+    const Eigen::MatrixXd plain = w;
     for (int pass = 0; pass < 2; ++pass) {
       for (size_t s = 0; s < p.sensor_obs.size(); ++s) {
         const std::optional<double> pu = ProfiledU(p, w, s, train, opt.raw, 1.0 / (p.sigma_u[s] * p.sigma_u[s]));
         // Rows divided by their factor: the u profiled on them is again the whole intensity error.
         if (pu) u[s] = *pu;
       }
-      Simulate(spec, x, p.points, p.grid, w);
+      w = plain;  // only the sensors' rows are simulated again
       SensorDepthRows(p, spec, x, u, w);
     }
   }
