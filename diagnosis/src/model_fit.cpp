@@ -79,8 +79,6 @@ double Interp(const Eigen::MatrixXd& w, const Obs& o) {
   return w(r, j) * (1.0 - o.frac) + w(r, j + 1) * o.frac;
 }
 
-// Whitened residuals over the training observations; per-sensor random intensity error u_s is
-// profiled out analytically (prior N(0, sigma_u^2)).
 void SensorDepthRows(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x, const std::vector<double>& u,
                      Eigen::MatrixXd& w) {
   if (!DepthDependent(spec)) return;
@@ -99,6 +97,8 @@ void SensorDepthRows(const Problem& p, const ModelSpec& spec, const Eigen::Vecto
   for (size_t k = 0; k < rows.size(); ++k) w.row(rows[k].first) = ws.row(static_cast<Eigen::Index>(k)) / rows[k].second;
 }
 
+// Whitened residuals over the training observations; per-sensor random intensity error u_s is
+// profiled out analytically (prior N(0, sigma_u^2)).
 void Residuals(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x, const Mask& train, const EvalOptions& opt,
                Eigen::VectorXd& r, std::vector<double>* u_out, Eigen::MatrixXd& w) {
   Simulate(spec, x, p.points, p.grid, w);
