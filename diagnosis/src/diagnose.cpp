@@ -51,8 +51,12 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   result.mismatch_detected = detail::MismatchDetected(result.mismatch_z_score, result.findings);
   result.hypotheses = detail::HypothesesTable(hyp.evals, prob.rows);
   detail::SummariseNoise(prob, null, folds, result);
-  const bool use_improved = chosen != nullptr || !result.findings.empty();
+  // The improved model: the chosen one; with nothing chosen, the refit baseline (row scales fitted
+  // to the sensors and scans together, each sensor's map-noise term: the map recalibrated where it
+  // was measured, no physics added), unless its fit failed; then Eq. 9 itself.
+  const bool use_improved = chosen != nullptr || detail::RefitUsable(null);
   result.improved = use_improved ? detail::ModelMetrics(prob, chosen ? *chosen : null.eval) : result.baseline;
+  result.improved_model = chosen ? "findings" : (use_improved ? "refit_baseline" : "baseline");
   const detail::FitResult& model_fit = use_improved ? (chosen ? chosen->full : null.fit) : base.eq9;
 
   if (result.mismatch_detected) result.regions = detail::FindRegions(bundle, setup, null);

@@ -151,6 +151,13 @@ constexpr ParamInfo kParams[] = {
     {"theta_deg", "&theta;", "deg", "Angle of that sensor around the liner."},
 };
 
+// What the "improved" model is in this report's words (DiagnosisResult::improved_model).
+std::string ImprovedWords(const DiagnosisResult& r) {
+  if (r.improved_model == "findings") return "improved model (findings)";
+  if (r.improved_model == "refit_baseline") return "improved model (no findings: the map recalibrated at the sensors)";
+  return "improved model (= baseline)";
+}
+
 const ParamInfo* FindParam(const std::string& key) {
   for (const ParamInfo& p : kParams)
     if (key == p.key) return &p;
@@ -492,7 +499,8 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
     h << "<p class='caption'>Each face of the liner, unwrapped (&theta; across, height z up), coloured by "
          "<b>measured minus predicted wear</b> in mm: <span class='red'>red</span> = the liner wore <b>more</b> than "
          "the model says (thinner than predicted), <span class='blue'>blue</span> = less. Left: the baseline "
-         "(plain Eq. 9, before the diagnosis); right: the model with the findings. Same colour scale; values beyond "
+         "(plain Eq. 9, before the diagnosis); right: the improved model (with the findings, if any). Same colour scale; values "
+         "beyond "
          "&plusmn;"
       << Sig(scale)
       << " mm are drawn at the end colour. Grey: no scan points on the face. Circles: "
@@ -506,13 +514,13 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
          "class='red'>red</span> = wore more than predicted, <span class='blue'>blue</span> = less; same scale, "
          "&plusmn;"
       << Sig(scale)
-      << " mm). Left: baseline (plain Eq. 9); right: the model with the findings. "
+      << " mm). Left: baseline (plain Eq. 9); right: the improved model (with the findings, if any). "
          "Dashed circles: sensors whose readings ran away from the baseline (mismatch regions).</p>";
   }
   h << "<div class='maps pair'>";
   if (scan) {
     h << LinerMap(ids, L, frame, before, div, "BEFORE: baseline (plain Eq. 9)", "mm", mb, regions, nullptr);
-    h << LinerMap(ids, L, frame, after, div, "AFTER: improved model (findings)", "mm", ma, regions, nullptr);
+    h << LinerMap(ids, L, frame, after, div, "AFTER: " + ImprovedWords(r), "mm", ma, regions, nullptr);
   } else {
     double wmax = 1;
     for (double v : snap.baseline_mm)
@@ -523,7 +531,8 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
     auto seq = [wmax](double v) { return Sequential(v / wmax); };
     h << LinerMap(ids, L, frame, snap.baseline_mm, seq, "BEFORE: baseline (plain Eq. 9), predicted wear", "mm wear", mb, regions,
                   nullptr);
-    h << LinerMap(ids, L, frame, snap.improved_mm, seq, "AFTER: improved model, predicted wear", "mm wear", ma, regions, nullptr);
+    h << LinerMap(ids, L, frame, snap.improved_mm, seq, "AFTER: " + ImprovedWords(r) + ", predicted wear", "mm wear", ma, regions,
+                  nullptr);
     h << "</div><div class='maps'>" << Legend(seq, 0, wmax, "background: predicted wear (mm)");
   }
   if (scan) h << "</div><div class='maps'>";
@@ -820,7 +829,7 @@ std::string RenderHtml(const DiagnosisResult& r) {
   h << "<tr><td>baseline (plain Eq. 9, wear linear in time)</td><td class='num'>" << Num(r.baseline.rmse_mm)
     << "</td><td class='num'>" << Num(r.baseline.max_abs_mm) << "</td><td class='num'>" << Num(r.baseline.holdout_rmse_mm)
     << "</td><td class='num'>" << r.baseline.observations << "</td></tr>";
-  h << "<tr><td>improved (findings modelled)</td><td class='num'>" << Num(r.improved.rmse_mm) << "</td><td class='num'>"
+  h << "<tr><td>" << ImprovedWords(r) << "</td><td class='num'>" << Num(r.improved.rmse_mm) << "</td><td class='num'>"
     << Num(r.improved.max_abs_mm) << "</td><td class='num'>" << Num(r.improved.holdout_rmse_mm) << "</td><td class='num'>"
     << r.improved.observations << "</td></tr></table>";
 

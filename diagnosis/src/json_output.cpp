@@ -57,6 +57,7 @@ nlohmann::ordered_json ToJson(const DiagnosisResult& r) {
     j["findings"].push_back(x);
   }
   j["improved"] = Errors(r.improved);
+  j["improved"]["model"] = r.improved_model;
   j["data_quality"] = nlohmann::ordered_json::array();
   for (const DataQualityIssue& d : r.data_quality) {
     nlohmann::ordered_json x;
@@ -70,13 +71,16 @@ nlohmann::ordered_json ToJson(const DiagnosisResult& r) {
   if (r.prediction) {
     nlohmann::ordered_json p;
     p["time"] = core::FormatIsoTime(r.prediction->time);
-    nlohmann::ordered_json b = nlohmann::ordered_json::object(), i = nlohmann::ordered_json::object();
+    nlohmann::ordered_json b = nlohmann::ordered_json::object(), i = nlohmann::ordered_json::object(),
+                           f = nlohmann::ordered_json::object();
     for (const SensorPrediction& s : r.prediction->sensors) {
       b[s.sensor_id] = Round(s.baseline_thickness_mm, 3);
       i[s.sensor_id] = Round(s.improved_thickness_mm, 3);
+      f[s.sensor_id] = Round(s.refit_thickness_mm, 3);
     }
     p["baseline"]["sensors"] = b;
     p["improved"]["sensors"] = i;
+    p["refit_baseline"]["sensors"] = f;
     j["prediction"] = p;
   }
   j["noise"] = r.noise;

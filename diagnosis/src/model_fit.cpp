@@ -83,18 +83,19 @@ void SensorDepthRows(const Problem& p, const ModelSpec& spec, const Eigen::Vecto
                      Eigen::MatrixXd& w) {
   if (!DepthDependent(spec)) return;
   std::vector<ModelPoint> points;
-  std::vector<std::pair<Eigen::Index, double>> rows;
+  std::vector<double> factors;
+  std::vector<Eigen::Index> rows;
   for (size_t s = 0; s < p.sensor_obs.size() && s < u.size(); ++s) {
     if (p.sensor_obs[s].empty() || u[s] == 0) continue;
-    const double factor = std::max(0.05, 1.0 + u[s]);
     const size_t point = p.obs[p.sensor_obs[s].front()].point;
-    points.push_back(ScaledRate(p.points[point], factor));
-    rows.push_back({static_cast<Eigen::Index>(point), factor});
+    points.push_back(p.points[point]);
+    factors.push_back(OwnRateFactor(u[s]));
+    rows.push_back(static_cast<Eigen::Index>(point));
   }
   if (points.empty()) return;
   Eigen::MatrixXd ws;
-  Simulate(spec, x, points, p.grid, ws);
-  for (size_t k = 0; k < rows.size(); ++k) w.row(rows[k].first) = ws.row(static_cast<Eigen::Index>(k)) / rows[k].second;
+  SimulateOwnRates(spec, x, points, factors, p.grid, ws);
+  for (size_t k = 0; k < rows.size(); ++k) w.row(rows[k]) = ws.row(static_cast<Eigen::Index>(k));
 }
 
 // Whitened residuals over the training observations; per-sensor random intensity error u_s is

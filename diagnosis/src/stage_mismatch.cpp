@@ -50,6 +50,11 @@ KindChi2 Chi2ByKind(const Problem& prob, const ModelSpec& spec, const Eigen::Vec
 
 }  // namespace
 
+bool RefitUsable(const NullModel& null) {
+  return null.fit.x.size() > 0 && null.fit.x.allFinite() &&
+         std::all_of(null.fit.u.begin(), null.fit.u.end(), [](double u) { return std::isfinite(u); });
+}
+
 NullModel TestMismatch(const Problem& prob, const Baseline& base, const std::vector<Fold>& folds) {
   const EvalOptions joint{true, false};
   NullModel null;

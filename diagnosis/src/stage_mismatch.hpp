@@ -20,6 +20,9 @@ struct NullModel {
   ModelEval eval;         ///< the refit baseline evaluated on the folds
 };
 
+/// Whether the refit baseline's fit is usable (parameters and map-noise terms finite).
+bool RefitUsable(const NullModel& null);
+
 NullModel TestMismatch(const Problem& prob, const Baseline& base, const std::vector<Fold>& folds);
 
 /// The oracle's effect (a form's name or an effect's: its first form). Throws std::invalid_argument

@@ -22,18 +22,12 @@ double SensorU(const PredictionInput& in, const SensorData& s) {
 }
 
 // Per sensor, the factor its improved-model point's rate is scaled by so that it wears along its
-// own depth curve (1 + u under a depth-dependent model, else 1; SensorDepthRows); the simulated
-// wear is divided by it again, since the callers multiply by 1 + u.
+// own depth curve (OwnRateFactor of its intensity error; 1 for the baseline, SimulateOwnRates).
 std::vector<double> DepthFactors(const PredictionInput& in) {
   std::vector<double> f(in.setup.sensors.size(), 1.0);
-  if (in.use_improved && DepthDependent(in.model.spec))
-    for (size_t i = 0; i < f.size(); ++i) f[i] = std::max(0.05, 1.0 + SensorU(in, in.setup.sensors[i]));
+  if (in.use_improved)
+    for (size_t i = 0; i < f.size(); ++i) f[i] = OwnRateFactor(SensorU(in, in.setup.sensors[i]));
   return f;
-}
-
-std::vector<ModelPoint> Scaled(std::vector<ModelPoint> points, const std::vector<double>& factors) {
-  for (size_t i = 0; i < points.size(); ++i) points[i] = ScaledRate(points[i], factors[i]);
-  return points;
 }
 
 double Days(const PredictionInput& in, core::TimePoint t) {
@@ -97,9 +91,7 @@ std::vector<SensorCurve> SensorCurves(const PredictionInput& in) {
   const std::vector<ModelPoint> points = SensorPoints(in.setup);
   Eigen::MatrixXd w_base, w_best;
   Simulate(in.base.spec, in.base.eq9.x, points, in.setup.prob.grid, w_base);
-  const std::vector<double> factors = DepthFactors(in);
-  Simulate(in.model.spec, in.model.x, Scaled(points, factors), in.setup.prob.grid, w_best);
-  for (size_t i = 0; i < factors.size(); ++i) w_best.row(static_cast<Eigen::Index>(i)) /= factors[i];
+  SimulateOwnRates(in.model.spec, in.model.x, points, DepthFactors(in), in.setup.prob.grid, w_best);
   std::vector<SensorCurve> curves;
   for (size_t i = 0; i < in.setup.sensors.size(); ++i) curves.push_back(CurveOf(in, i, w_base, w_best));
   return curves;
@@ -146,15 +138,19 @@ Prediction PredictAt(const PredictionInput& in, const std::vector<ModelPoint>& f
   pred.time = at;
   const double t = Days(in, at);
   const Eigen::VectorXd wb = SimulateAt(in.base.spec, in.base.eq9.x, sensor_points, grid, t);
-  const std::vector<double> factors = DepthFactors(in);
-  Eigen::VectorXd wi = SimulateAt(in.model.spec, in.model.x, Scaled(sensor_points, factors), grid, t);
-  for (size_t i = 0; i < factors.size(); ++i) wi[static_cast<Eigen::Index>(i)] /= factors[i];
+  const Eigen::VectorXd wi = SimulateOwnRatesAt(in.model.spec, in.model.x, sensor_points, DepthFactors(in), grid, t);
+  const bool refit = RefitUsable(in.null);
+  const Eigen::VectorXd wr = refit ? SimulateAt(in.null.fit.spec, in.null.fit.x, sensor_points, grid, t) : wb;
   for (size_t i = 0; i < in.setup.sensors.size(); ++i) {
     const SensorData& s = in.setup.sensors[i];
     const auto r = static_cast<Eigen::Index>(i);
+    const double u_refit = refit && s.usable && static_cast<size_t>(s.usable_index) < in.null.fit.u.size()
+                               ? in.null.fit.u[static_cast<size_t>(s.usable_index)]
+                               : 0.0;
     pred.sensors.push_back(
         {s.id, std::max(0.0, s.thickness - wb[r]),
-         std::max(0.0, s.thickness - wi[r] * (1.0 + SensorU(in, s)) - (in.use_improved ? LossOffset(s, t) : 0.0))});
+         std::max(0.0, s.thickness - wi[r] * (1.0 + SensorU(in, s)) - (in.use_improved ? LossOffset(s, t) : 0.0)),
+         std::max(0.0, s.thickness - wr[r] * (1.0 + u_refit) - (refit ? LossOffset(s, t) : 0.0))});
   }
   // Physical: a face's wear is at most the as-new thickness (worn through).
   const Eigen::VectorXd fb =

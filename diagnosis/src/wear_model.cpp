@@ -235,6 +235,33 @@ ModelPoint ScaledRate(ModelPoint point, double factor) {
   return point;
 }
 
+double OwnRateFactor(double u) {
+  return std::max(0.05, 1.0 + u);
+}
+
+namespace {
+std::vector<ModelPoint> OwnRatePoints(const ModelSpec& spec, std::vector<ModelPoint> points, const std::vector<double>& factors) {
+  if (DepthDependent(spec))
+    for (size_t i = 0; i < points.size() && i < factors.size(); ++i) points[i] = ScaledRate(points[i], factors[i]);
+  return points;
+}
+}  // namespace
+
+void SimulateOwnRates(const ModelSpec& spec, const Eigen::VectorXd& params, const std::vector<ModelPoint>& points,
+                      const std::vector<double>& factors, const TimeGrid& grid, Eigen::MatrixXd& wear) {
+  Simulate(spec, params, OwnRatePoints(spec, points, factors), grid, wear);
+  if (DepthDependent(spec))
+    for (size_t i = 0; i < points.size() && i < factors.size(); ++i) wear.row(static_cast<Eigen::Index>(i)) /= factors[i];
+}
+
+Eigen::VectorXd SimulateOwnRatesAt(const ModelSpec& spec, const Eigen::VectorXd& params, const std::vector<ModelPoint>& points,
+                                   const std::vector<double>& factors, const TimeGrid& grid, double t_days) {
+  Eigen::VectorXd w = SimulateAt(spec, params, OwnRatePoints(spec, points, factors), grid, t_days);
+  if (DepthDependent(spec))
+    for (size_t i = 0; i < points.size() && i < factors.size(); ++i) w[static_cast<Eigen::Index>(i)] /= factors[i];
+  return w;
+}
+
 Eigen::VectorXd SimulateAt(const ModelSpec& spec, const Eigen::VectorXd& params, const std::vector<ModelPoint>& points,
                            const TimeGrid& grid, double t_days) {
   const Resolved r = Resolve(spec, params);

@@ -84,4 +84,16 @@ bool DepthDependent(const ModelSpec& spec);
 /// intensity error u (factor 1 + u) simulated on its own depth curve.
 ModelPoint ScaledRate(ModelPoint point, double factor);
 
+/// The rate factor of a sensor with intensity error u on its own depth curve: 1 + u, at least 0.05.
+double OwnRateFactor(double u);
+
+/// For a depth-dependent spec: the wear of each point simulated at its rate times factors[i] and
+/// divided by factors[i] again (so that wear * factors[i] is the point's wear on its own depth
+/// curve), at every step of `grid` (`wear`, points x steps + 1). Otherwise the plain simulation.
+void SimulateOwnRates(const ModelSpec& spec, const Eigen::VectorXd& params, const std::vector<ModelPoint>& points,
+                      const std::vector<double>& factors, const TimeGrid& grid, Eigen::MatrixXd& wear);
+/// The same at one time (SimulateAt).
+Eigen::VectorXd SimulateOwnRatesAt(const ModelSpec& spec, const Eigen::VectorXd& params, const std::vector<ModelPoint>& points,
+                                   const std::vector<double>& factors, const TimeGrid& grid, double t_days);
+
 }  // namespace lw::diagnosis::detail

@@ -199,6 +199,9 @@ struct SensorPrediction {
   std::string sensor_id;
   double baseline_thickness_mm = 0;
   double improved_thickness_mm = 0;
+  /// The refit baseline's (no physics; row scales and this sensor's map-noise term fitted): what
+  /// the findings add beyond recalibrating the map is the difference to `improved_thickness_mm`.
+  double refit_thickness_mm = 0;
 };
 
 struct Prediction {
@@ -213,6 +216,10 @@ struct DiagnosisResult {
   core::TimePoint installed_at{};
   ErrorSummary baseline;
   ErrorSummary improved;
+  /// What `improved` and the improved predictions are: "findings" (the chosen model with its
+  /// effects), "refit_baseline" (nothing chosen: the baseline's row scales refitted to the sensors
+  /// and scans together, with each sensor's map-noise term; no physics added) or "baseline".
+  std::string improved_model = "baseline";
   bool mismatch_detected = false;
   double mismatch_z_score = 0;  ///< chi-square excess of the baseline over the noise model, in sigmas
   std::vector<Region> regions;

@@ -49,8 +49,10 @@ TEST(Diagnose, NullCampaignHasNoFindingAndNoMismatch) {
   CHECK_FALSE(r.mismatch_detected);
   CHECK_TRUE(r.findings.empty());
   CHECK_TRUE(r.data_quality.empty());
-  // Improved equals the baseline when nothing was found.
-  DOUBLES_EQUAL(r.baseline.rmse_mm, r.improved.rmse_mm, 1e-12);
+  // Nothing found: the improved model is the refit baseline (the map recalibrated at the sensors),
+  // which fits the recordings at least as well as plain Eq. 9.
+  STRCMP_EQUAL("refit_baseline", r.improved_model.c_str());
+  CHECK_TRUE(r.improved.rmse_mm <= r.baseline.rmse_mm);
 }
 
 TEST(Diagnose, WorkHardeningIsNamedWithSaturationTime) {
@@ -68,6 +70,7 @@ TEST(Diagnose, WorkHardeningIsNamedWithSaturationTime) {
   // 3.05 days on this bundle (true 6); within 2 days before. The held-out check below still holds.
   DOUBLES_EQUAL(6.0, Param(r.findings[0], "tau_days"), 3.5);
   CHECK_TRUE(r.improved.holdout_rmse_mm < 0.7 * r.baseline.holdout_rmse_mm);
+  STRCMP_EQUAL("findings", r.improved_model.c_str());
   CHECK_TRUE(r.findings[0].explanation.find("normal stress") != std::string::npos);
 }
 
@@ -166,6 +169,7 @@ TEST(Diagnose, JsonHasEveryContractKeyAndPrediction) {
   for (const char* block : {"baseline", "improved"}) {
     for (const char* key : {"rmse_mm", "max_abs_mm", "holdout_rmse_mm"}) CHECK_TRUE(j.at(block).at(key).is_number());
   }
+  STRCMP_EQUAL("findings", j.at("improved").at("model").get<std::string>().c_str());
   CHECK_TRUE(j.at("mismatch").at("detected").is_boolean());
   CHECK_TRUE(j.at("mismatch").at("regions").is_array());
   CHECK_FALSE(j.at("mismatch").at("regions").empty());
