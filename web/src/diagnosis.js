@@ -34,7 +34,7 @@ function metricChart(title, before, after) {
         change == null ? '' : `${change < 0 ? '' : '+'}${fmt(change, 0)} %`)));
 }
 
-function predictionChart(pred) {
+function predictionChart(pred, model) {
   const base = pred?.baseline?.sensors || {};
   const impr = pred?.improved?.sensors || {};
   const ids = Object.keys(base).filter((k) => k in impr);
@@ -53,7 +53,7 @@ function predictionChart(pred) {
     svg.append(s('text', { x: X(Math.max(base[k], impr[k])) + 4, y: y + 13, 'font-size': 11, fill: '#1b2633' }, `${fmt(base[k])} → ${fmt(impr[k])} mm`));
   });
   return h('div', { style: { marginTop: '10px' } },
-    h('div', { class: 'sub' }, `Predicted thickness at ${fmtDateTime(pred.time)}: grey = DEM alone (Eq. 9), blue = with findings modelled`), svg);
+    h('div', { class: 'sub' }, `Predicted thickness at ${fmtDateTime(pred.time)}: grey = DEM alone (Eq. 9), blue = ${model === 'refit_baseline' ? 'no findings: the map recalibrated at the sensors' : 'with findings modelled'}`), svg);
 }
 
 export function renderDiagnosis(container, diag, { canWrite, onRun, runError }) {
@@ -84,7 +84,7 @@ export function renderDiagnosis(container, diag, { canWrite, onRun, runError }) 
     metricChart('RMSE on fitted readings', b.rmse_mm, a.rmse_mm),
     metricChart('Largest error', b.max_abs_mm, a.max_abs_mm),
     metricChart('RMSE on held-out data', b.holdout_rmse_mm, a.holdout_rmse_mm)));
-  const pred = predictionChart(res.prediction);
+  const pred = predictionChart(res.prediction, a.model);
   if (pred) container.append(pred);
 
   const mm = res.mismatch || {};
