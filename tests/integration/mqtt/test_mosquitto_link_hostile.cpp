@@ -118,7 +118,8 @@ Run AfterConnect(const std::string& hostile, bool close, int64_t timeout_ms = 10
   });
   if (broker_out) *broker_out = &broker;
   MosquittoLink link(Options(broker.uri()));
-  Run run = PollUntil(link, [](const auto& e) { return HasMessage(e, "good"); }, timeout_ms);
+  Run run = PollUntil(
+      link, [](const auto& e) { return HasMessage(e, "good"); }, timeout_ms);
   CHECK_TEXT(HasMessage(run.events, "good"), Text(run.events).c_str());
   LONGS_EQUAL_TEXT(2, broker.connections(), Text(run.events).c_str());
   return run;
@@ -150,7 +151,8 @@ TEST(MosquittoLinkHostileBroker, ARefusingConnackIsReportedWithItsCodeAndRetried
       c.Hold(5000);
     });
     MosquittoLink link(Options(broker.uri()));
-    const Run run = PollUntil(link, [](const auto& e) { return HasMessage(e, "good"); }, 10'000);
+    const Run run = PollUntil(
+        link, [](const auto& e) { return HasMessage(e, "good"); }, 10'000);
     const std::string text = Text(run.events);
     CHECK_TEXT(HasMessage(run.events, "good"), text.c_str());
     LONGS_EQUAL_TEXT(4, broker.connections(), text.c_str());
@@ -182,7 +184,8 @@ TEST(MosquittoLinkHostileBroker, ATruncatedPacketThenCloseIsALostConnection) {
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
   });
   MosquittoLink link(Options(broker.uri()));
-  const Run run = PollUntil(link, [](const auto& e) { return HasMessage(e, "good"); }, 20'000);
+  const Run run = PollUntil(
+      link, [](const auto& e) { return HasMessage(e, "good"); }, 20'000);
   CHECK_TEXT(HasMessage(run.events, "good"), Text(run.events).c_str());
   CheckLostThenRecovered(run, "the broker closed the connection in the middle of a packet");
   // About 25 polls in the pause (the test waits 20 ms on the socket between them) and a few more.
@@ -213,7 +216,8 @@ TEST(MosquittoLinkHostileBroker, APublishDeclaringHugeLengthCostsOnlyWhatArrives
     c.Hold();
   });
   MosquittoLink link(Options(broker.uri()));
-  const Run run = PollUntil(link, [](const auto& e) { return HasMessage(e, "good"); }, 20'000);
+  const Run run = PollUntil(
+      link, [](const auto& e) { return HasMessage(e, "good"); }, 20'000);
   CHECK_TEXT(HasMessage(run.events, "good"), Text(run.events).c_str());
   CheckLostThenRecovered(run, "no answer from the broker within the keep-alive (5 s)");
   // libmosquitto allocates the declared length at once (up to MQTT's 256 MiB; docs/security.md) but
@@ -223,7 +227,10 @@ TEST(MosquittoLinkHostileBroker, APublishDeclaringHugeLengthCostsOnlyWhatArrives
 
 TEST(MosquittoLinkHostileBroker, APublishWhoseTopicLengthExceedsThePacketIsAProtocolError) {
   // Topic length 0x00FF, 5 bytes follow.
-  const Run run = AfterConnect(std::string("\x30\x07\x00\xff" "abcde", 9), true);
+  const Run run = AfterConnect(std::string("\x30\x07\x00\xff"
+                                           "abcde",
+                                           9),
+                               true);
   CheckLostThenRecovered(run, "protocol error");
 }
 
@@ -248,7 +255,8 @@ TEST(MosquittoLinkHostileBroker, PayloadsThatAreNotJsonOrUtf8AndUnsubscribedTopi
     c.Hold();
   });
   MosquittoLink link(Options(broker.uri()));
-  const Run run = PollUntil(link, [](const auto& e) { return HasMessage(e, "good"); }, 10'000);
+  const Run run = PollUntil(
+      link, [](const auto& e) { return HasMessage(e, "good"); }, 10'000);
   const std::string text = Text(run.events);
   LONGS_EQUAL_TEXT(0, Count(run.events, LinkEvent::Kind::kDisconnected), text.c_str());
   LONGS_EQUAL_TEXT(4, Count(run.events, LinkEvent::Kind::kMessage), text.c_str());
@@ -269,7 +277,8 @@ TEST(MosquittoLinkHostileBroker, AFloodOfPingrespsNeitherDropsTheLinkNorHoldsBac
     c.Hold();
   });
   MosquittoLink link(Options(broker.uri()));
-  const Run run = PollUntil(link, [](const auto& e) { return HasMessage(e, "good"); }, 30'000);
+  const Run run = PollUntil(
+      link, [](const auto& e) { return HasMessage(e, "good"); }, 30'000);
   const std::string text = Text(run.events);
   CHECK_TEXT(HasMessage(run.events, "good"), text.c_str());
   LONGS_EQUAL_TEXT(0, Count(run.events, LinkEvent::Kind::kDisconnected), text.c_str());
@@ -284,14 +293,16 @@ TEST(MosquittoLinkHostileBroker, ABrokerThatAcceptsAndNeverAnswersIsAFailedConne
     c.Hold();  // reads the CONNECT, says nothing
   });
   MosquittoLink link(Options(broker.uri()));
-  const Run run = PollUntil(link, [](const auto& e) { return HasMessage(e, "good"); }, 20'000);
+  const Run run = PollUntil(
+      link, [](const auto& e) { return HasMessage(e, "good"); }, 20'000);
   const std::string text = Text(run.events);
   CHECK_TEXT(HasMessage(run.events, "good"), text.c_str());
   LONGS_EQUAL_TEXT(2, broker.connections(), text.c_str());
   LONGS_EQUAL_TEXT(1, Count(run.events, LinkEvent::Kind::kConnected), text.c_str());
   LONGS_EQUAL_TEXT(1, Count(run.events, LinkEvent::Kind::kDisconnected), text.c_str());
   CHECK_TEXT(run.events.at(0).payload.find("connect to " + broker.uri() + " failed: ") == 0, text.c_str());
-  CHECK_TEXT(run.events.at(0).payload.find("no answer from the broker within the keep-alive (5 s)") != std::string::npos, text.c_str());
+  CHECK_TEXT(run.events.at(0).payload.find("no answer from the broker within the keep-alive (5 s)") != std::string::npos,
+             text.c_str());
 }
 
 TEST(MosquittoLinkHostileBroker, AQos2PublishIsRefusedAndWhatLibmosquittoHeldForItFreed) {
@@ -307,7 +318,8 @@ TEST(MosquittoLinkHostileBroker, AQos2PublishIsRefusedAndWhatLibmosquittoHeldFor
     c.Hold();
   });
   MosquittoLink link(Options(broker.uri()));
-  const Run run = PollUntil(link, [](const auto& e) { return HasMessage(e, "good"); }, 30'000);
+  const Run run = PollUntil(
+      link, [](const auto& e) { return HasMessage(e, "good"); }, 30'000);
   const long grown = RssKib() - before;
   CHECK_TEXT(HasMessage(run.events, "good"), Text(run.events).c_str());
   LONGS_EQUAL_TEXT(2, broker.connections(), Text(run.events).c_str());
