@@ -103,8 +103,8 @@ TEST(ServerHostileBroker, InvalidMessagesAreNotStoredAndNamedInTheLogAndABrokenC
   json health = json::object();
   for (const int64_t end = NowMs() + 90'000; NowMs() < end;) {
     if (auto r = http.Get("/healthz"); r && r->status == 200) health = json::parse(r->body);
-    if (health.value("readings_stored", 0) == 2 && health.value("rejected", 0) == 2 && acked(messages[2]) &&
-        acked(messages[4]) && Lines(ReadFile(log), "ignored") == 2) {
+    if (health.value("readings_stored", 0) == 2 && health.value("rejected", 0) == 2 && acked(messages[2]) && acked(messages[4]) &&
+        Lines(ReadFile(log), "ignored") == 2) {
       break;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
