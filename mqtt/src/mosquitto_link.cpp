@@ -108,7 +108,7 @@ struct MosquittoLink::Impl {
   bool subscribe_due = false;
   int last_acked_mid = -1;         // the last of our QoS 1 messages the broker acknowledged
   uint64_t packets = 0;            // packets handled with a callback (CONNACK, PUBLISH, PUBACK, SUBACK)
-  bool qos2_seen = false;          // the broker sent a QoS 2 PUBLISH (OnLog): the connection is dropped
+  std::string violation;           // what the broker did that MQTT forbids (OnLog, OnConnect): Read() drops the connection
   std::string publish_log_prefix;  // how libmosquitto's debug line for a received PUBLISH starts
 
   explicit Impl(LinkOptions o) : options(std::move(o)), endpoint(ParseUri(options.uri)), schedule(options) {}
@@ -172,7 +172,11 @@ struct MosquittoLink::Impl {
   static void OnConnect(mosquitto*, void* self, int rc) {
     Impl& im = *static_cast<Impl*>(self);
     ++im.packets;
-    if (rc == 0) {
+    if (im.state == State::kConnected) {
+      // A second CONNACK on a connection (libmosquitto 2.0.11 takes it like the first; found by
+      // fuzz_mqtt_link_broker): not a new connection.
+      im.violation = "a second CONNACK";
+    } else if (rc == 0) {
       im.state = State::kConnected;
       im.schedule.Connected(im.now_ms);
       im.subscribe_due = true;
@@ -225,7 +229,7 @@ struct MosquittoLink::Impl {
       p = text + prefix.size();
     }
     // p: "0, q2, ..."
-    if (p[0] != '\0' && std::strncmp(p + 1, ", q2,", 5) == 0) im.qos2_seen = true;
+    if (p[0] != '\0' && std::strncmp(p + 1, ", q2,", 5) == 0) im.violation = "a QoS 2 message on QoS 1 subscriptions";
   }
 
   void Failed(const std::string& why) {
@@ -247,23 +251,25 @@ struct MosquittoLink::Impl {
     for (int n = 0; n < kMaxPacketsPerPoll && state != State::kIdle; ++n) {
       const uint64_t before = packets;
       if (mosquitto_loop_read(client, 1) != MOSQ_ERR_SUCCESS) return;  // OnDisconnect said why
-      if (qos2_seen) return RefuseQos2();
+      if (!violation.empty()) return Refuse();
       if (packets == before && !Ready(mosquitto_socket(client), POLLIN)) return;
     }
   }
 
-  /// The broker sent a QoS 2 message (OnLog): the connection is dropped and the client made again,
-  /// which frees what libmosquitto held for it; Poll() connects again with the backoff.
-  void RefuseQos2() {
-    qos2_seen = false;
+  /// The broker did what MQTT forbids (`violation`): the connection is dropped and the client made
+  /// again, which frees what libmosquitto held for it (QoS 2 messages); Poll() connects again with
+  /// the backoff.
+  void Refuse() {
+    const std::string what = std::move(violation);
+    violation.clear();
     state = State::kIdle;
     subscribe_due = false;
     (void)mosquitto_disconnect(client);
     MakeClient(session_clean);
     schedule.Lost(now_ms);
-    events.push_back({LinkEvent::Kind::kDisconnected, "",
-                      "connection dropped: the broker sent a QoS 2 message, which MQTT forbids on this link's QoS 1 "
-                      "subscriptions (a broken broker or a man in the middle)"});
+    events.push_back(
+        {LinkEvent::Kind::kDisconnected, "",
+         "connection dropped: the broker sent " + what + ", which MQTT forbids (a broken broker or a man in the middle)"});
   }
 
   /// Sends what libmosquitto could not write at once (a full socket, a connection being made).
@@ -282,6 +288,7 @@ struct MosquittoLink::Impl {
   }
 
   void Connect() {
+    violation.clear();  // of an earlier connection that ended otherwise first
     const ConnectSchedule::Attempt attempt = schedule.Start();
     if (!attempt.notice.empty()) events.push_back({LinkEvent::Kind::kDisconnected, "", attempt.notice});
     if (attempt.clean_session != session_clean) MakeClient(attempt.clean_session);

@@ -125,16 +125,16 @@ Run AfterConnect(const std::string& hostile, bool close, int64_t timeout_ms = 10
   return run;
 }
 
-/// The hostile connection was reported once, as lost with `reason` in its text, before the link
-/// connected again; the only message reported is the good one.
-void CheckLostThenRecovered(const Run& run, const std::string& reason) {
+/// The hostile connection was reported once, as lost (or dropped by the link, `prefix`) with
+/// `reason` in its text, before the link connected again; the only message reported is the good one.
+void CheckLostThenRecovered(const Run& run, const std::string& reason, const std::string& prefix = "connection lost: ") {
   const std::string text = Text(run.events);
   LONGS_EQUAL_TEXT(2, Count(run.events, LinkEvent::Kind::kConnected), text.c_str());
   LONGS_EQUAL_TEXT(1, Count(run.events, LinkEvent::Kind::kDisconnected), text.c_str());
   LONGS_EQUAL_TEXT(1, Count(run.events, LinkEvent::Kind::kMessage), text.c_str());
   CHECK_TEXT(run.events.at(0).kind == LinkEvent::Kind::kConnected, text.c_str());
   CHECK_TEXT(run.events.at(1).kind == LinkEvent::Kind::kDisconnected, text.c_str());
-  CHECK_TEXT(run.events.at(1).payload.find("connection lost: ") == 0, text.c_str());
+  CHECK_TEXT(run.events.at(1).payload.find(prefix) == 0, text.c_str());
   CHECK_TEXT(run.events.at(1).payload.find(reason) != std::string::npos, (reason + " not in:\n" + text).c_str());
 }
 
@@ -237,6 +237,12 @@ TEST(MosquittoLinkHostileBroker, APublishWhoseTopicLengthExceedsThePacketIsAProt
 TEST(MosquittoLinkHostileBroker, AQos3PublishIsAProtocolError) {
   const Run run = AfterConnect(Publish("readings/s", "qos3", 3, 9), false);
   CheckLostThenRecovered(run, "protocol error");
+}
+
+TEST(MosquittoLinkHostileBroker, ASecondConnackIsRefusedNotReportedAsANewConnection) {
+  // Found by fuzz_mqtt_link_broker: libmosquitto calls the connect callback again.
+  const Run run = AfterConnect(lw::test::Connack(0), false);
+  CheckLostThenRecovered(run, "the broker sent a second CONNACK, which MQTT forbids", "connection dropped: ");
 }
 
 TEST(MosquittoLinkHostileBroker, ATopicThatIsNotUtf8IsAnError) {
