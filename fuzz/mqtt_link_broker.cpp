@@ -93,8 +93,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const linger reset{1, 0};
   ::setsockopt(fd, SOL_SOCKET, SO_LINGER, &reset, sizeof reset);
   ::close(fd);
-  Check(ended, "the link did not report the broker's close after " + std::to_string(sent) + " of " +
-                   std::to_string(size) + " bytes");
+  Check(ended,
+        "the link did not report the broker's close after " + std::to_string(sent) + " of " + std::to_string(size) + " bytes");
   int connected = 0;
   bool up = false;
   for (const LinkEvent& e : events) {

@@ -91,6 +91,10 @@ bool Ready(int fd, short events) {
 
 /// Packets read in one Poll() at most, so a flood cannot keep the owner's loop from its other work.
 constexpr int kMaxPacketsPerPoll = 4096;
+/// Message bytes one Poll() reports at most (one message more may cross it): a broker streaming
+/// large messages as fast as they are read made one Poll() return all it sent (96 MiB in a test),
+/// held by the owner at once. The rest waits in the socket; wake_fd() stays readable.
+constexpr size_t kMaxBytesPerPoll = 16 << 20;
 
 }  // namespace
 
@@ -108,6 +112,7 @@ struct MosquittoLink::Impl {
   bool subscribe_due = false;
   int last_acked_mid = -1;         // the last of our QoS 1 messages the broker acknowledged
   uint64_t packets = 0;            // packets handled with a callback (CONNACK, PUBLISH, PUBACK, SUBACK)
+  size_t message_bytes = 0;        // payload bytes of the messages reported by this Read()
   std::string violation;           // what the broker did that MQTT forbids (OnLog, OnConnect): Read() drops the connection
   std::string publish_log_prefix;  // how libmosquitto's debug line for a received PUBLISH starts
 
@@ -200,6 +205,7 @@ struct MosquittoLink::Impl {
   static void OnMessage(mosquitto*, void* self, const mosquitto_message* m) {
     Impl& im = *static_cast<Impl*>(self);
     ++im.packets;
+    im.message_bytes += static_cast<size_t>(std::max(m->payloadlen, 0));
     im.events.push_back({LinkEvent::Kind::kMessage, m->topic,
                          std::string(static_cast<const char*>(m->payload), static_cast<size_t>(std::max(m->payloadlen, 0)))});
   }
@@ -240,7 +246,7 @@ struct MosquittoLink::Impl {
   }
 
   /// Reads and handles every packet the socket holds (each QoS 1 message acknowledged as it is
-  /// read), at most kMaxPacketsPerPoll. libmosquitto reads at most one packet per call and does
+  /// read), at most kMaxPacketsPerPoll and kMaxBytesPerPoll. libmosquitto reads at most one packet per call and does
   /// not say whether it found one: its errno (EAGAIN) is no answer either, as it is also what
   /// libmosquitto leaves after writing a byte to its full wake-up socket pair (one per packet sent,
   /// for a loop thread this link does not run). So after a call that handled no packet the socket
@@ -248,7 +254,8 @@ struct MosquittoLink::Impl {
   /// such as a PINGRESP, was read: a broker can send 100,000 of them before a message), it goes
   /// on. One read that finds nothing and one poll() per Poll(), not a poll() per message.
   void Read() {
-    for (int n = 0; n < kMaxPacketsPerPoll && state != State::kIdle; ++n) {
+    message_bytes = 0;
+    for (int n = 0; n < kMaxPacketsPerPoll && message_bytes < kMaxBytesPerPoll && state != State::kIdle; ++n) {
       const uint64_t before = packets;
       if (mosquitto_loop_read(client, 1) != MOSQ_ERR_SUCCESS) return;  // OnDisconnect said why
       if (!violation.empty()) return Refuse();

@@ -6,6 +6,7 @@
 // malformed packet's content is never reported as a message.
 #include <poll.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -291,6 +292,38 @@ TEST(MosquittoLinkHostileBroker, AFloodOfPingrespsNeitherDropsTheLinkNorHoldsBac
   // Each Poll() reads up to 4096 packets, PINGRESPs too: the flood takes about 50 of them, not one
   // Poll() per PINGRESP (200,000, which starved the server's loop before).
   CHECK_TEXT(run.polls < 1000, ("polls: " + std::to_string(run.polls)).c_str());
+}
+
+TEST(MosquittoLinkHostileBroker, ABrokerStreamingLargeMessagesIsReadInBoundedSlicesPerPoll) {
+  // 96 messages of 1 MiB as fast as the link takes them: what one Poll() returns must stay bounded
+  // (else the owner's memory grows with whatever a broker manages to send during one Poll()).
+  constexpr int kMessages = 96;
+  const std::string mib(1 << 20, 'm');
+  FakeBroker broker([&mib](int, BrokerConnection& c) {
+    if (!c.Handshake()) return;
+    for (int i = 1; i <= kMessages; ++i) {
+      if (!c.Send(Publish("readings/s", mib, 1, static_cast<uint16_t>(i)))) return;
+    }
+    c.Send(Publish("readings/s", "good", 1, 1000));
+    c.Hold();
+  });
+  MosquittoLink link(Options(broker.uri()));
+  size_t most = 0, messages = 0;
+  bool good = false;
+  for (const int64_t end = NowMs() + 30'000; !good && NowMs() < end;) {
+    size_t bytes = 0;
+    for (const LinkEvent& e : link.Poll(NowMs())) {
+      bytes += e.payload.size();
+      messages += e.kind == LinkEvent::Kind::kMessage;
+      good = good || e.payload == "good";
+    }
+    most = std::max(most, bytes);
+    pollfd p{link.wake_fd(), POLLIN, 0};
+    (void)::poll(&p, 1, 20);
+  }
+  CHECK(good);
+  LONGS_EQUAL(kMessages + 1, messages);
+  CHECK_TEXT(most <= (16u << 20) + (1u << 20), ("one Poll() returned " + std::to_string(most) + " bytes").c_str());
 }
 
 TEST(MosquittoLinkHostileBroker, ABrokerThatAcceptsAndNeverAnswersIsAFailedConnectRetried) {
