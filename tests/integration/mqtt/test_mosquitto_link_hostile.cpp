@@ -18,6 +18,7 @@
 
 #include "mqtt/mosquitto_link.hpp"
 #include "support/fake_broker.hpp"
+#include "support/link_poll.hpp"
 
 #include <CppUTest/TestHarness.h>  // last
 
@@ -29,10 +30,6 @@ using lw::test::FakeBroker;
 using lw::test::Publish;
 
 namespace {
-
-int64_t NowMs() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 LinkOptions Options(const std::string& uri) {
   LinkOptions o;
@@ -46,30 +43,14 @@ LinkOptions Options(const std::string& uri) {
   return o;
 }
 
-struct Run {
-  std::vector<LinkEvent> events;
-  int polls = 0;
-};
+using Run = lw::test::LinkRun;
 
-/// Polls `link` as the server's loop does (waiting on wake_fd()) until `done` holds for the events
-/// seen so far, at most `timeout_ms`.
 Run PollUntil(MosquittoLink& link, const std::function<bool(const std::vector<LinkEvent>&)>& done, int64_t timeout_ms) {
-  Run run;
-  const int64_t end = NowMs() + timeout_ms;
-  while (!done(run.events) && NowMs() < end) {
-    ++run.polls;
-    for (LinkEvent& e : link.Poll(NowMs())) run.events.push_back(std::move(e));
-    if (done(run.events)) break;
-    pollfd p{link.wake_fd(), POLLIN, 0};
-    (void)::poll(&p, 1, 20);
-  }
-  return run;
+  return lw::test::PollLinkUntil(link, done, timeout_ms);
 }
 
 size_t Count(const std::vector<LinkEvent>& events, LinkEvent::Kind kind) {
-  size_t n = 0;
-  for (const LinkEvent& e : events) n += e.kind == kind;
-  return n;
+  return lw::test::CountEvents(events, kind);
 }
 
 std::string Text(const std::vector<LinkEvent>& events) {
@@ -310,9 +291,9 @@ TEST(MosquittoLinkHostileBroker, ABrokerStreamingLargeMessagesIsReadInBoundedSli
   MosquittoLink link(Options(broker.uri()));
   size_t most = 0, messages = 0;
   bool good = false;
-  for (const int64_t end = NowMs() + 30'000; !good && NowMs() < end;) {
+  for (const int64_t end = lw::test::SteadyMs() + 30'000; !good && lw::test::SteadyMs() < end;) {
     size_t bytes = 0;
-    for (const LinkEvent& e : link.Poll(NowMs())) {
+    for (const LinkEvent& e : link.Poll(lw::test::SteadyMs())) {
       bytes += e.payload.size();
       messages += e.kind == LinkEvent::Kind::kMessage;
       good = good || e.payload == "good";
