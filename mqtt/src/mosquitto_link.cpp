@@ -220,6 +220,8 @@ struct MosquittoLink::Impl {
   /// callback (and a persistent session keeps them across reconnects). This link subscribes with
   /// QoS 1 only, so MQTT forbids the broker any QoS 2 message; its only trace is libmosquitto's
   /// debug line "Client <id> received PUBLISH (d0, q2, ...", looked for here and acted on by Read().
+  /// The cost: libmosquitto formats its debug lines once a log callback is set (two per reading
+  /// received; about 1.5 us a reading in lw_bench_ingest, docs/security.md).
   static void OnLog(mosquitto*, void* self, int level, const char* text) {
     if (level != MOSQ_LOG_DEBUG) return;
     Impl& im = *static_cast<Impl*>(self);
