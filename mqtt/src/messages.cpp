@@ -325,6 +325,16 @@ void OptionalWhole(const json& j, const char* name, std::optional<int64_t>* out)
   if (j.contains(name)) *out = WholeField(j, name, INT64_MIN, INT64_MAX, &ignored);
 }
 
+/// "malformed JSON", naming text that is not UTF-8 and where (a payload's bytes can be anything;
+/// the offending bytes themselves are not quoted: the reason is logged and served as JSON).
+std::string MalformedJson(const json::exception& e) {
+  const auto* parse = dynamic_cast<const json::parse_error*>(&e);
+  if (parse && std::string_view(e.what()).find("ill-formed UTF-8") != std::string_view::npos) {
+    return "malformed JSON: text that is not UTF-8 at byte " + std::to_string(parse->byte);
+  }
+  return "malformed JSON";
+}
+
 }  // namespace
 
 bool ParseJsonNamingField(std::string_view text, nlohmann::json* out, std::string* error) {
@@ -333,8 +343,8 @@ bool ParseJsonNamingField(std::string_view text, nlohmann::json* out, std::strin
     return true;
   } catch (const json::out_of_range&) {
     // Parse again to learn which field holds the overflowing number (below).
-  } catch (const json::exception&) {
-    *error = "malformed JSON";
+  } catch (const json::exception& e) {
+    *error = MalformedJson(e);
     return false;
   }
   std::string key;  // the last object key seen: names the field a number overflow sits in
@@ -351,8 +361,8 @@ bool ParseJsonNamingField(std::string_view text, nlohmann::json* out, std::strin
     const std::string number = q == std::string::npos ? std::string() : what.substr(q);
     *error = (key.empty() ? std::string("a number") : "\"" + key + "\"") + (number.empty() ? "" : " " + number) +
              " does not fit a double (number overflow)";
-  } catch (const json::exception&) {
-    *error = "malformed JSON";
+  } catch (const json::exception& e) {
+    *error = MalformedJson(e);
   }
   return false;
 }

@@ -63,10 +63,23 @@ Endpoint ParseUri(const std::string& uri) {
   return e;
 }
 
-/// libmosquitto's text for `rc`, or errno's when the error is in errno (saved at the call).
-std::string Reason(int rc, int saved_errno) {
-  if (rc == MOSQ_ERR_ERRNO) return std::strerror(saved_errno);
-  return mosquitto_strerror(rc);
+/// What `rc` means, or errno's text when the error is in errno (saved at the call). libmosquitto
+/// 2.0.11's mosquitto_strerror() says "Unknown error." for codes newer than its table (a keep-alive
+/// timeout, a malformed packet), and reports a broker that closed the connection in the middle of
+/// a packet as an errno error with errno 0 ("Success"): those get their own words here.
+std::string Reason(int rc, int saved_errno, int keep_alive_s) {
+  switch (rc) {
+    case MOSQ_ERR_ERRNO:
+      return saved_errno == 0 ? "the broker closed the connection in the middle of a packet" : std::strerror(saved_errno);
+    case MOSQ_ERR_KEEPALIVE:
+      return "no answer from the broker within the keep-alive (" + std::to_string(keep_alive_s) + " s)";
+    case MOSQ_ERR_MALFORMED_PACKET:
+      return "malformed packet from the broker";
+    case MOSQ_ERR_LOOKUP:
+      return "host name lookup failed";
+    default:
+      return mosquitto_strerror(rc);
+  }
 }
 
 /// True when poll() says the socket is ready for `events` now (or failed: the next read says how).
@@ -78,6 +91,10 @@ bool Ready(int fd, short events) {
 
 /// Packets read in one Poll() at most, so a flood cannot keep the owner's loop from its other work.
 constexpr int kMaxPacketsPerPoll = 4096;
+/// Message bytes one Poll() reports at most (one message more may cross it): a broker streaming
+/// large messages as fast as they are read made one Poll() return all it sent (96 MiB in a test),
+/// held by the owner at once. The rest waits in the socket; wake_fd() stays readable.
+constexpr size_t kMaxBytesPerPoll = 16 << 20;
 
 }  // namespace
 
@@ -93,8 +110,11 @@ struct MosquittoLink::Impl {
   int64_t now_ms = 0;             // the current Poll()'s time, for the callbacks
   std::vector<LinkEvent> events;  // from the callbacks and Reconnect(), taken by Poll()
   bool subscribe_due = false;
-  int last_acked_mid = -1;  // the last of our QoS 1 messages the broker acknowledged
-  uint64_t packets = 0;     // packets handled with a callback (CONNACK, PUBLISH, PUBACK, SUBACK)
+  int last_acked_mid = -1;         // the last of our QoS 1 messages the broker acknowledged
+  uint64_t packets = 0;            // packets handled with a callback (CONNACK, PUBLISH, PUBACK, SUBACK)
+  size_t message_bytes = 0;        // payload bytes of the messages reported by this Read()
+  std::string violation;           // what the broker did that MQTT forbids (OnLog, OnConnect): Read() drops the connection
+  std::string publish_log_prefix;  // how libmosquitto's debug line for a received PUBLISH starts
 
   explicit Impl(LinkOptions o) : options(std::move(o)), endpoint(ParseUri(options.uri)), schedule(options) {}
   ~Impl() {
@@ -125,6 +145,7 @@ struct MosquittoLink::Impl {
             "libmosquitto client");
     }
     session_clean = clean;
+    publish_log_prefix = "Client " + options.client_id + " received PUBLISH (d";  // OnLog
     Check(mosquitto_int_option(client, MOSQ_OPT_PROTOCOL_VERSION, MQTT_PROTOCOL_V311), "MQTT 3.1.1");
     Check(mosquitto_int_option(client, MOSQ_OPT_TCP_NODELAY, 1), "TCP_NODELAY");
     Check(mosquitto_max_inflight_messages_set(client, 1000), "in-flight window");
@@ -149,13 +170,18 @@ struct MosquittoLink::Impl {
     mosquitto_message_callback_set(client, &Impl::OnMessage);
     mosquitto_publish_callback_set(client, &Impl::OnPublish);
     mosquitto_subscribe_callback_set(client, &Impl::OnSubscribe);
+    mosquitto_log_callback_set(client, &Impl::OnLog);
   }
 
   // Callbacks: run inside libmosquitto's calls on the owner's thread (this link runs no thread).
   static void OnConnect(mosquitto*, void* self, int rc) {
     Impl& im = *static_cast<Impl*>(self);
     ++im.packets;
-    if (rc == 0) {
+    if (im.state == State::kConnected) {
+      // A second CONNACK on a connection (libmosquitto 2.0.11 takes it like the first; found by
+      // fuzz_mqtt_link_broker): not a new connection.
+      im.violation = "a second CONNACK";
+    } else if (rc == 0) {
       im.state = State::kConnected;
       im.schedule.Connected(im.now_ms);
       im.subscribe_due = true;
@@ -170,14 +196,16 @@ struct MosquittoLink::Impl {
     if (im.state == State::kConnected) {
       im.state = State::kIdle;
       im.schedule.Lost(im.now_ms);
-      im.events.push_back({LinkEvent::Kind::kDisconnected, "", "connection lost: " + Reason(rc, saved_errno)});
+      im.events.push_back(
+          {LinkEvent::Kind::kDisconnected, "", "connection lost: " + Reason(rc, saved_errno, im.options.keep_alive_s)});
     } else if (im.state == State::kConnecting) {
-      im.Failed(Reason(rc, saved_errno));
+      im.Failed(Reason(rc, saved_errno, im.options.keep_alive_s));
     }  // kIdle: this link dropped it and said why
   }
   static void OnMessage(mosquitto*, void* self, const mosquitto_message* m) {
     Impl& im = *static_cast<Impl*>(self);
     ++im.packets;
+    im.message_bytes += static_cast<size_t>(std::max(m->payloadlen, 0));
     im.events.push_back({LinkEvent::Kind::kMessage, m->topic,
                          std::string(static_cast<const char*>(m->payload), static_cast<size_t>(std::max(m->payloadlen, 0)))});
   }
@@ -187,6 +215,30 @@ struct MosquittoLink::Impl {
     im.last_acked_mid = mid;
   }
   static void OnSubscribe(mosquitto*, void* self, int, int, const int*) { ++static_cast<Impl*>(self)->packets; }
+  /// libmosquitto keeps a QoS 2 message it receives until the broker's PUBREL, which a broker that
+  /// never sends one makes last for ever: 50,000 of 1 KiB grew the process by 59 MB, without a
+  /// callback (and a persistent session keeps them across reconnects). This link subscribes with
+  /// QoS 1 only, so MQTT forbids the broker any QoS 2 message; its only trace is libmosquitto's
+  /// debug line "Client <id> received PUBLISH (d0, q2, ...", looked for here and acted on by Read().
+  /// The cost: libmosquitto formats its debug lines once a log callback is set (two per reading
+  /// received; about 1.5 us a reading in lw_bench_ingest, docs/security.md).
+  static void OnLog(mosquitto*, void* self, int level, const char* text) {
+    if (level != MOSQ_LOG_DEBUG) return;
+    Impl& im = *static_cast<Impl*>(self);
+    static constexpr char kPublish[] = " received PUBLISH (d";
+    const char* p = nullptr;
+    if (im.options.client_id.empty()) {  // an id libmosquitto made up: the first such text
+      p = std::strstr(text, kPublish);
+      if (!p) return;
+      p += sizeof kPublish - 1;
+    } else {
+      const std::string& prefix = im.publish_log_prefix;
+      if (std::strncmp(text, prefix.c_str(), prefix.size()) != 0) return;
+      p = text + prefix.size();
+    }
+    // p: "0, q2, ..."
+    if (p[0] != '\0' && std::strncmp(p + 1, ", q2,", 5) == 0) im.violation = "a QoS 2 message on QoS 1 subscriptions";
+  }
 
   void Failed(const std::string& why) {
     state = State::kIdle;
@@ -196,19 +248,37 @@ struct MosquittoLink::Impl {
   }
 
   /// Reads and handles every packet the socket holds (each QoS 1 message acknowledged as it is
-  /// read), at most kMaxPacketsPerPoll. libmosquitto reads at most one packet per call and does
+  /// read), at most kMaxPacketsPerPoll and kMaxBytesPerPoll. libmosquitto reads at most one packet per call and does
   /// not say whether it found one: its errno (EAGAIN) is no answer either, as it is also what
   /// libmosquitto leaves after writing a byte to its full wake-up socket pair (one per packet sent,
-  /// for a loop thread this link does not run). So a call that handled no packet ends the reading:
-  /// the socket had nothing whole left (or the packet has no callback, a PINGRESP: the socket stays
-  /// readable and the next Poll() goes on). One read that finds nothing per Poll(), not a poll()
-  /// per message.
+  /// for a loop thread this link does not run). So after a call that handled no packet the socket
+  /// is asked (one poll()): nothing left, the reading ends; bytes left (a packet without callback,
+  /// such as a PINGRESP, was read: a broker can send 100,000 of them before a message), it goes
+  /// on. One read that finds nothing and one poll() per Poll(), not a poll() per message.
   void Read() {
-    for (int n = 0; n < kMaxPacketsPerPoll && state != State::kIdle; ++n) {
+    message_bytes = 0;
+    for (int n = 0; n < kMaxPacketsPerPoll && message_bytes < kMaxBytesPerPoll && state != State::kIdle; ++n) {
       const uint64_t before = packets;
       if (mosquitto_loop_read(client, 1) != MOSQ_ERR_SUCCESS) return;  // OnDisconnect said why
-      if (packets == before) return;
+      if (!violation.empty()) return Refuse();
+      if (packets == before && !Ready(mosquitto_socket(client), POLLIN)) return;
     }
+  }
+
+  /// The broker did what MQTT forbids (`violation`): the connection is dropped and the client made
+  /// again, which frees what libmosquitto held for it (QoS 2 messages); Poll() connects again with
+  /// the backoff.
+  void Refuse() {
+    const std::string what = std::move(violation);
+    violation.clear();
+    state = State::kIdle;
+    subscribe_due = false;
+    (void)mosquitto_disconnect(client);
+    MakeClient(session_clean);
+    schedule.Lost(now_ms);
+    events.push_back(
+        {LinkEvent::Kind::kDisconnected, "",
+         "connection dropped: the broker sent " + what + ", which MQTT forbids (a broken broker or a man in the middle)"});
   }
 
   /// Sends what libmosquitto could not write at once (a full socket, a connection being made).
@@ -227,13 +297,14 @@ struct MosquittoLink::Impl {
   }
 
   void Connect() {
+    violation.clear();  // of an earlier connection that ended otherwise first
     const ConnectSchedule::Attempt attempt = schedule.Start();
     if (!attempt.notice.empty()) events.push_back({LinkEvent::Kind::kDisconnected, "", attempt.notice});
     if (attempt.clean_session != session_clean) MakeClient(attempt.clean_session);
     state = State::kConnecting;
     const int rc = mosquitto_connect_async(client, endpoint.host.c_str(), endpoint.port, options.keep_alive_s);
     const int saved_errno = errno;
-    if (rc != MOSQ_ERR_SUCCESS) Failed(Reason(rc, saved_errno));
+    if (rc != MOSQ_ERR_SUCCESS) Failed(Reason(rc, saved_errno, options.keep_alive_s));
   }
 
   /// Drops the connection without reporting it (the caller does): a DISCONNECT when the socket

@@ -355,7 +355,9 @@ Response Resources::PostReadings(const Request& req) {
   nlohmann::json body;
   std::string parse_error;
   if (!mqtt::ParseJsonNamingField(req.body, &body, &parse_error)) {
-    return Error(400, parse_error == "malformed JSON" ? "body is not valid JSON" : "body: " + parse_error);
+    const std::string_view malformed = "malformed JSON";
+    return Error(400, parse_error.rfind(malformed, 0) == 0 ? "body is not valid JSON" + parse_error.substr(malformed.size())
+                                                           : "body: " + parse_error);
   }
   if (!body.is_object() || !body.contains("readings") || !body["readings"].is_array()) {
     return Error(400, "body must be {\"readings\": [...]}");

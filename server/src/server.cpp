@@ -337,6 +337,13 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
 
   int64_t last_stats_ms = WallMs();
   IngestCounters last_counters;
+  // Messages on topics that are not readings (the broker sends only what the subscription matches:
+  // one of these is a broken broker, a man in the middle or a misconfigured bridge) are ignored and
+  // logged, at most kIgnoredLogged lines a minute; the rest are counted in the minute's stats line.
+  constexpr int kIgnoredLogged = 10;
+  int ignored_logged = 0;
+  uint64_t ignored_unlogged = 0;
+  const std::string readings_filter = mqtt::Topics::ReadingsFilter(o.topic_root);
   // Drains the link: connection events are logged, reading messages appended to `batch`.
   const auto collect = [&](int64_t now_ms, std::vector<Incoming>* batch) {
     for (mqtt::LinkEvent& e : link.Poll(now_ms)) {
@@ -348,6 +355,20 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
         log("broker: " + e.payload);
       } else if (auto t = mqtt::Topics::ParseAny(e.topic, o.topic_root); t && t->kind == mqtt::TopicKind::kReading) {
         batch->push_back({std::move(t->site), std::move(t->crusher), std::move(t->id), std::move(e.topic), std::move(e.payload)});
+      } else if (ignored_logged < kIgnoredLogged) {
+        ++ignored_logged;
+        // Topics are UTF-8 without control characters (the link refuses others); long ones are cut
+        // at a character's start.
+        std::string topic = e.topic;
+        if (topic.size() > 200) {
+          size_t cut = 200;
+          while (cut > 0 && (static_cast<unsigned char>(topic[cut]) & 0xC0) == 0x80) --cut;
+          topic = topic.substr(0, cut) + "... (" + std::to_string(e.topic.size()) + " bytes)";
+        }
+        log("broker: message on '" + topic + "' ignored (" + std::to_string(e.payload.size()) +
+            " bytes): not a reading topic; the server subscribes to " + readings_filter + " only");
+      } else {
+        ++ignored_unlogged;
       }
     }
   };
@@ -421,6 +442,11 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       }
       last_counters = c;
       last_stats_ms = now;
+      if (ignored_unlogged > 0) {
+        log("broker: " + std::to_string(ignored_unlogged) + " more messages on topics that are not readings ignored");
+      }
+      ignored_logged = 0;
+      ignored_unlogged = 0;
     }
     pollfd pfd{link.wake_fd(), POLLIN, 0};
     ::poll(&pfd, 1, 20);

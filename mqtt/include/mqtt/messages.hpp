@@ -109,7 +109,8 @@ struct BatchRecord {
 /// would, from the batch's one parse (the server's ingest: a record's text is not parsed again).
 bool SplitAndDecodeReadingMessage(std::string_view payload, std::vector<BatchRecord>* records, std::string* error);
 
-/// Parses `text`; false with *error set when it is not JSON ("malformed JSON"). A number that
+/// Parses `text`; false with *error set when it is not JSON ("malformed JSON", or "malformed JSON:
+/// text that is not UTF-8 at byte N"). A number that
 /// overflows a double (`1e999`) is named by its field: `"flags" '1e999' does not fit a double
 /// (number overflow)`. No size or nesting limit: see JsonNestingDepth.
 bool ParseJsonNamingField(std::string_view text, nlohmann::json* out, std::string* error);

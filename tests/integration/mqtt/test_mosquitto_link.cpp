@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "support/link_poll.hpp"
 #include "support/mosquitto_fixture.hpp"
 
 #include <CppUTest/TestHarness.h>  // last
@@ -22,10 +23,6 @@ using lw::mqtt::LinkOptions;
 using lw::mqtt::MosquittoLink;
 
 namespace {
-
-int64_t NowMs() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 LinkOptions Options(const std::string& uri, const std::string& id, std::vector<std::string> subscriptions = {}) {
   LinkOptions o;
@@ -42,21 +39,11 @@ LinkOptions Options(const std::string& uri, const std::string& id, std::vector<s
 /// seen so far, at most `timeout_ms`; returns them all.
 std::vector<LinkEvent> PollUntil(MosquittoLink& link, const std::function<bool(const std::vector<LinkEvent>&)>& done,
                                  int64_t timeout_ms = 10'000) {
-  std::vector<LinkEvent> seen;
-  const int64_t end = NowMs() + timeout_ms;
-  while (!done(seen) && NowMs() < end) {
-    for (LinkEvent& e : link.Poll(NowMs())) seen.push_back(std::move(e));
-    if (done(seen)) break;
-    pollfd p{link.wake_fd(), POLLIN, 0};
-    (void)::poll(&p, 1, 20);
-  }
-  return seen;
+  return lw::test::PollLinkUntil(link, done, timeout_ms).events;
 }
 
 size_t Count(const std::vector<LinkEvent>& events, LinkEvent::Kind kind) {
-  size_t n = 0;
-  for (const LinkEvent& e : events) n += e.kind == kind;
-  return n;
+  return lw::test::CountEvents(events, kind);
 }
 
 std::function<bool(const std::vector<LinkEvent>&)> Has(LinkEvent::Kind kind, size_t n = 1) {

@@ -122,6 +122,8 @@ TEST(Messages, ReadingDecoderIgnoresUnknownFieldsAndNamesWhatIsWrong) {
   STRCMP_EQUAL("not a JSON object", error.c_str());
   CHECK_FALSE(mq::DecodeReading("{not json", &error));
   STRCMP_EQUAL("malformed JSON", error.c_str());
+  CHECK_FALSE(mq::DecodeReading("{\"sensor\":\"1\",\"note\":\"\xff\xfe\"}", &error));
+  STRCMP_EQUAL("malformed JSON: text that is not UTF-8 at byte 23", error.c_str());
   CHECK_FALSE(mq::DecodeReading(std::string(70000, ' '), &error));
   STRCMP_EQUAL("message of 70000 bytes (at most 65536)", error.c_str());
   CHECK_FALSE(mq::DecodeReading("{\"a\":" + std::string(20, '[') + std::string(20, ']') + "}", &error));

@@ -1,9 +1,11 @@
 // The REST resources without HTTP: the route table, the OpenAPI document generated from it, and
 // the handlers called through rest::Resources.
 #include <chrono>
+#include <filesystem>
 #include <set>
 #include <thread>
 
+#include "core/time.hpp"
 #include "server/openapi.hpp"
 #include "server/rest.hpp"
 #include "unit/server/server_fixture.hpp"
@@ -234,6 +236,109 @@ TEST(RestHandlers, WearAndForecastOnceThereAreReadings) {
   const json list = f.Get("/api/v1/crushers", {}).json;
   LONGS_EQUAL(1, list["crushers"].size());
   DOUBLES_EQUAL(f.Get(wear).json["min_thickness_mm"].get<double>(), list["crushers"][0]["min_thickness_mm"].get<double>(), 1e-3);
+}
+
+// docs/server.md, *Laser scans*: "Every wear result names the scan it applied (`scan`: file, date,
+// points used, faces corrected, `faces_filled` from their neighbours, median corrected/map ratio,
+// the map's relative pattern error; `null` without a scan; `applied: false` with a `detail` when no
+// row had a sensor reading at the scan's date)." Checked on GET .../wear against the correction
+// computed offline from the same folder and readings (core's ProjectScanToFaces and ApplyScan, as
+// `linerwatch reconstruct` does).
+TEST(RestHandlers, WearNamesTheScanItAppliedWithTheDocumentedFields) {
+  Fixture f;
+  LONGS_EQUAL(200, f.PostReadings(Fixture::AllReadings()).status);
+  const lw::core::Bundle& b = Folder().bundle;
+  const lw::core::Scan* scan = lw::core::LatestScanAt(b.scans, lw::core::TimePoint::max());
+  CHECK(scan != nullptr);
+  const lw::core::ScanFaces faces = lw::core::ProjectScanToFaces(b.map, *scan);
+  lw::core::ReconstructionPlan plan = lw::core::PrepareReconstruction(b.crusher, b.map);
+  const lw::core::ScanCorrection expected =
+      lw::core::ApplyScan(plan, faces, lw::core::SensorWearAt(b.crusher, b.readings, scan->date));
+  CHECK_TRUE(expected.detail.empty());
+
+  for (const char* with_faces : {"true", "false"}) {
+    const rest::Response res = f.Get("/api/v1/crushers/{crusher}/wear", {Folder().id()}, {{"faces", with_faces}});
+    LONGS_EQUAL(200, res.status);
+    const json& j = res.json.at("scan");
+    std::set<std::string> keys;
+    for (const auto& [key, value] : j.items()) keys.insert(key);
+    CHECK_TEXT(keys == (std::set<std::string>{"file", "date", "points_used", "points_total", "applied", "faces_corrected",
+                                              "faces_filled", "median_ratio", "map_model_error_relative"}),
+               j.dump().c_str());
+    STRCMP_EQUAL(scan->file.c_str(), j["file"].get<std::string>().c_str());
+    STRCMP_EQUAL(lw::core::FormatIsoTime(scan->date).c_str(), j["date"].get<std::string>().c_str());
+    CHECK_TRUE(j["applied"].get<bool>());
+    LONGS_EQUAL(faces.points_total, j["points_total"].get<size_t>());
+    LONGS_EQUAL(faces.points_used, j["points_used"].get<size_t>());
+    LONGS_EQUAL(scan->points.size(), j["points_total"].get<size_t>());
+    CHECK(j["points_used"].get<size_t>() > 0 && j["points_used"].get<size_t>() <= j["points_total"].get<size_t>());
+    LONGS_EQUAL(expected.faces_corrected, j["faces_corrected"].get<size_t>());
+    LONGS_EQUAL(expected.faces_filled, j["faces_filled"].get<size_t>());
+    CHECK(j["faces_corrected"].get<size_t>() > 0 && j["faces_corrected"].get<size_t>() <= b.map.face_count());
+    DOUBLES_EQUAL(expected.median_ratio, j["median_ratio"].get<double>(), 0.5e-3 + 1e-12);
+    DOUBLES_EQUAL(expected.map_model_error_rel, j["map_model_error_relative"].get<double>(), 0.5e-3 + 1e-12);
+    CHECK(j["median_ratio"].get<double>() > 0);
+    CHECK(j["map_model_error_relative"].get<double>() >= 0);
+  }
+}
+
+TEST(RestHandlers, WearWithoutAScanHasScanNull) {
+  // The fixture's crusher folder without its scans/.
+  lw::test::TempDirectory dir{"lw-rest-noscan"};
+  const std::filesystem::path folder = std::filesystem::path(dir.File("crushers")) / "demo";
+  std::filesystem::create_directories(folder);
+  for (const char* file : {"crusher.json", "wear_map.vtk"})
+    std::filesystem::copy_file(Folder().folder + "/" + file, folder / file);
+  ServerParts parts(dir.File("crushers"), false);
+  CHECK_TRUE(parts.registry->Find(Folder().id())->scans.empty());
+  rest::Resources resources(parts.ctx);
+  const std::string readings = Fixture::AllReadings();  // Request::body is a view
+  rest::Request post;
+  post.path = {Folder().id()};
+  post.body = readings;
+  const rest::Response posted =
+      resources.Call(rest::Resources::Find(rest::Method::kPost, "/api/v1/crushers/{crusher}/readings"), post);
+  LONGS_EQUAL_TEXT(200, posted.status, posted.json.dump().substr(0, 500).c_str());
+  rest::Request get;
+  get.path = {Folder().id()};
+  const rest::Response res = resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/wear"), get);
+  LONGS_EQUAL(200, res.status);
+  CHECK_TEXT(res.json.contains("scan"), res.json.dump().substr(0, 500).c_str());
+  CHECK_TRUE(res.json["scan"].is_null());
+}
+
+TEST(RestHandlers, AScanWithoutReadingsAtItsDateIsNamedNotApplied) {
+  // Only the readings after the scan's date: no row has a reading at that date.
+  lw::test::CrusherFolder folder(10, 5, 3);
+  const lw::core::Scan& scan = folder.bundle.scans.at(0);
+  ServerParts parts(folder.crushers, false);
+  rest::Resources resources(parts.ctx);
+  json body = {{"readings", json::array()}};
+  for (const auto& m : lw::test::Messages(folder.bundle)) {
+    json r = json::parse(m.payload);
+    if (lw::core::ParseIsoTime(r["time"].get<std::string>()).value() > scan.date) body["readings"].push_back(r);
+  }
+  CHECK(!body["readings"].empty());
+  const std::string text = body.dump();  // Request::body is a view
+  rest::Request post;
+  post.path = {folder.id()};
+  post.body = text;
+  const rest::Response posted =
+      resources.Call(rest::Resources::Find(rest::Method::kPost, "/api/v1/crushers/{crusher}/readings"), post);
+  LONGS_EQUAL_TEXT(200, posted.status, posted.json.dump().substr(0, 500).c_str());
+  rest::Request get;
+  get.path = {folder.id()};
+  const rest::Response res = resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/wear"), get);
+  LONGS_EQUAL(200, res.status);
+  const json& j = res.json.at("scan");
+  std::set<std::string> keys;
+  for (const auto& [key, value] : j.items()) keys.insert(key);
+  CHECK_TEXT(keys == (std::set<std::string>{"file", "date", "points_used", "points_total", "applied", "detail"}),
+             j.dump().c_str());
+  CHECK_FALSE(j["applied"].get<bool>());
+  STRCMP_EQUAL("no row has a sensor reading at the scan's date", j["detail"].get<std::string>().c_str());
+  STRCMP_EQUAL(scan.file.c_str(), j["file"].get<std::string>().c_str());
+  STRCMP_EQUAL(lw::core::FormatIsoTime(scan.date).c_str(), j["date"].get<std::string>().c_str());
 }
 
 TEST(RestHandlers, HealthMergesTheServersFieldsAndReportsDegraded) {
