@@ -101,6 +101,11 @@ Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t
   return v;
 }
 
+std::chrono::microseconds CommitWindow(int64_t commit_delay_ms, std::chrono::microseconds last_commit) {
+  const std::chrono::microseconds delay = std::chrono::milliseconds(std::max<int64_t>(commit_delay_ms, 0));
+  return std::clamp(last_commit, delay, kMaxCommitWindowFactor * delay);
+}
+
 Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s, LiveState* live)
     : store_(store), registry_(registry), live_(live), now_s_(std::move(now_s)) {
   for (const auto& [crusher, site] : store_.CrusherSites()) sites_[crusher] = site;

@@ -4,6 +4,7 @@
 /// Bad messages are never dropped: they go to the `rejected` table with their reason, are counted
 /// and logged, and are acknowledged once stored there so the gateway does not resend them forever.
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -47,6 +48,14 @@ struct Validation {
 /// topic's, crusher and sensor known, `time` ISO-8601, not before the liner's installation minus a
 /// day and not more than a day after `now_s`, `thickness_mm` in 0..thickness_new + 1.
 Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t now_s);
+
+/// Group commit (the server's MQTT loop): how long to collect readings for one transaction once
+/// one has arrived. `commit_delay_ms` (--commit-delay-ms), or as long as the previous transaction
+/// took when that was longer (a busy disk or machine: the fsyncs then take at most about half the
+/// time, and a busy period commits more readings per fsync), at most kMaxCommitWindowFactor times
+/// `commit_delay_ms`. 0 when `commit_delay_ms` is 0 (each turn's readings committed at once).
+inline constexpr int64_t kMaxCommitWindowFactor = 10;
+std::chrono::microseconds CommitWindow(int64_t commit_delay_ms, std::chrono::microseconds last_commit);
 
 /// What the gateway of `site` may drop: sent as mqtt::EncodeCommitAcks on the sensor's
 /// `committed` topic (docs/mqtt.md).

@@ -454,3 +454,19 @@ TEST(Ingest, HostileElementsOfABatchAreEachJudgedAloneAndNothingElseIsAcked) {
   LONGS_EQUAL(1, page.readings.size());
   DOUBLES_EQUAL(100, page.readings[0].thickness_mm, 0);  // the first of seq 5 is kept
 }
+
+TEST(Ingest, GroupCommitCollectsForTheDelayOrAsLongAsTheLastCommitTookWithinTenTimesTheDelay) {
+  using std::chrono::microseconds;
+  using std::chrono::milliseconds;
+  // A fast commit: the delay.
+  CHECK(CommitWindow(5, microseconds(0)) == milliseconds(5));
+  CHECK(CommitWindow(5, microseconds(4999)) == milliseconds(5));
+  // A commit slower than the delay (a busy disk or machine): as long as it took.
+  CHECK(CommitWindow(5, microseconds(12345)) == microseconds(12345));
+  // At most ten times the delay, however slow the last commit.
+  CHECK(CommitWindow(5, milliseconds(49)) == milliseconds(49));
+  CHECK(CommitWindow(5, std::chrono::seconds(3)) == milliseconds(50));
+  CHECK(CommitWindow(100, std::chrono::seconds(3)) == milliseconds(1000));
+  // No delay asked: none, whatever the last commit took.
+  CHECK(CommitWindow(0, std::chrono::seconds(3)) == microseconds(0));
+}
