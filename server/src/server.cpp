@@ -372,20 +372,23 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     batch.clear();
     collect(now, &batch);
     // Group commit: one fsync'ed transaction per batch, so when readings are arriving give the
-    // next ones time to join this one instead of committing them one by one: commit_delay_ms, or
-    // as long as the last transaction took when the machine or the disk is slower than that
-    // (CommitWindow). The whole window, not until the next message: woken at each arrival,
+    // next ones time to join this one instead of committing them one by one: commit_delay_ms, and
+    // in a busy period on a slow disk or machine as long as the last transaction took
+    // (GroupCommitWindow). The whole delay, not until the next message: woken at each arrival,
     // committing then made transactions of ~70 readings at 7,000 a second, and SQLite rewrote each
     // touched page to the WAL every few. Checked every millisecond (a full batch commits at once),
     // not at every arrival: a wake-up per message cost the main loop a poll and a context switch each.
     using Steady = std::chrono::steady_clock;  // a wall-clock step must not stretch the wait
     if (!batch.empty() && o.commit_delay_ms > 0) {
-      const Steady::time_point deadline = Steady::now() + CommitWindow(o.commit_delay_ms, last_commit);
+      const GroupCommitWindow window(o.commit_delay_ms, last_commit, Steady::now());
+      size_t arrived = batch.size();
       while (batch.size() < static_cast<size_t>(o.batch_max)) {
         const Steady::time_point now_steady = Steady::now();
-        if (now_steady >= deadline) break;
-        std::this_thread::sleep_for(std::min<Steady::duration>(deadline - now_steady, std::chrono::milliseconds(1)));
+        if (!window.Open(now_steady, arrived)) break;
+        std::this_thread::sleep_until(window.NextTick(now_steady));
+        const size_t before = batch.size();
         collect(WallMs(), &batch);
+        arrived = batch.size() - before;
       }
     }
     const Steady::time_point commit_start = Steady::now();
