@@ -101,21 +101,6 @@ Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t
   return v;
 }
 
-GroupCommitWindow::GroupCommitWindow(int64_t commit_delay_ms, std::chrono::microseconds last_commit, Clock::time_point start) {
-  const std::chrono::microseconds delay = std::chrono::milliseconds(std::max<int64_t>(commit_delay_ms, 0));
-  delay_end_ = start + delay;
-  longest_end_ = start + std::clamp(last_commit, delay, kMaxCommitWindowFactor * delay);
-}
-
-bool GroupCommitWindow::Open(Clock::time_point now, size_t arrived) const {
-  if (now >= longest_end_) return false;
-  return now < delay_end_ || arrived > 0;
-}
-
-GroupCommitWindow::Clock::time_point GroupCommitWindow::NextTick(Clock::time_point now) const {
-  return std::min(now + std::chrono::milliseconds(1), now < delay_end_ ? delay_end_ : longest_end_);
-}
-
 Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s, LiveState* live)
     : store_(store), registry_(registry), live_(live), now_s_(std::move(now_s)) {
   for (const auto& [crusher, site] : store_.CrusherSites()) sites_[crusher] = site;

@@ -39,8 +39,7 @@ const core::OptionTable& Table() {
       Option::Whole("batch-max", "N", 1, kMaxBatch,
                     "reading messages committed per transaction at most, a batch of records counting once (default 1000)"),
       Option::Whole("commit-delay-ms", "N", 0, kMaxCommitDelayMs,
-                    "group commit: collect readings N ms before committing them in one transaction, as\n"
-                    "long as the last commit took when that was longer, at most 10 N ms (default 5)"),
+                    "group commit: wait up to N ms for more readings before committing (default 5)"),
       Option::Text("clock-file", "PATH", "simulation: read \"now\" (unix milliseconds) from PATH"),
   }};
   return table;

@@ -360,7 +360,6 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   // Kept from turn to turn with its room: grown from empty at each turn, it moved every message it
   // held (five strings each) at each doubling (3 % of the server's CPU at 7,000 messages a second).
   std::vector<Incoming> batch;
-  std::chrono::microseconds last_commit{0};  // how long the last turn's transactions took
   while (!stop) {
     const int64_t now = WallMs();
     acks.Flush(link);
@@ -372,26 +371,21 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     batch.clear();
     collect(now, &batch);
     // Group commit: one fsync'ed transaction per batch, so when readings are arriving give the
-    // next ones time to join this one instead of committing them one by one: commit_delay_ms, and
-    // in a busy period on a slow disk or machine as long as the last transaction took
-    // (GroupCommitWindow). The whole delay, not until the next message: woken at each arrival,
-    // committing then made transactions of ~70 readings at 7,000 a second, and SQLite rewrote each
-    // touched page to the WAL every few. Checked every millisecond (a full batch commits at once),
-    // not at every arrival: a wake-up per message cost the main loop a poll and a context switch each.
-    using Steady = std::chrono::steady_clock;  // a wall-clock step must not stretch the wait
+    // next ones commit_delay_ms to join this one instead of committing them one by one. The whole
+    // delay, not until the next message: woken at each arrival, committing then made transactions
+    // of ~70 readings at 7,000 a second, and SQLite rewrote each touched page to the WAL every few.
+    // Checked every millisecond (a full batch commits at once), not at every arrival: a wake-up
+    // per message cost the main loop a poll and a context switch each.
     if (!batch.empty() && o.commit_delay_ms > 0) {
-      const GroupCommitWindow window(o.commit_delay_ms, last_commit, Steady::now());
-      size_t arrived = batch.size();
+      using Steady = std::chrono::steady_clock;  // a wall-clock step must not stretch the wait
+      const Steady::time_point deadline = Steady::now() + std::chrono::milliseconds(o.commit_delay_ms);
       while (batch.size() < static_cast<size_t>(o.batch_max)) {
         const Steady::time_point now_steady = Steady::now();
-        if (!window.Open(now_steady, arrived)) break;
-        std::this_thread::sleep_until(window.NextTick(now_steady));
-        const size_t before = batch.size();
+        if (now_steady >= deadline) break;
+        std::this_thread::sleep_for(std::min<Steady::duration>(deadline - now_steady, std::chrono::milliseconds(1)));
         collect(WallMs(), &batch);
-        arrived = batch.size() - before;
       }
     }
-    const Steady::time_point commit_start = Steady::now();
     for (size_t start = 0; start < batch.size(); start += static_cast<size_t>(o.batch_max)) {
       const size_t end = std::min(batch.size(), start + static_cast<size_t>(o.batch_max));
       std::vector<Incoming> part(std::make_move_iterator(batch.begin() + static_cast<std::ptrdiff_t>(start)),
@@ -414,7 +408,6 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       }
       on_committed(r);
     }
-    if (!batch.empty()) last_commit = std::chrono::duration_cast<std::chrono::microseconds>(Steady::now() - commit_start);
     std::vector<std::pair<std::string, std::string>> ready;
     {
       std::lock_guard<std::mutex> lock(computed_mutex);

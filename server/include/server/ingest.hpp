@@ -4,7 +4,6 @@
 /// Bad messages are never dropped: they go to the `rejected` table with their reason, are counted
 /// and logged, and are acknowledged once stored there so the gateway does not resend them forever.
 #include <atomic>
-#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -48,27 +47,6 @@ struct Validation {
 /// topic's, crusher and sensor known, `time` ISO-8601, not before the liner's installation minus a
 /// day and not more than a day after `now_s`, `thickness_mm` in 0..thickness_new + 1.
 Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t now_s);
-
-/// Group commit (the server's MQTT loop): how long to collect readings for one transaction once
-/// the first has arrived, checked after each tick of collecting. Always `commit_delay_ms`
-/// (--commit-delay-ms). Beyond it only while every tick still brings readings (a busy period) and
-/// only when the previous transaction took longer than the delay (a busy disk or machine): then
-/// as long as that transaction took, at most kMaxCommitWindowFactor times the delay, so that a
-/// busy period commits more readings per fsync. A tick past the delay that brings nothing ends
-/// the window (the burst is over: commit at once). `commit_delay_ms` 0: no window.
-inline constexpr int64_t kMaxCommitWindowFactor = 10;
-class GroupCommitWindow {
- public:
-  using Clock = std::chrono::steady_clock;
-  GroupCommitWindow(int64_t commit_delay_ms, std::chrono::microseconds last_commit, Clock::time_point start);
-  /// Whether to collect once more after a tick at `now` that brought `arrived` readings.
-  bool Open(Clock::time_point now, size_t arrived) const;
-  /// When to look again: a millisecond after `now`, or the end of the delay or of the window if sooner.
-  Clock::time_point NextTick(Clock::time_point now) const;
-
- private:
-  Clock::time_point delay_end_, longest_end_;
-};
 
 /// What the gateway of `site` may drop: sent as mqtt::EncodeCommitAcks on the sensor's
 /// `committed` topic (docs/mqtt.md).

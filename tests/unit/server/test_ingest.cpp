@@ -454,31 +454,3 @@ TEST(Ingest, HostileElementsOfABatchAreEachJudgedAloneAndNothingElseIsAcked) {
   LONGS_EQUAL(1, page.readings.size());
   DOUBLES_EQUAL(100, page.readings[0].thickness_mm, 0);  // the first of seq 5 is kept
 }
-
-TEST(Ingest, GroupCommitCollectsForTheDelayAndLongerOnlyWhileBusyAfterASlowCommit) {
-  using std::chrono::microseconds;
-  using std::chrono::milliseconds;
-  const GroupCommitWindow::Clock::time_point t0{std::chrono::seconds(1000)};
-  // The last commit was fast: the delay, whatever arrives.
-  const GroupCommitWindow fast(5, microseconds(3000), t0);
-  CHECK_TRUE(fast.Open(t0, 1));
-  CHECK_TRUE(fast.Open(t0 + microseconds(4999), 0));  // nothing arrived yet: still within the delay
-  CHECK_FALSE(fast.Open(t0 + milliseconds(5), 0));
-  CHECK_FALSE(fast.Open(t0 + milliseconds(5), 7));
-  CHECK(fast.NextTick(t0) == t0 + milliseconds(1));
-  CHECK(fast.NextTick(t0 + microseconds(4500)) == t0 + milliseconds(5));  // never past the delay
-  // The last commit took 20 ms: past the delay only while ticks bring readings, up to 20 ms.
-  const GroupCommitWindow slow(5, milliseconds(20), t0);
-  CHECK_TRUE(slow.Open(t0 + milliseconds(2), 0));
-  CHECK_FALSE(slow.Open(t0 + milliseconds(5), 0));  // drained: the burst is over
-  CHECK_TRUE(slow.Open(t0 + milliseconds(5), 3));
-  CHECK_TRUE(slow.Open(t0 + microseconds(19999), 3));
-  CHECK_FALSE(slow.Open(t0 + milliseconds(20), 3));
-  CHECK(slow.NextTick(t0 + microseconds(19500)) == t0 + milliseconds(20));
-  // However slow the last commit, at most ten times the delay.
-  const GroupCommitWindow stuck(5, std::chrono::seconds(3), t0);
-  CHECK_TRUE(stuck.Open(t0 + milliseconds(49), 1));
-  CHECK_FALSE(stuck.Open(t0 + milliseconds(50), 1));
-  // No delay asked: no window.
-  CHECK_FALSE(GroupCommitWindow(0, std::chrono::seconds(3), t0).Open(t0, 5));
-}
