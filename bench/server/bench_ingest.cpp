@@ -3,7 +3,7 @@
 // bare subscriber (mosquitto_sub -q 1 to /dev/null) on the same broker with the same publisher,
 // alternated in one run (bare, server, bare, server, ...). Target (issue 16): server/bare >= 0.9.
 //   lw_bench_ingest [--readings N] [--reps R] [--batch N[,N...]] [--perf FILE] [--commit-delay-ms N[,N...]]
-//                   [--server BIN[,BIN...]]
+//                   [--server BIN[,BIN...]]   (--help: every option; an unknown one is an error)
 // --batch: the readings go as messages of up to N records of one sensor (docs/mqtt.md, *Batches*:
 // what the gateway sends once the server announced batches); 1 (default) is one message per
 // reading. A list runs each form in every repetition, each with its own bare run (bare@1,
@@ -39,6 +39,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include "core/cmdline.hpp"
 #include "core/time.hpp"
 #include "mqtt/messages.hpp"
 #include "mqtt/topics.hpp"
@@ -260,33 +261,52 @@ void PublishAll(mqtt::async_client& client, const std::vector<Message>& msgs) {
   while (!pending.empty()) settle_oldest();
 }
 
+const lw::core::OptionTable& Table() {
+  using lw::core::Option;
+  static const lw::core::OptionTable table{{
+      Option::Whole("readings", "N", 10, 100'000'000, "readings published per run (default 20000; 10 sensors, QoS 1)"),
+      Option::Whole("reps", "R", 1, 1000, "repetitions, each form and server alternated within each (default 5)"),
+      Option::Text("batch", "N[,N...]",
+                   "messages of up to N records of one sensor (1..64; default 1: one message per\n"
+                   "reading); a list runs every form in every repetition, each with its own bare run"),
+      Option::Text("commit-delay-ms", "N[,N...]", "the server's --commit-delay-ms (default 5); a list runs one server per value"),
+      Option::Text("server", "BIN[,BIN...]",
+                   "server binaries compared side by side in every repetition (default: this\nbuild's linerwatch-server)"),
+      Option::Text("perf", "FILE", "perf record -e cpu-clock attached to each server run (FILE.REP-FORM-VARIANT)"),
+      Option::Text("perf-call-graph", "MODE", "perf's --call-graph instead of -g (dwarf: whole chains without frame pointers)"),
+  }};
+  return table;
+}
+
+std::string Help() {
+  return "lw_bench_ingest: readings/s through mosquitto -> linerwatch-server -> SQLite (committed and acked)\n"
+         "against a bare mosquitto_sub on the same broker, alternated in one run (docs/performance.md, *Ingest*).\n\n"
+         "usage: lw_bench_ingest " +
+         Table().Synopsis(24, 100) + "\n\n" + Table().Help(28);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   long n = 20000;
   int reps = 5;
   std::string perf, perf_call_graph, commit_delay = "5", servers = LW_SERVER_BIN, batches = "1";
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--readings"))
-      n = std::atol(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--reps"))
-      reps = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--perf"))
-      perf = argv[i + 1];
-    else if (!std::strcmp(argv[i], "--perf-call-graph"))
-      perf_call_graph = argv[i + 1];
-    else if (!std::strcmp(argv[i], "--commit-delay-ms"))
-      commit_delay = argv[i + 1];
-    else if (!std::strcmp(argv[i], "--server"))
-      servers = argv[i + 1];
-    else if (!std::strcmp(argv[i], "--batch"))
-      batches = argv[i + 1];
-    else {
-      std::fprintf(stderr,
-                   "usage: lw_bench_ingest [--readings N] [--reps R] [--batch N[,N...]] [--perf FILE [--perf-call-graph MODE]] "
-                   "[--commit-delay-ms N[,N...]] [--server BIN[,BIN...]]\n");
-      return 2;
+  try {
+    const lw::core::ParsedOptions p = lw::core::ParseOptions(Table(), std::vector<std::string>(argv + 1, argv + argc));
+    if (p.help()) {
+      std::fputs(Help().c_str(), stdout);
+      return 0;
     }
+    n = p.Integer<long>("readings", n);
+    reps = p.Integer<int>("reps", reps);
+    batches = p.Text("batch", batches);
+    commit_delay = p.Text("commit-delay-ms", commit_delay);
+    servers = p.Text("server", servers);
+    perf = p.Text("perf");
+    perf_call_graph = p.Text("perf-call-graph");
+  } catch (const lw::core::UsageError& e) {
+    std::fprintf(stderr, "lw_bench_ingest: %s\n", e.what());
+    return 2;
   }
   const auto split = [](const std::string& list) {
     std::vector<std::string> out;

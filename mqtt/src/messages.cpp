@@ -1,6 +1,7 @@
 #include "mqtt/messages.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -227,12 +228,194 @@ std::string EncodeReading(const ReadingMessage& r) {
 
 namespace {
 
+/// A top-level field of a reading object as the reading decoder sees it: its JSON type and value,
+/// read from the text by one SAX pass (ReadingSax) or from a parsed tree (FieldsOf, batches).
+struct Field {
+  enum class Kind : uint8_t { kAbsent, kString, kUnsigned, kInteger, kFloat, kOther };  ///< kOther: bool, null, object, array
+  Kind kind = Kind::kAbsent;
+  std::string text;  ///< kString
+  uint64_t u = 0;    ///< kUnsigned
+  int64_t i = 0;     ///< kInteger; kUnsigned up to INT64_MAX too
+  double d = 0;      ///< every number as a double (what nlohmann's get<double> gives)
+  bool absent() const { return kind == Kind::kAbsent; }
+  bool is_string() const { return kind == Kind::kString; }
+  bool is_number() const { return kind == Kind::kUnsigned || kind == Kind::kInteger || kind == Kind::kFloat; }
+  void SetString(const std::string& v) {
+    kind = Kind::kString;
+    text = v;
+  }
+  void SetUnsigned(uint64_t v) {
+    kind = Kind::kUnsigned;
+    u = v;
+    i = static_cast<int64_t>(v);
+    d = static_cast<double>(v);
+  }
+  void SetInteger(int64_t v) {
+    kind = Kind::kInteger;
+    i = v;
+    d = static_cast<double>(v);
+  }
+  void SetFloat(double v) {
+    kind = Kind::kFloat;
+    d = v;
+  }
+};
+
+/// The fields the reading decoder reads; any other key is ignored.
+enum FieldId : uint8_t {
+  kSensor,
+  kSeq,
+  kTime,
+  kThickness,
+  kLoops,
+  kFlags,
+  kBattery,
+  kTemperature,
+  kLadder,
+  kBitmap,
+  kDropped,
+  kAddress,
+  kGateway,
+  kReceived,
+  kFieldCount
+};
+constexpr std::string_view kFieldNames[kFieldCount] = {
+    "sensor",        "seq",          "time",        "thickness_mm",  "loops_intact", "flags",   "battery_mv",
+    "temperature_c", "ladder_loops", "loop_bitmap", "dropped_total", "address",      "gateway", "received"};
+using ReadingFields = std::array<Field, kFieldCount>;
+
+int FieldIndex(std::string_view key) {
+  for (int k = 0; k < kFieldCount; ++k) {
+    if (kFieldNames[k] == key) return k;
+  }
+  return -1;
+}
+
+/// The fields of a parsed object (a record of a batch, or a whole message parsed as a tree).
+ReadingFields FieldsOf(const json& object) {
+  ReadingFields f;
+  for (int k = 0; k < kFieldCount; ++k) {
+    const auto it = object.find(kFieldNames[k]);
+    if (it == object.end()) continue;
+    if (it->is_string())
+      f[k].SetString(it->get_ref<const std::string&>());
+    else if (it->is_number_unsigned())
+      f[k].SetUnsigned(it->get<uint64_t>());
+    else if (it->is_number_integer())
+      f[k].SetInteger(it->get<int64_t>());
+    else if (it->is_number_float())
+      f[k].SetFloat(it->get<double>());
+    else
+      f[k].kind = Field::Kind::kOther;
+  }
+  return f;
+}
+
+/// "malformed JSON", naming text that is not UTF-8 and where (a payload's bytes can be anything;
+/// the offending bytes themselves are not quoted: the reason is logged and served as JSON).
+std::string MalformedJson(const json::exception& e) {
+  const auto* parse = dynamic_cast<const json::parse_error*>(&e);
+  if (parse && std::string_view(e.what()).find("ill-formed UTF-8") != std::string_view::npos) {
+    return "malformed JSON: text that is not UTF-8 at byte " + std::to_string(parse->byte);
+  }
+  return "malformed JSON";
+}
+
+/// The overflow error of a number that does not fit a double, named by the last key seen before
+/// it (`what`: nlohmann's "[json.exception.out_of_range.406] number overflow parsing '1e999'").
+std::string OverflowError(const std::string& key, const std::string& what) {
+  const size_t q = what.find('\'');
+  const std::string number = q == std::string::npos ? std::string() : what.substr(q);
+  return (key.empty() ? std::string("a number") : "\"" + key + "\"") + (number.empty() ? "" : " " + number) +
+         " does not fit a double (number overflow)";
+}
+
+/// One SAX pass over a reading message's text: the top level's known fields into a ReadingFields,
+/// without building a tree (a tree cost a heap node per key and value). Nested values are only
+/// walked (a known field holding one is kOther). A duplicate key's last value counts, as in a tree.
+/// The parse is nlohmann's own (strict, no comments): the same JSON is accepted and refused.
+class ReadingSax {
+ public:
+  explicit ReadingSax(ReadingFields* fields) : f_(*fields) {}
+  bool object() const { return object_; }
+  bool overflow() const { return overflow_; }
+  const std::string& error() const { return error_; }
+
+  bool null() { return Other(); }
+  bool boolean(bool) { return Other(); }
+  bool number_integer(json::number_integer_t v) {
+    if (Field* f = Target()) f->SetInteger(v);
+    return true;
+  }
+  bool number_unsigned(json::number_unsigned_t v) {
+    if (Field* f = Target()) f->SetUnsigned(v);
+    return true;
+  }
+  bool number_float(json::number_float_t v, const json::string_t&) {
+    if (Field* f = Target()) f->SetFloat(v);
+    return true;
+  }
+  bool string(json::string_t& v) {
+    if (Field* f = Target()) f->SetString(v);
+    return true;
+  }
+  bool binary(json::binary_t&) { return Other(); }
+  bool key(json::string_t& k) {
+    key_ = k;  // names a number overflow, at any depth (as ParseJsonNamingField does)
+    if (depth_ == 1) pending_ = FieldIndex(k);
+    return true;
+  }
+  bool start_object(std::size_t) {
+    if (depth_ == 0) object_ = true;
+    Other();
+    ++depth_;
+    return true;
+  }
+  bool start_array(std::size_t) {
+    Other();
+    ++depth_;
+    return true;
+  }
+  bool end_object() {
+    --depth_;
+    return true;
+  }
+  bool end_array() {
+    --depth_;
+    return true;
+  }
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception& e) {
+    overflow_ = dynamic_cast<const json::out_of_range*>(&e) != nullptr;
+    error_ = overflow_ ? OverflowError(key_, e.what()) : MalformedJson(e);
+    return false;
+  }
+
+ private:
+  /// The field the value now starting at the top level belongs to, or null.
+  Field* Target() {
+    if (depth_ != 1 || pending_ < 0) return nullptr;
+    Field* f = &f_[static_cast<size_t>(pending_)];
+    pending_ = -1;
+    return f;
+  }
+  bool Other() {
+    if (Field* f = Target()) f->kind = Field::Kind::kOther;
+    return true;
+  }
+  ReadingFields& f_;
+  std::string key_;
+  std::string error_;
+  size_t depth_ = 0;
+  int pending_ = -1;
+  bool object_ = false;
+  bool overflow_ = false;
+};
+
 /// A whole-number field in [lo, hi] (a float without a fraction counts); sets *error naming the
 /// field otherwise (the server's texts: `missing "seq"`, `"seq" must be a whole number`,
 /// `"flags" 70000 is outside [0, 65535]`).
-std::optional<int64_t> WholeField(const json& j, const char* name, int64_t lo, int64_t hi, std::string* error) {
-  const auto it = j.find(name);
-  if (it == j.end()) {
+std::optional<int64_t> WholeField(const Field& f, const char* name, int64_t lo, int64_t hi, std::string* error) {
+  if (f.absent()) {
     *error = std::string("missing \"") + name + "\"";
     return std::nullopt;
   }
@@ -241,12 +424,12 @@ std::optional<int64_t> WholeField(const json& j, const char* name, int64_t lo, i
     return std::nullopt;
   };
   int64_t v = 0;
-  if (it->is_number_unsigned() && it->get<uint64_t>() > static_cast<uint64_t>(INT64_MAX)) {
-    return outside(std::to_string(it->get<uint64_t>()));  // beyond every range a field has
-  } else if (it->is_number_integer()) {
-    v = it->get<int64_t>();
-  } else if (it->is_number_float() && std::floor(it->get<double>()) == it->get<double>() && std::fabs(it->get<double>()) < 9e15) {
-    v = static_cast<int64_t>(it->get<double>());
+  if (f.kind == Field::Kind::kUnsigned && f.u > static_cast<uint64_t>(INT64_MAX)) {
+    return outside(std::to_string(f.u));  // beyond every range a field has
+  } else if (f.kind == Field::Kind::kUnsigned || f.kind == Field::Kind::kInteger) {
+    v = f.i;
+  } else if (f.kind == Field::Kind::kFloat && std::floor(f.d) == f.d && std::fabs(f.d) < 9e15) {
+    v = static_cast<int64_t>(f.d);
   } else {
     *error = std::string("\"") + name + "\" must be a whole number";
     return std::nullopt;
@@ -256,16 +439,16 @@ std::optional<int64_t> WholeField(const json& j, const char* name, int64_t lo, i
 }
 
 /// The identity of a reading object: its sensor (a string or a whole number) and a valid seq.
-void Identify(const json& j, ReadingIdentity* id) {
-  const auto s = j.find("sensor");
-  if (s != j.end() && s->is_string())
-    id->sensor = s->get<std::string>();
-  else if (s != j.end() && s->is_number_unsigned())
-    id->sensor = std::to_string(s->get<uint64_t>());
-  else if (s != j.end() && s->is_number_integer())
-    id->sensor = std::to_string(s->get<int64_t>());
+void Identify(const ReadingFields& f, ReadingIdentity* id) {
+  const Field& s = f[kSensor];
+  if (s.kind == Field::Kind::kString)
+    id->sensor = s.text;
+  else if (s.kind == Field::Kind::kUnsigned)
+    id->sensor = std::to_string(s.u);
+  else if (s.kind == Field::Kind::kInteger)
+    id->sensor = std::to_string(s.i);
   std::string ignored;
-  if (const auto seq = WholeField(j, "seq", 0, 0xFFFFFFFFLL, &ignored)) id->seq = static_cast<uint32_t>(*seq);
+  if (const auto seq = WholeField(f[kSeq], "seq", 0, 0xFFFFFFFFLL, &ignored)) id->seq = static_cast<uint32_t>(*seq);
 }
 
 /// The quoted token of a number overflow message ("... parsing '1e999'"), or empty.
@@ -282,7 +465,7 @@ void IdentifyDespiteOverflow(std::string_view payload, ReadingIdentity* id) {
   for (int tries = 0; tries < 16; ++tries) {
     try {
       const json j = json::parse(text);
-      if (j.is_object()) Identify(j, id);
+      if (j.is_object()) Identify(FieldsOf(j), id);
       return;
     } catch (const json::out_of_range& e) {
       const std::string token = OverflowToken(e.what());
@@ -316,23 +499,12 @@ void IdentifyDespiteOverflow(std::string_view payload, ReadingIdentity* id) {
 }
 
 /// Optional fields: set when present with docs/mqtt.md's type, left absent otherwise.
-void OptionalString(const json& j, const char* name, std::optional<std::string>* out) {
-  const auto it = j.find(name);
-  if (it != j.end() && it->is_string()) *out = it->get<std::string>();
+void OptionalString(const Field& f, std::optional<std::string>* out) {
+  if (f.is_string()) *out = f.text;
 }
-void OptionalWhole(const json& j, const char* name, std::optional<int64_t>* out) {
+void OptionalWhole(const Field& f, const char* name, std::optional<int64_t>* out) {
   std::string ignored;
-  if (j.contains(name)) *out = WholeField(j, name, INT64_MIN, INT64_MAX, &ignored);
-}
-
-/// "malformed JSON", naming text that is not UTF-8 and where (a payload's bytes can be anything;
-/// the offending bytes themselves are not quoted: the reason is logged and served as JSON).
-std::string MalformedJson(const json::exception& e) {
-  const auto* parse = dynamic_cast<const json::parse_error*>(&e);
-  if (parse && std::string_view(e.what()).find("ill-formed UTF-8") != std::string_view::npos) {
-    return "malformed JSON: text that is not UTF-8 at byte " + std::to_string(parse->byte);
-  }
-  return "malformed JSON";
+  if (!f.absent()) *out = WholeField(f, name, INT64_MIN, INT64_MAX, &ignored);
 }
 
 }  // namespace
@@ -355,12 +527,7 @@ bool ParseJsonNamingField(std::string_view text, nlohmann::json* out, std::strin
     });
     return true;
   } catch (const json::out_of_range& e) {
-    // nlohmann: "[json.exception.out_of_range.406] number overflow parsing '1e999'"
-    const std::string what = e.what();
-    const size_t q = what.find('\'');
-    const std::string number = q == std::string::npos ? std::string() : what.substr(q);
-    *error = (key.empty() ? std::string("a number") : "\"" + key + "\"") + (number.empty() ? "" : " " + number) +
-             " does not fit a double (number overflow)";
+    *error = OverflowError(key, e.what());
   } catch (const json::exception& e) {
     *error = MalformedJson(e);
   }
@@ -391,50 +558,54 @@ size_t JsonNestingDepth(std::string_view text) {
 
 namespace {
 
-/// DecodeReading's checks on a parsed JSON value, from "an object" on.
-std::optional<ReadingMessage> DecodeReadingValue(const json& j, std::string* error, ReadingIdentity& id) {
-  if (!j.is_object()) {
-    *error = "not a JSON object";
-    return std::nullopt;
-  }
-  id.object = true;
+/// DecodeReading's checks on the fields of a JSON object (`id.object` set), from "sensor" on:
+/// the one place a reading's fields are judged, whether read from its text or from a batch's tree.
+std::optional<ReadingMessage> DecodeFields(const ReadingFields& f, std::string* error, ReadingIdentity& id) {
   // Identify first, so that even a rejected message can be acknowledged once quarantined.
-  Identify(j, &id);
+  Identify(f, &id);
   if (id.sensor.empty()) {
     *error = "missing or invalid \"sensor\"";
     return std::nullopt;
   }
   ReadingMessage r;
   r.sensor = id.sensor;
-  if (!WholeField(j, "seq", 0, 0xFFFFFFFFLL, error)) return std::nullopt;
+  if (!WholeField(f[kSeq], "seq", 0, 0xFFFFFFFFLL, error)) return std::nullopt;
   r.seq = *id.seq;
-  const auto t = j.find("time");
-  if (t == j.end() || !t->is_string()) {
+  if (!f[kTime].is_string()) {
     *error = "missing or non-string \"time\"";
     return std::nullopt;
   }
-  r.time = t->get<std::string>();
-  const auto th = j.find("thickness_mm");
-  if (th == j.end() || !th->is_number()) {
+  r.time = f[kTime].text;
+  if (!f[kThickness].is_number()) {
     *error = "missing or non-numeric \"thickness_mm\"";
     return std::nullopt;
   }
-  r.thickness_mm = th->get<double>();
-  const auto loops = WholeField(j, "loops_intact", 0, 4096, error);
-  const auto flags = loops ? WholeField(j, "flags", 0, 0xFFFF, error) : std::nullopt;
-  const auto battery = flags ? WholeField(j, "battery_mv", 0, 10000, error) : std::nullopt;
+  r.thickness_mm = f[kThickness].d;
+  const auto loops = WholeField(f[kLoops], "loops_intact", 0, 4096, error);
+  const auto flags = loops ? WholeField(f[kFlags], "flags", 0, 0xFFFF, error) : std::nullopt;
+  const auto battery = flags ? WholeField(f[kBattery], "battery_mv", 0, 10000, error) : std::nullopt;
   if (!battery) return std::nullopt;
   r.loops_intact = *loops;
   r.flags = static_cast<uint16_t>(*flags);
   r.battery_mv = *battery;
-  OptionalWhole(j, "temperature_c", &r.temperature_c);
-  OptionalWhole(j, "ladder_loops", &r.ladder_loops);
-  OptionalString(j, "loop_bitmap", &r.loop_bitmap);
-  OptionalWhole(j, "dropped_total", &r.dropped_total);
-  OptionalString(j, "address", &r.address);
-  OptionalString(j, "gateway", &r.gateway);
-  OptionalString(j, "received", &r.received);
+  OptionalWhole(f[kTemperature], "temperature_c", &r.temperature_c);
+  OptionalWhole(f[kLadder], "ladder_loops", &r.ladder_loops);
+  OptionalString(f[kBitmap], &r.loop_bitmap);
+  OptionalWhole(f[kDropped], "dropped_total", &r.dropped_total);
+  OptionalString(f[kAddress], &r.address);
+  OptionalString(f[kGateway], &r.gateway);
+  OptionalString(f[kReceived], &r.received);
   return r;
+}
+
+/// DecodeReading's checks on a parsed JSON value (a record of a batch), from "an object" on.
+std::optional<ReadingMessage> DecodeReadingValue(const json& j, std::string* error, ReadingIdentity& id) {
+  if (!j.is_object()) {
+    *error = "not a JSON object";
+    return std::nullopt;
+  }
+  id.object = true;
+  return DecodeFields(FieldsOf(j), error, id);
 }
 
 /// Size and nesting of a reading message, checked before it is parsed.
@@ -457,12 +628,20 @@ std::optional<ReadingMessage> DecodeReading(std::string_view payload, std::strin
   ReadingIdentity& id = identity ? *identity : local;
   id = {};
   if (!ReadingWithinLimits(payload, error)) return std::nullopt;
-  json j;
-  if (!ParseJsonNamingField(payload, &j, error)) {
-    IdentifyDespiteOverflow(payload, &id);  // so that the quarantined message can be acknowledged
+  // One SAX pass, no tree (docs/performance.md, *Ingest*: the tree was ~9 % of the server's CPU).
+  ReadingFields fields;
+  ReadingSax sax(&fields);
+  if (!json::sax_parse(payload, &sax, json::input_format_t::json, /*strict=*/true, /*ignore_comments=*/false)) {
+    *error = sax.error();
+    if (sax.overflow()) IdentifyDespiteOverflow(payload, &id);  // so that the quarantined message can be acknowledged
     return std::nullopt;
   }
-  return DecodeReadingValue(j, error, id);
+  if (!sax.object()) {
+    *error = "not a JSON object";
+    return std::nullopt;
+  }
+  id.object = true;
+  return DecodeFields(fields, error, id);
 }
 
 // ---- batches of readings ----
@@ -500,7 +679,7 @@ bool ForEachBatchRecord(std::string_view payload, std::string* error, Each each)
   const auto list = j.find("records");
   if (list == j.end()) return true;  // "records" was text inside a string
   ReadingIdentity id;
-  Identify(j, &id);
+  Identify(FieldsOf(j), &id);
   if (id.sensor.empty()) {
     *error = "batch: missing or invalid \"sensor\"";
     return false;

