@@ -654,6 +654,9 @@ int main(int argc, char** argv) {
       for (const auto& r : bundle.readings)
         if (r.time <= t_pred && (!truth_at.count(r.sensor_id) || r.time >= truth_at[r.sensor_id].first))
           truth_at[r.sensor_id] = {r.time, r.thickness_mm + 0.5};
+      // A stuck sensor's readings are not the liner's thickness: no truth there (the other
+      // generators know the true thickness at every sensor).
+      if (!c.stuck_sensor.empty()) truth_at.erase(c.stuck_sensor);
     }
     std::erase_if(bundle.readings, [&](const lw::core::Reading& r) { return r.time > t_cut; });
     std::erase_if(bundle.operations, [&](const lw::core::OperationsSample& o) { return o.time > t_pred; });
