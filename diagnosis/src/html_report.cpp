@@ -789,8 +789,8 @@ std::string RenderHtml(const DiagnosisResult& r) {
       h << "<li>Reline by <b>" << Date(*first->reach) << "</b> (row " << Esc(first->row) << "; earliest "
         << (first->earliest ? Date(*first->earliest) : std::string("-")) << ").</li>";
   }
-  h << "<li>Error of the prediction against the recordings (RMSE, mm of wear): baseline " << Num(r.baseline.rmse_mm)
-    << " &rarr; improved " << Num(r.improved.rmse_mm) << " (held out: " << Num(r.baseline.holdout_rmse_mm) << " &rarr; "
+  h << "<li>Error of the prediction against the recordings (RMSE, mm of wear): baseline " << Num(r.baseline.rmse_mm) << " &rarr; "
+    << ImprovedWords(r) << " " << Num(r.improved.rmse_mm) << " (held out: " << Num(r.baseline.holdout_rmse_mm) << " &rarr; "
     << Num(r.improved.holdout_rmse_mm) << ").</li>";
   if (!r.data_quality.empty())
     h << "<li>" << r.data_quality.size() << " sensor data-quality issue(s): see <a href='#quality'>Data quality</a> "
