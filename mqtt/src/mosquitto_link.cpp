@@ -259,10 +259,22 @@ struct MosquittoLink::Impl {
     message_bytes = 0;
     for (int n = 0; n < kMaxPacketsPerPoll && message_bytes < kMaxBytesPerPoll && state != State::kIdle; ++n) {
       const uint64_t before = packets;
-      if (mosquitto_loop_read(client, 1) != MOSQ_ERR_SUCCESS) return;  // OnDisconnect said why
+      if (const int rc = mosquitto_loop_read(client, 1); rc != MOSQ_ERR_SUCCESS) return Unreported(rc);
       if (!violation.empty()) return Refuse();
       if (packets == before && !Ready(mosquitto_socket(client), POLLIN)) return;
     }
+  }
+
+  /// After a libmosquitto call failed with `rc`: OnDisconnect normally said why and left the link
+  /// idle. Not always: libmosquitto 2.0.11 closes the socket on a TLS handshake that fails in a read
+  /// while connecting (an untrusted broker certificate, when the handshake outlasts the connect
+  /// call) and returns MOSQ_ERR_TLS without the callback, and every later read "succeeds" on no
+  /// socket: the link would wait for ever, saying nothing. Reported here as the callback would.
+  void Unreported(int rc) {
+    const int saved_errno = errno;
+    if (state == State::kIdle) return;  // OnDisconnect said why
+    errno = saved_errno;
+    OnDisconnect(client, this, rc);
   }
 
   /// The broker did what MQTT forbids (`violation`): the connection is dropped and the client made
@@ -285,12 +297,14 @@ struct MosquittoLink::Impl {
   void Write() {
     for (int n = 0; n < kMaxPacketsPerPoll && state != State::kIdle && mosquitto_want_write(client); ++n) {
       errno = 0;
-      if (mosquitto_loop_write(client, 1) != MOSQ_ERR_SUCCESS) return;  // OnDisconnect said why
+      if (const int rc = mosquitto_loop_write(client, 1); rc != MOSQ_ERR_SUCCESS) return Unreported(rc);
       if ((errno == EAGAIN || errno == EWOULDBLOCK) && !Ready(mosquitto_socket(client), POLLOUT)) return;
     }
   }
 
   void Pump() {
+    // Connecting or connected, yet no socket: closed by libmosquitto without a callback (above).
+    if (mosquitto_socket(client) < 0) return Unreported(MOSQ_ERR_NO_CONN);
     Read();
     Write();
     if (state != State::kIdle) (void)mosquitto_loop_misc(client);  // keep-alive; a dead link is closed here
