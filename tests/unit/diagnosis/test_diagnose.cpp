@@ -193,6 +193,9 @@ TEST(Diagnose, JsonHasEveryContractKeyAndPrediction) {
   CHECK_TRUE(p.at("time").is_string());
   LONGS_EQUAL(12, p.at("baseline").at("sensors").size());
   LONGS_EQUAL(12, p.at("improved").at("sensors").size());
+  LONGS_EQUAL(12, p.at("refit_baseline").at("sensors").size());
+  for (const auto& s : r.prediction->sensors)
+    DOUBLES_EQUAL(s.refit_thickness_mm, p.at("refit_baseline").at("sensors").at(s.sensor_id).get<double>(), 1e-3);
   LONGS_EQUAL(static_cast<long>(r.prediction->face_wear_baseline_mm.size()),
               static_cast<long>(r.prediction->face_wear_improved_mm.size()));
   // The report renders and is self-contained.
