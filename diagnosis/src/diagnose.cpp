@@ -23,6 +23,30 @@
 
 namespace lw::diagnosis {
 
+const char* ImprovedModelName(ImprovedModel model) {
+  switch (model) {
+    case ImprovedModel::kFindings:
+      return "findings";
+    case ImprovedModel::kRefitBaseline:
+      return "refit_baseline";
+    case ImprovedModel::kBaseline:
+      break;
+  }
+  return "baseline";
+}
+
+const char* ImprovedModelLabel(ImprovedModel model) {
+  switch (model) {
+    case ImprovedModel::kFindings:
+      return "improved model (findings)";
+    case ImprovedModel::kRefitBaseline:
+      return "improved model (no findings: the map recalibrated at the sensors)";
+    case ImprovedModel::kBaseline:
+      break;
+  }
+  return "improved model (= baseline)";
+}
+
 DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& options) {
   DiagnosisResult result;
   // Benchmarks' oracle: checked before any work.
@@ -56,7 +80,8 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   // was measured, no physics added), unless its fit failed; then Eq. 9 itself.
   const bool use_improved = chosen != nullptr || detail::RefitUsable(null);
   result.improved = use_improved ? detail::ModelMetrics(prob, chosen ? *chosen : null.eval) : result.baseline;
-  result.improved_model = chosen ? "findings" : (use_improved ? "refit_baseline" : "baseline");
+  result.improved_model =
+      chosen ? ImprovedModel::kFindings : (use_improved ? ImprovedModel::kRefitBaseline : ImprovedModel::kBaseline);
   const detail::FitResult& model_fit = use_improved ? (chosen ? chosen->full : null.fit) : base.eq9;
 
   if (result.mismatch_detected) result.regions = detail::FindRegions(bundle, setup, null);

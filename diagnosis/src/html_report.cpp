@@ -153,9 +153,7 @@ constexpr ParamInfo kParams[] = {
 
 // What the "improved" model is in this report's words (DiagnosisResult::improved_model).
 std::string ImprovedWords(const DiagnosisResult& r) {
-  if (r.improved_model == "findings") return "improved model (findings)";
-  if (r.improved_model == "refit_baseline") return "improved model (no findings: the map recalibrated at the sensors)";
-  return "improved model (= baseline)";
+  return ImprovedModelLabel(r.improved_model);
 }
 
 const ParamInfo* FindParam(const std::string& key) {

@@ -57,7 +57,7 @@ nlohmann::ordered_json ToJson(const DiagnosisResult& r) {
     j["findings"].push_back(x);
   }
   j["improved"] = Errors(r.improved);
-  j["improved"]["model"] = r.improved_model;
+  j["improved"]["model"] = ImprovedModelName(r.improved_model);
   j["data_quality"] = nlohmann::ordered_json::array();
   for (const DataQualityIssue& d : r.data_quality) {
     nlohmann::ordered_json x;

@@ -203,10 +203,7 @@ void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const 
       liner.reline.push_back({r.row, r.ok, r.note, r.reach, r.reach_earliest, r.reach_latest});
   }
   liner.thinnest.push_back(ModelThinnest("baseline model (plain Eq. 9, wear linear in time)", liner.now, bundle, base_now));
-  const std::string improved = result.improved_model == "findings"         ? "improved model (with the findings)"
-                               : result.improved_model == "refit_baseline" ? "improved model (no findings: refit baseline)"
-                                                                           : "improved model (= baseline)";
-  liner.thinnest.push_back(ModelThinnest(improved, liner.now, bundle, best_now));
+  liner.thinnest.push_back(ModelThinnest(ImprovedModelLabel(result.improved_model), liner.now, bundle, best_now));
   if (result.prediction && result.prediction->face_wear_baseline_mm.size() == bundle.map.face_count()) {
     const Prediction& pr = *result.prediction;
     const auto n = static_cast<Eigen::Index>(bundle.map.face_count());

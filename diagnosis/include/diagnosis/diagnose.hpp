@@ -211,15 +211,26 @@ struct Prediction {
   std::vector<double> face_wear_improved_mm;
 };
 
+/// What a diagnosis' "improved" model is.
+enum class ImprovedModel {
+  kBaseline,       ///< Eq. 9 itself (the refit below failed)
+  kRefitBaseline,  ///< nothing chosen: the baseline's row scales refitted to the sensors and scans
+                   ///< together, with each sensor's map-noise term; no physics added
+  kFindings,       ///< the chosen model with its effects
+};
+/// "baseline", "refit_baseline", "findings": the JSON's `improved.model`.
+const char* ImprovedModelName(ImprovedModel model);
+/// The model in a report's words: "improved model (findings)", ...
+const char* ImprovedModelLabel(ImprovedModel model);
+
 struct DiagnosisResult {
   std::string crusher_id;
   core::TimePoint installed_at{};
   ErrorSummary baseline;
   ErrorSummary improved;
-  /// What `improved` and the improved predictions are: "findings" (the chosen model with its
-  /// effects), "refit_baseline" (nothing chosen: the baseline's row scales refitted to the sensors
-  /// and scans together, with each sensor's map-noise term; no physics added) or "baseline".
-  std::string improved_model = "baseline";
+  /// What `improved` and the improved predictions are (ImprovedModelName: the JSON's
+  /// `improved.model`).
+  ImprovedModel improved_model = ImprovedModel::kBaseline;
   bool mismatch_detected = false;
   double mismatch_z_score = 0;  ///< chi-square excess of the baseline over the noise model, in sigmas
   std::vector<Region> regions;

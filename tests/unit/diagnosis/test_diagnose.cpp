@@ -51,7 +51,7 @@ TEST(Diagnose, NullCampaignHasNoFindingAndNoMismatch) {
   CHECK_TRUE(r.data_quality.empty());
   // Nothing found: the improved model is the refit baseline (the map recalibrated at the sensors),
   // which fits the recordings at least as well as plain Eq. 9.
-  STRCMP_EQUAL("refit_baseline", r.improved_model.c_str());
+  STRCMP_EQUAL("refit_baseline", lw::diagnosis::ImprovedModelName(r.improved_model));
   CHECK_TRUE(r.improved.rmse_mm <= r.baseline.rmse_mm);
 }
 
@@ -70,7 +70,7 @@ TEST(Diagnose, WorkHardeningIsNamedWithSaturationTime) {
   // 3.05 days on this bundle (true 6); within 2 days before. The held-out check below still holds.
   DOUBLES_EQUAL(6.0, Param(r.findings[0], "tau_days"), 3.5);
   CHECK_TRUE(r.improved.holdout_rmse_mm < 0.7 * r.baseline.holdout_rmse_mm);
-  STRCMP_EQUAL("findings", r.improved_model.c_str());
+  STRCMP_EQUAL("findings", lw::diagnosis::ImprovedModelName(r.improved_model));
   CHECK_TRUE(r.findings[0].explanation.find("normal stress") != std::string::npos);
 }
 
