@@ -23,28 +23,29 @@
 
 namespace lw::diagnosis {
 
-const char* ImprovedModelName(ImprovedModel model) {
+namespace {
+struct ImprovedModelText {
+  const char* name;   // the JSON's improved.model
+  const char* label;  // a report's words
+};
+ImprovedModelText TextOf(ImprovedModel model) {
   switch (model) {
     case ImprovedModel::kFindings:
-      return "findings";
+      return {"findings", "improved model (findings)"};
     case ImprovedModel::kRefitBaseline:
-      return "refit_baseline";
+      return {"refit_baseline", "improved model (no findings: the map recalibrated at the sensors)"};
     case ImprovedModel::kBaseline:
       break;
   }
-  return "baseline";
+  return {"baseline", "improved model (= baseline)"};
 }
+}  // namespace
 
+const char* ImprovedModelName(ImprovedModel model) {
+  return TextOf(model).name;
+}
 const char* ImprovedModelLabel(ImprovedModel model) {
-  switch (model) {
-    case ImprovedModel::kFindings:
-      return "improved model (findings)";
-    case ImprovedModel::kRefitBaseline:
-      return "improved model (no findings: the map recalibrated at the sensors)";
-    case ImprovedModel::kBaseline:
-      break;
-  }
-  return "improved model (= baseline)";
+  return TextOf(model).label;
 }
 
 DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& options) {
