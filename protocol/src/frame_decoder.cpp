@@ -60,6 +60,15 @@ DecodeEvent FrameDecoder::FeedEscaped(uint8_t byte) {
     ++counters_.bytes_discarded;
     return DecodeEvent::kNone;
   }
+  if (byte == kXon || byte == kXoff) {
+    // Digi: in mode 2 these "must be escaped" inside a frame, sent or received, so a raw one is
+    // never frame data (a flow-control byte on the line, or a sender not in mode 2). Taking it as
+    // data delivered such frames whenever the checksum agreed; drop the frame instead.
+    ++counters_.escape_errors;
+    escape_next_ = false;
+    state_ = State::kIdle;
+    return DecodeEvent::kEscapeError;
+  }
   if (escape_next_) {
     escape_next_ = false;
     return Accept(static_cast<uint8_t>(byte ^ kEscapeXor));

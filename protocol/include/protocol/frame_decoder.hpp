@@ -16,9 +16,9 @@ struct DecoderCounters {
   uint64_t frames_ok = 0;
   uint64_t bytes_discarded = 0;  ///< bytes outside any frame (garbage before a delimiter)
   uint64_t checksum_errors = 0;
-  uint64_t escape_errors = 0;     ///< 0x7D followed by 0x7E, or an unescaped 0x7E inside a frame (mode 2)
+  uint64_t escape_errors = 0;     ///< mode 2: 0x7D followed by 0x7E, or a raw 0x11 / 0x13 inside a frame
   uint64_t length_errors = 0;     ///< declared length 0 or above kMaxFrameData
-  uint64_t truncated_frames = 0;  ///< a new delimiter arrived before the frame was complete
+  uint64_t truncated_frames = 0;  ///< a new delimiter arrived before the frame was complete (mode 2)
   uint64_t unknown_types = 0;     ///< valid frame whose API identifier is not a FrameType (still delivered)
 };
 

@@ -252,6 +252,22 @@ TEST(FrameDecoder, BadEscapeIsCounted) {
   CHECK(d.errors[0] == DecodeEvent::kEscapeError);
 }
 
+// Mode 2: 0x11 (XON) and 0x13 (XOFF) are always escaped inside a frame (Digi), so a raw one there
+// is an escape error that drops the frame, also right after 0x7D; outside a frame it is garbage.
+// The first frame below has a valid checksum if its raw 0x11 is taken as data (it used to be).
+TEST(FrameDecoder, RawXonXoffInsideAFrameIsAnEscapeErrorInMode2) {
+  FrameDecoder dec(ApiMode::kEscaped);
+  const Decoded d = FeedAll(dec, Concat({Hex("11 13"), Hex("7E 00 02 23 11 CB"), Hex("7E 00 02 23 7D 13 CB"),
+                                         Encode(ApiMode::kEscaped, Hex("23 11"))}));
+  LONGS_EQUAL(1, d.frames.size());
+  CHECK(d.frames[0] == Hex("23 11"));
+  CHECK(d.errors == (std::vector<DecodeEvent>{DecodeEvent::kEscapeError, DecodeEvent::kEscapeError}));
+  LONGS_EQUAL(2, dec.counters().escape_errors);
+  LONGS_EQUAL(2 + 1 + 1, dec.counters().bytes_discarded);  // the two before, each dropped frame's CB
+  FrameDecoder mode1(ApiMode::kUnescaped);
+  LONGS_EQUAL(1, FeedAll(mode1, Hex("7E 00 02 23 11 CB")).frames.size());  // ordinary data in mode 1
+}
+
 TEST(FrameDecoder, LengthBeyondBufferAndZeroLengthAreRejected) {
   FrameDecoder dec(ApiMode::kUnescaped);
   const Decoded d = FeedAll(dec, Concat({Hex("7E 7F FF 00 01 02"), Hex("7E 00 00 FF"), kDigiModem}));
