@@ -101,8 +101,9 @@ TEST(FirmwareToGateway, ReadingsReachMqttAndGatewayAcksReachTheFirmware) {
   // The server's part: collect readings, confirm commits so the spool drains.
   mqtt::async_client sub(broker.uri(), "fw-gw-test");
   sub.start_consuming();
-  sub.connect()->wait_for(std::chrono::seconds(5));
-  sub.subscribe("linerwatch/v1/qemu/c1/sensors/+/reading", 1)->wait_for(std::chrono::seconds(5));
+  // Up to 60 s each (returning at the answer): a subscription not yet made would miss readings.
+  sub.connect()->wait_for(std::chrono::seconds(60));
+  sub.subscribe("linerwatch/v1/qemu/c1/sensors/+/reading", 1)->wait_for(std::chrono::seconds(60));
 
   auto set_ladder = [&](int intact) {
     unsigned char frame[15];
