@@ -64,7 +64,11 @@ async function stop(child) {
 
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
-async function waitFor(what, fn, ms = 30000) {
+// Waits are bounds only a real failure reaches (90 s for the server's start-up, which builds the
+// map model, and its reconstructions; 60 s for the page): both take seconds on a loaded machine.
+const kPageWaitMs = 60000;
+
+async function waitFor(what, fn, ms = 90000) {
   const end = Date.now() + ms;
   let last;
   while (Date.now() < end) {
@@ -118,6 +122,7 @@ function campaignReadings(bundle) {
 async function newPage() {
   const context = await browser.newContext({ viewport: { width: 1500, height: 1500 } });
   const page = await context.newPage();
+  page.setDefaultTimeout(kPageWaitMs);
   page.errors = [];
   page.on('pageerror', (e) => page.errors.push(e.message));
   page.on('console', (m) => { if (m.type() === 'error') console.log(`browser console: ${m.text()}`); });
@@ -190,7 +195,7 @@ async function main() {
   const rowCell = page.locator(`[data-testid="row-min-${row}"]`);
   const rowMin0 = parseFloat(await rowCell.textContent());
   check(Number.isFinite(rowMin0), `summary shows row ${row} minimum ${rowMin0} mm`);
-  await page.waitForFunction(() => document.getElementById('live').dataset.state === 'live', null, { timeout: 15000 });
+  await page.waitForFunction(() => document.getElementById('live').dataset.state === 'live', null, { timeout: kPageWaitMs });
   check(true, 'live updates connected (SSE)');
   await page.screenshot({ path: path.join(artifacts, '1-crusher.png'), fullPage: true });
 
@@ -202,12 +207,12 @@ async function main() {
     thickness_mm: last.thickness_mm - 3, loops_intact: last.thickness_mm - 3, flags: 0, battery_mv: 3590 };
   const inj = await http(base, 'POST', `/api/v1/crushers/${crusher}/readings`, { readings: [injected] });
   check(inj.status === 200 && inj.json.stored === 1, `injected reading ${injected.thickness_mm} mm for sensor ${sensor}`);
-  await page.waitForFunction(([n]) => Number(document.querySelector('[data-testid="sensor-series"]')?.dataset.points) === n, [points0 + 1], { timeout: 20000 });
+  await page.waitForFunction(([n]) => Number(document.querySelector('[data-testid="sensor-series"]')?.dataset.points) === n, [points0 + 1], { timeout: kPageWaitMs });
   check(Number(await series.getAttribute('data-last-mm')) === injected.thickness_mm, 'series gained the injected reading live');
-  await page.waitForFunction(([m]) => Number(document.querySelector('[data-testid="wear-map"]').dataset.minMm) !== m, [mapMin0], { timeout: 20000 });
+  await page.waitForFunction(([m]) => Number(document.querySelector('[data-testid="wear-map"]').dataset.minMm) !== m, [mapMin0], { timeout: kPageWaitMs });
   const mapMin1 = Number(await map.getAttribute('data-min-mm'));
   check(mapMin1 < mapMin0, `map's thinnest spot updated live: ${mapMin0} -> ${mapMin1} mm`);
-  await page.waitForFunction(([id, v]) => parseFloat(document.querySelector(`[data-testid="row-min-${id}"]`).textContent) !== v, [row, rowMin0], { timeout: 20000 });
+  await page.waitForFunction(([id, v]) => parseFloat(document.querySelector(`[data-testid="row-min-${id}"]`).textContent) !== v, [row, rowMin0], { timeout: kPageWaitMs });
   const rowMin1 = parseFloat(await rowCell.textContent());
   check(rowMin1 < rowMin0, `summary row ${row} minimum updated live: ${rowMin0} -> ${rowMin1} mm`);
   check(await page.evaluate(() => window.__noReload === true), 'no page reload');
@@ -225,19 +230,19 @@ async function main() {
   const page2 = await newPage();
   await page2.goto(base + '/');
   const dialog = page2.locator('#token-dialog');
-  await dialog.waitFor({ state: 'visible', timeout: 15000 });
+  await dialog.waitFor({ state: 'visible', timeout: kPageWaitMs });
   check(true, 'token prompt shown');
   await page2.screenshot({ path: path.join(artifacts, '3-token-prompt.png') });
   await page2.fill('#token-input', token);
   await page2.click('#token-submit');
-  await page2.locator(`[data-testid="crusher-card"][data-crusher="${crusher}"]`).waitFor({ timeout: 15000 });
+  await page2.locator(`[data-testid="crusher-card"][data-crusher="${crusher}"]`).waitFor({ timeout: kPageWaitMs });
   check(await page2.evaluate(() => sessionStorage.getItem('linerwatch.token')) === token, 'token kept in sessionStorage; crusher list loads');
   await page2.locator(`[data-testid="crusher-card"][data-crusher="${crusher}"]`).click();
-  await page2.waitForFunction(() => document.getElementById('live').dataset.state === 'live', null, { timeout: 15000 });
+  await page2.waitForFunction(() => document.getElementById('live').dataset.state === 'live', null, { timeout: kPageWaitMs });
   check(true, 'live updates connect with the token (access_token)');
   // A write-scope token may start a diagnosis from the page (its result is not waited for).
   await page2.click('[data-testid="run-diagnosis"]');
-  await page2.waitForFunction(() => ['running', 'done'].includes(document.querySelector('[data-testid="diagnosis-status"]')?.dataset.status), null, { timeout: 15000 });
+  await page2.waitForFunction(() => ['running', 'done'].includes(document.querySelector('[data-testid="diagnosis-status"]')?.dataset.status), null, { timeout: kPageWaitMs });
   check(true, 'Run diagnosis started one with the write-scope token');
   await page2.screenshot({ path: path.join(artifacts, '4-with-token.png'), fullPage: true });
   check(page2.errors.length === 0, `no page errors (${page2.errors.join('; ')})`);

@@ -199,9 +199,9 @@ std::string MosquittoFixture::uri() const {
 void MosquittoFixture::Start() {
   if (process_.Running()) return;
   process_.Start({MosquittoBinary(), "-c", dir_.File("mosquitto.conf")}, log_file());
-  // 20 s: a healthy start takes milliseconds, but on a loaded 2-core CI machine (a debootstrap
-  // beside the tests) 5 s was once not enough.
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  // 60 s: a healthy start takes milliseconds, but on a loaded 2-core CI machine (a debootstrap
+  // beside the tests) 5 s was once not enough; only a broker that never listens reaches this.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
   int retries = 0;
   while (std::chrono::steady_clock::now() < deadline) {
     if (!process_.Running()) {
@@ -219,7 +219,7 @@ void MosquittoFixture::Start() {
   }
   process_.Kill();
   throw std::runtime_error("mosquitto did not accept connections on port " + std::to_string(port_) +
-                           " within 20 s: " + FileTail(log_file()));
+                           " within 60 s: " + FileTail(log_file()));
 }
 
 void MosquittoFixture::Stop() {

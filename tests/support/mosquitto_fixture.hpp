@@ -33,14 +33,16 @@ class ChildProcess {
   /// True while the child has not exited (reaps it when it has).
   bool Running();
   /// Sends `signal`, waits up to `timeout`, then SIGKILLs. Returns the wait status (-1: none).
-  int Stop(int signal, std::chrono::milliseconds timeout = std::chrono::seconds(5));
+  /// 60 s: a program's clean exit (final messages, spool and database closed) takes well under a
+  /// second, but a starved one on a loaded machine can take seconds; only a hang reaches the kill.
+  int Stop(int signal, std::chrono::milliseconds timeout = std::chrono::seconds(60));
   /// SIGKILL and reap. No-op when not running.
   void Kill();
   /// Sends `signal` and returns at once (no reaping): to hit several children at the same instant.
   void Signal(int signal);
   /// Waits up to `timeout` for the child to exit by itself; returns its exit code, or -1 when it
   /// was killed (after the timeout) or died by a signal.
-  int Wait(std::chrono::milliseconds timeout = std::chrono::seconds(30));
+  int Wait(std::chrono::milliseconds timeout = std::chrono::seconds(120));
   pid_t pid() const { return pid_; }
   /// Wait status after the child exited (from waitpid), -1 before.
   int status() const { return status_; }
@@ -60,7 +62,7 @@ bool PortAccepts(int port);
 std::string FileTail(const std::string& path, size_t max_bytes = 2000);
 
 /// Runs a command to completion (output appended to `log_file`); returns its exit code, -1 when it
-/// did not finish within 30 s or died by a signal.
+/// did not finish within 120 s (a generous bound: only a hang reaches it) or died by a signal.
 int RunCommand(const std::vector<std::string>& argv, const std::string& log_file);
 
 /// The broker binary: $LW_MOSQUITTO, else /usr/sbin/mosquitto, else "mosquitto" on PATH.
@@ -93,7 +95,7 @@ class MosquittoFixture {
   MosquittoFixture(const MosquittoFixture&) = delete;
   MosquittoFixture& operator=(const MosquittoFixture&) = delete;
 
-  /// Starts mosquitto and waits (up to 5 s) until the port accepts connections. Throws
+  /// Starts mosquitto and waits (up to 60 s) until the port accepts connections. Throws
   /// std::runtime_error with the log tail on failure.
   void Start();
   /// SIGTERM (mosquitto saves its persistence database) and wait.

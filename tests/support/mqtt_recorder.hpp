@@ -17,6 +17,12 @@ namespace lw::test {
 
 class MqttRecorder {
  public:
+  /// How long a connect, SUBACK, PUBACK or awaited message may take: on loopback milliseconds, but
+  /// a broker or program starved on a loaded machine can take seconds. A connect or subscription
+  /// not complete when its wait ends would lose what follows, so only a real failure should end
+  /// one; the waits return as soon as the answer comes.
+  static constexpr std::chrono::seconds kPatience{60};
+
   struct Message {
     std::string topic, payload;
     bool retained;
@@ -39,7 +45,7 @@ class MqttRecorder {
       ssl.set_trust_store(ca_file);
       opts.set_ssl(ssl);
     }
-    client_.connect(opts)->wait_for(std::chrono::seconds(10));
+    client_.connect(opts)->wait_for(kPatience);
   }
   ~MqttRecorder() {
     try {
@@ -52,13 +58,13 @@ class MqttRecorder {
 
   void Subscribe(const std::string& filter) {
     try {
-      client_.subscribe(filter, 1)->wait_for(std::chrono::seconds(5));
+      client_.subscribe(filter, 1)->wait_for(kPatience);
     } catch (const std::exception&) {
       // A refused subscription: nothing will arrive on it, which is what the checks look at.
     }
   }
   void Publish(const std::string& topic, const std::string& payload, bool retained = false) {
-    client_.publish(topic, payload, 1, retained)->wait_for(std::chrono::seconds(5));
+    client_.publish(topic, payload, 1, retained)->wait_for(kPatience);
   }
   std::vector<Message> received() {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -71,8 +77,7 @@ class MqttRecorder {
     }
     return false;
   }
-  bool WaitFor(const std::string& topic, const std::string& needle = "",
-               std::chrono::milliseconds timeout = std::chrono::seconds(10)) {
+  bool WaitFor(const std::string& topic, const std::string& needle = "", std::chrono::milliseconds timeout = kPatience) {
     const auto until = std::chrono::steady_clock::now() + timeout;
     while (std::chrono::steady_clock::now() < until) {
       if (Saw(topic, needle)) return true;

@@ -441,7 +441,9 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   // 1. Both sites, link up: 8 records per sensor each.
   send(a, coord_a, 1, 8);
   send(b, coord_b, 1, 8);
-  long got_a = wait_stored(a, 16, 60s), got_b = wait_stored(b, 16, 30s);
+  // The bounds (60-90 s) are only reached by a real failure: a reading is stored within a second
+  // or two, more on a loaded machine (fsynced spool and database commits, two bridges).
+  long got_a = wait_stored(a, 16, 60s), got_b = wait_stored(b, 16, 60s);
   std::printf("\n  %s both links up: stored %ld of 16 (site A), %ld of 16 (site B)\n", Utc().c_str(), got_a, got_b);
   if (got_a != 16 || got_b != 16) FAIL(("phase 1: not every reading stored" + logs()).c_str());
 
@@ -450,7 +452,7 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
   std::printf("  %s site A's link cut\n", Utc().c_str());
   send(a, coord_a, 9, 16);
   send(b, coord_b, 9, 16);
-  got_b = wait_stored(b, 32, 30s);
+  got_b = wait_stored(b, 32, 60s);
   std::this_thread::sleep_for(2s);  // time for anything of site A to leak through (nothing may)
   got_a = stored(a);
   std::printf("  %s site A cut: stored %ld of 32 (site A, its 16 new readings wait at the site), %ld of 32 (site B)\n",
@@ -473,7 +475,7 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
     // With --window 1 a sensor's records go one commit round trip at a time: ~0.1-0.3 s here
     // after the bridge is back (up to 3 s, restart_timeout 1 3), on a loaded machine too. The
     // spools drained 1.8-5.7 s after the restore in runs beside a debootstrap and a load of ~14.
-    if (obs.WaitFor(stats, "\"spool_depth\":0,", 30s)) {
+    if (obs.WaitFor(stats, "\"spool_depth\":0,", 90s)) {
       std::printf("  %s site %s's spool drained (%.1f s after the restore)\n", Utc().c_str(), s.id.c_str(),
                   static_cast<double>(NowMs() - restored_at) / 1000.0);
       return;
@@ -517,7 +519,7 @@ TEST(SitesBridge, TwoSitesThroughTlsBridgesStoredExactlyOnceLinkCutLosesNothingI
                 R"({"sensor": ")" + b_sensor + R"(", "seq": 9002, "time": "2026-11-01T00:00:00Z", "thickness_mm": 100,
                     "loops_intact": 100, "flags": 0, "battery_mv": 3550})");
   snoop.Publish("linerwatch/v1/" + a.id + "/" + a.crusher + "/gateway/stats", "control");
-  CHECK_TRUE(central_obs.WaitFor("linerwatch/v1/" + a.id + "/" + a.crusher + "/gateway/stats", "control", 10s));
+  CHECK_TRUE(central_obs.WaitFor("linerwatch/v1/" + a.id + "/" + a.crusher + "/gateway/stats", "control", 60s));
   LONGS_EQUAL(0, central_obs.Count("/sensors/", "\"seq\": 9002"));
 
   // Site A's account read nothing of site B at the centre, though site B's traffic passed there.

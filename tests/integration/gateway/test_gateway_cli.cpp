@@ -104,10 +104,12 @@ TEST(GatewayCommandLine, SecondGatewayOnTheSameSpoolIsRefused) {
   std::vector<std::string> argv{LW_GATEWAY_BIN};
   for (const std::string& a : Valid()) argv.push_back(a);
   first.Start(argv, dir.File("first.log"));
-  // Wait until the first one has its spool (it logs the spool depth once the spool is open).
-  for (int i = 0; i < 500 && lw::test::FileTail(dir.File("first.log")).find("records waiting") == std::string::npos; ++i) {
-    usleep(10'000);
-  }
+  // Wait until the first one has its spool (it logs the spool depth once the spool is open): up to
+  // 60 s, since a start on a loaded machine can take seconds and a second gateway started before
+  // the first holds the spool would take it itself.
+  const auto has_spool = [&] { return lw::test::FileTail(dir.File("first.log")).find("records waiting") != std::string::npos; };
+  for (int i = 0; i < 6000 && !has_spool() && first.Running(); ++i) usleep(10'000);
+  CHECK_TEXT(has_spool(), ("the first gateway did not open its spool: " + lw::test::FileTail(dir.File("first.log"))).c_str());
   CHECK_TRUE(first.Running());
   const Result second = Run(dir, Valid());
   LONGS_EQUAL(1, second.exit_code);

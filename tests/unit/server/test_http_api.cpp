@@ -217,7 +217,7 @@ TEST(HttpApi, BadRequestsGetJsonErrorsAndNothingStoredIsLost) {
 
 namespace {
 /// Opens /events (optionally resuming from `last_event_id`), posts one reading once the stream is
-/// open, and returns what the stream carried until a `reading` event arrived (or 10 s passed).
+/// open, and returns what the stream carried until a `reading` event arrived (or 60 s passed).
 std::string StreamOneReading(Api& a, const std::string& last_event_id = "") {
   std::string received;
   std::atomic<bool> got{false};
@@ -234,12 +234,13 @@ std::string StreamOneReading(Api& a, const std::string& last_event_id = "") {
       return true;
     });
   });
-  // Wait until the stream is open, then post one reading.
-  for (int i = 0; i < 100 && received.empty(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  // Wait until the stream is open (up to 60 s: a reading posted before it would not be streamed),
+  // then post one reading.
+  for (int i = 0; i < 1200 && received.empty(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   auto c = a.Client();
   const auto msg = lw::test::Messages(Folder().bundle).front();
   c.Post(a.Base() + "/readings", json{{"readings", {json::parse(msg.payload)}}}.dump(), "application/json");
-  for (int i = 0; i < 200 && !got; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  for (int i = 0; i < 1200 && !got; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   a.events.Close();
   listener.join();
   return received;
@@ -551,6 +552,9 @@ TEST(HttpApi, AClosedEventStreamFreesItsSlotPromptly) {
     }
     return std::make_pair(fd, got);
   };
+  // No stream opened below can reach its first keepalive (15 s after it opened, when a closed
+  // stream's slot was freed before the fix) until 15 s after this.
+  const auto first_opened = std::chrono::steady_clock::now();
   std::vector<int> fds;
   for (int i = 0; i < 16; ++i) {  // every slot (half of the 32 workers)
     auto [fd, head] = open_stream();
@@ -561,11 +565,14 @@ TEST(HttpApi, AClosedEventStreamFreesItsSlotPromptly) {
   CHECK_TEXT(refused.rfind("HTTP/1.1 503", 0) == 0, refused.c_str());
   ::close(extra);
   for (int fd : fds) ::close(fd);
+  // Freed at the server's next look (every second), not at a keepalive: tried until 14 s after the
+  // first stream opened, which a starved server's look still beats (a fixed 5 s could be short on
+  // a loaded machine) and a keepalive cannot.
   bool reopened = false;
-  for (int i = 0; i < 10 && !reopened; ++i) {  // within 5 s, not at the next 15 s keepalive
+  while (!reopened && std::chrono::steady_clock::now() < first_opened + std::chrono::seconds(14)) {
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     auto [fd, head] = open_stream();
-    reopened = head.rfind("HTTP/1.1 200", 0) == 0;
+    reopened = head.rfind("HTTP/1.1 200", 0) == 0 && std::chrono::steady_clock::now() < first_opened + std::chrono::seconds(15);
     ::close(fd);
   }
   CHECK_TRUE(reopened);
