@@ -46,10 +46,15 @@ template <size_t kRing>
 class CmsdkUart final : public CmsdkUartBase {
  public:
   using CmsdkUartBase::CmsdkUartBase;
-  /// Called from the RX interrupt handler.
+  /// Called from the RX interrupt handler. The interrupt is cleared before the drain, not after:
+  /// the RX interrupt is a status bit held high from a byte's arrival until it is cleared, so a
+  /// byte arriving between the drain's last look and a clear after it raised no new edge, was
+  /// cleared unread, and with the one-byte holding register full no byte ever came again: the
+  /// radio went deaf for good (acks never read, every record resent until the queue filled).
+  /// Cleared first, any byte after the clear raises the interrupt again.
   void OnRxInterrupt() {
-    while (RxReady()) rx_.Push(RxByte());
     ClearRxInterrupt();
+    while (RxReady()) rx_.Push(RxByte());
   }
   /// Received bytes dropped because the task loop did not drain the ring in time.
   uint32_t rx_overruns() const { return rx_.overruns(); }
