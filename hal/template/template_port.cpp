@@ -25,7 +25,9 @@ class TemplateAdc final : public Adc {
 class TemplateUart final : public Uart {
   // TX: copy into a ring buffer drained by the TX-empty interrupt. RX: the RX interrupt pushes
   // into a hal::port::SpscRing (hal/port/spsc_ring.hpp: acquire/release indices, overrun count,
-  // no masking needed where 32-bit atomics are lock-free); DoRead pops from it.
+  // no masking needed where 32-bit atomics are lock-free); DoRead pops from it. The handler clears
+  // the interrupt before it drains the data register, never after (docs/firmware.md: a byte
+  // arriving between the drain and a later clear leaves the UART deaf for good).
   size_t DoWrite(const uint8_t*, size_t) override { return 0; }
   size_t DoRead(uint8_t*, size_t) override { return 0; }
 };
