@@ -205,17 +205,16 @@ TEST(Store, RejectedRowsAreCappedTruncatedAndEvictedOldestFirst) {
   LONGS_EQUAL(before, third.CountRejected());
 }
 
-TEST(Store, TenThousandRejectedReadingsCommitInSeconds) {
+// Its cost (once 212 s for one commit) is measured by bench/server/lw_bench_store_rejected, not here.
+TEST(Store, TenThousandRejectedReadingsAreStoredOnceWhenCommittedTwice) {
   Store s(db());
   std::vector<lw::server::Rejected> batch;
   for (int i = 0; i < 10000; ++i)
     batch.push_back({i, "", "{\"n\":" + std::to_string(i) + ",\"pad\":\"" + std::string(6000, 'z') + "\"}", "bad"});
-  const auto start = std::chrono::steady_clock::now();
   s.Commit({}, batch);
-  s.Commit({}, batch);  // all duplicates: found through the index
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   LONGS_EQUAL(10000, s.CountRejected());
-  CHECK_TEXT(seconds < 60, std::to_string(seconds).c_str());  // generous: it was 212 s for one commit
+  s.Commit({}, batch);  // all duplicates: found through the digest index
+  LONGS_EQUAL(10000, s.CountRejected());
 }
 
 TEST(Store, ANewDatabaseIsPrivateToItsOwner) {
