@@ -1,4 +1,4 @@
-// The committed libraries of real LIGGGHTS maps (data/dem/ and the held-out data/dem-heldout/): every case's map loads as a
+// The committed libraries of real LIGGGHTS maps (data/dem/ and the held-out data/dem-heldout/ and data/dem-heldout2/): every case's map loads as a
 // crusher's map with its uncertainty, its crusher.json loads, the title line and the summary agree on the windows (>= 4), and the
 // summary's row means are what the map holds.
 #include <cmath>
@@ -74,4 +74,8 @@ TEST(DemLibrary, EveryCaseLoadsAndMatchesItsSummary) {
 
 TEST(DemLibrary, EveryHeldOutCaseLoadsAndMatchesItsSummary) {
   CHECK(CheckLibrary(LW_DEM_HELDOUT_DIR) >= 2);
+}
+
+TEST(DemLibrary, EverySecondSetHeldOutCaseLoadsAndMatchesItsSummary) {
+  CHECK(CheckLibrary(LW_DEM_HELDOUT2_DIR) >= 2);
 }
