@@ -108,8 +108,8 @@ int main(int argc, char** argv) {
   }
   const double us1 = 1e6 * Median(f1) / n, us2 = 1e6 * Median(f2) / (2.0 * n);
   const double ud1 = 1e6 * Median(s1) / n, ud2 = 1e6 * Median(s2) / (2.0 * n);
-  std::printf("new readings: %.1f us each at N, %.1f at 2N: ratio 2N / N per reading %.2f (linear: ~1, per-row scan: ~2)\n",
-              us1, us2, us2 / us1);
+  std::printf("new readings: %.1f us each at N, %.1f at 2N: ratio 2N / N per reading %.2f (linear: ~1, per-row scan: ~2)\n", us1,
+              us2, us2 / us1);
   std::printf("duplicates:   %.1f us each at N, %.1f at 2N: ratio 2N / N per reading %.2f\n", ud1, ud2, ud2 / ud1);
   return 0;
 }

@@ -1,6 +1,6 @@
-// The committed libraries of real LIGGGHTS maps (data/dem/ and the held-out data/dem-heldout/ and data/dem-heldout2/): every case's map loads as a
-// crusher's map with its uncertainty, its crusher.json loads, the title line and the summary agree on the windows (>= 4), and the
-// summary's row means are what the map holds.
+// The committed libraries of real LIGGGHTS maps (data/dem/ and the held-out data/dem-heldout/ and data/dem-heldout2/): every
+// case's map loads as a crusher's map with its uncertainty, its crusher.json loads, the title line and the summary agree on the
+// windows (>= 4), and the summary's row means are what the map holds.
 #include <cmath>
 #include <filesystem>
 #include <fstream>
