@@ -58,6 +58,7 @@
 #include "protocol/xbee_api.hpp"
 #include "support/mosquitto_fixture.hpp"
 #include "support/raw_pty.hpp"
+#include "../bench_stats.hpp"
 
 extern char** environ;
 
@@ -65,6 +66,8 @@ namespace pr = lw::protocol;
 using nlohmann::json;
 
 namespace {
+
+using lw::bench::Median;
 
 using Clock = std::chrono::steady_clock;
 double Seconds(Clock::duration d) {
@@ -425,11 +428,6 @@ double CpuSeconds(pid_t pid) {
   unsigned long utime = 0, stime = 0;
   if (!p || std::sscanf(p + 2, "%*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %lu %lu", &utime, &stime) != 2) return -1;
   return static_cast<double>(utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
-}
-
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
 }
 
 }  // namespace

@@ -48,16 +48,14 @@
 #include "server/store.hpp"
 #include "sim/campaign.hpp"
 #include "support/mosquitto_fixture.hpp"
+#include "../bench_stats.hpp"
 
 namespace {
 
+using lw::bench::Median;
+
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
-
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
 
 /// CPU seconds (user + system) a running process has used: /proc/PID/stat fields 14 and 15.
 /// utime + stime of a /proc stat file (a process's or one thread's), in seconds; `comm` gets its name.

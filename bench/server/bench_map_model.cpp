@@ -25,8 +25,11 @@
 
 #include "core/map_model.hpp"
 #include "unit/core/bundle_fixture.hpp"
+#include "../bench_stats.hpp"
 
 namespace {
+
+using lw::bench::Median;
 
 double Seconds(std::chrono::steady_clock::duration d) {
   return std::chrono::duration<double>(d).count();
@@ -37,11 +40,6 @@ double Cpu() {
   timespec t{};
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
   return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
-}
-
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
 }
 
 double Quantile(std::vector<double> v, double p) {

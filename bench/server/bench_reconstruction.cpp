@@ -14,16 +14,14 @@
 
 #include "core/reconstruction.hpp"
 #include "unit/core/bundle_fixture.hpp"
+#include "../bench_stats.hpp"
 
 namespace {
 
+using lw::bench::Median;
+
 double Seconds(std::chrono::steady_clock::duration d) {
   return std::chrono::duration<double>(d).count();
-}
-
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
 }
 
 /// A truncated-cone concave (radius 1.6 -> 2.6 m over 3 m), the reference profile with a mild

@@ -17,8 +17,11 @@
 #include <unistd.h>
 
 #include "server/store.hpp"
+#include "../bench_stats.hpp"
 
 namespace {
+
+using lw::bench::Median;
 
 struct Timing {
   double first_s = 0;   ///< N new rejected readings, one commit
@@ -50,11 +53,6 @@ Timing RunOnce(const std::filesystem::path& dir, int n) {
   }
   for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(db.string() + suffix);
   return t;
-}
-
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0.0 : v[v.size() / 2];
 }
 
 }  // namespace
