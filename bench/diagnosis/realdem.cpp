@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "core/reconstruction.hpp"
+#include "core/surface_index.hpp"
 
 namespace lw::bench {
 namespace {
@@ -61,6 +62,36 @@ std::map<std::string, Eigen::VectorXd> ReadCellScalars(const std::filesystem::pa
         if (!(in >> v[static_cast<Eigen::Index>(i)])) throw std::runtime_error(path.string() + ": array " + name + " is short");
       out[name] = v;
     }
+  }
+  return out;
+}
+
+/// The truth's smoothing: a top-hat of `radius` over the surface, a plain mean or local-linear in z
+/// (RealDemSpec::truth_local_linear).
+Eigen::VectorXd SmoothTruth(const core::WearMap& map, const Eigen::VectorXd& values, double radius, bool local_linear) {
+  if (!local_linear) return core::SmoothOverSurface(map, values, radius);
+  const Eigen::Index n = values.size();
+  if (radius <= 0 || n == 0) return values;
+  const core::SurfaceIndex index(map, radius);
+  Eigen::VectorXd out(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    double s0 = 0, s1 = 0, s2 = 0, t0 = 0, t1 = 0;
+    index.ForEachWithin(map.z[i], map.theta_deg[i], map.radius[i], [&](uint32_t j, double) {
+      const auto jj = static_cast<Eigen::Index>(j);
+      const double a = map.areas[jj], dz = map.z[jj] - map.z[i], v = values[jj];
+      s0 += a;
+      s1 += a * dz;
+      s2 += a * dz * dz;
+      t0 += a * v;
+      t1 += a * dz * v;
+    });
+    const double det = s0 * s2 - s1 * s1;
+    if (!(s0 > 0))
+      out[i] = values[i];
+    else if (det > 1e-6 * s0 * s2 && s2 > 0)
+      out[i] = std::max(0.0, (s2 * t0 - s1 * t1) / det);
+    else
+      out[i] = t0 / s0;
   }
   return out;
 }
@@ -269,8 +300,9 @@ RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : r
   const double height = std::max(zhi - zlo, 1e-3);
   const double radius = spec.truth_radius_frac * height;
   truth_radius_m_ = radius;
-  const Eigen::VectorXd T = core::SmoothOverSurface(tm, tsum.cwiseMax(0.0), radius);
-  const Eigen::VectorXd N = run.normal_w.empty() ? Eigen::VectorXd::Ones(n) : core::SmoothOverSurface(tm, tn, radius);
+  const Eigen::VectorXd T = SmoothTruth(tm, tsum.cwiseMax(0.0), radius, spec.truth_local_linear);
+  const Eigen::VectorXd N =
+      run.normal_w.empty() ? Eigen::VectorXd::Ones(n) : SmoothTruth(tm, tn, radius, spec.truth_local_linear);
   std::vector<double> pos, nv;
   for (Eigen::Index i = 0; i < n; ++i) {
     if (T[i] > 0) pos.push_back(T[i]);
@@ -335,7 +367,7 @@ RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : r
 }
 
 void RealDemCampaign::TruthConstruction(Eigen::VectorXd& faces, Eigen::VectorXd& sensors) const {
-  faces = core::SmoothOverSurface(map_, map_.wear.cwiseMax(0.0), truth_radius_m_);
+  faces = SmoothTruth(map_, map_.wear.cwiseMax(0.0), truth_radius_m_, spec_.truth_local_linear);
   sensors.resize(static_cast<Eigen::Index>(sensor_face_.size()));
   for (size_t s = 0; s < sensor_face_.size(); ++s) sensors[static_cast<Eigen::Index>(s)] = faces[sensor_face_[s]];
 }

@@ -36,6 +36,10 @@ struct RealDemSpec {
   double scan_day = 70;
   double report_hours = 6;
   double truth_radius_frac = 0.12;  ///< truth smoothing radius / concave height
+  /// The truth's top-hat as a local-linear fit in z (the intercept of the area-weighted line in z
+  /// over the faces within the radius) instead of a plain mean: no one-sided bias at the feed and
+  /// discharge edges, where the plain mean averages only faces on one side of a gradient.
+  bool truth_local_linear = false;
   bool with_scan = true;
   bool with_normal = true;
   bool with_operations = false;
@@ -99,6 +103,8 @@ class RealDemCampaign {
   /// The per-window wear of the windows the bundle's map sums (map_windows, in order).
   std::vector<Eigen::VectorXd> MapWindowWear() const;
   const core::CrusherConfig& crusher() const { return run_.crusher; }
+  /// The truth's top-hat radius (m).
+  double truth_radius_m() const { return truth_radius_m_; }
   std::vector<int> map_windows, truth_windows;
 
  private:
