@@ -127,11 +127,7 @@ NoiseModel MeasurePatternError(const ProblemSetup& setup, const Eigen::MatrixXd&
     measured = std::sqrt(std::max(0.0, sensor_excess));
     measured_source = "sensors";
   }
-  // The cross-validation's estimate is clamped at 0 when the map's noise law already explains
-  // all of its error (a noise law a little pessimistic, as on a finely meshed map): that is no
-  // estimate at all, not a bound of zero, and a zero pattern error would leave the map's whole
-  // pattern error to the hypotheses (on the 60-row LIGGGHTS map, 17 of 30 nulls named an effect).
-  if (std::isfinite(measured) && (measured < map_tau || !(map_tau > 0))) {
+  if (std::isfinite(measured) && measured < map_tau) {
     map_tau = measured;
     tau_source = measured_source;
   }

@@ -164,32 +164,13 @@ TEST(StageBaseline, NoiseModelSetsEveryScanSigmaAndSensorPrior) {
   CHECK_TRUE(r.noise.map_tau >= 0);
   CHECK_TRUE(r.noise.corr_cells >= 1);
   CHECK_TRUE(r.noise.corr_cells <= d::KernelCorrelationCells(r.setup.fields, r.setup.grid) + 1e-9);
-  // The smaller of the map's cross-validated error (when it is an estimate, > 0) and what the scan
-  // measured.
-  if (r.setup.fields.model.smoothing_error_rel > 0) CHECK_TRUE(r.noise.map_tau <= r.setup.fields.model.smoothing_error_rel);
+  // The smaller of the map's cross-validated error and what the scan measured.
+  CHECK_TRUE(r.noise.map_tau <= r.setup.fields.model.smoothing_error_rel);
   CHECK_TRUE(r.noise.tau_source == "scan" || r.noise.tau_source == "map cross-validation");
   for (size_t i : r.setup.prob.scan_obs) CHECK_TRUE(r.setup.prob.obs[i].sigma >= th.scan_floor_mm);
   for (double su : r.setup.prob.sigma_u) CHECK_TRUE(su >= th.u_floor_rel);
   CHECK_TRUE(r.result.noise.contains("map_pattern_error_relative"));
   DOUBLES_EQUAL(d::Round(r.noise.map_tau, 3), r.result.noise["map_pattern_error_relative"].get<double>(), 0);
-}
-
-TEST(StageBaseline, AMapErrorOfZeroFromTheCrossValidationIsNoBound) {
-  // The cross-validation clamps its estimate of the map's own error at 0 when the map's noise law
-  // explains all of its error: that is no estimate, so the scan's measured pattern error is used
-  // (on a 60-row LIGGGHTS map, taking 0 as the bound named an effect on 17 of 30 nulls).
-  const Run& r = Null();
-  Eigen::MatrixXd w;
-  d::Simulate(r.base.spec, r.base.eq9.x, r.setup.prob.points, r.setup.prob.grid, w);
-  d::ProblemSetup s = r.setup;
-  s.fields.model.smoothing_error_rel = 1.0;  // a bound far above anything measured
-  const d::NoiseModel measured = d::MeasurePatternError(s, w);
-  CHECK_EQUAL(std::string("scan"), measured.tau_source);
-  CHECK_TRUE(measured.map_tau > 0);
-  s.fields.model.smoothing_error_rel = 0.0;
-  const d::NoiseModel zero = d::MeasurePatternError(s, w);
-  CHECK_EQUAL(std::string("scan"), zero.tau_source);
-  DOUBLES_EQUAL(measured.map_tau, zero.map_tau, 0);
 }
 
 TEST_GROUP(StageFolds){};
