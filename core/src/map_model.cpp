@@ -737,16 +737,22 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
         loo_var[best][e] = k.Variance(s, map.z[i], map.theta_deg[i], map.radius[i], static_cast<long>(i), pilot_var);
       }
     });
-    double var_pred = 0;
+    // The error is not clipped here: the clip that keeps spike faces from choosing the scale would
+    // drop the heavy tail of the faces' noise from the error but not from the noise law, and the
+    // difference would read as no smoothing error at all (a finely meshed LIGGGHTS map, whose
+    // small faces have spikier noise, gave 0 in most cases).
+    double var_pred = 0, error_sum = 0;
     for (size_t e = 0; e < eval.size(); ++e) {
       if (!std::isfinite(loo[best][e])) continue;
       bool all = true;
       for (size_t c = 0; c < nc; ++c) all = all && std::isfinite(loo[c][e]);
       if (!all) continue;
-      var_pred += map.areas[eval[e]] * loo_var[best][e];
-      m2_sum += map.areas[eval[e]] * loo[best][e] * loo[best][e];
+      const double a = map.areas[eval[e]];
+      var_pred += a * loo_var[best][e];
+      m2_sum += a * loo[best][e] * loo[best][e];
+      error_sum += a * std::pow(model.clean[eval[e]] - loo[best][e], 2);
     }
-    const double bias2 = std::max(0.0, (score[best] - noise_sum - var_pred) / area_sum);
+    const double bias2 = std::max(0.0, (error_sum - noise_sum - var_pred) / area_sum);
     model.smoothing_error_rel = m2_sum > 0 ? std::sqrt(bias2 / (m2_sum / area_sum)) : 0.0;
   }
 
