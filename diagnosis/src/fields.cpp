@@ -292,6 +292,7 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
   }
   f.harmonic1_rel_sd =
       f.theta_span_deg >= 359.0 ? std::max(kHarmonic1PerFaceNoise * f.face_rel_noise, OwnHarmonic1(map, f)) : 0.0;
+  f.band_rel_sd = kBandMeanPerFaceNoise * f.face_rel_noise;
   return f;
 }
 

@@ -18,6 +18,15 @@ inline constexpr double kUnestimatedFaceNoise = 0.25;
 /// as 0.036-0.080 of the per-face relative scatter between time windows, median 0.07. Both fall as
 /// one over the root of the simulated span, so the ratio carries to maps of other lengths.
 inline constexpr double kHarmonic1PerFaceNoise = 0.07;
+/// A DEM map's standard error of its ring-mean profile at one eighth of the concave height (relative
+/// to that band's mean, after the map's total, which the row scales absorb) per unit of its faces'
+/// relative noise. A time window's load sits higher or lower in the chamber as a whole, so a band's
+/// ring mean scatters between windows far more than its faces' independent noise would let it:
+/// measured on the nine LIGGGHTS runs of the five committed libraries (docs/diagnosis.md, "The map's
+/// own profile error") as 0.072-0.172 of the per-face relative scatter between windows, median 0.10,
+/// nearly the same at a sixteenth of the height. Both fall as one over the root of the simulated
+/// span, so the ratio carries to maps of other lengths.
+inline constexpr double kBandMeanPerFaceNoise = 0.10;
 
 struct MapFields {
   /// The map model (core/map_model.hpp) every intensity here comes from: smoothed at the
@@ -37,6 +46,9 @@ struct MapFields {
   /// the larger of kHarmonic1PerFaceNoise x face_rel_noise and the harmonic the raw map itself
   /// shows (an axisymmetric chamber's map should show none). 0 when the map is not a full ring.
   double harmonic1_rel_sd = 0;
+  /// Standard error of the map's ring-mean profile per eighth of the concave height (relative):
+  /// kBandMeanPerFaceNoise x face_rel_noise.
+  double band_rel_sd = 0;
   bool noise_estimated = false;  ///< false: too few faces to estimate it; kUnestimatedFaceNoise assumed
   double face_size_m = 0.05;     ///< typical face edge
   double z_bottom = 0;           ///< concave extent along z (rows)

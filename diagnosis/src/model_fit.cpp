@@ -79,6 +79,38 @@ double Interp(const Eigen::MatrixXd& w, const Obs& o) {
   return w(r, j) * (1.0 - o.frac) + w(r, j + 1) * o.frac;
 }
 
+int BandIndex(const Problem& p, const Obs& o) {
+  if (o.scan < 0) return -1;
+  const int band = std::clamp(static_cast<int>(std::floor((p.points[o.point].zn + 0.5) * kScanBands)), 0, kScanBands - 1);
+  return o.scan * kScanBands + band;
+}
+
+size_t BandCount(const Problem& p) {
+  int scans = 0;
+  for (size_t i : p.scan_obs) scans = std::max(scans, p.obs[i].scan + 1);
+  return static_cast<size_t>(scans) * kScanBands;
+}
+
+std::vector<double> ProfiledBandOffsets(const Problem& p, const Eigen::MatrixXd& w, const Mask& mask, bool raw,
+                                        std::vector<bool>& present) {
+  const size_t n = BandCount(p);
+  std::vector<double> b(n, 0.0);
+  present.assign(n, false);
+  if (!(p.band_sd > 0)) return b;
+  std::vector<double> num(n, 0.0), den(n, 1.0 / (p.band_sd * p.band_sd));
+  for (size_t i : p.scan_obs) {
+    if (!mask[i]) continue;
+    const Obs& o = p.obs[i];
+    const auto g = static_cast<size_t>(BandIndex(p, o));
+    const double pred = Interp(w, o);
+    num[g] += (pred - (raw ? o.raw : o.wear)) * pred / (o.sigma * o.sigma);
+    den[g] += pred * pred / (o.sigma * o.sigma);
+    present[g] = true;
+  }
+  for (size_t g = 0; g < n; ++g) b[g] = present[g] ? -num[g] / den[g] : 0.0;
+  return b;
+}
+
 void SensorDepthRows(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x, const std::vector<double>& u,
                      Eigen::MatrixXd& w) {
   if (!DepthDependent(spec)) return;
@@ -131,6 +163,10 @@ void Residuals(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x
   }
   for (size_t i : p.scan_obs)
     if (train[i]) ++count;
+  // The map's profile error: one relative offset per scan and height band, profiled out with its prior.
+  std::vector<bool> band_present;
+  const std::vector<double> band = ProfiledBandOffsets(p, w, train, opt.raw, band_present);
+  count += static_cast<size_t>(std::count(band_present.begin(), band_present.end(), true));
   r.resize(static_cast<Eigen::Index>(count));
   if (u_out) u_out->assign(p.sensor_obs.size(), 0.0);
   Eigen::Index k = 0;
@@ -151,8 +187,11 @@ void Residuals(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x
   for (size_t i : p.scan_obs) {
     if (!train[i]) continue;
     const Obs& o = p.obs[i];
-    r[k++] = (Interp(w, o) - (opt.raw ? o.raw : o.wear)) / o.sigma;
+    const double b = band[static_cast<size_t>(BandIndex(p, o))];
+    r[k++] = (Interp(w, o) * (1.0 + b) - (opt.raw ? o.raw : o.wear)) / o.sigma;
   }
+  for (size_t g = 0; g < band.size(); ++g)
+    if (band_present[g]) r[k++] = band[g] / p.band_sd;
 }
 
 FitResult Fit(const Problem& p, const ModelSpec& spec, const Mask& train, const EvalOptions& opt,
@@ -223,15 +262,30 @@ TestScore Score(const Problem& p, const FitResult& f, const Mask& test, const Ma
       s.n += 1;
     }
   }
+  // The map's profile error at a scan's height band: the offset the band's training cells give (as
+  // a trained sensor keeps its u); a band with none has its offset marginalised under its prior like an
+  // unseen sensor's u (profiled on its test cells and charged), the mm error with 0 there.
+  std::vector<bool> band_trained, band_tested;
+  const std::vector<double> band_fit = ProfiledBandOffsets(p, w, train, raw, band_trained);
+  const std::vector<double> band_test = ProfiledBandOffsets(p, w, test, raw, band_tested);
+  for (size_t g = 0; g < band_fit.size(); ++g)
+    if (band_tested[g] && !band_trained[g]) s.chi2 += band_test[g] * band_test[g] / (p.band_sd * p.band_sd);
   for (size_t i = 0; i < p.obs.size(); ++i) {
     if (!test[i]) continue;
     const Obs& o = p.obs[i];
     if (o.sensor >= 0 && !seen[static_cast<size_t>(o.sensor)]) continue;
     double pred = Interp(w, o);
+    double e0 = kNaN;
     if (o.sensor >= 0) pred *= 1.0 + f.u[static_cast<size_t>(o.sensor)];
+    if (o.scan >= 0) {
+      const auto g = static_cast<size_t>(BandIndex(p, o));
+      if (!band_trained[g]) e0 = pred - (raw ? o.raw : o.wear);
+      pred *= 1.0 + (band_trained[g] ? band_fit[g] : band_test[g]);
+    }
     const double e = pred - (raw ? o.raw : o.wear);
+    if (std::isnan(e0)) e0 = e;
     s.chi2 += e * e / (o.sigma * o.sigma);
-    s.sq_mm += e * e;
+    s.sq_mm += e0 * e0;
     s.n += 1;
   }
   return s;

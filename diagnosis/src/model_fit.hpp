@@ -60,7 +60,14 @@ struct Problem {
   /// sine amplitudes, relative to the ring mean): what a feed-segregation amplitude must exceed
   /// besides the recordings' noise (MapFields::harmonic1_rel_sd).
   double map_harmonic1_sd = 0;
+  /// The map's own profile error: the standard deviation of a relative intensity error shared by the
+  /// scan cells of one height band (kScanBands equal bands of the concave height) in one scan
+  /// (MapFields::band_rel_sd); 0: none. Profiled out like a sensor's u (ProfiledBandOffsets).
+  double band_sd = 0;
 };
+
+/// Height bands of the map's profile error (Problem::band_sd).
+inline constexpr int kScanBands = 8;
 
 using Mask = std::vector<bool>;
 
@@ -90,6 +97,17 @@ double Interp(const Eigen::MatrixXd& w, const Obs& o);
 void Residuals(const Problem& p, const ModelSpec& spec, const Eigen::VectorXd& x, const Mask& train, const EvalOptions& opt,
                Eigen::VectorXd& r, std::vector<double>* u_out, Eigen::MatrixXd& w);
 
+/// The (scan, height band) group of a scan observation, scan * kScanBands + band; -1 for a sensor's.
+int BandIndex(const Problem& p, const Obs& o);
+/// The number of (scan, height band) groups (BandIndex below it).
+size_t BandCount(const Problem& p);
+
+/// Each (scan, height band) group's relative offset b minimising
+/// sum((pred (1 + b) - target)^2 / sigma^2) + b^2 / band_sd^2 over its scan cells in `mask`, `w` the
+/// model's wear; `present[g]` is set when the mask holds cells of group g. All 0 when band_sd is 0.
+std::vector<double> ProfiledBandOffsets(const Problem& p, const Eigen::MatrixXd& w, const Mask& mask, bool raw,
+                                        std::vector<bool>& present);
+
 /// For a depth-dependent model (DepthDependent): the rows of `w` of each sensor with u[s] != 0,
 /// simulated at its rate times 1 + u[s] and divided by 1 + u[s], so that Interp(w, o) * (1 + u[s]) is
 /// the sensor's wear on its own depth curve. Leaves `w` alone for any other model.
@@ -109,7 +127,9 @@ struct TestScore {
 /// Scores a fit on held-out observations. A sensor that had training data keeps its fitted
 /// intensity error u; a sensor left out entirely has its u marginalised under its prior N(0, sigma_u^2)
 /// (the predictive chi-square of the noise model: the map's error at an unseen sensor is noise, not
-/// something a physical effect can be expected to predict). The mm error uses u = 0 there.
+/// something a physical effect can be expected to predict). The mm error uses u = 0 there. Scan cells
+/// the same way with their height band's offset (ProfiledBandOffsets): from the band's training cells,
+/// else marginalised under its prior.
 TestScore Score(const Problem& p, const FitResult& f, const Mask& test, const Mask& train, bool raw);
 
 /// A hold-out split of the observations.

@@ -26,10 +26,15 @@ KindChi2 Chi2ByKind(const Problem& prob, const ModelSpec& spec, const Eigen::Vec
   Eigen::MatrixXd w;
   std::vector<double> u;
   Residuals(prob, spec, x, all, joint, r, &u, w);
+  std::vector<bool> band_present;
+  const std::vector<double> band = ProfiledBandOffsets(prob, w, all, false, band_present);
   KindChi2 k;
+  for (size_t g = 0; g < band.size(); ++g)
+    if (band_present[g]) k.scan += band[g] * band[g] / (prob.band_sd * prob.band_sd);
   for (const Obs& o : prob.obs) {
     double pred = Interp(w, o);
     if (o.sensor >= 0) pred *= 1.0 + u[static_cast<size_t>(o.sensor)];
+    if (o.scan >= 0) pred *= 1.0 + band[static_cast<size_t>(BandIndex(prob, o))];
     const double z = (pred - o.wear) / o.sigma;
     if (o.sensor >= 0) {
       k.sensors_events_only += z * z;

@@ -154,7 +154,8 @@ void WriteSyntheticBundle(const std::filesystem::path& dir, const SyntheticSpec&
     for (const auto& f : faces) {
       const auto c = centroid(f);
       const double th = std::atan2(c[1], c[0]);
-      const double smooth = 1.0 + s.map_smooth_error * std::sin(3.0 * c[2] + 0.5) * std::cos(2.0 * th + 1.0);
+      const double smooth = (1.0 + s.map_smooth_error * std::sin(3.0 * c[2] + 0.5) * std::cos(2.0 * th + 1.0)) *
+                            (1.0 + s.map_profile_error * std::sin(7.0 * c[2] + 0.7));
       double v = TrueIntensity(c[2], th) * smooth * std::max(0.05, 1.0 + s.map_noise * gauss(rng)) * s.map_scale;
       if (s.map_zero_fraction > 0 && hit(rng) < s.map_zero_fraction) v = 0;
       wear_raw.push_back(v);

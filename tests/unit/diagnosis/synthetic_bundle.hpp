@@ -13,6 +13,9 @@ struct SyntheticSpec {
   double report_hours = 6;
   double map_noise = 0.05;      ///< relative per-face noise of the DEM map vs the truth
   double map_smooth_error = 0;  ///< amplitude of a smooth (z, theta) DEM error no effect describes
+  /// Amplitude of a relative DEM error shared by the whole ring at each height (a short run's load
+  /// sitting higher or lower): a wiggle along z, the same all around.
+  double map_profile_error = 0;
   double scan_noise_mm = 0.3;
   bool with_scan = true;
   double scan_day = -1;  ///< day of the scan (default: the last day)

@@ -139,6 +139,23 @@ TEST(Diagnose, ThroughputVariationFollowsTonnageLog) {
   DOUBLES_EQUAL(0.8, Param(r.findings[0], "phi"), 0.15);
 }
 
+TEST(Diagnose, AMapsOwnProfileErrorIsNotPhysics) {
+  // A noisy map (60 % per face, a short DEM run's) whose ring means along z are off by up to 10 %,
+  // the same all around (within what LIGGGHTS runs show for such noise): the scan sees wear that
+  // follows the true profile. That is the map's error, not an effect. Without the band offsets
+  // (kBandMeanPerFaceNoise 0) this case named squeeze_wear (confidence 0.69).
+  lw::test::SyntheticSpec spec;
+  spec.seed = 1;
+  spec.map_noise = 0.6;
+  spec.map_profile_error = 0.1;
+  const auto r = Run(spec);
+  CHECK_TRUE(r.findings.empty());
+  const double band_sd = r.noise.at("map_band_relative_sd").get<double>();
+  const double face = r.noise.at("map_model").at("face_relative_noise").get<double>();
+  DOUBLES_EQUAL(0.10 * face, band_sd, 1e-3);
+  CHECK_TRUE(band_sd > 0.03);
+}
+
 TEST(Diagnose, StuckSensorIsDataQualityNotPhysics) {
   lw::test::SyntheticSpec spec;
   spec.stuck_sensor = "LDWN-2";

@@ -509,3 +509,48 @@ TEST(ModelFit, ASensorsIntensityErrorMovesItsHardnessOnsetInTime) {
                   own(static_cast<Eigen::Index>(prob.points.size() - 1), last), 1e-12);
   }
 }
+
+TEST(ModelFit, AScanBandsProfileErrorIsProfiledOutWithItsPrior) {
+  // Scan cells of one height band 20 % above the model, the rest on it: that band's offset is the
+  // 20 % shrunk by its prior (sum a^2 / (sum a^2 + 1 / band_sd^2), a = pred / sigma), the others 0.
+  d::Problem prob = Null().setup.prob;
+  CHECK_FALSE(prob.scan_obs.empty());
+  const Eigen::MatrixXd& w = Null().null.w;
+  const d::Obs& first = prob.obs[prob.scan_obs.front()];
+  const int g0 = d::BandIndex(prob, first);
+  CHECK_TRUE(g0 >= 0);
+  LONGS_EQUAL(-1, d::BandIndex(prob, prob.obs[prob.sensor_obs[0].front()]));
+  double sum_a2 = 0;
+  for (size_t i : prob.scan_obs) {
+    d::Obs& o = prob.obs[i];
+    const double pred = d::Interp(w, o);
+    const bool in = d::BandIndex(prob, o) == g0;
+    o.wear = o.raw = pred * (in ? 1.2 : 1.0);
+    if (in) sum_a2 += pred * pred / (o.sigma * o.sigma);
+  }
+  const d::Mask all(prob.obs.size(), true);
+  std::vector<bool> present;
+  prob.band_sd = 0;  // no profile error: nothing profiled
+  for (double b : d::ProfiledBandOffsets(prob, w, all, false, present)) DOUBLES_EQUAL(0.0, b, 0);
+  CHECK_TRUE(std::none_of(present.begin(), present.end(), [](bool v) { return v; }));
+  prob.band_sd = 0.1;
+  const std::vector<double> b = d::ProfiledBandOffsets(prob, w, all, false, present);
+  LONGS_EQUAL(d::BandCount(prob), b.size());
+  DOUBLES_EQUAL(0.2 * sum_a2 / (sum_a2 + 100.0), b[static_cast<size_t>(g0)], 1e-9);
+  CHECK_TRUE(b[static_cast<size_t>(g0)] > 0.1);
+  for (size_t g = 0; g < b.size(); ++g)
+    if (static_cast<int>(g) != g0) DOUBLES_EQUAL(0.0, b[g], 1e-9);
+  // Only the scan cells' groups are present, and each adds its prior term to the residuals.
+  size_t groups = 0;
+  for (size_t g = 0; g < present.size(); ++g) groups += present[g] ? 1 : 0;
+  CHECK_TRUE(groups >= 2);
+  const d::ModelSpec spec = Null().base.spec;
+  const d::EvalOptions opt{true, false};
+  Eigen::VectorXd r_with, r_without;
+  Eigen::MatrixXd w_fit;
+  d::Residuals(prob, spec, Null().null.fit.x, all, opt, r_with, nullptr, w_fit);
+  prob.band_sd = 0;
+  d::Residuals(prob, spec, Null().null.fit.x, all, opt, r_without, nullptr, w_fit);
+  LONGS_EQUAL(r_without.size() + static_cast<Eigen::Index>(groups), r_with.size());
+  CHECK_TRUE(r_with.squaredNorm() < r_without.squaredNorm());
+}
