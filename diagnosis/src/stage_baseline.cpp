@@ -213,7 +213,47 @@ NoiseModel CalibrateNoise(ProblemSetup& setup, const Baseline& base, DiagnosisRe
                         th.scan_floor_mm * th.scan_floor_mm + std::pow(th.model_floor_rel * pred, 2));
   }
   nm.corr_cells = corr_cells;
+  nm.band_sd = MeasureBandError(setup, base, &nm.band_sd_scan);
+  prob.band_sd = nm.band_sd;
+  result.noise["map_band_relative_sd"] = Round(nm.band_sd);
+  if (std::isfinite(nm.band_sd_scan)) result.noise["map_band_relative_sd_scan"] = Round(nm.band_sd_scan);
   return nm;
+}
+
+double MeasureBandError(const ProblemSetup& setup, const Baseline& base, double* scan_measured) {
+  const Problem& prob = setup.prob;
+  if (scan_measured) *scan_measured = kNaN;
+  const double law = setup.fields.band_rel_sd;
+  if (prob.scan_obs.empty() || !(law > 0)) return 0.0;
+  // The refit baseline (row scales on sensors and scans, each sensor's u) without band offsets; each
+  // (scan, band)'s offset from it, unshrunk, and that offset's variance under the noise model.
+  Problem plain = prob;
+  plain.band_sd = 0;
+  const FitResult refit = Fit(plain, base.spec, base.all, EvalOptions{true, false}, {base.eq9.x}, 30, base.k_scale);
+  Eigen::MatrixXd w;
+  Simulate(base.spec, refit.x, prob.points, prob.grid, w);
+  const size_t n = BandCount(prob);
+  std::vector<double> num(n, 0.0), den(n, 0.0);
+  for (size_t i : prob.scan_obs) {
+    const Obs& o = prob.obs[i];
+    const auto g = static_cast<size_t>(BandIndex(prob, o));
+    const double pred = Interp(w, o);
+    num[g] += (pred - o.wear) * pred / (o.sigma * o.sigma);
+    den[g] += pred * pred / (o.sigma * o.sigma);
+  }
+  double excess = 0;
+  size_t groups = 0;
+  for (size_t g = 0; g < n; ++g) {
+    if (!(den[g] > 0)) continue;
+    const double b = num[g] / den[g];
+    excess += b * b - 1.0 / den[g];
+    ++groups;
+  }
+  // The row scales were fitted to these bands too: they took up part of the bands' scatter.
+  if (groups <= prob.rows + 1) return law;
+  const double measured = std::sqrt(std::max(0.0, excess / static_cast<double>(groups - prob.rows)));
+  if (scan_measured) *scan_measured = measured;
+  return std::min(law, measured);
 }
 
 ErrorSummary BaselineMetrics(const Problem& prob, const Baseline& base, const std::vector<Fold>& folds) {

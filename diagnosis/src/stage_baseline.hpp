@@ -28,6 +28,8 @@ struct NoiseModel {
   double map_tau = 0;      ///< relative pattern error of the smoothed map
   std::string tau_source;  ///< "scan", "sensors" or "map cross-validation"
   double corr_cells = 1;   ///< scan cells sharing one map error
+  double band_sd = 0;      ///< the map's profile error used (Problem::band_sd)
+  double band_sd_scan = kNaN;  ///< what the scans' band means showed (NaN: not measured)
 };
 
 /// Cells of the scan grid within one correlation area of the smoothed map's error (kernel support).
@@ -37,6 +39,11 @@ double KernelCorrelationCells(const MapFields& fields, const CellGrid& grid);
 NoiseModel MeasurePatternError(const ProblemSetup& setup, const Eigen::MatrixXd& w);
 /// Cells sharing one error, from the scans' own residual blocks (1 when independent).
 double ScanCorrelationCells(const ProblemSetup& setup, const Eigen::MatrixXd& w, double map_tau);
+
+/// The map's profile error per (scan, eighth of the height) (Problem::band_sd): the DEM law
+/// (MapFields::band_rel_sd), but no more than the scans' band means scatter about the refit baseline
+/// beyond their noise (`scan_measured`, NaN when not measured); 0 without a scan.
+double MeasureBandError(const ProblemSetup& setup, const Baseline& base, double* scan_measured = nullptr);
 
 /// The whole noise model: measures it against `base` and sets `setup.prob`'s sigma_u and scan-cell sigmas.
 NoiseModel CalibrateNoise(ProblemSetup& setup, const Baseline& base, DiagnosisResult& result);

@@ -56,7 +56,7 @@ MapFields DescribeMap(const core::Bundle& bundle, DiagnosisResult& result) {
   MapFields fields = ComputeMapFields(bundle);
   result.noise["map_face_relative_noise"] = Round(fields.face_rel_noise);
   result.noise["map_harmonic1_relative_sd"] = Round(fields.harmonic1_rel_sd);
-  result.noise["map_band_relative_sd"] = Round(fields.band_rel_sd);
+  result.noise["map_band_relative_sd_law"] = Round(fields.band_rel_sd);
   if (!fields.has_normal) {
     result.notes.push_back(
         "the map has no normal_stress_average: squeeze_wear skipped; work_hardening fitted as a uniform time "
@@ -302,7 +302,6 @@ ProblemSetup SetUpProblem(const core::Bundle& bundle, const DiagnoseOptions& opt
   }
   s.prob.rows = s.interp.centres.size();
   s.prob.map_harmonic1_sd = s.fields.harmonic1_rel_sd;
-  s.prob.band_sd = s.fields.band_rel_sd;
   s.time = BuildTimeGrid(bundle, s.sensors, options, result);
   s.prob.grid = s.time.grid;
   AddSensorObservations(s.fields, s.interp, s.sensors, s.prob, result);

@@ -1,6 +1,7 @@
 // Diagnosis engine on synthetic bundles from the test forward model (synthetic_bundle.cpp): a null
 // campaign gives no finding, each effect at a clear strength is named first with parameters near
 // the truth, sensor faults go to data_quality, and the JSON carries every contract key.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <stdexcept>
@@ -150,10 +151,13 @@ TEST(Diagnose, AMapsOwnProfileErrorIsNotPhysics) {
   spec.map_profile_error = 0.1;
   const auto r = Run(spec);
   CHECK_TRUE(r.findings.empty());
-  const double band_sd = r.noise.at("map_band_relative_sd").get<double>();
+  // The DEM law's prior, and what the scan's band means show (the generator's error), the smaller used.
+  const double law = r.noise.at("map_band_relative_sd_law").get<double>();
   const double face = r.noise.at("map_model").at("face_relative_noise").get<double>();
-  DOUBLES_EQUAL(0.10 * face, band_sd, 1e-3);
-  CHECK_TRUE(band_sd > 0.03);
+  DOUBLES_EQUAL(0.10 * face, law, 1e-3);
+  const double scan = r.noise.at("map_band_relative_sd_scan").get<double>();
+  CHECK_TRUE(scan > 0.5 * law);
+  DOUBLES_EQUAL(std::min(law, scan), r.noise.at("map_band_relative_sd").get<double>(), 1e-4);
 }
 
 TEST(Diagnose, StuckSensorIsDataQualityNotPhysics) {

@@ -171,6 +171,11 @@ TEST(StageBaseline, NoiseModelSetsEveryScanSigmaAndSensorPrior) {
   for (double su : r.setup.prob.sigma_u) CHECK_TRUE(su >= th.u_floor_rel);
   CHECK_TRUE(r.result.noise.contains("map_pattern_error_relative"));
   DOUBLES_EQUAL(d::Round(r.noise.map_tau, 3), r.result.noise["map_pattern_error_relative"].get<double>(), 0);
+  // The map's profile error: the DEM law's, capped by what the scan's band means show.
+  CHECK_TRUE(r.noise.band_sd >= 0);
+  CHECK_TRUE(r.noise.band_sd <= r.setup.fields.band_rel_sd);
+  DOUBLES_EQUAL(std::min(r.setup.fields.band_rel_sd, r.noise.band_sd_scan), r.noise.band_sd, 1e-15);
+  DOUBLES_EQUAL(r.noise.band_sd, r.setup.prob.band_sd, 0);
 }
 
 TEST_GROUP(StageFolds){};
