@@ -25,10 +25,10 @@ struct Baseline {
 Baseline FitBaseline(const Problem& prob);
 
 struct NoiseModel {
-  double map_tau = 0;      ///< relative pattern error of the smoothed map
-  std::string tau_source;  ///< "scan", "sensors" or "map cross-validation"
-  double corr_cells = 1;   ///< scan cells sharing one map error
-  double band_sd = 0;      ///< the map's profile error used (Problem::band_sd)
+  double map_tau = 0;          ///< relative pattern error of the smoothed map
+  std::string tau_source;      ///< "scan", "sensors" or "map cross-validation"
+  double corr_cells = 1;       ///< scan cells sharing one map error
+  double band_sd = 0;          ///< the map's profile error used (Problem::band_sd)
   double band_sd_scan = kNaN;  ///< what the scans' band means showed (NaN: not measured)
 };
 
