@@ -91,23 +91,31 @@ size_t BandCount(const Problem& p) {
   return static_cast<size_t>(scans) * kScanBands;
 }
 
+BandSums SumBands(const Problem& p, const Eigen::MatrixXd& w, const Mask& mask, bool raw) {
+  const size_t n = BandCount(p);
+  BandSums s{std::vector<double>(n, 0.0), std::vector<double>(n, 0.0), std::vector<bool>(n, false)};
+  for (size_t i : p.scan_obs) {
+    if (!mask[i]) continue;
+    const Obs& o = p.obs[i];
+    const auto g = static_cast<size_t>(BandIndex(p, o));
+    const double pred = Interp(w, o);
+    s.num[g] += (pred - (raw ? o.raw : o.wear)) * pred / (o.sigma * o.sigma);
+    s.den[g] += pred * pred / (o.sigma * o.sigma);
+    s.present[g] = true;
+  }
+  return s;
+}
+
 std::vector<double> ProfiledBandOffsets(const Problem& p, const Eigen::MatrixXd& w, const Mask& mask, bool raw,
                                         std::vector<bool>& present) {
   const size_t n = BandCount(p);
   std::vector<double> b(n, 0.0);
   present.assign(n, false);
   if (!(p.band_sd > 0)) return b;
-  std::vector<double> num(n, 0.0), den(n, 1.0 / (p.band_sd * p.band_sd));
-  for (size_t i : p.scan_obs) {
-    if (!mask[i]) continue;
-    const Obs& o = p.obs[i];
-    const auto g = static_cast<size_t>(BandIndex(p, o));
-    const double pred = Interp(w, o);
-    num[g] += (pred - (raw ? o.raw : o.wear)) * pred / (o.sigma * o.sigma);
-    den[g] += pred * pred / (o.sigma * o.sigma);
-    present[g] = true;
-  }
-  for (size_t g = 0; g < n; ++g) b[g] = present[g] ? -num[g] / den[g] : 0.0;
+  BandSums s = SumBands(p, w, mask, raw);
+  const double prior = 1.0 / (p.band_sd * p.band_sd);
+  for (size_t g = 0; g < n; ++g) b[g] = s.present[g] ? -s.num[g] / (s.den[g] + prior) : 0.0;
+  present = std::move(s.present);
   return b;
 }
 

@@ -102,6 +102,14 @@ int BandIndex(const Problem& p, const Obs& o);
 /// The number of (scan, height band) groups (BandIndex below it).
 size_t BandCount(const Problem& p);
 
+/// Per (scan, height band) group, over its scan cells in `mask` (`w` the model's wear, pred its value
+/// at a cell): sum((pred - target) pred / sigma^2), sum(pred^2 / sigma^2), and whether it has any.
+struct BandSums {
+  std::vector<double> num, den;
+  std::vector<bool> present;
+};
+BandSums SumBands(const Problem& p, const Eigen::MatrixXd& w, const Mask& mask, bool raw);
+
 /// Each (scan, height band) group's relative offset b minimising
 /// sum((pred (1 + b) - target)^2 / sigma^2) + b^2 / band_sd^2 over its scan cells in `mask`, `w` the
 /// model's wear; `present[g]` is set when the mask holds cells of group g. All 0 when band_sd is 0.

@@ -232,21 +232,13 @@ double MeasureBandError(const ProblemSetup& setup, const Baseline& base, double*
   const FitResult refit = Fit(plain, base.spec, base.all, EvalOptions{true, false}, {base.eq9.x}, 30, base.k_scale);
   Eigen::MatrixXd w;
   Simulate(base.spec, refit.x, prob.points, prob.grid, w);
-  const size_t n = BandCount(prob);
-  std::vector<double> num(n, 0.0), den(n, 0.0);
-  for (size_t i : prob.scan_obs) {
-    const Obs& o = prob.obs[i];
-    const auto g = static_cast<size_t>(BandIndex(prob, o));
-    const double pred = Interp(w, o);
-    num[g] += (pred - o.wear) * pred / (o.sigma * o.sigma);
-    den[g] += pred * pred / (o.sigma * o.sigma);
-  }
+  const BandSums sums = SumBands(prob, w, base.all, false);
   double excess = 0;
   size_t groups = 0;
-  for (size_t g = 0; g < n; ++g) {
-    if (!(den[g] > 0)) continue;
-    const double b = num[g] / den[g];
-    excess += b * b - 1.0 / den[g];
+  for (size_t g = 0; g < sums.den.size(); ++g) {
+    if (!(sums.den[g] > 0)) continue;
+    const double b = sums.num[g] / sums.den[g];
+    excess += b * b - 1.0 / sums.den[g];
     ++groups;
   }
   // The row scales were fitted to these bands too: they took up part of the bands' scatter.
