@@ -535,6 +535,10 @@ int main(int argc, char** argv) {
     std::map<std::string, std::pair<lw::core::TimePoint, double>> truth_at;
     double seconds = 0;
     Live live;
+    // Real maps: the prediction's faces (--predict-vtk) at the withheld date against the true face
+    // wear: per-face RMSE and thinnest-point |error| of the baseline and the improved model.
+    bool faces_done = false, faces_scan = false;
+    double face_rmse_base = 0, face_rmse_best = 0, face_thin_base = 0, face_thin_best = 0;
   };
   if (!json_dir.empty()) std::filesystem::create_directories(json_dir);
   auto run_case = [&](size_t k) {
@@ -697,6 +701,18 @@ int main(int argc, char** argv) {
     out_case.result = lw::diagnosis::Diagnose(bundle, opt);
     const auto& r = out_case.result;
     out_case.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (real && r.prediction && r.prediction->face_wear_baseline_mm.size() == bundle.map.face_count()) {
+      const Eigen::VectorXd tw = real->TrueFaceWear(predict_day);
+      const auto n = static_cast<Eigen::Index>(tw.size());
+      const Eigen::Map<const Eigen::VectorXd> fb(r.prediction->face_wear_baseline_mm.data(), n);
+      const Eigen::Map<const Eigen::VectorXd> fi(r.prediction->face_wear_improved_mm.data(), n);
+      out_case.face_rmse_base = std::sqrt((fb - tw).squaredNorm() / static_cast<double>(n));
+      out_case.face_rmse_best = std::sqrt((fi - tw).squaredNorm() / static_cast<double>(n));
+      out_case.face_thin_base = std::fabs(fb.maxCoeff() - tw.maxCoeff());
+      out_case.face_thin_best = std::fabs(fi.maxCoeff() - tw.maxCoeff());
+      out_case.faces_scan = !bundle.scans.empty();
+      out_case.faces_done = true;
+    }
     if (keep.empty()) std::filesystem::remove_all(dir);
     if (!json_dir.empty()) {
       std::ofstream out(std::filesystem::path(json_dir) / ("case_" + std::to_string(k) + ".json"));
@@ -952,6 +968,30 @@ int main(int argc, char** argv) {
       "  with a finding, against the refit baseline (the findings' own gain): better %d, the same within 0.01 mm %d, worse %d "
       "of %d effect cases\n",
       found_better_than_refit, found_same_as_refit, found_cases - found_better_than_refit - found_same_as_refit, found_cases);
+  if (use_real) {
+    // The prediction's faces at the withheld date (what --predict-vtk writes) against the truth.
+    std::printf("Face wear predicted at the withheld date (day %.0f; --predict-vtk) against the true face wear:\n", predict_day);
+    std::printf("  %-28s %5s  %-26s %-26s\n", "cases", "n", "per-face RMSE base / impr", "thinnest |err| base / impr");
+    for (int group = 0; group < 4; ++group) {
+      static const char* names[] = {"nulls and fault-only, scan", "nulls and fault-only, no scan", "effect cases, scan",
+                                    "effect cases, no scan"};
+      std::vector<double> rb, ri, tb, ti;
+      for (size_t k = 0; k < cases.size(); ++k) {
+        const Outcome& o = outcomes[k];
+        if (!o.faces_done) continue;
+        const bool is_null = cases[k].truth == "none" || cases[k].truth == "fault";
+        if ((group / 2 == 0) != is_null || (group % 2 == 0) != o.faces_scan) continue;
+        rb.push_back(o.face_rmse_base);
+        ri.push_back(o.face_rmse_best);
+        tb.push_back(o.face_thin_base);
+        ti.push_back(o.face_thin_best);
+      }
+      if (rb.empty()) continue;
+      auto worst = [](const std::vector<double>& v) { return *std::max_element(v.begin(), v.end()); };
+      std::printf("  %-28s %5zu  %5.2f / %5.2f (median)     %5.2f / %5.2f median, %5.2f / %5.2f worst\n", names[group], rb.size(),
+                  Median(rb), Median(ri), Median(tb), Median(ti), worst(tb), worst(ti));
+    }
+  }
   if (oracle) {
     // What is detectable at all (issue 14): the true effect's model with its true parameters against
     // the baseline, the same observations, only the row scales fitted. Under the diagnosis' noise

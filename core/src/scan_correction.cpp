@@ -153,6 +153,7 @@ ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const 
   std::map<long, double> band_tau;
   for (auto& [b, e] : band_excess) band_tau[b] = e.size() >= kMinBandFaces ? tau_of(std::move(e)) : out.map_model_error_rel;
   Eigen::VectorXd ratio = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
+  Eigen::VectorXd weight = Eigen::VectorXd::Zero(n);
   std::vector<double> ratios;
   for (const Face& f : faces) {
     const double tau = band_tau.at(band_of(f.i));
@@ -161,6 +162,7 @@ ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const 
     const double i_new = wm > 0 ? (wm * f.i_m + ws * f.i_s) / (wm + ws) : f.i_s;
     const double sd_new = std::sqrt(1.0 / (wm + ws));
     ratio[f.i] = i_new / f.i_m;  // i_m > 0: faces hold only those
+    weight[f.i] = ws / (wm + ws);
     ratios.push_back(ratio[f.i]);
     plan.intensity[f.i] = i_new;
     plan.intensity_rel_sd[f.i] = i_new > 0 ? sd_new / i_new : 1.0;
@@ -205,10 +207,13 @@ ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const 
     Around a;
     if (around(map.z[i], map.theta_deg[i], a) && a.intensity > 0) filled.push_back({i, a});
   }
+  out.face_ratio = ratio.unaryExpr([](double r) { return std::isfinite(r) ? r : 1.0; });
   for (const auto& [i, a] : filled) {
+    out.face_ratio[i] = a.intensity / plan.intensity[i];  // > 0: only such faces are filled
     plan.intensity[i] = a.intensity;
     plan.intensity_rel_sd[i] = a.rel_sd;
   }
+  out.face_weight = std::move(weight);
   out.faces_filled = filled.size();
   for (size_t s = 0; s < crusher.sensors.size(); ++s) {
     const auto& sn = crusher.sensors[s];

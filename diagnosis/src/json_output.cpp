@@ -81,6 +81,17 @@ nlohmann::ordered_json ToJson(const DiagnosisResult& r) {
     p["baseline"]["sensors"] = b;
     p["improved"]["sensors"] = i;
     p["refit_baseline"]["sensors"] = f;
+    const Prediction::ScanAnchor& a = r.prediction->faces_scan;
+    if (!a.file.empty() || !a.detail.empty()) {
+      nlohmann::ordered_json s;
+      s["file"] = a.file;
+      s["date"] = core::FormatIsoTime(a.date);
+      s["applied"] = a.detail.empty();
+      s["faces_measured"] = a.faces_measured;
+      s["faces_filled"] = a.faces_filled;
+      if (!a.detail.empty()) s["detail"] = a.detail;
+      p["faces_scan"] = s;
+    }
     j["prediction"] = p;
   }
   j["noise"] = r.noise;

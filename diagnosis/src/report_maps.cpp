@@ -7,6 +7,7 @@
 
 #include "core/forecast.hpp"
 #include "core/reconstruction.hpp"
+#include "core/scan_correction.hpp"
 
 namespace lw::diagnosis::detail {
 namespace {
@@ -114,6 +115,28 @@ ThinnestPoint ModelThinnest(const std::string& label, core::TimePoint time, cons
 
 }  // namespace
 
+std::vector<core::Reading> UsedReadings(const core::CrusherConfig& crusher, const std::vector<SensorCurve>& curves,
+                                        double* last_days) {
+  std::vector<core::Reading> used;
+  double last = 0;
+  for (const SensorCurve& c : curves) {
+    for (size_t k = 0; k < c.reading_days.size(); ++k) {
+      if (!c.reading_used[k] || !std::isfinite(c.reading_mm[k])) continue;
+      core::Reading r;
+      r.time = core::AddDays(crusher.installed_at, c.reading_days[k]);
+      r.sensor_id = c.sensor_id;
+      r.thickness_mm = c.reading_mm[k];
+      used.push_back(r);
+      last = std::max(last, c.reading_days[k]);
+    }
+  }
+  std::sort(used.begin(), used.end(), [](const core::Reading& a, const core::Reading& b) {
+    return a.sensor_id != b.sensor_id ? a.sensor_id < b.sensor_id : a.time < b.time;
+  });
+  if (last_days) *last_days = last;
+  return used;
+}
+
 void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const std::vector<ScanCells>& scans,
                      const FaceWearAt& face_wear, DiagnosisResult& result) {
   const core::CrusherConfig& crusher = bundle.crusher;
@@ -132,22 +155,8 @@ void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const 
   liner.tiles_are_faces = tiling.faces;
 
   // The readings the diagnosis kept (faults excluded): the live wear and forecast use the same.
-  std::vector<core::Reading> used;
   double now_days = 0;
-  for (const SensorCurve& c : result.curves) {
-    for (size_t k = 0; k < c.reading_days.size(); ++k) {
-      if (!c.reading_used[k] || !std::isfinite(c.reading_mm[k])) continue;
-      core::Reading r;
-      r.time = core::AddDays(crusher.installed_at, c.reading_days[k]);
-      r.sensor_id = c.sensor_id;
-      r.thickness_mm = c.reading_mm[k];
-      used.push_back(r);
-      now_days = std::max(now_days, c.reading_days[k]);
-    }
-  }
-  std::sort(used.begin(), used.end(), [](const core::Reading& a, const core::Reading& b) {
-    return a.sensor_id != b.sensor_id ? a.sensor_id < b.sensor_id : a.time < b.time;
-  });
+  const std::vector<core::Reading> used = UsedReadings(crusher, result.curves, &now_days);
   liner.now = core::AddDays(crusher.installed_at, now_days);
 
   for (size_t si = 0; si < scans.size() && si < bundle.scans.size(); ++si) {
@@ -178,12 +187,19 @@ void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const 
   // The thinnest point now: the live reconstruction (Eq. 9 from the latest readings, with its band),
   // then the diagnosis' two models at the same time, then both at the prediction time.
   if (!used.empty()) {
-    const core::ReconstructionPlan plan = core::PrepareReconstruction(crusher, bundle.map, fields.model);
+    core::ReconstructionPlan plan = core::PrepareReconstruction(crusher, bundle.map, fields.model);
+    // The latest scan corrects the map between the sensors, as on the dashboard (server, reconstruct).
+    std::string with_scan;
+    if (const core::Scan* latest = core::LatestScanAt(bundle.scans, liner.now)) {
+      const core::ScanCorrection c =
+          core::ApplyScan(plan, core::ProjectScanToFaces(bundle.map, *latest), core::SensorWearAt(crusher, used, latest->date));
+      if (c.detail.empty()) with_scan = ", the map corrected by scan " + latest->file;
+    }
     const std::vector<core::SensorWear> wear = core::SensorWearAt(crusher, used, liner.now);
     const core::Reconstruction rec = core::Reconstruct(plan, wear);
     if (rec.remaining_mm.size() == static_cast<Eigen::Index>(bundle.map.face_count())) {
       ThinnestPoint p;
-      p.label = "live reconstruction (Eq. 9 from the latest readings, as the dashboard shows it)";
+      p.label = "live reconstruction (Eq. 9 from the latest readings" + with_scan + ", as the dashboard shows it)";
       p.time = liner.now;
       p.thickness_mm = rec.min_thickness_mm;
       p.lo_mm = rec.min_thickness_lo_mm;
@@ -207,9 +223,11 @@ void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const 
   if (result.prediction && result.prediction->face_wear_baseline_mm.size() == bundle.map.face_count()) {
     const Prediction& pr = *result.prediction;
     const auto n = static_cast<Eigen::Index>(bundle.map.face_count());
-    liner.thinnest.push_back(ModelThinnest("baseline model at --predict-at", pr.time, bundle,
+    const std::string anchored =
+        pr.faces_scan.detail.empty() && !pr.faces_scan.file.empty() ? " (from scan " + pr.faces_scan.file + ")" : "";
+    liner.thinnest.push_back(ModelThinnest("baseline model at --predict-at" + anchored, pr.time, bundle,
                                            Eigen::Map<const Eigen::VectorXd>(pr.face_wear_baseline_mm.data(), n)));
-    liner.thinnest.push_back(ModelThinnest("improved model at --predict-at", pr.time, bundle,
+    liner.thinnest.push_back(ModelThinnest("improved model at --predict-at" + anchored, pr.time, bundle,
                                            Eigen::Map<const Eigen::VectorXd>(pr.face_wear_improved_mm.data(), n)));
   }
 }

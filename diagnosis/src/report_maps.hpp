@@ -17,6 +17,12 @@ namespace lw::diagnosis::detail {
 /// at `t_days` since installation.
 using FaceWearAt = std::function<Eigen::VectorXd(bool improved, double t_days)>;
 
+/// The readings a diagnosis kept (faults excluded), from its sensor curves, sorted by sensor and
+/// time; `last_days` (when given) gets the latest one's day since installation. The live wear, the
+/// forecast and the scan the predictions take as ground truth use these.
+std::vector<core::Reading> UsedReadings(const core::CrusherConfig& crusher, const std::vector<SensorCurve>& curves,
+                                        double* last_days = nullptr);
+
 /// Fills result.liner and the sensors' positions in result.curves. Needs result.curves (the
 /// readings the diagnosis used) and result.prediction (when there is one) already filled.
 void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const std::vector<ScanCells>& scans,

@@ -2,7 +2,10 @@
 #include "stage_predictions.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <optional>
 
+#include "core/scan_correction.hpp"
 #include "report_maps.hpp"
 
 namespace lw::diagnosis::detail {
@@ -32,6 +35,59 @@ std::vector<double> DepthFactors(const PredictionInput& in) {
 
 double Days(const PredictionInput& in, core::TimePoint t) {
   return core::DaysBetween(in.bundle.crusher.installed_at, t);
+}
+
+// The scan the face predictions at a time take as ground truth at its date: the latest at or
+// before it, projected on the map's faces, and the live map's correction by it (core ApplyScan with
+// the readings the diagnosis kept: the weights of the server's live wear).
+struct FaceAnchor {
+  double t_days = 0;
+  Eigen::VectorXd scan_wear_mm;  // per face, NaN where no point fell
+  core::ScanCorrection corr;
+  bool Applied() const { return corr.detail.empty() && corr.face_weight.size() == scan_wear_mm.size(); }
+};
+
+std::optional<FaceAnchor> AnchorAt(const PredictionInput& in, const std::vector<core::Reading>& used, core::TimePoint at,
+                                   Prediction::ScanAnchor& report) {
+  const core::Scan* latest = core::LatestScanAt(in.bundle.scans, at);
+  if (!latest) return std::nullopt;
+  FaceAnchor a;
+  a.t_days = Days(in, latest->date);
+  core::ReconstructionPlan plan = core::PrepareReconstruction(in.bundle.crusher, in.bundle.map, in.setup.fields.model);
+  const core::ScanFaces sf = core::ProjectScanToFaces(in.bundle.map, *latest);
+  a.scan_wear_mm = sf.wear_mm;
+  a.corr = core::ApplyScan(plan, sf, core::SensorWearAt(in.bundle.crusher, used, latest->date));
+  report.file = latest->file;
+  report.date = latest->date;
+  if (!a.Applied()) {
+    report.detail = a.corr.detail.empty() ? "no correction per face" : a.corr.detail;
+    return std::nullopt;
+  }
+  report.faces_measured = a.corr.faces_corrected;
+  report.faces_filled = a.corr.faces_filled;
+  return a;
+}
+
+// A model's wear per face at t_days (mm, in [0, thickness]); with an anchor, taken to the scan at its
+// date and carried forward by the model. Per face, the model's wear at the scan's date m_s moves to
+// the scan's s with the live map's weight w (m_s + w (s - m_s); a face without scan points moves by
+// its neighbours' correction ratio), and the model's growth since then scales it (wear(t) x
+// anchored / m_s), so a pattern the map got wrong stays corrected as the liner wears on, and each
+// model keeps its own time course (Eq. 9: the row scales' growth, exactly as live wear does).
+// Where the model has next to no wear at the scan (< kMinAnchorWearMm) the shift is added instead.
+Eigen::VectorXd ModelFaceWear(const ModelSpec& spec, const Eigen::VectorXd& x, const std::vector<ModelPoint>& faces,
+                              const TimeGrid& grid, double t_days, const FaceAnchor* anchor, double thickness_mm) {
+  constexpr double kMinAnchorWearMm = 0.5;
+  Eigen::VectorXd w = SimulateAt(spec, x, faces, grid, t_days);
+  if (anchor && static_cast<size_t>(anchor->scan_wear_mm.size()) == faces.size()) {
+    const Eigen::VectorXd at_scan = SimulateAt(spec, x, faces, grid, anchor->t_days);
+    for (Eigen::Index f = 0; f < w.size(); ++f) {
+      const double m_s = at_scan[f], s = anchor->scan_wear_mm[f], wt = anchor->corr.face_weight[f];
+      const double anchored = wt > 0 && std::isfinite(s) ? m_s + wt * (std::max(s, 0.0) - m_s) : m_s * anchor->corr.face_ratio[f];
+      w[f] = m_s > kMinAnchorWearMm ? w[f] * anchored / m_s : w[f] + (anchored - m_s);
+    }
+  }
+  return w.cwiseMax(0.0).cwiseMin(thickness_mm);
 }
 
 SensorCurve CurveOf(const PredictionInput& in, size_t i, const Eigen::MatrixXd& w_base, const Eigen::MatrixXd& w_best) {
@@ -130,7 +186,8 @@ std::vector<ResidualGrid> ResidualGrids(const PredictionInput& in) {
   return grids;
 }
 
-Prediction PredictAt(const PredictionInput& in, const std::vector<ModelPoint>& face_points, core::TimePoint at) {
+Prediction PredictAt(const PredictionInput& in, const std::vector<ModelPoint>& face_points,
+                     const std::vector<core::Reading>& used, core::TimePoint at) {
   const TimeGrid& grid = in.setup.prob.grid;
   const double thickness_new_mm = in.bundle.crusher.thickness_new_mm;
   const std::vector<ModelPoint> sensor_points = SensorPoints(in.setup);
@@ -152,10 +209,12 @@ Prediction PredictAt(const PredictionInput& in, const std::vector<ModelPoint>& f
          std::max(0.0, s.thickness - wi[r] * (1.0 + SensorU(in, s)) - (in.use_improved ? LossOffset(s, t) : 0.0)),
          std::max(0.0, s.thickness - wr[r] * (1.0 + u_refit) - (refit ? LossOffset(s, t) : 0.0))});
   }
-  // Physical: a face's wear is at most the as-new thickness (worn through).
-  const Eigen::VectorXd fb =
-      SimulateAt(in.base.spec, in.base.eq9.x, face_points, grid, t).cwiseMax(0.0).cwiseMin(thickness_new_mm);
-  const Eigen::VectorXd fi = SimulateAt(in.model.spec, in.model.x, face_points, grid, t).cwiseMax(0.0).cwiseMin(thickness_new_mm);
+  // The faces: from the latest scan when there is one; physical (a face's wear is at most the
+  // as-new thickness: worn through).
+  const std::optional<FaceAnchor> anchor = AnchorAt(in, used, at, pred.faces_scan);
+  const FaceAnchor* a = anchor ? &*anchor : nullptr;
+  const Eigen::VectorXd fb = ModelFaceWear(in.base.spec, in.base.eq9.x, face_points, grid, t, a, thickness_new_mm);
+  const Eigen::VectorXd fi = ModelFaceWear(in.model.spec, in.model.x, face_points, grid, t, a, thickness_new_mm);
   pred.face_wear_baseline_mm.assign(fb.data(), fb.data() + fb.size());
   pred.face_wear_improved_mm.assign(fi.data(), fi.data() + fi.size());
   return pred;
@@ -166,15 +225,17 @@ void Predict(const PredictionInput& in, DiagnosisResult& result) {
   result.grids = ResidualGrids(in);
   // Model points of every map face (the prediction and the report's liner maps).
   const std::vector<ModelPoint> face_points = FacePoints(in.bundle, in.setup);
-  if (in.options.predict_at) result.prediction = PredictAt(in, face_points, *in.options.predict_at);
-  // Unwrapped-liner maps and thinnest points for the HTML report (report_maps.cpp).
+  if (in.options.predict_at)
+    result.prediction = PredictAt(in, face_points, UsedReadings(in.bundle.crusher, result.curves), *in.options.predict_at);
+  // Unwrapped-liner maps and thinnest points for the HTML report (report_maps.cpp): each model as
+  // it stands (compared with the scans there), not anchored to them.
   const double thickness_new_mm = in.bundle.crusher.thickness_new_mm;
   FillLinerReport(
       in.bundle, in.setup.fields, in.setup.scans,
       [&](bool improved, double t) {
-        const Eigen::VectorXd w = improved ? SimulateAt(in.model.spec, in.model.x, face_points, in.setup.prob.grid, t)
-                                           : SimulateAt(in.base.spec, in.base.eq9.x, face_points, in.setup.prob.grid, t);
-        return Eigen::VectorXd(w.cwiseMax(0.0).cwiseMin(thickness_new_mm));
+        return improved
+                   ? ModelFaceWear(in.model.spec, in.model.x, face_points, in.setup.prob.grid, t, nullptr, thickness_new_mm)
+                   : ModelFaceWear(in.base.spec, in.base.eq9.x, face_points, in.setup.prob.grid, t, nullptr, thickness_new_mm);
       },
       result);
 }

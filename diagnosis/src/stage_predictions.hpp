@@ -31,8 +31,11 @@ std::vector<ModelPoint> FacePoints(const core::Bundle& bundle, const ProblemSetu
 std::vector<SensorCurve> SensorCurves(const PredictionInput& in);
 /// Every scan's measured wear and the misses of the refit baseline and the improved model per cell.
 std::vector<ResidualGrid> ResidualGrids(const PredictionInput& in);
-/// Every sensor's thickness and every face's wear at `at`, baseline and improved.
-Prediction PredictAt(const PredictionInput& in, const std::vector<ModelPoint>& face_points, core::TimePoint at);
+/// Every sensor's thickness and every face's wear at `at`, baseline and improved. The faces take
+/// the latest scan at or before `at` as ground truth at its date (with the live map's weights from
+/// `used`, the readings the diagnosis kept: UsedReadings) and each model carries it forward.
+Prediction PredictAt(const PredictionInput& in, const std::vector<ModelPoint>& face_points,
+                     const std::vector<core::Reading>& used, core::TimePoint at);
 
 /// The whole stage: curves, grids, the prediction (when options.predict_at) and the liner report.
 void Predict(const PredictionInput& in, DiagnosisResult& result);

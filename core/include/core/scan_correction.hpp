@@ -36,6 +36,13 @@ struct ScanCorrection {
   double median_ratio = 1;         ///< median over corrected faces of corrected / model intensity
   double map_model_error_rel = 0;  ///< the map pattern's relative error the scan revealed (beyond noise)
   std::string detail;              ///< why nothing was done (empty when applied)
+  /// Per face (empty when nothing was done): the scan's weight in the face's corrected intensity,
+  /// 1 / var_scan over 1 / var_map + 1 / var_scan (0 where no scan point fell on the face), and the
+  /// corrected intensity over the map model's (1 where the face was left as it was; a filled face's
+  /// is its neighbours'). What a model other than Eq. 9 needs to take the scan as its ground truth
+  /// at the scan's date with the same weights (the diagnosis' predictions).
+  Eigen::VectorXd face_weight;
+  Eigen::VectorXd face_ratio;
 };
 
 /// The latest scan at or before `at` of `scans` (sorted by date, as LoadScans returns them); nullptr

@@ -209,6 +209,17 @@ struct Prediction {
   std::vector<SensorPrediction> sensors;
   std::vector<double> face_wear_baseline_mm;  ///< per map face
   std::vector<double> face_wear_improved_mm;
+  /// The scan the face predictions take as ground truth at its date (the latest at or before
+  /// `time`; file empty when there is none or it could not be applied): each model's face wear at
+  /// the scan's date is moved to the scan with the live map's weights (server, `reconstruct`), and
+  /// the model carries it forward (docs/diagnosis.md, "Predictions").
+  struct ScanAnchor {
+    std::string file;
+    core::TimePoint date{};
+    size_t faces_measured = 0;  ///< faces with scan points (weighted against the model)
+    size_t faces_filled = 0;    ///< faces without, given their neighbours' correction
+    std::string detail;         ///< why the scan was not applied (empty when it was)
+  } faces_scan;
 };
 
 /// What a diagnosis' "improved" model is.

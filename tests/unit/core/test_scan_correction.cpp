@@ -108,10 +108,21 @@ TEST(ScanCorrection, AFaceNoScanPointFellOnTakesItsNeighboursCorrection) {
   }
   const ScanFaces f = ProjectScanToFaces(m, MakeScan(m, 50, 0.3, 5, static_cast<long>(hot)));
   CHECK_FALSE(std::isfinite(f.wear_mm[hot]));
+  const Eigen::VectorXd map_intensity = plan.intensity;
   const ScanCorrection corr = ApplyScan(plan, f, SensorsAt(c, 50));
   CHECK(corr.detail.empty());
   LONGS_EQUAL(m.face_count() - 1, corr.faces_corrected);
   LONGS_EQUAL(1, corr.faces_filled);
+  // Per face, what other models need: the scan's weight (none where no point fell) and the ratio
+  // the live map's intensity was corrected by (the filled face's from its neighbours).
+  LONGS_EQUAL(m.z.size(), corr.face_weight.size());
+  for (Eigen::Index i = 0; i < m.z.size(); ++i) {
+    DOUBLES_EQUAL(plan.intensity[i] / map_intensity[i], corr.face_ratio[i], 1e-12);
+    if (i == hot) continue;
+    CHECK(corr.face_weight[i] > 0.0 && corr.face_weight[i] <= 1.0);
+  }
+  DOUBLES_EQUAL(0.0, corr.face_weight[hot], 0.0);
+  CHECK(corr.face_ratio[hot] < 0.6);  // the 3x hot spot the scan does not see
   const Reconstruction after = Reconstruct(plan, SensorsAt(c, 80));
   const double truth_min = 120.0 - TrueWear(m.z.minCoeff(), 80);
   DOUBLES_EQUAL(truth_min, after.min_thickness_mm, 1.5);

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "core/bundle.hpp"
+#include "core/scan_correction.hpp"
 #include "diagnosis/diagnose.hpp"
 #include "support/temp_directory.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
@@ -158,6 +159,57 @@ TEST(Diagnose, AMapsOwnProfileErrorIsNotPhysics) {
   const double scan = r.noise.at("map_band_relative_sd_scan").get<double>();
   CHECK_TRUE(scan > 0.5 * law);
   DOUBLES_EQUAL(std::min(law, scan), r.noise.at("map_band_relative_sd").get<double>(), 1e-4);
+}
+
+TEST(Diagnose, PredictedFacesTakeTheScanAsGroundTruthAtItsDate) {
+  // A map whose pattern is wrong by up to 30 % (a smooth error no effect describes), a scan at day
+  // 60, readings to day 90, prediction at day 90. The truth: the same campaign scanned at day 90.
+  lw::test::SyntheticSpec spec;
+  spec.seed = 3;
+  spec.map_smooth_error = 0.3;
+  spec.scan_day = 60;
+  const lw::test::TempDirectory tmp("lw-diag"), tmp_truth("lw-diag-truth");
+  lw::test::WriteSyntheticBundle(tmp.path(), spec);
+  spec.scan_day = 90;
+  lw::test::WriteSyntheticBundle(tmp_truth.path(), spec);
+  lw::core::Bundle bundle = lw::core::LoadBundle(tmp.path());
+  const lw::core::Bundle later = lw::core::LoadBundle(tmp_truth.path());
+  const Eigen::VectorXd truth = lw::core::ProjectScanToFaces(later.map, later.scans.at(0)).wear_mm;
+  lw::diagnosis::DiagnoseOptions options;
+  options.try_pairs = false;
+  options.predict_at = lw::core::AddDays(bundle.crusher.installed_at, 90);
+  const auto with_scan = lw::diagnosis::Diagnose(bundle, options);
+  bundle.scans.clear();
+  const auto without = lw::diagnosis::Diagnose(bundle, options);
+  auto rmse = [&](const std::vector<double>& faces) {
+    double ss = 0;
+    int n = 0;
+    for (Eigen::Index f = 0; f < truth.size(); ++f) {
+      if (!std::isfinite(truth[f])) continue;
+      ss += std::pow(faces.at(static_cast<size_t>(f)) - truth[f], 2);
+      ++n;
+    }
+    CHECK_TRUE(n > truth.size() / 2);
+    return std::sqrt(ss / n);
+  };
+  const auto& p = *with_scan.prediction;
+  CHECK_TRUE(p.faces_scan.detail.empty());
+  CHECK_FALSE(p.faces_scan.file.empty());
+  CHECK_TRUE(p.faces_scan.faces_measured > bundle.map.face_count() / 2);
+  CHECK_TRUE(without.prediction->faces_scan.file.empty());
+  // The scan's pattern carried forward: both models' faces at day 90 far closer to the truth.
+  const double base_with = rmse(p.face_wear_baseline_mm), base_without = rmse(without.prediction->face_wear_baseline_mm);
+  const double best_with = rmse(p.face_wear_improved_mm), best_without = rmse(without.prediction->face_wear_improved_mm);
+  CHECK_TRUE(base_with < 0.5 * base_without);
+  CHECK_TRUE(best_with < 0.5 * best_without);
+  for (double w : p.face_wear_improved_mm) CHECK_TRUE(w >= 0 && w <= bundle.crusher.thickness_new_mm);
+  // A prediction before the scan's date does not use it.
+  options.predict_at = lw::core::AddDays(bundle.crusher.installed_at, 50);
+  bundle = lw::core::LoadBundle(tmp.path());
+  const auto before = lw::diagnosis::Diagnose(bundle, options);
+  CHECK_TRUE(before.prediction->faces_scan.file.empty());
+  const auto j = lw::diagnosis::ToJson(with_scan);
+  CHECK_TRUE(j.at("prediction").at("faces_scan").at("applied").get<bool>());
 }
 
 TEST(Diagnose, StuckSensorIsDataQualityNotPhysics) {

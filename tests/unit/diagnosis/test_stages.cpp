@@ -454,7 +454,7 @@ TEST(StagePredictions, PredictionFollowsTheReadingsAndStaysPhysical) {
   const lw::core::TimePoint last = r.bundle.scans.back().date;
   const auto faces = d::FacePoints(r.bundle, r.setup);
   LONGS_EQUAL(r.bundle.map.face_count(), faces.size());
-  const lw::diagnosis::Prediction p = d::PredictAt(in, faces, last);
+  const lw::diagnosis::Prediction p = d::PredictAt(in, faces, {}, last);
   LONGS_EQUAL(r.setup.sensors.size(), p.sensors.size());
   for (double w : p.face_wear_improved_mm) CHECK_TRUE(w >= 0 && w <= 100);
   // At the last scan the improved model reads what the sensors read (within a few mm); the
