@@ -535,7 +535,7 @@ int main(int argc, char** argv) {
     std::map<std::string, std::pair<lw::core::TimePoint, double>> truth_at;
     double seconds = 0;
     Live live;
-    // Real maps: the prediction's faces (--predict-vtk) at the withheld date against the true face
+    // Real maps and the sim generator: the prediction's faces (--predict-vtk) at the withheld date against the true face
     // wear: per-face RMSE and thinnest-point |error| of the baseline and the improved model.
     bool faces_done = false, faces_scan = false;
     double face_rmse_base = 0, face_rmse_best = 0, face_thin_base = 0, face_thin_best = 0;
@@ -701,8 +701,10 @@ int main(int argc, char** argv) {
     out_case.result = lw::diagnosis::Diagnose(bundle, opt);
     const auto& r = out_case.result;
     out_case.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (real && r.prediction && r.prediction->face_wear_baseline_mm.size() == bundle.map.face_count()) {
-      const Eigen::VectorXd tw = real->TrueFaceWear(predict_day);
+    if ((real || campaign) && r.prediction && r.prediction->face_wear_baseline_mm.size() == bundle.map.face_count()) {
+      const Eigen::VectorXd tw = (real ? real->TrueFaceWear(predict_day) : campaign->TrueFaceWear(predict_day))
+                                     .cwiseMax(0.0)
+                                     .cwiseMin(bundle.crusher.thickness_new_mm);
       const auto n = static_cast<Eigen::Index>(tw.size());
       const Eigen::Map<const Eigen::VectorXd> fb(r.prediction->face_wear_baseline_mm.data(), n);
       const Eigen::Map<const Eigen::VectorXd> fi(r.prediction->face_wear_improved_mm.data(), n);
@@ -968,7 +970,7 @@ int main(int argc, char** argv) {
       "  with a finding, against the refit baseline (the findings' own gain): better %d, the same within 0.01 mm %d, worse %d "
       "of %d effect cases\n",
       found_better_than_refit, found_same_as_refit, found_cases - found_better_than_refit - found_same_as_refit, found_cases);
-  if (use_real) {
+  if (use_real || use_sim) {
     // The prediction's faces at the withheld date (what --predict-vtk writes) against the truth.
     std::printf("Face wear predicted at the withheld date (day %.0f; --predict-vtk) against the true face wear:\n", predict_day);
     std::printf("  %-28s %5s  %-26s %-26s\n", "cases", "n", "per-face RMSE base / impr", "thinnest |err| base / impr");
