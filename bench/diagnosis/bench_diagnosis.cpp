@@ -990,6 +990,14 @@ int main(int argc, char** argv) {
       }
       if (rb.empty()) continue;
       auto worst = [](const std::vector<double>& v) { return *std::max_element(v.begin(), v.end()); };
+      if (std::getenv("LW_BENCH_FACES"))  // per case too
+        for (size_t k = 0; k < cases.size(); ++k) {
+          const Outcome& o = outcomes[k];
+          const bool is_null = cases[k].truth == "none" || cases[k].truth == "fault";
+          if (!o.faces_done || (group / 2 == 0) != is_null || (group % 2 == 0) != o.faces_scan) continue;
+          std::printf("    case %-4zu %-40s %-9s %6.2f %6.2f %7.2f %7.2f\n", k, cases[k].truth.c_str(), cases[k].level.c_str(),
+                      o.face_rmse_base, o.face_rmse_best, o.face_thin_base, o.face_thin_best);
+        }
       std::printf("  %-28s %5zu  %5.2f / %5.2f (median)     %5.2f / %5.2f median, %5.2f / %5.2f worst\n", names[group], rb.size(),
                   Median(rb), Median(ri), Median(tb), Median(ti), worst(tb), worst(ti));
     }

@@ -43,12 +43,16 @@ double Days(const PredictionInput& in, core::TimePoint t) {
 struct FaceAnchor {
   double t_days = 0;
   Eigen::VectorXd scan_wear_mm;  // per face, NaN where no point fell
+  // Per face no point fell on that the live map filled from its scanned neighbours (within 1.5
+  // face sizes): the scan's wear there, interpolated (Eq. 9 at the scan's date x the live map's
+  // correction ratio of the face); NaN elsewhere.
+  Eigen::VectorXd filled_wear_mm;
   core::ScanCorrection corr;
   bool Applied() const { return corr.detail.empty() && corr.face_weight.size() == scan_wear_mm.size(); }
 };
 
-std::optional<FaceAnchor> AnchorAt(const PredictionInput& in, const std::vector<core::Reading>& used, core::TimePoint at,
-                                   Prediction::ScanAnchor& report) {
+std::optional<FaceAnchor> AnchorAt(const PredictionInput& in, const std::vector<ModelPoint>& face_points,
+                                   const std::vector<core::Reading>& used, core::TimePoint at, Prediction::ScanAnchor& report) {
   const core::Scan* latest = core::LatestScanAt(in.bundle.scans, at);
   if (!latest) return std::nullopt;
   FaceAnchor a;
@@ -65,16 +69,22 @@ std::optional<FaceAnchor> AnchorAt(const PredictionInput& in, const std::vector<
   }
   report.faces_measured = a.corr.faces_corrected;
   report.faces_filled = a.corr.faces_filled;
+  const Eigen::VectorXd eq9_at_scan = SimulateAt(in.base.spec, in.base.eq9.x, face_points, in.setup.prob.grid, a.t_days);
+  a.filled_wear_mm = Eigen::VectorXd::Constant(a.scan_wear_mm.size(), kNaN);
+  for (Eigen::Index f = 0; f < a.filled_wear_mm.size() && f < eq9_at_scan.size(); ++f)
+    if (!(a.corr.face_weight[f] > 0) && a.corr.face_ratio[f] != 1.0) a.filled_wear_mm[f] = eq9_at_scan[f] * a.corr.face_ratio[f];
   return a;
 }
 
 // A model's wear per face at t_days (mm, in [0, thickness]); with an anchor, taken to the scan at its
 // date and carried forward by the model. Per face, the model's wear at the scan's date m_s moves to
-// the scan's s with the live map's weight w (m_s + w (s - m_s); a face without scan points moves by
-// its neighbours' correction ratio), and the model's growth since then scales it (wear(t) x
-// anchored / m_s), so a pattern the map got wrong stays corrected as the liner wears on, and each
-// model keeps its own time course (Eq. 9: the row scales' growth, exactly as live wear does).
-// Where the model has next to no wear at the scan (< kMinAnchorWearMm) the shift is added instead.
+// the scan's s with the live map's weight w (m_s + w (s - m_s); a face without scan points takes the
+// scan's wear interpolated from its neighbours, as the live map does: not the model's value times
+// the neighbours' ratio, which is relative to Eq. 9 and would count a model's own pattern twice),
+// and the model's growth since then scales it (wear(t) x anchored / m_s), so a pattern the map got
+// wrong stays corrected as the liner wears on, and each model keeps its own time course (Eq. 9: the
+// row scales' growth, exactly as live wear does). Where the model has next to no wear at the scan
+// (< kMinAnchorWearMm) the shift is added instead.
 Eigen::VectorXd ModelFaceWear(const ModelSpec& spec, const Eigen::VectorXd& x, const std::vector<ModelPoint>& faces,
                               const TimeGrid& grid, double t_days, const FaceAnchor* anchor, double thickness_mm) {
   constexpr double kMinAnchorWearMm = 0.5;
@@ -83,7 +93,10 @@ Eigen::VectorXd ModelFaceWear(const ModelSpec& spec, const Eigen::VectorXd& x, c
     const Eigen::VectorXd at_scan = SimulateAt(spec, x, faces, grid, anchor->t_days);
     for (Eigen::Index f = 0; f < w.size(); ++f) {
       const double m_s = at_scan[f], s = anchor->scan_wear_mm[f], wt = anchor->corr.face_weight[f];
-      const double anchored = wt > 0 && std::isfinite(s) ? m_s + wt * (std::max(s, 0.0) - m_s) : m_s * anchor->corr.face_ratio[f];
+      const double filled = anchor->filled_wear_mm[f];
+      const double anchored = wt > 0 && std::isfinite(s) ? m_s + wt * (std::max(s, 0.0) - m_s)
+                              : std::isfinite(filled)    ? std::max(filled, 0.0)
+                                                         : m_s;
       w[f] = m_s > kMinAnchorWearMm ? w[f] * anchored / m_s : w[f] + (anchored - m_s);
     }
   }
@@ -211,7 +224,7 @@ Prediction PredictAt(const PredictionInput& in, const std::vector<ModelPoint>& f
   }
   // The faces: from the latest scan when there is one; physical (a face's wear is at most the
   // as-new thickness: worn through).
-  const std::optional<FaceAnchor> anchor = AnchorAt(in, used, at, pred.faces_scan);
+  const std::optional<FaceAnchor> anchor = AnchorAt(in, face_points, used, at, pred.faces_scan);
   const FaceAnchor* a = anchor ? &*anchor : nullptr;
   const Eigen::VectorXd fb = ModelFaceWear(in.base.spec, in.base.eq9.x, face_points, grid, t, a, thickness_new_mm);
   const Eigen::VectorXd fi = ModelFaceWear(in.model.spec, in.model.x, face_points, grid, t, a, thickness_new_mm);
