@@ -89,6 +89,7 @@ nlohmann::ordered_json ToJson(const DiagnosisResult& r) {
       s["applied"] = a.detail.empty();
       s["faces_measured"] = a.faces_measured;
       s["faces_filled"] = a.faces_filled;
+      s["sensors_used"] = a.sensors_used;
       if (!a.detail.empty()) s["detail"] = a.detail;
       p["faces_scan"] = s;
     }

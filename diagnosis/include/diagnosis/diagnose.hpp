@@ -218,6 +218,7 @@ struct Prediction {
     core::TimePoint date{};
     size_t faces_measured = 0;  ///< faces with scan points (weighted against the model)
     size_t faces_filled = 0;    ///< faces without, given their neighbours' correction
+    size_t sensors_used = 0;    ///< sensors with a kept reading within 2 days before the scan
     std::string detail;         ///< why the scan was not applied (empty when it was)
   } faces_scan;
 };

@@ -212,6 +212,41 @@ TEST(Diagnose, PredictedFacesTakeTheScanAsGroundTruthAtItsDate) {
   CHECK_TRUE(j.at("prediction").at("faces_scan").at("applied").get<bool>());
 }
 
+TEST(Diagnose, AStuckSensorsStaleWearDoesNotSetTheScalesAtTheScan) {
+  // LDWN-2 stuck from day 20: its kept readings end there, so its wear "at" the day-60 scan would be
+  // day 20's. Left out of the scales at the scan: the predicted faces at day 90 stay close to the
+  // truth (the same campaign scanned at day 90).
+  lw::test::SyntheticSpec spec;
+  spec.seed = 5;
+  spec.stuck_sensor = "LDWN-2";
+  spec.stuck_from_day = 20;
+  spec.scan_day = 60;
+  const lw::test::TempDirectory tmp("lw-diag"), tmp_truth("lw-diag-truth");
+  lw::test::WriteSyntheticBundle(tmp.path(), spec);
+  spec.scan_day = 90;
+  lw::test::WriteSyntheticBundle(tmp_truth.path(), spec);
+  const lw::core::Bundle bundle = lw::core::LoadBundle(tmp.path());
+  const lw::core::Bundle later = lw::core::LoadBundle(tmp_truth.path());
+  const Eigen::VectorXd truth = lw::core::ProjectScanToFaces(later.map, later.scans.at(0)).wear_mm;
+  lw::diagnosis::DiagnoseOptions options;
+  options.try_pairs = false;
+  options.predict_at = lw::core::AddDays(bundle.crusher.installed_at, 90);
+  const auto r = lw::diagnosis::Diagnose(bundle, options);
+  CHECK_TRUE(HasIssue(r, "LDWN-2", "stuck"));
+  const auto& p = *r.prediction;
+  CHECK_TRUE(p.faces_scan.detail.empty());
+  LONGS_EQUAL(static_cast<long>(bundle.crusher.sensors.size()) - 1, static_cast<long>(p.faces_scan.sensors_used));
+  double ss = 0;
+  int n = 0;
+  for (Eigen::Index f = 0; f < truth.size(); ++f) {
+    if (!std::isfinite(truth[f])) continue;
+    ss += std::pow(p.face_wear_baseline_mm.at(static_cast<size_t>(f)) - truth[f], 2);
+    ++n;
+  }
+  CHECK_TRUE(n > truth.size() / 2);
+  CHECK_TRUE(std::sqrt(ss / n) < 2.0);
+}
+
 TEST(Diagnose, StuckSensorIsDataQualityNotPhysics) {
   lw::test::SyntheticSpec spec;
   spec.stuck_sensor = "LDWN-2";
