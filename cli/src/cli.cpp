@@ -217,9 +217,13 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   if (o.Has("at")) at = ParseTime(o.Get("at"), "at");
   const core::Bundle bundle = Load(o);
   // Wear from each sensor's latest reading at or before `at`: a reading n means [n, n+1) mm, so the
-  // estimate is n + 0.5 as the server's (docs/bundle.md); --lower-bound uses n itself (thinner).
-  const std::vector<core::SensorWear> wear = core::SensorWearAt(
-      bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), /*interval_centre=*/!o.Flag("lower_bound"));
+  // estimate is n + 0.5 as the server's (docs/bundle.md); --lower-bound uses n itself (thinner). A
+  // sensor whose latest reading lags the newest by more than 8 of its periods sets no scale, as in
+  // the server (docs/server.md).
+  std::vector<std::string> stale;
+  const std::vector<core::SensorWear> wear =
+      core::FreshSensorWearAt(bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), {}, &stale,
+                              /*interval_centre=*/!o.Flag("lower_bound"));
   if (wear.empty()) throw BadInput(bundle.dir.string() + "/readings.csv: no reading at or before the requested time");
   core::ReconstructionPlan plan = core::PrepareReconstruction(bundle.crusher, bundle.map);
   // The latest scan at or before `at` corrects the map between the sensors (docs/diagnosis.md).
@@ -227,9 +231,10 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   if (!o.Flag("no_scan")) {
     if (const core::Scan* latest = core::LatestScanAt(bundle.scans, at.value_or(core::TimePoint::max()))) {
       const core::ScanFaces sf = core::ProjectScanToFaces(bundle.map, *latest);
-      const core::ScanCorrection c = core::ApplyScan(
-          plan, sf,
-          core::SensorWearAt(bundle.crusher, bundle.readings, latest->date, /*interval_centre=*/!o.Flag("lower_bound")));
+      const core::ScanCorrection c =
+          core::ApplyScan(plan, sf,
+                          core::FreshSensorWearAt(bundle.crusher, bundle.readings, latest->date, {}, nullptr,
+                                                  /*interval_centre=*/!o.Flag("lower_bound")));
       char buf[320];
       if (c.detail.empty())
         std::snprintf(buf, sizeof buf,
@@ -251,6 +256,11 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
                 model.bandwidth_m, model.bandwidth_arc_m, model.bandwidth_method.c_str(), 100.0 * model.face_cv,
                 model.noise_source.c_str(), 100.0 * model.smoothing_error_rel, model.outlier_faces);
   out << line << scan_line;
+  if (!stale.empty()) {
+    out << "stale sensors (latest reading more than 8 reporting periods behind the newest; no row scale):";
+    for (const std::string& id : stale) out << ' ' << id;
+    out << '\n';
+  }
   out << "row        scale_mm/unit  mean_wear_mm  min_thickness_mm  band_mm (+/-2 sd)  at_z_m  at_theta_deg  sensors\n";
   for (const core::RowSummary& r : rec.rows) {
     std::snprintf(line, sizeof line, "%-10s %13.4f %13.2f %17.2f  %7.2f..%-7.2f  %7.3f %13.1f %8zu\n", r.row.c_str(),
@@ -280,6 +290,7 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
     j["min_thickness_band_mm"] = {num(rec.min_thickness_lo_mm), num(rec.min_thickness_hi_mm)};
     j["min_face"] = rec.min_face;
     j["worn_through_faces"] = rec.worn_through_faces;
+    j["sensors_stale"] = stale;
     j["map_model"] = {{"bandwidth_m", model.bandwidth_m},
                       {"bandwidth_arc_m", model.bandwidth_arc_m},
                       {"local_linear", model.local_linear},

@@ -86,16 +86,57 @@ std::vector<size_t> LatestReadingIndices(const CrusherConfig& crusher, const std
   return out;
 }
 
-std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
-                                     bool interval_centre) {
+namespace {
+
+std::vector<SensorWear> WearOf(const CrusherConfig& crusher, const std::vector<Reading>& readings,
+                               const std::vector<size_t>& indices, bool interval_centre) {
   std::vector<SensorWear> out;
-  for (const size_t i : LatestReadingIndices(crusher, readings, at)) {
+  for (const size_t i : indices) {
     const Reading& r = readings[i];
     const SensorInfo& s = *crusher.FindSensor(r.sensor_id);
     const double thickness = r.thickness_mm + (interval_centre ? 0.5 : 0.0);
     out.push_back({s.id, std::max(0.0, s.thickness_new_mm - thickness)});
   }
   return out;
+}
+
+}  // namespace
+
+std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
+                                     bool interval_centre) {
+  return WearOf(crusher, readings, LatestReadingIndices(crusher, readings, at), interval_centre);
+}
+
+std::vector<size_t> FreshReadingIndices(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
+                                        const Staleness& rule, std::vector<std::string>* stale) {
+  std::vector<size_t> latest = LatestReadingIndices(crusher, readings, at);
+  if (latest.empty()) return latest;
+  TimePoint newest = readings[latest.front()].time;
+  for (const size_t i : latest) newest = std::max(newest, readings[i].time);
+  std::map<std::string, std::vector<TimePoint>> times;
+  for (const Reading& r : readings) times[r.sensor_id].push_back(r.time);
+  std::erase_if(latest, [&](size_t i) {
+    std::vector<TimePoint>& t = times[readings[i].sensor_id];
+    std::sort(t.begin(), t.end());
+    const TimePoint from = AddDays(t.back(), -rule.history_days);
+    std::vector<double> gaps;
+    for (size_t k = 1; k < t.size(); ++k)
+      if (t[k - 1] >= from && t[k] > t[k - 1]) gaps.push_back(DaysBetween(t[k - 1], t[k]));
+    double typical = 0.0;
+    if (!gaps.empty()) {
+      std::nth_element(gaps.begin(), gaps.begin() + static_cast<std::ptrdiff_t>(gaps.size() / 2), gaps.end());
+      typical = gaps[gaps.size() / 2];
+    }
+    const bool old = DaysBetween(readings[i].time, newest) > std::max(rule.min_days, rule.periods * typical);
+    if (old && stale) stale->push_back(readings[i].sensor_id);
+    return old;
+  });
+  return latest;
+}
+
+std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
+                                          const Staleness& rule, std::vector<std::string>* stale, bool interval_centre) {
+  return WearOf(crusher, readings, FreshReadingIndices(crusher, readings, at, rule, stale), interval_centre);
 }
 
 ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const WearMap& map, const ReconstructionOptions& options) {

@@ -191,11 +191,11 @@ void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const 
     // The latest scan corrects the map between the sensors, as on the dashboard (server, reconstruct).
     std::string with_scan;
     if (const core::Scan* latest = core::LatestScanAt(bundle.scans, liner.now)) {
-      const core::ScanCorrection c =
-          core::ApplyScan(plan, core::ProjectScanToFaces(bundle.map, *latest), core::SensorWearAt(crusher, used, latest->date));
+      const core::ScanCorrection c = core::ApplyScan(plan, core::ProjectScanToFaces(bundle.map, *latest),
+                                                     core::FreshSensorWearAt(crusher, used, latest->date));
       if (c.detail.empty()) with_scan = ", the map corrected by scan " + latest->file;
     }
-    const std::vector<core::SensorWear> wear = core::SensorWearAt(crusher, used, liner.now);
+    const std::vector<core::SensorWear> wear = core::FreshSensorWearAt(crusher, used, liner.now);
     const core::Reconstruction rec = core::Reconstruct(plan, wear);
     if (rec.remaining_mm.size() == static_cast<Eigen::Index>(bundle.map.face_count())) {
       ThinnestPoint p;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/reconstruction.hpp"
 #include "sensor_steps.hpp"
 
 namespace lw::diagnosis::detail {
@@ -16,7 +17,8 @@ std::vector<QualityIssue> Dropouts(const std::vector<RawReading>& readings) {
     if (g > 0) gaps.push_back(g);
   }
   const double typical = Median(gaps);
-  const double limit = std::max(8.0 * typical, 1.0);
+  const core::Staleness rule;  // the live map's rule for a sensor too old to set a scale
+  const double limit = std::max(rule.periods * typical, rule.min_days);
   for (size_t i = 1; i < n; ++i) {
     const double g = readings[i].t_days - readings[i - 1].t_days;
     if (!gaps.empty() && g > limit) {

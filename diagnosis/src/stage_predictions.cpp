@@ -60,21 +60,10 @@ std::optional<FaceAnchor> AnchorAt(const PredictionInput& in, const std::vector<
   core::ReconstructionPlan plan = core::PrepareReconstruction(in.bundle.crusher, in.bundle.map, in.setup.fields.model);
   const core::ScanFaces sf = core::ProjectScanToFaces(in.bundle.map, *latest);
   a.scan_wear_mm = sf.wear_mm;
-  // The sensors' wear at the scan's date sets the row scales there. A sensor whose last kept
-  // reading is older than kStaleDays (a stuck or dead sensor's readings are not kept) would give
-  // its wear of that older day, too little, and bias its row's scale: it is left out.
-  constexpr double kStaleDays = 2.0;
-  std::vector<core::SensorWear> wear = core::SensorWearAt(in.bundle.crusher, used, latest->date);
-  std::erase_if(wear, [&](const core::SensorWear& w) {
-    core::TimePoint last{};
-    bool any = false;
-    for (const core::Reading& r : used)
-      if (r.sensor_id == w.sensor_id && r.time <= latest->date && (!any || r.time > last)) {
-        last = r.time;
-        any = true;
-      }
-    return !any || core::DaysBetween(last, latest->date) > kStaleDays;
-  });
+  // The sensors' wear at the scan's date sets the row scales there; a sensor whose last kept reading
+  // is stale then (a stuck or dead sensor's readings are not kept) would give the wear of that older
+  // day and bias its row's scale: core::FreshSensorWearAt leaves it out.
+  const std::vector<core::SensorWear> wear = core::FreshSensorWearAt(in.bundle.crusher, used, latest->date);
   report.sensors_used = wear.size();
   a.corr = core::ApplyScan(plan, sf, wear);
   report.file = latest->file;

@@ -97,7 +97,7 @@ std::shared_ptr<const ScannedPlan> Crusher::PlanWithScan(const std::vector<core:
       index = k;
     }
   if (!latest) return nullptr;
-  std::vector<core::SensorWear> wear = core::SensorWearAt(config, readings, latest->scan.date);
+  std::vector<core::SensorWear> wear = core::FreshSensorWearAt(config, readings, latest->scan.date);
   std::lock_guard<std::mutex> lock(scan_mutex_);
   const auto same = [&](const ScannedPlan& p) {
     if (p.scan != index || p.wear_at_scan.size() != wear.size()) return false;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 
 #include "core/time.hpp"
 #include "server/ingest.hpp"
@@ -49,9 +50,11 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
     st.time = std::max(st.time, FromUnix(r.time_s));
   }
   if (usable.empty()) return st;
-  st.sensor_wear = core::SensorWearAt(crusher.config, usable, st.time);
-  // The reading each sensor's wear came from: the same selection SensorWearAt makes.
-  for (const size_t i : core::LatestReadingIndices(crusher.config, usable, st.time)) st.used.push_back(*source[i]);
+  // A sensor whose latest reading lags the newest by more than 8 of its reporting periods (dead, or
+  // its radio lost) would give an old day's wear, too little: it sets no row scale (core::Staleness).
+  st.sensor_wear = core::FreshSensorWearAt(crusher.config, usable, st.time, {}, &st.stale);
+  // The reading each sensor's wear came from: the same selection FreshSensorWearAt makes.
+  for (const size_t i : core::FreshReadingIndices(crusher.config, usable, st.time)) st.used.push_back(*source[i]);
   // The crusher's newest laser scan corrects the map between the sensors (even when it is dated after
   // the latest reading: readings arrive late, a scan is the newest measurement of the pattern).
   st.scan = crusher.PlanWithScan(usable, core::TimePoint::max());
@@ -61,7 +64,16 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   for (const core::SensorInfo& s : crusher.config.sensors) {
     st.sensor_forecasts.push_back(core::ForecastSensor(crusher.config, s, usable));
   }
-  st.row_forecasts = core::ForecastRows(crusher.config, st.reconstruction, st.sensor_wear, st.sensor_forecasts, st.time);
+  // A row whose only sensors are stale still gets its reline date from their curves (each anchored
+  // at its own last reading); a row with a fresh sensor takes the fresh ones alone.
+  std::vector<core::SensorWear> forecast_wear = st.sensor_wear;
+  if (!st.stale.empty()) {
+    std::set<std::string> fresh_rows;
+    for (const core::SensorWear& w : st.sensor_wear) fresh_rows.insert(crusher.config.FindSensor(w.sensor_id)->row);
+    for (const core::SensorWear& w : core::SensorWearAt(crusher.config, usable, st.time))
+      if (!fresh_rows.contains(crusher.config.FindSensor(w.sensor_id)->row)) forecast_wear.push_back(w);
+  }
+  st.row_forecasts = core::ForecastRows(crusher.config, st.reconstruction, forecast_wear, st.sensor_forecasts, st.time);
   return st;
 }
 
@@ -158,6 +170,7 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
     j["scan"] = nullptr;
   }
   j["readings_used"] = ReadingsUsedJson(st);
+  j["sensors_stale"] = st.stale;
   j["note"] =
       "a reading n means thickness in [n, n+1) mm; estimates use n + 0.5; bands are +/-2 sd (map noise, "
       "sensor quantisation, row scale); remaining thickness is never below 0 (worn through)";

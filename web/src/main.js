@@ -161,13 +161,15 @@ async function crusherPage(crusherId, initialSensor) {
     const band = supported && Array.isArray(w.min_thickness_band_mm) ? w.min_thickness_band_mm : null;
     const left = supported ? (band ? band[0] : w.min_thickness_mm) - concave.thickness_min_mm : null;
     const worn = w?.worn_through_faces ? ` · ${w.worn_through_faces} face(s) worn through` : '';
+    // Sensors that stopped reporting set no row scale (docs/server.md, Global wear).
+    const stale = w?.sensors_stale?.length ? ` · not reporting, left out: ${w.sensors_stale.join(', ')}` : '';
     kpis.replaceChildren(
       h('div', { class: `card kpi${left != null && left < 10 ? ' alarm' : ''}`, 'data-testid': 'kpi-min' },
         h('div', { class: 'label' }, 'Thinnest point'),
         h('div', { class: 'value', 'data-value': supported ? w.min_thickness_mm : '' }, supported ? fmt(w.min_thickness_mm) : '–', ' ', h('small', {}, 'mm')),
         h('div', { class: 'detail', 'data-testid': 'kpi-min-band' }, !w ? 'no readings yet'
           : !supported ? `cannot be estimated: ${w.status_detail || 'no row scale'}`
-          : `${band ? `band ${fmt(band[0])}–${fmt(band[1])} mm · ` : ''}${w.min.row}, z ${fmt(w.min.z_m, 2)} m, θ ${fmt(w.min.theta_deg, 0)}° · ${left >= 0 ? `${fmt(left)} mm above` : `${fmt(-left)} mm below`} the minimum${worn}${w.status === 'unsupported' ? ' · band only: ' + (w.status_detail || '') : ''}`)),
+          : `${band ? `band ${fmt(band[0])}–${fmt(band[1])} mm · ` : ''}${w.min.row}, z ${fmt(w.min.z_m, 2)} m, θ ${fmt(w.min.theta_deg, 0)}° · ${left >= 0 ? `${fmt(left)} mm above` : `${fmt(-left)} mm below`} the minimum${worn}${stale}${w.status === 'unsupported' ? ' · band only: ' + (w.status_detail || '') : ''}`)),
       h('div', { class: 'card kpi', 'data-testid': 'kpi-reline' },
         h('div', { class: 'label' }, 'Next reline'),
         h('div', { class: 'value' }, next ? fmtDate(next.reach_date) : '–'),

@@ -104,6 +104,31 @@ std::vector<size_t> LatestReadingIndices(const CrusherConfig& crusher, const std
 std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
                                      bool interval_centre = true);
 
+/// When a sensor's latest reading is too old to set a row's scale: more than max(min_days, periods x
+/// the sensor's median interval between readings) before the newest reading of any sensor up to the
+/// time asked for (the diagnosis' dropout rule). A dead sensor, or one whose readings were all
+/// flagged since it stuck, would otherwise give the wear of that older day, too little, and scale
+/// its row's faces too thin a wear. The median interval is a property of the sensor: it is taken
+/// over its readings in the `history_days` up to its newest reading (whatever the time asked for),
+/// so the server's in-memory state (which keeps at least the last 21 days of each sensor) and a
+/// full recompute over every stored reading agree.
+struct Staleness {
+  double min_days = 1.0;
+  double periods = 8.0;
+  double history_days = 21.0;
+};
+
+/// LatestReadingIndices without the stale sensors (Staleness); their ids go to `stale` when given.
+/// The newest sensor is never stale, so a crusher with readings always keeps at least one.
+std::vector<size_t> FreshReadingIndices(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
+                                        const Staleness& rule = {}, std::vector<std::string>* stale = nullptr);
+
+/// SensorWearAt over FreshReadingIndices: the wear that sets the scales at `at` (live wear, a scan's
+/// correction at its date).
+std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
+                                          const Staleness& rule = {}, std::vector<std::string>* stale = nullptr,
+                                          bool interval_centre = true);
+
 /// Raw map intensity at each sensor position (area-weighted over faces within `radius_m` of it, or
 /// the nearest face when none is that close). Same order as crusher.sensors. (The reconstruction
 /// uses the map model instead; this is the simulator's truth model.)

@@ -21,6 +21,7 @@ struct CrusherState {
   core::TimePoint time{};           ///< latest reading used
   std::vector<StoredReading> used;  ///< the reading each sensor's wear came from
   std::vector<core::SensorWear> sensor_wear;
+  std::vector<std::string> stale;  ///< sensors whose latest reading is too old to set a scale
   core::Reconstruction reconstruction;
   std::shared_ptr<const ScannedPlan> scan;  ///< the scan applied (nullptr: the map alone)
   std::vector<core::SensorForecast> sensor_forecasts;

@@ -62,6 +62,37 @@ TEST(Reconstruction, SensorWearUsesTheIntervalCentreOfTheLatestReading) {
   DOUBLES_EQUAL(20.0, w[0].wear_mm, 1e-12);
 }
 
+// Both sensors report every 6 hours; 1002 dies on day 3 while 1001 goes on to day 10. Its latest
+// reading (day 3) is 7 days behind the newest, more than max(1 day, 8 x 0.25 days): stale.
+TEST(Reconstruction, ASensorWhoseReadingsStoppedSetsNoScale) {
+  const CrusherConfig c = TwoRows();
+  const auto t0 = *ParseIsoTime("2026-01-01");
+  std::vector<Reading> rs;
+  for (int k = 0; k <= 40; ++k) rs.push_back({AddDays(t0, 0.25 * k), "1001", 110.0 - 0.5 * k, 0});
+  for (int k = 0; k <= 12; ++k) rs.push_back({AddDays(t0, 0.25 * k), "1002", 115.0 - 0.25 * k, 0});
+  std::vector<std::string> stale;
+  const auto fresh = FreshSensorWearAt(c, rs, AddDays(t0, 10), {}, &stale);
+  LONGS_EQUAL(1, fresh.size());
+  STRCMP_EQUAL("1001", fresh[0].sensor_id.c_str());
+  LONGS_EQUAL(1, stale.size());
+  STRCMP_EQUAL("1002", stale[0].c_str());
+  LONGS_EQUAL(2, SensorWearAt(c, rs, AddDays(t0, 10)).size());  // the plain selection keeps both
+  // At day 3.5 both are fresh (1002's last reading is half a day old).
+  LONGS_EQUAL(2, FreshReadingIndices(c, rs, AddDays(t0, 3.5)).size());
+  // The reference is the newest reading, not the time asked for: a scan long after the last
+  // readings (the gateway was down) still finds both sensors at day 3.
+  std::vector<Reading> early;
+  for (const Reading& r : rs)
+    if (r.time <= AddDays(t0, 3)) early.push_back(r);
+  LONGS_EQUAL(2, FreshReadingIndices(c, early, AddDays(t0, 30)).size());
+  // A longer reporting period stretches the limit: with 2-day periods 7 days is within 8 periods.
+  std::vector<Reading> slow;
+  for (int k = 0; k <= 5; ++k) slow.push_back({AddDays(t0, 2.0 * k), "1001", 110.0 - k, 0});
+  slow.push_back({AddDays(t0, 3), "1002", 114, 0});
+  slow.push_back({AddDays(t0, 1), "1002", 115, 0});
+  LONGS_EQUAL(2, FreshReadingIndices(c, slow, AddDays(t0, 10)).size());
+}
+
 TEST(Reconstruction, SmoothingRemovesFaceNoiseButKeepsTheMean) {
   WearMap m = lw::test::CylinderMap(72, 40, [](double) { return 1.0; });
   for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] = (i % 2) ? 1.2 : 0.8;

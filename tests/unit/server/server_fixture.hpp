@@ -61,8 +61,8 @@ inline std::vector<server::Incoming> Messages(const core::Bundle& b, const std::
 inline core::Reconstruction OfflineLiveWear(const core::Bundle& b, core::TimePoint at) {
   core::ReconstructionPlan plan = core::PrepareReconstruction(b.crusher, b.map);
   if (const core::Scan* scan = core::LatestScanAt(b.scans, core::TimePoint::max()))
-    core::ApplyScan(plan, core::ProjectScanToFaces(b.map, *scan), core::SensorWearAt(b.crusher, b.readings, scan->date));
-  return core::Reconstruct(plan, core::SensorWearAt(b.crusher, b.readings, at));
+    core::ApplyScan(plan, core::ProjectScanToFaces(b.map, *scan), core::FreshSensorWearAt(b.crusher, b.readings, scan->date));
+  return core::Reconstruct(plan, core::FreshSensorWearAt(b.crusher, b.readings, at));
 }
 
 /// A server's worth of parts over the crusher folder `crushers` (a fresh database in a scratch

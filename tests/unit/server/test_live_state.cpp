@@ -33,6 +33,12 @@ int64_t Now() {
 std::vector<Incoming> Messages() {
   auto out = lw::test::Messages(Folder().bundle);
   const auto& b = Folder().bundle;
+  // A third sensor dies on day 60: stale (no row scale) both ways, from its readings before then.
+  const std::string dead = b.crusher.sensors.at(2).id;
+  const lw::core::TimePoint died = lw::core::AddDays(b.crusher.installed_at, 60);
+  std::erase_if(out, [&](const Incoming& m) {
+    return m.sensor == dead && lw::core::ParseIsoTime(json::parse(m.payload)["time"].get<std::string>()).value() > died;
+  });
   const auto add = [&](const std::string& sensor, int64_t seq, int64_t time_s, double mm, int loops, int flags) {
     const json j = {{"sensor", sensor},
                     {"seq", seq},
@@ -74,6 +80,9 @@ void CheckEqualsFullRecompute(const Crusher& c, const LiveState& live, Store& st
   CHECK_TRUE(full.has_wear);
   CHECK(full.scan != nullptr);
   CHECK(WearJson(full, true) == WearJson(incremental, true));
+  if (expect_pruned)  // all readings in: the sensor dead since day 60 is stale
+    CHECK_TEXT(full.stale == std::vector<std::string>{c.config.sensors.at(2).id},
+               WearJson(full, false)["sensors_stale"].dump().c_str());
   CHECK(ForecastJson(full) == ForecastJson(incremental));
   CHECK(live.LatestUsableTime(Folder().id()) == full.time.time_since_epoch().count());
   LONGS_EQUAL(store.CountReadings(Folder().id()), live.CountReadings(Folder().id()));

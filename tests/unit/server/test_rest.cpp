@@ -341,6 +341,79 @@ TEST(RestHandlers, AScanWithoutReadingsAtItsDateIsNamedNotApplied) {
   STRCMP_EQUAL(lw::core::FormatIsoTime(scan.date).c_str(), j["date"].get<std::string>().c_str());
 }
 
+// docs/server.md, *Global wear*: a sensor whose latest reading lags the newest by more than 8 of
+// its reporting periods (a dead sensor) sets no row scale and is named in `sensors_stale`. Its old
+// reading would give the wear of its last day, too little. The live wear must equal the wear
+// computed without that sensor at all, and differ from the one its stale wear would give.
+TEST(RestHandlers, ADeadSensorSetsNoRowScaleAndIsNamedStale) {
+  lw::test::CrusherFolder folder(10, 5);
+  const lw::core::Bundle& b = folder.bundle;
+  // A sensor that shares its row with another: the row keeps a scale without it.
+  std::string dead;
+  for (const auto& s : b.crusher.sensors) {
+    int in_row = 0;
+    for (const auto& o : b.crusher.sensors) in_row += o.row == s.row;
+    if (in_row >= 2) {
+      dead = s.id;
+      break;
+    }
+  }
+  CHECK(!dead.empty());
+  const lw::core::TimePoint cut = lw::core::AddDays(b.crusher.installed_at, 3.0);
+  json body = {{"readings", json::array()}};
+  lw::core::Bundle without = b;  // the same crusher with the dead sensor never reporting
+  std::erase_if(without.readings, [&](const lw::core::Reading& r) { return r.sensor_id == dead; });
+  std::vector<lw::core::Reading> posted_readings;
+  lw::core::TimePoint last{};
+  for (const auto& m : lw::test::Messages(b)) {
+    json r = json::parse(m.payload);
+    const lw::core::TimePoint t = lw::core::ParseIsoTime(r["time"].get<std::string>()).value();
+    if (r["sensor"] == dead && t > cut) continue;
+    body["readings"].push_back(r);
+    last = std::max(last, t);
+  }
+  for (const auto& r : b.readings)
+    if (r.sensor_id != dead || r.time <= cut) posted_readings.push_back(r);
+  ServerParts parts(folder.crushers, false);
+  rest::Resources resources(parts.ctx);
+  const std::string text = body.dump();  // Request::body is a view
+  rest::Request post;
+  post.path = {folder.id()};
+  post.body = text;
+  const rest::Response posted =
+      resources.Call(rest::Resources::Find(rest::Method::kPost, "/api/v1/crushers/{crusher}/readings"), post);
+  LONGS_EQUAL_TEXT(200, posted.status, posted.json.dump().substr(0, 500).c_str());
+  rest::Request get;
+  get.path = {folder.id()};
+  const rest::Response res = resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/wear"), get);
+  LONGS_EQUAL(200, res.status);
+  CHECK_TEXT(res.json["sensors_stale"] == json::array({dead}), res.json["sensors_stale"].dump().c_str());
+  for (const auto& u : res.json["readings_used"]) CHECK(u["sensor"] != dead);
+  LONGS_EQUAL(b.crusher.sensors.size() - 1, res.json["readings_used"].size());
+  const lw::core::Reconstruction expected = lw::test::OfflineLiveWear(without, last);
+  DOUBLES_EQUAL(expected.min_thickness_mm, res.json["min_thickness_mm"].get<double>(), 1e-3);
+  // The stale wear would have set the row's scale (at the scan's date and now): less wear there.
+  lw::core::ReconstructionPlan plan = lw::core::PrepareReconstruction(b.crusher, b.map);
+  const lw::core::Scan* scan = lw::core::LatestScanAt(b.scans, lw::core::TimePoint::max());
+  CHECK(scan != nullptr);
+  lw::core::ApplyScan(plan, lw::core::ProjectScanToFaces(b.map, *scan),
+                      lw::core::SensorWearAt(b.crusher, posted_readings, scan->date));
+  const lw::core::Reconstruction stale = lw::core::Reconstruct(plan, lw::core::SensorWearAt(b.crusher, posted_readings, last));
+  const std::string row = b.crusher.FindSensor(dead)->row;
+  for (size_t k = 0; k < stale.rows.size(); ++k) {
+    if (stale.rows[k].row != row) continue;
+    const double fresh = res.json["rows"][k]["mean_wear_mm"].get<double>();
+    DOUBLES_EQUAL(expected.rows[k].mean_wear_mm, fresh, 1e-3);
+    CHECK_TEXT(fresh > stale.rows[k].mean_wear_mm + 0.5,
+               (std::to_string(fresh) + " mm vs " + std::to_string(stale.rows[k].mean_wear_mm) + " mm stale").c_str());
+  }
+  // The row keeps its reline date from the fresh sensor.
+  const rest::Response forecast =
+      resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/forecast"), get);
+  for (const auto& r : forecast.json["rows"])
+    if (r["row"] == row) CHECK_TEXT(!r.contains("note"), r.dump().c_str());
+}
+
 TEST(RestHandlers, HealthMergesTheServersFieldsAndReportsDegraded) {
   Fixture f;
   rest::Response res = f.Get("/healthz", {});
