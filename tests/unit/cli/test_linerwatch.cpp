@@ -155,3 +155,33 @@ TEST(Linerwatch, ReconstructUsesTheIntervalCentreLikeTheServerAndLowerBoundOnReq
   CHECK(lower.min_thickness_mm <= centre.min_thickness_mm);
   CHECK(lower.min_thickness_mm >= 0.0);
 }
+
+// A sensor that stopped reporting sets no row scale, as in the server (docs/server.md, Global wear):
+// `reconstruct` names it and its result equals the bundle without that sensor's readings at all.
+TEST(Linerwatch, ReconstructLeavesOutASensorThatStoppedReporting) {
+  const fs::path b = Bundle();
+  lw::core::Bundle bundle = lw::core::LoadBundle(b);
+  const std::string dead = bundle.crusher.sensors.at(0).id;
+  lw::core::TimePoint first = bundle.readings.front().time, last = first;
+  for (const auto& r : bundle.readings) {
+    first = std::min(first, r.time);
+    last = std::max(last, r.time);
+  }
+  const lw::core::TimePoint cut = first + (last - first) / 2;
+  {
+    std::ofstream out(b / "readings.csv");
+    out << "time,sensor_id,thickness_mm\n";
+    for (const auto& r : bundle.readings)
+      if (r.sensor_id != dead || r.time <= cut)
+        out << lw::core::FormatIsoTime(r.time) << ',' << r.sensor_id << ',' << r.thickness_mm << '\n';
+  }
+  std::erase_if(bundle.readings, [&](const lw::core::Reading& r) { return r.sensor_id == dead; });
+  const Run a = Cli({"reconstruct", b.string(), "--no-scan", "--json", (dir / "a.json").string()});
+  LONGS_EQUAL(0, a.code);
+  CHECK_TEXT(a.out.find("stale sensors") != std::string::npos && a.out.find(dead) != std::string::npos, a.out.c_str());
+  const auto j = nlohmann::json::parse(Slurp(dir / "a.json"));
+  CHECK_TEXT(j["sensors_stale"] == nlohmann::json::array({dead}), j["sensors_stale"].dump().c_str());
+  const auto without = lw::core::Reconstruct(bundle.crusher, bundle.map,
+                                             lw::core::SensorWearAt(bundle.crusher, bundle.readings, lw::core::TimePoint::max()));
+  DOUBLES_EQUAL(without.min_thickness_mm, j["min_thickness_mm"].get<double>(), 1e-9);
+}
