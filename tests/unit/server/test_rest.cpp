@@ -54,6 +54,24 @@ struct Fixture {
   }
 };
 
+/// POST `body` (readings JSON) to `crusher`'s readings through `resources`; the response must be 200.
+void PostReadingsTo(rest::Resources& resources, const std::string& crusher, const json& body) {
+  const std::string text = body.dump();  // Request::body is a view
+  rest::Request post;
+  post.path = {crusher};
+  post.body = text;
+  const rest::Response posted =
+      resources.Call(rest::Resources::Find(rest::Method::kPost, "/api/v1/crushers/{crusher}/readings"), post);
+  LONGS_EQUAL_TEXT(200, posted.status, posted.json.dump().substr(0, 500).c_str());
+}
+
+/// GET `route` (a crusher route template) for `crusher` through `resources`.
+rest::Response GetFrom(rest::Resources& resources, const char* route, const std::string& crusher) {
+  rest::Request get;
+  get.path = {crusher};
+  return resources.Call(rest::Resources::Find(rest::Method::kGet, route), get);
+}
+
 std::string ErrorOf(const rest::Response& r) {
   return r.json.value("error", std::string("(no error)"));
 }
@@ -319,16 +337,8 @@ TEST(RestHandlers, AScanWithoutReadingsAtItsDateIsNamedNotApplied) {
     if (lw::core::ParseIsoTime(r["time"].get<std::string>()).value() > scan.date) body["readings"].push_back(r);
   }
   CHECK(!body["readings"].empty());
-  const std::string text = body.dump();  // Request::body is a view
-  rest::Request post;
-  post.path = {folder.id()};
-  post.body = text;
-  const rest::Response posted =
-      resources.Call(rest::Resources::Find(rest::Method::kPost, "/api/v1/crushers/{crusher}/readings"), post);
-  LONGS_EQUAL_TEXT(200, posted.status, posted.json.dump().substr(0, 500).c_str());
-  rest::Request get;
-  get.path = {folder.id()};
-  const rest::Response res = resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/wear"), get);
+  PostReadingsTo(resources, folder.id(), body);
+  const rest::Response res = GetFrom(resources, "/api/v1/crushers/{crusher}/wear", folder.id());
   LONGS_EQUAL(200, res.status);
   const json& j = res.json.at("scan");
   std::set<std::string> keys;
@@ -376,16 +386,8 @@ TEST(RestHandlers, ADeadSensorSetsNoRowScaleAndIsNamedStale) {
     if (r.sensor_id != dead || r.time <= cut) posted_readings.push_back(r);
   ServerParts parts(folder.crushers, false);
   rest::Resources resources(parts.ctx);
-  const std::string text = body.dump();  // Request::body is a view
-  rest::Request post;
-  post.path = {folder.id()};
-  post.body = text;
-  const rest::Response posted =
-      resources.Call(rest::Resources::Find(rest::Method::kPost, "/api/v1/crushers/{crusher}/readings"), post);
-  LONGS_EQUAL_TEXT(200, posted.status, posted.json.dump().substr(0, 500).c_str());
-  rest::Request get;
-  get.path = {folder.id()};
-  const rest::Response res = resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/wear"), get);
+  PostReadingsTo(resources, folder.id(), body);
+  const rest::Response res = GetFrom(resources, "/api/v1/crushers/{crusher}/wear", folder.id());
   LONGS_EQUAL(200, res.status);
   CHECK_TEXT(res.json["sensors_stale"] == json::array({dead}), res.json["sensors_stale"].dump().c_str());
   for (const auto& u : res.json["readings_used"]) CHECK(u["sensor"] != dead);
@@ -408,8 +410,7 @@ TEST(RestHandlers, ADeadSensorSetsNoRowScaleAndIsNamedStale) {
                (std::to_string(fresh) + " mm vs " + std::to_string(stale.rows[k].mean_wear_mm) + " mm stale").c_str());
   }
   // The row keeps its reline date from the fresh sensor.
-  const rest::Response forecast =
-      resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/forecast"), get);
+  const rest::Response forecast = GetFrom(resources, "/api/v1/crushers/{crusher}/forecast", folder.id());
   for (const auto& r : forecast.json["rows"])
     if (r["row"] == row) CHECK_TEXT(!r.contains("note"), r.dump().c_str());
 }
