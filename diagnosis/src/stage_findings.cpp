@@ -80,6 +80,8 @@ std::vector<Finding> ModelFindings(const Hypotheses& h, const ModelEval& null_ev
     nlohmann::ordered_json alternatives = nlohmann::ordered_json::object();
     for (size_t m = 0; m < singles; ++m) alternatives[evals[m].full.spec.Name()] = Round(evals[m].delta_bic, 2);
     f.evidence["alternatives_delta_bic"] = alternatives;
+    // Named over a better-scoring effect that it explains away in their joint fit (docs/diagnosis.md).
+    if (h.encompassed >= 0) f.evidence["explains_away"] = evals[static_cast<size_t>(h.encompassed)].full.spec.Name();
     findings.push_back(std::move(f));
   }
   return findings;

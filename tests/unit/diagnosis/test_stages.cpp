@@ -292,6 +292,56 @@ TEST(StageHypotheses, BestAcceptedAndPairCandidates) {
   CHECK_TRUE((d::PairCandidates(evals) == std::vector<size_t>{1, 3}));
 }
 
+// A hardness gradient case the information criterion gave to profile evolution (one parameter
+// against three; dem-heldout4): fitted together, the profile's drift falls to nothing while the
+// hardness gradient stays, and hardness alone predicts the held-out data better. The encompassing
+// rule names the hardness gradient; without either piece of evidence the choice stands.
+TEST(StageHypotheses, AnEffectExplainedAwayInTheJointFitGivesWayToTheOneThatExplainsIt) {
+  d::Hypotheses h;
+  const auto single = [](d::Effect e, double score, double ho_chi2) {
+    d::ModelEval ev;
+    ev.full.spec.effects = {e};
+    ev.accepted = true;
+    ev.score = score;
+    ev.ho_chi2 = ho_chi2;
+    return ev;
+  };
+  h.evals.push_back(single(d::Effect::kProfileEvolution, 79.9, 49.96));  // A, the best score
+  h.evals.push_back(single(d::Effect::kHardnessGradient, 75.3, 45.11));  // B
+  h.singles = 2;
+  d::ModelEval pair;
+  pair.full.spec.effects = {d::Effect::kProfileEvolution, d::Effect::kHardnessGradient};
+  const auto n = static_cast<Eigen::Index>(pair.full.spec.ParamCount());
+  pair.full.x = Eigen::VectorXd::Constant(n, 0.5);
+  pair.full.stderr_given_shape = Eigen::VectorXd::Constant(n, 0.01);
+  const int p = pair.full.spec.Offset(d::Effect::kProfileEvolution), g = pair.full.spec.Offset(d::Effect::kHardnessGradient);
+  pair.full.x[p] = -0.018;
+  pair.full.stderr_given_shape[p] = 0.09;  // 0.2 standard errors: explained away
+  pair.full.x[g] = 0.045;
+  pair.full.stderr_given_shape[g] = 0.0233;  // 1.93: kept
+  h.evals.push_back(pair);
+  h.pair_parts.push_back({0, 1});
+  h.best = 0;
+  LONGS_EQUAL(1, d::PreferEncompassing(h, 1.0, 0.0));
+  // B predicting the held-out data worse than A: A stands.
+  h.evals[1].ho_chi2 = 50.0;
+  LONGS_EQUAL(0, d::PreferEncompassing(h, 1.0, 0.0));
+  h.evals[1].ho_chi2 = 45.11;
+  // A keeping its size in the joint fit (both needed): A stands.
+  h.evals[2].full.stderr_given_shape[p] = 0.01;
+  LONGS_EQUAL(0, d::PreferEncompassing(h, 1.0, 0.0));
+  h.evals[2].full.stderr_given_shape[p] = 0.09;
+  // B not accepted on its own: A stands.
+  h.evals[1].accepted = false;
+  LONGS_EQUAL(0, d::PreferEncompassing(h, 1.0, 0.0));
+  h.evals[1].accepted = true;
+  // A pair chosen, or nothing chosen: unchanged.
+  h.best = 2;
+  LONGS_EQUAL(2, d::PreferEncompassing(h, 1.0, 0.0));
+  h.best = -1;
+  LONGS_EQUAL(-1, d::PreferEncompassing(h, 1.0, 0.0));
+}
+
 TEST(StageHypotheses, EffectSizeIsTestedWithItsShapeHeldAtTheFit) {
   // Row scale, h, log_tau: h and the time constant trade off (correlation 0.99).
   d::ModelSpec spec;
