@@ -81,7 +81,8 @@ std::vector<Finding> ModelFindings(const Hypotheses& h, const ModelEval& null_ev
     for (size_t m = 0; m < singles; ++m) alternatives[evals[m].full.spec.Name()] = Round(evals[m].delta_bic, 2);
     f.evidence["alternatives_delta_bic"] = alternatives;
     // Named over a better-scoring effect that it explains away in their joint fit (docs/diagnosis.md).
-    if (h.encompassed >= 0) f.evidence["explains_away"] = evals[static_cast<size_t>(h.encompassed)].full.spec.Name();
+    if (h.encompassing.explained_away >= 0)
+      f.evidence["explains_away"] = evals[static_cast<size_t>(h.encompassing.explained_away)].full.spec.Name();
     findings.push_back(std::move(f));
   }
   return findings;
@@ -219,6 +220,24 @@ std::vector<Finding> RankFindings(const FindingsInput& in) {
   for (Finding& f : MaterialLossFindings(s.sensors, in.bundle.crusher.installed_at)) findings.push_back(std::move(f));
   std::stable_sort(findings.begin(), findings.end(),
                    [](const Finding& a, const Finding& b) { return a.confidence > b.confidence; });
+  const Encompassing& enc = in.hypotheses.encompassing;
+  if (findings.empty() && enc.explained_away >= 0 && enc.best < 0) {
+    // The best-scoring effect fitted something real, but another effect the data cannot confirm
+    // explains it away: a mismatch without a determined cause (docs/diagnosis.md, encompassing).
+    Finding f = UnexplainedFinding(in.null.mismatch_z, in.hypotheses.evals);
+    const std::string a = in.hypotheses.evals[static_cast<size_t>(enc.explained_away)].full.spec.Name();
+    const std::string b = in.hypotheses.evals[static_cast<size_t>(enc.by)].full.spec.Name();
+    f.explanation =
+        Fmt("The recordings disagree with the DEM-based reconstruction in a way %s fits (delta BIC %.1f), but "
+            "fitted together with %s its effect falls to nothing while %s's stays, and %s alone predicts the "
+            "held-out data better; %s is not confirmed on its own. The cause is not determined: a later scan "
+            "or more months of readings will tell them apart.",
+            a.c_str(), in.hypotheses.evals[static_cast<size_t>(enc.explained_away)].delta_bic, b.c_str(), b.c_str(), b.c_str(),
+            b.c_str());
+    f.evidence["explained_away"] = a;
+    f.evidence["by"] = b;
+    findings.push_back(std::move(f));
+  }
   if (in.null.mismatch_z > th.mismatch_z && findings.empty())
     findings.push_back(UnexplainedFinding(in.null.mismatch_z, in.hypotheses.evals));
   return findings;

@@ -94,27 +94,34 @@ int BestAccepted(const std::vector<ModelEval>& evals) {
   return best;
 }
 
-int PreferEncompassing(const Hypotheses& h, double dispersion, double map_harmonic1_sd) {
+Encompassing PreferEncompassing(const Hypotheses& h, double dispersion, double map_harmonic1_sd) {
   constexpr double kExplainedAwaySe = 1.0;
-  if (h.best < 0 || static_cast<size_t>(h.best) >= h.singles) return h.best;
+  Encompassing out;
+  out.best = h.best;
+  if (h.best < 0 || static_cast<size_t>(h.best) >= h.singles) return out;
   const auto a = static_cast<size_t>(h.best);
   const ModelEval& ea = h.evals[a];
-  int chosen = h.best;
+  int accepted_b = -1, other_b = -1;
   for (size_t k = h.singles; k < h.evals.size(); ++k) {
     const auto [p, q] = h.pair_parts[k - h.singles];
     if (p != a && q != a) continue;
     const size_t b = p == a ? q : p;
     const ModelEval& eb = h.evals[b];
-    if (!eb.accepted || eb.ho_chi2 > ea.ho_chi2) continue;
+    if (eb.ho_chi2 > ea.ho_chi2) continue;
     const FitResult& joint = h.evals[k].full;
-    const Effect effect_a = ea.full.spec.effects[0], effect_b = eb.full.spec.effects[0];
     // Within one standard error of nothing once B is fitted, while B is not: A was B's shadow.
-    const double sig_a = Significance(joint, effect_a, dispersion, map_harmonic1_sd);
-    const double sig_b = Significance(joint, effect_b, dispersion, map_harmonic1_sd);
+    const double sig_a = Significance(joint, ea.full.spec.effects[0], dispersion, map_harmonic1_sd);
+    const double sig_b = Significance(joint, eb.full.spec.effects[0], dispersion, map_harmonic1_sd);
     if (!(sig_a < kExplainedAwaySe && sig_b >= kExplainedAwaySe)) continue;
-    if (chosen == h.best || eb.score > h.evals[static_cast<size_t>(chosen)].score) chosen = static_cast<int>(b);
+    int& slot = eb.accepted ? accepted_b : other_b;
+    if (slot < 0 || eb.score > h.evals[static_cast<size_t>(slot)].score) slot = static_cast<int>(b);
   }
-  return chosen;
+  if (accepted_b >= 0 || other_b >= 0) {
+    out.explained_away = h.best;
+    out.by = accepted_b >= 0 ? accepted_b : other_b;
+    out.best = accepted_b;  // -1: what A fitted is real, but no effect is determined
+  }
+  return out;
 }
 
 Hypotheses TestHypotheses(const Problem& prob, const Baseline& base, const NullModel& null, const std::vector<Fold>& folds,
@@ -154,9 +161,8 @@ Hypotheses TestHypotheses(const Problem& prob, const Baseline& base, const NullM
   for (ModelEval& ev : evals) judge(ev);
   ApplyPairRules(h, null.log_n);
   h.best = BestAccepted(evals);
-  const int by_score = h.best;
-  h.best = PreferEncompassing(h, h.dispersion, prob.map_harmonic1_sd);
-  if (h.best != by_score) h.encompassed = by_score;
+  h.encompassing = PreferEncompassing(h, h.dispersion, prob.map_harmonic1_sd);
+  h.best = h.encompassing.best;
   return h;
 }
 

@@ -12,13 +12,20 @@
 
 namespace lw::diagnosis::detail {
 
+/// What the encompassing rule (PreferEncompassing) decided.
+struct Encompassing {
+  int best = -1;            ///< the chosen model after the rule
+  int explained_away = -1;  ///< the best-scoring single effect, explained away by `by` in their joint fit, or -1
+  int by = -1;              ///< the single effect that explains it away (accepted: it is `best`; not: nothing is named)
+};
+
 struct Hypotheses {
   std::vector<ModelEval> evals;                       ///< single effects (in Effect order), then pairs
   size_t singles = 0;                                 ///< how many of `evals` are single effects
   std::vector<std::pair<size_t, size_t>> pair_parts;  ///< per pair (evals[singles + k]): its single effects
-  double dispersion = 1;  ///< best reduced chi-square, at least 1: every chi-square gain is divided by it
-  int best = -1;          ///< index of the chosen model in `evals`, -1 when none is accepted
-  int encompassed = -1;   ///< the single effect with the best score that `best` explains away (PreferEncompassing), or -1
+  double dispersion = 1;      ///< best reduced chi-square, at least 1: every chi-square gain is divided by it
+  int best = -1;              ///< index of the chosen model in `evals`, -1 when none is accepted
+  Encompassing encompassing;  ///< the encompassing rule's decision (PreferEncompassing)
   const ModelEval* Chosen() const { return best >= 0 ? &evals[static_cast<size_t>(best)] : nullptr; }
 };
 
@@ -44,13 +51,15 @@ void ApplyPairRules(Hypotheses& h, double log_n);
 /// The accepted model with the highest score, -1 when none.
 int BestAccepted(const std::vector<ModelEval>& evals);
 
-/// Encompassing: when the chosen model `h.best` is a single effect A and another accepted single
-/// effect B, fitted together with A (their pair), keeps its size at least one standard error from
-/// zero while A's falls within one (B explains what A fitted; A does not explain B), and B alone
-/// predicts the held-out data at least as well as A alone, B is the explanation. Returns B's index (the best-scoring such B),
-/// else h.best. Information criteria prefer the effect with fewer parameters when two fit alike; the joint fit and the held-out
-/// data say which one the data need.
-int PreferEncompassing(const Hypotheses& h, double dispersion, double map_harmonic1_sd);
+/// Encompassing: when the chosen model `h.best` is a single effect A and another single effect B,
+/// fitted together with A (their pair), keeps its size at least one standard error from zero while
+/// A's falls within one (B explains what A fitted; A does not explain B), and B alone predicts the
+/// held-out data at least as well as A alone, A is not the explanation. If B is accepted on its own,
+/// B is (the best-scoring such B); if not, nothing is named (`best` -1, `unexplained`): the mismatch
+/// A fitted is real, but which effect it is the data do not determine. Information criteria prefer
+/// the effect with fewer parameters when two fit alike; the joint fit and the held-out data say
+/// which one the data need.
+Encompassing PreferEncompassing(const Hypotheses& h, double dispersion, double map_harmonic1_sd);
 
 /// The whole stage (writes noise["dispersion"]).
 Hypotheses TestHypotheses(const Problem& prob, const Baseline& base, const NullModel& null, const std::vector<Fold>& folds,

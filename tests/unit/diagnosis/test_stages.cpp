@@ -322,24 +322,30 @@ TEST(StageHypotheses, AnEffectExplainedAwayInTheJointFitGivesWayToTheOneThatExpl
   h.evals.push_back(pair);
   h.pair_parts.push_back({0, 1});
   h.best = 0;
-  LONGS_EQUAL(1, d::PreferEncompassing(h, 1.0, 0.0));
+  d::Encompassing e = d::PreferEncompassing(h, 1.0, 0.0);
+  LONGS_EQUAL(1, e.best);
+  LONGS_EQUAL(0, e.explained_away);
+  LONGS_EQUAL(1, e.by);
   // B predicting the held-out data worse than A: A stands.
   h.evals[1].ho_chi2 = 50.0;
-  LONGS_EQUAL(0, d::PreferEncompassing(h, 1.0, 0.0));
+  LONGS_EQUAL(0, d::PreferEncompassing(h, 1.0, 0.0).best);
   h.evals[1].ho_chi2 = 45.11;
   // A keeping its size in the joint fit (both needed): A stands.
   h.evals[2].full.stderr_given_shape[p] = 0.01;
-  LONGS_EQUAL(0, d::PreferEncompassing(h, 1.0, 0.0));
+  LONGS_EQUAL(0, d::PreferEncompassing(h, 1.0, 0.0).best);
   h.evals[2].full.stderr_given_shape[p] = 0.09;
-  // B not accepted on its own: A stands.
+  // B not accepted on its own: nothing is named (what A fitted is real, its cause not determined).
   h.evals[1].accepted = false;
-  LONGS_EQUAL(0, d::PreferEncompassing(h, 1.0, 0.0));
+  e = d::PreferEncompassing(h, 1.0, 0.0);
+  LONGS_EQUAL(-1, e.best);
+  LONGS_EQUAL(0, e.explained_away);
+  LONGS_EQUAL(1, e.by);
   h.evals[1].accepted = true;
   // A pair chosen, or nothing chosen: unchanged.
   h.best = 2;
-  LONGS_EQUAL(2, d::PreferEncompassing(h, 1.0, 0.0));
+  LONGS_EQUAL(2, d::PreferEncompassing(h, 1.0, 0.0).best);
   h.best = -1;
-  LONGS_EQUAL(-1, d::PreferEncompassing(h, 1.0, 0.0));
+  LONGS_EQUAL(-1, d::PreferEncompassing(h, 1.0, 0.0).best);
 }
 
 TEST(StageHypotheses, EffectSizeIsTestedWithItsShapeHeldAtTheFit) {
