@@ -86,10 +86,8 @@ std::vector<size_t> LatestReadingIndices(const CrusherConfig& crusher, const std
   return out;
 }
 
-namespace {
-
-std::vector<SensorWear> WearOf(const CrusherConfig& crusher, const std::vector<Reading>& readings,
-                               const std::vector<size_t>& indices, bool interval_centre) {
+std::vector<SensorWear> SensorWearFrom(const CrusherConfig& crusher, const std::vector<Reading>& readings,
+                                       const std::vector<size_t>& indices, bool interval_centre) {
   std::vector<SensorWear> out;
   for (const size_t i : indices) {
     const Reading& r = readings[i];
@@ -100,11 +98,9 @@ std::vector<SensorWear> WearOf(const CrusherConfig& crusher, const std::vector<R
   return out;
 }
 
-}  // namespace
-
 std::vector<SensorWear> SensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
                                      bool interval_centre) {
-  return WearOf(crusher, readings, LatestReadingIndices(crusher, readings, at), interval_centre);
+  return SensorWearFrom(crusher, readings, LatestReadingIndices(crusher, readings, at), interval_centre);
 }
 
 std::vector<size_t> FreshReadingIndices(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
@@ -136,7 +132,7 @@ std::vector<size_t> FreshReadingIndices(const CrusherConfig& crusher, const std:
 
 std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
                                           const Staleness& rule, std::vector<std::string>* stale, bool interval_centre) {
-  return WearOf(crusher, readings, FreshReadingIndices(crusher, readings, at, rule, stale), interval_centre);
+  return SensorWearFrom(crusher, readings, FreshReadingIndices(crusher, readings, at, rule, stale), interval_centre);
 }
 
 ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const WearMap& map, const ReconstructionOptions& options) {

@@ -52,9 +52,9 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   if (usable.empty()) return st;
   // A sensor whose latest reading lags the newest by more than 8 of its reporting periods (dead, or
   // its radio lost) would give an old day's wear, too little: it sets no row scale (core::Staleness).
-  st.sensor_wear = core::FreshSensorWearAt(crusher.config, usable, st.time, {}, &st.stale);
-  // The reading each sensor's wear came from: the same selection FreshSensorWearAt makes.
-  for (const size_t i : core::FreshReadingIndices(crusher.config, usable, st.time)) st.used.push_back(*source[i]);
+  const std::vector<size_t> fresh = core::FreshReadingIndices(crusher.config, usable, st.time, {}, &st.stale);
+  st.sensor_wear = core::SensorWearFrom(crusher.config, usable, fresh);
+  for (const size_t i : fresh) st.used.push_back(*source[i]);  // the reading each sensor's wear came from
   // The crusher's newest laser scan corrects the map between the sensors (even when it is dated after
   // the latest reading: readings arrive late, a scan is the newest measurement of the pattern).
   st.scan = crusher.PlanWithScan(usable, core::TimePoint::max());

@@ -123,6 +123,11 @@ struct Staleness {
 std::vector<size_t> FreshReadingIndices(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
                                         const Staleness& rule = {}, std::vector<std::string>* stale = nullptr);
 
+/// Wear per sensor from the readings at `indices` (one per sensor, as LatestReadingIndices or
+/// FreshReadingIndices select them): wear = thickness_new - (reading + 0.5 when interval_centre).
+std::vector<SensorWear> SensorWearFrom(const CrusherConfig& crusher, const std::vector<Reading>& readings,
+                                       const std::vector<size_t>& indices, bool interval_centre = true);
+
 /// SensorWearAt over FreshReadingIndices: the wear that sets the scales at `at` (live wear, a scan's
 /// correction at its date).
 std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
