@@ -86,7 +86,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   const detail::FitResult& model_fit = use_improved ? (chosen ? chosen->full : null.fit) : base.eq9;
 
   if (result.mismatch_detected) result.regions = detail::FindRegions(bundle, setup, null);
-  detail::Predict({bundle, options, setup, base, null, model_fit, use_improved}, result);
+  detail::Predict({bundle, options, setup, base, null, model_fit, use_improved, chosen != nullptr}, result);
 
   std::stable_sort(result.data_quality.begin(), result.data_quality.end(),
                    [](const DataQualityIssue& a, const DataQualityIssue& b) {

@@ -232,7 +232,8 @@ Prediction PredictAt(const PredictionInput& in, const std::vector<ModelPoint>& f
   const std::optional<FaceAnchor> anchor = AnchorAt(in, face_points, used, at, pred.faces_scan);
   const FaceAnchor* a = anchor ? &*anchor : nullptr;
   const Eigen::VectorXd fb = ModelFaceWear(in.base.spec, in.base.eq9.x, face_points, grid, t, a, thickness_new_mm);
-  const Eigen::VectorXd fi = ModelFaceWear(in.model.spec, in.model.x, face_points, grid, t, a, thickness_new_mm);
+  const Eigen::VectorXd fi =
+      in.model_has_findings ? ModelFaceWear(in.model.spec, in.model.x, face_points, grid, t, a, thickness_new_mm) : fb;
   pred.face_wear_baseline_mm.assign(fb.data(), fb.data() + fb.size());
   pred.face_wear_improved_mm.assign(fi.data(), fi.data() + fi.size());
   return pred;
@@ -251,7 +252,7 @@ void Predict(const PredictionInput& in, DiagnosisResult& result) {
   FillLinerReport(
       in.bundle, in.setup.fields, in.setup.scans,
       [&](bool improved, double t) {
-        return improved
+        return improved && in.model_has_findings
                    ? ModelFaceWear(in.model.spec, in.model.x, face_points, in.setup.prob.grid, t, nullptr, thickness_new_mm)
                    : ModelFaceWear(in.base.spec, in.base.eq9.x, face_points, in.setup.prob.grid, t, nullptr, thickness_new_mm);
       },

@@ -19,6 +19,11 @@ struct PredictionInput {
   const NullModel& null;      ///< the refit baseline (residual grids "before")
   const FitResult& model;     ///< the improved model: the chosen one, else the refit baseline, else Eq. 9
   bool use_improved = false;  ///< a model was chosen or something found: intensity errors and material loss applied
+  /// Whether `model` carries findings (physics). Without, the improved faces are Eq. 9's: the refit
+  /// baseline's gain is its per-sensor map-noise terms, known at the sensors only, and its row scales,
+  /// weighted by those terms, carried the sensors' own misfit to the faces of their rows (measured
+  /// worse than Eq. 9's away from the sensors on five of six real-map libraries; docs/diagnosis.md).
+  bool model_has_findings = false;
 };
 
 /// The model point of every configured sensor (configuration order).

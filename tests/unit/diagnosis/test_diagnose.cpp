@@ -55,6 +55,17 @@ TEST(Diagnose, NullCampaignHasNoFindingAndNoMismatch) {
   // which fits the recordings at least as well as plain Eq. 9.
   STRCMP_EQUAL("refit_baseline", lw::diagnosis::ImprovedModelName(r.improved_model));
   CHECK_TRUE(r.improved.rmse_mm <= r.baseline.rmse_mm);
+  // Its gain is at the sensors (their own map-noise terms); away from them no physics was added,
+  // so the predicted faces are Eq. 9's, face for face.
+  CHECK_TRUE(r.prediction.has_value());
+  const auto& p = *r.prediction;
+  LONGS_EQUAL(p.face_wear_baseline_mm.size(), p.face_wear_improved_mm.size());
+  CHECK_TRUE(!p.face_wear_baseline_mm.empty());
+  for (size_t f = 0; f < p.face_wear_baseline_mm.size(); ++f)
+    DOUBLES_EQUAL(p.face_wear_baseline_mm[f], p.face_wear_improved_mm[f], 0.0);
+  bool sensors_differ = false;
+  for (const auto& s : p.sensors) sensors_differ |= std::fabs(s.improved_thickness_mm - s.baseline_thickness_mm) > 1e-6;
+  CHECK_TRUE(sensors_differ);
 }
 
 TEST(Diagnose, WorkHardeningIsNamedWithSaturationTime) {
