@@ -218,12 +218,13 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   const core::Bundle bundle = Load(o);
   // Wear from each sensor's latest reading at or before `at`: a reading n means [n, n+1) mm, so the
   // estimate is n + 0.5 as the server's (docs/bundle.md); --lower-bound uses n itself (thinner). A
-  // sensor whose latest reading lags the newest by more than 8 of its periods sets no scale, as in
-  // the server (docs/server.md).
-  std::vector<std::string> stale;
-  const std::vector<core::SensorWear> wear =
-      core::FreshSensorWearAt(bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), {}, &stale,
-                              /*interval_centre=*/!o.Flag("lower_bound"));
+  // sensor whose latest reading lags the newest by more than 8 of its periods, or that reports one
+  // value while its row wears, sets no scale, as in the server (docs/server.md).
+  std::vector<std::string> stale, stuck;
+  const std::vector<core::SensorWear> wear = core::SensorWearFrom(
+      bundle.crusher, bundle.readings,
+      core::LiveReadingIndices(bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), &stale, &stuck),
+      /*interval_centre=*/!o.Flag("lower_bound"));
   if (wear.empty()) throw BadInput(bundle.dir.string() + "/readings.csv: no reading at or before the requested time");
   core::ReconstructionPlan plan = core::PrepareReconstruction(bundle.crusher, bundle.map);
   // The latest scan at or before `at` corrects the map between the sensors (docs/diagnosis.md).
@@ -261,6 +262,11 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
     for (const std::string& id : stale) out << ' ' << id;
     out << '\n';
   }
+  if (!stuck.empty()) {
+    out << "stuck sensors (one value while the other sensors of their row wore 8 mm or more; no row scale):";
+    for (const std::string& id : stuck) out << ' ' << id;
+    out << '\n';
+  }
   out << "row        scale_mm/unit  mean_wear_mm  min_thickness_mm  band_mm (+/-2 sd)  at_z_m  at_theta_deg  sensors\n";
   for (const core::RowSummary& r : rec.rows) {
     std::snprintf(line, sizeof line, "%-10s %13.4f %13.2f %17.2f  %7.2f..%-7.2f  %7.3f %13.1f %8zu\n", r.row.c_str(),
@@ -291,6 +297,7 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
     j["min_face"] = rec.min_face;
     j["worn_through_faces"] = rec.worn_through_faces;
     j["sensors_stale"] = stale;
+    j["sensors_stuck"] = stuck;
     j["map_model"] = {{"bandwidth_m", model.bandwidth_m},
                       {"bandwidth_arc_m", model.bandwidth_arc_m},
                       {"local_linear", model.local_linear},

@@ -130,6 +130,71 @@ std::vector<size_t> FreshReadingIndices(const CrusherConfig& crusher, const std:
   return latest;
 }
 
+namespace {
+
+// A sensor's readings in its last `history_days` up to `latest` (time, thickness), by time; at one
+// time the thicker first, so that the last is the one LatestReadingIndices selects.
+using Series = std::vector<std::pair<TimePoint, double>>;
+
+// The wear a series shows gradually between `from` and `to`: falls of its running minimum of at most
+// max_step_mm, from its last point at or before `from` (else its first) to its last at or before `to`.
+double GradualDrop(const Series& s, TimePoint from, TimePoint to, double max_step_mm) {
+  size_t k = 0;
+  for (size_t j = 0; j < s.size() && s[j].first <= from; ++j) k = j;
+  if (s.empty() || s[k].first > to) return 0.0;
+  double low = s[k].second, drop = 0.0;
+  for (size_t j = k + 1; j < s.size() && s[j].first <= to; ++j) {
+    if (s[j].second >= low) continue;
+    if (low - s[j].second <= max_step_mm) drop += low - s[j].second;
+    low = s[j].second;
+  }
+  return drop;
+}
+
+}  // namespace
+
+std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std::vector<Reading>& readings,
+                                        std::vector<size_t> indices, const StuckRule& rule, std::vector<std::string>* stuck) {
+  std::map<std::string, size_t> selected;  // sensor -> its reading in `indices`
+  for (const size_t i : indices) selected[readings[i].sensor_id] = i;
+  std::map<std::string, Series> series;
+  for (const Reading& r : readings) {
+    const auto it = selected.find(r.sensor_id);
+    if (it == selected.end()) continue;
+    const TimePoint latest = readings[it->second].time;
+    if (r.time > latest || r.time < AddDays(latest, -rule.history_days)) continue;
+    series[r.sensor_id].emplace_back(r.time, r.thickness_mm);
+  }
+  for (auto& [id, s] : series)
+    std::sort(s.begin(), s.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first || (a.first == b.first && a.second > b.second); });
+  std::erase_if(indices, [&](size_t i) {
+    const Reading& r = readings[i];
+    if (r.thickness_mm < 1.0) return false;  // consumed: its wear is the whole sensor, and more
+    const Series& s = series[r.sensor_id];
+    size_t flat = 0;
+    while (flat < s.size() && s[s.size() - 1 - flat].second == r.thickness_mm) ++flat;
+    if (flat < rule.min_readings) return false;
+    const TimePoint from = s[s.size() - flat].first;
+    const std::string& row = crusher.FindSensor(r.sensor_id)->row;
+    std::vector<double> drops;
+    for (const auto& [id, j] : selected)
+      if (id != r.sensor_id && crusher.FindSensor(id)->row == row)
+        drops.push_back(GradualDrop(series[id], from, r.time, rule.max_step_mm));
+    if (drops.empty()) return false;
+    std::sort(drops.begin(), drops.end());
+    const bool is_stuck = drops[(drops.size() - 1) / 2] >= rule.drop_mm;
+    if (is_stuck && stuck) stuck->push_back(r.sensor_id);
+    return is_stuck;
+  });
+  return indices;
+}
+
+std::vector<size_t> LiveReadingIndices(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
+                                       std::vector<std::string>* stale, std::vector<std::string>* stuck) {
+  return WithoutStuckSensors(crusher, readings, FreshReadingIndices(crusher, readings, at, {}, stale), {}, stuck);
+}
+
 std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
                                           const Staleness& rule, std::vector<std::string>* stale, bool interval_centre) {
   return SensorWearFrom(crusher, readings, FreshReadingIndices(crusher, readings, at, rule, stale), interval_centre);

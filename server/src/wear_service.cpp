@@ -51,8 +51,9 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   }
   if (usable.empty()) return st;
   // A sensor whose latest reading lags the newest by more than 8 of its reporting periods (dead, or
-  // its radio lost) would give an old day's wear, too little: it sets no row scale (core::Staleness).
-  const std::vector<size_t> fresh = core::FreshReadingIndices(crusher.config, usable, st.time, {}, &st.stale);
+  // its radio lost) would give an old day's wear, too little: it sets no row scale (core::Staleness);
+  // nor does one that keeps reporting one value while its row wears (core::StuckRule).
+  const std::vector<size_t> fresh = core::LiveReadingIndices(crusher.config, usable, st.time, &st.stale, &st.stuck);
   st.sensor_wear = core::SensorWearFrom(crusher.config, usable, fresh);
   for (const size_t i : fresh) st.used.push_back(*source[i]);  // the reading each sensor's wear came from
   // The crusher's newest laser scan corrects the map between the sensors (even when it is dated after
@@ -171,6 +172,7 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
   }
   j["readings_used"] = ReadingsUsedJson(st);
   j["sensors_stale"] = st.stale;
+  j["sensors_stuck"] = st.stuck;
   j["note"] =
       "a reading n means thickness in [n, n+1) mm; estimates use n + 0.5; bands are +/-2 sd (map noise, "
       "sensor quantisation, row scale); remaining thickness is never below 0 (worn through)";

@@ -162,7 +162,8 @@ async function crusherPage(crusherId, initialSensor) {
     const left = supported ? (band ? band[0] : w.min_thickness_mm) - concave.thickness_min_mm : null;
     const worn = w?.worn_through_faces ? ` · ${w.worn_through_faces} face(s) worn through` : '';
     // Sensors that stopped reporting set no row scale (docs/server.md, Global wear).
-    const stale = w?.sensors_stale?.length ? ` · not reporting, left out: ${w.sensors_stale.join(', ')}` : '';
+    const stale = (w?.sensors_stale?.length ? ` · not reporting, left out: ${w.sensors_stale.join(', ')}` : '') +
+      (w?.sensors_stuck?.length ? ` · stuck (value not moving while its row wears), left out: ${w.sensors_stuck.join(', ')}` : '');
     kpis.replaceChildren(
       h('div', { class: `card kpi${left != null && left < 10 ? ' alarm' : ''}`, 'data-testid': 'kpi-min' },
         h('div', { class: 'label' }, 'Thinnest point'),

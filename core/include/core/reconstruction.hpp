@@ -134,6 +134,37 @@ std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const st
                                           const Staleness& rule = {}, std::vector<std::string>* stale = nullptr,
                                           bool interval_centre = true);
 
+/// When a sensor that keeps reporting is stuck ("stuck value": moisture bridging its loops, a
+/// frozen shift register): its value has not moved over its last `min_readings` or more readings
+/// while the other sensors of its row that set a scale wore, over the same days, at least `drop_mm`
+/// (their median; with two, the smaller). A sensor's wear there is read gradually, through the
+/// running minimum of its thickness: a fall of more than `max_step_mm` between two readings (a
+/// spall, a crack cutting loops early) does not count, nor does a loop that reads intact again.
+/// Wear rates differ within a row (along z, around the crusher) by up to two or three on real maps;
+/// 8 mm in a mate still means loops the stuck sensor should have lost. Only each sensor's readings in
+/// the `history_days` up to its latest count (what the server keeps in memory), so the server's state
+/// and a full recompute agree. A sensor with no other sensor in its row setting a scale, or one at
+/// 0 mm (consumed), is not judged.
+struct StuckRule {
+  double drop_mm = 8.0;
+  size_t min_readings = 3;
+  double max_step_mm = 2.0;
+  double history_days = 21.0;
+};
+
+/// `indices` (one reading per sensor, as FreshReadingIndices selects them) without the stuck sensors
+/// (StuckRule); their ids go to `stuck` when given.
+std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std::vector<Reading>& readings,
+                                        std::vector<size_t> indices, const StuckRule& rule = {},
+                                        std::vector<std::string>* stuck = nullptr);
+
+/// The readings that set the live map's scales at `at`: FreshReadingIndices, then WithoutStuckSensors
+/// (the server's live wear, `linerwatch reconstruct`, the report's live map). The scan's correction at
+/// its date uses FreshReadingIndices alone: what the server keeps of the days before a scan is each
+/// sensor's reading at its date, not its history.
+std::vector<size_t> LiveReadingIndices(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
+                                       std::vector<std::string>* stale = nullptr, std::vector<std::string>* stuck = nullptr);
+
 /// Raw map intensity at each sensor position (area-weighted over faces within `radius_m` of it, or
 /// the nearest face when none is that close). Same order as crusher.sensors. (The reconstruction
 /// uses the map model instead; this is the simulator's truth model.)

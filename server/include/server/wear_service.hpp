@@ -22,6 +22,7 @@ struct CrusherState {
   std::vector<StoredReading> used;  ///< the reading each sensor's wear came from
   std::vector<core::SensorWear> sensor_wear;
   std::vector<std::string> stale;  ///< sensors whose latest reading is too old to set a scale
+  std::vector<std::string> stuck;  ///< sensors reporting one value while their row wears (core::StuckRule)
   core::Reconstruction reconstruction;
   std::shared_ptr<const ScannedPlan> scan;  ///< the scan applied (nullptr: the map alone)
   std::vector<core::SensorForecast> sensor_forecasts;

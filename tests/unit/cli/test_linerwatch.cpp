@@ -2,6 +2,7 @@
 // output file), diagnose outputs (JSON keys, HTML, prediction VTK), --config equivalence.
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -181,6 +182,50 @@ TEST(Linerwatch, ReconstructLeavesOutASensorThatStoppedReporting) {
   CHECK_TEXT(a.out.find("stale sensors") != std::string::npos && a.out.find(dead) != std::string::npos, a.out.c_str());
   const auto j = nlohmann::json::parse(Slurp(dir / "a.json"));
   CHECK_TEXT(j["sensors_stale"] == nlohmann::json::array({dead}), j["sensors_stale"].dump().c_str());
+  const auto without = lw::core::Reconstruct(bundle.crusher, bundle.map,
+                                             lw::core::SensorWearAt(bundle.crusher, bundle.readings, lw::core::TimePoint::max()));
+  DOUBLES_EQUAL(without.min_thickness_mm, j["min_thickness_mm"].get<double>(), 1e-9);
+}
+
+// A sensor whose value stops moving while the others of its row wear on (stuck) sets no row scale
+// either: `reconstruct` names it and equals the bundle without that sensor's readings.
+TEST(Linerwatch, ReconstructLeavesOutAStuckSensor) {
+  const fs::path b = Bundle();
+  lw::core::Bundle bundle = lw::core::LoadBundle(b);
+  std::string stuck;  // the last sensor of the fastest-wearing row that has others
+  std::map<std::string, int> in_row;
+  for (const auto& s : bundle.crusher.sensors) ++in_row[s.row];
+  lw::core::TimePoint last = bundle.readings.front().time;
+  std::map<std::string, double> first_mm, last_mm;
+  for (const auto& r : bundle.readings) {
+    last = std::max(last, r.time);
+    if (!first_mm.contains(r.sensor_id)) first_mm[r.sensor_id] = r.thickness_mm;
+    last_mm[r.sensor_id] = r.thickness_mm;
+  }
+  double fastest = 0;
+  for (const auto& s : bundle.crusher.sensors)
+    if (in_row[s.row] >= 3 && first_mm[s.id] - last_mm[s.id] >= fastest) {
+      fastest = first_mm[s.id] - last_mm[s.id];
+      stuck = s.id;
+    }
+  CHECK(!stuck.empty());
+  const lw::core::TimePoint froze = lw::core::AddDays(last, -20);
+  double frozen = -1;
+  for (const auto& r : bundle.readings)
+    if (r.sensor_id == stuck && r.time <= froze) frozen = r.thickness_mm;
+  {
+    std::ofstream out(b / "readings.csv");
+    out << "time,sensor_id,thickness_mm\n";
+    for (const auto& r : bundle.readings)
+      out << lw::core::FormatIsoTime(r.time) << ',' << r.sensor_id << ','
+          << (r.sensor_id == stuck && r.time > froze ? frozen : r.thickness_mm) << '\n';
+  }
+  std::erase_if(bundle.readings, [&](const lw::core::Reading& r) { return r.sensor_id == stuck; });
+  const Run a = Cli({"reconstruct", b.string(), "--no-scan", "--json", (dir / "a.json").string()});
+  LONGS_EQUAL(0, a.code);
+  CHECK_TEXT(a.out.find("stuck sensors") != std::string::npos && a.out.find(stuck) != std::string::npos, a.out.c_str());
+  const auto j = nlohmann::json::parse(Slurp(dir / "a.json"));
+  CHECK_TEXT(j["sensors_stuck"] == nlohmann::json::array({stuck}), j["sensors_stuck"].dump().c_str());
   const auto without = lw::core::Reconstruct(bundle.crusher, bundle.map,
                                              lw::core::SensorWearAt(bundle.crusher, bundle.readings, lw::core::TimePoint::max()));
   DOUBLES_EQUAL(without.min_thickness_mm, j["min_thickness_mm"].get<double>(), 1e-9);

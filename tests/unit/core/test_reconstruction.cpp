@@ -93,6 +93,71 @@ TEST(Reconstruction, ASensorWhoseReadingsStoppedSetsNoScale) {
   LONGS_EQUAL(2, FreshReadingIndices(c, slow, AddDays(t0, 10)).size());
 }
 
+namespace {
+
+// Readings every 6 hours from day 0 to day `days` of one sensor whose thickness is `thickness(t)`
+// (floored to whole loops, as the sensor reads).
+template <typename F>
+void Report(std::vector<Reading>& rs, TimePoint t0, const std::string& id, double days, F thickness) {
+  for (int k = 0; 0.25 * k <= days; ++k) rs.push_back({AddDays(t0, 0.25 * k), id, std::floor(thickness(0.25 * k)), 0});
+}
+
+std::vector<std::string> Stuck(const CrusherConfig& c, const std::vector<Reading>& rs, TimePoint at) {
+  std::vector<std::string> stale, stuck;
+  const std::vector<size_t> live = LiveReadingIndices(c, rs, at, &stale, &stuck);
+  CHECK_TRUE(stale.empty());
+  LONGS_EQUAL(FreshReadingIndices(c, rs, at).size(), live.size() + stuck.size());
+  return stuck;
+}
+
+}  // namespace
+
+// Three sensors in the lower row wear about 1 mm a day; from day 10, 1003 keeps reporting 108 mm
+// (moisture across its loops). By day 20 its mates have worn 10 mm more: it is stuck, sets no scale,
+// and is named. Each condition of the rule, removed in turn, keeps it.
+TEST(Reconstruction, ASensorReportingOneValueWhileItsRowWearsIsStuck) {
+  CrusherConfig c = TwoRows();
+  c.sensors.push_back({"1003", "LDWN", 0.6, 180.0, 120, {}});
+  c.sensors.push_back({"1004", "LDWN", 0.4, 270.0, 120, {}});
+  const auto t0 = *ParseIsoTime("2026-01-01");
+  const TimePoint at = AddDays(t0, 20);
+  auto campaign = [&](auto stuck_sensor, auto mate) {
+    std::vector<Reading> rs;
+    Report(rs, t0, "1001", 20, [](double t) { return 119.9 - 1.0 * t; });
+    Report(rs, t0, "1002", 20, [](double t) { return 119.9 - 0.3 * t; });
+    Report(rs, t0, "1003", 20, stuck_sensor);
+    Report(rs, t0, "1004", 20, mate);
+    return rs;
+  };
+  const auto steady = [](double t) { return 119.9 - 0.9 * t; };
+  const auto stuck_at_108 = [](double t) { return 119.9 - 1.1 * std::min(t, 10.0); };
+  std::vector<std::string> stuck = Stuck(c, campaign(stuck_at_108, steady), at);
+  LONGS_EQUAL(1, stuck.size());
+  STRCMP_EQUAL("1003", stuck[0].c_str());
+  // Its wear no longer sets the lower row's scale: the live selection holds 1001, 1002 and 1004.
+  const std::vector<Reading> rs = campaign(stuck_at_108, steady);
+  const auto wear = SensorWearFrom(c, rs, LiveReadingIndices(c, rs, at));
+  LONGS_EQUAL(3, wear.size());
+  for (const SensorWear& w : wear) CHECK_TRUE(w.sensor_id != "1003");
+  // Day 14: the mates have worn 4 mm since it stopped, too little to tell.
+  CHECK_TRUE(Stuck(c, campaign(stuck_at_108, steady), AddDays(t0, 14)).empty());
+  // A slow sensor is not stuck: at a quarter of its mates' rate it still loses loops.
+  CHECK_TRUE(Stuck(c, campaign([](double t) { return 119.9 - 0.25 * t; }, steady), at).empty());
+  // Consumed (0 mm): its wear is the whole sensor; not judged.
+  CHECK_TRUE(Stuck(c, campaign([](double t) { return std::max(0.0, 119.9 - 12.0 * t); }, steady), at).empty());
+  // With two mates the smaller wear decides: 1004 stuck as well keeps both (neither is judged
+  // against a mate that did not wear).
+  CHECK_TRUE(Stuck(c, campaign(stuck_at_108, stuck_at_108), at).empty());
+  // A mate's spall (a 12 mm step) is not wear the stuck sensor should have followed.
+  const auto spalled = [](double t) { return 119.9 - 0.1 * t - (t > 12 ? 12.0 : 0.0); };
+  CHECK_TRUE(Stuck(c, campaign(stuck_at_108, spalled), at).empty());
+  // A sensor alone in its row is not judged: 1002 (upper row) flat from day 5 stays.
+  std::vector<Reading> alone = campaign(steady, steady);
+  std::erase_if(alone, [](const Reading& r) { return r.sensor_id == "1002"; });
+  Report(alone, t0, "1002", 20, [](double t) { return 119.9 - 0.3 * std::min(t, 5.0); });
+  CHECK_TRUE(Stuck(c, alone, at).empty());
+}
+
 TEST(Reconstruction, SmoothingRemovesFaceNoiseButKeepsTheMean) {
   WearMap m = lw::test::CylinderMap(72, 40, [](double) { return 1.0; });
   for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] = (i % 2) ? 1.2 : 0.8;

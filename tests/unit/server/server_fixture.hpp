@@ -62,7 +62,8 @@ inline core::Reconstruction OfflineLiveWear(const core::Bundle& b, core::TimePoi
   core::ReconstructionPlan plan = core::PrepareReconstruction(b.crusher, b.map);
   if (const core::Scan* scan = core::LatestScanAt(b.scans, core::TimePoint::max()))
     core::ApplyScan(plan, core::ProjectScanToFaces(b.map, *scan), core::FreshSensorWearAt(b.crusher, b.readings, scan->date));
-  return core::Reconstruct(plan, core::FreshSensorWearAt(b.crusher, b.readings, at));
+  return core::Reconstruct(plan,
+                           core::SensorWearFrom(b.crusher, b.readings, core::LiveReadingIndices(b.crusher, b.readings, at)));
 }
 
 /// A server's worth of parts over the crusher folder `crushers` (a fresh database in a scratch

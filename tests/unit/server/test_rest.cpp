@@ -415,6 +415,66 @@ TEST(RestHandlers, ADeadSensorSetsNoRowScaleAndIsNamedStale) {
     if (r["row"] == row) CHECK_TEXT(!r.contains("note"), r.dump().c_str());
 }
 
+// docs/server.md, *Global wear*: a sensor that keeps reporting one value while the other sensors of
+// its row wear (moisture across its loops) sets no row scale and is named in `sensors_stuck`. Its
+// frozen value would give its row too little wear: the live wear is the one without its reading.
+TEST(RestHandlers, AStuckSensorSetsNoRowScaleAndIsNamedStuck) {
+  lw::test::CrusherFolder folder(30, 7, 10);
+  const lw::core::Bundle& b = folder.bundle;
+  std::string stuck;  // a sensor of the lowest row (the fastest wear), which has others
+  for (const auto& s : b.crusher.sensors) {
+    int in_row = 0;
+    for (const auto& o : b.crusher.sensors) in_row += o.row == s.row;
+    if (in_row >= 2 && s.row == b.crusher.rows.front().name) stuck = s.id;
+  }
+  CHECK(!stuck.empty());
+  // From day 20 its value stops moving; it keeps reporting (heartbeats).
+  const lw::core::TimePoint from = lw::core::AddDays(b.crusher.installed_at, 20.0);
+  double frozen = 0;
+  for (const auto& r : b.readings)
+    if (r.sensor_id == stuck && r.time <= from) frozen = r.thickness_mm;
+  lw::core::Bundle posted = b;
+  for (auto& r : posted.readings)
+    if (r.sensor_id == stuck && r.time > from) r.thickness_mm = frozen;
+  json body = {{"readings", json::array()}};
+  lw::core::TimePoint last{};
+  for (const auto& m : lw::test::Messages(posted)) {
+    json r = json::parse(m.payload);
+    last = std::max(last, lw::core::ParseIsoTime(r["time"].get<std::string>()).value());
+    body["readings"].push_back(r);
+  }
+  ServerParts parts(folder.crushers, false);
+  rest::Resources resources(parts.ctx);
+  PostReadingsTo(resources, folder.id(), body);
+  const rest::Response res = GetFrom(resources, "/api/v1/crushers/{crusher}/wear", folder.id());
+  LONGS_EQUAL(200, res.status);
+  CHECK_TEXT(res.json["sensors_stuck"] == json::array({stuck}), res.json["sensors_stuck"].dump().c_str());
+  CHECK_TEXT(res.json["sensors_stale"].empty(), res.json["sensors_stale"].dump().c_str());
+  for (const auto& u : res.json["readings_used"]) CHECK(u["sensor"] != stuck);
+  // Expected: the newest scan's correction as before (day 10, the sensor was fine), the live
+  // scales without the stuck sensor's wear; with it, its row would show less wear.
+  lw::core::ReconstructionPlan plan = lw::core::PrepareReconstruction(b.crusher, b.map);
+  const lw::core::Scan* scan = lw::core::LatestScanAt(b.scans, lw::core::TimePoint::max());
+  CHECK(scan != nullptr);
+  lw::core::ApplyScan(plan, lw::core::ProjectScanToFaces(b.map, *scan),
+                      lw::core::FreshSensorWearAt(b.crusher, posted.readings, scan->date));
+  std::vector<lw::core::SensorWear> with = lw::core::FreshSensorWearAt(b.crusher, posted.readings, last);
+  std::vector<lw::core::SensorWear> without = with;
+  std::erase_if(without, [&](const lw::core::SensorWear& w) { return w.sensor_id == stuck; });
+  LONGS_EQUAL(with.size() - 1, without.size());
+  const lw::core::Reconstruction expected = lw::core::Reconstruct(plan, without);
+  const lw::core::Reconstruction frozen_rec = lw::core::Reconstruct(plan, with);
+  DOUBLES_EQUAL(expected.min_thickness_mm, res.json["min_thickness_mm"].get<double>(), 1e-3);
+  const std::string row = b.crusher.FindSensor(stuck)->row;
+  for (size_t k = 0; k < expected.rows.size(); ++k) {
+    if (expected.rows[k].row != row) continue;
+    const double live = res.json["rows"][k]["mean_wear_mm"].get<double>();
+    DOUBLES_EQUAL(expected.rows[k].mean_wear_mm, live, 1e-3);
+    CHECK_TEXT(live > frozen_rec.rows[k].mean_wear_mm + 0.5,
+               (std::to_string(live) + " mm vs " + std::to_string(frozen_rec.rows[k].mean_wear_mm) + " mm frozen").c_str());
+  }
+}
+
 TEST(RestHandlers, HealthMergesTheServersFieldsAndReportsDegraded) {
   Fixture f;
   rest::Response res = f.Get("/healthz", {});
