@@ -162,12 +162,21 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
     const auto it = selected.find(r.sensor_id);
     if (it == selected.end()) continue;
     const TimePoint latest = readings[it->second].time;
-    if (r.time > latest || r.time < AddDays(latest, -rule.history_days)) continue;
+    const double window =
+        std::max(rule.history_days, rule.history_fraction * std::max(0.0, DaysBetween(crusher.installed_at, latest)));
+    if (r.time > latest || r.time < AddDays(latest, -window)) continue;
     series[r.sensor_id].emplace_back(r.time, r.thickness_mm);
   }
   for (auto& [id, s] : series)
     std::sort(s.begin(), s.end(),
               [](const auto& a, const auto& b) { return a.first < b.first || (a.first == b.first && a.second > b.second); });
+  // Wear (interval centre) of a sensor at its last point at or before t (else its first).
+  auto wear_at = [&](const std::string& id, TimePoint t) {
+    const Series& s = series[id];
+    size_t k = 0;
+    for (size_t j = 0; j < s.size() && s[j].first <= t; ++j) k = j;
+    return crusher.FindSensor(id)->thickness_new_mm - (s[k].second + 0.5);
+  };
   std::erase_if(indices, [&](size_t i) {
     const Reading& r = readings[i];
     if (r.thickness_mm < 1.0) return false;  // consumed: its wear is the whole sensor, and more
@@ -176,14 +185,18 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
     while (flat < s.size() && s[s.size() - 1 - flat].second == r.thickness_mm) ++flat;
     if (flat < rule.min_readings) return false;
     const TimePoint from = s[s.size() - flat].first;
+    const double own = wear_at(r.sensor_id, from);
     const std::string& row = crusher.FindSensor(r.sensor_id)->row;
-    std::vector<double> drops;
-    for (const auto& [id, j] : selected)
-      if (id != r.sensor_id && crusher.FindSensor(id)->row == row)
-        drops.push_back(GradualDrop(series[id], from, r.time, rule.max_step_mm));
-    if (drops.empty()) return false;
-    std::sort(drops.begin(), drops.end());
-    const bool is_stuck = drops[(drops.size() - 1) / 2] >= rule.drop_mm;
+    std::vector<double> expected;
+    for (const auto& [id, j] : selected) {
+      if (id == r.sensor_id || crusher.FindSensor(id)->row != row || series[id].empty()) continue;
+      const double mate = wear_at(id, from);
+      if (mate < rule.min_mate_wear_mm) continue;
+      expected.push_back(std::max(0.0, own) / mate * GradualDrop(series[id], from, r.time, rule.max_step_mm));
+    }
+    if (expected.empty()) return false;
+    std::sort(expected.begin(), expected.end());
+    const bool is_stuck = expected[(expected.size() - 1) / 2] >= rule.expected_mm;
     if (is_stuck && stuck) stuck->push_back(r.sensor_id);
     return is_stuck;
   });

@@ -108,6 +108,27 @@ Eigen::VectorXd ModelFaceWear(const ModelSpec& spec, const Eigen::VectorXd& x, c
   return w.cwiseMax(0.0).cwiseMin(thickness_mm);
 }
 
+// The improved model's faces. Without a finding: Eq. 9's (the refit baseline's gain is its
+// per-sensor terms, known at the sensors only). With one and a scan: the model anchored to the scan.
+// With one and no scan: Eq. 9's faces times the model's wear over the refit baseline's, face by face
+// (their difference above 0.5 mm of refit wear, additive below): the findings' pattern and time
+// course, carried by the row levels Eq. 9 takes from the sensors. Both fits weight their row scales
+// by the sensors' map-noise terms, which carried the sensors' own misfit to the faces of their rows
+// (worse than Eq. 9 away from the sensors without a scan); in the ratio that misfit cancels.
+Eigen::VectorXd ImprovedFaceWear(const PredictionInput& in, const std::vector<ModelPoint>& face_points, double t_days,
+                                 const FaceAnchor* anchor, const Eigen::VectorXd& eq9_faces) {
+  constexpr double kMinRefitWearMm = 0.5;
+  if (!in.model_has_findings) return eq9_faces;
+  const TimeGrid& grid = in.setup.prob.grid;
+  const double thickness_mm = in.bundle.crusher.thickness_new_mm;
+  Eigen::VectorXd w = ModelFaceWear(in.model.spec, in.model.x, face_points, grid, t_days, anchor, thickness_mm);
+  if (anchor || !RefitUsable(in.null) || eq9_faces.size() != w.size()) return w;
+  const Eigen::VectorXd r = ModelFaceWear(in.null.fit.spec, in.null.fit.x, face_points, grid, t_days, nullptr, thickness_mm);
+  for (Eigen::Index f = 0; f < w.size(); ++f)
+    w[f] = r[f] > kMinRefitWearMm ? eq9_faces[f] * w[f] / r[f] : eq9_faces[f] + (w[f] - r[f]);
+  return w.cwiseMax(0.0).cwiseMin(thickness_mm);
+}
+
 SensorCurve CurveOf(const PredictionInput& in, size_t i, const Eigen::MatrixXd& w_base, const Eigen::MatrixXd& w_best) {
   const ProblemSetup& setup = in.setup;
   const TimeGrid& grid = setup.prob.grid;
@@ -232,8 +253,7 @@ Prediction PredictAt(const PredictionInput& in, const std::vector<ModelPoint>& f
   const std::optional<FaceAnchor> anchor = AnchorAt(in, face_points, used, at, pred.faces_scan);
   const FaceAnchor* a = anchor ? &*anchor : nullptr;
   const Eigen::VectorXd fb = ModelFaceWear(in.base.spec, in.base.eq9.x, face_points, grid, t, a, thickness_new_mm);
-  const Eigen::VectorXd fi =
-      in.model_has_findings ? ModelFaceWear(in.model.spec, in.model.x, face_points, grid, t, a, thickness_new_mm) : fb;
+  const Eigen::VectorXd fi = ImprovedFaceWear(in, face_points, t, a, fb);
   pred.face_wear_baseline_mm.assign(fb.data(), fb.data() + fb.size());
   pred.face_wear_improved_mm.assign(fi.data(), fi.data() + fi.size());
   return pred;

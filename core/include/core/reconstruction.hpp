@@ -135,21 +135,26 @@ std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const st
                                           bool interval_centre = true);
 
 /// When a sensor that keeps reporting is stuck ("stuck value": moisture bridging its loops, a
-/// frozen shift register): its value has not moved over its last `min_readings` or more readings
-/// while the other sensors of its row that set a scale wore, over the same days, at least `drop_mm`
-/// (their median; with two, the smaller). A sensor's wear there is read gradually, through the
-/// running minimum of its thickness: a fall of more than `max_step_mm` between two readings (a
-/// spall, a crack cutting loops early) does not count, nor does a loop that reads intact again.
-/// Wear rates differ within a row (along z, around the crusher) by up to two or three on real maps;
-/// 8 mm in a mate still means loops the stuck sensor should have lost. Only each sensor's readings in
-/// the `history_days` up to its latest count (what the server keeps in memory), so the server's state
-/// and a full recompute agree. A sensor with no other sensor in its row setting a scale, or one at
-/// 0 mm (consumed), is not judged.
+/// frozen shift register): its value has not moved over its last `min_readings` or more readings,
+/// while at the rate its row mates set it should have lost at least `expected_mm`. A mate's share:
+/// the wear it showed over those days, times the stuck sensor's wear over the mate's when the
+/// value froze (their ratio since installation: the sensor's own place in its row's wear pattern,
+/// with no history before the window needed); the median over its row mates that set a scale and
+/// had worn at least `min_mate_wear_mm` then (with two, the smaller). A mate's wear over the days is
+/// read gradually, through the running minimum of its thickness: a fall of more than `max_step_mm`
+/// between two readings (a spall, a crack cutting loops early) does not count, nor does a loop that
+/// reads intact again. A sensor that really wears slowly has a small ratio and keeps losing loops at
+/// it; 5 mm expected means several loops. Only each sensor's readings in the forecast's window up to
+/// its latest count (max(`history_days`, `history_fraction` x the days since installation): what the
+/// server keeps in memory, so its state and a full recompute agree). A sensor without such row
+/// mates, or at 0 mm (consumed), is not judged.
 struct StuckRule {
-  double drop_mm = 8.0;
+  double expected_mm = 5.0;
   size_t min_readings = 3;
+  double min_mate_wear_mm = 3.0;
   double max_step_mm = 2.0;
-  double history_days = 21.0;
+  double history_days = 21.0;     ///< = ForecastOptions::window_min_days
+  double history_fraction = 0.4;  ///< = ForecastOptions::window_fraction
 };
 
 /// `indices` (one reading per sensor, as FreshReadingIndices selects them) without the stuck sensors

@@ -113,8 +113,9 @@ std::vector<std::string> Stuck(const CrusherConfig& c, const std::vector<Reading
 }  // namespace
 
 // Three sensors in the lower row wear about 1 mm a day; from day 10, 1003 keeps reporting 108 mm
-// (moisture across its loops). By day 20 its mates have worn 10 mm more: it is stuck, sets no scale,
-// and is named. Each condition of the rule, removed in turn, keeps it.
+// (moisture across its loops). By day 20 its mates have worn 10 mm more, and it wore as much as they
+// had by day 10: it should have lost about 11 mm. It is stuck, sets no scale, and is named. Each
+// condition of the rule, removed in turn, keeps it.
 TEST(Reconstruction, ASensorReportingOneValueWhileItsRowWearsIsStuck) {
   CrusherConfig c = TwoRows();
   c.sensors.push_back({"1003", "LDWN", 0.6, 180.0, 120, {}});
@@ -139,18 +140,26 @@ TEST(Reconstruction, ASensorReportingOneValueWhileItsRowWearsIsStuck) {
   const auto wear = SensorWearFrom(c, rs, LiveReadingIndices(c, rs, at));
   LONGS_EQUAL(3, wear.size());
   for (const SensorWear& w : wear) CHECK_TRUE(w.sensor_id != "1003");
-  // Day 14: the mates have worn 4 mm since it stopped, too little to tell.
+  // Day 14: the mates have worn 4 mm since it stopped (4.4 expected of it), too little to tell.
   CHECK_TRUE(Stuck(c, campaign(stuck_at_108, steady), AddDays(t0, 14)).empty());
-  // A slow sensor is not stuck: at a quarter of its mates' rate it still loses loops.
+  // A slow sensor is not stuck: at a quarter of its mates' rate its value holds for 4 days at most,
+  // in which a quarter of their wear is 1 mm.
   CHECK_TRUE(Stuck(c, campaign([](double t) { return 119.9 - 0.25 * t; }, steady), at).empty());
   // Consumed (0 mm): its wear is the whole sensor; not judged.
   CHECK_TRUE(Stuck(c, campaign([](double t) { return std::max(0.0, 119.9 - 12.0 * t); }, steady), at).empty());
   // With two mates the smaller wear decides: 1004 stuck as well keeps both (neither is judged
   // against a mate that did not wear).
   CHECK_TRUE(Stuck(c, campaign(stuck_at_108, stuck_at_108), at).empty());
-  // A mate's spall (a 12 mm step) is not wear the stuck sensor should have followed.
-  const auto spalled = [](double t) { return 119.9 - 0.1 * t - (t > 12 ? 12.0 : 0.0); };
-  CHECK_TRUE(Stuck(c, campaign(stuck_at_108, spalled), at).empty());
+  // A mate's spall (a 12 mm step on day 18) is not wear a slow sensor should have followed: at a
+  // fifth of the fast mate's rate it holds 116 mm from day 14.5 to 19.25, in which the spalled mate
+  // loses 1.4 mm gradually (13.4 with the step; expected of the slow one 1.1, or 10.4).
+  const auto slow = [](double t) { return 119.9 - 0.2 * t; };
+  const auto spalled = [](double t) { return 119.9 - 0.3 * t - (t > 18 ? 12.0 : 0.0); };
+  const TimePoint before_step_counts = AddDays(t0, 19.25);
+  CHECK_TRUE(Stuck(c, campaign(slow, spalled), before_step_counts).empty());
+  std::vector<Reading> spall_only = campaign(slow, spalled);  // the spalled mate alone
+  std::erase_if(spall_only, [](const Reading& r) { return r.sensor_id == "1001"; });
+  CHECK_TRUE(Stuck(c, spall_only, before_step_counts).empty());
   // A sensor alone in its row is not judged: 1002 (upper row) flat from day 5 stays.
   std::vector<Reading> alone = campaign(steady, steady);
   std::erase_if(alone, [](const Reading& r) { return r.sensor_id == "1002"; });
