@@ -48,6 +48,20 @@ TEST_GROUP(Linerwatch) {
     lw::test::WriteSyntheticBundle(b, spec);
     return b;
   }
+  // `reconstruct` on bundle folder `b` names `sensor` under `heading` and in its JSON's `key`, and
+  // equals the live wear of `bundle` (as written, before the change) without that sensor's readings.
+  void CheckReconstructLeavesOut(const fs::path& b, lw::core::Bundle bundle, const std::string& sensor, const char* heading,
+                                 const char* key) {
+    std::erase_if(bundle.readings, [&](const lw::core::Reading& r) { return r.sensor_id == sensor; });
+    const Run a = Cli({"reconstruct", b.string(), "--no-scan", "--json", (dir / "a.json").string()});
+    LONGS_EQUAL(0, a.code);
+    CHECK_TEXT(a.out.find(heading) != std::string::npos && a.out.find(sensor) != std::string::npos, a.out.c_str());
+    const auto j = nlohmann::json::parse(Slurp(dir / "a.json"));
+    CHECK_TEXT(j[key] == nlohmann::json::array({sensor}), j[key].dump().c_str());
+    const auto without = lw::core::Reconstruct(
+        bundle.crusher, bundle.map, lw::core::SensorWearAt(bundle.crusher, bundle.readings, lw::core::TimePoint::max()));
+    DOUBLES_EQUAL(without.min_thickness_mm, j["min_thickness_mm"].get<double>(), 1e-9);
+  }
 };
 
 TEST(Linerwatch, HelpExitsZero) {
@@ -176,15 +190,7 @@ TEST(Linerwatch, ReconstructLeavesOutASensorThatStoppedReporting) {
       if (r.sensor_id != dead || r.time <= cut)
         out << lw::core::FormatIsoTime(r.time) << ',' << r.sensor_id << ',' << r.thickness_mm << '\n';
   }
-  std::erase_if(bundle.readings, [&](const lw::core::Reading& r) { return r.sensor_id == dead; });
-  const Run a = Cli({"reconstruct", b.string(), "--no-scan", "--json", (dir / "a.json").string()});
-  LONGS_EQUAL(0, a.code);
-  CHECK_TEXT(a.out.find("stale sensors") != std::string::npos && a.out.find(dead) != std::string::npos, a.out.c_str());
-  const auto j = nlohmann::json::parse(Slurp(dir / "a.json"));
-  CHECK_TEXT(j["sensors_stale"] == nlohmann::json::array({dead}), j["sensors_stale"].dump().c_str());
-  const auto without = lw::core::Reconstruct(bundle.crusher, bundle.map,
-                                             lw::core::SensorWearAt(bundle.crusher, bundle.readings, lw::core::TimePoint::max()));
-  DOUBLES_EQUAL(without.min_thickness_mm, j["min_thickness_mm"].get<double>(), 1e-9);
+  CheckReconstructLeavesOut(b, bundle, dead, "stale sensors", "sensors_stale");
 }
 
 // A sensor whose value stops moving while the others of its row wear on (stuck) sets no row scale
@@ -220,13 +226,5 @@ TEST(Linerwatch, ReconstructLeavesOutAStuckSensor) {
       out << lw::core::FormatIsoTime(r.time) << ',' << r.sensor_id << ','
           << (r.sensor_id == stuck && r.time > froze ? frozen : r.thickness_mm) << '\n';
   }
-  std::erase_if(bundle.readings, [&](const lw::core::Reading& r) { return r.sensor_id == stuck; });
-  const Run a = Cli({"reconstruct", b.string(), "--no-scan", "--json", (dir / "a.json").string()});
-  LONGS_EQUAL(0, a.code);
-  CHECK_TEXT(a.out.find("stuck sensors") != std::string::npos && a.out.find(stuck) != std::string::npos, a.out.c_str());
-  const auto j = nlohmann::json::parse(Slurp(dir / "a.json"));
-  CHECK_TEXT(j["sensors_stuck"] == nlohmann::json::array({stuck}), j["sensors_stuck"].dump().c_str());
-  const auto without = lw::core::Reconstruct(bundle.crusher, bundle.map,
-                                             lw::core::SensorWearAt(bundle.crusher, bundle.readings, lw::core::TimePoint::max()));
-  DOUBLES_EQUAL(without.min_thickness_mm, j["min_thickness_mm"].get<double>(), 1e-9);
+  CheckReconstructLeavesOut(b, bundle, stuck, "stuck sensors", "sensors_stuck");
 }
