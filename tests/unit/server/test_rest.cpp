@@ -72,6 +72,20 @@ rest::Response GetFrom(rest::Resources& resources, const char* route, const std:
   return resources.Call(rest::Resources::Find(rest::Method::kGet, route), get);
 }
 
+// In `row`, the served wear (`wear`: the REST wear JSON) equals `expected` (the live wear without a
+// sensor's reading) and exceeds by more than 0.5 mm what that reading (`kept`, labelled `label`)
+// would have given: left out, and it mattered.
+void CheckRowWearLeftOut(const json& wear, const lw::core::Reconstruction& expected, const lw::core::Reconstruction& kept,
+                         const std::string& row, const char* label) {
+  for (size_t k = 0; k < expected.rows.size(); ++k) {
+    if (expected.rows[k].row != row) continue;
+    const double live = wear["rows"][k]["mean_wear_mm"].get<double>();
+    DOUBLES_EQUAL(expected.rows[k].mean_wear_mm, live, 1e-3);
+    CHECK_TEXT(live > kept.rows[k].mean_wear_mm + 0.5,
+               (std::to_string(live) + " mm vs " + std::to_string(kept.rows[k].mean_wear_mm) + " mm " + label).c_str());
+  }
+}
+
 std::string ErrorOf(const rest::Response& r) {
   return r.json.value("error", std::string("(no error)"));
 }
@@ -402,13 +416,7 @@ TEST(RestHandlers, ADeadSensorSetsNoRowScaleAndIsNamedStale) {
                       lw::core::SensorWearAt(b.crusher, posted_readings, scan->date));
   const lw::core::Reconstruction stale = lw::core::Reconstruct(plan, lw::core::SensorWearAt(b.crusher, posted_readings, last));
   const std::string row = b.crusher.FindSensor(dead)->row;
-  for (size_t k = 0; k < stale.rows.size(); ++k) {
-    if (stale.rows[k].row != row) continue;
-    const double fresh = res.json["rows"][k]["mean_wear_mm"].get<double>();
-    DOUBLES_EQUAL(expected.rows[k].mean_wear_mm, fresh, 1e-3);
-    CHECK_TEXT(fresh > stale.rows[k].mean_wear_mm + 0.5,
-               (std::to_string(fresh) + " mm vs " + std::to_string(stale.rows[k].mean_wear_mm) + " mm stale").c_str());
-  }
+  CheckRowWearLeftOut(res.json, expected, stale, row, "stale");
   // The row keeps its reline date from the fresh sensor.
   const rest::Response forecast = GetFrom(resources, "/api/v1/crushers/{crusher}/forecast", folder.id());
   for (const auto& r : forecast.json["rows"])
@@ -465,14 +473,7 @@ TEST(RestHandlers, AStuckSensorSetsNoRowScaleAndIsNamedStuck) {
   const lw::core::Reconstruction expected = lw::core::Reconstruct(plan, without);
   const lw::core::Reconstruction frozen_rec = lw::core::Reconstruct(plan, with);
   DOUBLES_EQUAL(expected.min_thickness_mm, res.json["min_thickness_mm"].get<double>(), 1e-3);
-  const std::string row = b.crusher.FindSensor(stuck)->row;
-  for (size_t k = 0; k < expected.rows.size(); ++k) {
-    if (expected.rows[k].row != row) continue;
-    const double live = res.json["rows"][k]["mean_wear_mm"].get<double>();
-    DOUBLES_EQUAL(expected.rows[k].mean_wear_mm, live, 1e-3);
-    CHECK_TEXT(live > frozen_rec.rows[k].mean_wear_mm + 0.5,
-               (std::to_string(live) + " mm vs " + std::to_string(frozen_rec.rows[k].mean_wear_mm) + " mm frozen").c_str());
-  }
+  CheckRowWearLeftOut(res.json, expected, frozen_rec, b.crusher.FindSensor(stuck)->row, "frozen");
 }
 
 TEST(RestHandlers, HealthMergesTheServersFieldsAndReportsDegraded) {
