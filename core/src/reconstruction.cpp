@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <set>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -170,34 +171,60 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
   for (auto& [id, s] : series)
     std::sort(s.begin(), s.end(),
               [](const auto& a, const auto& b) { return a.first < b.first || (a.first == b.first && a.second > b.second); });
-  // Wear (interval centre) of a sensor at its last point at or before t (else its first).
-  auto wear_at = [&](const std::string& id, TimePoint t) {
+  // A sensor's thickness reading at its last point at or before t (else its first).
+  auto reading_at = [&](const std::string& id, TimePoint t) {
     const Series& s = series[id];
     size_t k = 0;
     for (size_t j = 0; j < s.size() && s[j].first <= t; ++j) k = j;
-    return crusher.FindSensor(id)->thickness_new_mm - (s[k].second + 0.5);
+    return s[k].second;
   };
-  std::erase_if(indices, [&](size_t i) {
+  // The flat run each sensor ends with: its first time, or nothing when the sensor is not judged
+  // (fewer than min_readings, consumed, or the run began with a step: a crack cut loops early and
+  // the value waits for the wear to catch up, which the diagnosis names).
+  std::map<std::string, TimePoint> flat_from;
+  for (const size_t i : indices) {
     const Reading& r = readings[i];
-    if (r.thickness_mm < 1.0) return false;  // consumed: its wear is the whole sensor, and more
     const Series& s = series[r.sensor_id];
     size_t flat = 0;
     while (flat < s.size() && s[s.size() - 1 - flat].second == r.thickness_mm) ++flat;
-    if (flat < rule.min_readings) return false;
-    const TimePoint from = s[s.size() - flat].first;
-    const double own = wear_at(r.sensor_id, from);
-    const std::string& row = crusher.FindSensor(r.sensor_id)->row;
+    if (r.thickness_mm < 1.0 || flat < rule.min_readings) continue;
+    if (flat < s.size() && s[s.size() - 1 - flat].second - r.thickness_mm > rule.max_step_mm) continue;
+    flat_from[r.sensor_id] = s[s.size() - flat].first;
+  }
+  // What the sensor should have lost over its flat run at each row mate's rate (mates in `skip` left
+  // out): the mate's gradual wear over those days times the sensor's wear over the mate's when the
+  // run began, the sensor's taken low (reading n: more than new - n - 1 mm) and the mate's high
+  // (at most new - n), so that the quantisation of either does not make a slow sensor look stuck.
+  auto expected_losses = [&](size_t i, const std::set<std::string>& skip) {
+    const Reading& r = readings[i];
+    const TimePoint from = flat_from.at(r.sensor_id);
+    const SensorInfo& me = *crusher.FindSensor(r.sensor_id);
+    const double own = std::max(0.0, me.thickness_new_mm - (r.thickness_mm + 1.0));
     std::vector<double> expected;
     for (const auto& [id, j] : selected) {
-      if (id == r.sensor_id || crusher.FindSensor(id)->row != row || series[id].empty()) continue;
-      const double mate = wear_at(id, from);
-      if (mate < rule.min_mate_wear_mm) continue;
-      expected.push_back(std::max(0.0, own) / mate * GradualDrop(series[id], from, r.time, rule.max_step_mm));
+      const SensorInfo& mate = *crusher.FindSensor(id);
+      if (id == r.sensor_id || mate.row != me.row || skip.contains(id)) continue;
+      const double mate_wear = mate.thickness_new_mm - reading_at(id, from);
+      if (mate_wear < rule.min_mate_wear_mm) continue;
+      expected.push_back(own / mate_wear * GradualDrop(series[id], from, r.time, rule.max_step_mm));
     }
-    if (expected.empty()) return false;
     std::sort(expected.begin(), expected.end());
-    const bool is_stuck = expected[(expected.size() - 1) / 2] >= rule.expected_mm;
-    if (is_stuck && stuck) stuck->push_back(r.sensor_id);
+    return expected;
+  };
+  // Suspects: by their largest expected loss. Then each suspect against the mates that are not
+  // suspects themselves (two sensors stuck in a row of three must not vouch for each other): the
+  // median (with two, the smaller).
+  std::set<std::string> suspects;
+  for (const size_t i : indices) {
+    if (!flat_from.contains(readings[i].sensor_id)) continue;
+    const std::vector<double> e = expected_losses(i, {});
+    if (!e.empty() && e.back() >= rule.expected_mm) suspects.insert(readings[i].sensor_id);
+  }
+  std::erase_if(indices, [&](size_t i) {
+    if (!suspects.contains(readings[i].sensor_id)) return false;
+    const std::vector<double> e = expected_losses(i, suspects);
+    const bool is_stuck = !e.empty() && e[(e.size() - 1) / 2] >= rule.expected_mm;
+    if (is_stuck && stuck) stuck->push_back(readings[i].sensor_id);
     return is_stuck;
   });
   return indices;

@@ -272,9 +272,9 @@ void Predict(const PredictionInput& in, DiagnosisResult& result) {
   FillLinerReport(
       in.bundle, in.setup.fields, in.setup.scans,
       [&](bool improved, double t) {
-        return improved && in.model_has_findings
-                   ? ModelFaceWear(in.model.spec, in.model.x, face_points, in.setup.prob.grid, t, nullptr, thickness_new_mm)
-                   : ModelFaceWear(in.base.spec, in.base.eq9.x, face_points, in.setup.prob.grid, t, nullptr, thickness_new_mm);
+        const Eigen::VectorXd base =
+            ModelFaceWear(in.base.spec, in.base.eq9.x, face_points, in.setup.prob.grid, t, nullptr, thickness_new_mm);
+        return improved ? ImprovedFaceWear(in, face_points, t, nullptr, base) : base;
       },
       result);
 }

@@ -63,7 +63,17 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
       core::Reconstruct(st.scan && st.scan->correction.detail.empty() ? st.scan->plan : crusher.plan, st.sensor_wear);
   st.has_wear = true;
   for (const core::SensorInfo& s : crusher.config.sensors) {
-    st.sensor_forecasts.push_back(core::ForecastSensor(crusher.config, s, usable));
+    core::SensorForecast f = core::ForecastSensor(crusher.config, s, usable);
+    if (std::find(st.stuck.begin(), st.stuck.end(), s.id) != st.stuck.end()) {
+      // A frozen value's curve would never reach the minimum: no forecast from it.
+      f.ok = false;
+      f.note = "stuck: its value has not moved while its row wore; left out (docs/server.md, Global wear)";
+      f.reach.reset();
+      f.reach_earliest.reset();
+      f.reach_latest.reset();
+      f.points.clear();
+    }
+    st.sensor_forecasts.push_back(std::move(f));
   }
   // A row whose only sensors are stale still gets its reline date from their curves (each anchored
   // at its own last reading); a row with a fresh sensor takes the fresh ones alone.

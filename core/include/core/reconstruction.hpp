@@ -137,17 +137,24 @@ std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const st
 /// When a sensor that keeps reporting is stuck ("stuck value": moisture bridging its loops, a
 /// frozen shift register): its value has not moved over its last `min_readings` or more readings,
 /// while at the rate its row mates set it should have lost at least `expected_mm`. A mate's share:
-/// the wear it showed over those days, times the stuck sensor's wear over the mate's when the
-/// value froze (their ratio since installation: the sensor's own place in its row's wear pattern,
-/// with no history before the window needed); the median over its row mates that set a scale and
-/// had worn at least `min_mate_wear_mm` then (with two, the smaller). A mate's wear over the days is
-/// read gradually, through the running minimum of its thickness: a fall of more than `max_step_mm`
-/// between two readings (a spall, a crack cutting loops early) does not count, nor does a loop that
-/// reads intact again. A sensor that really wears slowly has a small ratio and keeps losing loops at
-/// it; 5 mm expected means several loops. Only each sensor's readings in the forecast's window up to
-/// its latest count (max(`history_days`, `history_fraction` x the days since installation): what the
-/// server keeps in memory, so its state and a full recompute agree). A sensor without such row
-/// mates, or at 0 mm (consumed), is not judged.
+/// the wear it showed over those days times the sensor's wear over the mate's when the run began
+/// (their ratio since installation: the sensor's own place in its row's wear pattern, with no
+/// history needed; the sensor's wear taken low, new - n - 1, the mate's high, new - n, so that
+/// quantisation does not make a slow sensor look stuck); the median over the row mates that set a
+/// scale, had worn at least `min_mate_wear_mm` then and are not suspects themselves (a suspect: a
+/// sensor whose largest share reaches `expected_mm`; two stuck sensors must not vouch for each
+/// other); with two mates, the smaller. A mate's wear over the days is read gradually, through the
+/// running minimum of its thickness: a fall of more than `max_step_mm` between two readings (a
+/// spall, a crack cutting loops early) does not count, nor does a loop that reads intact again. A
+/// sensor whose run began with such a fall (a crack: its value waits for the wear to catch up) is
+/// not judged, nor is one without such mates or at 0 mm (consumed). A sensor that really wears
+/// slowly has a small ratio and keeps losing loops at it; 5 mm expected means several loops. Only
+/// each sensor's readings in the forecast's window up to its latest count (max(`history_days`,
+/// `history_fraction` x the days since installation): what the server keeps in memory, so its state
+/// and a full recompute agree). So when the value froze before the window, the run is taken from the
+/// window's start, where the mates had worn more than at the freeze: the expected loss is then a
+/// lower bound, and a sensor that froze early with little wear is named only while its mates' wear
+/// in the window makes up for it.
 struct StuckRule {
   double expected_mm = 5.0;
   size_t min_readings = 3;

@@ -147,9 +147,24 @@ TEST(Reconstruction, ASensorReportingOneValueWhileItsRowWearsIsStuck) {
   CHECK_TRUE(Stuck(c, campaign([](double t) { return 119.9 - 0.25 * t; }, steady), at).empty());
   // Consumed (0 mm): its wear is the whole sensor; not judged.
   CHECK_TRUE(Stuck(c, campaign([](double t) { return std::max(0.0, 119.9 - 12.0 * t); }, steady), at).empty());
-  // With two mates the smaller wear decides: 1004 stuck as well keeps both (neither is judged
-  // against a mate that did not wear).
-  CHECK_TRUE(Stuck(c, campaign(stuck_at_108, stuck_at_108), at).empty());
+  // Two stuck sensors in a row of three do not vouch for each other: both are named, against 1001.
+  const auto stuck_at_107 = [](double t) { return 119.9 - 1.0 * std::min(t, 12.0); };
+  const std::vector<std::string> both = Stuck(c, campaign(stuck_at_108, stuck_at_107), at);
+  CHECK_TEXT(both == (std::vector<std::string>{"1003", "1004"}), (both.empty() ? "none" : both.front()).c_str());
+  // A sensor at a slow spot still on its first loop (reads 119, so it wore 0-1 mm) while its mates
+  // wear 1.8 mm a day: on day 23 (the window from day 2, when they had worn 3.6 mm) its share of
+  // their 38 mm since is taken at 0 mm of its own, not the interval centre's 0.5 mm (5.3 mm).
+  std::vector<Reading> first_loop;
+  Report(first_loop, t0, "1001", 23, [](double t) { return 119.9 - 1.8 * t; });
+  Report(first_loop, t0, "1004", 23, [](double t) { return 119.9 - 1.8 * t; });
+  Report(first_loop, t0, "1003", 23, [](double t) { return 119.9 - 0.03 * t; });
+  Report(first_loop, t0, "1002", 23, [](double t) { return 119.9 - 0.3 * t; });
+  CHECK_TRUE(Stuck(c, first_loop, AddDays(t0, 23)).empty());
+  // A crack cuts 11 loops of a slow sensor on day 8 (0.1 mm a day): its value (108) waits for the
+  // wear to catch up. That is a crack (the diagnosis names it), not a stuck value, although its
+  // inflated wear would make its share of its mates' wear 7 mm by day 13.75.
+  CHECK_TRUE(
+      Stuck(c, campaign([](double t) { return 119.9 - 0.1 * t - (t > 8 ? 10.5 : 0.0); }, steady), AddDays(t0, 13.75)).empty());
   // A mate's spall (a 12 mm step on day 18) is not wear a slow sensor should have followed: at a
   // fifth of the fast mate's rate it holds 116 mm from day 14.5 to 19.25, in which the spalled mate
   // loses 1.4 mm gradually (13.4 with the step; expected of the slow one 1.1, or 10.4).

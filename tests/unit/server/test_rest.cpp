@@ -474,6 +474,17 @@ TEST(RestHandlers, AStuckSensorSetsNoRowScaleAndIsNamedStuck) {
   const lw::core::Reconstruction frozen_rec = lw::core::Reconstruct(plan, with);
   DOUBLES_EQUAL(expected.min_thickness_mm, res.json["min_thickness_mm"].get<double>(), 1e-3);
   CheckRowWearLeftOut(res.json, expected, frozen_rec, b.crusher.FindSensor(stuck)->row, "frozen");
+  // Its frozen curve gives no forecast: `ok` false, no reach date, a note saying why.
+  const rest::Response forecast = GetFrom(resources, "/api/v1/crushers/{crusher}/forecast", folder.id());
+  int seen = 0;
+  for (const auto& f : forecast.json["sensors"]) {
+    if (f["id"] != stuck) continue;
+    ++seen;
+    CHECK_FALSE(f["ok"].get<bool>());
+    CHECK_TEXT(f["note"].get<std::string>().find("stuck") != std::string::npos, f.dump().c_str());
+    CHECK_TEXT(!f.contains("reach_date") || f["reach_date"].is_null(), f.dump().c_str());
+  }
+  LONGS_EQUAL(1, seen);
 }
 
 TEST(RestHandlers, HealthMergesTheServersFieldsAndReportsDegraded) {
