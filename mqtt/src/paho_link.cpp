@@ -149,6 +149,14 @@ PahoLink::PahoLink(LinkOptions options) {
 
 PahoLink::~PahoLink() {
   if (!impl_) return;
+  // Destroying the client while a connect is in flight crashes Paho's C library
+  // (eclipse-paho/paho.mqtt.c#220): an attempt still going (the broker unreachable at shutdown) is
+  // waited out first; its connect timeout (10 s) ends it.
+  try {
+    if (impl_->pending_connect) impl_->pending_connect->wait_for(std::chrono::seconds(15));
+  } catch (const std::exception&) {
+    // It failed: nothing in flight any more.
+  }
   try {
     if (impl_->client.is_connected()) impl_->client.disconnect(0)->wait_for(std::chrono::seconds(2));
   } catch (const std::exception&) {

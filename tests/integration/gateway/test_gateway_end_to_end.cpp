@@ -20,6 +20,7 @@
 #include <map>
 #include <mutex>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <utility>
@@ -172,8 +173,11 @@ class TestServer {
   ~TestServer() {
     stop_ = true;
     thread_.join();
+    // Destroying a Paho client while an operation is in flight crashes its C library (a connect:
+    // eclipse-paho/paho.mqtt.c#220; seen here as heap corruption on a loaded CI machine): every
+    // connect has ended (Run), and the disconnect is waited out to its end too.
     try {
-      if (client_.is_connected()) client_.disconnect()->wait_for(std::chrono::seconds(2));
+      if (client_.is_connected()) WaitOut(client_.disconnect());
     } catch (const std::exception&) {
     }
   }
@@ -206,9 +210,12 @@ class TestServer {
             opts.set_user_name(username_);
             opts.set_password(password_);
           }
-          client_.connect(opts)->wait_for(std::chrono::seconds(2));
-          client_.subscribe(std::string(kRoot) + "sensors/+/reading", 1)->wait_for(std::chrono::seconds(2));
-          client_.subscribe(std::string(kRoot) + "gateway/#", 1)->wait_for(std::chrono::seconds(2));
+          // Each attempt waited out to its end (the connect timeout bounds it; a failure throws):
+          // a second connect while one is in flight, or the destructor during one, is what crashes
+          // Paho. The same for the subscriptions (a clean session needs them on every connect).
+          WaitOut(client_.connect(opts));
+          WaitOut(client_.subscribe(std::string(kRoot) + "sensors/+/reading", 1));
+          WaitOut(client_.subscribe(std::string(kRoot) + "gateway/#", 1));
         } catch (const std::exception&) {
           SleepMs(100);
           continue;
@@ -217,6 +224,15 @@ class TestServer {
       mqtt::const_message_ptr msg;
       if (!client_.try_consume_message_for(&msg, std::chrono::milliseconds(50)) || !msg) continue;
       Handle(*msg);
+    }
+  }
+
+  // Waits until the operation has ended (success, or failure: then wait_for throws). Paho ends every
+  // operation (connect and operation timeouts); a minute is a bound only a broken client reaches.
+  static void WaitOut(const mqtt::token_ptr& tok) {
+    const int64_t until = NowMs() + 60'000;
+    while (!tok->wait_for(std::chrono::milliseconds(200))) {
+      if (NowMs() > until) throw std::runtime_error("an MQTT operation did not end within a minute");
     }
   }
 
