@@ -1,6 +1,7 @@
 // Diagnosis stage 8, predictions and report data (stage_predictions.hpp).
 #include "stage_predictions.hpp"
 
+#include <map>
 #include <algorithm>
 #include <cmath>
 #include <optional>
@@ -268,13 +269,19 @@ void Predict(const PredictionInput& in, DiagnosisResult& result) {
     result.prediction = PredictAt(in, face_points, UsedReadings(in.bundle.crusher, result.curves), *in.options.predict_at);
   // Unwrapped-liner maps and thinnest points for the HTML report (report_maps.cpp): each model as
   // it stands (compared with the scans there), not anchored to them.
+  // Eq. 9's faces at each time, computed once: the improved faces scale them.
   const double thickness_new_mm = in.bundle.crusher.thickness_new_mm;
+  std::map<double, Eigen::VectorXd> base_at;
   FillLinerReport(
       in.bundle, in.setup.fields, in.setup.scans,
       [&](bool improved, double t) {
-        const Eigen::VectorXd base =
-            ModelFaceWear(in.base.spec, in.base.eq9.x, face_points, in.setup.prob.grid, t, nullptr, thickness_new_mm);
-        return improved ? ImprovedFaceWear(in, face_points, t, nullptr, base) : base;
+        auto it = base_at.find(t);
+        if (it == base_at.end())
+          it = base_at
+                   .emplace(t, ModelFaceWear(in.base.spec, in.base.eq9.x, face_points, in.setup.prob.grid, t, nullptr,
+                                             thickness_new_mm))
+                   .first;
+        return improved ? ImprovedFaceWear(in, face_points, t, nullptr, it->second) : it->second;
       },
       result);
 }

@@ -238,6 +238,65 @@ TEST(Diagnose, PredictedFacesTakeTheScanAsGroundTruthAtItsDate) {
   CHECK_TRUE(j.at("prediction").at("faces_scan").at("applied").get<bool>());
 }
 
+TEST(Diagnose, WithAFindingAndNoScanTheImprovedFacesCarryItForward) {
+  // Work hardening (wear slowing down), readings to day 60, no scan, prediction at day 90: Eq. 9
+  // carries the wear linearly in time and overshoots; the improved faces carry the finding's time
+  // course on Eq. 9's row levels, closer to the truth (the same campaign scanned at day 90).
+  lw::test::SyntheticSpec spec;
+  spec.seed = 4;
+  spec.hardening_h = 0.5;
+  spec.hardening_tau_days = 20;
+  spec.days = 60;
+  spec.with_scan = false;
+  const lw::test::TempDirectory dir("lw-diag"), truth_dir("lw-diag-truth");
+  lw::test::WriteSyntheticBundle(dir.path(), spec);
+  spec.days = 90;
+  spec.with_scan = true;
+  spec.scan_day = 90;
+  lw::test::WriteSyntheticBundle(truth_dir.path(), spec);
+  const lw::core::Bundle bundle = lw::core::LoadBundle(dir.path());
+  const lw::core::Bundle later = lw::core::LoadBundle(truth_dir.path());
+  const Eigen::VectorXd truth = lw::core::ProjectScanToFaces(later.map, later.scans.at(0)).wear_mm;
+  const auto rmse = [&](const std::vector<double>& faces) {
+    double ss = 0;
+    int n = 0;
+    for (Eigen::Index f = 0; f < truth.size(); ++f) {
+      if (!std::isfinite(truth[f])) continue;
+      ss += std::pow(faces.at(static_cast<size_t>(f)) - truth[f], 2);
+      ++n;
+    }
+    CHECK_TRUE(n > truth.size() / 2);
+    return std::sqrt(ss / n);
+  };
+  lw::diagnosis::DiagnoseOptions options;
+  options.try_pairs = false;
+  options.predict_at = lw::core::AddDays(bundle.crusher.installed_at, 90);
+  const auto r = lw::diagnosis::Diagnose(bundle, options);
+  CHECK_FALSE(r.findings.empty());
+  STRCMP_EQUAL("work_hardening", r.findings[0].effect.c_str());
+  const auto& p = *r.prediction;
+  CHECK_TRUE(p.faces_scan.file.empty());
+  const double base = rmse(p.face_wear_baseline_mm), improved = rmse(p.face_wear_improved_mm);
+  CHECK_TRUE(improved < 0.6 * base);
+  for (double w : p.face_wear_improved_mm) CHECK_TRUE(w >= 0 && w <= bundle.crusher.thickness_new_mm);
+
+  // The report's improved liner map is the same function: predicted at the report's "now", its
+  // thinnest point is the report's improved model's thinnest point then.
+  options.predict_at = r.liner.now;
+  const auto now = lw::diagnosis::Diagnose(bundle, options);
+  // In order: live reconstruction, baseline, improved model (now), both at --predict-at.
+  const auto& thinnest = now.liner.thinnest;
+  CHECK_TRUE(thinnest.size() >= 5);
+  const lw::diagnosis::ThinnestPoint* model = &thinnest[thinnest.size() - 3];
+  const lw::diagnosis::ThinnestPoint* predicted = &thinnest.back();
+  CHECK_TRUE(predicted->label.rfind("improved model at --predict-at", 0) == 0);
+  CHECK_TRUE(model->label.rfind("baseline", 0) != 0 && model->time == predicted->time);
+  DOUBLES_EQUAL(model->thickness_mm, predicted->thickness_mm, 1e-9);
+  DOUBLES_EQUAL(model->z_m, predicted->z_m, 1e-12);
+  DOUBLES_EQUAL(model->theta_deg, predicted->theta_deg, 1e-12);
+  CHECK_TRUE(model->thickness_mm < bundle.crusher.thickness_new_mm);
+}
+
 TEST(Diagnose, AStuckSensorsStaleWearDoesNotSetTheScalesAtTheScan) {
   // LDWN-2 stuck from day 20: its kept readings end there, so its wear "at" the day-60 scan would be
   // day 20's. Left out of the scales at the scan: the predicted faces at day 90 stay close to the
