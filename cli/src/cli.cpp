@@ -222,20 +222,20 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   // value while its row wears, sets no scale, as in the server (docs/server.md).
   core::ReconstructionPlan plan = core::PrepareReconstruction(bundle.crusher, bundle.map);
   std::vector<std::string> stale, stuck;
-  const std::vector<core::SensorWear> wear = core::SensorWearFrom(
-      bundle.crusher, bundle.readings,
-      core::LiveReadingIndices(plan, bundle.readings, at.value_or(core::TimePoint::max()), &stale, &stuck),
-      /*interval_centre=*/!o.Flag("lower_bound"));
+  const std::vector<core::SensorWear> wear =
+      core::SensorWearFrom(bundle.crusher, bundle.readings,
+                           core::LiveReadingIndices(plan, bundle.readings, at.value_or(core::TimePoint::max()), &stale, &stuck),
+                           /*interval_centre=*/!o.Flag("lower_bound"));
   if (wear.empty()) throw BadInput(bundle.dir.string() + "/readings.csv: no reading at or before the requested time");
   // The latest scan at or before `at` corrects the map between the sensors (docs/diagnosis.md).
   std::string scan_line;
   if (!o.Flag("no_scan")) {
     if (const core::Scan* latest = core::LatestScanAt(bundle.scans, at.value_or(core::TimePoint::max()))) {
       const core::ScanFaces sf = core::ProjectScanToFaces(bundle.map, *latest);
-      const core::ScanCorrection c =
-          core::ApplyScan(plan, sf,
-                          core::FreshSensorWearAt(bundle.crusher, bundle.readings, latest->date, {}, nullptr,
-                                                  /*interval_centre=*/!o.Flag("lower_bound")));
+      const core::ScanCorrection c = core::ApplyScan(
+          plan, sf,
+          core::ScanSensorWear(bundle.crusher, bundle.readings, latest->date, stuck, at.value_or(core::TimePoint::max()),
+                               /*interval_centre=*/!o.Flag("lower_bound")));
       char buf[320];
       if (c.detail.empty())
         std::snprintf(buf, sizeof buf,

@@ -266,6 +266,22 @@ std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const st
   return SensorWearFrom(crusher, readings, FreshReadingIndices(crusher, readings, at, rule, stale), interval_centre);
 }
 
+std::vector<SensorWear> ScanSensorWear(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint scan_date,
+                                       const std::vector<std::string>& stuck, TimePoint now, bool interval_centre) {
+  std::vector<size_t> at_scan = FreshReadingIndices(crusher, readings, scan_date);
+  if (!stuck.empty()) {
+    std::map<std::string, double> frozen;  // stuck sensor -> its value now
+    for (const size_t i : LatestReadingIndices(crusher, readings, now))
+      if (std::find(stuck.begin(), stuck.end(), readings[i].sensor_id) != stuck.end())
+        frozen[readings[i].sensor_id] = readings[i].thickness_mm;
+    std::erase_if(at_scan, [&](size_t i) {
+      const auto it = frozen.find(readings[i].sensor_id);
+      return it != frozen.end() && it->second == readings[i].thickness_mm;
+    });
+  }
+  return SensorWearFrom(crusher, readings, at_scan, interval_centre);
+}
+
 ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const WearMap& map, const ReconstructionOptions& options) {
   return PrepareReconstruction(crusher, map, BuildMapModel(map, options.map_model), options);
 }

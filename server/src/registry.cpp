@@ -88,7 +88,8 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
   return c;
 }
 
-std::shared_ptr<const ScannedPlan> Crusher::PlanWithScan(const std::vector<core::Reading>& readings, core::TimePoint at) const {
+std::shared_ptr<const ScannedPlan> Crusher::PlanWithScan(const std::vector<core::Reading>& readings, core::TimePoint at,
+                                                         const std::vector<std::string>& stuck) const {
   const CrusherScan* latest = nullptr;
   size_t index = 0;
   for (size_t k = 0; k < scans.size(); ++k)
@@ -97,7 +98,7 @@ std::shared_ptr<const ScannedPlan> Crusher::PlanWithScan(const std::vector<core:
       index = k;
     }
   if (!latest) return nullptr;
-  std::vector<core::SensorWear> wear = core::FreshSensorWearAt(config, readings, latest->scan.date);
+  std::vector<core::SensorWear> wear = core::ScanSensorWear(config, readings, latest->scan.date, stuck, at);
   std::lock_guard<std::mutex> lock(scan_mutex_);
   const auto same = [&](const ScannedPlan& p) {
     if (p.scan != index || p.wear_at_scan.size() != wear.size()) return false;

@@ -58,7 +58,7 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   for (const size_t i : fresh) st.used.push_back(*source[i]);  // the reading each sensor's wear came from
   // The crusher's newest laser scan corrects the map between the sensors (even when it is dated after
   // the latest reading: readings arrive late, a scan is the newest measurement of the pattern).
-  st.scan = crusher.PlanWithScan(usable, core::TimePoint::max());
+  st.scan = crusher.PlanWithScan(usable, core::TimePoint::max(), st.stuck);
   st.reconstruction =
       core::Reconstruct(st.scan && st.scan->correction.detail.empty() ? st.scan->plan : crusher.plan, st.sensor_wear);
   st.has_wear = true;

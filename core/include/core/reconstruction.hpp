@@ -179,14 +179,23 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
 
 /// The readings that set the live map's scales at `at`: FreshReadingIndices, then WithoutStuckSensors
 /// (the server's live wear, `linerwatch reconstruct`, the report's live map). The scan's correction at
-/// its date uses FreshReadingIndices alone: what the server keeps of the days before a scan is each
-/// sensor's reading at its date, not its history.
+/// its date cannot judge that date's readings (what the server keeps of the days before a scan is
+/// each sensor's reading at its date, not its history): ScanSensorWear leaves out the sensors stuck
+/// now whose value had already frozen then.
 std::vector<size_t> LiveReadingIndices(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
                                        std::vector<std::string>* stale = nullptr, std::vector<std::string>* stuck = nullptr);
 /// The same with the map's intensities at the sensors (the plan's), for a value that held over the
 /// whole window (StuckRule): what the server, `linerwatch reconstruct` and the report use.
 std::vector<size_t> LiveReadingIndices(const ReconstructionPlan& plan, const std::vector<Reading>& readings, TimePoint at,
                                        std::vector<std::string>* stale = nullptr, std::vector<std::string>* stuck = nullptr);
+
+/// The sensors' wear that sets the scales at a scan's date, for its correction: FreshSensorWearAt
+/// there, without each sensor of `stuck` (stuck now, as LiveReadingIndices names them) whose reading
+/// at the scan's date is already the value it is stuck at (its latest up to `now`): that wear would
+/// set its row's scale at the scan too low, and the correction would carry the error on.
+std::vector<SensorWear> ScanSensorWear(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint scan_date,
+                                       const std::vector<std::string>& stuck, TimePoint now = TimePoint::max(),
+                                       bool interval_centre = true);
 
 /// Raw map intensity at each sensor position (area-weighted over faces within `radius_m` of it, or
 /// the nearest face when none is that close). Same order as crusher.sensors. (The reconstruction

@@ -46,10 +46,12 @@ struct Crusher {
   std::vector<CrusherScan> scans;  ///< sorted by date; a file that failed to load is a warning
 
   /// The plan live wear at `at` applies: `plan` corrected by the latest scan at or before `at`, with
-  /// the sensors' wear at the scan's date from `readings` (fault readings already left out); nullptr
-  /// when there is no such scan (then `plan` applies). Cached: recomputed only when the scan or the
-  /// sensors' wear at its date changed. Thread-safe.
-  std::shared_ptr<const ScannedPlan> PlanWithScan(const std::vector<core::Reading>& readings, core::TimePoint at) const;
+  /// the sensors' wear at the scan's date from `readings` (fault readings already left out; of the
+  /// sensors stuck now, `stuck`, those whose value had already frozen then too: core::ScanSensorWear);
+  /// nullptr when there is no such scan (then `plan` applies). Cached: recomputed only when the scan
+  /// or the sensors' wear at its date changed. Thread-safe.
+  std::shared_ptr<const ScannedPlan> PlanWithScan(const std::vector<core::Reading>& readings, core::TimePoint at,
+                                                  const std::vector<std::string>& stuck = {}) const;
 
  private:
   mutable std::mutex scan_mutex_;

@@ -223,6 +223,39 @@ TEST(Reconstruction, AValueFrozenBeforeTheWindowIsJudgedAtTheMapsShare) {
   CHECK_TEXT(stuck == std::vector<std::string>{"1003"}, stuck.empty() ? "none" : stuck.front().c_str());
 }
 
+TEST(Reconstruction, AScansScalesLeaveOutASensorAlreadyFrozenAtItsDate) {
+  // 1003 froze on day 5 (114); a scan on day 30; now day 100, 1003 stuck. Its reading at the scan
+  // (114: 5.5 mm of wear instead of about 33) is its frozen value: left out of the scan's scales.
+  CrusherConfig c = TwoRows();
+  c.sensors.push_back({"1003", "LDWN", 0.6, 180.0, 120, {}});
+  c.sensors.push_back({"1004", "LDWN", 0.4, 270.0, 120, {}});
+  const auto t0 = *ParseIsoTime("2026-01-01");
+  c.installed_at = t0;
+  auto campaign = [&](auto third) {
+    std::vector<Reading> rs;
+    Report(rs, t0, "1001", 100, [](double t) { return 119.9 - 1.0 * t; });
+    Report(rs, t0, "1002", 100, [](double t) { return 119.9 - 0.3 * t; });
+    Report(rs, t0, "1003", 100, third);
+    Report(rs, t0, "1004", 100, [](double t) { return 119.9 - 0.9 * t; });
+    return rs;
+  };
+  const TimePoint scan = AddDays(t0, 30), now = AddDays(t0, 100);
+  const auto ids = [](const std::vector<SensorWear>& w) {
+    std::vector<std::string> out;
+    for (const SensorWear& s : w) out.push_back(s.sensor_id);
+    return out;
+  };
+  const std::vector<Reading> early = campaign([](double t) { return 119.9 - 1.1 * std::min(t, 5.0); });
+  const std::vector<std::string> all{"1001", "1002", "1003", "1004"}, without{"1001", "1002", "1004"};
+  CHECK_TRUE(ids(ScanSensorWear(c, early, scan, {"1003"}, now)) == without);
+  CHECK_TRUE(ids(ScanSensorWear(c, early, scan, {}, now)) == all);
+  // Frozen on day 60, after the scan: its reading at the scan was still wear. Kept.
+  const std::vector<Reading> late = campaign([](double t) { return 119.9 - 1.1 * std::min(t, 60.0); });
+  const std::vector<SensorWear> kept = ScanSensorWear(c, late, scan, {"1003"}, now);
+  CHECK_TRUE(ids(kept) == all);
+  DOUBLES_EQUAL(120.0 - (std::floor(119.9 - 33.0) + 0.5), kept[2].wear_mm, 1e-9);
+}
+
 TEST(Reconstruction, SmoothingRemovesFaceNoiseButKeepsTheMean) {
   WearMap m = lw::test::CylinderMap(72, 40, [](double) { return 1.0; });
   for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] = (i % 2) ? 1.2 : 0.8;

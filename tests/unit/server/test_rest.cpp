@@ -423,10 +423,14 @@ TEST(RestHandlers, ADeadSensorSetsNoRowScaleAndIsNamedStale) {
     if (r["row"] == row) CHECK_TEXT(!r.contains("note"), r.dump().c_str());
 }
 
+namespace {
+
 // docs/server.md, *Global wear*: a sensor that keeps reporting one value while the other sensors of
 // its row wear (moisture across its loops) sets no row scale and is named in `sensors_stuck`. Its
 // frozen value would give its row too little wear: the live wear is the one without its reading.
-TEST(RestHandlers, AStuckSensorSetsNoRowScaleAndIsNamedStuck) {
+// The scan (day 10) is corrected with the sensors' wear at its date: without the stuck sensor's when
+// its value had already frozen then (core::ScanSensorWear).
+void CheckStuckSensor(double frozen_from_day) {
   lw::test::CrusherFolder folder(30, 7, 10);
   const lw::core::Bundle& b = folder.bundle;
   std::string stuck;  // a sensor of the lowest row (the fastest wear), which has others
@@ -436,8 +440,8 @@ TEST(RestHandlers, AStuckSensorSetsNoRowScaleAndIsNamedStuck) {
     if (in_row >= 2 && s.row == b.crusher.rows.front().name) stuck = s.id;
   }
   CHECK(!stuck.empty());
-  // From day 20 its value stops moving; it keeps reporting (heartbeats).
-  const lw::core::TimePoint from = lw::core::AddDays(b.crusher.installed_at, 20.0);
+  // From `frozen_from_day` its value stops moving; it keeps reporting (heartbeats).
+  const lw::core::TimePoint from = lw::core::AddDays(b.crusher.installed_at, frozen_from_day);
   double frozen = 0;
   for (const auto& r : b.readings)
     if (r.sensor_id == stuck && r.time <= from) frozen = r.thickness_mm;
@@ -459,13 +463,19 @@ TEST(RestHandlers, AStuckSensorSetsNoRowScaleAndIsNamedStuck) {
   CHECK_TEXT(res.json["sensors_stuck"] == json::array({stuck}), res.json["sensors_stuck"].dump().c_str());
   CHECK_TEXT(res.json["sensors_stale"].empty(), res.json["sensors_stale"].dump().c_str());
   for (const auto& u : res.json["readings_used"]) CHECK(u["sensor"] != stuck);
-  // Expected: the newest scan's correction as before (day 10, the sensor was fine), the live
-  // scales without the stuck sensor's wear; with it, its row would show less wear.
-  lw::core::ReconstructionPlan plan = lw::core::PrepareReconstruction(b.crusher, b.map);
+  // Expected: the newest scan's correction with the sensors' wear at its date (the stuck one's only
+  // when it had not frozen yet), the live scales without the stuck sensor's wear; with it, its row
+  // would show less wear.
   const lw::core::Scan* scan = lw::core::LatestScanAt(b.scans, lw::core::TimePoint::max());
   CHECK(scan != nullptr);
-  lw::core::ApplyScan(plan, lw::core::ProjectScanToFaces(b.map, *scan),
-                      lw::core::FreshSensorWearAt(b.crusher, posted.readings, scan->date));
+  const bool frozen_at_scan = from < scan->date;
+  const std::vector<lw::core::SensorWear> at_scan = lw::core::ScanSensorWear(b.crusher, posted.readings, scan->date, {stuck});
+  const std::vector<lw::core::SensorWear> all_at_scan = lw::core::FreshSensorWearAt(b.crusher, posted.readings, scan->date);
+  LONGS_EQUAL(all_at_scan.size() - (frozen_at_scan ? 1 : 0), at_scan.size());
+  lw::core::ReconstructionPlan plan = lw::core::PrepareReconstruction(b.crusher, b.map);
+  lw::core::ReconstructionPlan plan_all = plan;
+  lw::core::ApplyScan(plan, lw::core::ProjectScanToFaces(b.map, *scan), at_scan);
+  lw::core::ApplyScan(plan_all, lw::core::ProjectScanToFaces(b.map, *scan), all_at_scan);
   std::vector<lw::core::SensorWear> with = lw::core::FreshSensorWearAt(b.crusher, posted.readings, last);
   std::vector<lw::core::SensorWear> without = with;
   std::erase_if(without, [&](const lw::core::SensorWear& w) { return w.sensor_id == stuck; });
@@ -474,6 +484,13 @@ TEST(RestHandlers, AStuckSensorSetsNoRowScaleAndIsNamedStuck) {
   const lw::core::Reconstruction frozen_rec = lw::core::Reconstruct(plan, with);
   DOUBLES_EQUAL(expected.min_thickness_mm, res.json["min_thickness_mm"].get<double>(), 1e-3);
   CheckRowWearLeftOut(res.json, expected, frozen_rec, b.crusher.FindSensor(stuck)->row, "frozen");
+  if (frozen_at_scan) {
+    // The frozen wear at the scan would have set the scan's correction otherwise: by 7 mm at some
+    // faces here (its row's scale at the scan moves the correction around the sensors).
+    const lw::core::Reconstruction scan_with = lw::core::Reconstruct(plan_all, without);
+    const double moved = (expected.remaining_mm - scan_with.remaining_mm).cwiseAbs().maxCoeff();
+    CHECK_TEXT(moved > 2.0, std::to_string(moved).c_str());
+  }
   // Its frozen curve gives no forecast: `ok` false, no reach date, a note saying why.
   const rest::Response forecast = GetFrom(resources, "/api/v1/crushers/{crusher}/forecast", folder.id());
   int seen = 0;
@@ -485,6 +502,16 @@ TEST(RestHandlers, AStuckSensorSetsNoRowScaleAndIsNamedStuck) {
     CHECK_TEXT(!f.contains("reach_date") || f["reach_date"].is_null(), f.dump().c_str());
   }
   LONGS_EQUAL(1, seen);
+}
+
+}  // namespace
+
+TEST(RestHandlers, AStuckSensorSetsNoRowScaleAndIsNamedStuck) {
+  CheckStuckSensor(20.0);
+}
+
+TEST(RestHandlers, ASensorFrozenBeforeTheScanSetsNoScaleAtTheScanEither) {
+  CheckStuckSensor(2.0);
 }
 
 TEST(RestHandlers, HealthMergesTheServersFieldsAndReportsDegraded) {
