@@ -220,13 +220,13 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   // estimate is n + 0.5 as the server's (docs/bundle.md); --lower-bound uses n itself (thinner). A
   // sensor whose latest reading lags the newest by more than 8 of its periods, or that reports one
   // value while its row wears, sets no scale, as in the server (docs/server.md).
-  core::ReconstructionPlan plan = core::PrepareReconstruction(bundle.crusher, bundle.map);
   std::vector<std::string> stale, stuck;
-  const std::vector<core::SensorWear> wear =
-      core::SensorWearFrom(bundle.crusher, bundle.readings,
-                           core::LiveReadingIndices(plan, bundle.readings, at.value_or(core::TimePoint::max()), &stale, &stuck),
-                           /*interval_centre=*/!o.Flag("lower_bound"));
+  const std::vector<core::SensorWear> wear = core::SensorWearFrom(
+      bundle.crusher, bundle.readings,
+      core::LiveReadingIndices(bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), &stale, &stuck),
+      /*interval_centre=*/!o.Flag("lower_bound"));
   if (wear.empty()) throw BadInput(bundle.dir.string() + "/readings.csv: no reading at or before the requested time");
+  core::ReconstructionPlan plan = core::PrepareReconstruction(bundle.crusher, bundle.map);
   // The latest scan at or before `at` corrects the map between the sensors (docs/diagnosis.md).
   std::string scan_line;
   if (!o.Flag("no_scan")) {

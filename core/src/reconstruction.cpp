@@ -155,18 +155,7 @@ double GradualDrop(const Series& s, TimePoint from, TimePoint to, double max_ste
 }  // namespace
 
 std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std::vector<Reading>& readings,
-                                        std::vector<size_t> indices, const StuckRule& rule, std::vector<std::string>* stuck,
-                                        const Eigen::VectorXd* sensor_intensity) {
-  // The map's intensity at a sensor (0 when not given or not positive).
-  auto map_intensity = [&](const std::string& id) {
-    if (!sensor_intensity) return 0.0;
-    for (size_t k = 0; k < crusher.sensors.size(); ++k)
-      if (crusher.sensors[k].id == id && static_cast<Eigen::Index>(k) < sensor_intensity->size()) {
-        const double v = (*sensor_intensity)[static_cast<Eigen::Index>(k)];
-        return std::isfinite(v) && v > 0 ? v : 0.0;
-      }
-    return 0.0;
-  };
+                                        std::vector<size_t> indices, const StuckRule& rule, std::vector<std::string>* stuck) {
   std::map<std::string, size_t> selected;  // sensor -> its reading in `indices`
   for (const size_t i : indices) selected[readings[i].sensor_id] = i;
   std::map<std::string, Series> series;
@@ -193,7 +182,6 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
   // (fewer than min_readings, consumed, or the run began with a step: a crack cut loops early and
   // the value waits for the wear to catch up, which the diagnosis names).
   std::map<std::string, TimePoint> flat_from;
-  std::set<std::string> held_whole_window;  // the run is the whole window: it began before it
   for (const size_t i : indices) {
     const Reading& r = readings[i];
     const Series& s = series[r.sensor_id];
@@ -202,30 +190,23 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
     if (r.thickness_mm < 1.0 || flat < rule.min_readings) continue;
     if (flat < s.size() && s[s.size() - 1 - flat].second - r.thickness_mm > rule.max_step_mm) continue;
     flat_from[r.sensor_id] = s[s.size() - flat].first;
-    if (flat == s.size()) held_whole_window.insert(r.sensor_id);
   }
   // What the sensor should have lost over its flat run at each row mate's rate (mates in `skip` left
   // out): the mate's gradual wear over those days times the sensor's wear over the mate's when the
   // run began, the sensor's taken low (reading n: more than new - n - 1 mm) and the mate's high
-  // (at most new - n), so that the quantisation of either does not make a slow sensor look stuck. When
-  // the value held over the whole window, that share is a lower bound (the sensor's own wear stopped
-  // before the window began): at least map_share x the map's ratio then.
+  // (at most new - n), so that the quantisation of either does not make a slow sensor look stuck.
   auto expected_losses = [&](size_t i, const std::set<std::string>& skip) {
     const Reading& r = readings[i];
     const TimePoint from = flat_from.at(r.sensor_id);
     const SensorInfo& me = *crusher.FindSensor(r.sensor_id);
     const double own = std::max(0.0, me.thickness_new_mm - (r.thickness_mm + 1.0));
-    const double own_intensity = held_whole_window.contains(r.sensor_id) ? map_intensity(r.sensor_id) : 0.0;
     std::vector<double> expected;
     for (const auto& [id, j] : selected) {
       const SensorInfo& mate = *crusher.FindSensor(id);
       if (id == r.sensor_id || mate.row != me.row || skip.contains(id)) continue;
       const double mate_wear = mate.thickness_new_mm - reading_at(id, from);
       if (mate_wear < rule.min_mate_wear_mm) continue;
-      double share = own / mate_wear;
-      if (const double m = map_intensity(id); own_intensity > 0 && m > 0)
-        share = std::max(share, rule.map_share * own_intensity / m);
-      expected.push_back(share * GradualDrop(series[id], from, r.time, rule.max_step_mm));
+      expected.push_back(own / mate_wear * GradualDrop(series[id], from, r.time, rule.max_step_mm));
     }
     std::sort(expected.begin(), expected.end());
     return expected;
@@ -252,13 +233,6 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
 std::vector<size_t> LiveReadingIndices(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
                                        std::vector<std::string>* stale, std::vector<std::string>* stuck) {
   return WithoutStuckSensors(crusher, readings, FreshReadingIndices(crusher, readings, at, {}, stale), {}, stuck);
-}
-
-std::vector<size_t> LiveReadingIndices(const ReconstructionPlan& plan, const std::vector<Reading>& readings, TimePoint at,
-                                       std::vector<std::string>* stale, std::vector<std::string>* stuck) {
-  const CrusherConfig& crusher = *plan.crusher;
-  return WithoutStuckSensors(crusher, readings, FreshReadingIndices(crusher, readings, at, {}, stale), {}, stuck,
-                             &plan.sensor_intensity);
 }
 
 std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,

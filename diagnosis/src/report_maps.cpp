@@ -196,7 +196,7 @@ void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const 
       if (c.detail.empty()) with_scan = ", the map corrected by scan " + latest->file;
     }
     const std::vector<core::SensorWear> wear =
-        core::SensorWearFrom(crusher, used, core::LiveReadingIndices(plan, used, liner.now));
+        core::SensorWearFrom(crusher, used, core::LiveReadingIndices(crusher, used, liner.now));
     const core::Reconstruction rec = core::Reconstruct(plan, wear);
     if (rec.remaining_mm.size() == static_cast<Eigen::Index>(bundle.map.face_count())) {
       ThinnestPoint p;

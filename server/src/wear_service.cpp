@@ -53,7 +53,7 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   // A sensor whose latest reading lags the newest by more than 8 of its reporting periods (dead, or
   // its radio lost) would give an old day's wear, too little: it sets no row scale (core::Staleness);
   // nor does one that keeps reporting one value while its row wears (core::StuckRule).
-  const std::vector<size_t> fresh = core::LiveReadingIndices(crusher.plan, usable, st.time, &st.stale, &st.stuck);
+  const std::vector<size_t> fresh = core::LiveReadingIndices(crusher.config, usable, st.time, &st.stale, &st.stuck);
   st.sensor_wear = core::SensorWearFrom(crusher.config, usable, fresh);
   for (const size_t i : fresh) st.used.push_back(*source[i]);  // the reading each sensor's wear came from
   // The crusher's newest laser scan corrects the map between the sensors (even when it is dated after

@@ -152,12 +152,9 @@ std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const st
 /// each sensor's readings in the forecast's window up to its latest count (max(`history_days`,
 /// `history_fraction` x the days since installation): what the server keeps in memory, so its state
 /// and a full recompute agree). So when the value froze before the window, the run is taken from the
-/// window's start, where the mates had worn more than at the freeze, and the sensor's own wear then
-/// is too little: its share from history is a lower bound, and a sensor that froze early with
-/// little wear would be named only while its mates' wear in the window made up for it. For such a
-/// run (the value held over the whole window), when the map's intensities at the sensors are given,
-/// the share is at least `map_share` x the map's ratio (the sensor's smoothed intensity over the
-/// mate's: what Eq. 9 itself assumes, taken at half to allow for the map's error at a sensor).
+/// window's start, where the mates had worn more than at the freeze: the expected loss is then a
+/// lower bound, and a sensor that froze early with little wear is named only while its mates' wear
+/// in the window makes up for it.
 struct StuckRule {
   double expected_mm = 5.0;
   size_t min_readings = 3;
@@ -165,17 +162,13 @@ struct StuckRule {
   double max_step_mm = 2.0;
   double history_days = 21.0;     ///< = ForecastOptions::window_min_days
   double history_fraction = 0.4;  ///< = ForecastOptions::window_fraction
-  double map_share = 0.5;
 };
 
 /// `indices` (one reading per sensor, as FreshReadingIndices selects them) without the stuck sensors
-/// (StuckRule); their ids go to `stuck` when given. `sensor_intensity` (crusher.sensors order, the
-/// map model at each sensor: ReconstructionPlan::sensor_intensity), when given, bounds the share of a
-/// sensor whose value held over its whole window.
+/// (StuckRule); their ids go to `stuck` when given.
 std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std::vector<Reading>& readings,
                                         std::vector<size_t> indices, const StuckRule& rule = {},
-                                        std::vector<std::string>* stuck = nullptr,
-                                        const Eigen::VectorXd* sensor_intensity = nullptr);
+                                        std::vector<std::string>* stuck = nullptr);
 
 /// The readings that set the live map's scales at `at`: FreshReadingIndices, then WithoutStuckSensors
 /// (the server's live wear, `linerwatch reconstruct`, the report's live map). The scan's correction at
@@ -184,15 +177,14 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
 /// now whose value had already frozen then.
 std::vector<size_t> LiveReadingIndices(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint at,
                                        std::vector<std::string>* stale = nullptr, std::vector<std::string>* stuck = nullptr);
-/// The same with the map's intensities at the sensors (the plan's), for a value that held over the
-/// whole window (StuckRule): what the server, `linerwatch reconstruct` and the report use.
-std::vector<size_t> LiveReadingIndices(const ReconstructionPlan& plan, const std::vector<Reading>& readings, TimePoint at,
-                                       std::vector<std::string>* stale = nullptr, std::vector<std::string>* stuck = nullptr);
 
 /// The sensors' wear that sets the scales at a scan's date, for its correction: FreshSensorWearAt
 /// there, without each sensor of `stuck` (stuck now, as LiveReadingIndices names them) whose reading
-/// at the scan's date is already the value it is stuck at (its latest up to `now`): that wear would
-/// set its row's scale at the scan too low, and the correction would carry the error on.
+/// at the scan's date is already the value it is stuck at (its latest up to `now`): frozen then, whose
+/// wear would set its row's scale at the scan too low and the correction would carry the error on;
+/// or still on its last genuine loop then (frozen within one loop after the scan: the value alone
+/// cannot tell), when its reading was right and is left out all the same, its row mates setting the
+/// scale there.
 std::vector<SensorWear> ScanSensorWear(const CrusherConfig& crusher, const std::vector<Reading>& readings, TimePoint scan_date,
                                        const std::vector<std::string>& stuck, TimePoint now = TimePoint::max(),
                                        bool interval_centre = true);

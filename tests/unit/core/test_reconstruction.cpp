@@ -182,47 +182,6 @@ TEST(Reconstruction, ASensorReportingOneValueWhileItsRowWearsIsStuck) {
   CHECK_TRUE(Stuck(c, alone, at).empty());
 }
 
-TEST(Reconstruction, AValueFrozenBeforeTheWindowIsJudgedAtTheMapsShare) {
-  // 1003 froze on day 5 at 114 (6 mm worn); on day 100 the window is days 60-100, where the value
-  // held throughout while its mates wore 36-40 mm. From history its share is its wear at day 60
-  // (5 mm, taken low) over theirs (55-61 mm): 3.3 mm expected, too little. The map (uniform) says it
-  // wears as they do: at half that share, 18-20 mm expected: stuck.
-  CrusherConfig c = TwoRows();
-  c.sensors.push_back({"1003", "LDWN", 0.6, 180.0, 120, {}});
-  c.sensors.push_back({"1004", "LDWN", 0.4, 270.0, 120, {}});
-  const WearMap m = lw::test::CylinderMap(36, 40, [](double) { return 1.0; });
-  const ReconstructionPlan plan = PrepareReconstruction(c, m);
-  const auto t0 = *ParseIsoTime("2026-01-01");
-  c.installed_at = t0;
-  const TimePoint at = AddDays(t0, 100);
-  auto campaign = [&](auto third) {
-    std::vector<Reading> rs;
-    Report(rs, t0, "1001", 100, [](double t) { return 119.9 - 1.0 * t; });
-    Report(rs, t0, "1002", 100, [](double t) { return 119.9 - 0.3 * t; });
-    Report(rs, t0, "1003", 100, third);
-    Report(rs, t0, "1004", 100, [](double t) { return 119.9 - 0.9 * t; });
-    return rs;
-  };
-  const std::vector<Reading> frozen = campaign([](double t) { return 119.9 - 1.1 * std::min(t, 5.0); });
-  std::vector<std::string> stale, stuck;
-  const std::vector<size_t> live = LiveReadingIndices(plan, frozen, at, &stale, &stuck);
-  CHECK_TRUE(stale.empty());
-  CHECK_TEXT(stuck == std::vector<std::string>{"1003"}, stuck.empty() ? "none" : stuck.front().c_str());
-  LONGS_EQUAL(3, live.size());
-  // Without the map's intensities its share is the lower bound from history: not named.
-  CHECK_TRUE(Stuck(c, frozen, at).empty());
-  // A slow sensor that keeps losing loops (a fourteenth of its mates' rate: a loop every 15 days; its
-  // last from day 86, while they wear 12.5-14 mm) never holds over the whole window: the map's share
-  // (6 mm of it) does not apply to it, its own (about 1 mm) does.
-  stuck.clear();
-  LiveReadingIndices(plan, campaign([](double t) { return 119.9 - 0.0685 * t; }), at, nullptr, &stuck);
-  CHECK_TRUE(stuck.empty());
-  // Day 20 (window days 0-20): the run began inside it, judged from history as before (named).
-  stuck.clear();
-  LiveReadingIndices(plan, frozen, AddDays(t0, 20), nullptr, &stuck);
-  CHECK_TEXT(stuck == std::vector<std::string>{"1003"}, stuck.empty() ? "none" : stuck.front().c_str());
-}
-
 TEST(Reconstruction, AScansScalesLeaveOutASensorAlreadyFrozenAtItsDate) {
   // 1003 froze on day 5 (114); a scan on day 30; now day 100, 1003 stuck. Its reading at the scan
   // (114: 5.5 mm of wear instead of about 33) is its frozen value: left out of the scan's scales.
@@ -254,6 +213,11 @@ TEST(Reconstruction, AScansScalesLeaveOutASensorAlreadyFrozenAtItsDate) {
   const std::vector<SensorWear> kept = ScanSensorWear(c, late, scan, {"1003"}, now);
   CHECK_TRUE(ids(kept) == all);
   DOUBLES_EQUAL(120.0 - (std::floor(119.9 - 33.0) + 0.5), kept[2].wear_mm, 1e-9);
+  // Frozen on day 30.5, within the loop it read at the scan (day 30: 86.9 -> 86; it would have read
+  // 85 from day 30.8): its value then was right, but the value alone cannot tell. Left out; its
+  // mates set the row's scale at the scan.
+  const std::vector<Reading> same_loop = campaign([](double t) { return 119.9 - 1.1 * std::min(t, 30.5); });
+  CHECK_TRUE(ids(ScanSensorWear(c, same_loop, scan, {"1003"}, now)) == without);
 }
 
 TEST(Reconstruction, SmoothingRemovesFaceNoiseButKeepsTheMean) {

@@ -290,6 +290,7 @@ TEST(Diagnose, WithAFindingAndNoScanTheImprovedFacesCarryItForward) {
   const lw::diagnosis::ThinnestPoint* model = &thinnest[thinnest.size() - 3];
   const lw::diagnosis::ThinnestPoint* predicted = &thinnest.back();
   CHECK_TRUE(predicted->label.rfind("improved model at --predict-at", 0) == 0);
+  CHECK_TRUE(thinnest[thinnest.size() - 4].label.rfind("baseline model (", 0) == 0);
   CHECK_TRUE(model->label.rfind("baseline", 0) != 0 && model->time == predicted->time);
   DOUBLES_EQUAL(model->thickness_mm, predicted->thickness_mm, 1e-9);
   DOUBLES_EQUAL(model->z_m, predicted->z_m, 1e-12);

@@ -428,10 +428,10 @@ namespace {
 // docs/server.md, *Global wear*: a sensor that keeps reporting one value while the other sensors of
 // its row wear (moisture across its loops) sets no row scale and is named in `sensors_stuck`. Its
 // frozen value would give its row too little wear: the live wear is the one without its reading.
-// The scan (day 10) is corrected with the sensors' wear at its date: without the stuck sensor's when
-// its value had already frozen then (core::ScanSensorWear).
-void CheckStuckSensor(double frozen_from_day) {
-  lw::test::CrusherFolder folder(30, 7, 10);
+// The scan is corrected with the sensors' wear at its date: without the stuck sensor's when its value
+// had already frozen then (core::ScanSensorWear).
+void CheckStuckSensor(double days, double scan_day, double frozen_from_day) {
+  lw::test::CrusherFolder folder(days, 7, scan_day);
   const lw::core::Bundle& b = folder.bundle;
   std::string stuck;  // a sensor of the lowest row (the fastest wear), which has others
   for (const auto& s : b.crusher.sensors) {
@@ -507,11 +507,11 @@ void CheckStuckSensor(double frozen_from_day) {
 }  // namespace
 
 TEST(RestHandlers, AStuckSensorSetsNoRowScaleAndIsNamedStuck) {
-  CheckStuckSensor(20.0);
+  CheckStuckSensor(30, 10, 20);
 }
 
 TEST(RestHandlers, ASensorFrozenBeforeTheScanSetsNoScaleAtTheScanEither) {
-  CheckStuckSensor(2.0);
+  CheckStuckSensor(60, 30, 20);
 }
 
 TEST(RestHandlers, HealthMergesTheServersFieldsAndReportsDegraded) {
