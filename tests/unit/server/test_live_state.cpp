@@ -46,11 +46,21 @@ std::vector<Incoming> Messages() {
   double frozen = -1;
   for (const auto& r : b.readings)
     if (r.sensor_id == stuck && r.time <= froze) frozen = r.thickness_mm;
+  // Another sticks on day 25, before the scan (day 30): stuck both ways, and its frozen value at the
+  // scan's date is left out of the scan's scales both ways (core::ScanSensorWear).
+  const std::string early = b.crusher.sensors.at(8).id;
+  const lw::core::TimePoint froze_early = lw::core::AddDays(b.crusher.installed_at, 25);
+  double frozen_early = -1;
+  for (const auto& r : b.readings)
+    if (r.sensor_id == early && r.time <= froze_early) frozen_early = r.thickness_mm;
   for (Incoming& m : out) {
     json j = json::parse(m.payload);
-    if (m.sensor != stuck || lw::core::ParseIsoTime(j["time"].get<std::string>()).value() <= froze) continue;
-    j["thickness_mm"] = frozen;
-    j["loops_intact"] = static_cast<int>(frozen);
+    const lw::core::TimePoint t = lw::core::ParseIsoTime(j["time"].get<std::string>()).value();
+    const bool is_stuck = m.sensor == stuck && t > froze, is_early = m.sensor == early && t > froze_early;
+    if (!is_stuck && !is_early) continue;
+    const double mm = is_stuck ? frozen : frozen_early;
+    j["thickness_mm"] = mm;
+    j["loops_intact"] = static_cast<int>(mm);
     m.payload = j.dump();
   }
   const auto add = [&](const std::string& sensor, int64_t seq, int64_t time_s, double mm, int loops, int flags) {
@@ -94,11 +104,16 @@ void CheckEqualsFullRecompute(const Crusher& c, const LiveState& live, Store& st
   CHECK_TRUE(full.has_wear);
   CHECK(full.scan != nullptr);
   CHECK(WearJson(full, true) == WearJson(incremental, true));
-  if (expect_pruned) {  // all readings in: the sensor dead since day 60 is stale, the frozen one stuck
+  if (expect_pruned) {  // all readings in: the sensor dead since day 60 is stale, the frozen ones stuck
     CHECK_TEXT(full.stale == std::vector<std::string>{c.config.sensors.at(2).id},
                WearJson(full, false)["sensors_stale"].dump().c_str());
-    CHECK_TEXT(full.stuck == std::vector<std::string>{c.config.sensors.at(7).id},
+    CHECK_TEXT(full.stuck == (std::vector<std::string>{c.config.sensors.at(7).id, c.config.sensors.at(8).id}),
                WearJson(full, false)["sensors_stuck"].dump().c_str());
+    // The one frozen before the scan sets no scale there; the one frozen after it does.
+    std::vector<std::string> at_scan;
+    for (const auto& w : full.scan->wear_at_scan) at_scan.push_back(w.sensor_id);
+    CHECK(std::find(at_scan.begin(), at_scan.end(), c.config.sensors.at(8).id) == at_scan.end());
+    CHECK(std::find(at_scan.begin(), at_scan.end(), c.config.sensors.at(7).id) != at_scan.end());
   }
   CHECK(ForecastJson(full) == ForecastJson(incremental));
   CHECK(live.LatestUsableTime(Folder().id()) == full.time.time_since_epoch().count());
