@@ -174,6 +174,20 @@ TEST(Diagnose, AMapsOwnProfileErrorIsNotPhysics) {
 
 namespace {
 
+// Per-face RMSE (mm) of predicted face wear against the truth, over the faces a scan measured
+// (truth NaN elsewhere).
+double FaceRmse(const Eigen::VectorXd& truth, const std::vector<double>& faces) {
+  double ss = 0;
+  int n = 0;
+  for (Eigen::Index f = 0; f < truth.size(); ++f) {
+    if (!std::isfinite(truth[f])) continue;
+    ss += std::pow(faces.at(static_cast<size_t>(f)) - truth[f], 2);
+    ++n;
+  }
+  CHECK_TRUE(n > truth.size() / 2);
+  return std::sqrt(ss / n);
+}
+
 // A campaign with a scan at day 60 and readings to day 90, and its truth at day 90: the same
 // campaign scanned at day 90, per face (NaN where no point fell).
 struct ScannedCampaign {
@@ -195,18 +209,7 @@ struct ScannedCampaign {
     options.predict_at = lw::core::AddDays(bundle.crusher.installed_at, day);
     return lw::diagnosis::Diagnose(bundle, options);
   }
-  // Per-face RMSE (mm) of predicted face wear against the truth, over the faces the scan measured.
-  double Rmse(const std::vector<double>& faces) const {
-    double ss = 0;
-    int n = 0;
-    for (Eigen::Index f = 0; f < truth.size(); ++f) {
-      if (!std::isfinite(truth[f])) continue;
-      ss += std::pow(faces.at(static_cast<size_t>(f)) - truth[f], 2);
-      ++n;
-    }
-    CHECK_TRUE(n > truth.size() / 2);
-    return std::sqrt(ss / n);
-  }
+  double Rmse(const std::vector<double>& faces) const { return FaceRmse(truth, faces); }
 };
 
 }  // namespace
@@ -257,17 +260,7 @@ TEST(Diagnose, WithAFindingAndNoScanTheImprovedFacesCarryItForward) {
   const lw::core::Bundle bundle = lw::core::LoadBundle(dir.path());
   const lw::core::Bundle later = lw::core::LoadBundle(truth_dir.path());
   const Eigen::VectorXd truth = lw::core::ProjectScanToFaces(later.map, later.scans.at(0)).wear_mm;
-  const auto rmse = [&](const std::vector<double>& faces) {
-    double ss = 0;
-    int n = 0;
-    for (Eigen::Index f = 0; f < truth.size(); ++f) {
-      if (!std::isfinite(truth[f])) continue;
-      ss += std::pow(faces.at(static_cast<size_t>(f)) - truth[f], 2);
-      ++n;
-    }
-    CHECK_TRUE(n > truth.size() / 2);
-    return std::sqrt(ss / n);
-  };
+  const auto rmse = [&](const std::vector<double>& faces) { return FaceRmse(truth, faces); };
   lw::diagnosis::DiagnoseOptions options;
   options.try_pairs = false;
   options.predict_at = lw::core::AddDays(bundle.crusher.installed_at, 90);
