@@ -227,4 +227,23 @@ TEST(Linerwatch, ReconstructLeavesOutAStuckSensor) {
           << (r.sensor_id == stuck && r.time > froze ? frozen : r.thickness_mm) << '\n';
   }
   CheckReconstructLeavesOut(b, bundle, stuck, "stuck sensors", "sensors_stuck");
+  // With the scan (the last day, after it froze): its frozen value sets no scale at the scan either,
+  // so the result equals that of the bundle without its readings, scan and all (core::ScanSensorWear).
+  const fs::path without = dir / "without";
+  fs::copy(b, without, fs::copy_options::recursive);
+  {
+    std::ofstream out(without / "readings.csv");
+    out << "time,sensor_id,thickness_mm\n";
+    for (const auto& r : bundle.readings)
+      if (r.sensor_id != stuck) out << lw::core::FormatIsoTime(r.time) << ',' << r.sensor_id << ',' << r.thickness_mm << '\n';
+  }
+  const Run scanned = Cli({"reconstruct", b.string(), "--json", (dir / "s.json").string()});
+  LONGS_EQUAL(0, scanned.code);
+  CHECK_TEXT(scanned.out.find("faces corrected") != std::string::npos, scanned.out.c_str());
+  LONGS_EQUAL(0, Cli({"reconstruct", without.string(), "--json", (dir / "w.json").string()}).code);
+  const auto with_scan = nlohmann::json::parse(Slurp(dir / "s.json")), reference = nlohmann::json::parse(Slurp(dir / "w.json"));
+  DOUBLES_EQUAL(reference["min_thickness_mm"].get<double>(), with_scan["min_thickness_mm"].get<double>(), 1e-9);
+  LONGS_EQUAL(reference["rows"].size(), with_scan["rows"].size());
+  for (size_t k = 0; k < reference["rows"].size(); ++k)
+    DOUBLES_EQUAL(reference["rows"][k]["mean_wear_mm"].get<double>(), with_scan["rows"][k]["mean_wear_mm"].get<double>(), 1e-9);
 }
