@@ -1,9 +1,9 @@
 // Diagnosis stage 8, predictions and report data (stage_predictions.hpp).
 #include "stage_predictions.hpp"
 
-#include <map>
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <optional>
 
 #include "core/scan_correction.hpp"
