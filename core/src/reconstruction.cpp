@@ -133,8 +133,9 @@ std::vector<size_t> FreshReadingIndices(const CrusherConfig& crusher, const std:
 
 namespace {
 
-// A sensor's readings in its last `history_days` up to `latest` (time, thickness), by time; at one
-// time the thicker first, so that the last is the one LatestReadingIndices selects.
+// A sensor's (time, thickness) by time: its readings in its window up to its latest, at one time the
+// thicker first (so that the last is the one LatestReadingIndices selects), after its record lows
+// before the window.
 using Series = std::vector<std::pair<TimePoint, double>>;
 
 // The wear a series shows gradually between `from` and `to`: falls of its running minimum of at most
@@ -158,19 +159,36 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
                                         std::vector<size_t> indices, const StuckRule& rule, std::vector<std::string>* stuck) {
   std::map<std::string, size_t> selected;  // sensor -> its reading in `indices`
   for (const size_t i : indices) selected[readings[i].sensor_id] = i;
+  // Each sensor's readings in its window, and before the window its record lows: each new lowest
+  // thickness, when first read (the thinnest reading of that time). They give its running minimum at
+  // any earlier time, all the rule needs of those days (a run's start and the step before it, a
+  // mate's wear then and its gradual wear since) and what the server keeps of them.
   std::map<std::string, Series> series;
+  std::map<std::string, std::map<TimePoint, double>> before;  // thinnest reading per time, before the window
   for (const Reading& r : readings) {
     const auto it = selected.find(r.sensor_id);
     if (it == selected.end()) continue;
     const TimePoint latest = readings[it->second].time;
     const double window =
         std::max(rule.history_days, rule.history_fraction * std::max(0.0, DaysBetween(crusher.installed_at, latest)));
-    if (r.time > latest || r.time < AddDays(latest, -window)) continue;
+    if (r.time > latest) continue;
+    if (r.time < AddDays(latest, -window)) {
+      const auto [b, fresh] = before[r.sensor_id].try_emplace(r.time, r.thickness_mm);
+      if (!fresh) b->second = std::min(b->second, r.thickness_mm);
+      continue;
+    }
     series[r.sensor_id].emplace_back(r.time, r.thickness_mm);
   }
   for (auto& [id, s] : series)
     std::sort(s.begin(), s.end(),
               [](const auto& a, const auto& b) { return a.first < b.first || (a.first == b.first && a.second > b.second); });
+  for (const auto& [id, by_time] : before) {
+    Series lows;
+    for (const auto& [t, mm] : by_time)
+      if (lows.empty() || mm < lows.back().second) lows.emplace_back(t, mm);
+    Series& s = series[id];
+    s.insert(s.begin(), lows.begin(), lows.end());
+  }
   // A sensor's thickness reading at its last point at or before t (else its first).
   auto reading_at = [&](const std::string& id, TimePoint t) {
     const Series& s = series[id];
@@ -180,7 +198,9 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
   };
   // The flat run each sensor ends with: its first time, or nothing when the sensor is not judged
   // (fewer than min_readings, consumed, or the run began with a step: a crack cut loops early and
-  // the value waits for the wear to catch up, which the diagnosis names).
+  // the value waits for the wear to catch up, which the diagnosis names). A run that fills the
+  // window reaches back to the record low of its value when there is one (the value froze before
+  // the window), and its step is the one from the record low before.
   std::map<std::string, TimePoint> flat_from;
   for (const size_t i : indices) {
     const Reading& r = readings[i];

@@ -21,6 +21,23 @@ bool BetterAtSameTime(double thickness, int64_t seq, double best_thickness, int6
   return thickness < best_thickness || (thickness == best_thickness && seq < best_seq);
 }
 
+/// `p` into `lows` (record lows by time: each new lowest thickness when first read, the thinnest
+/// reading of that time) wherever it falls in time: late readings too.
+template <typename P>
+void AddLow(std::vector<P>& lows, const P& p) {
+  auto it = std::lower_bound(lows.begin(), lows.end(), p.time_s, [](const P& a, int64_t t) { return a.time_s < t; });
+  if (it != lows.end() && it->time_s == p.time_s) {
+    if (!BetterAtSameTime(p.thickness_mm, p.seq, it->thickness_mm, it->seq)) return;
+    *it = p;
+  } else {
+    if (it != lows.begin() && !(p.thickness_mm < std::prev(it)->thickness_mm)) return;
+    it = lows.insert(it, p);
+  }
+  // The later lows that are not below it are no longer record lows.
+  const auto end = std::find_if(it + 1, lows.end(), [&](const P& a) { return a.thickness_mm < p.thickness_mm; });
+  lows.erase(it + 1, end);
+}
+
 }  // namespace
 
 LiveState::LiveState(const Registry& registry) : registry_(registry) {
@@ -95,6 +112,7 @@ void LiveState::AddLocked(CrusherLive& c, const StoredReading& r) {
     s.window.insert(std::upper_bound(s.window.begin(), s.window.end(), p, later), p);  // at the end but for late readings
   }
   while (!s.window.empty() && s.window.front().time_s < start) s.window.pop_front();
+  AddLow(s.lows, p);
   for (size_t k = 0; k < c.crusher->scans.size(); ++k) {
     if (r.time_s > Unix(c.crusher->scans[k].scan.date)) continue;
     std::optional<Point>& a = s.anchor[k];
@@ -146,9 +164,12 @@ void LiveState::LoadFrom(Store& store, const Crusher& c_crusher, CrusherLive& c)
       });
       if (!s.last_usable_s) continue;
       if (!c.last_usable_s || *s.last_usable_s > *c.last_usable_s) c.last_usable_s = s.last_usable_s;
-      store.Walk(id, sensor, WindowStart(*crusher, *s.last_usable_s), INT64_MAX, false, [&](const StoredReading& r) {
-        if (!IsFaultReading(r.flags, r.loops_intact))
-          s.window.push_back({r.time_s, r.seq, r.thickness_mm, r.loops_intact, r.flags});
+      const int64_t start = WindowStart(*crusher, *s.last_usable_s);
+      store.Walk(id, sensor, INT64_MIN, INT64_MAX, false, [&](const StoredReading& r) {
+        if (IsFaultReading(r.flags, r.loops_intact)) return true;
+        const Point p{r.time_s, r.seq, r.thickness_mm, r.loops_intact, r.flags};
+        if (r.time_s >= start) s.window.push_back(p);
+        AddLow(s.lows, p);
         return true;
       });
       for (size_t k = 0; k < crusher->scans.size(); ++k) {
@@ -199,7 +220,8 @@ std::vector<StoredReading> LiveState::WearInputs(const std::string& crusher) con
   if (!c) return out;
   std::lock_guard<std::mutex> lock(c->mutex);
   size_t total = 0;  // reserved at once: the copies are this function's cost, not the vector's growth
-  for (const auto& entry : c->sensors) total += entry.second.window.size() + entry.second.anchor.size();
+  for (const auto& entry : c->sensors)
+    total += entry.second.window.size() + entry.second.anchor.size() + entry.second.lows.size();
   out.reserve(total);
   for (const auto& entry : c->sensors) {
     const std::string& sensor = entry.first;  // not a structured binding: clang 14 cannot capture one
@@ -218,13 +240,19 @@ std::vector<StoredReading> LiveState::WearInputs(const std::string& crusher) con
     };
     for (const Point& p : s.window) emit(p);
     bool extra = false;
-    for (const auto& a : s.anchor) {
-      if (!a || std::any_of(out.begin() + static_cast<std::ptrdiff_t>(first), out.end(),
-                            [&](const StoredReading& r) { return r.seq == a->seq; }))
-        continue;
-      emit(*a);
+    const auto emit_extra = [&](const Point& p, size_t from) {
+      if (std::any_of(out.begin() + static_cast<std::ptrdiff_t>(from), out.end(),
+                      [&](const StoredReading& r) { return r.seq == p.seq; }))
+        return;
+      emit(p);
       extra = true;
-    }
+    };
+    for (const auto& a : s.anchor)
+      if (a) emit_extra(*a, first);
+    // The record lows before the window (the window holds the others; only an anchor can be one).
+    const size_t anchors_from = first + s.window.size();
+    for (const Point& p : s.lows)
+      if (s.window.empty() || p.time_s < s.window.front().time_s) emit_extra(p, anchors_from);
     if (extra) {
       std::sort(out.begin() + static_cast<std::ptrdiff_t>(first), out.end(), [](const StoredReading& a, const StoredReading& b) {
         return a.time_s < b.time_s || (a.time_s == b.time_s && a.seq < b.seq);

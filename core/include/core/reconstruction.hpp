@@ -148,13 +148,13 @@ std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const st
 /// spall, a crack cutting loops early) does not count, nor does a loop that reads intact again. A
 /// sensor whose run began with such a fall (a crack: its value waits for the wear to catch up) is
 /// not judged, nor is one without such mates or at 0 mm (consumed). A sensor that really wears
-/// slowly has a small ratio and keeps losing loops at it; 5 mm expected means several loops. Only
-/// each sensor's readings in the forecast's window up to its latest count (max(`history_days`,
-/// `history_fraction` x the days since installation): what the server keeps in memory, so its state
-/// and a full recompute agree). So when the value froze before the window, the run is taken from the
-/// window's start, where the mates had worn more than at the freeze: the expected loss is then a
-/// lower bound, and a sensor that froze early with little wear is named only while its mates' wear
-/// in the window makes up for it.
+/// slowly has a small ratio and keeps losing loops at it; 5 mm expected means several loops. Of
+/// each sensor's readings up to its latest, those in the forecast's window count (max(`history_days`,
+/// `history_fraction` x the days since installation)) and, before it, its record lows (each new
+/// lowest thickness when first read): its running minimum at any earlier time. So a value that froze
+/// before the window is judged from when it froze, against its mates' wear then and their gradual
+/// wear since; and the server, which keeps the window and the record lows in memory, agrees with a
+/// full recompute.
 struct StuckRule {
   double expected_mm = 5.0;
   size_t min_readings = 3;

@@ -2,8 +2,9 @@
 /// Per-crusher state kept in memory as readings are committed, so that no request and no wear
 /// recompute reads every stored reading of a crusher: per sensor the reading count, the latest
 /// reading, and the readings global wear and the forecast use (the forecast's fit window of usable
-/// readings, and the latest usable reading at each laser scan's date). Rebuilt once at startup from
-/// the store with indexed queries (per sensor: a count, the window, a few look-ups).
+/// readings, the latest usable reading at each laser scan's date, and the record lows the stuck rule
+/// reads before the window). Rebuilt once at startup from the store with indexed queries (per
+/// sensor: a count, the window, a few look-ups, and one pass over its readings for the record lows).
 ///
 /// The wear inputs are the readings ComputeCrusherState needs to give exactly the result it gives on
 /// every stored reading (tests/unit/server/test_live_state.cpp proves the equality).
@@ -64,6 +65,10 @@ class LiveState {
     std::optional<int64_t> last_usable_s;      ///< newest usable reading's time
     std::deque<Point> window;                  ///< usable readings the forecast may fit, by (time, seq)
     std::vector<std::optional<Point>> anchor;  ///< per scan: latest usable at or before its date (thinnest at that time)
+    /// Record lows of the usable readings, by time: each new lowest thickness when first read (the
+    /// thinnest reading of that time). The stuck rule's view of the days before the window
+    /// (core::StuckRule); at most one per loop.
+    std::vector<Point> lows;
   };
   struct CrusherLive {
     const Crusher* crusher = nullptr;

@@ -220,6 +220,42 @@ TEST(Reconstruction, AScansScalesLeaveOutASensorAlreadyFrozenAtItsDate) {
   CHECK_TRUE(ids(ScanSensorWear(c, same_loop, scan, {"1003"}, now)) == without);
 }
 
+// Day 100 of a campaign: the rule reads the last 40 days (from day 60) and, before them, each
+// sensor's record lows. 1003 froze on day 4 at 115 mm, when it and its mates had worn about 4 mm:
+// at their rate it should have lost about 85 mm since. From the window alone (the run taken from day
+// 60, where its mates had worn 54 mm) its share of their 36 mm since would be 2.7 mm: not named.
+TEST(Reconstruction, AValueFrozenBeforeTheWindowIsJudgedFromWhenItFroze) {
+  CrusherConfig c = TwoRows();
+  c.sensors.push_back({"1003", "LDWN", 0.6, 180.0, 120, {}});
+  c.sensors.push_back({"1004", "LDWN", 0.4, 270.0, 120, {}});
+  const auto t0 = *ParseIsoTime("2026-01-01");
+  c.installed_at = t0;
+  auto campaign = [&](auto third) {
+    std::vector<Reading> rs;
+    Report(rs, t0, "1001", 100, [](double t) { return 119.9 - 1.0 * t; });
+    Report(rs, t0, "1002", 100, [](double t) { return 119.9 - 0.3 * t; });
+    Report(rs, t0, "1003", 100, third);
+    Report(rs, t0, "1004", 100, [](double t) { return 119.9 - 0.9 * t; });
+    return rs;
+  };
+  const TimePoint now = AddDays(t0, 100);
+  const std::vector<std::string> stuck = Stuck(c, campaign([](double t) { return 119.9 - 1.1 * std::min(t, 4.0); }), now);
+  CHECK_TEXT(stuck == std::vector<std::string>{"1003"}, stuck.empty() ? "none" : stuck.front().c_str());
+  // A loop that reads intact again before the window does not restart the run (its record low does
+  // not move): the same sensor reading 116 for a day on day 30.
+  std::vector<Reading> flicker = campaign([](double t) { return 119.9 - 1.1 * std::min(t, 4.0) + (t >= 30 && t < 31 ? 1 : 0); });
+  CHECK_TRUE(Stuck(c, flicker, now) == std::vector<std::string>{"1003"});
+  // A slow spot (a twentieth of its mates' rate) holds each loop for 22 days, reaching back before
+  // the window; its share of its mates' wear over that run is about 1 mm. Not named.
+  CHECK_TRUE(Stuck(c, campaign([](double t) { return 119.9 - 0.045 * t; }), now).empty());
+  // A crack cuts 10 loops of a slow sensor on day 4 (0.1 mm a day): its value (109) waits for the
+  // wear to catch up, flat from day 4 to the end. The run began with a 10 mm step (from the record
+  // low before it): a crack, not a stuck value (the window alone shows only the flat run, and its
+  // share of its mates' wear in the window, 6.5 mm, would name it).
+  const auto cracked = [](double t) { return t > 4 ? std::min(119.9 - 0.1 * t, 109.0) : 119.9 - 0.1 * t; };
+  CHECK_TRUE(Stuck(c, campaign(cracked), now).empty());
+}
+
 TEST(Reconstruction, SmoothingRemovesFaceNoiseButKeepsTheMean) {
   WearMap m = lw::test::CylinderMap(72, 40, [](double) { return 1.0; });
   for (Eigen::Index i = 0; i < m.wear.size(); ++i) m.wear[i] = (i % 2) ? 1.2 : 0.8;

@@ -46,10 +46,12 @@ std::vector<Incoming> Messages() {
   double frozen = -1;
   for (const auto& r : b.readings)
     if (r.sensor_id == stuck && r.time <= froze) frozen = r.thickness_mm;
-  // Another sticks on day 25, before the scan (day 30): stuck both ways, and its frozen value at the
-  // scan's date is left out of the scan's scales both ways (core::ScanSensorWear).
+  // Another sticks on day 6, before the scan (day 30) and long before the window (the last 48 days):
+  // stuck both ways, judged from when it froze (the record lows before the window: from the window
+  // alone its share of its mates' wear would be under 5 mm), and its frozen value at the scan's date
+  // is left out of the scan's scales both ways (core::ScanSensorWear).
   const std::string early = b.crusher.sensors.at(8).id;
-  const lw::core::TimePoint froze_early = lw::core::AddDays(b.crusher.installed_at, 25);
+  const lw::core::TimePoint froze_early = lw::core::AddDays(b.crusher.installed_at, 6);
   double frozen_early = -1;
   for (const auto& r : b.readings)
     if (r.sensor_id == early && r.time <= froze_early) frozen_early = r.thickness_mm;
