@@ -165,6 +165,9 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
   // mate's wear then and its gradual wear since) and what the server keeps of them.
   std::map<std::string, Series> series;
   std::map<std::string, std::map<TimePoint, double>> before;  // thinnest reading per time, before the window
+  // Before the window, the time of the newest reading above the sensor's latest value: a run that
+  // reaches back before the window began after it (a loop read intact again since the record low).
+  std::map<std::string, TimePoint> above;
   for (const Reading& r : readings) {
     const auto it = selected.find(r.sensor_id);
     if (it == selected.end()) continue;
@@ -175,6 +178,10 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
     if (r.time < AddDays(latest, -window)) {
       const auto [b, fresh] = before[r.sensor_id].try_emplace(r.time, r.thickness_mm);
       if (!fresh) b->second = std::min(b->second, r.thickness_mm);
+      if (r.thickness_mm > readings[it->second].thickness_mm) {
+        const auto [a, first] = above.try_emplace(r.sensor_id, r.time);
+        if (!first) a->second = std::max(a->second, r.time);
+      }
       continue;
     }
     series[r.sensor_id].emplace_back(r.time, r.thickness_mm);
@@ -200,7 +207,9 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
   // (fewer than min_readings, consumed, or the run began with a step: a crack cut loops early and
   // the value waits for the wear to catch up, which the diagnosis names). A run that fills the
   // window reaches back to the record low of its value when there is one (the value froze before
-  // the window), and its step is the one from the record low before.
+  // the window), and its step is the one from the record low before; unless the sensor read above
+  // its value after that (a loop read intact again): the run then began after its last such reading
+  // (taken as the run's start; its first step is no crack's).
   std::map<std::string, TimePoint> flat_from;
   for (const size_t i : indices) {
     const Reading& r = readings[i];
@@ -208,8 +217,14 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
     size_t flat = 0;
     while (flat < s.size() && s[s.size() - 1 - flat].second == r.thickness_mm) ++flat;
     if (r.thickness_mm < 1.0 || flat < rule.min_readings) continue;
+    const TimePoint from = s[s.size() - flat].first;
+    const auto a = above.find(r.sensor_id);
+    if (a != above.end() && a->second > from) {  // read above its value since its record low: the run began after
+      flat_from[r.sensor_id] = a->second;
+      continue;
+    }
     if (flat < s.size() && s[s.size() - 1 - flat].second - r.thickness_mm > rule.max_step_mm) continue;
-    flat_from[r.sensor_id] = s[s.size() - flat].first;
+    flat_from[r.sensor_id] = from;
   }
   // What the sensor should have lost over its flat run at each row mate's rate (mates in `skip` left
   // out): the mate's gradual wear over those days times the sensor's wear over the mate's when the

@@ -91,6 +91,18 @@ int64_t LiveState::WindowStart(const Crusher& c, int64_t last_s) const {
   return installed + static_cast<int64_t>(std::floor((t_last - window - 1.0) * 86400.0));
 }
 
+void LiveState::AddToRun(SensorState& s, const Point& p, const std::optional<Point>& newest) {
+  if (!s.lows.empty()) {
+    const double lowest = s.lows.back().thickness_mm;
+    if (p.thickness_mm > lowest) {
+      if (!s.above || p.time_s > s.above->time_s) s.above = p;
+    } else if (p.thickness_mm < lowest) {
+      s.above = newest;  // every earlier reading is above the new lowest: the newest of them
+    }
+  }
+  AddLow(s.lows, p);
+}
+
 void LiveState::AddLocked(CrusherLive& c, const StoredReading& r) {
   SensorState& s = c.sensors[r.sensor];
   if (s.anchor.size() != c.crusher->scans.size()) s.anchor.resize(c.crusher->scans.size());
@@ -102,6 +114,7 @@ void LiveState::AddLocked(CrusherLive& c, const StoredReading& r) {
   }
   if (IsFaultReading(r.flags, r.loops_intact)) return;
   const Point p{r.time_s, r.seq, r.thickness_mm, r.loops_intact, r.flags};
+  AddToRun(s, p, s.window.empty() ? std::nullopt : std::optional<Point>(s.window.back()));
   if (!c.last_usable_s || r.time_s > *c.last_usable_s) c.last_usable_s = r.time_s;
   if (!s.last_usable_s || r.time_s > *s.last_usable_s) s.last_usable_s = r.time_s;
   const int64_t start = WindowStart(*c.crusher, *s.last_usable_s);
@@ -112,7 +125,6 @@ void LiveState::AddLocked(CrusherLive& c, const StoredReading& r) {
     s.window.insert(std::upper_bound(s.window.begin(), s.window.end(), p, later), p);  // at the end but for late readings
   }
   while (!s.window.empty() && s.window.front().time_s < start) s.window.pop_front();
-  AddLow(s.lows, p);
   for (size_t k = 0; k < c.crusher->scans.size(); ++k) {
     if (r.time_s > Unix(c.crusher->scans[k].scan.date)) continue;
     std::optional<Point>& a = s.anchor[k];
@@ -165,11 +177,13 @@ void LiveState::LoadFrom(Store& store, const Crusher& c_crusher, CrusherLive& c)
       if (!s.last_usable_s) continue;
       if (!c.last_usable_s || *s.last_usable_s > *c.last_usable_s) c.last_usable_s = s.last_usable_s;
       const int64_t start = WindowStart(*crusher, *s.last_usable_s);
+      std::optional<Point> newest;
       store.Walk(id, sensor, INT64_MIN, INT64_MAX, false, [&](const StoredReading& r) {
         if (IsFaultReading(r.flags, r.loops_intact)) return true;
         const Point p{r.time_s, r.seq, r.thickness_mm, r.loops_intact, r.flags};
         if (r.time_s >= start) s.window.push_back(p);
-        AddLow(s.lows, p);
+        AddToRun(s, p, newest);
+        newest = p;
         return true;
       });
       for (size_t k = 0; k < crusher->scans.size(); ++k) {
@@ -221,7 +235,7 @@ std::vector<StoredReading> LiveState::WearInputs(const std::string& crusher) con
   std::lock_guard<std::mutex> lock(c->mutex);
   size_t total = 0;  // reserved at once: the copies are this function's cost, not the vector's growth
   for (const auto& entry : c->sensors)
-    total += entry.second.window.size() + entry.second.anchor.size() + entry.second.lows.size();
+    total += entry.second.window.size() + entry.second.anchor.size() + entry.second.lows.size() + 1;
   out.reserve(total);
   for (const auto& entry : c->sensors) {
     const std::string& sensor = entry.first;  // not a structured binding: clang 14 cannot capture one
@@ -249,10 +263,12 @@ std::vector<StoredReading> LiveState::WearInputs(const std::string& crusher) con
     };
     for (const auto& a : s.anchor)
       if (a) emit_extra(*a, first);
-    // The record lows before the window (the window holds the others; only an anchor can be one).
+    // The record lows and the newest reading above the lowest, before the window (the window holds
+    // the others; only an anchor can be one of them).
     const size_t anchors_from = first + s.window.size();
     for (const Point& p : s.lows)
       if (s.window.empty() || p.time_s < s.window.front().time_s) emit_extra(p, anchors_from);
+    if (s.above && (s.window.empty() || s.above->time_s < s.window.front().time_s)) emit_extra(*s.above, anchors_from);
     if (extra) {
       std::sort(out.begin() + static_cast<std::ptrdiff_t>(first), out.end(), [](const StoredReading& a, const StoredReading& b) {
         return a.time_s < b.time_s || (a.time_s == b.time_s && a.seq < b.seq);

@@ -69,6 +69,9 @@ class LiveState {
     /// thinnest reading of that time). The stuck rule's view of the days before the window
     /// (core::StuckRule); at most one per loop.
     std::vector<Point> lows;
+    /// The newest usable reading above the lowest one: when the sensor's value has not changed
+    /// since before the window, its run began after this (a loop that read intact again).
+    std::optional<Point> above;
   };
   struct CrusherLive {
     const Crusher* crusher = nullptr;
@@ -80,6 +83,8 @@ class LiveState {
 
   /// The caller holds c.mutex.
   void AddLocked(CrusherLive& c, const StoredReading& r);
+  /// A usable reading into s.lows and s.above; `newest` the sensor's newest usable reading before it.
+  static void AddToRun(SensorState& s, const Point& p, const std::optional<Point>& newest);
   /// Reads `c`'s state from `store` into `out` (not shared yet: no lock needed).
   void LoadFrom(Store& store, const Crusher& crusher, CrusherLive& out) const;
   /// nullptr for a crusher not in the registry; otherwise loaded (lazily, see LoadLazily).

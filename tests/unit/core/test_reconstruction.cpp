@@ -241,10 +241,16 @@ TEST(Reconstruction, AValueFrozenBeforeTheWindowIsJudgedFromWhenItFroze) {
   const TimePoint now = AddDays(t0, 100);
   const std::vector<std::string> stuck = Stuck(c, campaign([](double t) { return 119.9 - 1.1 * std::min(t, 4.0); }), now);
   CHECK_TEXT(stuck == std::vector<std::string>{"1003"}, stuck.empty() ? "none" : stuck.front().c_str());
-  // A loop that reads intact again before the window does not restart the run (its record low does
-  // not move): the same sensor reading 116 for a day on day 30.
-  std::vector<Reading> flicker = campaign([](double t) { return 119.9 - 1.1 * std::min(t, 4.0) + (t >= 30 && t < 31 ? 1 : 0); });
-  CHECK_TRUE(Stuck(c, flicker, now) == std::vector<std::string>{"1003"});
+  // A loop that reads intact again before the window restarts the run: the same sensor reading 116
+  // for a day on day 30 is judged from day 31, when its mates had worn 28-32 mm (its share of their
+  // wear since, about 9 mm: named).
+  const auto flicker = [](double t) { return 119.9 - 1.1 * std::min(t, 4.0) + (t >= 30 && t < 31 ? 1 : 0); };
+  CHECK_TRUE(Stuck(c, campaign(flicker), now) == std::vector<std::string>{"1003"});
+  // So a loop read open once, long ago, does not stretch a slow sensor's run back to it: at a slow
+  // spot (119 to day 50, then 118) with one reading of 118 on day 5, the run is from day 50 (its
+  // share about 1 mm), not day 5 (when its mates had worn 5-6 mm: 16 mm).
+  const auto open_once = [](double t) { return t < 50 && !(t >= 5 && t < 5.2) ? 119.9 : 118.9; };
+  CHECK_TRUE(Stuck(c, campaign(open_once), now).empty());
   // A slow spot (a twentieth of its mates' rate) holds each loop for 22 days, reaching back before
   // the window; its share of its mates' wear over that run is about 1 mm. Not named.
   CHECK_TRUE(Stuck(c, campaign([](double t) { return 119.9 - 0.045 * t; }), now).empty());

@@ -55,9 +55,27 @@ std::vector<Incoming> Messages() {
   double frozen_early = -1;
   for (const auto& r : b.readings)
     if (r.sensor_id == early && r.time <= froze_early) frozen_early = r.thickness_mm;
+  // A middle-row sensor holds its day-12 value too, but one of its loops reads intact again on day
+  // 66, before the window: judged from day 66 (its share of its mates' wear since is under 5 mm),
+  // not stuck both ways; judged from day 12 it would be (the live state keeps that reading).
+  const std::string held = b.crusher.sensors.at(3).id;
+  const lw::core::TimePoint held_from = lw::core::AddDays(b.crusher.installed_at, 12);
+  const lw::core::TimePoint intact_again = lw::core::AddDays(b.crusher.installed_at, 66);
+  double held_mm = -1;
+  for (const auto& r : b.readings)
+    if (r.sensor_id == held && r.time <= held_from) held_mm = r.thickness_mm;
+  bool reread = false;
   for (Incoming& m : out) {
     json j = json::parse(m.payload);
     const lw::core::TimePoint t = lw::core::ParseIsoTime(j["time"].get<std::string>()).value();
+    if (m.sensor == held && t > held_from) {
+      const bool up = !reread && t >= intact_again;
+      reread = reread || up;
+      j["thickness_mm"] = held_mm + (up ? 1 : 0);
+      j["loops_intact"] = static_cast<int>(held_mm) + (up ? 1 : 0);
+      m.payload = j.dump();
+      continue;
+    }
     const bool is_stuck = m.sensor == stuck && t > froze, is_early = m.sensor == early && t > froze_early;
     if (!is_stuck && !is_early) continue;
     const double mm = is_stuck ? frozen : frozen_early;
