@@ -160,13 +160,14 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
   std::map<std::string, size_t> selected;  // sensor -> its reading in `indices`
   for (const size_t i : indices) selected[readings[i].sensor_id] = i;
   // Each sensor's readings in its window, and before the window its record lows: each new lowest
-  // thickness, when first read (the thinnest reading of that time). They give its running minimum at
-  // any earlier time, all the rule needs of those days (a run's start and the step before it, a
-  // mate's wear then and its gradual wear since) and what the server keeps of them.
+  // whole-mm thickness (loop), when first read (the thinnest reading of that time). They give its
+  // running minimum at any earlier time, to the loop, all the rule needs of those days (a run's start
+  // and the step before it, a mate's wear then and its gradual wear since) and what the server keeps
+  // of them (at most one per loop, whatever the readings).
   std::map<std::string, Series> series;
   std::map<std::string, std::map<TimePoint, double>> before;  // thinnest reading per time, before the window
-  // Before the window, the time of the newest reading above the sensor's latest value: a run that
-  // reaches back before the window began after it (a loop read intact again since the record low).
+  // Before the window, the time of the newest reading a loop above the sensor's latest value: a run
+  // that reaches back before the window began after it (a loop read intact again since its record low).
   std::map<std::string, TimePoint> above;
   for (const Reading& r : readings) {
     const auto it = selected.find(r.sensor_id);
@@ -178,7 +179,7 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
     if (r.time < AddDays(latest, -window)) {
       const auto [b, fresh] = before[r.sensor_id].try_emplace(r.time, r.thickness_mm);
       if (!fresh) b->second = std::min(b->second, r.thickness_mm);
-      if (r.thickness_mm > readings[it->second].thickness_mm) {
+      if (std::floor(r.thickness_mm) > std::floor(readings[it->second].thickness_mm)) {
         const auto [a, first] = above.try_emplace(r.sensor_id, r.time);
         if (!first) a->second = std::max(a->second, r.time);
       }
@@ -192,7 +193,7 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
   for (const auto& [id, by_time] : before) {
     Series lows;
     for (const auto& [t, mm] : by_time)
-      if (lows.empty() || mm < lows.back().second) lows.emplace_back(t, mm);
+      if (lows.empty() || std::floor(mm) < std::floor(lows.back().second)) lows.emplace_back(t, mm);
     Series& s = series[id];
     s.insert(s.begin(), lows.begin(), lows.end());
   }

@@ -21,8 +21,8 @@ bool BetterAtSameTime(double thickness, int64_t seq, double best_thickness, int6
   return thickness < best_thickness || (thickness == best_thickness && seq < best_seq);
 }
 
-/// `p` into `lows` (record lows by time: each new lowest thickness when first read, the thinnest
-/// reading of that time) wherever it falls in time: late readings too.
+/// `p` into `lows` (record lows by time: each new lowest whole-mm thickness when first read, the
+/// thinnest reading of that time; core::StuckRule) wherever it falls in time: late readings too.
 template <typename P>
 void AddLow(std::vector<P>& lows, const P& p) {
   auto it = std::lower_bound(lows.begin(), lows.end(), p.time_s, [](const P& a, int64_t t) { return a.time_s < t; });
@@ -30,11 +30,12 @@ void AddLow(std::vector<P>& lows, const P& p) {
     if (!BetterAtSameTime(p.thickness_mm, p.seq, it->thickness_mm, it->seq)) return;
     *it = p;
   } else {
-    if (it != lows.begin() && !(p.thickness_mm < std::prev(it)->thickness_mm)) return;
+    if (it != lows.begin() && !(std::floor(p.thickness_mm) < std::floor(std::prev(it)->thickness_mm))) return;
     it = lows.insert(it, p);
   }
-  // The later lows that are not below it are no longer record lows.
-  const auto end = std::find_if(it + 1, lows.end(), [&](const P& a) { return a.thickness_mm < p.thickness_mm; });
+  // The later lows that are not a loop below it are no longer record lows.
+  const double loop = std::floor(p.thickness_mm);
+  const auto end = std::find_if(it + 1, lows.end(), [&](const P& a) { return std::floor(a.thickness_mm) < loop; });
   lows.erase(it + 1, end);
 }
 
@@ -92,11 +93,11 @@ int64_t LiveState::WindowStart(const Crusher& c, int64_t last_s) const {
 }
 
 void LiveState::AddToRun(SensorState& s, const Point& p, const std::optional<Point>& newest) {
-  if (!s.lows.empty()) {
-    const double lowest = s.lows.back().thickness_mm;
-    if (p.thickness_mm > lowest) {
+  if (!s.lows.empty()) {  // by whole loops, as the rule reads them
+    const double lowest = std::floor(s.lows.back().thickness_mm), loop = std::floor(p.thickness_mm);
+    if (loop > lowest) {
       if (!s.above || p.time_s > s.above->time_s) s.above = p;
-    } else if (p.thickness_mm < lowest) {
+    } else if (loop < lowest) {
       s.above = newest;  // every earlier reading is above the new lowest: the newest of them
     }
   }

@@ -65,11 +65,11 @@ class LiveState {
     std::optional<int64_t> last_usable_s;      ///< newest usable reading's time
     std::deque<Point> window;                  ///< usable readings the forecast may fit, by (time, seq)
     std::vector<std::optional<Point>> anchor;  ///< per scan: latest usable at or before its date (thinnest at that time)
-    /// Record lows of the usable readings, by time: each new lowest thickness when first read (the
-    /// thinnest reading of that time). The stuck rule's view of the days before the window
-    /// (core::StuckRule); at most one per loop.
+    /// Record lows of the usable readings, by time: each new lowest whole-mm thickness when first
+    /// read (the thinnest reading of that time). The stuck rule's view of the days before the window
+    /// (core::StuckRule); at most one per loop, whatever the readings.
     std::vector<Point> lows;
-    /// The newest usable reading above the lowest one: when the sensor's value has not changed
+    /// The newest usable reading a loop above the lowest: when the sensor's value has not changed
     /// since before the window, its run began after this (a loop that read intact again).
     std::optional<Point> above;
   };

@@ -3,6 +3,7 @@
 // and counts, after ingest in any order, after a restart (rebuilt from the store) and after more
 // readings on top of the rebuilt state; and it holds far fewer readings than the store.
 #include <algorithm>
+#include <map>
 #include <random>
 
 #include "server/ingest.hpp"
@@ -26,6 +27,8 @@ lw::test::CrusherFolder& Folder() {
 int64_t Now() {
   return Folder().bundle.readings.back().time.time_since_epoch().count() + 3600;
 }
+
+constexpr int kFractional = 300;
 
 /// The campaign's readings plus what the state must get right: cut-cable readings (stored, not
 /// used for wear) newer than everything else, a second reading at a sensor's latest time that is
@@ -109,6 +112,15 @@ std::vector<Incoming> Messages() {
   add(s1, 900003, s1_last, s1_mm - 1, static_cast<int>(s1_mm - 1), 0);  // thinner at the same time
   const int64_t scan_s = b.scans.at(0).date.time_since_epoch().count();
   add(s0, 900004, scan_s, 90, 90, 0);  // at the scan's date exactly
+  // 300 readings on day 10 a minute apart, each a little thinner, all within one loop below the
+  // sensor's reading then (odd input: sensors report whole loops): the state keeps at most one point
+  // per loop of the days before the window, not one per reading (CheckEqualsFullRecompute).
+  const int64_t day10 = lw::core::AddDays(b.crusher.installed_at, 10).time_since_epoch().count();
+  double s0_day10 = 0;
+  for (const auto& r : b.readings)
+    if (r.sensor_id == s0 && r.time.time_since_epoch().count() <= day10) s0_day10 = r.thickness_mm;
+  for (int k = 0; k < kFractional; ++k)
+    add(s0, 910000 + k, day10 + 60 * k, s0_day10 - 0.001 - 0.003 * k, static_cast<int>(s0_day10) - 1, 0);
   std::mt19937 rng(3);
   // Mostly in order (as a gateway delivers), with every 7th message moved to a random place.
   for (size_t i = 0; i < out.size(); i += 7) std::swap(out[i], out[rng() % out.size()]);
@@ -124,6 +136,16 @@ void CheckEqualsFullRecompute(const Crusher& c, const LiveState& live, Store& st
   CHECK_TRUE(full.has_wear);
   CHECK(full.scan != nullptr);
   CHECK(WearJson(full, true) == WearJson(incremental, true));
+  if (expect_pruned) {
+    // Before the window (the last 48 days and a day): record lows (at most one per loop), an
+    // anchor per scan and a reading above the lowest, per sensor.
+    const int64_t window_from = Now() - 50 * 86400;
+    std::map<std::string, size_t> before;
+    for (const auto& r : inputs)
+      if (r.time_s < window_from) ++before[r.sensor];
+    for (const auto& [sensor, n] : before)
+      CHECK_TEXT(n <= static_cast<size_t>(c.config.thickness_new_mm) + 4, (sensor + ": " + std::to_string(n)).c_str());
+  }
   if (expect_pruned) {  // all readings in: the sensor dead since day 60 is stale, the frozen ones stuck
     CHECK_TEXT(full.stale == std::vector<std::string>{c.config.sensors.at(2).id},
                WearJson(full, false)["sensors_stale"].dump().c_str());
