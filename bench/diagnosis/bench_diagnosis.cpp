@@ -497,6 +497,7 @@ int main(int argc, char** argv) {
   std::map<std::string, std::map<std::string, int>> confusion;
   std::map<std::string, std::pair<int, int>> correct_by_level;  // level -> (correct, total) for single effects
   int null_total = 0, null_with_finding = 0, fault_total = 0, fault_ok = 0, pair_total = 0, pair_both = 0;
+  int live_stuck_right = 0, live_stuck_other = 0, live_stuck_null = 0;  // live wear's stuck rule
   std::map<std::string, std::vector<double>> param_rel_error;
   std::vector<double> ratios;
   double seconds = 0;
@@ -539,6 +540,9 @@ int main(int argc, char** argv) {
     // wear: per-face RMSE and thinnest-point |error| of the baseline and the improved model.
     bool faces_done = false, faces_scan = false;
     double face_rmse_base = 0, face_rmse_best = 0, face_thin_base = 0, face_thin_best = 0;
+    // Nulls and fault-only cases: the sensors live wear's stuck rule (the server, `linerwatch
+    // reconstruct`) names at the bundle's last reading, from every reading up to then.
+    std::vector<std::string> live_stuck;
   };
   if (!json_dir.empty()) std::filesystem::create_directories(json_dir);
   auto run_case = [&](size_t k) {
@@ -560,6 +564,11 @@ int main(int argc, char** argv) {
     lw::core::Bundle bundle = lw::core::LoadBundle(dir);
     const auto t_cut = lw::core::AddDays(bundle.crusher.installed_at, withheld_after_days);
     const auto t_pred = lw::core::AddDays(bundle.crusher.installed_at, predict_day);
+    if ((c.truth == "none" || c.truth == "fault") && !bundle.readings.empty()) {
+      lw::core::TimePoint last = bundle.readings.front().time;
+      for (const auto& r : bundle.readings) last = std::max(last, r.time);
+      lw::core::LiveReadingIndices(bundle.crusher, bundle.readings, last, nullptr, &out_case.live_stuck);
+    }
     if (real && c.truth == "none") {
       // Live wear at the inspection (scan) day, readings up to then: the map model against a plain
       // top-hat smoothing (0.15 m, the previous method) of the same map, both against the truth.
@@ -899,11 +908,15 @@ int main(int argc, char** argv) {
       ++effect_cases;
       if (impr_rmse < base_rmse) ++effect_better;
     }
+    const std::vector<std::string>& ls = outcomes[k].live_stuck;
     if (c.truth == "none") {
       ++null_total;
       if (!r.findings.empty()) ++null_with_finding;
+      if (!ls.empty()) ++live_stuck_null;
     } else if (c.truth == "fault") {
       ++fault_total;
+      if (std::find(ls.begin(), ls.end(), c.stuck_sensor) != ls.end()) ++live_stuck_right;
+      if (std::any_of(ls.begin(), ls.end(), [&](const std::string& id) { return id != c.stuck_sensor; })) ++live_stuck_other;
       bool flagged = false;
       for (const auto& d : r.data_quality)
         if (d.sensor_id == c.stuck_sensor && d.issue == "stuck") flagged = true;
@@ -958,6 +971,10 @@ int main(int argc, char** argv) {
   std::printf("False-finding rate on nulls: %d / %d = %.1f %%\n", null_with_finding, null_total,
               null_total ? 100.0 * null_with_finding / null_total : 0.0);
   std::printf("Sensor-fault-only cases flagged in data_quality with no finding: %d / %d\n", fault_ok, fault_total);
+  std::printf(
+      "Live wear's stuck rule at the last reading (server, linerwatch reconstruct): the stuck sensor named in %d / %d "
+      "fault-only cases, another sensor named in %d / %d; a sensor named on %d / %d nulls\n",
+      live_stuck_right, fault_total, live_stuck_other, fault_total, live_stuck_null, null_total);
   std::printf("Parameter recovery (median relative error of the main parameter, correct top findings):\n");
   for (const auto& [effect, errs] : param_rel_error)
     std::printf("  %-22s %5.1f %% (n = %zu)\n", effect.c_str(), 100.0 * Median(errs), errs.size());

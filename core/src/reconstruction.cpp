@@ -224,18 +224,26 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
       flat_from[r.sensor_id] = a->second;
       continue;
     }
-    if (flat < s.size() && s[s.size() - 1 - flat].second - r.thickness_mm > rule.max_step_mm) continue;
+    if (flat < s.size()) {
+      // The fall into the run, less what the sensor's own mean rate (to the run's start) explains
+      // over the time since the point before it (readings missing for days: a radio outage).
+      const auto& [before_t, before_mm] = s[s.size() - 1 - flat];
+      const double days = DaysBetween(crusher.installed_at, from);
+      const double rate = days > 0 ? std::max(0.0, crusher.FindSensor(r.sensor_id)->thickness_new_mm - before_mm) / days : 0.0;
+      if (before_mm - r.thickness_mm - rate * DaysBetween(before_t, from) > rule.max_step_mm) continue;
+    }
     flat_from[r.sensor_id] = from;
   }
   // What the sensor should have lost over its flat run at each row mate's rate (mates in `skip` left
   // out): the mate's gradual wear over those days times the sensor's wear over the mate's when the
-  // run began, the sensor's taken low (reading n: more than new - n - 1 mm) and the mate's high
-  // (at most new - n), so that the quantisation of either does not make a slow sensor look stuck.
+  // run began, the sensor's taken low (reading n: more than new - n - 1 mm, less the mounting
+  // tolerance) and the mate's high (at most new - n), so that neither the quantisation nor where the
+  // sensor's first loop sits makes a slow sensor look stuck.
   auto expected_losses = [&](size_t i, const std::set<std::string>& skip) {
     const Reading& r = readings[i];
     const TimePoint from = flat_from.at(r.sensor_id);
     const SensorInfo& me = *crusher.FindSensor(r.sensor_id);
-    const double own = std::max(0.0, me.thickness_new_mm - (r.thickness_mm + 1.0));
+    const double own = std::max(0.0, me.thickness_new_mm - (r.thickness_mm + 1.0 + rule.mounting_mm));
     std::vector<double> expected;
     for (const auto& [id, j] : selected) {
       const SensorInfo& mate = *crusher.FindSensor(id);

@@ -139,15 +139,17 @@ std::vector<SensorWear> FreshSensorWearAt(const CrusherConfig& crusher, const st
 /// while at the rate its row mates set it should have lost at least `expected_mm`. A mate's share:
 /// the wear it showed over those days times the sensor's wear over the mate's when the run began
 /// (their ratio since installation: the sensor's own place in its row's wear pattern, with no
-/// history needed; the sensor's wear taken low, new - n - 1, the mate's high, new - n, so that
-/// quantisation does not make a slow sensor look stuck); the median over the row mates that set a
+/// history needed; the sensor's wear taken low, new - n - 1 - `mounting_mm`, the mate's high,
+/// new - n, so that neither quantisation nor the sensor's mounting makes a slow sensor look stuck);
+/// the median over the row mates that set a
 /// scale, had worn at least `min_mate_wear_mm` then and are not suspects themselves (a suspect: a
 /// sensor whose largest share reaches `expected_mm`; two stuck sensors must not vouch for each
 /// other); with two mates, the smaller. A mate's wear over the days is read gradually, through the
 /// running minimum of its thickness: a fall of more than `max_step_mm` between two readings (a
 /// spall, a crack cutting loops early) does not count, nor does a loop that reads intact again. A
-/// sensor whose run began with such a fall (a crack: its value waits for the wear to catch up) is
-/// not judged, nor is one without such mates or at 0 mm (consumed). A sensor that really wears
+/// sensor whose run began with such a fall (a crack: its value waits for the wear to catch up),
+/// beyond what its own mean rate explains over the days since the reading before (a radio outage),
+/// is not judged, nor is one without such mates or at 0 mm (consumed). A sensor that really wears
 /// slowly has a small ratio and keeps losing loops at it; 5 mm expected means several loops. Of
 /// each sensor's readings up to its latest, those in the forecast's window count (max(`history_days`,
 /// `history_fraction` x the days since installation)) and, before it, its record lows (each new
@@ -160,6 +162,11 @@ struct StuckRule {
   size_t min_readings = 3;
   double min_mate_wear_mm = 3.0;
   double max_step_mm = 2.0;
+  /// How far a sensor's first loop may sit from where its as-new thickness puts it (casting, the
+  /// top loop ground near flush): its own wear is taken this much lower still. Early in a campaign
+  /// a sensor's and its mates' wear are a few mm, and one mm of offset would change its share of
+  /// their wear several-fold.
+  double mounting_mm = 1.0;
   double history_days = 21.0;     ///< = ForecastOptions::window_min_days
   double history_fraction = 0.4;  ///< = ForecastOptions::window_fraction
 };

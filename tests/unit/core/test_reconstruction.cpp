@@ -260,6 +260,23 @@ TEST(Reconstruction, AValueFrozenBeforeTheWindowIsJudgedFromWhenItFroze) {
   // share of its mates' wear in the window, 6.5 mm, would name it).
   const auto cracked = [](double t) { return t > 4 ? std::min(119.9 - 0.1 * t, 109.0) : 119.9 - 0.1 * t; };
   CHECK_TRUE(Stuck(c, campaign(cracked), now).empty());
+  // A radio outage from day 20 to 24, after which the value stays at its day-24 reading (the
+  // moisture that cut the radio): a fall of 4 mm between its readings, which its own rate (1.1 mm
+  // a day) explains over the 4 days. No crack: named.
+  std::vector<Reading> outage = campaign([](double t) { return 119.9 - 1.1 * std::min(t, 24.0); });
+  std::erase_if(outage, [&](const Reading& r) {
+    return r.sensor_id == "1003" && r.time > AddDays(t0, 20) && r.time < AddDays(t0, 24);
+  });
+  CHECK_TRUE(Stuck(c, outage, now) == std::vector<std::string>{"1003"});
+  // A slow spot (2 % of its mates' rate) whose first loop sits 0.84 mm deeper than the as-new
+  // thickness puts it (casting): it reads 118 from day 5 to day 88, when its mates had worn 4 mm
+  // and it 1 (taken low: 0 with the mounting tolerance, not 1, a quarter of their wear). Not named.
+  std::vector<Reading> offset;
+  Report(offset, t0, "1001", 80, [](double t) { return 119.9 - 0.6 * t; });
+  Report(offset, t0, "1002", 80, [](double t) { return 119.9 - 0.3 * t; });
+  Report(offset, t0, "1003", 80, [](double t) { return 119.06 - 0.012 * t; });
+  Report(offset, t0, "1004", 80, [](double t) { return 119.9 - 0.54 * t; });
+  CHECK_TRUE(Stuck(c, offset, AddDays(t0, 80)).empty());
 }
 
 TEST(Reconstruction, SmoothingRemovesFaceNoiseButKeepsTheMean) {
