@@ -264,9 +264,8 @@ TEST(Reconstruction, AValueFrozenBeforeTheWindowIsJudgedFromWhenItFroze) {
   // moisture that cut the radio): a fall of 4 mm between its readings, which its own rate (1.1 mm
   // a day) explains over the 4 days. No crack: named.
   std::vector<Reading> outage = campaign([](double t) { return 119.9 - 1.1 * std::min(t, 24.0); });
-  std::erase_if(outage, [&](const Reading& r) {
-    return r.sensor_id == "1003" && r.time > AddDays(t0, 20) && r.time < AddDays(t0, 24);
-  });
+  std::erase_if(outage,
+                [&](const Reading& r) { return r.sensor_id == "1003" && r.time > AddDays(t0, 20) && r.time < AddDays(t0, 24); });
   CHECK_TRUE(Stuck(c, outage, now) == std::vector<std::string>{"1003"});
   // A slow spot (2 % of its mates' rate) whose first loop sits 0.84 mm deeper than the as-new
   // thickness puts it (casting): it reads 118 from day 5 to day 88, when its mates had worn 4 mm
