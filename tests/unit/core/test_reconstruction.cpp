@@ -102,6 +102,26 @@ void Report(std::vector<Reading>& rs, TimePoint t0, const std::string& id, doubl
   for (int k = 0; 0.25 * k <= days; ++k) rs.push_back({AddDays(t0, 0.25 * k), id, std::floor(thickness(0.25 * k)), 0});
 }
 
+// TwoRows with 1003 and 1004 added to the lower row (1001, 1003, 1004 there; 1002 above), installed at t0.
+CrusherConfig ThreeInTheLowerRow(TimePoint t0) {
+  CrusherConfig c = TwoRows();
+  c.sensors.push_back({"1003", "LDWN", 0.6, 180.0, 120, {}});
+  c.sensors.push_back({"1004", "LDWN", 0.4, 270.0, 120, {}});
+  c.installed_at = t0;
+  return c;
+}
+
+// 100 days of ThreeInTheLowerRow: 1001, 1002 and 1004 wear 1.0, 0.3 and 0.9 mm a day, 1003 as `third`.
+template <typename F>
+std::vector<Reading> HundredDays(TimePoint t0, F third) {
+  std::vector<Reading> rs;
+  Report(rs, t0, "1001", 100, [](double t) { return 119.9 - 1.0 * t; });
+  Report(rs, t0, "1002", 100, [](double t) { return 119.9 - 0.3 * t; });
+  Report(rs, t0, "1003", 100, third);
+  Report(rs, t0, "1004", 100, [](double t) { return 119.9 - 0.9 * t; });
+  return rs;
+}
+
 std::vector<std::string> Stuck(const CrusherConfig& c, const std::vector<Reading>& rs, TimePoint at) {
   std::vector<std::string> stale, stuck;
   const std::vector<size_t> live = LiveReadingIndices(c, rs, at, &stale, &stuck);
@@ -185,19 +205,9 @@ TEST(Reconstruction, ASensorReportingOneValueWhileItsRowWearsIsStuck) {
 TEST(Reconstruction, AScansScalesLeaveOutASensorAlreadyFrozenAtItsDate) {
   // 1003 froze on day 5 (114); a scan on day 30; now day 100, 1003 stuck. Its reading at the scan
   // (114: 5.5 mm of wear instead of about 33) is its frozen value: left out of the scan's scales.
-  CrusherConfig c = TwoRows();
-  c.sensors.push_back({"1003", "LDWN", 0.6, 180.0, 120, {}});
-  c.sensors.push_back({"1004", "LDWN", 0.4, 270.0, 120, {}});
   const auto t0 = *ParseIsoTime("2026-01-01");
-  c.installed_at = t0;
-  auto campaign = [&](auto third) {
-    std::vector<Reading> rs;
-    Report(rs, t0, "1001", 100, [](double t) { return 119.9 - 1.0 * t; });
-    Report(rs, t0, "1002", 100, [](double t) { return 119.9 - 0.3 * t; });
-    Report(rs, t0, "1003", 100, third);
-    Report(rs, t0, "1004", 100, [](double t) { return 119.9 - 0.9 * t; });
-    return rs;
-  };
+  const CrusherConfig c = ThreeInTheLowerRow(t0);
+  auto campaign = [&](auto third) { return HundredDays(t0, third); };
   const TimePoint scan = AddDays(t0, 30), now = AddDays(t0, 100);
   const auto ids = [](const std::vector<SensorWear>& w) {
     std::vector<std::string> out;
@@ -225,19 +235,9 @@ TEST(Reconstruction, AScansScalesLeaveOutASensorAlreadyFrozenAtItsDate) {
 // at their rate it should have lost about 85 mm since. From the window alone (the run taken from day
 // 60, where its mates had worn 54 mm) its share of their 36 mm since would be 2.7 mm: not named.
 TEST(Reconstruction, AValueFrozenBeforeTheWindowIsJudgedFromWhenItFroze) {
-  CrusherConfig c = TwoRows();
-  c.sensors.push_back({"1003", "LDWN", 0.6, 180.0, 120, {}});
-  c.sensors.push_back({"1004", "LDWN", 0.4, 270.0, 120, {}});
   const auto t0 = *ParseIsoTime("2026-01-01");
-  c.installed_at = t0;
-  auto campaign = [&](auto third) {
-    std::vector<Reading> rs;
-    Report(rs, t0, "1001", 100, [](double t) { return 119.9 - 1.0 * t; });
-    Report(rs, t0, "1002", 100, [](double t) { return 119.9 - 0.3 * t; });
-    Report(rs, t0, "1003", 100, third);
-    Report(rs, t0, "1004", 100, [](double t) { return 119.9 - 0.9 * t; });
-    return rs;
-  };
+  const CrusherConfig c = ThreeInTheLowerRow(t0);
+  auto campaign = [&](auto third) { return HundredDays(t0, third); };
   const TimePoint now = AddDays(t0, 100);
   const std::vector<std::string> stuck = Stuck(c, campaign([](double t) { return 119.9 - 1.1 * std::min(t, 4.0); }), now);
   CHECK_TEXT(stuck == std::vector<std::string>{"1003"}, stuck.empty() ? "none" : stuck.front().c_str());
