@@ -127,6 +127,10 @@ int CrusherConfig::RowIndex(const std::string& name) const {
   return -1;
 }
 
+TimePoint CrusherConfig::LinerStart() const {
+  return installed_at - std::chrono::days(1);
+}
+
 CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
   const std::string file = path.filename().string();
   std::ifstream in(path);

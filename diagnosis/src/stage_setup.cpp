@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace lw::diagnosis::detail {
 namespace {
@@ -108,8 +109,22 @@ std::vector<SensorData> AnalyseSensors(const core::Bundle& bundle, const MapFiel
     s.theta = info.theta_deg;
     s.thickness = info.thickness_new_mm > 0 ? info.thickness_new_mm : crusher.thickness_new_mm;
     std::vector<RawReading> raw;
-    for (const core::Reading& r : bundle.readings)
-      if (r.sensor_id == info.id) raw.push_back({days(r.time), r.thickness_mm});
+    std::optional<core::TimePoint> first_old, last_old;  // a previous liner's readings (before a reline)
+    size_t old = 0;
+    for (const core::Reading& r : bundle.readings) {
+      if (r.sensor_id != info.id) continue;
+      if (crusher.OfThisLiner(r.time)) {
+        raw.push_back({days(r.time), r.thickness_mm});
+        continue;
+      }
+      ++old;
+      first_old = std::min(first_old.value_or(r.time), r.time);
+      last_old = std::max(last_old.value_or(r.time), r.time);
+    }
+    if (old > 0)
+      result.data_quality.push_back(
+          {s.id, "previous_liner", *first_old, *last_old,
+           std::to_string(old) + " readings more than a day before installed_at: a previous liner's, left out"});
     s.analysis = AnalyseSensor(std::move(raw), s.thickness);
     for (const auto& q : s.analysis.issues)
       result.data_quality.push_back({s.id, q.issue, to_time(q.from_days), to_time(q.to_days), q.detail});

@@ -61,8 +61,7 @@ Validation CheckReading(const Incoming& in, const std::optional<mqtt::ReadingMes
     return v;
   }
   const int64_t time_s = time->time_since_epoch().count();
-  const int64_t installed_s = crusher->config.installed_at.time_since_epoch().count();
-  if (time_s < installed_s - 86400) {
+  if (!crusher->config.OfThisLiner(*time)) {
     v.error =
         "\"time\" " + m->time + " is before the liner was installed (" + core::FormatIsoTime(crusher->config.installed_at) + ")";
     return v;

@@ -42,6 +42,12 @@ struct CrusherConfig {
   const SensorInfo* FindSensor(const std::string& id) const;
   /// Index of the row with that name, or -1.
   int RowIndex(const std::string& name) const;
+  /// The earliest time a reading of this liner can have: a day before installed_at (a day's slack
+  /// for clocks). An earlier reading is a previous liner's, kept in the server's history after a
+  /// reline (installed_at moved on) but no part of this liner's wear, forecast or stuck rule.
+  TimePoint LinerStart() const;
+  /// Whether a reading taken at `t` is of this liner (not before LinerStart()).
+  bool OfThisLiner(TimePoint t) const { return t >= LinerStart(); }
 };
 
 struct Reading {

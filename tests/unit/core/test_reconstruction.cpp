@@ -1,5 +1,6 @@
 #include <cmath>
 
+#include "core/forecast.hpp"
 #include "core/reconstruction.hpp"
 #include "unit/core/bundle_fixture.hpp"
 
@@ -276,6 +277,39 @@ TEST(Reconstruction, AValueFrozenBeforeTheWindowIsJudgedFromWhenItFroze) {
   Report(offset, t0, "1003", 80, [](double t) { return 119.06 - 0.012 * t; });
   Report(offset, t0, "1004", 80, [](double t) { return 119.9 - 0.54 * t; });
   CHECK_TRUE(Stuck(c, offset, AddDays(t0, 80)).empty());
+}
+
+// A reline: the sensors of the new liner keep their ids, installed_at moves to its installation
+// (day 102), and the previous liner's 100 days of readings stay in the history. They are no part of
+// this liner: on its day 100 the same frozen 1003 (115 mm from its day 4) is named, which the old
+// liner's record lows (down to 30 mm) would hide; the latest readings and the forecast are its own;
+// a reading a day early (clock slack) still counts.
+TEST(Reconstruction, APreviousLinersReadingsCountForNothingAfterAReline) {
+  const auto t0 = *ParseIsoTime("2026-01-01");
+  const TimePoint t1 = AddDays(t0, 102);
+  const CrusherConfig c = ThreeInTheLowerRow(t1);
+  std::vector<Reading> rs = HundredDays(t0, [](double t) { return 119.9 - 0.9 * t; });
+  const size_t previous = rs.size();
+  const std::vector<Reading> now_liner = HundredDays(t1, [](double t) { return 119.9 - 1.1 * std::min(t, 4.0); });
+  rs.insert(rs.end(), now_liner.begin(), now_liner.end());
+  const TimePoint now = AddDays(t1, 100);
+  CHECK_TRUE(Stuck(c, rs, now) == std::vector<std::string>{"1003"});
+  // Five days after the reline 1004 has not reported yet: it has no reading of this liner (its last
+  // one, the old liner's 30 mm, is neither its wear nor a stale sensor's).
+  const TimePoint early = AddDays(t1, 5);
+  std::vector<Reading> silent = rs;
+  std::erase_if(silent, [&](const Reading& r) { return r.sensor_id == "1004" && r.time >= t1; });
+  const std::vector<size_t> latest = LatestReadingIndices(c, silent, early);
+  LONGS_EQUAL(3, latest.size());
+  for (const size_t i : latest) CHECK_TRUE(i >= previous && silent[i].sensor_id != "1004");
+  std::vector<std::string> stale;
+  LONGS_EQUAL(3, LiveReadingIndices(c, silent, early, &stale).size());
+  CHECK_TRUE(stale.empty());
+  const SensorForecast f = ForecastSensor(c, c.sensors[0], rs);
+  LONGS_EQUAL(401, f.readings_used);  // the new liner's 401 readings of 1001 (every 6 hours, days 0-100)
+  rs.push_back({AddDays(t1, -0.9), "1001", 119.0, 0});
+  rs.push_back({AddDays(t1, -1.1), "1001", 119.0, 0});
+  LONGS_EQUAL(402, ForecastSensor(c, c.sensors[0], rs).readings_used);
 }
 
 TEST(Reconstruction, SmoothingRemovesFaceNoiseButKeepsTheMean) {

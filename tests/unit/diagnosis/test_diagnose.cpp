@@ -317,6 +317,31 @@ TEST(Diagnose, StuckSensorIsDataQualityNotPhysics) {
   CHECK_TRUE(r.findings.empty());
 }
 
+// A bundle that also holds a previous liner's readings (a reline, the sensors' ids kept: weeks of
+// thin readings ending days before installed_at) is diagnosed as its own campaign alone: each
+// sensor's old readings are named in data_quality (previous_liner) and left out, nothing else moves.
+TEST(Diagnose, APreviousLinersReadingsAreLeftOutAndNamed) {
+  lw::test::SyntheticSpec spec;
+  spec.seed = 7;
+  const lw::test::TempDirectory tmp("lw-diag");
+  lw::test::WriteSyntheticBundle(tmp.path(), spec);
+  const lw::core::Bundle own = lw::core::LoadBundle(tmp.path());
+  lw::core::Bundle both = own;
+  for (const auto& s : own.crusher.sensors)
+    for (int day = 40; day >= 2; --day)  // the old liner wore from 80 to 42 mm
+      both.readings.push_back({lw::core::AddDays(own.crusher.installed_at, -day), s.id, 40.0 + day, 0});
+  lw::diagnosis::DiagnoseOptions options;
+  options.predict_at = lw::core::AddDays(own.crusher.installed_at, 100);
+  const auto a = lw::diagnosis::Diagnose(own, options), b = lw::diagnosis::Diagnose(both, options);
+  CHECK_TRUE(a.data_quality.empty());
+  LONGS_EQUAL(own.crusher.sensors.size(), b.data_quality.size());
+  for (const auto& s : own.crusher.sensors) CHECK_TEXT(HasIssue(b, s.id, "previous_liner"), s.id.c_str());
+  CHECK_TRUE(b.findings.empty());
+  DOUBLES_EQUAL(a.baseline.rmse_mm, b.baseline.rmse_mm, 0.0);
+  DOUBLES_EQUAL(a.improved.rmse_mm, b.improved.rmse_mm, 0.0);
+  DOUBLES_EQUAL(a.mismatch_z_score, b.mismatch_z_score, 0.0);
+}
+
 TEST(Diagnose, MaterialLossIsAPhysicsFindingWithDepth) {
   lw::test::SyntheticSpec spec;
   spec.loss_sensor = "LMID-3";

@@ -3,6 +3,8 @@
 // and counts, after ingest in any order, after a restart (rebuilt from the store) and after more
 // readings on top of the rebuilt state; and it holds far fewer readings than the store.
 #include <algorithm>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <random>
 
@@ -266,4 +268,79 @@ TEST(LiveState, ALazyLoadCountsEveryCommitOnce) {
   LONGS_EQUAL(store.CountReadings(Folder().id()), live.CountReadings(Folder().id()));
   ingestor.Ingest({messages.begin() + static_cast<std::ptrdiff_t>(2 * third), messages.end()});
   CheckEqualsFullRecompute(c, live, store, true);
+}
+
+// A reline: the new liner's sensors keep their ids, and the operator moves installed_at to its
+// installation and restarts. The previous liner's readings (ending two days before) stay in the
+// database and its history (counts, latest per sensor) but are no part of this liner's live state:
+// wear and forecast equal those of the new liner's readings alone, at the restart, after ingest and
+// after another restart. A sensor silent since the reline is neither stale nor worn to its old value.
+TEST(LiveState, AfterARelineThePreviousLinersReadingsAreHistoryOnly) {
+  static lw::test::CrusherFolder f(15, 11, 10);  // the new liner: 15 days, a scan on day 10
+  lw::test::TempDirectory dir{"lw-live"};
+  const lw::core::TimePoint installed = f.bundle.crusher.installed_at;
+  const double back = 17;  // days: the previous liner's 15 days end 2 days before the reline
+  // The previous liner's folder: the same crusher installed `back` days earlier.
+  const std::string previous = dir.File("previous");
+  std::filesystem::copy(f.crushers, previous, std::filesystem::copy_options::recursive);
+  json cj = json::parse(std::ifstream(previous + "/demo/crusher.json"));
+  cj["installed_at"] = lw::core::FormatIsoTime(lw::core::AddDays(installed, -back));
+  std::ofstream(previous + "/demo/crusher.json") << cj.dump(2);
+  // Each liner's readings as messages: the previous one's shifted back, seqs continuing after it.
+  const std::string silent = f.bundle.crusher.sensors.at(4).id;  // not heard since the reline
+  auto liner = [&](double shift_days, int64_t seq_from) {
+    auto out = lw::test::Messages(f.bundle);
+    std::erase_if(out, [&](const Incoming& m) { return shift_days == 0 && m.sensor == silent; });
+    for (Incoming& m : out) {
+      json j = json::parse(m.payload);
+      const auto t = lw::core::ParseIsoTime(j["time"].get<std::string>()).value();
+      j["time"] = lw::core::FormatIsoTime(lw::core::AddDays(t, shift_days));
+      j["seq"] = j["seq"].get<int64_t>() + seq_from;
+      m.payload = j.dump();
+    }
+    return out;
+  };
+  const int64_t end = f.bundle.readings.back().time.time_since_epoch().count() + 3600;
+  std::vector<std::string> errors;
+  const auto old_registry = Registry::Load(previous, &errors);
+  const auto registry = Registry::Load(f.crushers, &errors);
+  const Crusher& c = *registry->Find(f.id());
+  Store store(dir.File("db.sqlite"));
+  {
+    Ingestor ingestor(store, *old_registry, [&] { return end - static_cast<int64_t>(back * 86400); });
+    const auto messages = liner(-back, 0);
+    LONGS_EQUAL(messages.size(), ingestor.Ingest(messages).stored);
+  }
+  const int64_t history = store.CountReadings(f.id());
+  auto check = [&](const LiveState& live) {
+    std::vector<StoredReading> mine = store.All(f.id());
+    std::erase_if(mine, [&](const StoredReading& r) { return r.time_s < installed.time_since_epoch().count() - 86400; });
+    const auto inputs = live.WearInputs(f.id());
+    for (const auto& r : inputs) CHECK_TRUE(r.time_s >= installed.time_since_epoch().count() - 86400);
+    const CrusherState own = ComputeCrusherState(c, mine), full = ComputeCrusherState(c, store.All(f.id())),
+                       incremental = ComputeCrusherState(c, inputs);
+    CHECK(WearJson(own, true) == WearJson(full, true));
+    CHECK(WearJson(own, true) == WearJson(incremental, true));
+    CHECK(ForecastJson(own) == ForecastJson(full));
+    CHECK(ForecastJson(own) == ForecastJson(incremental));
+    CHECK_TRUE(full.stale.empty());
+    LONGS_EQUAL(store.CountReadings(f.id()), live.CountReadings(f.id()));  // the history is kept
+    if (mine.empty())
+      CHECK_FALSE(live.LatestUsableTime(f.id()));
+    else
+      CHECK(live.LatestUsableTime(f.id()) == own.time.time_since_epoch().count());
+  };
+  LiveState live(*registry);
+  live.Rebuild(store);  // the restart with the new installed_at
+  CHECK_TRUE(live.WearInputs(f.id()).empty());
+  CHECK_FALSE(ComputeCrusherState(c, store.All(f.id())).has_wear);
+  check(live);
+  Ingestor ingestor(
+      store, *registry, [&] { return end; }, &live);
+  ingestor.Ingest(liner(0, 100000));
+  CHECK_TRUE(store.CountReadings(f.id()) > history);
+  check(live);
+  LiveState rebuilt(*registry);
+  rebuilt.Rebuild(store);
+  check(rebuilt);
 }
