@@ -278,6 +278,7 @@ Response Resources::CrusherDetail(const Request& req) {
       200,
       {{"crusher_id", c->config.crusher_id},
        {"installed_at", core::FormatIsoTime(c->config.installed_at)},
+       {"liner_start", core::FormatIsoTime(c->config.LinerStart())},  // readings before it: a previous liner's
        {"concave",
         {{"thickness_new_mm", c->config.thickness_new_mm},
          {"thickness_min_mm", c->config.thickness_min_mm},

@@ -90,12 +90,13 @@ export const paths = {
   events: (c) => `/api/v1/crushers/${enc(c)}/events`,
 };
 
-// Reads every page of a sensor's readings (oldest first).
-export async function allReadings(crusher, sensor) {
+// Reads every page of a sensor's readings (oldest first), from `from` (ISO time) when given.
+export async function allReadings(crusher, sensor, from) {
   const out = [];
   let cursor = null;
   for (let page = 0; page < 200; page++) {
     const params = { limit: '5000' };
+    if (from) params.from = from;
     if (cursor) params.cursor = cursor;
     const res = await api.get(paths.readings(crusher, sensor, params));
     out.push(...(res.readings || []));

@@ -233,7 +233,7 @@ async function crusherPage(crusherId, initialSensor) {
   async function drawSeries() {
     const sensor = st.sensors.find((x) => x.id === st.selected);
     if (!sensor) { seriesBox.replaceChildren(h('div', { class: 'empty' }, 'No sensors.')); return; }
-    if (!st.readings.has(sensor.id)) st.readings.set(sensor.id, await allReadings(crusherId, sensor.id));
+    if (!st.readings.has(sensor.id)) st.readings.set(sensor.id, await allReadings(crusherId, sensor.id, detail.liner_start));
     const readings = st.readings.get(sensor.id);
     const fc = (st.forecast?.sensors || []).find((x) => String(x.id) === String(sensor.id));
     seriesTitle.textContent = `Sensor ${sensor.id}: ${sensor.row}, θ ${fmt(sensor.theta_deg, 0)}°, z ${fmt(sensor.z_m, 2)} m`;

@@ -206,6 +206,9 @@ TEST(RestHandlers, PostedReadingsAreStoredOnceAndServedBack) {
   const json detail = f.Get("/api/v1/crushers/{crusher}").json;
   LONGS_EQUAL(n, detail["counters"]["readings_stored"].get<size_t>());
   LONGS_EQUAL(n, detail["counters"]["duplicates"].get<size_t>());
+  // This liner's readings start a day before installed_at (earlier ones: a previous liner's).
+  STRCMP_EQUAL(lw::core::FormatIsoTime(lw::core::AddDays(Folder().bundle.crusher.installed_at, -1)).c_str(),
+               detail["liner_start"].get<std::string>().c_str());
   const json sensors = f.Get("/api/v1/crushers/{crusher}/sensors").json;
   LONGS_EQUAL(Folder().bundle.crusher.sensors.size(), sensors["sensors"].size());
   size_t expected = 0;
