@@ -131,6 +131,13 @@ TimePoint CrusherConfig::LinerStart() const {
   return installed_at - std::chrono::days(1);
 }
 
+bool CrusherConfig::OfThisLiner(const std::string& sensor_id, TimePoint t, double thickness_mm) const {
+  if (t >= installed_at) return true;
+  if (t < LinerStart()) return false;
+  const SensorInfo* s = FindSensor(sensor_id);
+  return thickness_mm >= (s ? s->thickness_new_mm : thickness_new_mm) - kSlackWearMm;
+}
+
 CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
   const std::string file = path.filename().string();
   std::ifstream in(path);

@@ -62,7 +62,7 @@ SensorForecast ForecastSensor(const CrusherConfig& crusher, const SensorInfo& se
   out.sensor_id = sensor.id;
   std::vector<std::pair<double, double>> pts;  // (days since installation, wear mm at interval centre)
   for (const Reading& r : readings) {
-    if (r.sensor_id != sensor.id || !crusher.OfThisLiner(r.time)) continue;
+    if (r.sensor_id != sensor.id || !crusher.OfThisLiner(r.sensor_id, r.time, r.thickness_mm)) continue;
     pts.emplace_back(DaysBetween(crusher.installed_at, r.time), sensor.thickness_new_mm - (r.thickness_mm + 0.5));
     if (r.time >= out.last_time) {
       if (r.time > out.last_time || out.readings_used == 0)

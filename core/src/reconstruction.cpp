@@ -73,7 +73,7 @@ std::vector<size_t> LatestReadingIndices(const CrusherConfig& crusher, const std
   std::map<std::string, size_t> latest;
   for (size_t i = 0; i < readings.size(); ++i) {
     const Reading& r = readings[i];
-    if (r.time > at || !crusher.OfThisLiner(r.time)) continue;
+    if (r.time > at || !crusher.OfThisLiner(r.sensor_id, r.time, r.thickness_mm)) continue;
     const auto [it, fresh] = latest.try_emplace(r.sensor_id, i);
     const Reading& l = readings[it->second];
     // Same time twice (a duplicate): the thinner reading, since wear only goes one way.
@@ -111,7 +111,8 @@ std::vector<size_t> FreshReadingIndices(const CrusherConfig& crusher, const std:
   TimePoint newest = readings[latest.front()].time;
   for (const size_t i : latest) newest = std::max(newest, readings[i].time);
   std::map<std::string, std::vector<TimePoint>> times;
-  for (const Reading& r : readings) times[r.sensor_id].push_back(r.time);
+  for (const Reading& r : readings)
+    if (crusher.OfThisLiner(r.sensor_id, r.time, r.thickness_mm)) times[r.sensor_id].push_back(r.time);
   std::erase_if(latest, [&](size_t i) {
     std::vector<TimePoint>& t = times[readings[i].sensor_id];
     std::sort(t.begin(), t.end());
@@ -175,7 +176,7 @@ std::vector<size_t> WithoutStuckSensors(const CrusherConfig& crusher, const std:
     const TimePoint latest = readings[it->second].time;
     const double window =
         std::max(rule.history_days, rule.history_fraction * std::max(0.0, DaysBetween(crusher.installed_at, latest)));
-    if (r.time > latest || !crusher.OfThisLiner(r.time)) continue;
+    if (r.time > latest || !crusher.OfThisLiner(r.sensor_id, r.time, r.thickness_mm)) continue;
     if (r.time < AddDays(latest, -window)) {
       const auto [b, fresh] = before[r.sensor_id].try_emplace(r.time, r.thickness_mm);
       if (!fresh) b->second = std::min(b->second, r.thickness_mm);

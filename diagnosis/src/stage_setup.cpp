@@ -113,7 +113,7 @@ std::vector<SensorData> AnalyseSensors(const core::Bundle& bundle, const MapFiel
     size_t old = 0;
     for (const core::Reading& r : bundle.readings) {
       if (r.sensor_id != info.id) continue;
-      if (crusher.OfThisLiner(r.time)) {
+      if (crusher.OfThisLiner(info.id, r.time, r.thickness_mm)) {
         raw.push_back({days(r.time), r.thickness_mm});
         continue;
       }
@@ -124,11 +124,13 @@ std::vector<SensorData> AnalyseSensors(const core::Bundle& bundle, const MapFiel
     if (old > 0)
       result.data_quality.push_back(
           {s.id, "previous_liner", *first_old, *last_old,
-           std::to_string(old) + " readings more than a day before installed_at: a previous liner's, left out"});
+           std::to_string(old) + " readings of a previous liner (dated before installed_at), left out"});
     s.analysis = AnalyseSensor(std::move(raw), s.thickness);
     for (const auto& q : s.analysis.issues)
       result.data_quality.push_back({s.id, q.issue, to_time(q.from_days), to_time(q.to_days), q.detail});
-    if (s.analysis.readings.empty()) result.data_quality.push_back({s.id, "no_readings", t0, t0, "the sensor never reported"});
+    if (s.analysis.readings.empty())
+      result.data_quality.push_back(
+          {s.id, "no_readings", t0, t0, old > 0 ? "no reading of this liner" : "the sensor never reported"});
     s.field = FieldAt(bundle.map, fields, s.z, s.theta);
     s.usable = s.analysis.events.size() >= 2 && s.field.intensity > 1e-6;
     s.sigma_u = std::sqrt(s.field.rel_noise * s.field.rel_noise + th.u_floor_rel * th.u_floor_rel);

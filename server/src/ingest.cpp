@@ -17,6 +17,11 @@ bool IsFaultReading(int64_t flags, int64_t loops_intact) {
   return (flags & kAllOpen) && loops_intact > 0;
 }
 
+bool UsableForWear(const core::CrusherConfig& crusher, const StoredReading& r) {
+  return !IsFaultReading(r.flags, r.loops_intact) &&
+         crusher.OfThisLiner(r.sensor, core::TimePoint(std::chrono::seconds(r.time_s)), r.thickness_mm);
+}
+
 namespace {
 
 /// ValidateReading's checks once the payload is decoded (`m`, `decode_error` and `id`: DecodeReading's
@@ -61,7 +66,7 @@ Validation CheckReading(const Incoming& in, const std::optional<mqtt::ReadingMes
     return v;
   }
   const int64_t time_s = time->time_since_epoch().count();
-  if (!crusher->config.OfThisLiner(*time)) {
+  if (*time < crusher->config.LinerStart()) {
     v.error =
         "\"time\" " + m->time + " is before the liner was installed (" + core::FormatIsoTime(crusher->config.installed_at) + ")";
     return v;
@@ -243,6 +248,7 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
     return last_counters->second;
   };
   result.new_readings.reserve(readings.size());
+  std::vector<Rejected> conflicted;
   for (size_t k = 0; k < outcomes.size(); ++k) {
     StoredReading& r = readings[k];
     const Incoming& in = messages[records[reading_index[k]].message];
@@ -262,6 +268,7 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
         ++counters_of(r.crusher).conflicts;
         result.log.push_back("conflict: " + r.crusher + "/" + r.sensor + " seq " + std::to_string(r.seq) +
                              " was stored before with another time or thickness; the first is kept");
+        conflicted.push_back({wall, in.topic, std::move(r.payload), result.log.back() + ", this one quarantined"});
         break;
     }
   }
@@ -269,6 +276,9 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
     live_->Add(result.new_readings);
     commit_order.unlock();
   }
+  // A conflict's reading is quarantined, not dropped (a board that restarted its seqs under a kept
+  // id: docs/server.md). Before any ack: a crash in between resends it, and it conflicts again.
+  if (!conflicted.empty()) store_.Commit({}, conflicted);
   for (const Record& rec : records) {
     const Validation& v = rec.v;
     if (v.reading) continue;

@@ -113,8 +113,7 @@ void LiveState::AddLocked(CrusherLive& c, const StoredReading& r) {
     s.latest = StoredReading{r.crusher,      r.sensor, r.seq,        r.time_s,     r.thickness_mm,
                              r.loops_intact, r.flags,  r.battery_mv, r.received_s, {}};
   }
-  // A fault, or a previous liner's reading (from before a reline), is no part of this liner's wear.
-  if (IsFaultReading(r.flags, r.loops_intact) || r.time_s < Unix(c.crusher->config.LinerStart())) return;
+  if (!UsableForWear(c.crusher->config, r)) return;  // a fault, or a previous liner's (before a reline)
   const Point p{r.time_s, r.seq, r.thickness_mm, r.loops_intact, r.flags};
   AddToRun(s, p, s.window.empty() ? std::nullopt : std::optional<Point>(s.window.back()));
   if (!c.last_usable_s || r.time_s > *c.last_usable_s) c.last_usable_s = r.time_s;
@@ -173,7 +172,7 @@ void LiveState::LoadFrom(Store& store, const Crusher& c_crusher, CrusherLive& c)
       s.latest = store.Latest(id, sensor);
       // Newest first, to the newest usable reading.
       store.Walk(id, sensor, liner_start, INT64_MAX, true, [&](const StoredReading& r) {
-        if (IsFaultReading(r.flags, r.loops_intact)) return true;
+        if (!UsableForWear(crusher->config, r)) return true;
         s.last_usable_s = r.time_s;
         return false;
       });
@@ -182,7 +181,7 @@ void LiveState::LoadFrom(Store& store, const Crusher& c_crusher, CrusherLive& c)
       const int64_t start = WindowStart(*crusher, *s.last_usable_s);
       std::optional<Point> newest;
       store.Walk(id, sensor, liner_start, INT64_MAX, false, [&](const StoredReading& r) {
-        if (IsFaultReading(r.flags, r.loops_intact)) return true;
+        if (!UsableForWear(crusher->config, r)) return true;
         const Point p{r.time_s, r.seq, r.thickness_mm, r.loops_intact, r.flags};
         if (r.time_s >= start) s.window.push_back(p);
         AddToRun(s, p, newest);
@@ -193,7 +192,7 @@ void LiveState::LoadFrom(Store& store, const Crusher& c_crusher, CrusherLive& c)
         std::optional<Point>& a = s.anchor[k];
         store.Walk(id, sensor, liner_start, Unix(crusher->scans[k].scan.date), true, [&](const StoredReading& r) {
           if (a && r.time_s < a->time_s) return false;  // past the newest usable time at or before the scan
-          if (IsFaultReading(r.flags, r.loops_intact)) return true;
+          if (!UsableForWear(crusher->config, r)) return true;
           if (!a || BetterAtSameTime(r.thickness_mm, r.seq, a->thickness_mm, a->seq)) {
             a = Point{r.time_s, r.seq, r.thickness_mm, r.loops_intact, r.flags};
           }

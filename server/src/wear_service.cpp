@@ -40,8 +40,7 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   usable.reserve(readings.size());
   source.reserve(readings.size());
   for (const StoredReading& r : readings) {
-    // Neither a fault nor a previous liner's reading (from before a reline) measures this liner.
-    if (IsFaultReading(r.flags, r.loops_intact) || !crusher.config.OfThisLiner(FromUnix(r.time_s))) continue;
+    if (!UsableForWear(crusher.config, r)) continue;  // a fault, or a previous liner's (before a reline)
     core::Reading c;
     c.time = FromUnix(r.time_s);
     c.sensor_id = r.sensor;

@@ -46,8 +46,12 @@ struct CrusherConfig {
   /// for clocks). An earlier reading is a previous liner's, kept in the server's history after a
   /// reline (installed_at moved on) but no part of this liner's wear, forecast or stuck rule.
   TimePoint LinerStart() const;
-  /// Whether a reading taken at `t` is of this liner (not before LinerStart()).
-  bool OfThisLiner(TimePoint t) const { return t >= LinerStart(); }
+  /// Whether a reading of `sensor_id` (`thickness_mm` at `t`) is of this liner: from installed_at
+  /// on; in the day of slack before it only when it shows no wear to speak of (at most
+  /// kSlackWearMm below the sensor's as-new thickness: a liner cannot wear before it is installed,
+  /// so a thinner one is the previous liner's last report); never before LinerStart().
+  bool OfThisLiner(const std::string& sensor_id, TimePoint t, double thickness_mm) const;
+  static constexpr double kSlackWearMm = 3.0;
 };
 
 struct Reading {

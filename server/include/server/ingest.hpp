@@ -25,6 +25,10 @@ namespace lw::server {
 /// holds loops intact (a cut cable). Every loop open with none intact is a consumed sensor: real wear.
 bool IsFaultReading(int64_t flags, int64_t loops_intact);
 
+/// Whether a stored reading measures this liner's wear: not a fault (IsFaultReading) and of this
+/// liner, not a previous one's (core::CrusherConfig::OfThisLiner; docs/server.md, Relining).
+bool UsableForWear(const core::CrusherConfig& crusher, const StoredReading& r);
+
 struct Incoming {
   std::string site;
   std::string crusher;

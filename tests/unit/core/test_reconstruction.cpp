@@ -280,13 +280,15 @@ TEST(Reconstruction, AValueFrozenBeforeTheWindowIsJudgedFromWhenItFroze) {
 }
 
 // A reline: the sensors of the new liner keep their ids, installed_at moves to its installation
-// (day 102), and the previous liner's 100 days of readings stay in the history. They are no part of
-// this liner: on its day 100 the same frozen 1003 (115 mm from its day 4) is named, which the old
-// liner's record lows (down to 30 mm) would hide; the latest readings and the forecast are its own;
-// a reading a day early (clock slack) still counts.
+// (day 100.5, half a day after the old boards' last reports), and the previous liner's 100 days of
+// readings stay in the history. They are no part of this liner, those in the day of clock slack
+// before installed_at included (they show wear a liner cannot have before it is installed): on its
+// day 100 the same frozen 1003 (115 mm from its day 4) is named, which the old liner's record lows
+// (down to 30 mm) would hide; the latest readings, the stale rule and the forecast are its own; a
+// reading of a new sensor in the day before installed_at still counts.
 TEST(Reconstruction, APreviousLinersReadingsCountForNothingAfterAReline) {
   const auto t0 = *ParseIsoTime("2026-01-01");
-  const TimePoint t1 = AddDays(t0, 102);
+  const TimePoint t1 = AddDays(t0, 100.5);
   const CrusherConfig c = ThreeInTheLowerRow(t1);
   std::vector<Reading> rs = HundredDays(t0, [](double t) { return 119.9 - 0.9 * t; });
   const size_t previous = rs.size();
@@ -295,10 +297,15 @@ TEST(Reconstruction, APreviousLinersReadingsCountForNothingAfterAReline) {
   const TimePoint now = AddDays(t1, 100);
   CHECK_TRUE(Stuck(c, rs, now) == std::vector<std::string>{"1003"});
   // Five days after the reline 1004 has not reported yet: it has no reading of this liner (its last
-  // one, the old liner's 30 mm, is neither its wear nor a stale sensor's).
+  // one, the old liner's 30 mm, is neither its wear nor a stale sensor's). 1001 has been silent for
+  // 1.5 days, under 8 of its 6-hour periods: not stale (the old liner's board reported every 10
+  // minutes in its last days: 8 of those periods would make it so).
   const TimePoint early = AddDays(t1, 5);
   std::vector<Reading> silent = rs;
-  std::erase_if(silent, [&](const Reading& r) { return r.sensor_id == "1004" && r.time >= t1; });
+  std::erase_if(silent, [&](const Reading& r) {
+    return r.time >= t1 && (r.sensor_id == "1004" || (r.sensor_id == "1001" && r.time > AddDays(t1, 3.5)));
+  });
+  for (int k = 0; k < 10 * 144; ++k) silent.push_back({AddDays(t1, -12 + k / 144.0), "1001", 40.0, 0});
   const std::vector<size_t> latest = LatestReadingIndices(c, silent, early);
   LONGS_EQUAL(3, latest.size());
   for (const size_t i : latest) CHECK_TRUE(i >= previous && silent[i].sensor_id != "1004");
@@ -306,9 +313,10 @@ TEST(Reconstruction, APreviousLinersReadingsCountForNothingAfterAReline) {
   LONGS_EQUAL(3, LiveReadingIndices(c, silent, early, &stale).size());
   CHECK_TRUE(stale.empty());
   const SensorForecast f = ForecastSensor(c, c.sensors[0], rs);
-  LONGS_EQUAL(401, f.readings_used);  // the new liner's 401 readings of 1001 (every 6 hours, days 0-100)
-  rs.push_back({AddDays(t1, -0.9), "1001", 119.0, 0});
-  rs.push_back({AddDays(t1, -1.1), "1001", 119.0, 0});
+  LONGS_EQUAL(401, f.readings_used);                    // the new liner's 401 readings of 1001 (every 6 hours, days 0-100)
+  rs.push_back({AddDays(t1, -0.9), "1001", 119.0, 0});  // a new board (as new), its clock a little ahead
+  rs.push_back({AddDays(t1, -0.8), "1001", 60.0, 0});   // the old board, 60 mm: the previous liner's
+  rs.push_back({AddDays(t1, -1.1), "1001", 119.0, 0});  // more than a day before: the previous liner's
   LONGS_EQUAL(402, ForecastSensor(c, c.sensors[0], rs).readings_used);
 }
 

@@ -453,4 +453,12 @@ TEST(Ingest, HostileElementsOfABatchAreEachJudgedAloneAndNothingElseIsAcked) {
   const Page page = store.Range(Folder().id(), "1001", 0, std::numeric_limits<int64_t>::max(), 10, "");
   LONGS_EQUAL(1, page.readings.size());
   DOUBLES_EQUAL(100, page.readings[0].thickness_mm, 0);  // the first of seq 5 is kept
+  // The conflicting one is quarantined with the refused elements, not lost.
+  LONGS_EQUAL(6, store.CountRejected());
+  int conflicts = 0;
+  for (const Rejected& q : store.RejectedMessages(10))
+    if (q.reason.find("conflict") != std::string::npos && q.payload.find("\"thickness_mm\":90") != std::string::npos) ++conflicts;
+  LONGS_EQUAL(1, conflicts);
+  ingestor.Ingest({With(batch)});  // redelivered: quarantined once
+  LONGS_EQUAL(6, store.CountRejected());
 }

@@ -270,23 +270,25 @@ TEST(LiveState, ALazyLoadCountsEveryCommitOnce) {
   CheckEqualsFullRecompute(c, live, store, true);
 }
 
-// A reline: the new liner's sensors keep their ids, and the operator moves installed_at to its
-// installation and restarts. The previous liner's readings (ending two days before) stay in the
-// database and its history (counts, latest per sensor) but are no part of this liner's live state:
+// A reline: the new liner's sensors keep their ids (and continue their seqs), and the operator moves
+// installed_at to its installation and restarts. The previous liner's readings (ending half a day
+// before, in the day of clock slack) stay in the database and its history (counts, latest per
+// sensor) but are no part of this liner's live state:
 // wear and forecast equal those of the new liner's readings alone, at the restart, after ingest and
 // after another restart. A sensor silent since the reline is neither stale nor worn to its old value.
 TEST(LiveState, AfterARelineThePreviousLinersReadingsAreHistoryOnly) {
   static lw::test::CrusherFolder f(15, 11, 10);  // the new liner: 15 days, a scan on day 10
   lw::test::TempDirectory dir{"lw-live"};
   const lw::core::TimePoint installed = f.bundle.crusher.installed_at;
-  const double back = 17;  // days: the previous liner's 15 days end 2 days before the reline
+  const double back = 15.5;  // days: the previous liner's 15 days end half a day before the reline
   // The previous liner's folder: the same crusher installed `back` days earlier.
   const std::string previous = dir.File("previous");
   std::filesystem::copy(f.crushers, previous, std::filesystem::copy_options::recursive);
   json cj = json::parse(std::ifstream(previous + "/demo/crusher.json"));
   cj["installed_at"] = lw::core::FormatIsoTime(lw::core::AddDays(installed, -back));
   std::ofstream(previous + "/demo/crusher.json") << cj.dump(2);
-  // Each liner's readings as messages: the previous one's shifted back, seqs continuing after it.
+  // Each liner's readings as messages: the previous one's shifted back and 60 mm thinner (a liner
+  // near its end), the new one's seqs continuing after it.
   const std::string silent = f.bundle.crusher.sensors.at(4).id;  // not heard since the reline
   auto liner = [&](double shift_days, int64_t seq_from) {
     auto out = lw::test::Messages(f.bundle);
@@ -296,6 +298,10 @@ TEST(LiveState, AfterARelineThePreviousLinersReadingsAreHistoryOnly) {
       const auto t = lw::core::ParseIsoTime(j["time"].get<std::string>()).value();
       j["time"] = lw::core::FormatIsoTime(lw::core::AddDays(t, shift_days));
       j["seq"] = j["seq"].get<int64_t>() + seq_from;
+      if (shift_days != 0) {
+        j["thickness_mm"] = j["thickness_mm"].get<double>() - 60;
+        j["loops_intact"] = j["loops_intact"].get<int>() - 60;
+      }
       m.payload = j.dump();
     }
     return out;
@@ -313,10 +319,10 @@ TEST(LiveState, AfterARelineThePreviousLinersReadingsAreHistoryOnly) {
   }
   const int64_t history = store.CountReadings(f.id());
   auto check = [&](const LiveState& live) {
-    std::vector<StoredReading> mine = store.All(f.id());
-    std::erase_if(mine, [&](const StoredReading& r) { return r.time_s < installed.time_since_epoch().count() - 86400; });
+    std::vector<StoredReading> mine = store.All(f.id());  // the new liner's: seqs from 100000
+    std::erase_if(mine, [&](const StoredReading& r) { return r.seq < 100000; });
     const auto inputs = live.WearInputs(f.id());
-    for (const auto& r : inputs) CHECK_TRUE(r.time_s >= installed.time_since_epoch().count() - 86400);
+    for (const auto& r : inputs) CHECK_TRUE(r.seq >= 100000);
     const CrusherState own = ComputeCrusherState(c, mine), full = ComputeCrusherState(c, store.All(f.id())),
                        incremental = ComputeCrusherState(c, inputs);
     CHECK(WearJson(own, true) == WearJson(full, true));
