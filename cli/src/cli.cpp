@@ -1,5 +1,6 @@
 #include "cli/cli.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -225,7 +226,16 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
       bundle.crusher, bundle.readings,
       core::LiveReadingIndices(bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), &stale, &stuck),
       /*interval_centre=*/!o.Flag("lower_bound"));
-  if (wear.empty()) throw BadInput(bundle.dir.string() + "/readings.csv: no reading at or before the requested time");
+  if (wear.empty()) {
+    const auto previous = std::count_if(bundle.readings.begin(), bundle.readings.end(), [&](const core::Reading& r) {
+      return !bundle.crusher.OfThisLiner(r.sensor_id, r.time, r.thickness_mm);
+    });
+    throw BadInput(bundle.dir.string() + "/readings.csv: no reading of this liner at or before the requested time" +
+                   (previous > 0 ? " (" + std::to_string(previous) +
+                                       " of its readings are a previous liner's: dated before installed_at " +
+                                       core::FormatIsoTime(bundle.crusher.installed_at) + ")"
+                                 : std::string()));
+  }
   core::ReconstructionPlan plan = core::PrepareReconstruction(bundle.crusher, bundle.map);
   // The latest scan at or before `at` corrects the map between the sensors (docs/diagnosis.md).
   std::string scan_line;

@@ -247,3 +247,32 @@ TEST(Linerwatch, ReconstructLeavesOutAStuckSensor) {
   for (size_t k = 0; k < reference["rows"].size(); ++k)
     DOUBLES_EQUAL(reference["rows"][k]["mean_wear_mm"].get<double>(), with_scan["rows"][k]["mean_wear_mm"].get<double>(), 1e-9);
 }
+
+// A bundle that also holds a previous liner's readings (a reline that kept the sensors' ids: dated
+// before installed_at, worn): `reconstruct` gives what the liner's own readings give; with nothing
+// but those, a one-line error says why there is no number.
+TEST(Linerwatch, ReconstructLeavesOutAPreviousLinersReadings) {
+  const fs::path b = Bundle();
+  const lw::core::Bundle bundle = lw::core::LoadBundle(b);
+  const Run own = Cli({"reconstruct", b.string(), "--json", (dir / "own.json").string()});
+  LONGS_EQUAL(0, own.code);
+  auto write = [&](bool with_own) {
+    std::ofstream out(b / "readings.csv");
+    out << "time,sensor_id,thickness_mm\n";
+    for (const auto& r : bundle.readings) {  // the old liner: 200 days earlier, 40 mm thinner (and denser)
+      for (int k = 0; k < 3; ++k)
+        out << lw::core::FormatIsoTime(lw::core::AddDays(r.time, -200 - 0.01 * k)) << ',' << r.sensor_id << ','
+            << std::max(0.0, r.thickness_mm - 40) << '\n';
+      if (with_own) out << lw::core::FormatIsoTime(r.time) << ',' << r.sensor_id << ',' << r.thickness_mm << '\n';
+    }
+  };
+  write(true);
+  const Run both = Cli({"reconstruct", b.string(), "--json", (dir / "both.json").string()});
+  LONGS_EQUAL(0, both.code);
+  const auto a = nlohmann::json::parse(Slurp(dir / "own.json")), c = nlohmann::json::parse(Slurp(dir / "both.json"));
+  CHECK_TEXT(a == c, (a.dump().substr(0, 200) + "\n" + c.dump().substr(0, 200)).c_str());
+  write(false);
+  const Run none = Cli({"reconstruct", b.string()});
+  CHECK(none.code != 0);
+  CHECK_TEXT(OneLine(none.err) && none.err.find("previous liner") != std::string::npos, none.err.c_str());
+}
