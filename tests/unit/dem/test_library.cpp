@@ -1,4 +1,4 @@
-// The committed libraries of real LIGGGHTS maps (data/dem/ and the held-out data/dem-heldout/ and data/dem-heldout2/): every
+// The committed libraries of real LIGGGHTS maps (data/dem/, the held-out data/dem-heldout*/ and the others in data/): every
 // case's map loads as a crusher's map with its uncertainty, its crusher.json loads, the title line and the summary agree on the
 // windows (>= 4), and the summary's row means are what the map holds.
 #include <cmath>
@@ -78,4 +78,17 @@ TEST(DemLibrary, EveryHeldOutCaseLoadsAndMatchesItsSummary) {
 
 TEST(DemLibrary, EverySecondSetHeldOutCaseLoadsAndMatchesItsSummary) {
   CHECK(CheckLibrary(LW_DEM_HELDOUT2_DIR) >= 2);
+}
+
+// Every library in data/ (the held-out sets added later, the long run, the fine mesh): the same checks, and each library has
+// a README saying what it is for.
+TEST(DemLibrary, EveryLibraryInDataLoadsAndMatchesItsSummary) {
+  int libraries = 0;
+  for (const auto& e : fs::directory_iterator(LW_DATA_DIR)) {
+    if (!e.is_directory() || e.path().filename().string().rfind("dem", 0) != 0) continue;
+    ++libraries;
+    CHECK_TEXT(fs::exists(e.path() / "README.md"), e.path().string().c_str());
+    CHECK_TEXT(CheckLibrary(e.path()) >= 1, e.path().string().c_str());
+  }
+  CHECK(libraries >= 9);
 }
