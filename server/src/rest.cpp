@@ -41,6 +41,16 @@ ordered_json ReadingJson(const StoredReading& r) {
           {"received", Iso(r.received_s)}};
 }
 
+/// A sensor's stored reading as JSON (without its sensor id), with "previous_liner": true when it is a
+/// previous liner's (before installed_at, or worn in the day of slack before it: core's OfThisLiner), which
+/// live wear leaves out (docs/server.md, Relining).
+ordered_json SensorReadingJson(const core::CrusherConfig& config, const StoredReading& r) {
+  ordered_json o = ReadingJson(r);
+  o.erase("sensor");
+  if (!config.OfThisLiner(r.sensor, core::TimePoint(std::chrono::seconds(r.time_s)), r.thickness_mm)) o["previous_liner"] = true;
+  return o;
+}
+
 ordered_json RowsJson(const core::CrusherConfig& config) {
   ordered_json rows = ordered_json::array();
   for (const auto& r : config.rows) rows.push_back({{"name", r.name}, {"z_min_m", r.z_min_m}, {"z_max_m", r.z_max_m}});
@@ -312,9 +322,7 @@ Response Resources::Sensors(const Request& req) {
     for (const auto& l : latest) {
       if (l.latest.sensor != s.id) continue;
       o["reading_count"] = l.count;
-      ordered_json r = ReadingJson(l.latest);
-      r.erase("sensor");
-      o["latest"] = r;
+      o["latest"] = SensorReadingJson(c->config, l.latest);
     }
     sensors.push_back(o);
   }
@@ -338,11 +346,7 @@ Response Resources::Readings(const Request& req) {
     return Error(400, e.what());
   }
   ordered_json readings = ordered_json::array();
-  for (const auto& r : page.readings) {
-    ordered_json o = ReadingJson(r);
-    o.erase("sensor");
-    readings.push_back(o);
-  }
+  for (const auto& r : page.readings) readings.push_back(SensorReadingJson(c->config, r));
   return Json(
       200, {{"readings", readings}, {"next_cursor", page.next_cursor ? ordered_json(*page.next_cursor) : ordered_json(nullptr)}});
 }

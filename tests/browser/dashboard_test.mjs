@@ -153,6 +153,14 @@ async function main() {
     stored += r.json.stored;
   }
   check(stored === readings.length, `stored all ${readings.length} campaign readings (server said ${stored})`);
+  // The previous liner's boards' last reports, worn, half a day before installed_at (a reline): stored,
+  // marked previous_liner by the server, and not drawn in a sensor's series.
+  const config = JSON.parse(fs.readFileSync(path.join(bundle, 'crusher.json'), 'utf8'));
+  const oldTime = new Date(Date.parse(config.installed_at) - 12 * 3600000).toISOString().replace(/\.\d{3}Z$/, 'Z');
+  const old = config.sensors.map((x) => ({ sensor: String(x.id), seq: 900000, time: oldTime, thickness_mm: x.thickness_new_mm - 60,
+    loops_intact: x.thickness_new_mm - 60, flags: 0, battery_mv: 3100 }));
+  const oldPost = await http(base, 'POST', `/api/v1/crushers/${crusher}/readings`, { readings: old });
+  check(oldPost.status === 200 && oldPost.json.stored === old.length, `stored ${old.length} readings of a previous liner (${oldPost.text.slice(0, 200)})`);
   // The server reconstructs the wear in the background after a commit.
   await waitFor('the server\'s first wear reconstruction', async () => (await http(base, 'GET', `/api/v1/crushers/${crusher}/wear?faces=false`)).status === 200);
   check(true, 'wear reconstructed from the loaded readings');
@@ -188,7 +196,7 @@ async function main() {
   const sensor = await series.getAttribute('data-sensor');
   const points0 = Number(await series.getAttribute('data-points'));
   const expected = readings.filter((r) => r.sensor === sensor).length;
-  check(points0 === expected, `series of sensor ${sensor} shows its ${expected} readings (${points0})`);
+  check(points0 === expected, `series of sensor ${sensor} shows its ${expected} readings of this liner, not the previous liner's (${points0})`);
   check(await page.locator('[data-testid="min-line"]').count() === 1, 'series shows the minimum-thickness line');
   check(await page.locator('[data-testid="liner-3d"]').count() === 1, '3D liner view is present');
   const row = readings.length && JSON.parse(fs.readFileSync(path.join(bundle, 'crusher.json'), 'utf8')).sensors.find((x) => String(x.id) === sensor).row;

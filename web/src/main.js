@@ -59,6 +59,12 @@ async function listPage() {
 }
 
 // ---------------------------------------------------------------- crusher page
+// The sensors with a previous liner's latest reading (marked by the server after a reline) shown as
+// having no reading of this liner yet.
+function ofThisLiner(sensors) {
+  return sensors.map((x) => (x.latest?.previous_liner ? { ...x, latest: null } : x));
+}
+
 async function crusherPage(crusherId, initialSensor) {
   crumbs.replaceChildren(h('a', { href: '#/' }, 'Crushers'), ' / ', crusherId);
   app.replaceChildren(h('div', { class: 'empty' }, `Loading ${crusherId}…`));
@@ -70,7 +76,7 @@ async function crusherPage(crusherId, initialSensor) {
     api.get(paths.crusher(crusherId)), api.get(paths.mesh(crusherId)), api.get(paths.sensors(crusherId))]);
   st.detail = detail;
   st.mesh = mesh;
-  st.sensors = sensors.sensors;
+  st.sensors = ofThisLiner(sensors.sensors);
   const concave = detail.concave;
   if (!st.selected || !st.sensors.some((x) => x.id === st.selected)) {
     // Default: the sensor with the thinnest latest reading.
@@ -234,7 +240,8 @@ async function crusherPage(crusherId, initialSensor) {
     const sensor = st.sensors.find((x) => x.id === st.selected);
     if (!sensor) { seriesBox.replaceChildren(h('div', { class: 'empty' }, 'No sensors.')); return; }
     if (!st.readings.has(sensor.id)) st.readings.set(sensor.id, await allReadings(crusherId, sensor.id, detail.liner_start));
-    const readings = st.readings.get(sensor.id);
+    // A previous liner's last reports (worn, in the day before installed_at) are history: not drawn.
+    const readings = st.readings.get(sensor.id).filter((r) => !r.previous_liner);
     const fc = (st.forecast?.sensors || []).find((x) => String(x.id) === String(sensor.id));
     seriesTitle.textContent = `Sensor ${sensor.id}: ${sensor.row}, θ ${fmt(sensor.theta_deg, 0)}°, z ${fmt(sensor.z_m, 2)} m`;
     renderSeries(seriesBox, { sensor, readings, forecast: fc, thicknessMin: concave.thickness_min_mm, thicknessNew: concave.thickness_new_mm, installedAt: detail.installed_at });
@@ -315,7 +322,7 @@ async function crusherPage(crusherId, initialSensor) {
       refreshing = true;
       try {
         const [sensorsRes, detailRes] = await Promise.all([api.get(paths.sensors(crusherId)), api.get(paths.crusher(crusherId)), loadWear()]);
-        st.sensors = sensorsRes.sensors;
+        st.sensors = ofThisLiner(sensorsRes.sensors);
         st.detail = detailRes;
         drawKpis();
         drawTable();

@@ -173,6 +173,46 @@ TEST(RestHandlers, EveryCrusherRouteAnswers404ForAnUnknownCrusher) {
   LONGS_EQUAL(10, crusher_routes);
 }
 
+// After a reline the old boards' last reports fall in the day of slack before installed_at: the readings
+// and the sensors' latest mark a worn one "previous_liner" (live wear leaves it out; the dashboard's
+// chart too), and not an unworn one, which may be a new board whose clock is ahead.
+TEST(RestHandlers, APreviousLinersReadingIsMarkedInReadingsAndLatest) {
+  Fixture f;
+  const lw::core::CrusherConfig& crusher = Folder().bundle.crusher;
+  const std::string worn = crusher.sensors.at(0).id, unworn = crusher.sensors.at(1).id;
+  const double new_mm = crusher.sensors.at(0).thickness_new_mm;
+  const std::string slack = lw::core::FormatIsoTime(lw::core::AddDays(crusher.installed_at, -0.5));
+  json body = {{"readings", json::array()}};
+  body["readings"].push_back({{"sensor", worn},
+                              {"seq", 1},
+                              {"time", slack},
+                              {"thickness_mm", new_mm - 40},
+                              {"loops_intact", new_mm - 40},
+                              {"flags", 0},
+                              {"battery_mv", 3300}});
+  body["readings"].push_back({{"sensor", unworn},
+                              {"seq", 1},
+                              {"time", slack},
+                              {"thickness_mm", new_mm - 1},
+                              {"loops_intact", new_mm - 1},
+                              {"flags", 0},
+                              {"battery_mv", 3300}});
+  PostReadingsTo(*f.resources, Folder().id(), body);
+
+  const char* readings = "/api/v1/crushers/{crusher}/sensors/{sensor}/readings";
+  const json old = f.Get(readings, {Folder().id(), worn}).json["readings"];
+  LONGS_EQUAL(1, old.size());
+  CHECK(old[0].value("previous_liner", false));
+  const json fresh = f.Get(readings, {Folder().id(), unworn}).json["readings"];
+  LONGS_EQUAL(1, fresh.size());
+  CHECK_FALSE(fresh[0].contains("previous_liner"));
+  const json sensors = f.Get("/api/v1/crushers/{crusher}/sensors").json["sensors"];
+  for (const auto& s : sensors) {
+    if (s["id"] == worn) CHECK(s["latest"].value("previous_liner", false));
+    if (s["id"] == unworn) CHECK_FALSE(s["latest"].contains("previous_liner"));
+  }
+}
+
 TEST(RestHandlers, PostedReadingsAreStoredOnceAndServedBack) {
   Fixture f;
   int after_ingest = 0;
