@@ -500,10 +500,11 @@ MapModel::Point MapModel::At(double z, double theta_deg) const {
         }
       }
       if (nrm && normal_index) {
-        Kernel kn(m, *nrm, nullptr, normal_bandwidth_m, 3.0 * bandwidth_arc_m, normal_index);
+        Kernel kn(m, *nrm, &clean, normal_bandwidth_m, 3.0 * bandwidth_arc_m, normal_index);
         kn.linear = false;
         const Sums sn = kn.At(z, theta_deg, -1, -1);
         p.normal_stress = sn.s0 > 0 ? sn.t0 / sn.s0 : 0.0;
+        p.intensity_broad = sn.s0 > 0 ? sn.n0 / sn.s0 : 0.0;
       }
       p.faces = k.EffectiveFaces(z, theta_deg);
       return p;
@@ -527,6 +528,7 @@ MapModel::Point MapModel::At(double z, double theta_deg) const {
   p.sd = intensity_sd[best];
   p.noise_sd = intensity_noise_sd.size() == intensity_sd.size() ? intensity_noise_sd[best] : p.sd;
   p.normal_stress = normal_stress.size() ? normal_stress[best] : 0.0;
+  p.intensity_broad = intensity_broad.size() ? intensity_broad[best] : 0.0;
   p.faces = 1;
   return p;
 }
@@ -795,15 +797,22 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
       Kernel kn(map, *nrm, nullptr, model.normal_bandwidth_m, 3.0 * model.bandwidth_arc_m);
       kn.linear = false;
       model.normal_index = kn.owned;
+      model.intensity_broad.resize(n);
       if (binned) {
         Eigen::VectorXd v;
         BinnedStep(map, *nrm, nullptr, kn.h, kn.ha, false, threads, v, nullptr);
         for (Eigen::Index i = 0; i < n; ++i) model.normal_stress[i] = std::isfinite(v[i]) ? v[i] : (*nrm)[i];
+        BinnedStep(map, model.clean, nullptr, kn.h, kn.ha, false, threads, v, nullptr);
+        for (Eigen::Index i = 0; i < n; ++i) model.intensity_broad[i] = std::isfinite(v[i]) ? v[i] : model.clean[i];
       } else {
+        // The stress's kernel carries the capped wear as its second value (Sums::n0): both in one pass.
+        Kernel kb(map, *nrm, &model.clean, kn.h, kn.ha, kn.owned);
+        kb.linear = false;
         ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
           for (Eigen::Index i = begin; i < end; ++i) {
-            const Sums sn = kn.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
+            const Sums sn = kb.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
             model.normal_stress[i] = sn.s0 > 0 ? sn.t0 / sn.s0 : (*nrm)[i];
+            model.intensity_broad[i] = sn.s0 > 0 ? sn.n0 / sn.s0 : model.clean[i];
           }
         });
       }

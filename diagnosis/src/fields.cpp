@@ -236,9 +236,16 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
     f.normal_to_intensity = n_mean > 0 ? i_mean / n_mean : 0.0;
     f.normal_tilde = (n / robust_max).cwiseMin(1.5);
     f.normal_i = n * f.normal_to_intensity;
+    // The map smoothed like the stress, scaled to the same area-weighted mean as the intensity.
+    const Eigen::VectorXd& broad = f.model.intensity_broad;
+    double b_mean = 0;
+    for (Eigen::Index i = 0; i < nf && broad.size() == nf; ++i) b_mean += broad[i] * map.areas[i];
+    f.broad_to_intensity = b_mean > 0 ? i_mean / b_mean : 0.0;
+    f.broad_i = broad.size() == nf ? Eigen::VectorXd(broad * f.broad_to_intensity) : Eigen::VectorXd::Zero(nf);
   } else {
     f.normal_tilde = Eigen::VectorXd::Ones(nf);
     f.normal_i = Eigen::VectorXd::Zero(nf);
+    f.broad_i = Eigen::VectorXd::Zero(nf);
   }
 
   // The circumferential-mean intensity profile along z and its logarithmic slope (profile shift).
@@ -328,9 +335,11 @@ PointField FieldAt(const core::WearMap& map, const MapFields& fields, double z, 
   if (fields.has_normal) {
     p.normal_tilde = std::min(1.5, std::max(0.0, at.normal_stress) / fields.normal_robust_max);
     p.normal_i = std::max(0.0, at.normal_stress) * fields.normal_to_intensity;
+    p.broad_i = std::max(0.0, at.intensity_broad) * fields.broad_to_intensity;
   } else {
     p.normal_tilde = 1;
     p.normal_i = 0;
+    p.broad_i = 0;
   }
   p.faces = static_cast<size_t>(std::lround(at.faces));
   p.area = 0;
@@ -372,6 +381,7 @@ CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t
     g.cells[ci].intensity += a * fields.intensity[i];
     g.cells[ci].normal_tilde += a * fields.normal_tilde[i];
     g.cells[ci].normal_i += a * fields.normal_i[i];
+    g.cells[ci].broad_i += a * fields.broad_i[i];
     g.cells[ci].faces += 1;
   }
   for (size_t c = 0; c < g.cells.size(); ++c) {
@@ -383,6 +393,7 @@ CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t
     p.intensity /= sw[c];
     p.normal_tilde /= sw[c];
     p.normal_i /= sw[c];
+    p.broad_i /= sw[c];
     p.z = sz[c] / sw[c];
     // Smoothed faces share their errors: the cell's relative error is their mean, not reduced.
     p.rel_noise = std::hypot(p.intensity > 0 ? ssd[c] / sw[c] / p.intensity : 1.0, QuantisationRel(fields, p.intensity));
@@ -472,6 +483,7 @@ ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const C
     ssn[ci] += a * fields.intensity[fi] * fields.rel_noise_sd[fi];
     s.fields[ci].normal_tilde += a * fields.normal_tilde[fi];
     s.fields[ci].normal_i += a * fields.normal_i[fi];
+    s.fields[ci].broad_i += a * fields.broad_i[fi];
     s.fields[ci].z += a * map.z[fi];
     s.fields[ci].faces += 1;
     svar[ci] += a * a * s.point_noise_mm * s.point_noise_mm / static_cast<double>(per_face[f].size());
@@ -485,6 +497,7 @@ ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const C
     pf.intensity /= sw[c];
     pf.normal_tilde /= sw[c];
     pf.normal_i /= sw[c];
+    pf.broad_i /= sw[c];
     pf.z /= sw[c];
     pf.theta_deg = grid.cells[c].theta_deg;
     pf.rel_noise = std::hypot(pf.intensity > 0 ? ssd[c] / sw[c] / pf.intensity : 1.0, QuantisationRel(fields, pf.intensity));

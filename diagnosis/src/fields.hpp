@@ -39,6 +39,11 @@ struct MapFields {
   double normal_to_intensity = 0;  ///< normal_i = normal stress x this
   Eigen::VectorXd normal_tilde;    ///< per face, normal stress / robust max, clipped to [0, 1.5]; 1 when absent
   Eigen::VectorXd normal_i;        ///< per face, normal stress in intensity units (same area-weighted mean)
+  /// Per face, the wear intensity smoothed with the normal stress's kernel (MapModel::intensity_broad),
+  /// in intensity units (same area-weighted mean): squeeze wear's stand-in without stress (broad_to_intensity
+  /// converts the model's values).
+  Eigen::VectorXd broad_i;
+  double broad_to_intensity = 0;
   bool has_normal = false;
   double intensity_median = 1;  ///< raw intensity that maps to 1
   double face_rel_noise = 0;    ///< relative noise of one raw face (the model's noise law), for notes
@@ -79,6 +84,7 @@ struct PointField {
   double intensity = 0;  ///< normalised
   double normal_tilde = 1;
   double normal_i = 0;
+  double broad_i = 0;       ///< MapFields::broad_i here
   double rel_noise = 0;     ///< relative noise of `intensity` from the map's per-face noise
   double rel_sampling = 0;  ///< its sampling-noise part (without the smoothing's error), with quantisation
   double area = 0;

@@ -37,6 +37,14 @@ std::vector<Effect> AvailableEffects(bool has_normal, bool throughput_available)
 /// feed segregation's standard error.
 void Judge(ModelEval& ev, const ModelEval& null_eval, size_t rows, double log_n, double dispersion, double map_harmonic1_sd);
 
+/// Squeeze wear must be the normal stress's: on a real DEM map the stress follows the wear (the same
+/// contacts), so I + beta n is mostly the map blended with a broader smoothing of itself. An accepted
+/// squeeze_wear (and every pair holding it) is refused, with a note, when the same model with the map
+/// smoothed like the stress (ModelPoint::broad_i) in the stress's place fits about as well: squeeze wear must beat
+/// it by more than Thresholds::min_holdout_gain (x the dispersion) both in-sample and held out.
+void RequireStressShape(Hypotheses& h, const Problem& prob, const NullModel& null, const std::vector<Fold>& folds, double k_scale,
+                        std::vector<std::string>& notes);
+
 /// Up to three single effects (indices into `evals`), best score first, with delta_bic > 0 and one
 /// form per effect: the candidates for pairs.
 std::vector<size_t> PairCandidates(const std::vector<ModelEval>& evals);

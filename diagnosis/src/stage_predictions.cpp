@@ -178,6 +178,7 @@ std::vector<ModelPoint> FacePoints(const core::Bundle& bundle, const ProblemSetu
     pf.intensity = fields.intensity[f];
     pf.normal_tilde = fields.normal_tilde[f];
     pf.normal_i = fields.normal_i[f];
+    pf.broad_i = fields.broad_i[f];
     face_points.push_back(MakePoint(fields, setup.interp, pf, 0.5 * bundle.crusher.thickness_new_mm));
   }
   return face_points;

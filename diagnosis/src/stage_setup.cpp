@@ -44,6 +44,7 @@ ModelPoint MakePoint(const MapFields& fields, const Interpolator& interp, const 
   mp.intensity = f.intensity;
   mp.normal_tilde = f.normal_tilde;
   mp.normal_i = f.normal_i;
+  mp.broad_i = f.broad_i;
   mp.zn = (f.z - z_mid) / height;
   mp.shift_rel = ProfileShiftRel(fields, f.z);
   mp.cos_t = std::cos(f.theta_deg * kPi / 180.0);

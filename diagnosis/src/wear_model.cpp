@@ -232,6 +232,7 @@ bool DepthDependent(const ModelSpec& spec) {
 ModelPoint ScaledRate(ModelPoint point, double factor) {
   point.intensity *= factor;
   point.normal_i *= factor;
+  point.broad_i *= factor;
   return point;
 }
 

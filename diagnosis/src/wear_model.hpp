@@ -40,6 +40,7 @@ struct ModelPoint {
   double intensity = 0;     ///< normalised DEM intensity
   double normal_tilde = 1;  ///< normal stress / robust max (1 when the map has none)
   double normal_i = 0;      ///< normal stress in intensity units (squeeze wear)
+  double broad_i = 0;       ///< the map smoothed like the stress, same units (squeeze wear's stand-in without stress)
   double zn = 0;            ///< (z - z_mid) / concave height, about [-0.5, 0.5]
   double shift_rel = 0;     ///< relative rate change per concave height of upward profile shift (total kept)
   double cos_t = 1;

@@ -80,6 +80,10 @@ struct MapModel {
   Eigen::VectorXd intensity_noise_sd;
   Eigen::VectorXd normal_stress;  ///< per face, smoothed at normal_bandwidth_m; size 0 when absent
   double normal_bandwidth_m = 0;  ///< 3 x bandwidth_m: stress noise shared with the wear's averaged out
+  /// Per face, the (outlier-capped) wear smoothed with the normal stress's kernel; size 0 when the
+  /// map has no normal stress. On a real map stress follows wear, so a stress-based effect must beat
+  /// this field in the stress's place: otherwise what it fitted is only a broader smoothing of the map.
+  Eigen::VectorXd intensity_broad;
 
   /// The model at a point: kernel-weighted like the faces (with the point's own surroundings).
   struct Point {
@@ -87,7 +91,8 @@ struct MapModel {
     double sd = 0;
     double noise_sd = 0;  ///< the sampling-noise part of sd (as intensity_noise_sd)
     double normal_stress = 0;
-    double faces = 0;  ///< effective number of faces in the kernel
+    double intensity_broad = 0;  ///< as MapModel::intensity_broad
+    double faces = 0;            ///< effective number of faces in the kernel
   };
   Point At(double z, double theta_deg) const;
   /// Relative standard error of face i's intensity (1 when the intensity is 0).

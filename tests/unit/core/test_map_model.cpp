@@ -253,3 +253,28 @@ TEST(MapModel, SmoothingErrorCountsTheNoiseTailAsTheNoiseLawDoes) {
   CHECK_TEXT(model.smoothing_error_rel > 0.015 && model.smoothing_error_rel < 0.09,
              ("smoothing_error_rel = " + std::to_string(model.smoothing_error_rel)).c_str());
 }
+
+// intensity_broad is the (outlier-capped) wear smoothed with the normal stress's kernel: on a map whose
+// stress is its wear and with no cap it equals the smoothed stress, face by face and at a point, on both
+// the face-by-face and the binned path; a map without stress has none.
+TEST(MapModel, TheBroadIntensityIsTheWearSmoothedLikeTheStress) {
+  WearMap m = NoisyBandedCone(64, 36);
+  m.normal_stress = m.wear;
+  for (size_t binned_above : {size_t{200000}, size_t{0}}) {
+    MapModelOptions opt;
+    opt.robust = false;
+    opt.binned_above_faces = binned_above;
+    const MapModel model = BuildMapModel(m, opt);
+    LONGS_EQUAL(m.wear.size(), model.intensity_broad.size());
+    CHECK(model.normal_bandwidth_m > model.bandwidth_m);
+    for (Eigen::Index i = 0; i < m.wear.size(); ++i)
+      DOUBLES_EQUAL(model.normal_stress[i], model.intensity_broad[i], 1e-9 * std::fabs(model.normal_stress[i]));
+    // Broader than the wear's own smoothing: the bottom band's contrast is lower.
+    const MapModel::Point band = model.At(0.1, 45.0), above = model.At(0.6, 45.0);
+    DOUBLES_EQUAL(band.normal_stress, band.intensity_broad, 1e-9 * band.normal_stress);
+    CHECK(band.intensity_broad / above.intensity_broad < band.intensity / above.intensity);
+  }
+  WearMap no_stress = NoisyBandedCone(32, 18);
+  no_stress.normal_stress.resize(0);
+  CHECK(BuildMapModel(no_stress, MapModelOptions{}).intensity_broad.size() == 0);
+}

@@ -292,6 +292,34 @@ TEST(StageHypotheses, BestAcceptedAndPairCandidates) {
   CHECK_TRUE((d::PairCandidates(evals) == std::vector<size_t>{1, 3}));
 }
 
+// Squeeze wear must be the normal stress's (RequireStressShape). With the synthetic map's stress, which
+// peaks mid-liner where the wear falls off, squeeze wear beats the map smoothed like the stress in the
+// stress's place and is named, with a note. When that stand-in is the stress itself (a real map, whose
+// stress follows its wear, at the limit), it fits exactly as well: squeeze wear is refused, and the note says why.
+TEST(StageHypotheses, SqueezeWearMustBeatTheMapSmoothedLikeTheStress) {
+  lw::test::SyntheticSpec spec;
+  spec.squeeze_beta = 0.4;
+  const std::unique_ptr<Run> r = Build(spec, true);
+  const d::ModelEval* chosen = r->hyp.Chosen();
+  CHECK_TRUE(chosen != nullptr);
+  CHECK_TRUE(chosen->full.spec.effects.front() == d::Effect::kSqueezeWear);
+  auto noted = [](const std::vector<std::string>& notes, const char* start) {
+    for (const auto& n : notes)
+      if (n.rfind(start, 0) == 0) return true;
+    return false;
+  };
+  CHECK_TRUE(noted(r->result.notes, "squeeze_wear follows the normal stress"));
+
+  d::Problem same = r->setup.prob;
+  for (d::ModelPoint& p : same.points) p.broad_i = p.normal_i;
+  d::Hypotheses h = r->hyp;
+  std::vector<std::string> notes;
+  d::RequireStressShape(h, same, r->null, r->folds, r->base.k_scale, notes);
+  for (const d::ModelEval& ev : h.evals)
+    if (ev.full.spec.effects.front() == d::Effect::kSqueezeWear) CHECK_FALSE(ev.accepted);
+  CHECK_TRUE(noted(notes, "squeeze_wear not named"));
+}
+
 // A hardness gradient case the information criterion gave to profile evolution (one parameter
 // against three; dem-heldout4): fitted together, the profile's drift falls to nothing while the
 // hardness gradient stays, and hardness alone predicts the held-out data better. The encompassing
