@@ -183,20 +183,14 @@ TEST(RestHandlers, APreviousLinersReadingIsMarkedInReadingsAndLatest) {
   const double new_mm = crusher.sensors.at(0).thickness_new_mm;
   const std::string slack = lw::core::FormatIsoTime(lw::core::AddDays(crusher.installed_at, -0.5));
   json body = {{"readings", json::array()}};
-  body["readings"].push_back({{"sensor", worn},
-                              {"seq", 1},
-                              {"time", slack},
-                              {"thickness_mm", new_mm - 40},
-                              {"loops_intact", new_mm - 40},
-                              {"flags", 0},
-                              {"battery_mv", 3300}});
-  body["readings"].push_back({{"sensor", unworn},
-                              {"seq", 1},
-                              {"time", slack},
-                              {"thickness_mm", new_mm - 1},
-                              {"loops_intact", new_mm - 1},
-                              {"flags", 0},
-                              {"battery_mv", 3300}});
+  for (const auto& [sensor, mm] : {std::pair{worn, new_mm - 40}, std::pair{unworn, new_mm - 1}})
+    body["readings"].push_back({{"sensor", sensor},
+                                {"seq", 1},
+                                {"time", slack},
+                                {"thickness_mm", mm},
+                                {"loops_intact", mm},
+                                {"flags", 0},
+                                {"battery_mv", 3300}});
   PostReadingsTo(*f.resources, Folder().id(), body);
 
   const char* readings = "/api/v1/crushers/{crusher}/sensors/{sensor}/readings";
