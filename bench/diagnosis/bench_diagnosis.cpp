@@ -216,6 +216,26 @@ double Median(std::vector<double> v) {
 
 }  // namespace
 
+// --help: what the benchmark does and each option (docs/diagnosis.md, "Benchmark").
+constexpr const char* kHelp =
+    "lw_bench_diagnosis: the diagnosis and live wear judged on campaigns with a known truth.\n"
+    "Each case is a campaign bundle with one effect the map leaves out (or none: a null, or a sensor fault only);\n"
+    "it prints the top finding per case, the correct-finding rates by level, false findings on nulls, and\n"
+    "(realdem) live wear on the nulls against a plain smoothing.\n\n"
+    "  --generator test|sim|realdem  test: the diagnosis' own forward model; sim: the independent reduced-order\n"
+    "                                generator; realdem: map and truth from independent windows of LIGGGHTS runs\n"
+    "  --dem-dir DIR                 realdem: folders with wear_windows.vtk and crusher.json (data/dem*)\n"
+    "  --truth-radius F              realdem: the truth's smoothing radius in m (default 0.12)\n"
+    "  --truth-form top-hat|local-linear   realdem: the truth's smoothing form\n"
+    "  --live-only                   realdem: live wear on the nulls only (no diagnosis)\n"
+    "  --live-shrink HZ,HA, --live-fixed HZ,HA, --live-window-cv   realdem: prototypes of other kernels, printed beside\n"
+    "                                the product (bench/diagnosis/RESULTS.md)\n"
+    "  --oracle                      also fit the true effect with its true parameters (what is detectable at all)\n"
+    "  --forms diagnosis|alt         realdem: the effects in the diagnosis' own forms or other forms\n"
+    "  --cases N, --only TRUTH, --level L[,L...], --seed S   which cases\n"
+    "  --keep DIR                    keep every case's bundle in DIR; --json-dir DIR: every diagnosis as JSON\n"
+    "  --threads N                   cases in parallel (default 1)\n";
+
 int main(int argc, char** argv) {
   int max_cases = 1 << 30;
   int threads = 1;
@@ -229,6 +249,10 @@ int main(int argc, char** argv) {
   bool window_cv = false;               // --live-window-cv: the scale chosen by window-split cross-validation
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
+    if (a == "-h" || a == "--help") {
+      std::printf("%s", kHelp);
+      return 0;
+    }
     if (a == "--generator" && i + 1 < argc)
       generator = argv[++i];
     else if (a == "--cases" && i + 1 < argc)

@@ -1,6 +1,6 @@
 #pragma once
 /// The findings' explanations: each effect's fitted parameters in physical units and the sentence
-/// that says what the liner did (docs/diagnosis.md, "Findings").
+/// that says what the liner did (docs/diagnosis.md, "Reading the report").
 #include "diagnosis/diagnose.hpp"
 #include "model_fit.hpp"
 

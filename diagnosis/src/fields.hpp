@@ -14,9 +14,9 @@ inline constexpr double kUnestimatedFaceNoise = 0.25;
 /// A DEM map's standard error of its first circumferential harmonic (cosine or sine part, relative
 /// to the ring mean) per unit of its faces' relative noise. The load sloshes around the chamber, so
 /// over a finite span that harmonic scatters far more than independent face noise would let it:
-/// measured on five LIGGGHTS runs of four chambers (docs/diagnosis.md, "The map's own asymmetry")
-/// as 0.036-0.080 of the per-face relative scatter between time windows, median 0.07. Both fall as
-/// one over the root of the simulated span, so the ratio carries to maps of other lengths.
+/// measured on five LIGGGHTS runs of four chambers (docs/diagnosis.md, "Feed segregation against the map's own asymmetry"; the
+/// measurements in bench/diagnosis/RESULTS.md) as 0.036-0.080 of the per-face relative scatter between time windows, median 0.07.
+/// Both fall as one over the root of the simulated span, so the ratio carries to maps of other lengths.
 inline constexpr double kHarmonic1PerFaceNoise = 0.07;
 /// A DEM map's standard error of its ring-mean profile at one eighth of the concave height (relative
 /// to that band's mean, after the map's total, which the row scales absorb) per unit of its faces'

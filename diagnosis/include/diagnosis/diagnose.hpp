@@ -212,7 +212,7 @@ struct Prediction {
   /// The scan the face predictions take as ground truth at its date (the latest at or before
   /// `time`; file empty when there is none or it could not be applied): each model's face wear at
   /// the scan's date is moved to the scan with the live map's weights (server, `reconstruct`), and
-  /// the model carries it forward (docs/diagnosis.md, "Predictions").
+  /// the model carries it forward (docs/diagnosis.md, "6. Improved model and prediction").
   struct ScanAnchor {
     std::string file;
     core::TimePoint date{};

@@ -419,9 +419,9 @@ double HypothesisDeltaBic(const lw::diagnosis::DiagnosisResult& r, const std::st
 
 }  // namespace
 
-// The benchmark's oracle (docs/diagnosis.md, "What is detectable"): the true effect with its true
-// parameters, only the row scales fitted, against the baseline under the diagnosis' noise model and
-// under the spread the true model's residuals show.
+// The benchmark's oracle (docs/diagnosis.md, "what is detectable at all"; bench/diagnosis/RESULTS.md): the true effect with its
+// true parameters, only the row scales fitted, against the baseline under the diagnosis' noise model and under the spread the
+// true model's residuals show.
 TEST(Diagnose, OracleMeasuresTheTrueEffectAgainstTheBaseline) {
   lw::test::SyntheticSpec spec;
   spec.seed = 3;
