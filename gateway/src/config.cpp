@@ -37,6 +37,9 @@ const core::OptionTable& Table() {
       Option::Number("reconnect-min", "S", NumberRange::Positive(), "first reconnect delay, seconds (default 1)"),
       Option::Number("reconnect-max", "S", NumberRange::Positive(), "longest reconnect delay, seconds (default 60)"),
       Option::Text("clock-file", "PATH", "simulation only: stamp readings with the virtual time in this file"),
+      Option::Text("metrics", "HOST:PORT",
+                   "serve Prometheus metrics on http://HOST:PORT/metrics (default: none; no\nauthentication: bind a loopback or "
+                   "management address)"),
   }};
   return table;
 }
@@ -104,6 +107,7 @@ ParseResult ParseCommandLine(const std::vector<std::string>& args, Config* confi
   c.reconnect_min_s = o.Number("reconnect-min", c.reconnect_min_s);
   c.reconnect_max_s = o.Number("reconnect-max", c.reconnect_max_s);
   c.clock_file = o.Text("clock-file");
+  c.metrics = o.Text("metrics");
   const std::pair<const char*, const std::string*> required[] = {
       {"serial", &c.serial}, {"broker", &c.broker}, {"site", &c.site}, {"crusher", &c.crusher}, {"spool", &c.spool}};
   for (const auto& [name, value] : required) {
@@ -116,6 +120,15 @@ ParseResult ParseCommandLine(const std::vector<std::string>& args, Config* confi
     throw ConfigError("--site: '" + c.site + "' must be a non-empty MQTT topic level without '/', '+' or '#'");
   if (!IsTopicLevel(c.crusher))
     throw ConfigError("--crusher: '" + c.crusher + "' must be a non-empty MQTT topic level without '/', '+' or '#'");
+  if (!c.metrics.empty()) {
+    const size_t colon = c.metrics.rfind(':');
+    if (colon == std::string::npos || colon == 0) throw ConfigError("--metrics: '" + c.metrics + "' must be HOST:PORT");
+    try {
+      (void)core::ParseWholeNumber("metrics", c.metrics.substr(colon + 1), 0, 65535);
+    } catch (const core::UsageError& e) {
+      throw ConfigError(e.what());
+    }
+  }
   if (!c.password.empty() && c.username.empty()) throw ConfigError("--password given without --username");
   if (c.reconnect_max_s < c.reconnect_min_s) throw ConfigError("--reconnect-max must not be below --reconnect-min");
   if (!c.tls_ca.empty() && access(c.tls_ca.c_str(), R_OK) != 0) throw ConfigError("--tls-ca: " + c.tls_ca + " cannot be read");

@@ -20,11 +20,13 @@
 #include "gateway/config.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/messages.hpp"
+#include "gateway/metrics.hpp"
 #include "gateway/serial_port.hpp"
 #include "gateway/spool.hpp"
 #include "mqtt/messages.hpp"
 #include "mqtt/paho_link.hpp"
 #include "mqtt/topics.hpp"
+#include "metrics_server.hpp"
 
 namespace {
 
@@ -113,6 +115,12 @@ int Run(const lw::gateway::Config& config) {
   link_options.subscriptions = {topics.CommittedFilter()};
   auto link = std::make_unique<lw::mqtt::PahoLink>(link_options);
   Gateway gateway(options, spool, *link, serial);
+  std::unique_ptr<MetricsServer> metrics;
+  if (!config.metrics.empty()) {
+    metrics = std::make_unique<MetricsServer>(config.metrics);
+    metrics->Publish(MetricsText(gateway, false));
+    Log("metrics on " + metrics->url());
+  }
 
   // Ready for systemd (Type=notify): the spool is open and locked; serial port and broker are
   // (re)opened by the loop below.
@@ -178,6 +186,7 @@ int Run(const lw::gateway::Config& config) {
     }
     if (!messages.empty()) gateway.OnMessages(messages, now);
     gateway.Pump(now);
+    if (metrics && metrics->Wanted()) metrics->Publish(MetricsText(gateway, link->IsConnected()));
     if (gateway.LinkStalled(now)) {
       Log("mqtt: connected, but no reading publication was taken and no commit ack arrived for three "
           "republication periods while records wait: reconnecting");

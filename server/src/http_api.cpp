@@ -175,6 +175,12 @@ void HttpApi::Impl::Routes() {
   });
 
   svr.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) { return Admit(req, res); });
+  // Every request httplib answers (routed, refused before routing, or not found), once its status is final.
+  if (ctx.metrics) {
+    svr.set_logger([this](const httplib::Request& req, const httplib::Response& res) {
+      ctx.metrics->CountHttp(req.method, req.path, res.status);
+    });
+  }
   RouteDashboard();
 
   // The API: every route of the one table (rest::Resources::Routes(), from which the OpenAPI

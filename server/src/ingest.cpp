@@ -94,6 +94,22 @@ Validation CheckReading(const Incoming& in, const std::optional<mqtt::ReadingMes
   return v;
 }
 
+/// The kRejectionReasons class of a record CheckReading (or the site check) refused, from what is
+/// known of it, in CheckReading's order; the message itself is only looked at for the last checks.
+const char* RejectionReason(const Incoming& in, const Validation& v, bool foreign_site, const Registry& registry) {
+  if (foreign_site) return "foreign_site";
+  if (v.error.rfind("cannot validate", 0) == 0) return "internal";
+  if (v.sensor.empty()) return "malformed";
+  if (!in.sensor.empty() && v.sensor != in.sensor) return "sensor_mismatch";
+  if (!v.seq) return "malformed";
+  const Crusher* crusher = registry.Find(in.crusher);
+  if (!crusher) return "unknown_crusher";
+  if (!crusher->config.FindSensor(v.sensor)) return "unknown_sensor";
+  if (v.error.rfind("\"time\" ", 0) == 0) return "time";
+  if (v.error.rfind("\"thickness_mm\" ", 0) == 0 && v.error.find(" is outside ") != std::string::npos) return "thickness";
+  return "malformed";
+}
+
 }  // namespace
 
 Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t now_s) {
@@ -285,6 +301,7 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
     const Incoming& in = messages[rec.message];
     ++result.rejected;
     ++counters_of(in.crusher).rejected;
+    ++totals_.rejected_by_reason[RejectionReason(in, v, rec.foreign_site, registry_)];
     result.log.push_back("rejected " + (in.topic.empty() ? std::string("REST reading") : in.topic) + ": " + v.error);
     // Quarantined in the database: the gateway may drop it (resending cannot make it valid). Not
     // under a site the crusher does not belong to: that publisher is not its gateway.

@@ -20,10 +20,15 @@ ordered_json Operation(const rest::Route& route) {
     params.push_back(
         {{"name", q.name}, {"in", "query"}, {"required", false}, {"description", q.description}, {"schema", {{"type", q.type}}}});
   }
+  ordered_json content = ordered_json::object();
+  for (const char* type : route.content_types) {
+    const std::string t = type;
+    content[t] = {{"schema", t == "application/json" ? ordered_json{{"type", "object"}} : ordered_json{{"type", "string"}}}};
+  }
   return {{"summary", route.summary},
           {"parameters", params},
           {"responses",
-           {{route.ok_status, {{"description", "OK"}, {"content", {{"application/json", {{"schema", {{"type", "object"}}}}}}}}},
+           {{route.ok_status, {{"description", "OK"}, {"content", content}}},
             {"400", {{"$ref", "#/components/responses/Error"}}},
             {"401", {{"$ref", "#/components/responses/Error"}}},
             {"403", {{"$ref", "#/components/responses/Error"}}},

@@ -9,9 +9,12 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/clock.hpp"
+#include "core/csv.hpp"
 #include "core/time.hpp"
 #include "core/wear_map.hpp"
 #include "mqtt/messages.hpp"
+#include "server/csv_export.hpp"
 #include "server/openapi.hpp"
 
 namespace lw::server::rest {
@@ -80,6 +83,7 @@ bool Writes(std::string_view method) {
 }
 
 Scope RequiredScope(std::string_view method, std::string_view path) {
+  if (path == "/metrics") return Scope::kRead;  // counts and names of crushers: not for anyone on the network
   if (path.rfind("/api/", 0) != 0) return Scope::kNone;
   return Writes(method) ? Scope::kWrite : Scope::kRead;
 }
@@ -152,9 +156,11 @@ const std::vector<Route>& Resources::Routes() {
        {{"from", "string", "ISO-8601 UTC, inclusive"},
         {"to", "string", "ISO-8601 UTC, inclusive"},
         {"limit", "integer", "1..5000, default 500"},
-        {"cursor", "string", "next_cursor of the previous page"}},
+        {"cursor", "string", "next_cursor of the previous page"},
+        {"format", "string", "json (default) or csv (RFC 4180; the next page's cursor in the X-Next-Cursor header)"}},
        "200",
-       &Resources::Readings},
+       &Resources::Readings,
+       {"application/json", "text/csv"}},
       {Method::kPost,
        "/api/v1/crushers/{crusher}/readings",
        "Store readings {\"readings\": [{sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv}]}",
@@ -177,9 +183,10 @@ const std::vector<Route>& Resources::Routes() {
       {Method::kGet,
        "/api/v1/crushers/{crusher}/forecast",
        "Per row and sensor: the date the minimum thickness is reached, with a band",
-       {},
+       {{"format", "string", "json (default) or csv (RFC 4180: one record per row, then per sensor)"}},
        "200",
-       &Resources::Forecast},
+       &Resources::Forecast,
+       {"application/json", "text/csv"}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/diagnosis",
        "Latest diagnosis (docs/diagnosis.md, section Output) and its status",
@@ -211,6 +218,13 @@ const std::vector<Route>& Resources::Routes() {
        "200",
        &Resources::WhoAmI},
       {Method::kGet, "/api/v1/openapi.json", "This document", {}, "200", &Resources::OpenApi},
+      {Method::kGet,
+       "/metrics",
+       "Prometheus text format 0.0.4: ingest, wear worker, HTTP, event streams, store (docs/server.md, Metrics)",
+       {},
+       "200",
+       &Resources::Metrics,
+       {"text/plain"}},
   };
   return routes;
 }
@@ -338,6 +352,8 @@ Response Resources::Readings(const Request& req) {
   std::string message;
   const auto query = ParseReadingsQuery(req.query, &message);
   if (!query) return Error(400, message);
+  const auto format = FormatParam(req.query, {"json", "csv"}, &message);
+  if (!format) return Error(400, message);
   Page page;
   try {
     page = ctx_.read->With(
@@ -347,6 +363,12 @@ Response Resources::Readings(const Request& req) {
   }
   ordered_json readings = ordered_json::array();
   for (const auto& r : page.readings) readings.push_back(SensorReadingJson(c->config, r));
+  if (*format == "csv") {
+    Response r;
+    if (page.next_cursor) r.headers.emplace_back("X-Next-Cursor", *page.next_cursor);
+    r.raw = RawBody{ReadingsCsv(readings), core::kCsvContentType};
+    return r;
+  }
   return Json(
       200, {{"readings", readings}, {"next_cursor", page.next_cursor ? ordered_json(*page.next_cursor) : ordered_json(nullptr)}});
 }
@@ -460,8 +482,16 @@ Response Resources::Forecast(const Request& req) {
   Response error;
   const Crusher* c = CrusherOf(req, &error);
   if (!c) return error;
+  std::string message;
+  const auto format = FormatParam(req.query, {"json", "csv"}, &message);
+  if (!format) return Error(400, message);
   const auto st = ctx_.wear->Get(c->config.crusher_id);
   if (!st || !st->has_wear) return Error(404, "no readings yet for crusher " + c->config.crusher_id);
+  if (*format == "csv") {
+    Response r;
+    r.raw = RawBody{ForecastCsv(ForecastJson(*st)), core::kCsvContentType};
+    return r;
+  }
   return Json(200, ForecastJson(*st));
 }
 
@@ -526,6 +556,14 @@ Response Resources::WhoAmI(const Request& req) {
   if (token && token->read) scopes.push_back("read");
   if (token && token->write) scopes.push_back("write");
   return Json(200, {{"auth", true}, {"name", token ? token->name : ""}, {"scopes", scopes}});
+}
+
+Response Resources::Metrics(const Request&) {
+  if (!ctx_.metrics) return Error(503, "metrics are not kept by this server");
+  Response r;
+  r.raw = RawBody{ctx_.metrics->Render(*ctx_.ingestor, *ctx_.registry, event_streams_.load(), core::WallClockMs()),
+                  core::prometheus::kContentType};
+  return r;
 }
 
 Response Resources::OpenApi(const Request&) {

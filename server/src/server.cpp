@@ -4,7 +4,6 @@
 
 #include <poll.h>
 #include <pthread.h>
-#include <sys/statvfs.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -27,6 +26,7 @@
 #include "server/http_api.hpp"
 #include "server/ingest.hpp"
 #include "server/live_state.hpp"
+#include "server/metrics.hpp"
 #include "server/registry.hpp"
 #include "server/store.hpp"
 #include "server/wear_service.hpp"
@@ -64,15 +64,6 @@ class Logger {
 };
 
 constexpr int64_t kMinFreeBytes = 8 << 20;  // SQLite's WAL grows to ~4 MB; docs/server.md
-
-/// Bytes an unprivileged writer may still use on the database's file system; -1 when unknown.
-int64_t FreeBytes(const std::string& db) {
-  std::filesystem::path dir = std::filesystem::path(db).parent_path();
-  if (dir.empty()) dir = ".";
-  struct statvfs v {};
-  if (::statvfs(dir.c_str(), &v) != 0) return -1;
-  return static_cast<int64_t>(v.f_bavail) * static_cast<int64_t>(v.f_frsize);
-}
 
 std::string DiskFull(const std::string& db, int64_t free) {
   return "disk full: " + std::to_string(free) + " bytes free for " + db + " (the server needs at least " +
@@ -139,7 +130,9 @@ bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& st
   WearService wear(registry, live);
   EventBus events;
   std::mutex reason_mutex;
+  ServerMetrics metrics(o.db);
   ApiContext ctx = MakeApiContext(o, registry, read, wear, live, refusing, events, tokens);
+  ctx.metrics = &metrics;
   ctx.health = [&] {
     std::lock_guard<std::mutex> lock(reason_mutex);
     return nlohmann::ordered_json{{"status", "degraded"}, {"reason", reason}, {"broker", "not subscribed (disk full)"}};
@@ -206,7 +199,9 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   std::mutex dirty_mutex;
   std::condition_variable dirty_cv;
   std::set<std::string> dirty;  // crushers whose wear must be recomputed and published
+  ServerMetrics metrics(o.db);
   const auto on_committed = [&](const IngestResult& r) {
+    metrics.ObserveCommitted(r, clock.NowMs() / 1000);
     std::set<std::string> changed;
     for (const StoredReading& s : r.new_readings) {
       events.PublishLazy(s.crusher, "reading", [payload = s.payload, sensor = s.sensor, time_s = s.time_s] {
@@ -219,7 +214,10 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       changed.insert(s.crusher);
     }
     for (const auto& line : r.log) log(line);
-    for (const auto& c : changed) wear.MarkChanged(c);
+    for (const auto& c : changed) {
+      wear.MarkChanged(c);
+      metrics.WearChanged(c, WallMs());
+    }
     {
       std::lock_guard<std::mutex> lock(dirty_mutex);
       dirty.insert(changed.begin(), changed.end());
@@ -236,13 +234,13 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   lo.clean_session = false;  // persistent session: the broker queues readings while we are away
   lo.subscriptions = {mqtt::Topics::ReadingsFilter(o.topic_root)};
   mqtt::MosquittoLink link(lo);  // read on this thread: docs/performance.md, *Ingest*
-  std::atomic<bool> connected{false};
 
   ApiContext ctx = MakeApiContext(o, *registry, read, wear, live, ingestor, events, tokens);
   ctx.diagnosis = &diagnosis;
+  ctx.metrics = &metrics;
   ctx.health = [&] {
     const IngestCounters c = ingestor.Counters();
-    nlohmann::ordered_json j{{"broker", connected ? "connected" : "disconnected"},
+    nlohmann::ordered_json j{{"broker", metrics.broker_connected() ? "connected" : "disconnected"},
                              {"readings_stored", c.stored},
                              {"duplicates", c.duplicates},
                              {"rejected", c.rejected},
@@ -304,16 +302,21 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
           continue;
         }
         work.swap(dirty);
+        for (const std::string& c : work) metrics.WearTaken(c);
       }
       last_ms = WallMs();
       for (const std::string& c : work) {
         std::shared_ptr<const CrusherState> st;
+        const auto started = std::chrono::steady_clock::now();
+        const auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(); };
         try {
           st = wear.Get(c);
         } catch (const std::exception& e) {
+          metrics.WearDone(c, false, seconds(), WallMs());
           log("crusher " + c + ": wear not computed: " + e.what());
           continue;
         }
+        metrics.WearDone(c, true, seconds(), WallMs());
         if (!st || !st->has_wear) continue;
         std::string summary = mqtt::EncodeWear(WearJson(*st, false));
         events.Publish(c, "wear", summary);
@@ -350,10 +353,10 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     if (batch->capacity() < batch->size() + polled.size()) batch->reserve(2 * (batch->size() + polled.size()));
     for (mqtt::LinkEvent& e : polled) {
       if (e.kind == mqtt::LinkEvent::Kind::kConnected) {
-        connected = true;
+        metrics.SetBrokerConnected(true);
         log("connected to " + o.broker + " as " + o.client_id);
       } else if (e.kind == mqtt::LinkEvent::Kind::kDisconnected) {
-        connected = false;
+        metrics.SetBrokerConnected(false);
         log("broker: " + e.payload);
       } else if (auto t = mqtt::Topics::ParseAny(e.topic, o.topic_root); t && t->kind == mqtt::TopicKind::kReading) {
         batch->push_back({std::move(t->site), std::move(t->crusher), std::move(t->id), std::move(e.topic), std::move(e.payload)});
@@ -384,6 +387,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   while (!stop) {
     const int64_t now = WallMs();
     acks.Flush(link);
+    metrics.SetAcksDropped(acks.dropped());
     if (acks.dropped() != acks_dropped_logged) {
       log("commit acks waiting for the broker beyond " + std::to_string(acks.size()) + ": dropped the oldest " +
           std::to_string(acks.dropped() - acks_dropped_logged) + " (their gateways republish those records)");
@@ -421,6 +425,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       }
       const std::string when = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(clock.NowMs() / 1000)));
       for (const Ack& a : r.acks) {
+        metrics.CountAcked(a.seqs.size());
         const std::string topic = mqtt::Topics(a.site, a.crusher, o.topic_root).Committed(a.sensor);
         // Seqs are validated to 0..2^32-1 before they are stored or acked.
         for (std::string& m : mqtt::EncodeCommitAcks({a.sensor, {a.seqs.begin(), a.seqs.end()}, when, mqtt::kMaxReadingBatch})) {

@@ -37,6 +37,7 @@ struct Config {
   double reconnect_min_s = 1;
   double reconnect_max_s = 60;
   std::string clock_file;  ///< simulation: reading times come from this virtual clock file
+  std::string metrics;     ///< HOST:PORT of the Prometheus /metrics endpoint; empty: none
 };
 
 enum class ParseResult { kRun, kHelp };

@@ -14,6 +14,7 @@
 #include "server/events.hpp"
 #include "server/ingest.hpp"
 #include "server/live_state.hpp"
+#include "server/metrics.hpp"
 #include "server/registry.hpp"
 #include "server/store.hpp"
 #include "server/wear_service.hpp"
@@ -48,6 +49,7 @@ struct ApiContext {
   EventBus* events = nullptr;
   DiagnosisRunner* diagnosis = nullptr;  ///< may be null (diagnosis endpoints answer 503)
   const TokenStore* tokens = nullptr;    ///< null or disabled: open API
+  ServerMetrics* metrics = nullptr;      ///< null: GET /metrics answers 503 and requests are not counted
   std::filesystem::path web_dir;         ///< dashboard files served at / (empty: none)
   /// Extra /healthz fields. Runs on an HTTP worker thread, once per GET /healthz, possibly on
   /// several workers at once: it must be safe to call concurrently.

@@ -71,8 +71,14 @@ struct IngestResult {
   std::vector<std::string> log;             ///< one line per rejection or conflict
 };
 
+/// The reason classes of rejected records (the `reason` label of /metrics' rejected counter,
+/// docs/server.md, *Metrics*): a fixed set, whatever the message names in detail.
+inline constexpr const char* kRejectionReasons[] = {"malformed", "sensor_mismatch", "unknown_crusher", "unknown_sensor",
+                                                    "time",      "thickness",       "foreign_site",    "internal"};
+
 struct IngestCounters {
   int64_t stored = 0, duplicates = 0, conflicts = 0, rejected = 0, batches = 0;
+  std::map<std::string, int64_t> rejected_by_reason;  ///< kRejectionReasons -> count (only those seen)
 };
 
 /// Thread-safe: the MQTT loop and REST handlers both call Ingest(). A message that fails validation

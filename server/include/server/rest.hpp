@@ -32,7 +32,7 @@ bool Writes(std::string_view method);
 enum class Scope { kNone, kRead, kWrite };
 const char* ScopeName(Scope scope);  ///< "none", "read", "write" (OpenAPI's x-scope)
 /// The rule the HTTP front end enforces before routing, and the OpenAPI document states: nothing
-/// outside /api/, the write scope for a method that Writes(), the read scope otherwise.
+/// outside /api/ but /metrics (read), the write scope for a method that Writes(), the read scope otherwise.
 Scope RequiredScope(std::string_view method, std::string_view path);
 
 struct Request {
@@ -100,6 +100,8 @@ struct Route {
   std::vector<QueryDoc> query;
   const char* ok_status;  ///< the success status the OpenAPI document names ("200", "202")
   Response (Resources::*handler)(const Request&);
+  /// The media types of the success response (OpenAPI): JSON unless the route says otherwise.
+  std::vector<const char*> content_types = {"application/json"};
 };
 
 /// The names of `path_template`'s parameters in order: "crusher", "sensor".
@@ -143,6 +145,7 @@ class Resources {
   Response RejectedList(const Request&);
   Response WhoAmI(const Request&);
   Response OpenApi(const Request&);
+  Response Metrics(const Request&);
 
   /// The crusher named by the first path parameter, or nullptr with *error set to the 404.
   const Crusher* CrusherOf(const Request& request, Response* error) const;

@@ -125,11 +125,20 @@ TEST(RestRoutes, TheOpenApiDocumentHasOneOperationPerRouteAndNoOther) {
   }
   CHECK(routed == documented);
   // The operations docs/server.md lists, as the dashboard and the tests use them.
-  LONGS_EQUAL(15, routed.size());
+  LONGS_EQUAL(16, routed.size());
   CHECK(documented.count({"post", "/api/v1/crushers/{crusher}/diagnosis"}));
   STRCMP_EQUAL("write", doc["paths"]["/api/v1/crushers/{crusher}/readings"]["post"]["x-scope"].get<std::string>().c_str());
   STRCMP_EQUAL("none", doc["paths"]["/healthz"]["get"]["x-scope"].get<std::string>().c_str());
   STRCMP_EQUAL("read", doc["paths"]["/api/v1/openapi.json"]["get"]["x-scope"].get<std::string>().c_str());
+  // /metrics is text, readings and forecast JSON or CSV.
+  const json& metrics = doc["paths"]["/metrics"]["get"];
+  STRCMP_EQUAL("read", metrics["x-scope"].get<std::string>().c_str());
+  CHECK(metrics["responses"]["200"]["content"].contains("text/plain"));
+  CHECK_FALSE(metrics["responses"]["200"]["content"].contains("application/json"));
+  for (const char* path : {"/api/v1/crushers/{crusher}/sensors/{sensor}/readings", "/api/v1/crushers/{crusher}/forecast"}) {
+    const json& content = doc["paths"][path]["get"]["responses"]["200"]["content"];
+    CHECK_TEXT(content.contains("application/json") && content.contains("text/csv"), path);
+  }
 }
 
 TEST(RestRoutes, PathTemplatesBecomeRoutingPatternsAndParameters) {
@@ -147,6 +156,7 @@ TEST(RestRoutes, PathTemplatesBecomeRoutingPatternsAndParameters) {
 TEST(RestRoutes, ScopesFollowTheMethodInsideApiOnly) {
   CHECK(rest::Scope::kNone == rest::RequiredScope("GET", "/healthz"));
   CHECK(rest::Scope::kNone == rest::RequiredScope("POST", "/"));
+  CHECK(rest::Scope::kRead == rest::RequiredScope("GET", "/metrics"));
   CHECK(rest::Scope::kRead == rest::RequiredScope("GET", "/api/v1/crushers"));
   CHECK(rest::Scope::kRead == rest::RequiredScope("HEAD", "/api/v1/crushers"));
   CHECK(rest::Scope::kWrite == rest::RequiredScope("POST", "/api/v1/crushers/x/readings"));
