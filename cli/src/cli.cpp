@@ -17,6 +17,7 @@
 #include "core/bundle.hpp"
 #include "core/cmdline.hpp"
 #include "core/reconstruction.hpp"
+#include "core/thinnest_area.hpp"
 #include "core/scan_correction.hpp"
 #include "core/time.hpp"
 #include "core/wear_map.hpp"
@@ -222,10 +223,10 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   // sensor whose latest reading lags the newest by more than 8 of its periods, or that reports one
   // value while its row wears, sets no scale, as in the server (docs/server.md).
   std::vector<std::string> stale, stuck;
-  const std::vector<core::SensorWear> wear = core::SensorWearFrom(
-      bundle.crusher, bundle.readings,
-      core::LiveReadingIndices(bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), &stale, &stuck),
-      /*interval_centre=*/!o.Flag("lower_bound"));
+  const std::vector<size_t> live =
+      core::LiveReadingIndices(bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), &stale, &stuck);
+  const std::vector<core::SensorWear> wear =
+      core::SensorWearFrom(bundle.crusher, bundle.readings, live, /*interval_centre=*/!o.Flag("lower_bound"));
   if (wear.empty()) {
     const auto previous = std::count_if(bundle.readings.begin(), bundle.readings.end(), [&](const core::Reading& r) {
       return !bundle.crusher.OfThisLiner(r.sensor_id, r.time, r.thickness_mm);
@@ -259,6 +260,9 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
     }
   }
   const core::Reconstruction rec = core::Reconstruct(plan, wear);
+  std::vector<core::Reading> used;
+  for (const size_t i : live) used.push_back(bundle.readings[i]);
+  const core::ThinnestAreas areas = core::FindThinnestAreas(plan, rec, used);
   const core::MapModel& model = plan.model;
   char line[320];
   std::snprintf(line, sizeof line,
@@ -291,8 +295,10 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
                   rec.min_thickness_mm, rec.min_thickness_lo_mm, rec.min_thickness_hi_mm, rec.min_face,
                   rec.status == core::kStatusOk ? "" : ": ", rec.status == core::kStatusOk ? "" : rec.status_detail.c_str());
     out << line;
-    if (rec.worn_through_faces) out << rec.worn_through_faces << " face(s) estimated worn through\n";
   }
+  // The headline: the thinnest area the data support (the face minimum above is a single face's).
+  out << core::ThinnestAreaText(areas.liner) << '\n';
+  for (const core::ThinnestArea& a : areas.rows) out << "  " << core::ThinnestAreaText(a) << '\n';
 
   OutputSet outputs;
   if (o.Has("json")) {
@@ -305,7 +311,10 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
     j["min_thickness_mm"] = num(rec.min_thickness_mm);
     j["min_thickness_band_mm"] = {num(rec.min_thickness_lo_mm), num(rec.min_thickness_hi_mm)};
     j["min_face"] = rec.min_face;
-    j["worn_through_faces"] = rec.worn_through_faces;
+    j["thinnest_area"] = core::ThinnestAreaJson(areas.liner);
+    j["worn_through"] = areas.liner.worn_through;
+    j["face_level"] = {{"estimate_at_zero_faces", rec.worn_through_faces},
+                       {"band_reaches_zero_faces", rec.maybe_worn_through_faces}};
     j["sensors_stale"] = stale;
     j["sensors_stuck"] = stuck;
     j["map_model"] = {{"bandwidth_m", model.bandwidth_m},
@@ -317,7 +326,8 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
                       {"smoothing_error_relative", model.smoothing_error_rel},
                       {"outlier_faces_capped", model.outlier_faces}};
     j["rows"] = nlohmann::ordered_json::array();
-    for (const core::RowSummary& r : rec.rows) {
+    for (size_t k = 0; k < rec.rows.size(); ++k) {
+      const core::RowSummary& r = rec.rows[k];
       nlohmann::ordered_json x;
       x["row"] = r.row;
       x["scale_mm_per_unit"] = num(r.scale_mm_per_unit);
@@ -327,7 +337,9 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
       x["min_thickness_band_mm"] = {num(r.min_thickness_lo_mm), num(r.min_thickness_hi_mm)};
       x["min_z_m"] = r.min_z_m;
       x["min_theta_deg"] = r.min_theta_deg;
-      x["worn_through_faces"] = r.worn_through_faces;
+      x["thinnest_area"] = core::ThinnestAreaJson(areas.rows[k]);
+      x["worn_through"] = areas.rows[k].worn_through;
+      x["face_level"] = {{"estimate_at_zero_faces", r.worn_through_faces}};
       x["sensors_used"] = r.sensors_used;
       j["rows"].push_back(x);
     }

@@ -100,6 +100,35 @@ T Get(const json& j, const char* key, const std::string& where, const std::strin
   }
 }
 
+/// crusher.json's "thinnest_area": every key optional, each out-of-range value refused by its name.
+ThinnestAreaConfig ParseThinnestArea(const json& j, double thickness_new_mm, const std::string& file) {
+  if (!j.is_object()) throw InputError(file, 0, "\"thinnest_area\" must be an object");
+  ThinnestAreaConfig t;
+  const std::string where = "thinnest_area";
+  if (j.contains("band_half_width_mm")) {
+    t.band_half_width_mm = Get<double>(j, "band_half_width_mm", where, file);
+    if (!(t.band_half_width_mm > 0) || t.band_half_width_mm > thickness_new_mm)
+      throw InputError(file, 0, "thinnest_area.band_half_width_mm must be in (0, thickness_new_mm]");
+  }
+  if (j.contains("patches_m")) {
+    t.patches_m = Get<std::vector<double>>(j, "patches_m", where, file);
+    if (t.patches_m.empty() || t.patches_m.size() > 16)
+      throw InputError(file, 0, "thinnest_area.patches_m must list 1-16 patch sizes");
+    for (size_t k = 0; k < t.patches_m.size(); ++k) {
+      if (!(t.patches_m[k] >= 0.01 && t.patches_m[k] <= 10.0))
+        throw InputError(file, 0, "thinnest_area.patches_m values must be in [0.01, 10] m");
+      if (k > 0 && !(t.patches_m[k] > t.patches_m[k - 1]))
+        throw InputError(file, 0, "thinnest_area.patches_m must be increasing (smallest first)");
+    }
+  }
+  if (j.contains("sensor_reach_m")) {
+    t.sensor_reach_m = Get<double>(j, "sensor_reach_m", where, file);
+    if (!(t.sensor_reach_m >= 0 && t.sensor_reach_m <= 10.0))
+      throw InputError(file, 0, "thinnest_area.sensor_reach_m must be in [0, 10] m");
+  }
+  return t;
+}
+
 /// Identifiers that become MQTT topic levels and are shown in the dashboard: 1-64 characters of
 /// letters, digits, '.', '_' and '-' (no '/', '+', '#', spaces, markup).
 void CheckIdentifier(const std::string& id, const std::string& what, const std::string& file) {
@@ -234,6 +263,7 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
     }
     c.sensors.push_back(si);
   }
+  if (j.contains("thinnest_area")) c.thinnest_area = ParseThinnestArea(j["thinnest_area"], c.thickness_new_mm, file);
   return c;
 }
 

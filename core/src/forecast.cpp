@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <cstdio>
 #include <map>
 
 namespace lw::core {
@@ -127,11 +128,18 @@ SensorForecast ForecastSensor(const CrusherConfig& crusher, const SensorInfo& se
     auto [c, cov, sigma] = solve(3);
     // Acceleration is allowed, deceleration is not extrapolated (work hardening flattens the
     // early curve; a liner does not wear slower the thinner it gets): refit a straight line.
-    if (c[2] < 0.0 || span < 7.0) std::tie(c, cov, sigma) = solve(2);
+    // Nor is an acceleration the fit cannot tell from zero: extrapolated over months, a c2 of noise
+    // moves the date by more than the whole band of the straight line.
+    if (c[2] < 0.0 || span < 7.0 || c[2] < options.band_sigmas * std::sqrt(std::max(0.0, cov(2, 2))))
+      std::tie(c, cov, sigma) = solve(2);
     if (c[1] < 0.0) {
       c[1] = 0.0;
       out.note = "no measurable wear in the fit window";
     }
+    // Quantised readings scatter about the line as a staircase, not independently, so the fit's own
+    // covariance understates the rate's error when few loops broke in the window: the wear over the
+    // window is known to a loop's quantisation at each end (sd sqrt(2/12) mm over the span).
+    cov(1, 1) = std::max(cov(1, 1), std::pow(std::sqrt(2.0) * kQuantisationSd / span, 2));
     curve.c = c;
     curve.cov = cov;
     curve.sigma_mm = sigma;
@@ -166,7 +174,35 @@ SensorForecast ForecastSensor(const CrusherConfig& crusher, const SensorInfo& se
   return out;
 }
 
-std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const Reconstruction& reconstruction,
+namespace {
+
+/// The row's members: sensors of `row` with a forecast and a current wear; their mean wear now.
+std::vector<const SensorForecast*> RowMembers(const CrusherConfig& crusher, const std::string& row,
+                                              const std::map<std::string, double>& wear_now,
+                                              const std::map<std::string, const SensorForecast*>& by_id, double* mean_wear) {
+  std::vector<const SensorForecast*> members;
+  *mean_wear = 0;
+  for (const SensorInfo& s : crusher.sensors) {
+    if (s.row != row) continue;
+    const auto f = by_id.find(s.id);
+    const auto w = wear_now.find(s.id);
+    if (f == by_id.end() || !f->second->ok || w == wear_now.end()) continue;
+    members.push_back(f->second);
+    *mean_wear += w->second;
+  }
+  if (!members.empty()) *mean_wear /= static_cast<double>(members.size());
+  return members;
+}
+
+std::string Fixed(double v, int digits) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.*f", digits, v);
+  return b;
+}
+
+}  // namespace
+
+std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const std::vector<ThinnestArea>& areas,
                                       const std::vector<SensorWear>& sensor_wear, const std::vector<SensorForecast>& sensors,
                                       TimePoint now, const ForecastOptions& options) {
   std::map<std::string, double> wear_now;
@@ -176,45 +212,36 @@ std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const Recons
 
   std::vector<RowForecast> out;
   const double t_now = DaysBetween(crusher.installed_at, now);
-  for (const RowSummary& rs : reconstruction.rows) {
+  for (const ThinnestArea& area : areas) {
     RowForecast rf;
-    rf.row = rs.row;
-    rf.min_thickness_mm = rs.min_thickness_mm;
-    rf.min_thickness_lo_mm = rs.min_thickness_lo_mm;
-    rf.min_thickness_hi_mm = rs.min_thickness_hi_mm;
-    if (!std::isfinite(rs.min_thickness_mm)) {
+    rf.row = area.row;
+    rf.min_thickness_mm = area.thickness_mm;
+    rf.min_thickness_lo_mm = area.lo_mm;
+    rf.min_thickness_hi_mm = area.hi_mm;
+    if (!std::isfinite(area.thickness_mm)) {
       rf.note = "no wear estimate for this row (no row scale)";
       out.push_back(rf);
       continue;
     }
-    std::vector<const SensorForecast*> members;
     double mean_wear = 0;
-    for (const SensorInfo& s : crusher.sensors) {
-      if (s.row != rs.row) continue;
-      const auto f = by_id.find(s.id);
-      const auto w = wear_now.find(s.id);
-      if (f == by_id.end() || !f->second->ok || w == wear_now.end()) continue;
-      members.push_back(f->second);
-      mean_wear += w->second;
-    }
+    const std::vector<const SensorForecast*> members = RowMembers(crusher, area.row, wear_now, by_id, &mean_wear);
     if (members.empty()) {
       rf.note = "no sensor with a forecast in this row";
       out.push_back(rf);
       continue;
     }
-    mean_wear /= static_cast<double>(members.size());
     if (mean_wear <= 0.0) {
       rf.note = "no measurable wear yet";
       out.push_back(rf);
       continue;
     }
-    // The thinnest face wears `ratio` times the row's mean sensor wear; at the band's thin edge it
-    // has worn (new - lo) and wears proportionally faster, at the thick edge (new - hi).
+    // The area wears `ratio` times the row's mean sensor wear; at the band's thin edge it has worn
+    // (new - lo) and wears proportionally faster, at the thick edge (new - hi).
     const auto ratio_for = [&](double remaining) { return (crusher.thickness_new_mm - remaining) / mean_wear; };
-    const double ratio = ratio_for(rs.min_thickness_mm);
+    const double ratio = ratio_for(area.thickness_mm);
     const double n = static_cast<double>(members.size());
     // Each sensor's curve is anchored at its own last reading; the row curve is the mean of the
-    // sensors' wear increments after `now`, scaled by the ratio of the thinnest face.
+    // sensors' wear increments after `now`, scaled by the ratio of the area.
     const auto increment = [&](double t, double sigmas, double r) {
       double inc = 0, sd = 0;
       for (const SensorForecast* f : members) {
@@ -223,23 +250,72 @@ std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const Recons
       }
       return r * (inc + sigmas * sd) / n;
     };
-    double rate = 0;
-    for (const SensorForecast* f : members) rate += f->curve.RateMmPerDay(t_now);
+    double rate = 0, rate_sd = 0;  // sd summed: the sensors' rates move together (throughput, ore)
+    for (const SensorForecast* f : members) {
+      const double r = f->curve.RateMmPerDay(t_now);
+      rate += r;
+      rate_sd += std::sqrt(std::max(0.0, f->curve.cov(1, 1)) + std::pow(f->curve.rate_uncertainty * std::max(0.0, r), 2));
+    }
     rf.rate_mm_per_day = ratio * rate / n;
+    rf.rate_sd_mm_per_day = ratio * rate_sd / n;
+    rf.ok = true;
     const double k = options.band_sigmas;
     const double lim = crusher.thickness_min_mm;
-    const double lo = std::min(rs.min_thickness_lo_mm, rs.min_thickness_mm);
-    const double hi = std::max(rs.min_thickness_hi_mm, rs.min_thickness_mm);
-    rf.reach = ToTime(crusher, FirstReach([&](double t) { return increment(t, 0.0, ratio); }, t_now, options.horizon_days,
-                                          rs.min_thickness_mm - lim));
+    if (area.thickness_mm <= lim) {
+      // Past the minimum: since when, from the row's curves back in time.
+      const auto worn = [&](double t) {
+        double w = 0;
+        for (const SensorForecast* f : members) w += f->curve.Wear(t);
+        return ratio * w / n;
+      };
+      const auto since = FirstReach(worn, 0.0, std::max(0.0, t_now), crusher.thickness_new_mm - lim);
+      rf.below_minimum_since = AddDays(crusher.installed_at, std::min(t_now, since.value_or(t_now)));
+      rf.reach_note = "below minimum since " + FormatIsoTime(*rf.below_minimum_since).substr(0, 10);
+      out.push_back(rf);
+      continue;
+    }
+    const double lo = std::min(area.lo_mm, area.thickness_mm);
+    const double hi = std::max(area.hi_mm, area.thickness_mm);
     rf.reach_earliest = ToTime(
         crusher, FirstReach([&](double t) { return increment(t, k, ratio_for(lo)); }, t_now, options.horizon_days, lo - lim));
+    if (rf.rate_mm_per_day - k * rf.rate_sd_mm_per_day <= 0.0) {
+      // A rate whose band reaches zero puts the date anywhere from the earliest to never: a central
+      // date would jump by months with every loop a slow row loses.
+      rf.reach_note = "thinning rate " + Fixed(rf.rate_mm_per_day, 3) + " +/- " + Fixed(k * rf.rate_sd_mm_per_day, 3) +
+                      " mm/day is not distinguishable from zero: beyond forecast (only the earliest date is given)";
+      out.push_back(rf);
+      continue;
+    }
+    rf.reach = ToTime(crusher, FirstReach([&](double t) { return increment(t, 0.0, ratio); }, t_now, options.horizon_days,
+                                          area.thickness_mm - lim));
     rf.reach_latest = ToTime(
         crusher, FirstReach([&](double t) { return increment(t, -k, ratio_for(hi)); }, t_now, options.horizon_days, hi - lim));
-    rf.ok = true;
+    if (!rf.reach || !rf.reach_latest)
+      rf.reach_note = "beyond forecast: more than " + Fixed(options.horizon_days, 0) + " days after the latest reading";
     out.push_back(rf);
   }
   return out;
+}
+
+void HoldRowForecasts(const std::vector<RowForecast>& previous, std::vector<RowForecast>* current) {
+  for (RowForecast& cur : *current) {
+    const auto prev = std::find_if(previous.begin(), previous.end(), [&](const RowForecast& p) { return p.row == cur.row; });
+    if (prev == previous.end()) continue;
+    if (cur.below_minimum_since && prev->below_minimum_since) {
+      cur.below_minimum_since = prev->below_minimum_since;
+      cur.reach_note = "below minimum since " + FormatIsoTime(*cur.below_minimum_since).substr(0, 10);
+      continue;
+    }
+    if (!cur.reach || !prev->reach) continue;
+    const auto inside = [](TimePoint t, const RowForecast& f) {
+      return (!f.reach_earliest || t >= *f.reach_earliest) && (!f.reach_latest || t <= *f.reach_latest);
+    };
+    if (inside(*cur.reach, *prev) && inside(*prev->reach, cur)) {
+      cur.reach_estimate = cur.reach;
+      cur.reach = prev->reach;
+      cur.reach_held = true;
+    }
+  }
 }
 
 }  // namespace lw::core

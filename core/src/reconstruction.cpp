@@ -454,6 +454,8 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
   out.wear_mm.resize(n);  // no reallocation when `result` already holds arrays of this size
   out.remaining_mm.resize(n);
   out.remaining_sd_mm.resize(n);
+  out.scale_sd_mm.resize(n);
+  out.wear_estimate_mm.resize(n);
   out.min_thickness_mm = std::numeric_limits<double>::max();
   out.rows.resize(nrows);
   out.status = kStatusOk;
@@ -479,6 +481,8 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
     out.wear_mm.setConstant(nan);
     out.remaining_mm.setConstant(nan);
     out.remaining_sd_mm.setConstant(nan);
+    out.scale_sd_mm.setConstant(nan);
+    out.wear_estimate_mm.setConstant(nan);
     out.min_thickness_mm = out.min_thickness_lo_mm = out.min_thickness_hi_mm = nan;
     out.min_face = 0;
     for (auto& r : out.rows) r.min_thickness_mm = r.min_thickness_lo_mm = r.min_thickness_hi_mm = r.mean_wear_mm = nan;
@@ -519,6 +523,8 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
   double* wear_out = out.wear_mm.data();
   double* remaining_out = out.remaining_mm.data();
   double* sd_out = out.remaining_sd_mm.data();
+  double* scale_sd_out = out.scale_sd_mm.data();
+  double* estimate_out = out.wear_estimate_mm.data();
   const size_t nk = kz.size();
   double min_all = std::numeric_limits<double>::max(), lo_all = min_all, hi_all = min_all;
   size_t min_face = 0;
@@ -557,6 +563,8 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
     wear_out[i] = w;
     remaining_out[i] = rem;
     sd_out[i] = sd;
+    scale_sd_out[i] = intensity[i] * std::sqrt(svar);
+    estimate_out[i] = w_est;
     const double lo = std::max(0.0, rem - band * sd), hi = std::min(new_mm, rem + band * sd);
     if (w_est >= new_mm) ++out.worn_through_faces;
     if (lo <= 0.0) ++out.maybe_worn_through_faces;

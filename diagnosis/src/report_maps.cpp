@@ -195,9 +195,12 @@ void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const 
                                                      core::FreshSensorWearAt(crusher, used, latest->date));
       if (c.detail.empty()) with_scan = ", the map corrected by scan " + latest->file;
     }
-    const std::vector<core::SensorWear> wear =
-        core::SensorWearFrom(crusher, used, core::LiveReadingIndices(crusher, used, liner.now));
+    const std::vector<size_t> live = core::LiveReadingIndices(crusher, used, liner.now);
+    const std::vector<core::SensorWear> wear = core::SensorWearFrom(crusher, used, live);
     const core::Reconstruction rec = core::Reconstruct(plan, wear);
+    std::vector<core::Reading> live_readings;
+    for (const size_t i : live) live_readings.push_back(used[i]);
+    const core::ThinnestAreas areas = core::FindThinnestAreas(plan, rec, live_readings);
     if (rec.remaining_mm.size() == static_cast<Eigen::Index>(bundle.map.face_count())) {
       ThinnestPoint p;
       p.label = "live reconstruction (Eq. 9 from the latest readings" + with_scan + ", as the dashboard shows it)";
@@ -216,7 +219,7 @@ void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const 
     }
     std::vector<core::SensorForecast> forecasts;
     for (const core::SensorInfo& s : crusher.sensors) forecasts.push_back(core::ForecastSensor(crusher, s, used));
-    for (const core::RowForecast& r : core::ForecastRows(crusher, rec, wear, forecasts, liner.now))
+    for (const core::RowForecast& r : core::ForecastRows(crusher, areas.rows, wear, forecasts, liner.now))
       liner.reline.push_back({r.row, r.ok, r.note, r.reach, r.reach_earliest, r.reach_latest});
   }
   liner.thinnest.push_back(ModelThinnest("baseline model (plain Eq. 9, wear linear in time)", liner.now, bundle, base_now));

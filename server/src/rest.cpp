@@ -176,7 +176,7 @@ const std::vector<Route>& Resources::Routes() {
       {Method::kGet,
        "/api/v1/crushers/{crusher}/wear",
        "Global wear (seed Eq. 9): per-face remaining thickness, per-row summary, minimum and where",
-       {{"format", "string", "json (default) or vtk (legacy VTK for ParaView)"},
+       {{"format", "string", "json (default), vtk (legacy VTK for ParaView) or csv (per face)"},
         {"faces", "boolean", "false: leave out the per-face array"}},
        "200",
        &Resources::Wear},
@@ -282,7 +282,8 @@ Response Resources::Crushers(const Request&) {
                     {"min_thickness_mm", st && st->has_wear && std::isfinite(st->reconstruction.min_thickness_mm)
                                              ? ordered_json(st->reconstruction.min_thickness_mm)
                                              : ordered_json(nullptr)},
-                    {"wear_status", st && st->has_wear ? ordered_json(st->reconstruction.status) : ordered_json(nullptr)}});
+                    {"wear_status", st && st->has_wear ? ordered_json(st->reconstruction.status) : ordered_json(nullptr)},
+                    {"thinnest_area", st && st->has_wear ? core::ThinnestAreaJson(st->areas.liner) : ordered_json(nullptr)}});
   }
   return Json(200, {{"crushers", list}});
 }
@@ -472,7 +473,13 @@ Response Resources::Wear(const Request& req) {
     r.raw = RawBody{ss.str(), "application/octet-stream"};
     return r;
   }
-  if (format != "json") return Error(400, "format='" + format + "': use json or vtk");
+  if (format == "csv") {
+    Response r;
+    r.headers.emplace_back("Content-Disposition", "attachment; filename=\"" + c->config.crusher_id + "_wear.csv\"");
+    r.raw = RawBody{WearCsv(*st), "text/csv"};
+    return r;
+  }
+  if (format != "json") return Error(400, "format='" + format + "': use json, vtk or csv");
   const std::string* faces_param = FindParam(req.query, "faces");
   const bool faces = !(faces_param && *faces_param == "false");
   return Json(200, WearJson(*st, faces));

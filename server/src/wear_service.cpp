@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <set>
 
 #include "core/time.hpp"
@@ -32,7 +33,8 @@ ordered_json Num(double v, double step) {
 
 }  // namespace
 
-CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<StoredReading>& readings) {
+CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<StoredReading>& readings,
+                                 const CrusherState* previous) {
   CrusherState st;
   st.crusher = &crusher;
   std::vector<core::Reading> usable;
@@ -59,8 +61,11 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
   // The crusher's newest laser scan corrects the map between the sensors (even when it is dated after
   // the latest reading: readings arrive late, a scan is the newest measurement of the pattern).
   st.scan = crusher.PlanWithScan(usable, core::TimePoint::max(), st.stuck);
-  st.reconstruction =
-      core::Reconstruct(st.scan && st.scan->correction.detail.empty() ? st.scan->plan : crusher.plan, st.sensor_wear);
+  const core::ReconstructionPlan& plan = st.scan && st.scan->correction.detail.empty() ? st.scan->plan : crusher.plan;
+  st.reconstruction = core::Reconstruct(plan, st.sensor_wear);
+  std::vector<core::Reading> used;
+  for (const size_t i : fresh) used.push_back(usable[i]);
+  st.areas = core::FindThinnestAreas(plan, st.reconstruction, used);
   st.has_wear = true;
   for (const core::SensorInfo& s : crusher.config.sensors) {
     core::SensorForecast f = core::ForecastSensor(crusher.config, s, usable);
@@ -84,7 +89,8 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
     for (const core::SensorWear& w : core::SensorWearAt(crusher.config, usable, st.time))
       if (!fresh_rows.contains(crusher.config.FindSensor(w.sensor_id)->row)) forecast_wear.push_back(w);
   }
-  st.row_forecasts = core::ForecastRows(crusher.config, st.reconstruction, forecast_wear, st.sensor_forecasts, st.time);
+  st.row_forecasts = core::ForecastRows(crusher.config, st.areas.rows, forecast_wear, st.sensor_forecasts, st.time);
+  if (previous && previous->crusher == &crusher) core::HoldRowForecasts(previous->row_forecasts, &st.row_forecasts);
   return st;
 }
 
@@ -120,8 +126,12 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
   j["min_thickness_band_mm"] =
       supported ? ordered_json::array({Num(rec.min_thickness_lo_mm, 0.001), Num(rec.min_thickness_hi_mm, 0.001)})
                 : ordered_json(nullptr);
-  j["worn_through_faces"] = rec.worn_through_faces;
-  j["maybe_worn_through_faces"] = rec.maybe_worn_through_faces;
+  // The headline: the thinnest area the data support. Worn through is said only at that scale; the
+  // faces' own counts stay with the faces (face_level).
+  j["thinnest_area"] = core::ThinnestAreaJson(st.areas.liner);
+  j["worn_through"] = st.areas.liner.worn_through;
+  j["face_level"] = {{"estimate_at_zero_faces", rec.worn_through_faces},
+                     {"band_reaches_zero_faces", rec.maybe_worn_through_faces}};
   const size_t f = rec.min_face;
   std::string min_row;
   if (f < c.plan.face_row.size() && c.plan.face_row[f] >= 0)
@@ -135,7 +145,9 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
     j["min"] = nullptr;
   }
   ordered_json rows = ordered_json::array();
-  for (const core::RowSummary& r : rec.rows) {
+  for (size_t k = 0; k < rec.rows.size(); ++k) {
+    const core::RowSummary& r = rec.rows[k];
+    const core::ThinnestArea& area = st.areas.rows[k];
     rows.push_back({{"row", r.row},
                     {"scale_mm_per_unit", Num(r.scale_mm_per_unit, 1e-9)},
                     {"scale_sd", Num(r.scale_sd, 1e-9)},
@@ -146,7 +158,9 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
                     {"min_z_m", Round(r.min_z_m, 1e-4)},
                     {"min_theta_deg", Round(r.min_theta_deg, 0.01)},
                     {"mean_wear_mm", Num(r.mean_wear_mm, 0.001)},
-                    {"worn_through_faces", r.worn_through_faces},
+                    {"thinnest_area", core::ThinnestAreaJson(area)},
+                    {"worn_through", area.worn_through},
+                    {"face_level", {{"estimate_at_zero_faces", r.worn_through_faces}}},
                     {"sensors_used", r.sensors_used}});
   }
   j["rows"] = rows;
@@ -202,6 +216,27 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
   return j;
 }
 
+std::string WearCsv(const CrusherState& st) {
+  const Crusher& c = *st.crusher;
+  const core::Reconstruction& rec = st.reconstruction;
+  std::string out = "face,row,z_m,theta_deg,remaining_mm,remaining_sd_mm,wear_mm\n";
+  const bool scaled =
+      rec.status != core::kStatusNoSensors && rec.remaining_mm.size() == static_cast<Eigen::Index>(c.map.face_count());
+  char line[160];
+  for (size_t f = 0; f < c.map.face_count(); ++f) {
+    const auto i = static_cast<Eigen::Index>(f);
+    const int row = c.plan.face_row[f];
+    const std::string name = row >= 0 ? c.config.rows[static_cast<size_t>(row)].name : "";
+    if (scaled)
+      std::snprintf(line, sizeof line, "%zu,%s,%.4f,%.2f,%.3f,%.3f,%.3f\n", f, name.c_str(), c.map.z[i], c.map.theta_deg[i],
+                    rec.remaining_mm[i], rec.remaining_sd_mm[i], rec.wear_mm[i]);
+    else
+      std::snprintf(line, sizeof line, "%zu,%s,%.4f,%.2f,,,\n", f, name.c_str(), c.map.z[i], c.map.theta_deg[i]);
+    out += line;
+  }
+  return out;
+}
+
 ordered_json ForecastJson(const CrusherState& st) {
   const Crusher& c = *st.crusher;
   ordered_json j;
@@ -217,9 +252,14 @@ ordered_json ForecastJson(const CrusherState& st) {
         {"min_thickness_mm", Num(r.min_thickness_mm, 0.001)},
         {"min_thickness_band_mm", ordered_json::array({Num(r.min_thickness_lo_mm, 0.001), Num(r.min_thickness_hi_mm, 0.001)})},
         {"rate_mm_per_day", Round(r.rate_mm_per_day, 1e-4)},
+        {"rate_sd_mm_per_day", Round(r.rate_sd_mm_per_day, 1e-4)},
         {"reach_date", OptTime(r.reach)},
         {"reach_earliest", OptTime(r.reach_earliest)},
-        {"reach_latest", OptTime(r.reach_latest)}};
+        {"reach_latest", OptTime(r.reach_latest)},
+        {"below_minimum_since", OptTime(r.below_minimum_since)},
+        {"reach_held", r.reach_held}};
+    if (r.reach_held) o["reach_estimate"] = OptTime(r.reach_estimate);
+    if (!r.reach_note.empty()) o["reach_note"] = r.reach_note;
     if (!r.note.empty()) o["note"] = r.note;
     rows.push_back(o);
   }
@@ -269,13 +309,16 @@ void WearService::MarkChanged(const std::string& crusher) {
 
 std::shared_ptr<const CrusherState> WearService::ComputeLocked(const Crusher& crusher, Entry& e) {
   int64_t version = 0;
+  std::shared_ptr<const CrusherState> previous;  // the state published last: its dates hold within their band
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (e.state && e.state->version == e.version) return e.state;
     version = e.version;
+    previous = e.state;
   }
   // The version is read before the inputs: readings committed after it bump it again.
-  auto st = std::make_shared<CrusherState>(ComputeCrusherState(crusher, live_.WearInputs(crusher.config.crusher_id)));
+  auto st =
+      std::make_shared<CrusherState>(ComputeCrusherState(crusher, live_.WearInputs(crusher.config.crusher_id), previous.get()));
   st->version = version;
   std::lock_guard<std::mutex> lock(mutex_);
   e.state = st;

@@ -207,6 +207,42 @@ async function main() {
   check(true, 'live updates connected (SSE)');
   await page.screenshot({ path: path.join(artifacts, '1-crusher.png'), fullPage: true });
 
+  // 4b. the headline is the thinnest area the data support, labelled; never single faces "worn through"
+  const headline = await page.locator('[data-testid="kpi-min"]').textContent();
+  check(/Thinnest (area|sensor reading)/.test(headline) && !/faces? worn through/.test(headline), `headline: ${headline}`);
+  const served = (await http(base, 'GET', `/api/v1/crushers/${crusher}/wear?faces=false`)).json;
+  if (served.thinnest_area.extrapolated)
+    check(headline.includes('extrapolated from the DEM map, nearest sensor'), 'headline says the area is extrapolated from the DEM map');
+  // Both sizes: the page and the per-row table fit without scrolling sideways, the reline column
+  // shows, and the map's angle labels keep apart.
+  for (const [vw, vh] of [[1400, 1000], [390, 844]]) {
+    const context = await browser.newContext({ viewport: { width: vw, height: vh } });
+    const p = await context.newPage();
+    p.setDefaultTimeout(kPageWaitMs);
+    pages.push(p);
+    await p.goto(base + '/');
+    await p.locator('[data-testid="crusher-card"] dl.meta dt').first().waitFor();
+    const listFits = await p.evaluate(() => document.documentElement.scrollWidth <= window.innerWidth);
+    check(listFits, `${vw} px: crusher list fits the width; card labels and values are separate (dt/dd)`);
+    await p.locator(`[data-testid="crusher-card"][data-crusher="${crusher}"]`).click();
+    await p.waitForFunction(() => document.querySelector('[data-testid="wear-map"]')?.dataset.thetaTickPx);
+    const m = await p.evaluate((rowName) => {
+      const wrap = document.querySelector('.table-wrap');
+      const reline = document.querySelector(`[data-testid="row-reline-${rowName}"]`).getBoundingClientRect();
+      const c = document.querySelector('[data-testid="wear-map"]');
+      return { page: document.documentElement.scrollWidth, inner: window.innerWidth, wrap: wrap.scrollWidth, wrapClient: wrap.clientWidth,
+        relineRight: reline.right, relineWidth: reline.width, wrapRight: wrap.getBoundingClientRect().right,
+        tickPx: Number(c.dataset.thetaTickPx), labelPx: Number(c.dataset.thetaLabelPx) };
+    }, row);
+    check(m.page <= m.inner, `${vw} px: page fits (${m.page} <= ${m.inner})`);
+    check(m.wrap <= m.wrapClient, `${vw} px: per-row table fits its card (${m.wrap} <= ${m.wrapClient})`);
+    check(m.relineWidth > 0 && m.relineRight <= m.wrapRight + 1, `${vw} px: reline column visible (right ${m.relineRight} <= ${m.wrapRight})`);
+    check(m.tickPx > m.labelPx + 4, `${vw} px: map angle labels (${m.labelPx} px wide) are ${m.tickPx} px apart`);
+    await p.screenshot({ path: path.join(artifacts, `1-crusher-${vw}px.png`), fullPage: true });
+    check(p.errors === undefined || p.errors.length === 0, `${vw} px: no page errors`);
+    await context.close();
+  }
+
   // 5. live: one more, thinner reading for the shown sensor; the page changes without a reload
   await page.evaluate(() => { window.__noReload = true; });
   const mine = readings.filter((r) => r.sensor === sensor);

@@ -61,10 +61,12 @@ function wear(withFaces) {
   const rowSummary = rows.map((r) => {
     let best = -1; let sum = 0; let n = 0;
     rem.forEach((v, f) => { if (faceZ[f] >= r.z_min_m && faceZ[f] < r.z_max_m) { n++; sum += NEW - v; if (best < 0 || v < rem[best]) best = f; } });
-    return { row: r.name, scale_mm_per_unit: 40, min_thickness_mm: rem[best], min_z_m: faceZ[best], min_theta_deg: faceTh[best], mean_wear_mm: sum / n, sensors_used: sensorDefs.filter((s) => s.row === r.name).length };
+    return { row: r.name, scale_mm_per_unit: 40, min_thickness_mm: rem[best], min_z_m: faceZ[best], min_theta_deg: faceTh[best], mean_wear_mm: sum / n, sensors_used: sensorDefs.filter((s) => s.row === r.name).length,
+      thinnest_area: mockArea(r.name, rem[best] + 8, faceZ[best], faceTh[best]) };
   });
   const out = { crusher_id: 'demo', time: iso(clock), map_sha256: 'f00dfeed1234567890', thickness_new_mm: NEW, thickness_min_mm: MIN, min_thickness_mm: rem[mi],
     min: { face: mi, z_m: faceZ[mi], theta_deg: faceTh[mi], row: rowOf(faceZ[mi]) }, rows: rowSummary,
+    thinnest_area: mockArea(rowOf(faceZ[mi]), rem[mi] + 8, faceZ[mi], faceTh[mi]),
     readings_used: sensorDefs.map((s) => ({ sensor: s.id, ...latest(s.id) })), note: 'a reading n means thickness in [n, n+1) mm; estimates use n + 0.5' };
   if (withFaces) out.remaining_mm = rem;
   return out;
@@ -138,7 +140,7 @@ const server = http.createServer(async (req, res) => {
     const c = p[3];
     if (p.length === 3 && p[2] === 'crushers') {
       const w = wear(false);
-      return send(res, 200, { crushers: [{ crusher_id: 'demo', installed_at: iso(installed), thickness_new_mm: NEW, thickness_min_mm: MIN, rows, sensor_count: sensorDefs.length, map_sha256: w.map_sha256, face_count: faces.length / 3, latest_reading_time: iso(clock), min_thickness_mm: w.min_thickness_mm }] });
+      return send(res, 200, { crushers: [{ crusher_id: 'demo', installed_at: iso(installed), thickness_new_mm: NEW, thickness_min_mm: MIN, rows, sensor_count: sensorDefs.length, map_sha256: w.map_sha256, face_count: faces.length / 3, latest_reading_time: iso(clock), min_thickness_mm: w.min_thickness_mm, thinnest_area: w.thinnest_area }] });
     }
     if (c !== 'demo') return send(res, 404, { error: `unknown crusher '${c}'` });
     const sub = p[4];
@@ -184,3 +186,9 @@ const server = http.createServer(async (req, res) => {
   fs.createReadStream(file).pipe(res);
 });
 server.listen(port, '127.0.0.1', () => console.log(`mock linerwatch-server on http://127.0.0.1:${port}/ (web ${webDir}${token ? ', token required' : ''})`));
+
+// A thinnest area in the server's shape (docs/server.md): a 0.4 m patch, 6 mm band, 0.6 m from a sensor.
+function mockArea(row, mm, z, th) {
+  return { thickness_mm: mm, band_mm: [mm - 6, mm + 6], patch_m: 0.4, z_m: z, theta_deg: th, supported: true, extrapolated: true,
+    nearest_sensor_m: 0.6, row, whole_row: false, worn_through: false, detail: 'extrapolated from the DEM map, nearest sensor 0.60 m away' };
+}

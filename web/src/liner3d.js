@@ -136,7 +136,7 @@ export class LinerView {
       m.position.copy(place(sn.theta_deg, sn.z_m, sz * 0.5));
       this.markers.add(m);
     }
-    if (state.min) {
+    if (state.min && state.min.theta_deg != null) {
       const ring = new THREE.Mesh(new THREE.TorusGeometry(sz * 3, sz * 0.5, 8, 32), new THREE.MeshBasicMaterial({ color: 0x000000 }));
       const p = place(state.min.theta_deg, state.min.z_m, sz);
       ring.position.copy(p);

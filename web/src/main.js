@@ -34,22 +34,25 @@ async function listPage() {
   app.replaceChildren(h('div', { class: 'empty' }, 'Loading crushers…'));
   const { crushers } = await api.get(paths.crushers());
   const cards = crushers.map((c) => {
-    const min = c.min_thickness_mm;
+    // The thinnest area the data support (docs/server.md); the sensors' own reading where none is.
+    const area = c.thinnest_area;
+    const min = area ? (area.supported ? area.thickness_mm : area.sensor_fallback?.thickness_mm ?? null) : c.min_thickness_mm;
     const span = c.thickness_new_mm - 0;
     const pct = min == null ? 0 : Math.max(0, Math.min(100, (min / span) * 100));
     return h('a', { class: 'card crusher-card', href: `#/c/${encodeURIComponent(c.crusher_id)}`, 'data-testid': 'crusher-card', 'data-crusher': c.crusher_id },
       h('div', { class: 'card-head' }, h('h2', {}, c.crusher_id), h('span', { class: 'sub' }, `${c.sensor_count} sensors · ${c.rows.length} rows`)),
-      h('div', { class: 'sub' }, 'thinnest remaining'),
+      h('div', { class: 'sub' }, area && !area.supported ? 'thinnest sensor reading (the map supports no area number)' : 'thinnest area remaining'),
       h('div', { class: 'big', style: { color: min != null && min < c.thickness_min_mm + 10 ? 'var(--bad)' : 'inherit' } },
         min == null ? '–' : `${fmt(min)} `, h('small', {}, min == null ? 'no readings yet' : `mm of ${c.thickness_new_mm}`)),
       h('div', { class: 'gauge', title: `minimum ${c.thickness_min_mm} mm` },
         h('span', { style: { width: `${pct}%`, background: rgb(thicknessColor(min, c.thickness_min_mm, c.thickness_new_mm)) } }),
         h('i', { style: { left: `${(c.thickness_min_mm / span) * 100}%` } })),
-      h('div', { class: 'meta' },
-        'installed', fmtDate(c.installed_at),
-        'latest reading', c.latest_reading_time ? `${fmtDateTime(c.latest_reading_time)} (${ago(c.latest_reading_time)})` : '–',
-        'rows', c.rows.map((r) => r.name).join(' · '),
-        'wear map', `${c.face_count} faces · ${String(c.map_sha256 || '').slice(0, 12)}`));
+      h('dl', { class: 'meta' }, ...[
+        ['installed', fmtDate(c.installed_at)],
+        ['latest reading', c.latest_reading_time ? `${fmtDateTime(c.latest_reading_time)} (${ago(c.latest_reading_time)})` : '–'],
+        ['rows', c.rows.map((r) => r.name).join(' · ')],
+        ['wear map', `${c.face_count} faces · ${String(c.map_sha256 || '').slice(0, 12)}`],
+      ].flatMap(([k, v]) => [h('dt', {}, k), h('dd', {}, v)])));
   });
   app.replaceChildren(
     h('h1', {}, 'Crushers'),
@@ -63,6 +66,20 @@ async function listPage() {
 // having no reading of this liner yet.
 function ofThisLiner(sensors) {
   return sensors.map((x) => (x.latest?.previous_liner ? { ...x, latest: null } : x));
+}
+
+// A thinnest area's size in words: the patch, or the whole row.
+function areaSize(a) {
+  return a.whole_row ? `the whole row ${a.row}` : `${fmt(a.patch_m, 1)} m patch`;
+}
+
+function areaWhere(a) {
+  return a.whole_row ? `row ${a.row}` : `${a.row}, z ${fmt(a.z_m, 2)} m, θ ${fmt(a.theta_deg, 0)}°`;
+}
+
+function extrapolatedText(a) {
+  return a.nearest_sensor_m == null ? 'extrapolated from the DEM map, no sensor reports'
+    : `extrapolated from the DEM map, nearest sensor ${fmt(a.nearest_sensor_m, 2)} m away`;
 }
 
 async function crusherPage(crusherId, initialSensor) {
@@ -119,7 +136,7 @@ async function crusherPage(crusherId, initialSensor) {
       h('section', { class: 'card' },
         h('div', { class: 'card-head' }, h('h2', {}, 'Per row'), h('span', { class: 'sub', 'data-testid': 'wear-time' })),
         h('div', { class: 'table-wrap' }, h('table', { class: 'summary', 'data-testid': 'row-summary' },
-          h('thead', {}, h('tr', {}, ['Row', 'Min (mm)', 'Where', 'Wear rate', 'Reline (band)', 'Sensors'].map((t) => h('th', {}, t)))),
+          h('thead', {}, h('tr', {}, [['Row'], ['Thinnest (mm)', 'num'], ['Area', 'where'], ['Wear rate', 'num rate'], ['Reline (band)', 'reline'], ['Sensors', 'num sensors']].map(([t, c]) => h('th', { class: c }, t)))),
           table)),
         h('p', { class: 'sub', 'data-testid': 'wear-note' }))),
     diagBox);
@@ -143,7 +160,11 @@ async function crusherPage(crusherId, initialSensor) {
       thicknessNew: concave.thickness_new_mm,
       rows: concave.rows,
       sensors: sensorState(),
-      min: w ? { ...w.min, thickness: w.min_thickness_mm } : null,
+      // The thinnest area the data support, drawn where it has a place (a whole row has no angle).
+      min: w?.thinnest_area && w.thinnest_area.thickness_mm != null
+        ? { z_m: w.thinnest_area.z_m, theta_deg: w.thinnest_area.whole_row ? null : w.thinnest_area.theta_deg,
+          thickness: w.thinnest_area.thickness_mm, patch_m: w.thinnest_area.patch_m, extrapolated: w.thinnest_area.extrapolated }
+        : null,
       selected: st.selected,
       regions: st.diag?.result?.mismatch?.regions || [],
     };
@@ -156,46 +177,66 @@ async function crusherPage(crusherId, initialSensor) {
   function drawKpis() {
     const w = st.wear;
     const f = st.forecast;
-    const rowsWithDate = (f?.rows || []).filter((r) => r.reach_date);
-    rowsWithDate.sort((a, b) => parseTime(a.reach_date) - parseTime(b.reach_date));
+    const frows = f?.rows || [];
+    const overdue = frows.filter((r) => r.below_minimum_since).sort((a, b) => parseTime(a.below_minimum_since) - parseTime(b.below_minimum_since));
+    const rowsWithDate = frows.filter((r) => r.reach_date || r.reach_earliest);
+    const when = (r) => parseTime(r.reach_date || r.reach_earliest);
+    rowsWithDate.sort((a, b) => when(a) - when(b));
     const next = rowsWithDate[0];
-    const fastest = (f?.rows || []).reduce((m, r) => (r.rate_mm_per_day > (m?.rate_mm_per_day ?? -Infinity) ? r : m), null);
+    const fastest = frows.reduce((m, r) => (r.rate_mm_per_day > (m?.rate_mm_per_day ?? -Infinity) ? r : m), null);
     const latest = st.sensors.map((x) => x.latest?.time).filter(Boolean).sort().pop();
-    // The server says when the map or the sensors cannot support a number (status), and gives the
-    // thinnest point with a +/-2 sd band (map noise, sensor quantisation, row scale).
-    const supported = w && w.min_thickness_mm != null && w.status !== 'no_sensors';
-    const band = supported && Array.isArray(w.min_thickness_band_mm) ? w.min_thickness_band_mm : null;
-    const left = supported ? (band ? band[0] : w.min_thickness_mm) - concave.thickness_min_mm : null;
-    const worn = w?.worn_through_faces ? ` · ${w.worn_through_faces} face(s) worn through` : '';
+    // The headline is the thinnest area the data support (docs/server.md, thinnest area): its band,
+    // its patch, whether a sensor is near it; the sensors' own reading where no area is supported.
+    const a = w?.thinnest_area;
+    const scaled = w && w.status !== 'no_sensors' && a && a.thickness_mm != null;
+    const fb = a?.sensor_fallback;
+    const shown = !scaled ? null : a.supported ? a.thickness_mm : fb ? fb.thickness_mm : null;
+    const left = scaled ? (a.supported ? a.band_mm[0] : shown ?? a.band_mm[0]) - concave.thickness_min_mm : null;
     // Sensors that stopped reporting set no row scale (docs/server.md, Global wear).
-    const stale = (w?.sensors_stale?.length ? ` · not reporting, left out: ${w.sensors_stale.join(', ')}` : '') +
-      (w?.sensors_stuck?.length ? ` · stuck (value not moving while its row wears), left out: ${w.sensors_stuck.join(', ')}` : '');
+    const stale = [
+      w?.sensors_stale?.length ? `not reporting, left out: ${w.sensors_stale.join(', ')}` : null,
+      w?.sensors_stuck?.length ? `stuck (value not moving while its row wears), left out: ${w.sensors_stuck.join(', ')}` : null];
+    const lines = !w ? ['no readings yet'] : !scaled ? [`cannot be estimated: ${w.status_detail || 'no row scale'}`] : [
+      a.supported ? `band ${fmt(a.band_mm[0])}–${fmt(a.band_mm[1])} mm over a ${areaSize(a)}`
+        : `no area is supported (band ${fmt(a.band_mm[0])}–${fmt(a.band_mm[1])} mm even over the whole row): ${fb ? `sensor ${fb.sensor} reads ${fmt(fb.thickness_mm, 0)} mm (${fmtDate(fb.time)})` : 'no sensor reading'}`,
+      a.supported ? areaWhere(a) : null,
+      a.extrapolated ? extrapolatedText(a) : null,
+      left != null ? `${left >= 0 ? `${fmt(left)} mm above` : `${fmt(-left)} mm below`} the minimum` : null,
+      a.worn_through ? 'worn through: the whole band is at 0 mm' : null,
+      ...stale];
+    const reline = overdue.length
+      ? { value: 'overdue', lines: overdue.map((r) => `${r.row}: below minimum since ${fmtDate(r.below_minimum_since)}`) }
+      : next ? { value: next.reach_date ? fmtDate(next.reach_date) : `not before ${fmtDate(next.reach_earliest)}`, lines: [
+        `${next.row}: band ${fmtDate(next.reach_earliest)} – ${next.reach_latest ? fmtDate(next.reach_latest) : 'beyond forecast'}`,
+        next.reach_date ? `${fmt((parseTime(next.reach_date) - parseTime(f.time)) / 86400000, 0)} days after the latest reading` : null,
+        next.reach_note || null] }
+        : { value: '–', lines: [frows.find((r) => r.reach_note)?.reach_note || 'no forecast yet'] };
+    const detail = (testid, ls) => h('div', { class: 'detail', 'data-testid': testid }, ls.filter(Boolean).map((t) => h('div', {}, t)));
     kpis.replaceChildren(
       h('div', { class: `card kpi${left != null && left < 10 ? ' alarm' : ''}`, 'data-testid': 'kpi-min' },
-        h('div', { class: 'label' }, 'Thinnest point'),
-        h('div', { class: 'value', 'data-value': supported ? w.min_thickness_mm : '' }, supported ? fmt(w.min_thickness_mm) : '–', ' ', h('small', {}, 'mm')),
-        h('div', { class: 'detail', 'data-testid': 'kpi-min-band' }, !w ? 'no readings yet'
-          : !supported ? `cannot be estimated: ${w.status_detail || 'no row scale'}`
-          : `${band ? `band ${fmt(band[0])}–${fmt(band[1])} mm · ` : ''}${w.min.row}, z ${fmt(w.min.z_m, 2)} m, θ ${fmt(w.min.theta_deg, 0)}° · ${left >= 0 ? `${fmt(left)} mm above` : `${fmt(-left)} mm below`} the minimum${worn}${stale}${w.status === 'unsupported' ? ' · band only: ' + (w.status_detail || '') : ''}`)),
-      h('div', { class: 'card kpi', 'data-testid': 'kpi-reline' },
+        h('div', { class: 'label' }, scaled && !a.supported ? 'Thinnest sensor reading' : 'Thinnest area'),
+        h('div', { class: 'value', 'data-value': shown ?? '' }, shown != null ? fmt(shown) : '–', ' ', h('small', {}, 'mm')),
+        detail('kpi-min-band', lines)),
+      h('div', { class: `card kpi${overdue.length ? ' alarm' : ''}`, 'data-testid': 'kpi-reline' },
         h('div', { class: 'label' }, 'Next reline'),
-        h('div', { class: 'value' }, next ? fmtDate(next.reach_date) : '–'),
-        h('div', { class: 'detail' }, next ? `${next.row}: band ${fmtDate(next.reach_earliest)} – ${next.reach_latest ? fmtDate(next.reach_latest) : 'beyond forecast'} · ${fmt((parseTime(next.reach_date) - parseTime(f.time)) / 86400000, 0)} d after the latest reading` : 'no forecast yet')),
+        h('div', { class: 'value' }, reline.value),
+        detail('kpi-reline-detail', reline.lines)),
       h('div', { class: 'card kpi', 'data-testid': 'kpi-rate' },
         h('div', { class: 'label' }, 'Fastest wear'),
         h('div', { class: 'value' }, fastest ? fmt(fastest.rate_mm_per_day, 2) : '–', ' ', h('small', {}, 'mm/day')),
-        h('div', { class: 'detail' }, fastest ? `row ${fastest.row}` : '')),
+        detail('kpi-rate-detail', [fastest ? `row ${fastest.row}` : ''])),
       h('div', { class: 'card kpi', 'data-testid': 'kpi-latest' },
         h('div', { class: 'label' }, 'Latest reading'),
         h('div', { class: 'value', style: { fontSize: '20px' } }, latest ? fmtDateTime(latest) : '–'),
-        h('div', { class: 'detail' }, `${st.detail.counters?.readings_stored ?? '–'} readings stored · ${st.detail.counters?.duplicates ?? 0} duplicates · ${st.detail.counters?.rejected ?? 0} rejected${st.detail.counters?.conflicts ? ` · ${st.detail.counters.conflicts} conflicts` : ''}`)));
+        detail('kpi-latest-detail', [`${st.detail.counters?.readings_stored ?? '–'} readings stored`, `${st.detail.counters?.duplicates ?? 0} duplicates · ${st.detail.counters?.rejected ?? 0} rejected${st.detail.counters?.conflicts ? ` · ${st.detail.counters.conflicts} conflicts` : ''}`])));
   }
 
   function drawTable() {
     const w = st.wear;
     const frows = new Map((st.forecast?.rows || []).map((r) => [r.row, r]));
     const wrows = w?.rows || [];
-    const worst = wrows.reduce((m, r) => (m == null || r.min_thickness_mm < m.min_thickness_mm ? r : m), null);
+    const thick = (r) => r?.thinnest_area?.thickness_mm ?? r?.min_thickness_mm;
+    const worst = wrows.reduce((m, r) => (m == null || thick(r) < thick(m) ? r : m), null);
     const now = Number.isFinite(parseTime(st.forecast?.time)) ? parseTime(st.forecast.time) : Date.now();
     const dates = [...frows.values()].flatMap((r) => [r.reach_earliest, r.reach_latest, r.reach_date]).map(parseTime).filter(Number.isFinite);
     const hi = Math.max(now, ...dates);
@@ -203,24 +244,32 @@ async function crusherPage(crusherId, initialSensor) {
     const names = concave.rows.map((r) => r.name).reverse(); // top row first, like the liner
     table.replaceChildren(...names.map((name) => {
       const r = wrows.find((x) => x.row === name);
+      const a = r?.thinnest_area;
       const f = frows.get(name);
-      const colour = r ? rgb(thicknessColor(r.min_thickness_mm, concave.thickness_min_mm, concave.thickness_new_mm)) : '#ccc';
-      const pct = r ? (r.min_thickness_mm / concave.thickness_new_mm) * 100 : 0;
+      const mm = a ? (a.supported ? a.thickness_mm : a.sensor_fallback?.thickness_mm ?? null) : null;
+      const colour = mm != null ? rgb(thicknessColor(mm, concave.thickness_min_mm, concave.thickness_new_mm)) : '#ccc';
+      const pct = mm != null ? (mm / concave.thickness_new_mm) * 100 : 0;
       return h('tr', { class: r && r === worst ? 'worst' : null, 'data-row': name },
-        h('td', {}, h('b', {}, name)),
-        h('td', { class: 'num', 'data-testid': `row-min-${name}` }, r && r.min_thickness_mm != null ? fmt(r.min_thickness_mm) : '–',
+        h('td', { 'data-label': 'Row' }, h('b', {}, name)),
+        h('td', { class: 'num', 'data-label': 'Thinnest (mm)', 'data-testid': `row-min-${name}` }, mm != null ? fmt(mm) : '–',
           h('span', { class: 'minbar' }, h('span', { style: { width: `${pct}%`, background: colour } })),
-          r && Array.isArray(r.min_thickness_band_mm) && r.min_thickness_band_mm[0] != null
-            ? h('div', { class: 'band' }, `${fmt(r.min_thickness_band_mm[0])}–${fmt(r.min_thickness_band_mm[1])} mm${r.worn_through_faces ? ` · ${r.worn_through_faces} worn through` : ''}`) : null),
-        h('td', {}, r ? `z ${fmt(r.min_z_m, 2)} m, θ ${fmt(r.min_theta_deg, 0)}°` : '–'),
-        h('td', { class: 'num' }, f ? `${fmt(f.rate_mm_per_day, 2)} mm/d` : '–', r ? h('div', { class: 'band' }, `worn ${fmt(r.mean_wear_mm)} mm mean`) : null),
-        h('td', {}, f?.reach_date ? h('span', {}, h('b', {}, fmtDate(f.reach_date)),
-          h('div', { class: 'band' }, `${fmtDate(f.reach_earliest)} – ${f.reach_latest ? fmtDate(f.reach_latest) : 'beyond forecast'}`),
-          h('div', { class: 'reline-bar', title: 'from the latest reading to the latest reline date of any row' },
-            Number.isFinite(parseTime(f.reach_earliest)) ? h('span', { class: 'rng', style: { left: X(parseTime(f.reach_earliest)), width: `calc(${X(parseTime(f.reach_latest))} - ${X(parseTime(f.reach_earliest))})` } }) : null,
-            h('span', { class: 'pt', style: { left: X(parseTime(f.reach_date)) } })))
-          : (f ? h('span', { class: 'band' }, f.note || 'beyond forecast') : '–')),
-        h('td', { class: 'num' }, r ? String(r.sensors_used ?? '–') : '–'));
+          a && a.band_mm?.[0] != null
+            ? h('div', { class: 'band' }, a.supported ? `${fmt(a.band_mm[0])}–${fmt(a.band_mm[1])} mm` : `sensor ${a.sensor_fallback?.sensor ?? '–'}; map band ${fmt(a.band_mm[0])}–${fmt(a.band_mm[1])} mm`,
+              a.worn_through ? ' · worn through' : '') : null),
+        h('td', { class: 'where', 'data-label': 'Area' }, a ? [h('div', {}, a.supported ? areaSize(a) : 'no area supported'),
+          a.supported && !a.whole_row ? h('div', { class: 'band' }, `z ${fmt(a.z_m, 2)} m, θ ${fmt(a.theta_deg, 0)}°`) : null,
+          a.extrapolated ? h('div', { class: 'band', 'data-testid': `row-extrapolated-${name}` }, extrapolatedText(a)) : null] : '–'),
+        h('td', { class: 'num rate', 'data-label': 'Wear rate' }, f ? `${fmt(f.rate_mm_per_day, 2)} mm/d` : '–', r ? h('div', { class: 'band' }, `worn ${fmt(r.mean_wear_mm)} mm mean`) : null),
+        h('td', { class: 'reline', 'data-label': 'Reline (band)', 'data-testid': `row-reline-${name}` }, f?.below_minimum_since
+          ? h('span', {}, h('b', { class: 'overdue' }, 'below minimum'), h('div', { class: 'band' }, `since ${fmtDate(f.below_minimum_since)}`))
+          : f?.reach_date ? h('span', {}, h('b', {}, fmtDate(f.reach_date)),
+            h('div', { class: 'band' }, `${fmtDate(f.reach_earliest)} – ${f.reach_latest ? fmtDate(f.reach_latest) : 'beyond forecast'}`),
+            h('div', { class: 'reline-bar', title: 'from the latest reading to the latest reline date of any row' },
+              Number.isFinite(parseTime(f.reach_earliest)) ? h('span', { class: 'rng', style: { left: X(parseTime(f.reach_earliest)), width: `calc(${X(parseTime(f.reach_latest) || hi)} - ${X(parseTime(f.reach_earliest))})` } }) : null,
+              h('span', { class: 'pt', style: { left: X(parseTime(f.reach_date)) } })))
+          : f ? h('span', {}, h('b', {}, f.reach_earliest ? `not before ${fmtDate(f.reach_earliest)}` : 'beyond forecast'),
+            h('div', { class: 'band' }, f.reach_note || f.note || '')) : '–'),
+        h('td', { class: 'num sensors', 'data-label': 'Sensors' }, r ? String(r.sensors_used ?? '–') : '–'));
     }));
     app.querySelector('[data-testid="wear-time"]').textContent = w ? `as of ${fmtDateTime(w.time)}` : '';
     app.querySelector('[data-testid="wear-note"]').textContent = w

@@ -62,8 +62,8 @@ export class UnwrappedMap {
     const c = this.canvas;
     c.dataset.minMm = state.min ? String(state.min.thickness) : '';
     c.dataset.faces = String(this.geom.n);
-    c.setAttribute('aria-label', state.min
-      ? `Unwrapped concave map; thinnest ${fmt(state.min.thickness)} mm at theta ${fmt(state.min.theta_deg, 0)} deg, z ${fmt(state.min.z_m, 2)} m`
+    c.setAttribute('aria-label', state.min?.theta_deg != null
+      ? `Unwrapped concave map; thinnest area ${fmt(state.min.thickness)} mm at theta ${fmt(state.min.theta_deg, 0)} deg, z ${fmt(state.min.z_m, 2)} m`
       : 'Unwrapped concave map; no readings yet');
     this.draw();
   }
@@ -170,7 +170,7 @@ export class UnwrappedMap {
     }
 
     // Thinnest spot: a target.
-    if (st.min) {
+    if (st.min && st.min.theta_deg != null) {
       const x = L.x(st.min.theta_deg);
       const y = L.y(st.min.z_m);
       ctx.strokeStyle = '#fff';
@@ -183,7 +183,8 @@ export class UnwrappedMap {
       ctx.moveTo(x - 17, y); ctx.lineTo(x - 6, y); ctx.moveTo(x + 6, y); ctx.lineTo(x + 17, y);
       ctx.moveTo(x, y - 17); ctx.lineTo(x, y - 6); ctx.moveTo(x, y + 6); ctx.lineTo(x, y + 17);
       ctx.stroke();
-      const label = `thinnest ${fmt(st.min.thickness)} mm`;
+      const label = st.min.patch_m ? `thinnest ${fmt(st.min.patch_m, 1)} m area ${fmt(st.min.thickness)} mm${st.min.extrapolated ? ' (map)' : ''}`
+        : `thinnest ${fmt(st.min.thickness)} mm`;
       ctx.font = 'bold 12px system-ui, sans-serif';
       const tx = x + 16 + ctx.measureText(label).width > M.left + L.pw ? x - 16 - ctx.measureText(label).width : x + 16;
       ctx.lineWidth = 3;
@@ -201,12 +202,18 @@ export class UnwrappedMap {
     ctx.fillStyle = '#4a5868';
     ctx.font = '11px system-ui, sans-serif';
     ctx.textAlign = 'center';
-    for (let th = 0; th <= 360; th += 45) {
+    // Ticks as dense as their labels allow (a phone: every 90 or 180 degrees), and a title that fits.
+    const tickW = ctx.measureText('360°').width + 10;
+    const step = [45, 90, 180].find((d) => (L.pw * d) / 360 >= tickW) || 360;
+    this.canvas.dataset.thetaTickPx = String(Math.round((L.pw * step) / 360));  // checked by the browser test
+    this.canvas.dataset.thetaLabelPx = String(Math.ceil(tickW - 10));
+    for (let th = 0; th <= 360; th += step) {
       const x = L.x(th);
       ctx.fillRect(x, M.top + L.ph, 1, 4);
       ctx.fillText(`${th}°`, x, M.top + L.ph + 16);
     }
-    ctx.fillText('θ (deg, counter-clockwise from +x, seen from above)', M.left + L.pw / 2, L.h - 3);
+    const titles = ['θ (deg, counter-clockwise from +x, seen from above)', 'θ (deg, counter-clockwise from above)', 'θ (deg)'];
+    ctx.fillText(titles.find((t) => ctx.measureText(t).width <= L.pw) || titles[2], M.left + L.pw / 2, L.h - 3);
     ctx.textAlign = 'right';
     for (const z of ticks(g.zmin, g.zmax, 5)) {
       const y = L.y(z);

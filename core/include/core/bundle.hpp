@@ -27,6 +27,16 @@ struct SensorInfo {
   std::optional<uint64_t> address;  ///< radio 64-bit address
 };
 
+/// crusher.json's optional "thinnest_area" (core/thinnest_area.hpp): the band target and the patch
+/// ladder of the thinnest area the data support, and how far a sensor's reach extends.
+struct ThinnestAreaConfig {
+  double band_half_width_mm = 10.0;                      ///< a band this narrow (half-width) supports a number
+  std::vector<double> patches_m = {0.1, 0.2, 0.4, 0.8};  ///< square patch sides tried, smallest first; then the whole row
+  /// An area whose centre lies more than half its patch plus this (surface distance, m) from every
+  /// scale-setting sensor is "extrapolated" (from the DEM map alone).
+  double sensor_reach_m = 0.5;
+};
+
 /// Thicker than this (mm) is a units mistake, not a liner.
 inline constexpr double kMaxThicknessMm = 1000;
 
@@ -38,6 +48,7 @@ struct CrusherConfig {
   double thickness_min_mm = 0;
   std::vector<Row> rows;
   std::vector<SensorInfo> sensors;
+  ThinnestAreaConfig thinnest_area;
 
   const SensorInfo* FindSensor(const std::string& id) const;
   /// Index of the row with that name, or -1.

@@ -11,6 +11,7 @@
 
 #include "core/bundle.hpp"
 #include "core/reconstruction.hpp"
+#include "core/thinnest_area.hpp"
 
 namespace lw::core {
 
@@ -66,19 +67,39 @@ struct RowForecast {
   std::string row;
   bool ok = false;
   std::string note;
-  double min_thickness_mm = 0;     ///< thinnest face now (reconstruction)
-  double min_thickness_lo_mm = 0;  ///< its band (reconstruction: map noise, quantisation, row scale)
+  double min_thickness_mm = 0;     ///< the row's thinnest area now (core/thinnest_area.hpp)
+  double min_thickness_lo_mm = 0;  ///< its band (map noise, quantisation, row scale)
   double min_thickness_hi_mm = 0;
-  double rate_mm_per_day = 0;  ///< thinning rate of that face
+  double rate_mm_per_day = 0;     ///< thinning rate of that area
+  double rate_sd_mm_per_day = 0;  ///< its standard error
   std::optional<TimePoint> reach, reach_earliest, reach_latest;
+  /// The area is already at or below the minimum: since when (the row's curves back in time, not
+  /// before the installation); the reach dates are then empty.
+  std::optional<TimePoint> below_minimum_since;
+  /// Why a date is missing, in words: below minimum, a rate not distinguishable from zero, beyond
+  /// the forecast horizon. Empty when every date is given.
+  std::string reach_note;
+  /// HoldRowForecasts kept the previously published reach date (the new estimate, reach_estimate,
+  /// lies within the previous band and the previous date within the new one).
+  bool reach_held = false;
+  std::optional<TimePoint> reach_estimate;
 };
 
-/// Per row: the thinnest face wears `k` times its row's mean sensor wear (Eq. 9), so its curve is
-/// k x the mean of the row's sensor curves. `now` is the reconstruction time (latest reading used).
-/// The dates' band uses the thinnest point's band as well as the curves': "earliest" starts from
-/// the thin edge of the band and wears at its rate, "latest" from the thick edge.
-std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const Reconstruction& reconstruction,
+/// Per row: the thinnest area wears `k` times its row's mean sensor wear (Eq. 9), so its curve is
+/// k x the mean of the row's sensor curves. `areas` are the rows' thinnest areas (crusher.rows
+/// order); `now` is the reconstruction time (latest reading used). The dates' band uses the area's
+/// band as well as the curves': "earliest" starts from the thin edge of the band and wears at its
+/// rate, "latest" from the thick edge. A rate whose band reaches zero gives no central or latest
+/// date (it would be any date at all), only the earliest; an area below the minimum gives
+/// below_minimum_since instead of dates.
+std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const std::vector<ThinnestArea>& areas,
                                       const std::vector<SensorWear>& sensor_wear, const std::vector<SensorForecast>& sensors,
                                       TimePoint now, const ForecastOptions& options = {});
+
+/// Reline dates that hold still: each row of `current` keeps `previous`'s reach date (and its
+/// below_minimum_since) while the data do not move it beyond the band: the new estimate lies within
+/// the previous [earliest, latest] and the previous date within the new one. A published date then
+/// changes only when the readings change it by more than its own uncertainty.
+void HoldRowForecasts(const std::vector<RowForecast>& previous, std::vector<RowForecast>* current);
 
 }  // namespace lw::core

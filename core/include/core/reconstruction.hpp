@@ -55,6 +55,12 @@ struct Reconstruction {
   Eigen::VectorXd wear_mm;          ///< per face, in [0, thickness_new]
   Eigen::VectorXd remaining_mm;     ///< per face: thickness_new - wear, never negative
   Eigen::VectorXd remaining_sd_mm;  ///< per face: standard error of remaining_mm
+  /// Per face: the row scale's part of remaining_sd_mm (intensity x the scale's sd): one error per
+  /// row, shared by its faces (the rest is the map's, core/thinnest_area.hpp).
+  Eigen::VectorXd scale_sd_mm;
+  /// Per face: intensity x scale before wear_mm's clamp to [0, new] (beyond new: the estimate says
+  /// worn through by that much), for areas whose band must say so (core/thinnest_area.hpp).
+  Eigen::VectorXd wear_estimate_mm;
   std::vector<RowSummary> rows;
   double min_thickness_mm = 0;
   size_t min_face = 0;

@@ -9,6 +9,7 @@
 
 #include "core/forecast.hpp"
 #include "core/reconstruction.hpp"
+#include "core/thinnest_area.hpp"
 #include "server/live_state.hpp"
 #include "server/registry.hpp"
 #include "server/store.hpp"
@@ -24,18 +25,25 @@ struct CrusherState {
   std::vector<std::string> stale;  ///< sensors whose latest reading is too old to set a scale
   std::vector<std::string> stuck;  ///< sensors reporting one value while their row wears (core::StuckRule)
   core::Reconstruction reconstruction;
+  core::ThinnestAreas areas;                ///< the thinnest areas the data support (liner, rows)
   std::shared_ptr<const ScannedPlan> scan;  ///< the scan applied (nullptr: the map alone)
   std::vector<core::SensorForecast> sensor_forecasts;
   std::vector<core::RowForecast> row_forecasts;
   int64_t version = 0;
 };
 
-/// Computes the state from a crusher's stored readings (fault readings are left out).
-CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<StoredReading>& readings);
+/// Computes the state from a crusher's stored readings (fault readings are left out). With the
+/// state published before (`previous`), reline dates hold still within their band
+/// (core::HoldRowForecasts).
+CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<StoredReading>& readings,
+                                 const CrusherState* previous = nullptr);
 
 /// The wear JSON of docs/server.md (GET .../wear and the retained MQTT `.../wear`, without faces).
 nlohmann::ordered_json WearJson(const CrusherState& state, bool with_faces);
 nlohmann::ordered_json ForecastJson(const CrusherState& state);
+/// Per-face wear as CSV (`?format=csv`): face,row,z_m,theta_deg,remaining_mm,remaining_sd_mm,wear_mm
+/// (the mm columns empty when no sensor gives a row scale).
+std::string WearCsv(const CrusherState& state);
 
 class WearService {
  public:

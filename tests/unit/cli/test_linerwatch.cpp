@@ -12,6 +12,7 @@
 #include "unit/cli/run_cli.hpp"
 #include "core/bundle.hpp"
 #include "core/reconstruction.hpp"
+#include "core/thinnest_area.hpp"
 #include "support/temp_directory.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
 
@@ -63,6 +64,29 @@ TEST_GROUP(Linerwatch) {
     DOUBLES_EQUAL(without.min_thickness_mm, j["min_thickness_mm"].get<double>(), 1e-9);
   }
 };
+
+// `reconstruct` leads with the thinnest area the data support (core::FindThinnestAreas, as the
+// server's wear), at the liner and per row, in words and in its JSON.
+TEST(Linerwatch, ReconstructReportsTheThinnestAreaTheServerReports) {
+  const fs::path b = Bundle();
+  const Run r = Cli({"reconstruct", b.string(), "--no-scan", "--json", (dir / "t.json").string()});
+  LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
+  CHECK_TEXT(r.out.find("thinnest area (") != std::string::npos, r.out.c_str());
+  const auto j = nlohmann::json::parse(Slurp(dir / "t.json"));
+  const lw::core::Bundle bundle = lw::core::LoadBundle(b);
+  const lw::core::ReconstructionPlan plan = lw::core::PrepareReconstruction(bundle.crusher, bundle.map);
+  const std::vector<size_t> live = lw::core::LiveReadingIndices(bundle.crusher, bundle.readings, lw::core::TimePoint::max());
+  std::vector<lw::core::Reading> used;
+  for (const size_t i : live) used.push_back(bundle.readings[i]);
+  const lw::core::ThinnestAreas want = lw::core::FindThinnestAreas(
+      plan, lw::core::Reconstruct(plan, lw::core::SensorWearFrom(bundle.crusher, bundle.readings, live)), used);
+  CHECK(j["thinnest_area"] == nlohmann::json::parse(lw::core::ThinnestAreaJson(want.liner).dump()));
+  LONGS_EQUAL(want.rows.size(), j["rows"].size());
+  for (size_t k = 0; k < want.rows.size(); ++k)
+    CHECK(j["rows"][k]["thinnest_area"] == nlohmann::json::parse(lw::core::ThinnestAreaJson(want.rows[k]).dump()));
+  CHECK_FALSE(j.contains("worn_through_faces"));
+  CHECK(r.out.find(lw::core::ThinnestAreaText(want.liner)) != std::string::npos);
+}
 
 TEST(Linerwatch, HelpExitsZero) {
   const Run r = Cli({"--help"});

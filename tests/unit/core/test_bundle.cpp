@@ -137,6 +137,31 @@ TEST(Bundle, ImplausibleCrusherJsonIsRefused) {
   STRCMP_EQUAL("plant-2", LoadCrusherConfig(dir.path() / "crusher.json").site.c_str());
 }
 
+// crusher.json's "thinnest_area" (the band target and patch ladder of the live headline): kept when
+// in range, each value out of range refused naming its key.
+TEST(Bundle, ThinnestAreaSettingsAreReadAndOutOfRangeValuesRefusedByName) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
+  auto with = [&](const std::string& setting) {
+    std::string j = lw::test::kCrusherJson;
+    j.replace(j.find("\"crusher_id\": \"cr1\""), 19, "\"crusher_id\": \"cr1\", \"thinnest_area\": " + setting);
+    dir.Write("crusher.json", j);
+    return ErrorOf(dir);
+  };
+  STRCMP_EQUAL("", with(R"({"band_half_width_mm": 6, "patches_m": [0.15, 0.3], "sensor_reach_m": 0.2})").c_str());
+  const CrusherConfig c = LoadCrusherConfig(dir.path() / "crusher.json");
+  DOUBLES_EQUAL(6.0, c.thinnest_area.band_half_width_mm, 0);
+  CHECK((c.thinnest_area.patches_m == std::vector<double>{0.15, 0.3}));
+  DOUBLES_EQUAL(0.2, c.thinnest_area.sensor_reach_m, 0);
+  CHECK(with(R"({"band_half_width_mm": 0})").find("thinnest_area.band_half_width_mm") != std::string::npos);
+  CHECK(with(R"({"band_half_width_mm": 500})").find("thinnest_area.band_half_width_mm") != std::string::npos);
+  CHECK(with(R"({"patches_m": [0.4, 0.2]})").find("thinnest_area.patches_m") != std::string::npos);
+  CHECK(with(R"({"patches_m": [0.001]})").find("thinnest_area.patches_m") != std::string::npos);
+  CHECK(with(R"({"patches_m": []})").find("thinnest_area.patches_m") != std::string::npos);
+  CHECK(with(R"({"sensor_reach_m": -1})").find("thinnest_area.sensor_reach_m") != std::string::npos);
+  CHECK(with(R"({"band_half_width_mm": "ten"})").find("band_half_width_mm") != std::string::npos);
+  CHECK(with("7").find("thinnest_area") != std::string::npos);
+}
+
 // core::WriteBundle is the inverse of LoadBundle: what it writes loads back the same (site, radio
 // addresses, readings, operations with a missing value, scans, the map's arrays), and the output
 // folder must be new or empty.

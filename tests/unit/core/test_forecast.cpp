@@ -1,5 +1,6 @@
 // Remaining-life forecast: fitted wear curves, reach dates and bands, from quantised readings.
 #include <cmath>
+#include <set>
 
 #include "core/forecast.hpp"
 
@@ -32,6 +33,35 @@ std::vector<Reading> Ladder(const CrusherConfig& c, const std::string& id, doubl
 
 double DaysTo(const CrusherConfig& c, const std::optional<TimePoint>& t) {
   return DaysBetween(c.installed_at, *t);
+}
+
+/// A row's thinnest area with a band of +/- `half` mm.
+ThinnestArea Area(const std::string& row, double thickness, double half = 0.0) {
+  ThinnestArea a;
+  a.row = row;
+  a.thickness_mm = thickness;
+  a.lo_mm = thickness - half;
+  a.hi_mm = thickness + half;
+  a.supported = true;
+  return a;
+}
+
+/// Row forecasts of both rows from the sensors' readings up to day `day`, their areas where the
+/// sensors are (ratio 1), as the server computes them at each refresh.
+std::vector<RowForecast> RowsAt(const CrusherConfig& c, const std::vector<Reading>& all, double day) {
+  std::vector<Reading> upto;
+  for (const Reading& r : all)
+    if (r.time <= AddDays(c.installed_at, day)) upto.push_back(r);
+  std::vector<SensorForecast> sensors;
+  std::vector<SensorWear> wear;
+  std::vector<ThinnestArea> areas;
+  for (const SensorInfo& s : c.sensors) {
+    sensors.push_back(ForecastSensor(c, s, upto));
+    const double mm = sensors.back().last_reading_mm + 0.5;
+    wear.push_back({s.id, 120.0 - mm});
+    areas.push_back(Area(s.row, mm, 1.0));
+  }
+  return ForecastRows(c, areas, wear, sensors, AddDays(c.installed_at, day));
 }
 
 }  // namespace
@@ -83,17 +113,16 @@ TEST(Forecast, TooFewReadingsSaySo) {
   CHECK_FALSE(early.ok);
 }
 
-TEST(Forecast, RowsFollowTheirThinnestFace) {
+TEST(Forecast, RowsFollowTheirThinnestArea) {
   const CrusherConfig c = Crusher();
   std::vector<Reading> all = Ladder(c, "1", 40, [](double t) { return 120.0 - t; });
   const auto up = Ladder(c, "2", 40, [](double t) { return 120.0 - 0.25 * t; });
   all.insert(all.end(), up.begin(), up.end());
   std::vector<SensorForecast> sensors = {ForecastSensor(c, c.sensors[0], all), ForecastSensor(c, c.sensors[1], all)};
-  // A reconstruction whose LDWN thinnest face has worn 1.5x its sensor (60 vs 40 mm).
-  Reconstruction rec;
-  rec.rows = {{"LDWN", 0, 60.0, 0, 0, 0, 0, 1}, {"LUP", 0, 110.0, 0, 0, 0, 0, 1}};
+  // Thinnest areas: LDWN's has worn 1.5x its sensor (60 vs 40 mm).
+  const std::vector<ThinnestArea> areas = {Area("LDWN", 60.0), Area("LUP", 110.0)};
   const std::vector<SensorWear> wear = {{"1", 40.0}, {"2", 10.0}};
-  const auto rows = ForecastRows(c, rec, wear, sensors, AddDays(c.installed_at, 40));
+  const auto rows = ForecastRows(c, areas, wear, sensors, AddDays(c.installed_at, 40));
   LONGS_EQUAL(2, rows.size());
   CHECK_TRUE(rows[0].ok);
   DOUBLES_EQUAL(1.5, rows[0].rate_mm_per_day, 0.1);
@@ -102,4 +131,68 @@ TEST(Forecast, RowsFollowTheirThinnestFace) {
   CHECK(DaysTo(c, rows[0].reach_earliest) <= DaysTo(c, rows[0].reach));
   // LUP: 80 mm left at 0.25 x 1.0 (face 10 mm worn = its sensor) = 0.25 mm/day: day ~360.
   DOUBLES_EQUAL(360.0, DaysTo(c, rows[1].reach), 15.0);
+}
+
+// A row past its minimum says since when, and gives no reach date (not one equal to the latest
+// reading, "0 days after").
+TEST(Forecast, ARowPastItsMinimumSaysBelowMinimumSince) {
+  const CrusherConfig c = Crusher();
+  std::vector<Reading> all = Ladder(c, "1", 100, [](double t) { return 120.0 - t; });
+  const auto up = Ladder(c, "2", 100, [](double t) { return 120.0 - 0.25 * t; });
+  all.insert(all.end(), up.begin(), up.end());
+  const std::vector<RowForecast> rows = RowsAt(c, all, 100);
+  CHECK_TRUE(rows[0].below_minimum_since.has_value());
+  // 120 - t reaches 30 mm at day 90 (the interval centre: day 89.5).
+  DOUBLES_EQUAL(89.5, DaysTo(c, rows[0].below_minimum_since), 1.0);
+  CHECK_FALSE(rows[0].reach.has_value());
+  CHECK_FALSE(rows[0].reach_earliest.has_value());
+  CHECK(rows[0].reach_note.find("below minimum since 2026-") == 0);
+  CHECK_FALSE(rows[1].below_minimum_since.has_value());
+  CHECK_TRUE(rows[1].reach.has_value());
+}
+
+// A slow row that has lost no loop in its fit window: its rate's band reaches zero, so a central
+// date would be anywhere; it says so and gives only the earliest date.
+TEST(Forecast, ARateNotDistinguishableFromZeroIsBeyondForecastWithTheReason) {
+  const CrusherConfig c = Crusher();
+  std::vector<Reading> all = Ladder(c, "1", 42, [](double t) { return 120.0 - t; });
+  const auto up = Ladder(c, "2", 42, [](double t) { return 119.99 - 0.02 * t; });
+  all.insert(all.end(), up.begin(), up.end());
+  const std::vector<RowForecast> rows = RowsAt(c, all, 42);
+  CHECK(rows[1].rate_mm_per_day - 2.0 * rows[1].rate_sd_mm_per_day <= 0.0);
+  CHECK_FALSE(rows[1].reach.has_value());
+  CHECK_FALSE(rows[1].reach_latest.has_value());
+  CHECK_TRUE(rows[1].reach_earliest.has_value());
+  CHECK(rows[1].reach_note.find("not distinguishable from zero") != std::string::npos);
+  CHECK_TRUE(rows[0].reach.has_value());
+  CHECK(rows[0].reach_note.empty());
+}
+
+// The same readings refreshed give the same date; a slow row refreshed daily as loops break
+// (readings within their quantisation of a straight line) keeps its published date while each new
+// estimate lies within the band, instead of one date per refresh.
+TEST(Forecast, RelineDatesHoldStillWhileNewEstimatesStayInsideTheirBand) {
+  const CrusherConfig c = Crusher();
+  std::vector<Reading> all = Ladder(c, "1", 120, [](double t) { return 120.0 - 0.6 * t; });
+  const auto up = Ladder(c, "2", 120, [](double t) { return 119.7 - 0.15 * t; });
+  all.insert(all.end(), up.begin(), up.end());
+  std::vector<RowForecast> published = RowsAt(c, all, 60);
+  for (int k = 0; k < 5; ++k) {  // no new reading: the same dates
+    std::vector<RowForecast> again = RowsAt(c, all, 60);
+    HoldRowForecasts(published, &again);
+    CHECK(again[1].reach == published[1].reach);
+    published = again;
+  }
+  std::set<int64_t> raw_dates, held_dates;
+  for (double day = 60.25; day <= 90; day += 0.25) {
+    std::vector<RowForecast> now = RowsAt(c, all, day);
+    raw_dates.insert(std::chrono::duration_cast<std::chrono::hours>(now[1].reach->time_since_epoch()).count() / 24);
+    HoldRowForecasts(published, &now);
+    held_dates.insert(std::chrono::duration_cast<std::chrono::hours>(now[1].reach->time_since_epoch()).count() / 24);
+    // A held date lies inside the new band, the new estimate inside the previous band.
+    CHECK(!now[1].reach_earliest || *now[1].reach >= *now[1].reach_earliest);
+    published = now;
+  }
+  CHECK(raw_dates.size() > 10);  // each refresh's own estimate moves
+  CHECK(held_dates.size() <= 3);
 }

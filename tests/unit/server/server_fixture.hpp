@@ -10,6 +10,7 @@
 #include "core/bundle.hpp"
 #include "core/reconstruction.hpp"
 #include "core/scan_correction.hpp"
+#include "core/thinnest_area.hpp"
 #include "core/wear_map.hpp"  // Sha256Hex
 #include "server/api_context.hpp"
 #include "server/ingest.hpp"
@@ -64,6 +65,17 @@ inline core::Reconstruction OfflineLiveWear(const core::Bundle& b, core::TimePoi
     core::ApplyScan(plan, core::ProjectScanToFaces(b.map, *scan), core::FreshSensorWearAt(b.crusher, b.readings, scan->date));
   return core::Reconstruct(plan,
                            core::SensorWearFrom(b.crusher, b.readings, core::LiveReadingIndices(b.crusher, b.readings, at)));
+}
+
+/// The thinnest areas of OfflineLiveWear (core::FindThinnestAreas on the same plan and readings).
+inline core::ThinnestAreas OfflineThinnestAreas(const core::Bundle& b, core::TimePoint at) {
+  core::ReconstructionPlan plan = core::PrepareReconstruction(b.crusher, b.map);
+  if (const core::Scan* scan = core::LatestScanAt(b.scans, core::TimePoint::max()))
+    core::ApplyScan(plan, core::ProjectScanToFaces(b.map, *scan), core::FreshSensorWearAt(b.crusher, b.readings, scan->date));
+  const std::vector<size_t> live = core::LiveReadingIndices(b.crusher, b.readings, at);
+  std::vector<core::Reading> used;
+  for (const size_t i : live) used.push_back(b.readings[i]);
+  return core::FindThinnestAreas(plan, core::Reconstruct(plan, core::SensorWearFrom(b.crusher, b.readings, live)), used);
 }
 
 /// A server's worth of parts over the crusher folder `crushers` (a fresh database in a scratch

@@ -1,5 +1,6 @@
 // The REST resources without HTTP: the route table, the OpenAPI document generated from it, and
 // the handlers called through rest::Resources.
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <set>
@@ -297,7 +298,20 @@ TEST(RestHandlers, WearAndForecastOnceThereAreReadings) {
   CHECK_FALSE(f.Get(wear, {Folder().id()}, {{"faces", "false"}}).json.contains("remaining_mm"));
   res = f.Get(wear, {Folder().id()}, {{"format", "png"}});
   LONGS_EQUAL(400, res.status);
-  STRCMP_EQUAL("format='png': use json or vtk", ErrorOf(res).c_str());
+  STRCMP_EQUAL("format='png': use json, vtk or csv", ErrorOf(res).c_str());
+  // Per face as CSV: a header and one line per face, remaining thickness as in the JSON.
+  res = f.Get(wear, {Folder().id()}, {{"format", "csv"}});
+  CHECK(res.raw.has_value());
+  STRCMP_EQUAL("text/csv", res.raw->content_type.c_str());
+  CHECK(res.raw->content.rfind("face,row,z_m,theta_deg,remaining_mm,remaining_sd_mm,wear_mm\n", 0) == 0);
+  LONGS_EQUAL(Folder().bundle.map.face_count() + 1, std::count(res.raw->content.begin(), res.raw->content.end(), '\n'));
+  {
+    const std::string& csv = res.raw->content;
+    const size_t l1 = csv.find('\n') + 1;
+    std::string first = csv.substr(l1, csv.find('\n', l1) - l1);
+    for (int k = 0; k < 4; ++k) first = first.substr(first.find(',') + 1);
+    DOUBLES_EQUAL(f.Get(wear).json["remaining_mm"][0].get<double>(), std::stod(first), 1e-3);
+  }
   res = f.Get(wear, {Folder().id()}, {{"format", "vtk"}});
   CHECK(res.raw.has_value());
   STRCMP_EQUAL("application/octet-stream", res.raw->content_type.c_str());
@@ -315,6 +329,43 @@ TEST(RestHandlers, WearAndForecastOnceThereAreReadings) {
   const json list = f.Get("/api/v1/crushers", {}).json;
   LONGS_EQUAL(1, list["crushers"].size());
   DOUBLES_EQUAL(f.Get(wear).json["min_thickness_mm"].get<double>(), list["crushers"][0]["min_thickness_mm"].get<double>(), 1e-3);
+}
+
+// The headline of GET .../wear (and of each row) is the thinnest area the data support, in the
+// documented shape, as core computes it offline (what `linerwatch reconstruct` prints); the faces'
+// own counts of zero thickness stay with the faces, never as "worn through".
+void CheckArea(const json& served, const lw::core::ThinnestArea& expected) {
+  for (const char* key :
+       {"thickness_mm", "band_mm", "patch_m", "z_m", "theta_deg", "supported", "extrapolated", "nearest_sensor_m"})
+    CHECK_TEXT(served.contains(key), key);
+  const json want = json::parse(lw::core::ThinnestAreaJson(expected).dump());
+  DOUBLES_EQUAL(want["thickness_mm"].get<double>(), served["thickness_mm"].get<double>(), 0.011);
+  LONGS_EQUAL(2, served["band_mm"].size());
+  DOUBLES_EQUAL(want["band_mm"][1].get<double>(), served["band_mm"][1].get<double>(), 0.011);
+  CHECK(want["patch_m"] == served["patch_m"]);
+  CHECK(want["supported"] == served["supported"]);
+  CHECK(want["extrapolated"] == served["extrapolated"]);
+  CHECK(want["row"] == served["row"]);
+}
+
+TEST(RestHandlers, WearLeadsWithTheThinnestAreaTheDataSupportAtTheLinerAndEachRow) {
+  Fixture f;
+  LONGS_EQUAL(200, f.PostReadings(Fixture::AllReadings()).status);
+  const json wear = f.Get("/api/v1/crushers/{crusher}/wear").json;
+  const lw::core::ThinnestAreas expected = lw::test::OfflineThinnestAreas(Folder().bundle, lw::core::TimePoint::max());
+  CheckArea(wear["thinnest_area"], expected.liner);
+  LONGS_EQUAL(expected.rows.size(), wear["rows"].size());
+  for (size_t k = 0; k < expected.rows.size(); ++k) CheckArea(wear["rows"][k]["thinnest_area"], expected.rows[k]);
+  CHECK(wear["worn_through"] == wear["thinnest_area"]["worn_through"]);
+  CHECK_FALSE(wear.contains("worn_through_faces"));
+  CHECK(wear["face_level"].contains("estimate_at_zero_faces"));
+  // The forecast's rows say whether they are below the minimum and why a date is missing.
+  const json forecast = f.Get("/api/v1/crushers/{crusher}/forecast").json;
+  for (const auto& r : forecast["rows"]) {
+    CHECK(r.contains("below_minimum_since"));
+    CHECK(r.contains("rate_sd_mm_per_day"));
+    if (r["reach_date"].is_null() && !r.contains("note")) CHECK_TEXT(r.contains("reach_note"), r.dump().c_str());
+  }
 }
 
 // docs/server.md, *Laser scans*: "Every wear result names the scan it applied (`scan`: file, date,

@@ -1,0 +1,74 @@
+#pragma once
+/// The thinnest area the data support: for the liner and for each row, the thinnest square patch
+/// of the smallest size on a ladder (ThinnestAreaConfig::patches_m, then the whole row) whose band
+/// half-width is at most the target. A finite DEM run cannot place a face-sized hot spot, but it
+/// can place a larger area: the per-face minimum of a noisy map is a noise spike, while a patch's
+/// mean carries less of the map's sampling noise. This is the number the server's headline, its
+/// rows, the forecast and `linerwatch reconstruct` report; the per-face values and their band stay
+/// in the faces array and the VTK.
+///
+/// A patch's band is built from the same ingredients as a face's (core/reconstruction.hpp):
+///  * the row scale's error (sensor quantisation, the map at the sensors): one number per row, so
+///    fully correlated over a patch: its sd is the area-weighted mean of the faces';
+///  * the smoothing's own error (the part of the map model's cross-validated error that sampling
+///    noise does not explain: a pattern error, correlated in space): fully correlated as well;
+///  * the map's sampling noise carried through the kernel (measured from the spread of the run's
+///    independent windows, or from neighbour differences): independent between faces before
+///    smoothing, so after smoothing correlated over the kernel's footprint and no further. A
+///    patch's mean of it has the variance of a face's times A_k / (A_k + A), A the patch's area and
+///    A_k = 4 pi sd_z sd_arc the kernel's noise footprint (1 / integral of the kernel squared).
+/// The band of the thinnest of many patches is [min lo, min hi] over the patches, as for faces.
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/bundle.hpp"
+#include "core/reconstruction.hpp"
+
+namespace lw::core {
+
+/// What a row's sensors show themselves, for a row (or liner) whose band is too wide at every
+/// patch: its thinnest latest reading (the reading n: thickness in [n, n+1) mm) and when.
+struct SensorFallback {
+  std::string sensor;
+  double thickness_mm = 0;
+  TimePoint time{};
+};
+
+struct ThinnestArea {
+  std::string row;          ///< the row it lies in (the liner's: the row of its thinnest area)
+  double thickness_mm = 0;  ///< area-mean remaining thickness (NaN: no row scale)
+  double lo_mm = 0;         ///< band (band_sigmas sd), in [0, new]
+  double hi_mm = 0;
+  double patch_m = 0;                             ///< side of the square patch (m); a whole row: the row's height
+  bool whole_row = false;                         ///< the area is the whole row (no angle)
+  double z_m = 0;                                 ///< centre (a whole row: its mid-height)
+  double theta_deg = 0;                           ///< centre (NaN for a whole row)
+  bool supported = false;                         ///< the band half-width is within the target at patch_m
+  bool extrapolated = false;                      ///< the centre is beyond the sensors' reach (from the DEM map alone)
+  double nearest_sensor_m = 0;                    ///< surface distance from the centre to the nearest scale-setting sensor
+  bool worn_through = false;                      ///< supported and the band's thick edge is at 0
+  std::optional<SensorFallback> sensor_fallback;  ///< when not supported: what the sensors show
+};
+
+struct ThinnestAreas {
+  ThinnestArea liner;
+  std::vector<ThinnestArea> rows;  ///< crusher.rows order
+};
+
+/// Thinnest areas of `rec` (from `plan`). `used` are the readings that set the scales (one per
+/// sensor, as LiveReadingIndices selects them): their positions give the sensors' reach, their
+/// values the fallback. Faces outside every row are not part of any area.
+ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used);
+
+/// The one JSON form (REST `.../wear` and its rows, the retained MQTT `.../wear`, `linerwatch
+/// reconstruct --json`): {"thickness_mm", "band_mm": [lo, hi], "patch_m", "z_m", "theta_deg" (null
+/// for a whole row), "supported", "extrapolated", "nearest_sensor_m" (null: no sensor), "row",
+/// "whole_row", "worn_through", "detail", "sensor_fallback" (when not supported)}. NaN is null.
+nlohmann::ordered_json ThinnestAreaJson(const ThinnestArea& area);
+/// The same in words, one line: what a planner reads (the headline's wording).
+std::string ThinnestAreaText(const ThinnestArea& area);
+
+}  // namespace lw::core

@@ -1,0 +1,374 @@
+#include "core/thinnest_area.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <cstdio>
+#include <map>
+
+#include "core/time.hpp"
+
+#include "core/surface_index.hpp"
+
+namespace lw::core {
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+
+double AngleDiffDeg(double a, double b) {
+  double d = std::fmod(a - b, 360.0);
+  if (d > 180.0) d -= 360.0;
+  if (d < -180.0) d += 360.0;
+  return d;
+}
+
+/// Per face: the three parts of its sd that combine
+/// differently over a patch (header): the row scale's, the smoothing's (both correlated), the
+/// sampling noise's (correlated over the kernel's footprint only).
+struct FaceErrors {
+  Eigen::VectorXd scale, bias, noise;
+};
+
+FaceErrors SplitErrors(const ReconstructionPlan& plan, const Reconstruction& rec) {
+  const Eigen::Index n = rec.remaining_sd_mm.size();
+  const MapModel& m = plan.model;
+  const bool split = m.intensity_noise_sd.size() == n && m.intensity_sd.size() == n;
+  FaceErrors e{Eigen::VectorXd(n), Eigen::VectorXd(n), Eigen::VectorXd(n)};
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double sd = rec.remaining_sd_mm[i];
+    const double s = rec.scale_sd_mm.size() == n ? std::min(sd, rec.scale_sd_mm[i]) : 0.0;
+    const double map_sd = std::sqrt(std::max(0.0, sd * sd - s * s));
+    // Without the model's split, all of the map's error counts as correlated (the wider band).
+    double q = 0.0;
+    if (split && m.intensity_sd[i] > 0) q = std::clamp(std::pow(m.intensity_noise_sd[i] / m.intensity_sd[i], 2), 0.0, 1.0);
+    e.scale[i] = s;
+    e.noise[i] = map_sd * std::sqrt(q);
+    e.bias[i] = map_sd * std::sqrt(1.0 - q);
+  }
+  return e;
+}
+
+/// Area-weighted sums over the faces of one area.
+struct Sums {
+  double area = 0, wear = 0, scale = 0, bias = 0, noise = 0;
+  void Add(double a, double w, const FaceErrors& e, Eigen::Index i) {
+    area += a;
+    wear += a * w;
+    scale += a * e.scale[i];
+    bias += a * e.bias[i];
+    noise += a * e.noise[i];
+  }
+};
+
+struct Context {
+  const ReconstructionPlan& plan;
+  const Reconstruction& rec;
+  const FaceErrors errors;
+  double new_mm = 0;
+  double sigmas = 2.0;
+  double kernel_area = 0;  ///< A_k = 4 pi sd_z sd_arc: the sampling noise's footprint after smoothing
+};
+
+/// Thickness and band of an area from its sums.
+void BandOf(const Context& c, const Sums& s, ThinnestArea* a) {
+  const double wear = s.wear / s.area, scale = s.scale / s.area, bias = s.bias / s.area, noise = s.noise / s.area;
+  const double sd = std::sqrt(scale * scale + bias * bias + noise * noise * c.kernel_area / (c.kernel_area + s.area));
+  // From the unclamped estimate: an area estimated beyond the liner's thickness by more than its
+  // band is worn through (hi 0); one at 0 within its band is not (yet) known to be.
+  const double t = c.new_mm - wear;
+  a->thickness_mm = std::clamp(t, 0.0, c.new_mm);
+  a->lo_mm = std::clamp(t - c.sigmas * sd, 0.0, c.new_mm);
+  a->hi_mm = std::clamp(t + c.sigmas * sd, 0.0, c.new_mm);
+}
+
+/// Mean surface radius at a height (faces binned by z), for the arc length of patch centres.
+class RadiusProfile {
+ public:
+  explicit RadiusProfile(const WearMap& map) {
+    if (map.z.size() == 0) return;
+    zmin_ = map.z.minCoeff();
+    const double span = std::max(1e-6, map.z.maxCoeff() - zmin_);
+    step_ = span / 200.0;
+    sum_.assign(201, 0.0);
+    weight_.assign(201, 0.0);
+    for (Eigen::Index i = 0; i < map.z.size(); ++i) {
+      const size_t b = Bin(map.z[i]);
+      sum_[b] += map.areas[i] * map.radius[i];
+      weight_[b] += map.areas[i];
+    }
+  }
+  double At(double z) const {
+    if (sum_.empty()) return 1.0;
+    const size_t b = Bin(z);
+    for (size_t d = 0; d < sum_.size(); ++d) {  // the nearest bin with faces
+      if (b >= d && weight_[b - d] > 0) return sum_[b - d] / weight_[b - d];
+      if (b + d < sum_.size() && weight_[b + d] > 0) return sum_[b + d] / weight_[b + d];
+    }
+    return 1.0;
+  }
+
+ private:
+  size_t Bin(double z) const {
+    return static_cast<size_t>(std::clamp(std::floor((z - zmin_) / step_), 0.0, static_cast<double>(sum_.size() - 1)));
+  }
+  double zmin_ = 0, step_ = 1;
+  std::vector<double> sum_, weight_;
+};
+
+/// The row's thinnest square patch of side `patch` (centres on a half-patch grid within the row),
+/// with the band of the thinnest: [min lo, min hi] over its patches. nullopt when no patch has faces.
+std::optional<ThinnestArea> ThinnestPatch(const Context& c, const SurfaceIndex& index, const RadiusProfile& radius, int row,
+                                          double patch) {
+  const WearMap& map = *c.plan.map;
+  const Row& r = c.plan.crusher->rows[static_cast<size_t>(row)];
+  const double half = 0.5 * patch, height = r.z_max_m - r.z_min_m;
+  std::vector<double> zs;
+  if (height <= patch) {
+    zs.push_back(0.5 * (r.z_min_m + r.z_max_m));
+  } else {
+    for (double z = r.z_min_m + half; z <= r.z_max_m - half + 1e-9; z += half) zs.push_back(z);
+  }
+  std::optional<ThinnestArea> best;
+  double lo = std::numeric_limits<double>::max(), hi = lo;
+  for (const double z : zs) {
+    const double rad = radius.At(z);
+    const int n_around = std::max(1, static_cast<int>(std::ceil(2.0 * M_PI * rad / half)));
+    for (int k = 0; k < n_around; ++k) {
+      const double theta = 360.0 * k / n_around;
+      Sums s;
+      index.Visit(z, theta, rad, [&](uint32_t j, double, double) {
+        const auto i = static_cast<Eigen::Index>(j);
+        if (c.plan.face_row[j] == row) s.Add(map.areas[i], c.rec.wear_estimate_mm[i], c.errors, i);
+      });
+      // A patch mostly off the map (a hole, an edge) is not an area of the row.
+      if (!(s.area >= 0.25 * patch * std::min(patch, height))) continue;
+      ThinnestArea a;
+      BandOf(c, s, &a);
+      lo = std::min(lo, a.lo_mm);
+      hi = std::min(hi, a.hi_mm);
+      if (!best || a.thickness_mm < best->thickness_mm) {
+        a.z_m = z;
+        a.theta_deg = theta;
+        best = a;
+      }
+    }
+  }
+  if (best) {
+    best->lo_mm = lo;
+    best->hi_mm = hi;
+    best->patch_m = patch;
+  }
+  return best;
+}
+
+ThinnestArea WholeRow(const Context& c, int row) {
+  const WearMap& map = *c.plan.map;
+  const Row& r = c.plan.crusher->rows[static_cast<size_t>(row)];
+  Sums s;
+  for (Eigen::Index i = 0; i < map.z.size(); ++i)
+    if (c.plan.face_row[static_cast<size_t>(i)] == row) s.Add(map.areas[i], c.rec.wear_estimate_mm[i], c.errors, i);
+  ThinnestArea a;
+  a.whole_row = true;
+  a.patch_m = r.z_max_m - r.z_min_m;
+  a.z_m = 0.5 * (r.z_min_m + r.z_max_m);
+  a.theta_deg = kNan;
+  if (s.area > 0) {
+    BandOf(c, s, &a);
+  } else {
+    a.thickness_mm = a.lo_mm = a.hi_mm = kNan;
+  }
+  return a;
+}
+
+bool Within(const ThinnestArea& a, double target) {
+  return std::isfinite(a.thickness_mm) && 0.5 * (a.hi_mm - a.lo_mm) <= target + 1e-9;
+}
+
+/// Surface distance from an area's centre to the nearest sensor of `used` (a whole row: along z
+/// from its mid-height); infinity when there is none.
+double NearestSensor(const CrusherConfig& crusher, const RadiusProfile& radius, const std::vector<Reading>& used,
+                     const ThinnestArea& a) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const Reading& r : used) {
+    const SensorInfo* s = crusher.FindSensor(r.sensor_id);
+    if (!s) continue;
+    const double dz = s->z_m - a.z_m;
+    const double arc =
+        a.whole_row ? 0.0 : radius.At(0.5 * (s->z_m + a.z_m)) * AngleDiffDeg(s->theta_deg, a.theta_deg) * kDegToRad;
+    best = std::min(best, std::hypot(dz, arc));
+  }
+  return best;
+}
+
+/// The thinnest reading among `used` of `row` (empty: of every row).
+std::optional<SensorFallback> ThinnestReading(const CrusherConfig& crusher, const std::vector<Reading>& used,
+                                              const std::string& row) {
+  std::optional<SensorFallback> out;
+  for (const Reading& r : used) {
+    const SensorInfo* s = crusher.FindSensor(r.sensor_id);
+    if (!s || (!row.empty() && s->row != row)) continue;
+    if (!out || r.thickness_mm < out->thickness_mm) out = SensorFallback{r.sensor_id, r.thickness_mm, r.time};
+  }
+  return out;
+}
+
+/// The labels every area gets once chosen: reach, worn through, the sensors' fallback.
+void Label(const Context& c, const RadiusProfile& radius, const std::vector<Reading>& used, double target, ThinnestArea* a) {
+  const ThinnestAreaConfig& cfg = c.plan.crusher->thinnest_area;
+  a->supported = Within(*a, target);
+  a->nearest_sensor_m = NearestSensor(*c.plan.crusher, radius, used, *a);
+  a->extrapolated = !(a->nearest_sensor_m <= 0.5 * a->patch_m + cfg.sensor_reach_m);
+  a->worn_through = a->supported && a->hi_mm <= 0.0;
+  if (!a->supported) a->sensor_fallback = ThinnestReading(*c.plan.crusher, used, a->row);
+}
+
+}  // namespace
+
+ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used) {
+  const CrusherConfig& crusher = *plan.crusher;
+  const ThinnestAreaConfig& cfg = crusher.thinnest_area;
+  const double face_area = 0.5 * plan.model.face_size_m * plan.model.face_size_m;
+  Context c{plan,
+            rec,
+            SplitErrors(plan, rec),
+            crusher.thickness_new_mm,
+            plan.options.band_sigmas,
+            std::max(face_area, 4.0 * M_PI * plan.model.bandwidth_m * plan.model.bandwidth_arc_m)};
+  const RadiusProfile radius(*plan.map);
+  const size_t nrows = crusher.rows.size();
+  const double target = cfg.band_half_width_mm;
+  ThinnestAreas out;
+  out.rows.resize(nrows);
+  std::vector<bool> done(nrows, false);
+  bool liner_done = false;
+  const bool scaled = rec.status != kStatusNoSensors;
+  for (const double patch : cfg.patches_m) {
+    if (!scaled) break;
+    const SurfaceIndex index(*plan.map, 0.5 * patch, 0.5 * patch);
+    std::optional<ThinnestArea> liner;  // the thinnest of the rows' at this patch, band [min lo, min hi]
+    for (size_t r = 0; r < nrows; ++r) {
+      std::optional<ThinnestArea> a = ThinnestPatch(c, index, radius, static_cast<int>(r), patch);
+      if (!a) continue;
+      a->row = crusher.rows[r].name;
+      if (!done[r] && Within(*a, target)) {
+        out.rows[r] = *a;
+        done[r] = true;
+      }
+      if (!liner) {
+        liner = a;
+      } else {
+        const double lo = std::min(liner->lo_mm, a->lo_mm), hi = std::min(liner->hi_mm, a->hi_mm);
+        if (a->thickness_mm < liner->thickness_mm) liner = a;
+        liner->lo_mm = lo;
+        liner->hi_mm = hi;
+      }
+    }
+    if (!liner_done && liner && Within(*liner, target)) {
+      out.liner = *liner;
+      liner_done = true;
+    }
+  }
+  // The whole row, where no patch was narrow enough; and for the liner, the thinnest row.
+  std::optional<ThinnestArea> liner_row;
+  for (size_t r = 0; r < nrows; ++r) {
+    ThinnestArea whole = WholeRow(c, static_cast<int>(r));
+    whole.row = crusher.rows[r].name;
+    if (!scaled) whole.thickness_mm = whole.lo_mm = whole.hi_mm = kNan;
+    if (!done[r]) out.rows[r] = whole;
+    if (!std::isfinite(whole.thickness_mm)) continue;
+    if (!liner_row) {
+      liner_row = whole;
+    } else {
+      const double lo = std::min(liner_row->lo_mm, whole.lo_mm), hi = std::min(liner_row->hi_mm, whole.hi_mm);
+      if (whole.thickness_mm < liner_row->thickness_mm) liner_row = whole;
+      liner_row->lo_mm = lo;
+      liner_row->hi_mm = hi;
+    }
+  }
+  if (!liner_done) {
+    if (liner_row) {
+      out.liner = *liner_row;
+    } else {
+      out.liner.thickness_mm = out.liner.lo_mm = out.liner.hi_mm = out.liner.theta_deg = kNan;
+      out.liner.whole_row = true;
+    }
+  }
+  for (ThinnestArea& a : out.rows) Label(c, radius, used, target, &a);
+  Label(c, radius, used, target, &out.liner);
+  if (!out.liner.supported) out.liner.sensor_fallback = ThinnestReading(crusher, used, "");
+  return out;
+}
+
+namespace {
+
+nlohmann::ordered_json Rounded(double v, double step) {
+  if (!std::isfinite(v)) return nullptr;
+  const double inv = std::round(1.0 / step);
+  return std::round(v * inv) / inv;
+}
+
+/// Where the area's number comes from, in words (empty for a supported area near a sensor).
+std::string Detail(const ThinnestArea& a) {
+  char b[200];
+  std::string d;
+  if (!std::isfinite(a.thickness_mm)) return "no wear estimate (no row scale)";
+  if (!a.supported) {
+    std::snprintf(b, sizeof b, "band wider than the target at every patch up to the whole row");
+    d = b;
+    if (a.sensor_fallback) {
+      std::snprintf(b, sizeof b, "; the sensors show %.0f mm (sensor %s, %s)", a.sensor_fallback->thickness_mm,
+                    a.sensor_fallback->sensor.c_str(), FormatIsoTime(a.sensor_fallback->time).c_str());
+      d += b;
+    }
+  }
+  if (a.extrapolated) {
+    if (std::isfinite(a.nearest_sensor_m))
+      std::snprintf(b, sizeof b, "extrapolated from the DEM map, nearest sensor %.2f m away", a.nearest_sensor_m);
+    else
+      std::snprintf(b, sizeof b, "extrapolated from the DEM map, no sensor reports");
+    d += (d.empty() ? "" : "; ") + std::string(b);
+  }
+  if (a.worn_through) d += (d.empty() ? "" : "; ") + std::string("worn through (the whole band is at 0 mm)");
+  return d;
+}
+
+}  // namespace
+
+nlohmann::ordered_json ThinnestAreaJson(const ThinnestArea& a) {
+  nlohmann::ordered_json j;
+  j["thickness_mm"] = Rounded(a.thickness_mm, 0.01);
+  j["band_mm"] = nlohmann::ordered_json::array({Rounded(a.lo_mm, 0.01), Rounded(a.hi_mm, 0.01)});
+  j["patch_m"] = Rounded(a.patch_m, 0.001);
+  j["z_m"] = Rounded(a.z_m, 0.001);
+  j["theta_deg"] = a.whole_row ? nlohmann::ordered_json(nullptr) : Rounded(a.theta_deg, 0.1);
+  j["supported"] = a.supported;
+  j["extrapolated"] = a.extrapolated;
+  j["nearest_sensor_m"] = Rounded(a.nearest_sensor_m, 0.001);
+  j["row"] = a.row;
+  j["whole_row"] = a.whole_row;
+  j["worn_through"] = a.worn_through;
+  j["detail"] = Detail(a);
+  if (a.sensor_fallback) {
+    j["sensor_fallback"] = {{"sensor", a.sensor_fallback->sensor},
+                            {"thickness_mm", a.sensor_fallback->thickness_mm},
+                            {"thickness_interval_mm", {a.sensor_fallback->thickness_mm, a.sensor_fallback->thickness_mm + 1.0}},
+                            {"time", FormatIsoTime(a.sensor_fallback->time)}};
+  }
+  return j;
+}
+
+std::string ThinnestAreaText(const ThinnestArea& a) {
+  if (!std::isfinite(a.thickness_mm)) return "thinnest area: " + Detail(a);
+  char b[240];
+  if (a.whole_row)
+    std::snprintf(b, sizeof b, "thinnest area (row %s as a whole): %.1f mm, band %.1f..%.1f mm", a.row.c_str(), a.thickness_mm,
+                  a.lo_mm, a.hi_mm);
+  else
+    std::snprintf(b, sizeof b, "thinnest area (%.2f m patch, row %s, z %.2f m, theta %.0f deg): %.1f mm, band %.1f..%.1f mm",
+                  a.patch_m, a.row.c_str(), a.z_m, a.theta_deg, a.thickness_mm, a.lo_mm, a.hi_mm);
+  const std::string d = Detail(a);
+  return std::string(b) + (d.empty() ? "" : "; " + d);
+}
+
+}  // namespace lw::core
