@@ -1,16 +1,21 @@
-// Issue 16 benchmark: the REST API at fleet scale. Builds a database of N readings (default
-// 10,000,000: 100 crushers x 10 sensors, one reading per sensor per hour) through the server's own
-// Store::Commit, starts the real linerwatch-server on it, and prints in one run p50/p99 of
-//   a one-day readings query, the crusher list, wear and forecast,
+// The REST API at fleet scale (docs/performance.md, *Server REST at fleet scale*; figures and their
+// history in bench/server/RESULTS.md). Builds a database of N readings (default 10,000,000: 100
+// crushers x 10 sensors, one reading per sensor per hour) through the server's own Store::Commit,
+// starts the real linerwatch-server on it, and prints in one run p50/p99 of
+//   a one-day readings query, the crusher list, a crusher's detail, its sensors, wear and forecast,
 // over one kept-alive connection and over a new connection per request, each against the same
-// data fetched directly from SQLite (its own connection, the same SQL where the server runs SQL):
-//   readings   the server's range query (Store::Range's SQL), every column read;
+// data fetched directly from SQLite (its own connection, statements prepared once):
+//   readings   index: the cheapest query for the answer (the JSON's columns, through the
+//              readings_by_sensor_time index); rows: every column, payload included, with the
+//              server's earlier SQL (the cursor as an OR), printed beside it;
 //   list       what the list is computed from: each sensor's latest reading, through the index;
-//   wear       the same for one crusher (the wear's inputs: each sensor's latest reading);
+//   crusher    each sensor's reading count (an index range count);
+//   sensors    each sensor's latest reading and count;
+//   wear       each sensor's latest reading (the wear's inputs);
 //   forecast   each sensor's fit window of readings (the forecast's inputs), through the index.
 // Also the startup time on that database (process start -> HTTP answers, -> every crusher's wear
-// computed) and the crusher list while readings are being posted to every crusher.
-//   lw_bench_server [--readings N] [--crushers C] [--requests R] [--db FILE (kept; reused when it exists)]
+// computed), the first requests after HTTP answers, and the crusher list while readings are posted.
+//   lw_bench_server [--readings N] [--crushers C] [--requests R] [--db FILE]   (--help: every option)
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -24,12 +29,15 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <optional>
 #include <random>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "core/bundle.hpp"
+#include "core/cmdline.hpp"
 #include "core/time.hpp"
 #include "server/store.hpp"
 #include "sim/campaign.hpp"
@@ -193,10 +201,17 @@ class Direct {
   std::map<const char*, sqlite3_stmt*> cache_;
 };
 
-// The server's own SQL (server/src/store.cpp): the range query, and the latest reading of a sensor.
-const char* kRangeSql =
+// One day of one sensor, two ways. The cheapest a user could ask for the readings JSON: its columns
+// only, through the time index (battery_mv and received from the row: the index does not hold them).
+const char* kDayIndexSql =
+    "SELECT seq, time, thickness_mm, loops_intact, flags, battery_mv, received FROM readings"
+    " WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4 ORDER BY time, seq LIMIT ?5";
+// Every column, payload included, with the SQL the server ran before (its cursor bound as an OR):
+// SQLite started that range at the cursor's time (INT64_MIN on a first page), not at `from`.
+const char* kDayRowsSql =
     "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload FROM readings"
     " WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4 AND (time>?5 OR (time=?5 AND seq>?6)) ORDER BY time, seq LIMIT ?7";
+const char* kCountSql = "SELECT COUNT(*) FROM readings WHERE crusher=?1 AND sensor=?2";
 const char* kLatestSql =
     "SELECT time, thickness_mm, flags, loops_intact FROM readings WHERE crusher=?1 AND sensor=?2"
     " ORDER BY time DESC, seq DESC LIMIT 1";
@@ -208,28 +223,51 @@ std::string Iso(int64_t s) {
   return lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(s)));
 }
 
+const lw::core::OptionTable& Table() {
+  using lw::core::Option;
+  static const lw::core::OptionTable table{{
+      Option::Whole("readings", "N", 10, 1'000'000'000,
+                    "readings in the database (default 10000000; crushers x 10 sensors x N/(10 C), hourly)"),
+      Option::Whole("crushers", "C", 1, 10'000, "crusher folders (default 100; the simulator's crusher and map)"),
+      Option::Whole("requests", "R", 10, 1'000'000, "requests per query (default 200; the crusher list R/4)"),
+      Option::Text("perf", "FILE",
+                   "perf record -e cpu-clock --call-graph dwarf attached to the server during the\n"
+                   "one-day readings loop (FILE: perf's output)"),
+      Option::Text("server", "BIN", "the linerwatch-server binary to measure (default: this build's)"),
+      Option::Text("db", "FILE",
+                   "the database file, kept; reused when it exists (the same --readings and\n"
+                   "--crushers, built on the same day)"),
+  }};
+  return table;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   long long n = 10'000'000;
   int n_crushers = 100, requests = 200;
-  std::string db_arg;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--readings"))
-      n = std::atoll(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--crushers"))
-      n_crushers = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--requests"))
-      requests = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--db"))
-      db_arg = argv[i + 1];
-    else {
-      std::fprintf(stderr, "usage: lw_bench_server [--readings N] [--crushers C] [--requests R] [--db FILE]\n");
-      return 2;
+  std::string db_arg, perf, server_bin = LW_SERVER_BIN;
+  try {
+    const lw::core::ParsedOptions p = lw::core::ParseOptions(Table(), std::vector<std::string>(argv + 1, argv + argc));
+    if (p.help()) {
+      std::printf(
+          "lw_bench_server: the REST API on a fleet-sized database against SQLite alone, p50/p99 and their\n"
+          "ratios from one run (docs/performance.md, *Server REST at fleet scale*).\n\nusage: lw_bench_server %s\n\n%s",
+          Table().Synopsis(24, 100).c_str(), Table().Help(28).c_str());
+      return 0;
     }
+    n = p.Integer<long long>("readings", n);
+    n_crushers = p.Integer<int>("crushers", n_crushers);
+    requests = p.Integer<int>("requests", requests);
+    db_arg = p.Text("db");
+    server_bin = p.Text("server", server_bin);
+    perf = p.Text("perf");
+  } catch (const lw::core::UsageError& e) {
+    std::fprintf(stderr, "lw_bench_server: %s\n", e.what());
+    return 2;
   }
-  if (n_crushers < 1 || n < n_crushers * 10 || requests < 10) {
-    std::fprintf(stderr, "lw_bench_server: need --crushers >= 1, --readings >= 10 per crusher, --requests >= 10\n");
+  if (n < n_crushers * 10LL) {
+    std::fprintf(stderr, "lw_bench_server: --readings must be at least 10 per crusher (--crushers %d)\n", n_crushers);
     return 2;
   }
   lw::test::TempDirectory dir("lw-bench-server");
@@ -258,10 +296,11 @@ int main(int argc, char** argv) {
   const int port = lw::test::FreeLoopbackPort();
   lw::test::ChildProcess server;
   const auto t_start = Clock::now();
-  server.Start({LW_SERVER_BIN, "--broker", broker.uri(), "--db", db, "--http", "127.0.0.1:" + std::to_string(port),
-                "--crusher-dir", dir.File("crushers"), "--client-id", "bench-server", "--web-dir", ""},
+  server.Start({server_bin, "--broker", broker.uri(), "--db", db, "--http", "127.0.0.1:" + std::to_string(port), "--crusher-dir",
+                dir.File("crushers"), "--client-id", "bench-server", "--web-dir", ""},
                dir.File("server.log"));
   double t_http = -1, t_ready = -1;
+  std::vector<std::tuple<std::string, double, int>> first_ms;  // (path, ms, status) right after HTTP answered
   while (Ms(Clock::now() - t_start) < 600'000) {
     if (!server.Running()) {
       std::fprintf(stderr, "the server exited:\n%s\n", lw::test::FileTail(dir.File("server.log")).c_str());
@@ -271,7 +310,19 @@ int main(int argc, char** argv) {
     probe.set_connection_timeout(1, 0);
     probe.set_read_timeout(60, 0);
     if (t_http < 0) {
-      if (auto r = probe.Get("/healthz"); r && r->status == 200) t_http = Ms(Clock::now() - t_start);
+      if (auto r = probe.Get("/healthz"); r && r->status == 200) {
+        t_http = Ms(Clock::now() - t_start);
+        // The first requests a user would make once the server answers: nothing should be loaded or
+        // computed for them on the request path (the later ones are timed below).
+        for (const std::string& path :
+             {std::string("/api/v1/crushers"), "/api/v1/crushers/" + fleet.crushers.back() + "/wear",
+              "/api/v1/crushers/" + fleet.crushers.back() + "/sensors/" + fleet.sensors[0] +
+                  "/readings?from=" + Iso(fleet.installed_s) + "&to=" + Iso(fleet.installed_s + 86399)}) {
+          const auto t0 = Clock::now();
+          auto first = probe.Get(path);
+          first_ms.emplace_back(path, Ms(Clock::now() - t0), first ? first->status : -1);
+        }
+      }
     } else if (auto r = probe.Get("/api/v1/crushers"); r && r->status == 200) {
       const json list = json::parse(r->body)["crushers"];
       if (std::all_of(list.begin(), list.end(), [](const json& c) { return !c["min_thickness_mm"].is_null(); })) {
@@ -299,6 +350,8 @@ int main(int argc, char** argv) {
       "           (per-crusher state from the database: %s; the server's CPU time to that point: %s;\n"
       "            load average %.1f on %u cores)\n",
       t_http / 1000, t_ready / 1000, rebuild.c_str(), cpu.c_str(), load[0], std::thread::hardware_concurrency());
+  for (const auto& [path, ms, status] : first_ms)
+    std::printf("first      %8.2f ms  GET %s (status %d), as soon as /healthz answered\n", ms, path.c_str(), status);
   if (t_ready < 0) return 1;
 
   // The same random picks for every way of asking.
@@ -321,8 +374,14 @@ int main(int argc, char** argv) {
     const char* name;
     std::function<std::string(const Pick&)> path;
     std::function<int(const Pick&)> sqlite;
+    std::function<int(const Pick&)> rows;  ///< a second baseline (printed beside), or empty
   };
   int day_rows = 0;
+  const auto each_sensor = [&](const char* sql, const Pick& p, std::vector<int64_t> ints) {
+    int rows = 0;
+    for (const auto& s : fleet.sensors) rows += direct.Run(sql, {p.crusher, s}, ints);
+    return rows;
+  };
   const std::vector<Kind> kinds = {
       {"one-day readings",
        [](const Pick& p) {
@@ -330,64 +389,109 @@ int main(int argc, char** argv) {
                 "&to=" + Iso(p.from_s + 86399);
        },
        [&](const Pick& p) {
-         return day_rows = direct.Run(kRangeSql, {p.crusher, p.sensor}, {p.from_s, p.from_s + 86399, INT64_MIN, INT64_MIN, 501});
+         return day_rows = direct.Run(kDayIndexSql, {p.crusher, p.sensor}, {p.from_s, p.from_s + 86399, 501});
+       },
+       [&](const Pick& p) {
+         return direct.Run(kDayRowsSql, {p.crusher, p.sensor}, {p.from_s, p.from_s + 86399, INT64_MIN, INT64_MIN, 501});
        }},
-      {"crusher list", [](const Pick&) { return std::string("/api/v1/crushers"); },
+      {"crusher list",
+       [](const Pick&) { return std::string("/api/v1/crushers"); },
        [&](const Pick&) {
          int rows = 0;
          for (const auto& c : fleet.crushers)
            for (const auto& s : fleet.sensors) rows += direct.Run(kLatestSql, {c, s}, {});
          return rows;
-       }},
-      {"wear (with faces)", [](const Pick& p) { return "/api/v1/crushers/" + p.crusher + "/wear"; },
-       [&](const Pick& p) {
-         int rows = 0;
-         for (const auto& s : fleet.sensors) rows += direct.Run(kLatestSql, {p.crusher, s}, {});
-         return rows;
-       }},
-      {"forecast", [](const Pick& p) { return "/api/v1/crushers/" + p.crusher + "/forecast"; },
-       [&](const Pick& p) {
-         int rows = 0;
-         for (const auto& s : fleet.sensors) rows += direct.Run(kWindowSql, {p.crusher, s}, {window_s});
-         return rows;
-       }},
+       },
+       {}},
+      {"crusher",
+       [](const Pick& p) { return "/api/v1/crushers/" + p.crusher; },
+       [&](const Pick& p) { return each_sensor(kCountSql, p, {}); },
+       {}},
+      {"sensors",
+       [](const Pick& p) { return "/api/v1/crushers/" + p.crusher + "/sensors"; },
+       [&](const Pick& p) { return each_sensor(kLatestSql, p, {}) + each_sensor(kCountSql, p, {}); },
+       {}},
+      {"wear (with faces)",
+       [](const Pick& p) { return "/api/v1/crushers/" + p.crusher + "/wear"; },
+       [&](const Pick& p) { return each_sensor(kLatestSql, p, {}); },
+       {}},
+      {"forecast",
+       [](const Pick& p) { return "/api/v1/crushers/" + p.crusher + "/forecast"; },
+       [&](const Pick& p) { return each_sensor(kWindowSql, p, {window_s}); },
+       {}},
   };
-  std::printf("%-19s %17s | %17s %14s | %17s %14s\n", "", "SQLite alone", "kept-alive", "ratio", "new connections", "ratio");
-  std::printf("%-19s %17s | %17s %14s | %17s %14s\n", "query", "p50 / p99 ms", "p50 / p99 ms", "p50 / p99", "p50 / p99 ms",
-              "p50 / p99");
+  std::printf("%-17s %15s %15s | %15s %12s %12s | %15s %12s\n", "", "SQLite: index", "SQLite: rows", "kept-alive", "/ index",
+              "/ rows", "new connection", "/ index");
+  std::printf("%-17s %15s %15s | %15s %12s %12s | %15s %12s\n", "query", "p50 / p99 ms", "p50 / p99 ms", "p50 / p99 ms",
+              "p50 / p99", "p50 / p99", "p50 / p99 ms", "p50 / p99");
   httplib::Client kept("127.0.0.1", port);
   kept.set_keep_alive(true);
   kept.set_read_timeout(60, 0);
   size_t body_bytes = 0;
   for (const Kind& k : kinds) {
-    // Interleaved: each pick asked of SQLite, over the kept-alive connection and over a new one in turn.
-    std::vector<double> t_sql, t_kept, t_new;
+    // Interleaved: each pick asked of SQLite (each baseline), over the kept-alive connection and over
+    // a new one in turn.
+    std::vector<double> t_sql, t_rows, t_kept, t_new;
     const int reps = std::string(k.name) == "crusher list" ? std::max(10, requests / 4) : requests;
-    for (int i = 0; i < reps; ++i) {
-      const Pick& p = picks[static_cast<size_t>(i)];
-      auto t0 = Clock::now();
-      k.sqlite(p);
-      t_sql.push_back(Ms(Clock::now() - t0));
-      const std::string path = k.path(p);
-      t0 = Clock::now();
-      auto r = kept.Get(path);
-      t_kept.push_back(Ms(Clock::now() - t0));
-      if (!r || r->status != 200) {
-        std::fprintf(stderr, "GET %s: %s\n", path.c_str(), r ? r->body.c_str() : "no response");
-        return 1;
-      }
-      body_bytes = r->body.size();
-      t0 = Clock::now();
-      httplib::Client fresh("127.0.0.1", port);
-      fresh.set_read_timeout(60, 0);
-      r = fresh.Get(path);
-      t_new.push_back(Ms(Clock::now() - t0));
-      if (!r || r->status != 200) return 1;
+    // CPU samples of the server's threads only (this machine's virtual CPU has no hardware counters).
+    lw::test::ChildProcess profiler;
+    if (!perf.empty() && &k == &kinds.front()) {
+      profiler.Start(
+          {"perf", "record", "-e", "cpu-clock", "--call-graph", "dwarf", "-p", std::to_string(server.pid()), "-o", perf},
+          dir.File("perf.log"));
+      std::this_thread::sleep_for(std::chrono::seconds(2));  // attached before the first request
     }
+    bool failed = false;
+    for (int i = 0; i < reps && !failed; ++i) {
+      const Pick& p = picks[static_cast<size_t>(i)];
+      const std::string path = k.path(p);
+      const auto timed = [](std::vector<double>& into, const std::function<void()>& run) {
+        const auto t0 = Clock::now();
+        run();
+        into.push_back(Ms(Clock::now() - t0));
+      };
+      std::vector<std::function<void()>> ways = {
+          [&] { timed(t_sql, [&] { k.sqlite(p); }); },
+          [&] {
+            if (k.rows) timed(t_rows, [&] { k.rows(p); });
+          },
+          [&] {
+            std::optional<httplib::Result> r;
+            timed(t_kept, [&] { r.emplace(kept.Get(path)); });
+            if (!*r || (*r)->status != 200) {
+              std::fprintf(stderr, "GET %s: %s\n", path.c_str(), *r ? (*r)->body.c_str() : "no response");
+              failed = true;
+              return;
+            }
+            body_bytes = (*r)->body.size();
+          },
+          [&] {
+            std::optional<httplib::Result> r;
+            timed(t_new, [&] {
+              httplib::Client fresh("127.0.0.1", port);
+              fresh.set_read_timeout(60, 0);
+              r.emplace(fresh.Get(path));
+            });
+            if (!*r || (*r)->status != 200) failed = true;
+          },
+      };
+      // The order rotates pick by pick: whichever way runs right after a long SQLite query finds
+      // the server's threads asleep (a wake-up on a loaded machine), and no way always pays it.
+      for (size_t w = 0; w < ways.size(); ++w) ways[(w + static_cast<size_t>(i)) % ways.size()]();
+    }
+    if (failed) return 1;
+    if (!perf.empty() && &k == &kinds.front()) profiler.Stop(SIGINT, std::chrono::seconds(60));
     const Stats s = Percentiles(t_sql), a = Percentiles(t_kept), b = Percentiles(t_new);
-    std::printf("%-19s %7.3f / %7.3f | %7.3f / %7.3f %6.1f / %5.1f | %7.3f / %7.3f %6.1f / %5.1f   (%d requests, %zu bytes)\n",
-                k.name, s.p50, s.p99, a.p50, a.p99, a.p50 / s.p50, a.p99 / s.p99, b.p50, b.p99, b.p50 / s.p50, b.p99 / s.p99,
-                reps, body_bytes);
+    char rows[64] = "", rows_ratio[64] = "";
+    if (!t_rows.empty()) {
+      const Stats w = Percentiles(t_rows);
+      std::snprintf(rows, sizeof rows, "%6.3f / %6.3f", w.p50, w.p99);
+      std::snprintf(rows_ratio, sizeof rows_ratio, "%5.2f / %5.2f", a.p50 / w.p50, a.p99 / w.p99);
+    }
+    std::printf(
+        "%-17s %6.3f / %6.3f %15s | %6.3f / %6.3f %5.1f / %5.1f %12s | %6.3f / %6.3f %5.1f / %5.1f  (%d requests, %zu bytes)\n",
+        k.name, s.p50, s.p99, rows, a.p50, a.p99, a.p50 / s.p50, a.p99 / s.p99, rows_ratio, b.p50, b.p99, b.p50 / s.p50,
+        b.p99 / s.p99, reps, body_bytes);
   }
   {
     std::vector<double> t;

@@ -33,23 +33,13 @@ std::string Iso(int64_t unix_s) {
   return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(unix_s)));
 }
 
-ordered_json ReadingJson(const StoredReading& r) {
-  return {{"sensor", r.sensor},
-          {"time", Iso(r.time_s)},
-          {"seq", r.seq},
-          {"thickness_mm", r.thickness_mm},
-          {"loops_intact", r.loops_intact},
-          {"flags", r.flags},
-          {"battery_mv", r.battery_mv},
-          {"received", Iso(r.received_s)}};
-}
-
 /// A sensor's stored reading as JSON (without its sensor id), with "previous_liner": true when it is a
 /// previous liner's (before installed_at, or worn in the day of slack before it: core's OfThisLiner), which
 /// live wear leaves out (docs/server.md, Relining).
 ordered_json SensorReadingJson(const core::CrusherConfig& config, const StoredReading& r) {
-  ordered_json o = ReadingJson(r);
-  o.erase("sensor");
+  ordered_json o = {{"time", Iso(r.time_s)},          {"seq", r.seq},     {"thickness_mm", r.thickness_mm},
+                    {"loops_intact", r.loops_intact}, {"flags", r.flags}, {"battery_mv", r.battery_mv},
+                    {"received", Iso(r.received_s)}};
   if (!config.OfThisLiner(r.sensor, core::TimePoint(std::chrono::seconds(r.time_s)), r.thickness_mm)) o["previous_liner"] = true;
   return o;
 }
@@ -362,7 +352,10 @@ Response Resources::Readings(const Request& req) {
   } catch (const std::invalid_argument& e) {
     return Error(400, e.what());
   }
-  ordered_json readings = ordered_json::array();
+  ordered_json body = {{"readings", ordered_json::array()},
+                       {"next_cursor", page.next_cursor ? ordered_json(*page.next_cursor) : ordered_json(nullptr)}};
+  ordered_json& readings = body["readings"];  // filled in place: the array is not copied into the body
+  readings.get_ref<ordered_json::array_t&>().reserve(page.readings.size());
   for (const auto& r : page.readings) readings.push_back(SensorReadingJson(c->config, r));
   if (*format == "csv") {
     Response r;
@@ -370,8 +363,7 @@ Response Resources::Readings(const Request& req) {
     r.raw = RawBody{ReadingsCsv(readings), core::kCsvContentType};
     return r;
   }
-  return Json(
-      200, {{"readings", readings}, {"next_cursor", page.next_cursor ? ordered_json(*page.next_cursor) : ordered_json(nullptr)}});
+  return Json(200, std::move(body));
 }
 
 Response Resources::PostReadings(const Request& req) {

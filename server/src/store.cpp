@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -19,8 +20,6 @@ using Stmt = core::sqlite::Statement<std::runtime_error>;
 using Tx = core::sqlite::Transaction<std::runtime_error>;
 
 constexpr int kSchemaVersion = 2;
-
-const char* kSelectColumns = "crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload";
 
 StoredReading Row(const Stmt& s) {
   StoredReading r;
@@ -121,10 +120,15 @@ struct Store::Impl {
                " SELECT *, COUNT(*) OVER (PARTITION BY sensor) AS n,"
                " ROW_NUMBER() OVER (PARTITION BY sensor ORDER BY time DESC, seq DESC) AS k"
                " FROM readings WHERE crusher=?1) WHERE k=1 ORDER BY sensor"),
-        range(db, (std::string("SELECT ") + kSelectColumns +
-                   " FROM readings WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4"
-                   " AND (time>?5 OR (time=?5 AND seq>?6)) ORDER BY time, seq LIMIT ?7")
-                      .c_str()),
+        // The readings JSON's columns only (never the payload). ?3 is the later of `from` and the
+        // cursor's time, so the time index's range starts there: with the cursor's bound written as
+        // an OR, SQLite began the range at the cursor's time, INT64_MIN on a first page, and walked
+        // the sensor's index from its first reading. battery_mv and received are read from the row
+        // (the index does not hold them): a primary-key look-up per reading returned.
+        range(db,
+              "SELECT seq, time, thickness_mm, loops_intact, flags, battery_mv, received FROM readings"
+              " WHERE crusher=?1 AND sensor=?2 AND time>=?3 AND time<=?4 AND (time, seq)>(?5, ?6)"
+              " ORDER BY time, seq LIMIT ?7"),
         // Everything but the raw payload: this feeds the wear and forecast computations.
         all(db,
             "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, '' FROM readings"
@@ -343,9 +347,20 @@ Page Store::Range(const std::string& crusher, const std::string& sensor, int64_t
   if (!cursor.empty()) ParseCursor(cursor, &after_t, &after_seq);
   Page page;
   InUse use_range(im.range);
-  im.range.Bind(1, crusher).Bind(2, sensor).Bind(3, from_s).Bind(4, to_s).Bind(5, after_t).Bind(6, after_seq);
-  im.range.Bind(7, static_cast<int64_t>(limit) + 1);
-  while (im.range.Step()) page.readings.push_back(Row(im.range));
+  im.range.Bind(1, crusher).Bind(2, sensor).Bind(3, std::max(from_s, after_t)).Bind(4, to_s).Bind(5, after_t);
+  im.range.Bind(6, after_seq).Bind(7, static_cast<int64_t>(limit) + 1);
+  while (im.range.Step()) {
+    StoredReading& r = page.readings.emplace_back();
+    r.crusher = crusher;
+    r.sensor = sensor;
+    r.seq = im.range.Int(0);
+    r.time_s = im.range.Int(1);
+    r.thickness_mm = im.range.Real(2);
+    r.loops_intact = im.range.Int(3);
+    r.flags = im.range.Int(4);
+    r.battery_mv = im.range.Int(5);
+    r.received_s = im.range.Int(6);
+  }
   if (page.readings.size() > static_cast<size_t>(limit)) {
     page.readings.resize(static_cast<size_t>(limit));
     page.next_cursor = MakeCursor(page.readings.back().time_s, page.readings.back().seq);

@@ -99,7 +99,8 @@ class Store {
   std::vector<SensorSummary> LatestPerSensor(const std::string& crusher);
 
   /// Readings of one sensor in [from_s, to_s], oldest first, at most `limit`, starting after
-  /// `cursor` (from a previous page). Throws std::invalid_argument on a malformed cursor.
+  /// `cursor` (from a previous page), payload left empty. Throws std::invalid_argument on a
+  /// malformed cursor.
   Page Range(const std::string& crusher, const std::string& sensor, int64_t from_s, int64_t to_s, int limit,
              const std::string& cursor);
 

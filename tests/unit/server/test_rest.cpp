@@ -88,7 +88,8 @@ void CheckRowWearLeftOut(const json& wear, const lw::core::Reconstruction& expec
 }
 
 std::string ErrorOf(const rest::Response& r) {
-  return r.json.value("error", std::string("(no error)"));
+  const auto it = r.json.find("error");
+  return it != r.json.end() && it->is_string() ? it->get<std::string>() : std::string("(no error)");
 }
 
 }  // namespace
@@ -216,6 +217,67 @@ TEST(RestHandlers, APreviousLinersReadingIsMarkedInReadingsAndLatest) {
     if (s["id"] == worn) CHECK(s["latest"].value("previous_liner", false));
     if (s["id"] == unworn) CHECK_FALSE(s["latest"].contains("previous_liner"));
   }
+}
+
+// The readings answer, field by field: each reading's keys in this order and nothing else (no
+// sensor id, no payload), the values as posted, `received` the server's store time, pages of
+// `limit` joined by next_cursor ("t<time>s<seq>" of a page's last reading), null on the last page,
+// and from/to inclusive.
+TEST(RestHandlers, TheReadingsAnswerCarriesTheDocumentedFieldsPageByPage) {
+  Fixture f;
+  const std::string sensor = Folder().bundle.crusher.sensors.at(2).id;
+  const lw::core::TimePoint t0 = lw::core::AddDays(Folder().bundle.crusher.installed_at, 1);
+  json body = {{"readings", json::array()}};
+  for (int i = 1; i <= 5; ++i)
+    body["readings"].push_back({{"sensor", sensor},
+                                {"seq", 10 + i},
+                                {"time", lw::core::FormatIsoTime(t0 + std::chrono::seconds(3600 * (i / 2)))},
+                                {"thickness_mm", 80 - i},
+                                {"loops_intact", 80 - i},
+                                {"flags", 0},
+                                {"battery_mv", 3300 + i}});
+  PostReadingsTo(*f.resources, Folder().id(), body);
+  const char* route = "/api/v1/crushers/{crusher}/sensors/{sensor}/readings";
+  std::vector<nlohmann::ordered_json> got, cursors;  // ordered: the keys as the server wrote them
+  std::string cursor;
+  for (int page = 0; page < 10; ++page) {
+    QueryParams q = {{"limit", "2"}};
+    if (!cursor.empty()) q.emplace("cursor", cursor);
+    const rest::Response r = f.Get(route, {Folder().id(), sensor}, q);
+    LONGS_EQUAL(200, r.status);
+    std::vector<std::string> top;
+    for (const auto& [k, v] : r.json.items()) top.push_back(k);
+    CHECK((top == std::vector<std::string>{"readings", "next_cursor"}));
+    for (const auto& reading : r.json["readings"]) got.push_back(reading);
+    cursors.push_back(r.json["next_cursor"]);
+    if (r.json["next_cursor"].is_null()) break;
+    cursor = r.json["next_cursor"].get<std::string>();
+  }
+  LONGS_EQUAL(5, got.size());
+  LONGS_EQUAL(3, cursors.size());
+  for (int i = 1; i <= 5; ++i) {
+    const nlohmann::ordered_json& r = got[static_cast<size_t>(i - 1)];
+    std::vector<std::string> keys;
+    for (const auto& [k, v] : r.items()) keys.push_back(k);
+    CHECK((keys == std::vector<std::string>{"time", "seq", "thickness_mm", "loops_intact", "flags", "battery_mv", "received"}));
+    STRCMP_EQUAL(lw::core::FormatIsoTime(t0 + std::chrono::seconds(3600 * (i / 2))).c_str(),
+                 r["time"].get<std::string>().c_str());
+    LONGS_EQUAL(10 + i, r["seq"].get<int>());
+    DOUBLES_EQUAL(80 - i, r["thickness_mm"].get<double>(), 0);
+    LONGS_EQUAL(80 - i, r["loops_intact"].get<int>());
+    LONGS_EQUAL(0, r["flags"].get<int>());
+    LONGS_EQUAL(3300 + i, r["battery_mv"].get<int>());
+    CHECK(lw::core::ParseIsoTime(r["received"].get<std::string>()).has_value());
+  }
+  const int64_t t0_s = t0.time_since_epoch().count();
+  STRCMP_EQUAL(("t" + std::to_string(t0_s + 3600) + "s12").c_str(), cursors[0].get<std::string>().c_str());
+  STRCMP_EQUAL(("t" + std::to_string(t0_s + 7200) + "s14").c_str(), cursors[1].get<std::string>().c_str());
+  // from/to inclusive: the hour holding seqs 12 and 13.
+  const std::string hour = lw::core::FormatIsoTime(t0 + std::chrono::seconds(3600));
+  const nlohmann::ordered_json window = f.Get(route, {Folder().id(), sensor}, {{"from", hour}, {"to", hour}}).json;
+  LONGS_EQUAL(2, window["readings"].size());
+  LONGS_EQUAL(12, window["readings"][0]["seq"].get<int>());
+  CHECK(window["next_cursor"].is_null());
 }
 
 TEST(RestHandlers, PostedReadingsAreStoredOnceAndServedBack) {

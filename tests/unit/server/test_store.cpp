@@ -111,6 +111,75 @@ TEST(Store, PagesThroughARangeWithCursorsWithoutGapsOrRepeats) {
   LONGS_EQUAL(5, pages);
 }
 
+// Store::Range against the definition, computed here from what was committed: the readings of one
+// sensor with time in [from, to], ordered by (time, seq), strictly after the cursor's (time, seq),
+// at most `limit`, next_cursor naming the last one when more follow; every field as committed
+// but the payload, which Range leaves empty (the readings JSON never shows it). Windows starting
+// before, inside and after the cursor, pages of 1..7, equal times, other sensors around it.
+TEST(Store, RangeIsTheReadingsAfterTheCursorInTheWindowWithEveryFieldButThePayload) {
+  Store s(db());
+  std::vector<StoredReading> all;
+  for (int i = 1; i <= 40; ++i) {
+    StoredReading r = R("b", i, 1000 + (i / 3) * 10, 150 - i);  // times in threes
+    r.flags = i % 4;
+    r.battery_mv = 3000 + i;
+    r.received_s = 7000 + i;
+    all.push_back(r);
+  }
+  all.push_back(R("a", 1, 1100, 50));
+  all.push_back(R("c", 1, 1100, 50));
+  s.Commit(all, {});
+  all.resize(40);
+  const auto expected = [&](int64_t from, int64_t to, int64_t after_t, int64_t after_seq) {
+    std::vector<StoredReading> out;
+    for (const StoredReading& r : all) {
+      if (r.time_s >= from && r.time_s <= to && (r.time_s > after_t || (r.time_s == after_t && r.seq > after_seq)))
+        out.push_back(r);
+    }
+    return out;  // already in (time, seq) order
+  };
+  int pages_checked = 0;
+  for (const auto& [from, to] : {std::pair<int64_t, int64_t>{0, 5000}, {1030, 1100}, {1035, 1035}, {1040, 1040}, {2000, 3000}}) {
+    for (const int limit : {1, 2, 3, 7}) {
+      std::string cursor;
+      int64_t after_t = INT64_MIN, after_seq = INT64_MIN;
+      for (int page_no = 0; page_no < 100; ++page_no) {
+        const auto page = s.Range("c1", "b", from, to, limit, cursor);
+        const std::vector<StoredReading> left = expected(from, to, after_t, after_seq);
+        const size_t n = std::min(left.size(), static_cast<size_t>(limit));
+        LONGS_EQUAL(n, page.readings.size());
+        for (size_t k = 0; k < n; ++k) {
+          const StoredReading &got = page.readings[k], &want = left[k];
+          STRCMP_EQUAL("c1", got.crusher.c_str());
+          STRCMP_EQUAL("b", got.sensor.c_str());
+          LONGS_EQUAL(want.seq, got.seq);
+          LONGS_EQUAL(want.time_s, got.time_s);
+          DOUBLES_EQUAL(want.thickness_mm, got.thickness_mm, 0);
+          LONGS_EQUAL(want.loops_intact, got.loops_intact);
+          LONGS_EQUAL(want.flags, got.flags);
+          LONGS_EQUAL(want.battery_mv, got.battery_mv);
+          LONGS_EQUAL(want.received_s, got.received_s);
+          CHECK(got.payload.empty());
+        }
+        ++pages_checked;
+        if (left.size() <= static_cast<size_t>(limit)) {
+          CHECK(!page.next_cursor);
+          break;
+        }
+        CHECK(page.next_cursor.has_value());
+        STRCMP_EQUAL(lw::server::MakeCursor(left[n - 1].time_s, left[n - 1].seq).c_str(), page.next_cursor->c_str());
+        cursor = *page.next_cursor;
+        after_t = left[n - 1].time_s;
+        after_seq = left[n - 1].seq;
+      }
+    }
+  }
+  CHECK(pages_checked > 100);
+  // A cursor from before the window (or after it) still reads the window's readings (or none).
+  LONGS_EQUAL(expected(1050, 1100, 1000, 1).size(), s.Range("c1", "b", 1050, 1100, 100, "t1000s1").readings.size());
+  LONGS_EQUAL(0, s.Range("c1", "b", 1050, 1100, 100, "t1200s1").readings.size());
+}
+
 TEST(Store, MalformedCursorIsRefused) {
   Store s(db());
   CHECK_THROWS(std::invalid_argument, s.Range("c1", "a", 0, 10, 5, "t12x"));
