@@ -118,22 +118,12 @@ void Gateway::OnFrame(const uint8_t* frame, size_t len, int64_t now_ms) {
       NoteDevice(d);
       return;
     }
-    case protocol::FrameType::kTransmitStatus: {
-      protocol::TransmitStatus st;
-      if (protocol::ParseTransmitStatus(frame, len, &st) != protocol::Status::kOk) {
-        ++counters_.malformed_frames;
-        LogLimited("malformed", "serial: malformed transmit status frame");
-        return;
-      }
-      if (st.delivery_status != static_cast<uint8_t>(protocol::DeliveryStatus::kSuccess)) {
-        ++counters_.tx_failures;
-        char dest[8];
-        std::snprintf(dest, sizeof dest, "%04X", static_cast<unsigned>(st.dest16));
-        LogLimited("tx_failure", std::string("radio: ack delivery to 16-bit address ") + dest + " failed: " +
-                                     protocol::DeliveryStatusName(st.delivery_status) + " (the sensor retransmits)");
-      }
+    case protocol::FrameType::kTransmitStatus:
+      OnTransmitStatus(frame, len);
       return;
-    }
+    case protocol::FrameType::kAtCommandResponse:
+      OnAtResponse(frame, len);
+      return;
     case protocol::FrameType::kModemStatus: {
       protocol::ModemStatus ms;
       if (protocol::ParseModemStatus(frame, len, &ms) == protocol::Status::kOk) {
@@ -144,11 +134,93 @@ void Gateway::OnFrame(const uint8_t* frame, size_t len, int64_t now_ms) {
       return;
     }
     case protocol::FrameType::kTransmitRequest:
+    case protocol::FrameType::kAtCommand:
       break;
   }
   ++counters_.unknown_frames;
   LogLimited("unknown_frame",
              "serial: frame of unhandled type " + FrameTypeHex(type) + " (" + std::to_string(len) + " bytes) ignored");
+}
+
+void Gateway::OnTransmitStatus(const uint8_t* frame, size_t len) {
+  protocol::TransmitStatus st;
+  if (protocol::ParseTransmitStatus(frame, len, &st) != protocol::Status::kOk) {
+    ++counters_.malformed_frames;
+    LogLimited("malformed", "serial: malformed transmit status frame");
+    return;
+  }
+  if (st.delivery_status == static_cast<uint8_t>(protocol::DeliveryStatus::kSuccess)) return;
+  ++counters_.tx_failures;
+  char dest[8];
+  std::snprintf(dest, sizeof dest, "%04X", static_cast<unsigned>(st.dest16));
+  std::string why = protocol::DeliveryStatusName(st.delivery_status);
+  if (st.delivery_status == static_cast<uint8_t>(protocol::DeliveryStatus::kDataPayloadTooLarge)) {
+    ++counters_.acks_too_large;
+    why += ": the link carries less than the coordinator's NP and EE say (APS encryption or source routing?)";
+  }
+  LogLimited("tx_failure",
+             std::string("radio: ack delivery to 16-bit address ") + dest + " failed: " + why + " (the sensor retransmits)");
+}
+
+void Gateway::OnRadioOpened(int64_t now_ms) {
+  radio_np_ = -1;
+  radio_ee_ = -1;
+  uint8_t* ids[2] = {&np_query_id_, &ee_query_id_};
+  const char* commands[2] = {"NP", "EE"};
+  std::vector<uint8_t> out;
+  for (int i = 0; i < 2; ++i) {
+    protocol::AtCommand cmd;
+    cmd.frame_id = next_frame_id_;
+    next_frame_id_ = protocol::NextFrameId(next_frame_id_);
+    cmd.command[0] = commands[i][0];
+    cmd.command[1] = commands[i][1];
+    uint8_t wire[16];
+    const size_t n = protocol::EncodeAtCommand(options_.api_mode, cmd, wire, sizeof wire);
+    out.insert(out.end(), wire, wire + n);
+    *ids[i] = cmd.frame_id;
+  }
+  radio_query_deadline_ms_ = now_ms + 5000;
+  if (!radio_.Write(out.data(), out.size())) {
+    LogLimited("at_write", "serial: writing the AT NP / EE queries failed; acks stay sized for " +
+                               std::to_string(protocol::kMinRfPayload) + " bytes");
+  }
+}
+
+size_t Gateway::rf_payload_limit() const {
+  return protocol::ClampRfPayload(protocol::RfPayloadLimit(radio_np_, radio_ee_));
+}
+
+void Gateway::OnAtResponse(const uint8_t* frame, size_t len) {
+  protocol::AtCommandResponse rsp;
+  if (protocol::ParseAtCommandResponse(frame, len, &rsp) != protocol::Status::kOk) {
+    ++counters_.malformed_frames;
+    return;
+  }
+  const std::string name(rsp.command, 2);
+  uint64_t value = 0;
+  const bool ok = rsp.Value(&value);
+  if (rsp.frame_id == 0 || (rsp.frame_id != np_query_id_ && rsp.frame_id != ee_query_id_)) return;
+  if (!ok) {
+    Log("radio: the coordinator answered AT " + name + " with status " + std::to_string(rsp.status) + "; acks stay sized for " +
+        std::to_string(protocol::kMinRfPayload) + " bytes");
+  } else if (rsp.frame_id == np_query_id_) {
+    radio_np_ = static_cast<int>(std::min<uint64_t>(value, 0xFF));
+  } else {
+    radio_ee_ = value != 0 ? 1 : 0;
+  }
+  (rsp.frame_id == np_query_id_ ? np_query_id_ : ee_query_id_) = 0;
+  if (np_query_id_ != 0 || ee_query_id_ != 0 || radio_np_ < 0 || radio_ee_ < 0) return;
+  radio_query_deadline_ms_ = -1;
+  const size_t raw = protocol::RfPayloadLimit(radio_np_, radio_ee_);
+  std::string line = "radio: coordinator NP " + std::to_string(radio_np_) + ", EE " + std::to_string(radio_ee_) +
+                     ": RF payloads of at most " + std::to_string(rf_payload_limit()) + " bytes (acks of up to " +
+                     std::to_string(protocol::MaxAckSeqs(rf_payload_limit())) + " seqs)";
+  if (raw < protocol::kMinRfPayload) {
+    line += "; WARNING: below the " + std::to_string(protocol::kMinRfPayload) +
+            " bytes one record of a 128-loop ladder needs: larger frames are fragmented (docs/gateway.md, "
+            "*Coordinator set-up*)";
+  }
+  Log(line);
 }
 
 void Gateway::OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms) {
@@ -159,6 +231,14 @@ void Gateway::OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms) 
     return;
   }
   const std::string source = mqtt::AddressHex(rx.src64);
+  if (radio_np_ >= 0 && radio_ee_ >= 0 && rx.payload_len > rf_payload_limit()) {
+    // Stored all the same; the sender relies on fragmentation (its firmware does not size frames
+    // to NP), and a fragmented packet is lost whole when one fragment is.
+    ++counters_.oversize_frames;
+    LogLimited("oversize", "radio: " + std::to_string(rx.payload_len) + "-byte payload from " + source + " is above the link's " +
+                               std::to_string(rf_payload_limit()) +
+                               " bytes: it was fragmented on the air (update that sensor's firmware)");
+  }
   const uint8_t payload_type = protocol::PayloadType(rx.payload, rx.payload_len);
   if (payload_type != protocol::kMsgReadings) {
     ++counters_.unknown_payloads;
@@ -236,19 +316,27 @@ void Gateway::FlushReadings() {
     }
     return;
   }
+  // One ack list per sender and sensor, in the order they first came; a seq once.
+  std::vector<std::tuple<uint64_t, uint16_t, uint32_t, std::vector<uint32_t>>> acks;
   for (const PendingFrame& f : frames) {
     const std::string sensor = std::to_string(f.sensor_id);
-    std::vector<uint32_t> ack_seqs;
+    auto entry = std::find_if(acks.begin(), acks.end(),
+                              [&](const auto& a) { return std::get<0>(a) == f.src64 && std::get<2>(a) == f.sensor_id; });
+    if (entry == acks.end()) entry = acks.insert(acks.end(), {f.src64, f.src16, f.sensor_id, {}});
+    std::vector<uint32_t>& ack_seqs = std::get<3>(*entry);
+    const auto ack = [&ack_seqs](uint32_t seq) {
+      if (std::find(ack_seqs.begin(), ack_seqs.end(), seq) == ack_seqs.end()) ack_seqs.push_back(seq);
+    };
     for (size_t i = f.first; i < f.first + f.count; ++i) {
       switch (outcomes[i]) {
         case InsertOutcome::kStored:
           ++counters_.records_spooled;
-          ack_seqs.push_back(batch[i].seq);
+          ack(batch[i].seq);
           dirty_sensors_.insert(sensor);
           break;
         case InsertOutcome::kDuplicate:
           ++counters_.records_duplicate;
-          ack_seqs.push_back(batch[i].seq);
+          ack(batch[i].seq);
           break;
         case InsertOutcome::kRejectedFull:
           ++counters_.records_rejected;
@@ -257,17 +345,26 @@ void Gateway::FlushReadings() {
           break;
       }
     }
-    if (!ack_seqs.empty()) QueueAck(f.src64, f.src16, f.sensor_id, ack_seqs);
   }
+  QueueAcks(acks);
   WriteAcks();
   for (size_t i = 0; i < devices.size(); ++i) DeviceRecorded(devices[i], devices_changed[i]);
 }
 
+void Gateway::QueueAcks(const std::vector<std::tuple<uint64_t, uint16_t, uint32_t, std::vector<uint32_t>>>& acks) {
+  for (const auto& [dest64, dest16, sensor_id, seqs] : acks) {
+    if (!seqs.empty()) QueueAck(dest64, dest16, sensor_id, seqs);
+  }
+}
+
 void Gateway::QueueAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, const std::vector<uint32_t>& seqs) {
-  for (size_t start = 0; start < seqs.size(); start += protocol::kMaxAckSeqs) {
+  // As many seqs per ack as the link carries unfragmented: a sleeping sensor's parent holds few
+  // packets for it, and a fragmented one is lost whole when one fragment is.
+  const size_t per_ack = protocol::MaxAckSeqs(rf_payload_limit());
+  for (size_t start = 0; start < seqs.size(); start += per_ack) {
     protocol::Ack ack;
     ack.sensor_id = sensor_id;
-    const size_t n = std::min(protocol::kMaxAckSeqs, seqs.size() - start);
+    const size_t n = std::min(per_ack, seqs.size() - start);
     for (size_t i = 0; i < n; ++i) ack.seqs[i] = seqs[start + i];
     ack.count = static_cast<uint8_t>(n);
     uint8_t payload[protocol::kMaxRfPayload];
@@ -278,7 +375,7 @@ void Gateway::QueueAck(uint64_t dest64, uint16_t dest16, uint32_t sensor_id, con
     next_frame_id_ = protocol::NextFrameId(next_frame_id_);
     req.dest64 = dest64;
     req.dest16 = dest16;
-    if (protocol::EncodeAck(ack, payload, sizeof payload, &payload_len) != protocol::PayloadStatus::kOk) return;
+    if (protocol::EncodeAck(ack, payload, rf_payload_limit(), &payload_len) != protocol::PayloadStatus::kOk) return;
     req.payload = payload;
     req.payload_len = payload_len;
     const size_t wire_len = protocol::EncodeTransmitRequest(options_.api_mode, req, wire, sizeof wire);
@@ -460,6 +557,12 @@ void Gateway::Pump(int64_t now_ms) {
       (now_ms - pending_release_since_ms_ >= options_.release_delay_ms || now_ms < pending_release_since_ms_)) {
     FlushReleases();
   }
+  if (radio_query_deadline_ms_ >= 0 && now_ms >= radio_query_deadline_ms_) {
+    radio_query_deadline_ms_ = -1;
+    Log("radio: the coordinator did not answer AT NP / EE within 5 s (API mode " +
+        std::to_string(static_cast<int>(options_.api_mode)) +
+        " as its AP? docs/gateway.md, *First light*): acks stay sized for " + std::to_string(protocol::kMinRfPayload) + " bytes");
+  }
   if (publisher_.IsConnected()) {
     // Readings first: a registry of many radios must not delay them.
     if (records_dirty_ || !dirty_sensors_.empty() || now_ms >= next_republish_check_ms_) PublishRecords(now_ms);
@@ -640,6 +743,9 @@ std::string Gateway::StatsJson(int64_t now_ms) const {
       {"acks_sent", counters_.acks_sent},
       {"ack_write_errors", counters_.ack_write_errors},
       {"tx_failures", counters_.tx_failures},
+      {"acks_too_large", counters_.acks_too_large},
+      {"oversize_frames", counters_.oversize_frames},
+      {"rf_payload_limit", rf_payload_limit()},
       {"spool_errors", counters_.spool_errors},
       {"spool_depth", spool_depth()},
       {"spool_max_records", spool_.max_records()},

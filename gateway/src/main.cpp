@@ -137,6 +137,7 @@ int Run(const lw::gateway::Config& config) {
         Log("serial " + config.serial + " open (" + std::to_string(config.baud) + " baud, API mode " +
             std::to_string(config.api_mode) + ")");
         reported_open_error = false;
+        gateway.OnRadioOpened(now);  // asks the coordinator for NP and EE
       } else {
         if (!reported_open_error) Log(error + " (retrying every 2 s)");
         reported_open_error = true;

@@ -41,11 +41,26 @@ speed_t ToSpeed(int baud) {
 
 }  // namespace
 
+std::string OpenErrorText(const std::string& path, int err) {
+  std::string text = "serial " + path + ": cannot open: " + std::strerror(err);
+  if (err == EPERM) {
+    text +=
+        " (a device policy refuses it: under systemd the unit's DevicePolicy=closed allows only the "
+        "DeviceAllow= groups; add `DeviceAllow=char-NAME rw` for this device's group in /proc/devices "
+        "with `systemctl edit linerwatch-gateway`, docs/gateway.md, *Serial devices the unit allows*)";
+  } else if (err == EACCES) {
+    text +=
+        " (file permissions: the gateway's user must be in the device's group, usually dialout: "
+        "`ls -l` the device, `adduser linerwatch-gateway dialout`, docs/gateway.md, *Serial devices the unit allows*)";
+  }
+  return text;
+}
+
 bool SerialPort::Open(std::string* error) {
   Close();
   fd_ = ::open(path_.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
   if (fd_ < 0) {
-    *error = "serial " + path_ + ": cannot open: " + std::strerror(errno);
+    *error = OpenErrorText(path_, errno);
     return false;
   }
   is_tty_ = isatty(fd_) != 0;

@@ -4,7 +4,9 @@ namespace lw::protocol {
 namespace {
 bool IsKnownType(uint8_t t) {
   switch (static_cast<FrameType>(t)) {
+    case FrameType::kAtCommand:
     case FrameType::kTransmitRequest:
+    case FrameType::kAtCommandResponse:
     case FrameType::kModemStatus:
     case FrameType::kTransmitStatus:
     case FrameType::kReceivePacket:

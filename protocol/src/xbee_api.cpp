@@ -163,6 +163,46 @@ Status BuildTransmitRequest(const TransmitRequest& req, uint8_t* out, size_t out
   return Status::kOk;
 }
 
+size_t EncodeAtCommand(ApiMode mode, const AtCommand& cmd, uint8_t* wire, size_t wire_cap) {
+  uint8_t frame[kMaxFrameData];
+  size_t len = 0;
+  if (BuildAtCommand(cmd, frame, sizeof frame, &len) != Status::kOk) return 0;
+  return EncodeFrame(mode, frame, len, wire, wire_cap);
+}
+
+Status BuildAtCommand(const AtCommand& cmd, uint8_t* out, size_t out_cap, size_t* written) {
+  if (cmd.parameter_len > kMaxFrameData - 4 || (cmd.parameter_len > 0 && cmd.parameter == nullptr)) {
+    return Status::kPayloadTooLarge;
+  }
+  if (Finish(4 + cmd.parameter_len, out_cap, written) != Status::kOk || out == nullptr) return Status::kBufferTooSmall;
+  out[0] = static_cast<uint8_t>(FrameType::kAtCommand);
+  out[1] = cmd.frame_id;
+  out[2] = static_cast<uint8_t>(cmd.command[0]);
+  out[3] = static_cast<uint8_t>(cmd.command[1]);
+  if (cmd.parameter_len) std::memcpy(out + 4, cmd.parameter, cmd.parameter_len);
+  return Status::kOk;
+}
+
+Status BuildAtCommandResponse(const AtCommandResponse& rsp, uint8_t* out, size_t out_cap, size_t* written) {
+  if (rsp.data_len > kMaxFrameData - 5 || (rsp.data_len > 0 && rsp.data == nullptr)) return Status::kPayloadTooLarge;
+  if (Finish(5 + rsp.data_len, out_cap, written) != Status::kOk || out == nullptr) return Status::kBufferTooSmall;
+  out[0] = static_cast<uint8_t>(FrameType::kAtCommandResponse);
+  out[1] = rsp.frame_id;
+  out[2] = static_cast<uint8_t>(rsp.command[0]);
+  out[3] = static_cast<uint8_t>(rsp.command[1]);
+  out[4] = rsp.status;
+  if (rsp.data_len) std::memcpy(out + 5, rsp.data, rsp.data_len);
+  return Status::kOk;
+}
+
+bool AtCommandResponse::Value(uint64_t* out) const {
+  if (status != static_cast<uint8_t>(AtStatus::kOk) || data_len == 0 || data_len > 8 || data == nullptr) return false;
+  uint64_t v = 0;
+  for (size_t i = 0; i < data_len; ++i) v = (v << 8) | data[i];
+  *out = v;
+  return true;
+}
+
 Status BuildTransmitStatus(const TransmitStatus& st, uint8_t* out, size_t out_cap, size_t* written) {
   if (Finish(7, out_cap, written) != Status::kOk || out == nullptr) return Status::kBufferTooSmall;
   out[0] = static_cast<uint8_t>(FrameType::kTransmitStatus);
@@ -241,6 +281,29 @@ Status ParseTransmitRequest(const uint8_t* data, size_t len, TransmitRequest* ou
   out->options = data[13];
   out->payload = data + 14;
   out->payload_len = len - 14;
+  return Status::kOk;
+}
+
+Status ParseAtCommand(const uint8_t* data, size_t len, AtCommand* out) {
+  const Status s = Check(data, len, 4, FrameType::kAtCommand);
+  if (s != Status::kOk) return s;
+  out->frame_id = data[1];
+  out->command[0] = static_cast<char>(data[2]);
+  out->command[1] = static_cast<char>(data[3]);
+  out->parameter = data + 4;
+  out->parameter_len = len - 4;
+  return Status::kOk;
+}
+
+Status ParseAtCommandResponse(const uint8_t* data, size_t len, AtCommandResponse* out) {
+  const Status s = Check(data, len, 5, FrameType::kAtCommandResponse);
+  if (s != Status::kOk) return s;
+  out->frame_id = data[1];
+  out->command[0] = static_cast<char>(data[2]);
+  out->command[1] = static_cast<char>(data[3]);
+  out->status = data[4];
+  out->data = data + 5;
+  out->data_len = len - 5;
   return Status::kOk;
 }
 

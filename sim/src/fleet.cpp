@@ -13,22 +13,6 @@
 namespace lw::sim {
 namespace {
 
-/// The board's UART as its firmware sees it: the host radio, whose link the virtual network
-/// decides per transmission (the firmware writes one API frame per Write).
-class AirUart final : public hal::Uart {
- public:
-  AirUart(hal::host::HostRadio& radio, VirtualNetwork& network) : radio_(radio), network_(network) {}
-
- private:
-  size_t DoWrite(const uint8_t* data, size_t len) override {
-    radio_.set_link_up(!network_.DrawLoss());
-    return radio_.Write(data, len);
-  }
-  size_t DoRead(uint8_t* out, size_t cap) override { return radio_.Read(out, cap); }
-  hal::host::HostRadio& radio_;
-  VirtualNetwork& network_;
-};
-
 void AppendFrame(protocol::ApiMode mode, const uint8_t* frame, size_t len, std::vector<uint8_t>* out) {
   uint8_t wire[protocol::kMaxWireFrame];
   const size_t n = protocol::EncodeFrame(mode, frame, len, wire, sizeof wire);
@@ -59,12 +43,13 @@ uint64_t SensorAddress(const core::SensorInfo& sensor) {
 struct Fleet::Board {
   Board(const firmware::Config& c, uint64_t address, VirtualNetwork& network)
       : host(c.ladder_loops, address, c.api_mode),
-        air(host.radio, network),
-        hal{host.ladder, host.ladder_power, air, host.adc, host.rtc, host.power, host.watchdog, host.flash},
+        hal{host.ladder, host.ladder_power, host.radio, host.adc, host.rtc, host.power, host.watchdog, host.flash},
         app(c, hal),
-        config(c) {}
+        config(c) {
+    // The virtual network decides the fate of each transmission (local AT queries stay local).
+    host.radio.set_link_check([&network] { return !network.DrawLoss(); });
+  }
   hal::host::HostBoard host;
-  AirUart air;
   hal::Board hal;
   firmware::App app;
   firmware::Config config;
@@ -111,6 +96,8 @@ Fleet::Fleet(const core::CrusherConfig& crusher, const TruthModel& truth, const 
              : 0u);
     b->host.rtc.Set(boot);
     b->host.ladder.SetIntactCount(config.ladder_loops);
+    b->host.radio.set_np(options.radio_np);
+    b->host.radio.set_ee(options.radio_ee);
     Board* raw = b.get();
     b->host.radio.set_on_deliver([this, raw](uint64_t src64, const uint8_t* payload, size_t len) {
       network_.Schedule(static_cast<double>(raw->host.rtc.now()), src64, protocol::kCoordinatorAddress64, payload, len);
@@ -208,34 +195,75 @@ void Fleet::OnSerialInput(const uint8_t* data, size_t len) {
   serial_in_.Feed(data, len, [&](protocol::DecodeEvent event) {
     if (event != protocol::DecodeEvent::kFrame) return;
     protocol::TransmitRequest req;
-    if (protocol::ParseTransmitRequest(serial_in_.frame_data(), serial_in_.frame_length(), &req) != protocol::Status::kOk) {
-      ++counters_.serial_bad_frames;
+    if (protocol::ParseTransmitRequest(serial_in_.frame_data(), serial_in_.frame_length(), &req) == protocol::Status::kOk) {
+      OnGatewayTransmit(req);
       return;
     }
-    ++counters_.acks_from_gateway;
-    protocol::Ack ack;
-    if (protocol::DecodeAck(req.payload, req.payload_len, &ack) == protocol::PayloadStatus::kOk) {
-      for (size_t k = 0; k < ack.count; ++k) unacked_.erase({ack.sensor_id, ack.seqs[k]});
+    protocol::AtCommand cmd;
+    if (protocol::ParseAtCommand(serial_in_.frame_data(), serial_in_.frame_length(), &cmd) == protocol::Status::kOk) {
+      AnswerAt(cmd);
+      return;
     }
-    bool delivered = false;
-    auto it = by_address_.find(req.dest64);
-    if (it != by_address_.end()) {
-      delivered = network_.Send(now_, protocol::kCoordinatorAddress64, req.dest64, req.payload, req.payload_len);
-      if (!delivered) ++counters_.acks_lost;
-    } else {
-      ++counters_.serial_bad_frames;
-    }
-    if (req.frame_id == 0) return;
-    protocol::TransmitStatus st;
-    st.frame_id = req.frame_id;
-    st.dest16 = it != by_address_.end() ? it->second->src16 : protocol::kUnknownAddress16;
-    st.delivery_status = delivered ? 0x00 : static_cast<uint8_t>(protocol::DeliveryStatus::kNetworkAckFailure);
-    uint8_t frame[16];
-    size_t n = 0;
-    if (protocol::BuildTransmitStatus(st, frame, sizeof frame, &n) == protocol::Status::kOk) {
-      AppendFrame(options_.serial_mode, frame, n, &serial_out_);
-    }
+    ++counters_.serial_bad_frames;
   });
+}
+
+void Fleet::AnswerAt(const protocol::AtCommand& cmd) {
+  ++counters_.at_queries;
+  if (cmd.frame_id == 0) return;
+  protocol::AtCommandResponse rsp;
+  rsp.frame_id = cmd.frame_id;
+  rsp.command[0] = cmd.command[0];
+  rsp.command[1] = cmd.command[1];
+  uint8_t value[2] = {0, 0};
+  const bool query = cmd.parameter_len == 0;
+  if (query && cmd.command[0] == 'N' && cmd.command[1] == 'P') {
+    value[1] = options_.radio_np;  // two bytes, as Digi's modules answer
+    rsp.data = value;
+    rsp.data_len = 2;
+  } else if (query && cmd.command[0] == 'E' && cmd.command[1] == 'E') {
+    value[0] = options_.radio_ee;
+    rsp.data = value;
+    rsp.data_len = 1;
+  } else {
+    rsp.status = static_cast<uint8_t>(protocol::AtStatus::kInvalidCommand);
+  }
+  uint8_t frame[16];
+  size_t n = 0;
+  if (protocol::BuildAtCommandResponse(rsp, frame, sizeof frame, &n) == protocol::Status::kOk) {
+    AppendFrame(options_.serial_mode, frame, n, &serial_out_);
+  }
+}
+
+void Fleet::OnGatewayTransmit(const protocol::TransmitRequest& req) {
+  ++counters_.acks_from_gateway;
+  const bool too_large = req.payload_len > protocol::RfPayloadLimit(options_.radio_np, options_.radio_ee);
+  protocol::Ack ack;
+  if (!too_large && protocol::DecodeAck(req.payload, req.payload_len, &ack) == protocol::PayloadStatus::kOk) {
+    for (size_t k = 0; k < ack.count; ++k) unacked_.erase({ack.sensor_id, ack.seqs[k]});
+  }
+  bool delivered = false;
+  auto it = by_address_.find(req.dest64);
+  if (too_large) {
+    ++counters_.acks_too_large;
+  } else if (it != by_address_.end()) {
+    delivered = network_.Send(now_, protocol::kCoordinatorAddress64, req.dest64, req.payload, req.payload_len);
+    if (!delivered) ++counters_.acks_lost;
+  } else {
+    ++counters_.serial_bad_frames;
+  }
+  if (req.frame_id == 0) return;
+  protocol::TransmitStatus st;
+  st.frame_id = req.frame_id;
+  st.dest16 = it != by_address_.end() ? it->second->src16 : protocol::kUnknownAddress16;
+  st.delivery_status = delivered   ? uint8_t{0x00}
+                       : too_large ? static_cast<uint8_t>(protocol::DeliveryStatus::kDataPayloadTooLarge)
+                                   : static_cast<uint8_t>(protocol::DeliveryStatus::kNetworkAckFailure);
+  uint8_t frame[16];
+  size_t n = 0;
+  if (protocol::BuildTransmitStatus(st, frame, sizeof frame, &n) == protocol::Status::kOk) {
+    AppendFrame(options_.serial_mode, frame, n, &serial_out_);
+  }
 }
 
 size_t Fleet::queued_records() const {
@@ -248,7 +276,10 @@ FleetCounters Fleet::counters() const {
   FleetCounters c = counters_;
   c.readings_produced = ledger_.size();
   c.readings_acked = 0;
-  for (const auto& b : boards_) c.readings_acked += b->app.stats().records_acked;
+  for (const auto& b : boards_) {
+    c.readings_acked += b->app.stats().records_acked;
+    c.frames_too_large += b->host.radio.refused_too_large();
+  }
   return c;
 }
 

@@ -53,6 +53,10 @@ const core::OptionTable& RunTable() {
       Option::Number("speed", "X", NumberRange{0, std::numeric_limits<double>::infinity(), false, true},
                      "virtual seconds per wall second (default 400000: 95 days in ~20 s;\n0: as fast as the gateway acks)"),
       Option::Whole("api-mode", "1|2", 1, 2, "coordinator API mode, must match the gateway's (default 1)"),
+      Option::Whole("radio-np", "N", 1, 255,
+                    "what every virtual radio answers to AT NP (default 255: an XBee 3 in API\nmode); "
+                    "a frame above the payload limit it implies is refused, not sent"),
+      Option::Whole("radio-ee", "0|1", 0, 1, "what every virtual radio answers to AT EE (default 0)"),
       Option::Text("clock-out", "PATH", "keep the virtual time (Unix ms) in PATH for the gateway's --clock-file"),
       Option::Number("loss", "P", NumberRange{0, 1, false, true},
                      "probability that a radio transmission attempt is lost (default 0)"),
@@ -96,6 +100,7 @@ struct RunOptions {
   double days = -1;
   double speed = 400000;
   int api_mode = 1;
+  int radio_np = 255, radio_ee = 0;
   double loss = 0, dup = 0, latency_ms = 50;
   uint64_t seed = 1;
   double ack_wait_s = 2;
@@ -118,6 +123,8 @@ bool Parse(const std::vector<std::string>& args, RunOptions* o) {
   o->days = p.Number("days", o->days);
   o->speed = p.Number("speed", o->speed);
   o->api_mode = p.Integer<int>("api-mode", o->api_mode);
+  o->radio_np = p.Integer<int>("radio-np", o->radio_np);
+  o->radio_ee = p.Integer<int>("radio-ee", o->radio_ee);
   o->loss = p.Number("loss", o->loss);
   o->dup = p.Number("dup", o->dup);
   o->latency_ms = p.Number("latency-ms", o->latency_ms);
@@ -467,6 +474,8 @@ int RunCommand(const std::vector<std::string>& args) {
     fo.network.dup = o.dup;
     fo.network.latency_s = o.latency_ms / 1000.0;
     fo.network.seed = o.seed;
+    fo.radio_np = static_cast<uint8_t>(o.radio_np);
+    fo.radio_ee = static_cast<uint8_t>(o.radio_ee);
     fo.serial_mode = o.api_mode == 1 ? protocol::ApiMode::kUnescaped : protocol::ApiMode::kEscaped;
     Fleet fleet(folder.crusher, *folder.truth, fo);
     const int64_t end_s = fleet.start_s() + static_cast<int64_t>(std::llround(days * 86400.0));
@@ -493,11 +502,13 @@ int RunCommand(const std::vector<std::string>& args) {
       const FleetCounters c = fleet.counters();
       std::fprintf(stderr,
                    "linerwatch-sim: %s: %llu readings produced, %llu acked to the sensors, %zu still queued; "
-                   "%llu serial bytes dropped (no gateway), %llu ack waits timed out\n",
+                   "%llu serial bytes dropped (no gateway), %llu ack waits timed out; "
+                   "frames refused as too large: %llu from boards, %llu acks\n",
                    stopped ? "stopped" : "done", static_cast<unsigned long long>(c.readings_produced),
                    static_cast<unsigned long long>(c.readings_acked), fleet.queued_records(),
                    static_cast<unsigned long long>(runner.serial_dropped()),
-                   static_cast<unsigned long long>(runner.hold_timeouts()));
+                   static_cast<unsigned long long>(runner.hold_timeouts()), static_cast<unsigned long long>(c.frames_too_large),
+                   static_cast<unsigned long long>(c.acks_too_large));
     }
     return 0;
   } catch (const UsageError& e) {

@@ -6,7 +6,13 @@ namespace lw::firmware {
 namespace {
 constexpr uint16_t kFaultFlags =
     protocol::kFlagLoopHealed | protocol::kFlagNonContiguous | protocol::kFlagAllOpen | protocol::kFlagSpiStuck;
-}
+/// Records per frame at most (Transmit's fixed arrays): a 1-loop ladder on an 84-byte link.
+constexpr size_t kMaxRecordsPerFrame = 8;
+static_assert(protocol::MaxRecordsPerPayload(1, protocol::kMaxRfPayload) <= kMaxRecordsPerFrame,
+              "Transmit's arrays hold a frame of the smallest ladder on the largest link");
+static_assert(protocol::MaxRecordsPerPayload(protocol::kMaxLadderLoops, protocol::kMinRfPayload) >= 1,
+              "a record of any ladder fits the smallest supported NP: no frame ever needs fragmentation");
+}  // namespace
 
 App::App(const Config& config, const hal::Board& board)
     : config_(config),
@@ -38,6 +44,49 @@ void App::Init() {
   state_.seq_reserved_until = next_seq_ + config_.seq_reserve_block;
   dirty_ = true;
   Persist();
+  QueryRadio();
+}
+
+size_t App::rf_payload_limit() const {
+  if (force_min_payload_) return protocol::kMinRfPayload;
+  return protocol::ClampRfPayload(protocol::RfPayloadLimit(radio_np_, radio_ee_));
+}
+
+void App::QueryRadio() {
+  // Until both answers are in, frames are sized for the smallest NP: never above the link's limit.
+  radio_np_ = -1;
+  radio_ee_ = -1;
+  const char* commands[2] = {"NP", "EE"};
+  uint8_t* ids[2] = {&np_query_id_, &ee_query_id_};
+  for (int i = 0; i < 2; ++i) {
+    protocol::AtCommand cmd;
+    frame_id_ = protocol::NextFrameId(frame_id_);
+    cmd.frame_id = frame_id_;
+    cmd.command[0] = commands[i][0];
+    cmd.command[1] = commands[i][1];
+    uint8_t wire[16];
+    const size_t n = protocol::EncodeAtCommand(config_.api_mode, cmd, wire, sizeof wire);
+    if (n == 0) continue;
+    board_.radio.Write(wire, n);
+    *ids[i] = frame_id_;
+  }
+  ++stats_.radio_queries;
+}
+
+bool App::HandleRadioAnswer(const uint8_t* data, size_t len) {
+  protocol::AtCommandResponse rsp;
+  if (protocol::ParseAtCommandResponse(data, len, &rsp) != protocol::Status::kOk) return false;
+  uint64_t value = 0;
+  const bool ok = rsp.Value(&value);
+  if (rsp.frame_id != 0 && rsp.frame_id == np_query_id_) {
+    np_query_id_ = 0;
+    radio_np_ = ok && value <= 0xFF ? static_cast<int>(value) : -1;
+    if (radio_np_ >= 0 && protocol::RfPayloadLimit(radio_np_, 0) < protocol::kMinRfPayload) ++stats_.np_below_minimum;
+  } else if (rsp.frame_id != 0 && rsp.frame_id == ee_query_id_) {
+    ee_query_id_ = 0;
+    radio_ee_ = ok ? static_cast<int>(value != 0) : -1;
+  }
+  return true;
 }
 
 uint16_t App::reported_thickness_dmm() const {
@@ -162,14 +211,17 @@ void App::Sample(uint32_t now) {
 }
 
 void App::Transmit(uint32_t now) {
-  const size_t per_frame = protocol::MaxRecordsPerPayload(config_.ladder_loops);
-  size_t due[8];
-  const size_t max = per_frame < 8 ? per_frame : 8;
+  // Sized to the radio's unfragmented payload (NP, EE): a fragmented frame is lost whole when one
+  // fragment is, and a parent buffers few packets for a sleeping end device.
+  const size_t rf_limit = rf_payload_limit();
+  const size_t per_frame = protocol::MaxRecordsPerPayload(config_.ladder_loops, rf_limit);
+  size_t due[kMaxRecordsPerFrame];
+  const size_t max = per_frame < kMaxRecordsPerFrame ? per_frame : kMaxRecordsPerFrame;
   // Send every due record this wake, several per frame.
   for (int guard = 0; guard < kQueueCapacity; ++guard) {
     const size_t n = queue_.Due(now, due, max);
     if (n == 0) return;
-    protocol::SensorRecord recs[8];
+    protocol::SensorRecord recs[kMaxRecordsPerFrame];
     for (size_t i = 0; i < n; ++i) {
       QueuedRecord& q = queue_.at(due[i]);
       recs[i] = q.ToSensorRecord(now);
@@ -182,7 +234,7 @@ void App::Transmit(uint32_t now) {
     h.dropped_total = DroppedTotal16();
     uint8_t payload[protocol::kMaxRfPayload];
     size_t plen = 0;
-    if (protocol::EncodeReadings(h, recs, n, payload, sizeof payload, &plen) != protocol::PayloadStatus::kOk) return;
+    if (protocol::EncodeReadings(h, recs, n, payload, rf_limit, &plen) != protocol::PayloadStatus::kOk) return;
     protocol::TransmitRequest req;
     frame_id_ = protocol::NextFrameId(frame_id_);
     req.frame_id = frame_id_;
@@ -204,6 +256,22 @@ void App::HandleFrame() {
   protocol::TransmitStatus st;
   if (protocol::ParseTransmitStatus(data, len, &st) == protocol::Status::kOk) {
     if (st.delivery_status != 0) ++stats_.tx_status_failures;
+    if (st.delivery_status == static_cast<uint8_t>(protocol::DeliveryStatus::kDataPayloadTooLarge)) {
+      // The link carries less than NP and EE said (source routing, APS): the smallest size from
+      // now until the next join, which asks again.
+      ++stats_.frames_too_large;
+      force_min_payload_ = true;
+    }
+    return;
+  }
+  if (HandleRadioAnswer(data, len)) return;
+  protocol::ModemStatus ms;
+  if (protocol::ParseModemStatus(data, len, &ms) == protocol::Status::kOk) {
+    // A (re)join may come with other security settings: ask again.
+    if (ms.status == static_cast<uint8_t>(protocol::ModemStatusCode::kJoinedNetwork)) {
+      force_min_payload_ = false;
+      QueryRadio();
+    }
     return;
   }
   protocol::ReceivePacket rx;

@@ -11,6 +11,7 @@
 #include <set>
 #include <string>
 #include <string_view>
+#include <tuple>
 #include <vector>
 
 #include "gateway/byte_sink.hpp"
@@ -72,6 +73,8 @@ struct GatewayCounters {
   uint64_t acks_sent = 0;
   uint64_t ack_write_errors = 0;
   uint64_t tx_failures = 0;        ///< 0x8B Transmit Status with a non-success delivery status
+  uint64_t acks_too_large = 0;     ///< 0x8B data_payload_too_large: an ack above what the link carries
+  uint64_t oversize_frames = 0;    ///< readings payloads above the coordinator's payload limit (fragmented on the air)
   uint64_t spool_errors = 0;       ///< SQLite failures (records not acked)
   uint64_t published = 0;          ///< first publications of a record
   uint64_t batches_published = 0;  ///< reading messages that carried more than one record
@@ -98,6 +101,13 @@ class Gateway {
 
   /// Bytes read from the coordinator's serial port.
   void OnBytes(const uint8_t* data, size_t len, int64_t now_ms);
+
+  /// The coordinator's serial port was (re)opened: asks the module for NP and EE (local AT
+  /// queries). Acks are sized for the smallest supported payload (protocol::kMinRfPayload) until
+  /// both answers came; a coordinator that does not answer within 5 s is logged once.
+  void OnRadioOpened(int64_t now_ms);
+  /// The RF payload every ack is sized to now (bytes; see OnRadioOpened).
+  size_t rf_payload_limit() const;
 
   /// The MQTT client (re)connected: publishes the retained online status and the device registry
   /// and republishes every unconfirmed record from the start of each sensor's queue.
@@ -137,6 +147,11 @@ class Gateway {
 
  private:
   void OnFrame(const uint8_t* frame, size_t len, int64_t now_ms);
+  void OnAtResponse(const uint8_t* frame, size_t len);
+  void OnTransmitStatus(const uint8_t* frame, size_t len);
+  /// The acks of one group commit: per sensor, every seq of its frames in the read, in as few
+  /// frames as the payload limit allows.
+  void QueueAcks(const std::vector<std::tuple<uint64_t, uint16_t, uint32_t, std::vector<uint32_t>>>& acks);
   void OnReceivePacket(const uint8_t* frame, size_t len, int64_t now_ms);
   /// Group commit: the records of every readings frame of one OnBytes call go into the spool in
   /// one (fsynced) transaction, then each frame is acked to its sensor; nothing is acked before
@@ -193,6 +208,12 @@ class Gateway {
   int64_t last_progress_ms_ = 0;  ///< last accepted reading publication, released record or connect
   int64_t next_stats_ms_ = 0;
   uint8_t next_frame_id_ = 1;
+  // The coordinator's answers to AT NP / EE (-1: not known) and the outstanding queries.
+  int radio_np_ = -1;
+  int radio_ee_ = -1;
+  uint8_t np_query_id_ = 0;
+  uint8_t ee_query_id_ = 0;
+  int64_t radio_query_deadline_ms_ = -1;  ///< when an unanswered query is logged (-1: none pending)
   // Readings frames decoded by the current OnBytes call, not spooled yet (FlushReadings).
   struct PendingFrame {
     uint64_t src64 = 0;

@@ -10,6 +10,11 @@
 
 namespace lw::gateway {
 
+/// The line logged when `path` cannot be opened with `err` (an errno value). EPERM (a systemd
+/// DevicePolicy / DeviceAllow refusal: the device cgroup) and EACCES (file permissions) name the
+/// setting to change; docs/gateway.md, *Serial devices the unit allows*.
+std::string OpenErrorText(const std::string& path, int err);
+
 class SerialPort : public ByteSink {
  public:
   SerialPort(std::string path, int baud) : path_(std::move(path)), baud_(baud) {}

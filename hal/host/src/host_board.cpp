@@ -118,6 +118,10 @@ bool HostFlash::DoRead(size_t page, size_t offset, uint8_t* data, size_t len) {
 
 HostRadio::HostRadio(uint64_t address64, protocol::ApiMode mode) : address64_(address64), mode_(mode), decoder_(mode) {}
 
+size_t HostRadio::rf_payload_limit() const {
+  return protocol::RfPayloadLimit(np_, ee_);
+}
+
 size_t HostRadio::DoWrite(const uint8_t* data, size_t len) {
   if (power_good_ && !power_good_()) {
     bytes_lost_to_brownout_ += len;
@@ -126,29 +130,63 @@ size_t HostRadio::DoWrite(const uint8_t* data, size_t len) {
   decoder_.Feed(data, len, [&](protocol::DecodeEvent event) {
     if (event != protocol::DecodeEvent::kFrame) return;
     protocol::TransmitRequest req;
-    if (protocol::ParseTransmitRequest(decoder_.frame_data(), decoder_.frame_length(), &req) != protocol::Status::kOk) {
+    if (protocol::ParseTransmitRequest(decoder_.frame_data(), decoder_.frame_length(), &req) == protocol::Status::kOk) {
+      Transmit(req);
       return;
     }
-    ++transmit_requests_;
-    // Copy: delivering may inject frames, which must not disturb this request's bytes.
-    std::vector<uint8_t> payload(req.payload, req.payload + req.payload_len);
-    const uint8_t frame_id = req.frame_id;
-    const bool ok = link_up_;
-    if (ok) {
-      ++delivered_;
-      if (on_deliver_) on_deliver_(address64_, payload.data(), payload.size());
-    }
-    if (frame_id != 0) {
-      protocol::TransmitStatus st;
-      st.frame_id = frame_id;
-      st.dest16 = 0x0000;
-      st.delivery_status = ok ? 0x00 : static_cast<uint8_t>(protocol::DeliveryStatus::kNetworkAckFailure);
-      uint8_t frame[16];
-      size_t n = 0;
-      if (protocol::BuildTransmitStatus(st, frame, sizeof frame, &n) == protocol::Status::kOk) QueueFrame(frame, n);
-    }
+    protocol::AtCommand cmd;
+    if (protocol::ParseAtCommand(decoder_.frame_data(), decoder_.frame_length(), &cmd) == protocol::Status::kOk) AnswerAt(cmd);
   });
   return len;
+}
+
+void HostRadio::Transmit(const protocol::TransmitRequest& req) {
+  ++transmit_requests_;
+  largest_payload_ = std::max(largest_payload_, req.payload_len);
+  // Copy: delivering may inject frames, which must not disturb this request's bytes.
+  std::vector<uint8_t> payload(req.payload, req.payload + req.payload_len);
+  const uint8_t frame_id = req.frame_id;
+  const bool too_large = payload.size() > rf_payload_limit();
+  const bool ok = (link_check_ ? link_check_() : link_up_) && !too_large;
+  if (too_large) ++refused_too_large_;
+  if (ok) {
+    ++delivered_;
+    if (on_deliver_) on_deliver_(address64_, payload.data(), payload.size());
+  }
+  if (frame_id == 0) return;
+  protocol::TransmitStatus st;
+  st.frame_id = frame_id;
+  st.dest16 = 0x0000;
+  st.delivery_status = ok          ? uint8_t{0x00}
+                       : too_large ? static_cast<uint8_t>(protocol::DeliveryStatus::kDataPayloadTooLarge)
+                                   : static_cast<uint8_t>(protocol::DeliveryStatus::kNetworkAckFailure);
+  uint8_t frame[16];
+  size_t n = 0;
+  if (protocol::BuildTransmitStatus(st, frame, sizeof frame, &n) == protocol::Status::kOk) QueueFrame(frame, n);
+}
+
+void HostRadio::AnswerAt(const protocol::AtCommand& cmd) {
+  ++at_queries_;
+  if (!answers_at_ || cmd.frame_id == 0) return;
+  protocol::AtCommandResponse rsp;
+  rsp.frame_id = cmd.frame_id;
+  rsp.command[0] = cmd.command[0];
+  rsp.command[1] = cmd.command[1];
+  uint8_t value[2] = {};
+  if (cmd.parameter_len == 0 && cmd.command[0] == 'N' && cmd.command[1] == 'P') {
+    value[1] = np_;  // Digi answers NP in two bytes
+    rsp.data = value;
+    rsp.data_len = 2;
+  } else if (cmd.parameter_len == 0 && cmd.command[0] == 'E' && cmd.command[1] == 'E') {
+    value[0] = ee_;
+    rsp.data = value;
+    rsp.data_len = 1;
+  } else {
+    rsp.status = static_cast<uint8_t>(protocol::AtStatus::kInvalidCommand);
+  }
+  uint8_t frame[16];
+  size_t n = 0;
+  if (protocol::BuildAtCommandResponse(rsp, frame, sizeof frame, &n) == protocol::Status::kOk) QueueFrame(frame, n);
 }
 
 void HostRadio::Inject(const uint8_t* payload, size_t len) {

@@ -90,10 +90,31 @@ uint16_t Crc16Ccitt(const uint8_t* data, size_t len, uint16_t crc = 0xFFFF);
 constexpr size_t RecordWireSize(uint8_t ladder_loops) {
   return kRecordFixedSize + (ladder_loops + 7u) / 8u;
 }
-/// How many records fit in one RF payload.
-constexpr size_t MaxRecordsPerPayload(uint8_t ladder_loops) {
-  return (kMaxRfPayload - kReadingsHeaderSize - kCrcSize) / RecordWireSize(ladder_loops);
+/// Smallest RF payload limit (NP) linerwatch supports: one record of the largest ladder (128
+/// loops: 44 bytes). Every message a peer builds fits it; a link reported below it is used as if
+/// it carried this much, and the gateway says so (docs/gateway.md, *Coordinator set-up*).
+inline constexpr size_t kMinRfPayload = kReadingsHeaderSize + kRecordFixedSize + kMaxBitmapBytes + kCrcSize;
+static_assert(kMinRfPayload == 44, "docs/protocol.md gives 44 bytes as the smallest supported NP");
+static_assert(kMinRfPayload <= kEncryptedRfPayload - kApsEncryptionOverhead,
+              "one record must fit an encrypted (EE=1) unicast with APS security (57 bytes, Digi)");
+static_assert(kAckHeaderSize + 4 + kCrcSize <= kMinRfPayload, "an ack of one seq must fit the smallest NP");
+
+/// `rf_limit` clamped to what linerwatch supports: [kMinRfPayload, kMaxRfPayload]; 0 (unknown)
+/// gives kMinRfPayload.
+constexpr size_t ClampRfPayload(size_t rf_limit) {
+  return rf_limit < kMinRfPayload ? kMinRfPayload : (rf_limit > kMaxRfPayload ? kMaxRfPayload : rf_limit);
 }
+/// How many records fit in one RF payload of at most `rf_limit` bytes (clamped by
+/// ClampRfPayload): at least 1, since every ladder's record fits kMinRfPayload.
+constexpr size_t MaxRecordsPerPayload(uint8_t ladder_loops, size_t rf_limit = kMaxRfPayload) {
+  return (ClampRfPayload(rf_limit) - kReadingsHeaderSize - kCrcSize) / RecordWireSize(ladder_loops);
+}
+static_assert(MaxRecordsPerPayload(kMaxLadderLoops, kMinRfPayload) == 1, "one record always fits the smallest NP");
+/// How many seqs one ack of at most `rf_limit` bytes carries (clamped by ClampRfPayload).
+constexpr size_t MaxAckSeqs(size_t rf_limit) {
+  return (ClampRfPayload(rf_limit) - kAckHeaderSize - kCrcSize) / 4;
+}
+static_assert(MaxAckSeqs(kMaxRfPayload) == kMaxAckSeqs, "Ack::seqs holds a full-size ack");
 
 /// Encodes a readings message with `count` records. Returns kTooManyRecords when they do not fit
 /// in kMaxRfPayload. `*written` receives the payload length.

@@ -26,14 +26,36 @@ inline constexpr uint8_t kEscapeXor = 0x20;
 /// Largest frame data (API identifier .. last data byte) any linerwatch peer builds or accepts.
 /// Big enough for a 0x10 Transmit Request / 0x90 Receive Packet carrying kMaxRfPayload bytes.
 inline constexpr size_t kMaxFrameData = 128;
-/// Largest RF payload per Zigbee transmission without APS encryption or fragmentation (ATNP on an
-/// XBee 3 / S2C Zigbee module reports 84 = 0x54). The sensor payload never exceeds this.
+/// Largest RF payload of one unfragmented Zigbee unicast: no encryption (EE=0), no APS security,
+/// no source route (Digi, XBee 3 Zigbee "Maximum RF payload size"). Buffers are sized for it; what
+/// a link actually carries is RfPayloadLimit() of the module's NP and EE answers, often less.
 inline constexpr size_t kMaxRfPayload = 84;
+/// The same with network encryption (EE=1): 18 bytes of security overhead.
+inline constexpr size_t kEncryptedRfPayload = 66;
+/// APS end-to-end encryption (transmit option 0x20) costs 9 bytes more per packet.
+inline constexpr size_t kApsEncryptionOverhead = 9;
+/// The NP value an XBee 3 Zigbee module reports in API mode: the most a fragmented transmission
+/// carries, not the single-packet limit (older S2/S2C firmware report the single-packet limit).
+inline constexpr uint8_t kNpFragmentedMaximum = 0xFF;
+
+/// The largest RF payload one unfragmented unicast carries, from the module's answers: `np` its
+/// NP (-1: unknown), `ee` its EE (-1: unknown). NP below 0xFF is the module's own single-packet
+/// limit; 0xFF (XBee 3 in API mode) says only that fragmentation reaches 255, so the EE table
+/// decides: 84 bytes unencrypted, 66 encrypted, 66 when EE is unknown. Returns 0 when NP is
+/// unknown: the caller then uses the smallest payload it supports. Never above kMaxRfPayload.
+constexpr size_t RfPayloadLimit(int np, int ee) {
+  if (np < 0 || np > 0xFF) return 0;
+  const size_t table = ee == 0 ? kMaxRfPayload : kEncryptedRfPayload;
+  if (np == kNpFragmentedMaximum) return table;
+  return static_cast<size_t>(np) < kMaxRfPayload ? static_cast<size_t>(np) : kMaxRfPayload;
+}
 /// Worst-case size on the wire of one frame: every byte after the delimiter escaped.
 inline constexpr size_t kMaxWireFrame = 1 + 2 * (2 + kMaxFrameData + 1);
 
 enum class FrameType : uint8_t {
+  kAtCommand = 0x08,
   kTransmitRequest = 0x10,
+  kAtCommandResponse = 0x88,
   kModemStatus = 0x8A,
   kTransmitStatus = 0x8B,
   kReceivePacket = 0x90,
@@ -98,6 +120,31 @@ struct TransmitRequest {
   uint8_t options = 0;
   const uint8_t* payload = nullptr;
   size_t payload_len = 0;
+};
+
+/// 0x08 local AT Command: reads a setting when `parameter_len` is 0 (the module answers with a
+/// 0x88 carrying the value), sets it otherwise. `parameter` is borrowed, not copied.
+struct AtCommand {
+  uint8_t frame_id = 0;  ///< 0 = no response wanted
+  char command[2] = {};  ///< two ASCII characters, e.g. 'N', 'P'
+  const uint8_t* parameter = nullptr;
+  size_t parameter_len = 0;
+};
+
+/// Status byte of a 0x88 AT Command Response.
+enum class AtStatus : uint8_t { kOk = 0, kError = 1, kInvalidCommand = 2, kInvalidParameter = 3, kTxFailure = 4 };
+
+/// 0x88 AT Command Response. `data` points into the parsed frame data (the value, big-endian;
+/// empty after a set).
+struct AtCommandResponse {
+  uint8_t frame_id = 0;
+  char command[2] = {};
+  uint8_t status = 0;  ///< see AtStatus
+  const uint8_t* data = nullptr;
+  size_t data_len = 0;
+  /// The value as an unsigned number (big-endian, at most 8 bytes); false when the status is not
+  /// kOk or there is no value.
+  bool Value(uint64_t* out) const;
 };
 
 /// 0x8B Transmit Status.
@@ -165,10 +212,16 @@ size_t EncodeTransmitRequest(ApiMode mode, const TransmitRequest& req, uint8_t* 
 /// is too large or `wire_cap` too small.
 size_t EncodeReceivePacket(ApiMode mode, const ReceivePacket& rx, uint8_t* wire, size_t wire_cap);
 
+/// BuildAtCommand then EncodeFrame: a local AT command (a query when it has no parameter) as a
+/// complete wire frame in `mode`. Returns the wire length, 0 when `wire_cap` is too small.
+size_t EncodeAtCommand(ApiMode mode, const AtCommand& cmd, uint8_t* wire, size_t wire_cap);
+
 /// The frame id after `id`: 1..255 cycling (0 means "no Transmit Status wanted", so it is skipped).
 constexpr uint8_t NextFrameId(uint8_t id) {
   return id == 0xFF ? uint8_t{1} : static_cast<uint8_t>(id + 1);
 }
+Status BuildAtCommand(const AtCommand& cmd, uint8_t* out, size_t out_cap, size_t* written);
+Status BuildAtCommandResponse(const AtCommandResponse& rsp, uint8_t* out, size_t out_cap, size_t* written);
 Status BuildTransmitStatus(const TransmitStatus& st, uint8_t* out, size_t out_cap, size_t* written);
 Status BuildReceivePacket(const ReceivePacket& rx, uint8_t* out, size_t out_cap, size_t* written);
 Status BuildModemStatus(const ModemStatus& ms, uint8_t* out, size_t out_cap, size_t* written);
@@ -176,6 +229,8 @@ Status BuildNodeIdentification(const NodeIdentification& ni, uint8_t* out, size_
 
 /// Parsers: read frame data (API identifier first) as produced by FrameDecoder.
 Status ParseTransmitRequest(const uint8_t* frame_data, size_t len, TransmitRequest* out);
+Status ParseAtCommand(const uint8_t* frame_data, size_t len, AtCommand* out);
+Status ParseAtCommandResponse(const uint8_t* frame_data, size_t len, AtCommandResponse* out);
 Status ParseTransmitStatus(const uint8_t* frame_data, size_t len, TransmitStatus* out);
 Status ParseReceivePacket(const uint8_t* frame_data, size_t len, ReceivePacket* out);
 Status ParseModemStatus(const uint8_t* frame_data, size_t len, ModemStatus* out);

@@ -16,6 +16,7 @@
 #include "core/bundle.hpp"
 #include "firmware/config.hpp"
 #include "protocol/frame_decoder.hpp"
+#include "protocol/xbee_api.hpp"
 #include "sim/network.hpp"
 #include "sim/truth.hpp"
 
@@ -36,6 +37,11 @@ struct FleetOptions {
   firmware::Config firmware;
   /// Boards boot spread over this many seconds after installed_at (0: all at once).
   double boot_spread_s = 0;
+  /// What every radio (the boards' and the coordinator) answers to AT NP and AT EE. A radio
+  /// refuses a transmission above protocol::RfPayloadLimit(np, ee) with 0x74
+  /// data_payload_too_large, so an oversize frame from either side is lost, never fragmented.
+  uint8_t radio_np = protocol::kNpFragmentedMaximum;
+  uint8_t radio_ee = 0;
 };
 
 struct FleetCounters {
@@ -45,6 +51,9 @@ struct FleetCounters {
   uint64_t acks_from_gateway = 0;  ///< 0x10 frames read from the serial side
   uint64_t acks_lost = 0;          ///< of those, lost on the air
   uint64_t serial_bad_frames = 0;  ///< serial input that was not a 0x10 to a known board
+  uint64_t at_queries = 0;         ///< local AT commands from the gateway (answered)
+  uint64_t acks_too_large = 0;     ///< 0x10 from the gateway above the radios' payload limit (refused)
+  uint64_t frames_too_large = 0;   ///< board transmissions refused as too large by their radios
 };
 
 /// The 64-bit radio address of a sensor: crusher.json's `address`, else 0013A200 followed by the
@@ -91,6 +100,8 @@ class Fleet {
   struct Board;
   void WakeBoard(Board& b, uint32_t at);
   void Arrive(const Packet& p);
+  void AnswerAt(const protocol::AtCommand& cmd);
+  void OnGatewayTransmit(const protocol::TransmitRequest& req);
 
   const TruthModel& truth_;
   FleetOptions options_;

@@ -1,6 +1,7 @@
 #include <cmath>
 #include <memory>
 #include <set>
+#include <string>
 
 #include "fakes/fake_gateway.hpp"
 #include "firmware/app.hpp"
@@ -461,4 +462,78 @@ TEST(FirmwareApp, AllOpenBeforeAnyValidReadSendsNoThickness) {
   const auto& first = rig.gateway.records.begin()->second;
   LONGS_EQUAL(95, first.loops_intact);
   CHECK(first.flags & protocol::kFlagAllOpen);  // the earlier fault rides on the first record
+}
+
+// Frames are sized to what the radio says one unfragmented packet carries (its NP and EE answers),
+// never more: the host radio refuses (0x74 data_payload_too_large) anything larger, as a link
+// without fragmentation would lose it. The board wakes every 3 hours (so that records fall due
+// together), a backlog after a 2-day outage goes out in frames as full as the limit allows, and
+// every record arrives.
+TEST(FirmwareApp, FramesNeverExceedTheRadiosPayloadLimit) {
+  struct Case {
+    uint8_t np, ee;
+    bool answers;
+    size_t limit, largest;  // expected payload limit and largest frame (100-loop ladder: 41 per record, 70 for two)
+  };
+  const Case cases[] = {
+      {0x54, 0, true, 84, 70},                        // S2C, EE=0: NP is the single-packet limit
+      {0xFF, 0, true, 84, 70},                        // XBee 3 in API mode: NP 0xFF, the EE table decides
+      {0x42, 1, true, 66, 41},                        // network encryption
+      {0xFF, 1, true, 66, 41},                        // XBee 3 with EE=1
+      {49, 1, true, 49, 41},                          // APS encryption and a secure session: smaller still
+      {0xFF, 0, false, protocol::kMinRfPayload, 41},  // no answer: the smallest supported size
+  };
+  for (const Case& c : cases) {
+    const std::string what = "NP " + std::to_string(c.np) + " EE " + std::to_string(c.ee) + (c.answers ? "" : " (no answer)");
+    Config config;
+    hal::host::HostBoard board(config.ladder_loops, 0x0013A20000001001ull, config.api_mode);
+    board.radio.set_np(c.np);
+    board.radio.set_ee(c.ee);
+    board.radio.set_answers_at(c.answers);
+    board.ladder.SetIntactCount(config.ladder_loops);
+    test::FakeGateway gateway(board.radio, &board.rtc);
+    hal::Board hal_board = board.board();
+    App app(config, hal_board);
+    app.Init();
+    for (uint32_t t = 0; t < 8 * kDay; t += 3 * 3600) {
+      board.rtc.Set(t);
+      board.radio.set_link_up(t < kDay || t >= 3 * kDay);
+      board.ladder.SetIntactCount(static_cast<uint8_t>(100 - t / kDay));
+      app.Step();
+    }
+    LONGS_EQUAL_TEXT(c.limit, app.rf_payload_limit(), what.c_str());
+    LONGS_EQUAL_TEXT(0, board.radio.refused_too_large(), what.c_str());
+    CHECK_TEXT(board.radio.largest_payload() <= c.limit, what.c_str());
+    LONGS_EQUAL_TEXT(c.largest, board.radio.largest_payload(), what.c_str());
+    LONGS_EQUAL_TEXT(0, app.queue().size(), what.c_str());
+    LONGS_EQUAL_TEXT(app.stats().records_queued, gateway.records.size(), what.c_str());
+    CHECK_TEXT(board.radio.at_queries() >= 2, what.c_str());
+  }
+}
+
+// A radio that refuses a frame as too large (a source route or APS security the NP answer does
+// not show) turns the firmware to the smallest frames until the next join; nothing is lost.
+TEST(FirmwareApp, AFrameRefusedAsTooLargeFallsBackToTheSmallestSize) {
+  Config config;
+  config.ladder_loops = 8;  // 17-byte records: 4 in an 84-byte frame (80 bytes), 1 in a 44-byte one
+  hal::host::HostBoard board(config.ladder_loops, 0x0013A20000001001ull, config.api_mode);
+  board.radio.set_np(0x54);  // says 84
+  board.ladder.SetIntactCount(config.ladder_loops);
+  test::FakeGateway gateway(board.radio, &board.rtc);
+  hal::Board hal_board = board.board();
+  App app(config, hal_board);
+  app.Init();
+  app.Step();  // NP answered: 84
+  LONGS_EQUAL(84, app.rf_payload_limit());
+  board.radio.set_np(45);                              // the link now carries less than the firmware was told
+  for (uint32_t t = 0; t < 3 * kDay; t += 3 * 3600) {  // wakes every 3 h: records fall due together
+    board.rtc.Set(t);
+    board.ladder.SetIntactCount(static_cast<uint8_t>(8 - t / kDay));
+    board.radio.set_link_up(t >= kDay / 2);
+    app.Step();
+  }
+  CHECK(app.stats().frames_too_large > 0);
+  LONGS_EQUAL(protocol::kMinRfPayload, app.rf_payload_limit());
+  LONGS_EQUAL(0, app.queue().size());
+  LONGS_EQUAL(app.stats().records_queued, gateway.records.size());
 }

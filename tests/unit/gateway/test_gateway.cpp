@@ -2,7 +2,10 @@
 // commit acks, replay, bad input. Time is passed in, so nothing here waits.
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <map>
 #include <memory>
+#include <string>
 
 #include "gateway/gateway.hpp"
 #include "gateway/spool.hpp"
@@ -154,9 +157,10 @@ TEST(Gateway, RecordIsSpooledThenAckedToItsSourceAddress) {
   CHECK(depth_seen_at_ack == std::vector<size_t>{2});
 }
 
-// Frames read together are spooled in one transaction (group commit) and each is acked to its
-// sensor only after it: at the ack write another connection already sees every record of the
-// read, and the new senders' registry entries. The acks go out together, in one write.
+// Frames read together are spooled in one transaction (group commit) and acked to their sensors
+// only after it: at the ack write another connection already sees every record of the read, and
+// the new senders' registry entries. The acks go out together, in one write, one ack list per
+// sensor (its retransmitted seq named once).
 TEST(Gateway, FramesOfOneReadAreSpooledTogetherBeforeAnyAck) {
   publisher.connected = false;
   std::vector<size_t> depth_seen_at_ack, devices_seen_at_ack;
@@ -172,7 +176,8 @@ TEST(Gateway, FramesOfOneReadAreSpooledTogetherBeforeAnyAck) {
   bytes.insert(bytes.end(), again.begin(), again.end());
   Feed(bytes);
   LONGS_EQUAL(3, gateway->spool_depth());
-  LONGS_EQUAL(3, radio.acks.size());
+  LONGS_EQUAL(2, radio.acks.size());
+  CHECK(radio.AckedSeqs() == (std::vector<uint32_t>{1, 2, 7}));
   CHECK(depth_seen_at_ack == std::vector<size_t>{3});
   CHECK(devices_seen_at_ack == std::vector<size_t>{2});  // 1001 at A, 2002 at B
   CHECK(radio.acks[1].dest64 == kAddrB);
@@ -214,8 +219,10 @@ TEST(Gateway, AReadEndingAnywhereInAFrameLosesAndDuplicatesNothing) {
   LONGS_EQUAL(0, d.checksum_errors + d.escape_errors);
 }
 
-// The acks of a long read go out in a few writes, not one per frame; a failed write counts every
-// ack in it (the sensors keep their records and retransmit; the spooled ones are acked again).
+// The acks of a long read go out compacted (one ack list per sensor, cut to the payload limit:
+// 8 seqs per ack before the coordinator told its NP) in a few writes, not one per frame; a failed
+// write counts every ack in it (the sensors keep their records and retransmit; the spooled ones
+// are acked again).
 TEST(Gateway, AcksOfALongReadGoOutInFewWritesAndAFailedWriteCountsEachAck) {
   publisher.connected = false;
   size_t writes = 0;
@@ -226,8 +233,9 @@ TEST(Gateway, AcksOfALongReadGoOutInFewWritesAndAFailedWriteCountsEachAck) {
     bytes.insert(bytes.end(), frame.begin(), frame.end());
   }
   Feed(bytes);
-  LONGS_EQUAL(60, radio.acks.size());
-  LONGS_EQUAL(60, gateway->counters().acks_sent);
+  LONGS_EQUAL(15, radio.acks.size());  // 120 seqs, 8 per ack
+  LONGS_EQUAL(120, radio.AckedSeqs().size());
+  LONGS_EQUAL(15, gateway->counters().acks_sent);
   CHECK_TEXT(writes >= 1 && writes <= 6, std::to_string(writes).c_str());
   radio.fail = true;
   std::vector<uint8_t> more;
@@ -236,8 +244,8 @@ TEST(Gateway, AcksOfALongReadGoOutInFewWritesAndAFailedWriteCountsEachAck) {
     more.insert(more.end(), frame.begin(), frame.end());
   }
   Feed(more);
-  LONGS_EQUAL(10, gateway->counters().ack_write_errors);
-  LONGS_EQUAL(60, gateway->counters().acks_sent);
+  LONGS_EQUAL(3, gateway->counters().ack_write_errors);  // 20 seqs: 8 + 8 + 4
+  LONGS_EQUAL(15, gateway->counters().acks_sent);
   LONGS_EQUAL(140, gateway->spool_depth());
 }
 
@@ -542,8 +550,8 @@ TEST(Gateway, SpoolFullInTheMiddleOfOneReadAcksExactlyWhatWasStored) {
   }
   Feed(bytes);
   LONGS_EQUAL(3, gateway->spool_depth());
-  LONGS_EQUAL(3, radio.acks.size());  // {1, 2}, {3}, {2}; none for the frame of 5
-  CHECK(radio.AckedSeqs() == (std::vector<uint32_t>{1, 2, 3, 2}));
+  LONGS_EQUAL(1, radio.acks.size());  // {1, 2, 3}: the retransmitted 2 once; none for 4 and 5
+  CHECK(radio.AckedSeqs() == (std::vector<uint32_t>{1, 2, 3}));
   LONGS_EQUAL(2, gateway->counters().records_rejected);  // 4 and 5
   LONGS_EQUAL(1, gateway->counters().records_duplicate);
   const auto heads = spool->Heads(10);
@@ -627,12 +635,12 @@ TEST(Gateway, StatsMessageKeepsItsBytes) {
   const uint8_t junk[] = {1, 2, 3, 0x7E, 0x00};
   gateway->OnBytes(junk, sizeof junk, now);
   STRCMP_EQUAL(
-      R"({"ack_write_errors":0,"acks_sent":0,"bad_commit_acks":0,"bad_payloads":0,"batch_records":1,"batches_published":0,)"
+      R"({"ack_write_errors":0,"acks_sent":0,"acks_too_large":0,"bad_commit_acks":0,"bad_payloads":0,"batch_records":1,"batches_published":0,)"
       R"("bytes_discarded":3,)"
       R"("checksum_errors":0,"commit_acks_ignored":0,"committed":0,"connects":0,"devices":0,"devices_refused":0,)"
       R"("escape_errors":0,"frames_ok":0,"gateway":"gw-test","in_flight":0,"length_errors":0,"link_resets":0,"malformed_frames":0,)"
-      R"("max_devices":1000,"publish_latency_ms":{"last":-1,"max":-1,"mean":-1},"publish_refused":0,"published":0,"records_duplicate":0,)"
-      R"("records_evicted":0,"records_received":0,"records_rejected":0,"records_spooled":0,"republished":0,)"
+      R"("max_devices":1000,"oversize_frames":0,"publish_latency_ms":{"last":-1,"max":-1,"mean":-1},"publish_refused":0,"published":0,"records_duplicate":0,)"
+      R"("records_evicted":0,"records_received":0,"records_rejected":0,"records_spooled":0,"republished":0,"rf_payload_limit":44,)"
       R"("spool_depth":0,"spool_errors":0,"spool_max_records":1000,"time":"2026-03-01T12:00:07Z","truncated_frames":0,)"
       R"("tx_failures":0,"unknown_frames":0,"unknown_payloads":0,"unknown_types":0})",
       gateway->StatsJson(1772366407000).c_str());
@@ -863,4 +871,96 @@ TEST(Gateway, ReleasedRecordsAreNeverPublishedAgain) {
   CHECK(PublishedSeqs(1001) == (std::vector<uint32_t>{1, 2, 3, 1, 3}));
   LONGS_EQUAL(3, gateway->spool_depth());
   LONGS_EQUAL(3, spool->depth());  // the reconnect read every head: the release was deleted first
+}
+
+// The radio as it is: the coordinator answers NP 84 (EE=0), 66 (EE=1) and 49 (APS security) and
+// refuses an ack above the limit (a link without fragmentation loses it). Two sensors' backlogs
+// arrive in one read; every record is spooled once and acked once, in one ack list per sensor cut
+// into as few frames as the limit allows, none above it.
+TEST(Gateway, AcksAreSizedToTheCoordinatorsPayloadLimitAndNothingIsLost) {
+  for (const int np : {0x54, 0x42, 49}) {
+    const int ee = np == 0x54 ? 0 : 1;
+    const std::string what = "NP " + std::to_string(np);
+    lw::test::FakeRadio coordinator{kMode};
+    coordinator.np = np;
+    coordinator.ee = ee;
+    gw::Spool s(dir.File("np" + std::to_string(np) + ".db"), 10'000);
+    gw::GatewayOptions o;
+    o.site = "s1";
+    o.crusher = "c1";
+    o.api_mode = kMode;
+    o.log = [](const std::string&) {};
+    gw::Gateway g(o, s, publisher, coordinator);
+    g.OnRadioOpened(now);
+    const auto answers = coordinator.TakeAnswers();
+    g.OnBytes(answers.data(), answers.size(), now);
+    const size_t limit = pr::RfPayloadLimit(np, ee);
+    LONGS_EQUAL_TEXT(limit, g.rf_payload_limit(), what.c_str());
+    std::vector<uint8_t> bytes;
+    for (uint32_t seq = 1; seq <= 60; seq += 2) {
+      for (const auto& f : {ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(seq), MakeRecord(seq + 1)}),
+                            ReadingsFrame(kMode, kAddrB, 2002, {MakeRecord(seq + 1000)})}) {
+        bytes.insert(bytes.end(), f.begin(), f.end());
+      }
+    }
+    const auto again = ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(7)});  // a retransmission in the same read
+    bytes.insert(bytes.end(), again.begin(), again.end());
+    g.OnBytes(bytes.data(), bytes.size(), now);
+    LONGS_EQUAL_TEXT(0, coordinator.acks_too_large, what.c_str());
+    CHECK_TEXT(coordinator.largest_ack_payload <= limit, what.c_str());
+    LONGS_EQUAL_TEXT(90, g.spool_depth(), what.c_str());
+    std::map<uint32_t, std::vector<uint32_t>> acked;  // sensor -> seqs, in ack order
+    for (const auto& a : coordinator.acks) {
+      CHECK_TEXT(a.dest64 == (a.ack.sensor_id == 1001 ? kAddrA : kAddrB), what.c_str());
+      acked[a.ack.sensor_id].insert(acked[a.ack.sensor_id].end(), a.ack.seqs, a.ack.seqs + a.ack.count);
+    }
+    std::vector<uint32_t> expect_a, expect_b;
+    for (uint32_t seq = 1; seq <= 60; ++seq) expect_a.push_back(seq);
+    for (uint32_t seq = 1001; seq <= 1059; seq += 2) expect_b.push_back(seq);
+    CHECK_TEXT(acked[1001] == expect_a, what.c_str());  // each once, the duplicate 7 too
+    CHECK_TEXT(acked[2002] == expect_b, what.c_str());
+    const size_t per_ack = pr::MaxAckSeqs(limit);
+    LONGS_EQUAL_TEXT((60 + per_ack - 1) / per_ack + (30 + per_ack - 1) / per_ack, coordinator.acks.size(), what.c_str());
+    LONGS_EQUAL_TEXT(limit, json::parse(g.StatsJson(now))["rf_payload_limit"].get<size_t>(), what.c_str());
+  }
+}
+
+// Before the coordinator answers (or when it never does) acks are sized for the smallest NP
+// linerwatch supports, and an unanswered query is logged once after 5 s.
+TEST(Gateway, WithoutAnAnswerAcksAreSizedForTheSmallestPayload) {
+  gateway->OnRadioOpened(now);
+  LONGS_EQUAL(2, radio.at_queries);
+  LONGS_EQUAL(pr::kMinRfPayload, gateway->rf_payload_limit());
+  publisher.connected = false;
+  std::vector<uint8_t> bytes;
+  for (uint32_t seq = 1; seq <= 20; seq += 2) {
+    const auto f = ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(seq), MakeRecord(seq + 1)});
+    bytes.insert(bytes.end(), f.begin(), f.end());
+  }
+  Feed(bytes);
+  CHECK(radio.largest_ack_payload <= pr::kMinRfPayload);
+  LONGS_EQUAL(3, radio.acks.size());  // 8 + 8 + 4 seqs
+  LONGS_EQUAL(20, radio.AckedSeqs().size());
+  gateway->Pump(now + 4'000);
+  const auto said = [&] {
+    return std::count_if(log.begin(), log.end(),
+                         [](const std::string& l) { return l.find("did not answer AT NP") != std::string::npos; });
+  };
+  LONGS_EQUAL(0, said());
+  gateway->Pump(now + 5'000);
+  gateway->Pump(now + 10'000);
+  LONGS_EQUAL(1, said());
+}
+
+// A sensor whose frames are larger than the link carries (older firmware relying on
+// fragmentation) is still stored and acked, and counted so that the site can find it.
+TEST(Gateway, AReadingsFrameAboveTheLinksLimitIsStoredAndCounted) {
+  radio.np = 49;
+  radio.ee = 1;
+  gateway->OnRadioOpened(now);
+  Feed(radio.TakeAnswers());
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1), MakeRecord(2), MakeRecord(3)}));  // 64 bytes
+  LONGS_EQUAL(1, gateway->counters().oversize_frames);
+  LONGS_EQUAL(3, gateway->spool_depth());
+  LONGS_EQUAL(3, radio.AckedSeqs().size());
 }

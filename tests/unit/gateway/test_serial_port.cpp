@@ -5,6 +5,7 @@
 #include <termios.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <string>
 #include <vector>
 
@@ -108,4 +109,18 @@ TEST(SerialPort, HangUpIsReportedSoTheCallerReopens) {
   uint8_t b[16];
   LONGS_EQUAL(-1, port.Read(b, sizeof b));
   LONGS_EQUAL(-1, port.ReadWaiting(b, sizeof b));
+}
+
+// A device the unit's DevicePolicy refuses (EPERM from the device cgroup) or that the user may not
+// open (EACCES) is reported with the setting to change, not just strerror.
+TEST(SerialPort, APolicyOrPermissionRefusalNamesTheSettingToChange) {
+  const std::string eperm = lw::gateway::OpenErrorText("/dev/ttyAMA0", EPERM);
+  CHECK(eperm.find("/dev/ttyAMA0") != std::string::npos);
+  CHECK(eperm.find("DeviceAllow=char-NAME rw") != std::string::npos);
+  CHECK(eperm.find("systemctl edit linerwatch-gateway") != std::string::npos);
+  const std::string eacces = lw::gateway::OpenErrorText("/dev/ttyUSB0", EACCES);
+  CHECK(eacces.find("dialout") != std::string::npos);
+  const std::string enoent = lw::gateway::OpenErrorText("/dev/ttyUSB9", ENOENT);
+  CHECK(enoent.find("DeviceAllow") == std::string::npos);
+  CHECK(enoent.find("No such file") != std::string::npos);
 }

@@ -181,3 +181,62 @@ TEST(HostBoard, FlashPowerLossBrownsOutTheWholeBoard) {
   b.radio.Write(wire, wl);
   LONGS_EQUAL(2, delivered);
 }
+
+// The virtual radio as Digi's modules are: it answers the local AT queries NP and EE, and a
+// transmission above the unfragmented payload they imply is refused (0x74), never delivered.
+TEST(HostBoard, RadioAnswersNpAndEeAndRefusesAFrameAboveItsPayloadLimit) {
+  namespace pr = lw::protocol;
+  HostRadio radio(0x0013A20000000001ull, pr::ApiMode::kEscaped);
+  radio.set_np(0xFF);
+  radio.set_ee(1);
+  size_t delivered = 0;
+  radio.set_on_deliver([&](uint64_t, const uint8_t*, size_t) { ++delivered; });
+  pr::FrameDecoder dec(pr::ApiMode::kEscaped);
+  const auto answers = [&] {
+    std::vector<std::vector<uint8_t>> frames;
+    uint8_t rx[256];
+    const size_t n = static_cast<Uart&>(radio).Read(rx, sizeof rx);
+    dec.Feed(rx, n, [&](pr::DecodeEvent ev) {
+      if (ev == pr::DecodeEvent::kFrame) frames.emplace_back(dec.frame_data(), dec.frame_data() + dec.frame_length());
+    });
+    return frames;
+  };
+  for (const char* name : {"NP", "EE", "ZZ"}) {
+    pr::AtCommand cmd;
+    cmd.frame_id = 3;
+    cmd.command[0] = name[0];
+    cmd.command[1] = name[1];
+    uint8_t wire[16];
+    static_cast<Uart&>(radio).Write(wire, pr::EncodeAtCommand(pr::ApiMode::kEscaped, cmd, wire, sizeof wire));
+    const auto frames = answers();
+    LONGS_EQUAL(1, frames.size());
+    pr::AtCommandResponse rsp;
+    CHECK(pr::ParseAtCommandResponse(frames[0].data(), frames[0].size(), &rsp) == pr::Status::kOk);
+    LONGS_EQUAL(3, rsp.frame_id);
+    uint64_t v = 0;
+    if (name[0] == 'Z') {
+      LONGS_EQUAL(static_cast<int>(pr::AtStatus::kInvalidCommand), rsp.status);
+      continue;
+    }
+    CHECK(rsp.Value(&v));
+    LONGS_EQUAL(name[0] == 'N' ? 0xFF : 1, v);
+  }
+  LONGS_EQUAL(66, radio.rf_payload_limit());
+  for (const size_t len : {size_t{66}, size_t{67}}) {
+    uint8_t payload[pr::kMaxRfPayload] = {};
+    pr::TransmitRequest req;
+    req.frame_id = 9;
+    req.payload = payload;
+    req.payload_len = len;
+    uint8_t wire[pr::kMaxWireFrame];
+    static_cast<Uart&>(radio).Write(wire, pr::EncodeTransmitRequest(pr::ApiMode::kEscaped, req, wire, sizeof wire));
+    const auto frames = answers();
+    LONGS_EQUAL(1, frames.size());
+    pr::TransmitStatus st;
+    CHECK(pr::ParseTransmitStatus(frames[0].data(), frames[0].size(), &st) == pr::Status::kOk);
+    LONGS_EQUAL(len == 66 ? 0x00 : 0x74, st.delivery_status);
+  }
+  LONGS_EQUAL(1, delivered);
+  LONGS_EQUAL(1, radio.refused_too_large());
+  LONGS_EQUAL(67, radio.largest_payload());
+}

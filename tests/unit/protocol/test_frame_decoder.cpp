@@ -277,8 +277,11 @@ TEST(FrameDecoder, LengthBeyondBufferAndZeroLengthAreRejected) {
 
 TEST(FrameDecoder, UnknownTypeIsDeliveredAndCounted) {
   FrameDecoder dec(ApiMode::kUnescaped);
-  const Decoded d = FeedAll(dec, Encode(ApiMode::kUnescaped, Hex("88 01 4E 4A 00")));
-  LONGS_EQUAL(1, d.frames.size());
+  // 0x97 Remote Command Response: linerwatch sends no remote AT commands. (0x88, the answer to a
+  // local AT command, is known: the gateway and the firmware query NP and EE.)
+  const Decoded d = FeedAll(dec, Concat({Encode(ApiMode::kUnescaped, Hex("97 01 4E 4A 00")),
+                                         Encode(ApiMode::kUnescaped, Hex("88 01 4E 50 00 00 54"))}));
+  LONGS_EQUAL(2, d.frames.size());
   LONGS_EQUAL(1, dec.counters().unknown_types);
 }
 

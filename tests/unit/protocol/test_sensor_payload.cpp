@@ -130,3 +130,38 @@ TEST(SensorPayload, AckRoundTripAndErrors) {
   CHECK(EncodeAck(ack, buf, sizeof buf, &n) == PayloadStatus::kTooManyRecords);
   STRCMP_EQUAL("bad_crc", PayloadStatusName(PayloadStatus::kBadCrc));
 }
+
+// Frames sized to a link: records and ack seqs per frame follow the payload limit, one record of
+// any ladder fits the smallest supported limit, and an encoder given the limit as its buffer
+// never writes more.
+TEST(SensorPayload, RecordsAndAcksPerFrameFollowThePayloadLimit) {
+  LONGS_EQUAL(44, kMinRfPayload);
+  LONGS_EQUAL(2, MaxRecordsPerPayload(100, 84));
+  LONGS_EQUAL(1, MaxRecordsPerPayload(100, 66));
+  LONGS_EQUAL(1, MaxRecordsPerPayload(128, 44));
+  LONGS_EQUAL(1, MaxRecordsPerPayload(128, 10));  // below the minimum: used as the minimum
+  LONGS_EQUAL(3, MaxRecordsPerPayload(16, 66));
+  LONGS_EQUAL(18, MaxAckSeqs(84));
+  LONGS_EQUAL(14, MaxAckSeqs(66));
+  LONGS_EQUAL(10, MaxAckSeqs(49));
+  LONGS_EQUAL(8, MaxAckSeqs(0));
+  for (size_t limit = kMinRfPayload; limit <= kMaxRfPayload; ++limit) {
+    for (int ladder = 1; ladder <= 128; ++ladder) {
+      const size_t n = MaxRecordsPerPayload(static_cast<uint8_t>(ladder), limit);
+      std::vector<SensorRecord> recs(n);
+      ReadingsHeader h;
+      h.ladder_loops = static_cast<uint8_t>(ladder);
+      uint8_t buf[kMaxRfPayload];
+      size_t written = 0;
+      CHECK(EncodeReadings(h, recs.data(), n, buf, limit, &written) == PayloadStatus::kOk);
+      CHECK(written <= limit);
+      CHECK(written + RecordWireSize(static_cast<uint8_t>(ladder)) > limit);  // as full as it gets
+    }
+    Ack ack;
+    ack.count = static_cast<uint8_t>(MaxAckSeqs(limit));
+    uint8_t buf[kMaxRfPayload];
+    size_t written = 0;
+    CHECK(EncodeAck(ack, buf, limit, &written) == PayloadStatus::kOk);
+    CHECK(written <= limit && written + 4 > limit);
+  }
+}

@@ -282,3 +282,61 @@ TEST(XbeeApi, EncodeTransmitRequestIsBuildThenEncode) {
   LONGS_EQUAL(1, NextFrameId(255));
   LONGS_EQUAL(2, NextFrameId(1));
 }
+
+// Digi's local AT Command example: NJ queried with frame id 0x52.
+TEST(XbeeApi, AtCommandMatchesDigisExample) {
+  AtCommand cmd;
+  cmd.frame_id = 0x52;
+  cmd.command[0] = 'N';
+  cmd.command[1] = 'J';
+  uint8_t wire[16];
+  const size_t n = EncodeAtCommand(ApiMode::kUnescaped, cmd, wire, sizeof wire);
+  const uint8_t expected[] = {0x7E, 0x00, 0x04, 0x08, 0x52, 0x4E, 0x4A, 0x0D};
+  LONGS_EQUAL(sizeof expected, n);
+  MEMCMP_EQUAL(expected, wire, n);
+  AtCommand back;
+  CHECK(ParseAtCommand(wire + 3, 4, &back) == Status::kOk);
+  LONGS_EQUAL(0x52, back.frame_id);
+  LONGS_EQUAL('J', back.command[1]);
+  LONGS_EQUAL(0, back.parameter_len);
+  CHECK(ParseAtCommand(wire + 3, 3, &back) == Status::kTruncated);
+}
+
+// Digi's AT Command Response example (BD set, OK), and a query answer carrying a value.
+TEST(XbeeApi, AtCommandResponseMatchesDigisExampleAndCarriesTheValue) {
+  const uint8_t digi[] = {0x88, 0x01, 0x42, 0x44, 0x00};
+  LONGS_EQUAL(0xF0, Checksum(digi, sizeof digi));
+  AtCommandResponse rsp;
+  CHECK(ParseAtCommandResponse(digi, sizeof digi, &rsp) == Status::kOk);
+  LONGS_EQUAL(1, rsp.frame_id);
+  LONGS_EQUAL('B', rsp.command[0]);
+  LONGS_EQUAL(0, rsp.status);
+  uint64_t v = 0;
+  CHECK_FALSE(rsp.Value(&v));  // a set: no value
+  const uint8_t np[] = {0x88, 0x07, 'N', 'P', 0x00, 0x00, 0x54};
+  CHECK(ParseAtCommandResponse(np, sizeof np, &rsp) == Status::kOk);
+  CHECK(rsp.Value(&v));
+  LONGS_EQUAL(84, v);
+  const uint8_t failed[] = {0x88, 0x07, 'N', 'P', 0x02};
+  CHECK(ParseAtCommandResponse(failed, sizeof failed, &rsp) == Status::kOk);
+  CHECK_FALSE(rsp.Value(&v));
+  uint8_t built[16];
+  size_t len = 0;
+  CHECK(ParseAtCommandResponse(np, sizeof np, &rsp) == Status::kOk);
+  CHECK(BuildAtCommandResponse(rsp, built, sizeof built, &len) == Status::kOk);
+  LONGS_EQUAL(sizeof np, len);
+  MEMCMP_EQUAL(np, built, len);
+}
+
+// Digi's table (XBee 3 Zigbee, "Maximum RF payload size"): 84 bytes unencrypted, 66 with EE=1;
+// NP 0xFF is the fragmented maximum an XBee 3 reports in API mode, so the EE table decides.
+TEST(XbeeApi, RfPayloadLimitFollowsNpAndEe) {
+  LONGS_EQUAL(84, RfPayloadLimit(0x54, 0));
+  LONGS_EQUAL(66, RfPayloadLimit(0x42, 1));
+  LONGS_EQUAL(84, RfPayloadLimit(0xFF, 0));
+  LONGS_EQUAL(66, RfPayloadLimit(0xFF, 1));
+  LONGS_EQUAL(66, RfPayloadLimit(0xFF, -1));  // EE unknown: assume encryption
+  LONGS_EQUAL(49, RfPayloadLimit(49, 1));
+  LONGS_EQUAL(84, RfPayloadLimit(0x80, 0));  // never above a single packet
+  LONGS_EQUAL(0, RfPayloadLimit(-1, 0));     // NP unknown
+}

@@ -237,3 +237,62 @@ TEST(SimFleet, MapTruthWearsInProportionToTheMapAndCrusherFoldersChooseTheirTrut
   }
   CHECK_THROWS(std::runtime_error, sim::LoadCrusherFolder(dir / "missing"));
 }
+
+// The virtual radios as Digi's modules are: the coordinator answers the gateway's AT NP / EE, and
+// every radio refuses a frame above the unfragmented payload they imply (0x74), so an oversize
+// frame from the firmware or the gateway is lost in any run through the sim, never fragmented.
+// With NP 49 (APS security) every reading still reaches the gateway.
+TEST(SimFleet, TheVirtualRadiosAnswerNpAndRefuseAFrameAboveIt) {
+  const sim::CampaignTruth truth(sim::GenerateCampaign(SmallSpec(3), 4));
+  sim::FleetOptions o = Options(0.1, 0, 1);
+  o.radio_np = 49;
+  o.radio_ee = 1;
+  sim::Fleet fleet(truth.campaign().crusher(), truth, o);
+  pr::FrameDecoder dec(pr::ApiMode::kEscaped);
+  const auto take = [&](uint8_t type) {
+    std::vector<std::vector<uint8_t>> frames;
+    for (uint8_t b : fleet.TakeSerialOutput()) {
+      if (dec.Feed(b) == pr::DecodeEvent::kFrame && dec.frame_type() == type)
+        frames.emplace_back(dec.frame_data(), dec.frame_data() + dec.frame_length());
+    }
+    return frames;
+  };
+  pr::AtCommand np;
+  np.frame_id = 5;
+  np.command[0] = 'N';
+  np.command[1] = 'P';
+  uint8_t wire[pr::kMaxWireFrame];
+  fleet.OnSerialInput(wire, pr::EncodeAtCommand(pr::ApiMode::kEscaped, np, wire, sizeof wire));
+  const auto answers = take(0x88);
+  LONGS_EQUAL(1, answers.size());
+  pr::AtCommandResponse rsp;
+  CHECK(pr::ParseAtCommandResponse(answers[0].data(), answers[0].size(), &rsp) == pr::Status::kOk);
+  uint64_t v = 0;
+  CHECK(rsp.Value(&v));
+  LONGS_EQUAL(49, v);
+  // An ack sized for 84 bytes (18 seqs, 81 bytes) is refused.
+  pr::Ack ack;
+  ack.sensor_id = 1;
+  ack.count = 18;
+  uint8_t payload[pr::kMaxRfPayload];
+  size_t plen = 0;
+  CHECK(pr::EncodeAck(ack, payload, sizeof payload, &plen) == pr::PayloadStatus::kOk);
+  pr::TransmitRequest req;
+  req.frame_id = 6;
+  req.dest64 = sim::SensorAddress(truth.campaign().crusher().sensors[0]);
+  req.payload = payload;
+  req.payload_len = plen;
+  fleet.OnSerialInput(wire, pr::EncodeTransmitRequest(pr::ApiMode::kEscaped, req, wire, sizeof wire));
+  const auto status = take(0x8B);
+  LONGS_EQUAL(1, status.size());
+  LONGS_EQUAL(0x74, status[0][5]);
+  LONGS_EQUAL(1, fleet.counters().acks_too_large);
+
+  TestGateway gw(pr::ApiMode::kEscaped);
+  RunFleet(fleet, gw, 3);
+  LONGS_EQUAL(0, fleet.counters().frames_too_large);
+  for (const sim::LedgerEntry& e : fleet.ledger()) {
+    CHECK_TEXT(gw.thickness.count({e.sensor_id, e.seq}) == 1, (e.sensor_id + "/" + std::to_string(e.seq)).c_str());
+  }
+  LONGS_EQUAL(0, fleet.queued_records());
+}

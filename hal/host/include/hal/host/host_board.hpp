@@ -183,7 +183,10 @@ class HostFlash final : public FlashPages {
 /// The XBee module as seen from the MCU's UART, plus the radio link beyond it. It decodes the
 /// firmware's API frames; a 0x10 Transmit Request is delivered to `on_deliver` when the link
 /// accepts it and answered with a 0x8B Transmit Status either way. Frames for the firmware
-/// (0x90 from the coordinator) are queued with Inject().
+/// (0x90 from the coordinator) are queued with Inject(). It answers the local AT queries NP and
+/// EE (0x08 -> 0x88) with its settings, and refuses a transmission whose payload exceeds what one
+/// unfragmented packet carries (protocol::RfPayloadLimit of them) with delivery status 0x74
+/// data_payload_too_large, not delivered: a frame sized for a bigger link fails loudly here.
 class HostRadio final : public Uart {
  public:
   using DeliverFn = std::function<void(uint64_t src64, const uint8_t* payload, size_t len)>;
@@ -191,6 +194,20 @@ class HostRadio final : public Uart {
   void set_on_deliver(DeliverFn fn) { on_deliver_ = std::move(fn); }
   /// false: every transmission fails with 0x21 network ACK failure (link down).
   void set_link_up(bool up) { link_up_ = up; }
+  /// When set, asked once per transmission whether the link carries it (instead of set_link_up):
+  /// a simulator's lossy air. Local AT commands never ask it.
+  void set_link_check(std::function<bool()> fn) { link_check_ = std::move(fn); }
+  /// The module's NP answer (default 0xFF, an XBee 3 in API mode) and EE setting (default 0).
+  void set_np(uint8_t np) { np_ = np; }
+  void set_ee(uint8_t ee) { ee_ = ee; }
+  /// false: AT commands get no answer (a module in transparent mode, or a cut TX line).
+  void set_answers_at(bool answers) { answers_at_ = answers; }
+  /// The largest payload it delivers: protocol::RfPayloadLimit(np, ee).
+  size_t rf_payload_limit() const;
+  /// Transmissions refused as too large (0x74), and the largest payload the MCU asked to send.
+  uint32_t refused_too_large() const { return refused_too_large_; }
+  size_t largest_payload() const { return largest_payload_; }
+  uint32_t at_queries() const { return at_queries_; }
   /// Supply check: while it returns false the board is browned out and whatever the MCU writes
   /// never reaches the radio (HostBoard ties it to the flash's injected power loss).
   void set_power_good(std::function<bool()> fn) { power_good_ = std::move(fn); }
@@ -207,16 +224,25 @@ class HostRadio final : public Uart {
   size_t DoWrite(const uint8_t* data, size_t len) override;
   size_t DoRead(uint8_t* out, size_t cap) override;
   void QueueFrame(const uint8_t* frame_data, size_t len);
+  void Transmit(const protocol::TransmitRequest& req);
+  void AnswerAt(const protocol::AtCommand& cmd);
   uint64_t address64_;
   protocol::ApiMode mode_;
   protocol::FrameDecoder decoder_;
   DeliverFn on_deliver_;
   std::function<bool()> power_good_;
+  std::function<bool()> link_check_;
   uint64_t bytes_lost_to_brownout_ = 0;
   bool link_up_ = true;
   std::deque<uint8_t> to_mcu_;
   uint32_t transmit_requests_ = 0;
   uint32_t delivered_ = 0;
+  uint8_t np_ = protocol::kNpFragmentedMaximum;
+  uint8_t ee_ = 0;
+  bool answers_at_ = true;
+  uint32_t refused_too_large_ = 0;
+  size_t largest_payload_ = 0;
+  uint32_t at_queries_ = 0;
 };
 
 /// All host peripherals of one board, wired into a hal::Board. A power loss injected with
