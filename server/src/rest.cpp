@@ -169,7 +169,8 @@ const std::vector<Route>& Resources::Routes() {
        {{"format", "string", "json (default), vtk (legacy VTK for ParaView) or csv (per face)"},
         {"faces", "boolean", "false: leave out the per-face array"}},
        "200",
-       &Resources::Wear},
+       &Resources::Wear,
+       {"application/json", "application/octet-stream", "text/csv"}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/forecast",
        "Per row and sensor: the date the minimum thickness is reached, with a band",
@@ -468,7 +469,7 @@ Response Resources::Wear(const Request& req) {
   if (format == "csv") {
     Response r;
     r.headers.emplace_back("Content-Disposition", "attachment; filename=\"" + c->config.crusher_id + "_wear.csv\"");
-    r.raw = RawBody{WearCsv(*st), "text/csv"};
+    r.raw = RawBody{WearCsv(*st), core::kCsvContentType};
     return r;
   }
   if (format != "json") return Error(400, "format='" + format + "': use json, vtk or csv");

@@ -1,5 +1,7 @@
 #include "server/wear_service.hpp"
 
+#include "core/csv.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -219,20 +221,29 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
 std::string WearCsv(const CrusherState& st) {
   const Crusher& c = *st.crusher;
   const core::Reconstruction& rec = st.reconstruction;
-  std::string out = "face,row,z_m,theta_deg,remaining_mm,remaining_sd_mm,wear_mm\n";
+  std::string out;
+  core::AppendCsvRecord(&out, {"face", "row", "z_m", "theta_deg", "remaining_mm", "remaining_sd_mm", "wear_mm"});
   const bool scaled =
       rec.status != core::kStatusNoSensors && rec.remaining_mm.size() == static_cast<Eigen::Index>(c.map.face_count());
-  char line[160];
+  // Fixed decimals per column: metres to 0.1 mm, degrees to 0.01, millimetres to 1 um.
+  const auto num = [](double v, int decimals) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.*f", decimals, v);
+    return std::string(b);
+  };
   for (size_t f = 0; f < c.map.face_count(); ++f) {
     const auto i = static_cast<Eigen::Index>(f);
     const int row = c.plan.face_row[f];
-    const std::string name = row >= 0 ? c.config.rows[static_cast<size_t>(row)].name : "";
-    if (scaled)
-      std::snprintf(line, sizeof line, "%zu,%s,%.4f,%.2f,%.3f,%.3f,%.3f\n", f, name.c_str(), c.map.z[i], c.map.theta_deg[i],
-                    rec.remaining_mm[i], rec.remaining_sd_mm[i], rec.wear_mm[i]);
-    else
-      std::snprintf(line, sizeof line, "%zu,%s,%.4f,%.2f,,,\n", f, name.c_str(), c.map.z[i], c.map.theta_deg[i]);
-    out += line;
+    std::vector<std::string> rec_fields = {std::to_string(f), row >= 0 ? c.config.rows[static_cast<size_t>(row)].name : "",
+                                           num(c.map.z[i], 4), num(c.map.theta_deg[i], 2)};
+    if (scaled) {
+      rec_fields.push_back(num(rec.remaining_mm[i], 3));
+      rec_fields.push_back(num(rec.remaining_sd_mm[i], 3));
+      rec_fields.push_back(num(rec.wear_mm[i], 3));
+    } else {
+      rec_fields.insert(rec_fields.end(), 3, "");
+    }
+    core::AppendCsvRecord(&out, rec_fields);
   }
   return out;
 }

@@ -137,8 +137,9 @@ TEST(RestRoutes, TheOpenApiDocumentHasOneOperationPerRouteAndNoOther) {
   STRCMP_EQUAL("read", metrics["x-scope"].get<std::string>().c_str());
   CHECK(metrics["responses"]["200"]["content"].contains("text/plain"));
   CHECK_FALSE(metrics["responses"]["200"]["content"].contains("application/json"));
-  for (const char* path : {"/api/v1/crushers/{crusher}/sensors/{sensor}/readings", "/api/v1/crushers/{crusher}/forecast"}) {
-    const json& content = doc["paths"][path]["get"]["responses"]["200"]["content"];
+  for (const char* path : {"/api/v1/crushers/{crusher}/sensors/{sensor}/readings", "/api/v1/crushers/{crusher}/forecast",
+                           "/api/v1/crushers/{crusher}/wear"}) {
+    const json& content = doc.at("paths").at(path).at("get").at("responses").at("200").at("content");
     CHECK_TEXT(content.contains("application/json") && content.contains("text/csv"), path);
   }
 }
@@ -364,8 +365,8 @@ TEST(RestHandlers, WearAndForecastOnceThereAreReadings) {
   // Per face as CSV: a header and one line per face, remaining thickness as in the JSON.
   res = f.Get(wear, {Folder().id()}, {{"format", "csv"}});
   CHECK(res.raw.has_value());
-  STRCMP_EQUAL("text/csv", res.raw->content_type.c_str());
-  CHECK(res.raw->content.rfind("face,row,z_m,theta_deg,remaining_mm,remaining_sd_mm,wear_mm\n", 0) == 0);
+  STRCMP_EQUAL("text/csv; charset=utf-8", res.raw->content_type.c_str());
+  CHECK(res.raw->content.rfind("face,row,z_m,theta_deg,remaining_mm,remaining_sd_mm,wear_mm\r\n", 0) == 0);
   LONGS_EQUAL(Folder().bundle.map.face_count() + 1, std::count(res.raw->content.begin(), res.raw->content.end(), '\n'));
   {
     const std::string& csv = res.raw->content;
