@@ -33,6 +33,7 @@ struct GuardedServer::Conn {
   size_t head_len = 0;          ///< bytes of the complete head at the start of buf
   uint64_t body_allowance = 0;  ///< body bytes the request may send (framing included)
   uint64_t body_limit = 0;      ///< the request's body limit (the 413 message names it)
+  bool linger = false;          ///< handed back by a worker to drain unread body bytes, then close
   size_t served = 0;            ///< requests answered on this connection
   size_t lingered = 0;          ///< bytes discarded after an error reply
 };
@@ -500,6 +501,7 @@ void GuardedServer::Worker() {
       if (!c) return;  // stopping
     }
     bool keep = false;
+    bool linger = false;
     if (!stopping_) {
       GuardedStream strm(*c, limits_);
       const bool last = c->served + 1 >= limits_.max_requests_per_connection;
@@ -511,6 +513,9 @@ void GuardedServer::Worker() {
       // of a refused request unread; those bytes must not be parsed as the next request).
       keep = ok && !closed && !last && !strm.failed() && strm.complete() && !stopping_;
       if (keep) c->buf = strm.Leftover();
+      // Answered before its body was read (404, 405, 401, 403): closing with the body's bytes
+      // unread would reset the connection and could lose the reply; drain them for a moment.
+      linger = !keep && !stopping_ && !strm.failed() && !strm.complete();
     }
     {
       // The client's next queued head may now take a worker.
@@ -518,11 +523,13 @@ void GuardedServer::Worker() {
       if (--busy_per_client_[c->ip] == 0) busy_per_client_.erase(c->ip);
     }
     jobs_cv_.notify_all();
-    if (!keep) {
+    if (!keep && !linger) {
       Release(*c);
       delete c;
       continue;
     }
+    if (linger) ::shutdown(c->fd, SHUT_WR);
+    c->linger = linger;
     c->head_len = 0;
     c->body_allowance = 0;
     {
@@ -547,8 +554,9 @@ void GuardedServer::Serve() {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       for (Conn* c : returned_) {
-        c->state = Conn::State::kIdle;
-        c->deadline = Clock::now() + std::chrono::milliseconds(limits_.idle_timeout_ms);
+        c->state = c->linger ? Conn::State::kLinger : Conn::State::kIdle;
+        if (c->linger) c->buf.clear();  // a lingering connection's bytes are discarded
+        c->deadline = Clock::now() + std::chrono::milliseconds(c->linger ? 2000 : limits_.idle_timeout_ms);
         conns_.push_back(c);
       }
       returned_.clear();
