@@ -68,8 +68,7 @@ void Gateway::Log(const std::string& line) const {
 }
 
 void Gateway::LogLimited(const std::string& kind, const std::string& line) {
-  const uint64_t n = ++log_counts_[kind];
-  if (n <= 10 || n % 1000 == 0) Log(line + (n > 10 ? " (" + std::to_string(n) + " so far)" : ""));
+  if (const auto admitted = log_limiter_.Admit(kind, line)) Log(*admitted);
 }
 
 void Gateway::OnBytes(const uint8_t* data, size_t len, int64_t now_ms) {

@@ -11,10 +11,13 @@
 #include <cstdio>
 #include <cstring>
 #include <exception>
+#include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "core/file_lock.hpp"
 #include "core/clock.hpp"
 #include "core/sd_notify.hpp"
 #include "gateway/config.hpp"
@@ -49,9 +52,9 @@ std::string Offline(const std::string& gateway_id) {
 }
 
 void Log(const std::string& line) {
-  // Lines carry text from the radio and the broker: control characters are escaped.
-  std::fprintf(stderr, "linerwatch-gateway: %s\n", lw::gateway::SanitizeForLog(line).c_str());
-  std::fflush(stderr);
+  // Lines carry text from the radio and the broker: the one log mechanism escapes them.
+  static lw::core::Logger log(std::cerr, "linerwatch-gateway");
+  log(line);
 }
 
 int Run(const lw::gateway::Config& config) {
@@ -63,16 +66,12 @@ int Run(const lw::gateway::Config& config) {
     std::fprintf(stderr, "linerwatch-gateway: error: --serial: %s does not exist\n", config.serial.c_str());
     return 2;
   }
-  // One gateway per spool: a second instance would also steal bytes from the serial port. flock
-  // does not interfere with SQLite's POSIX locks; the descriptor stays open until exit (closing
-  // another descriptor of a SQLite file would drop SQLite's own locks).
-  const int lock_fd = ::open(config.spool.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0640);
-  if (lock_fd < 0) {
-    std::fprintf(stderr, "linerwatch-gateway: error: spool %s: cannot open: %s\n", config.spool.c_str(), std::strerror(errno));
-    return 1;
-  }
-  if (::flock(lock_fd, LOCK_EX | LOCK_NB) != 0) {
-    std::fprintf(stderr, "linerwatch-gateway: error: spool %s is in use by another linerwatch-gateway\n", config.spool.c_str());
+  // One gateway per spool: a second instance would also steal bytes from the serial port.
+  std::optional<lw::core::ExclusiveFileLock> spool_lock;
+  try {
+    spool_lock.emplace(config.spool, true, "linerwatch-gateway");
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "linerwatch-gateway: error: spool %s\n", e.what());
     return 1;
   }
   Spool spool(config.spool, config.spool_max_records);

@@ -48,25 +48,4 @@ std::string DeviceJson(const std::vector<DeviceEntry>& entries, const std::strin
   return mqtt::EncodeDevice(m);
 }
 
-std::string SanitizeForLog(std::string_view text, size_t max_bytes) {
-  static constexpr char kHex[] = "0123456789ABCDEF";
-  std::string out;
-  const size_t n = std::min(text.size(), max_bytes);
-  out.reserve(n + 16);
-  for (size_t i = 0; i < n; ++i) {
-    const auto c = static_cast<unsigned char>(text[i]);
-    if (c == '\\') {
-      out += "\\\\";
-    } else if (c < 0x20 || c >= 0x7F) {
-      out += "\\x";
-      out.push_back(kHex[c >> 4]);
-      out.push_back(kHex[c & 0xF]);
-    } else {
-      out.push_back(static_cast<char>(c));
-    }
-  }
-  if (text.size() > n) out += "... (" + std::to_string(text.size()) + " bytes)";
-  return out;
-}
-
 }  // namespace lw::gateway

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -31,14 +32,32 @@ void Error(httplib::Response& res, int status, const std::string& message) {
 
 /// The event stream path: the only one that takes ?access_token= (EventSource cannot send headers).
 bool IsEventStream(const std::string& path) {
-  return path.rfind("/api/v1/crushers/", 0) == 0 && path.size() > 7 && path.compare(path.size() - 7, 7, "/events") == 0;
+  const rest::RouteMatch m = rest::MatchRoute("GET", path);
+  return m.route && std::string_view(m.route->path) == "/api/v1/crushers/{crusher}/events";
 }
 
 std::string BearerOf(const httplib::Request& req) {
-  const std::string h = req.get_header_value("Authorization");
+  // The whole value: get_header_value goes through a C string and would stop at a NUL.
+  const auto it = req.headers.find("Authorization");
+  const std::string h = it == req.headers.end() ? std::string() : it->second;
   if (h.rfind("Bearer ", 0) == 0) return h.substr(7);
   if (req.method == "GET" && IsEventStream(req.path) && req.has_param("access_token")) return req.get_param_value("access_token");
   return {};
+}
+
+/// The dashboard's paths (RouteDashboard): GET and HEAD only.
+bool IsDashboardPath(const std::string& path) {
+  return path == "/" || path.rfind("/assets/", 0) == 0;
+}
+
+/// The methods served on `path`, for a 405's Allow header.
+std::string AllowedMethods(const std::string& path) {
+  if (IsDashboardPath(path)) return "GET, HEAD";
+  std::string allow;
+  for (const char* method : {"GET", "POST"}) {
+    if (rest::MatchRoute(method, path).route) allow += std::string(allow.empty() ? "" : ", ") + method;
+  }
+  return allow;
 }
 
 /// "http://host:port" -> "host:port"; empty when `origin` is not http(s)://.
@@ -56,6 +75,7 @@ rest::Request ToRest(const httplib::Request& req) {
   r.body = req.body;
   r.bearer = BearerOf(req);
   r.last_event_id = req.get_header_value("Last-Event-ID");
+  r.client = req.remote_addr;
   return r;
 }
 
@@ -109,10 +129,13 @@ struct HttpApi::Impl {
   std::atomic<bool> stopping{false};
 
   void Routes();
-  /// Before routing: the Host must be ours (DNS rebinding); a state-changing request must come
-  /// from our own origin with a JSON body (cross-site forms and text/plain posts: CSRF); then
-  /// bearer tokens on /api with the scope rest::RequiredScope names.
+  /// Before routing, so before any body is read: the Host must be ours (DNS rebinding); the
+  /// method and path must be a route's (404, 405); a bearer token on /api with the scope
+  /// rest::RequiredScope names; a state-changing request must come from our own origin with a
+  /// JSON body (cross-site forms and text/plain posts: CSRF).
   httplib::Server::HandlerResponse Admit(const httplib::Request& req, httplib::Response& res);
+  /// The bearer token's check for the scope the request needs: the refusal (401, 403) or nullopt.
+  std::optional<httplib::Server::HandlerResponse> Authorize(const httplib::Request& req, httplib::Response& res);
   /// index.html at / and its bundle under /assets, nothing else from the folder (in a build tree
   /// it also holds CMake's files); a page pointing at the API when there is no dashboard.
   void RouteDashboard();
@@ -181,6 +204,13 @@ void HttpApi::Impl::Routes() {
       ctx.metrics->CountHttp(req.method, req.path, res.status);
     });
   }
+  // A path no route has gets its 404 (or 405) from Admit, before its body is read: the limit
+  // there is only the general one.
+  const uint64_t general = ctx.limits.max_body_bytes;
+  svr.SetBodyLimit([general](std::string_view method, std::string_view path) {
+    const rest::RouteMatch m = rest::MatchRoute(method, path);
+    return m.route ? m.route->max_body_bytes : general;
+  });
   RouteDashboard();
 
   // The API: every route of the one table (rest::Resources::Routes(), from which the OpenAPI
@@ -203,6 +233,20 @@ httplib::Server::HandlerResponse HttpApi::Impl::Admit(const httplib::Request& re
     Error(res, 421, "Host '" + host + "' is not one this server answers to (see --allowed-hosts)");
     return httplib::Server::HandlerResponse::Handled;
   }
+  // The route and its scope are known before any body is read: a request no route serves is
+  // answered here, its body unread (the connection then closes).
+  const bool dashboard = IsDashboardPath(req.path) && (req.method == "GET" || req.method == "HEAD");
+  const rest::RouteMatch route = rest::MatchRoute(req.method, req.path);
+  if (!route.route && !dashboard) {
+    if (!route.path_known && !IsDashboardPath(req.path)) {
+      Error(res, 404, "no such resource: " + req.path);
+    } else {
+      res.set_header("Allow", AllowedMethods(req.path));
+      Error(res, 405, req.method + " is not allowed on " + req.path + " (" + AllowedMethods(req.path) + ")");
+    }
+    return httplib::Server::HandlerResponse::Handled;
+  }
+  if (const auto refused = Authorize(req, res)) return *refused;
   if (rest::Writes(req.method)) {
     const std::string origin = req.get_header_value("Origin");
     if (req.has_header("Origin") && strcasecmp(OriginHost(origin).c_str(), host.c_str()) != 0) {
@@ -215,8 +259,12 @@ httplib::Server::HandlerResponse HttpApi::Impl::Admit(const httplib::Request& re
       return httplib::Server::HandlerResponse::Handled;
     }
   }
+  return httplib::Server::HandlerResponse::Unhandled;
+}
+
+std::optional<httplib::Server::HandlerResponse> HttpApi::Impl::Authorize(const httplib::Request& req, httplib::Response& res) {
   const rest::Scope scope = rest::RequiredScope(req.method, req.path);
-  if (!ctx.tokens || !ctx.tokens->enabled() || scope == rest::Scope::kNone) return httplib::Server::HandlerResponse::Unhandled;
+  if (!ctx.tokens || !ctx.tokens->enabled() || scope == rest::Scope::kNone) return std::nullopt;
   const auto token = ctx.tokens->Check(BearerOf(req));
   if (!token) {
     res.set_header("WWW-Authenticate", "Bearer");
@@ -227,7 +275,7 @@ httplib::Server::HandlerResponse HttpApi::Impl::Admit(const httplib::Request& re
     Error(res, 403, std::string("token '") + token->name + "' lacks the " + rest::ScopeName(scope) + " scope");
     return httplib::Server::HandlerResponse::Handled;
   }
-  return httplib::Server::HandlerResponse::Unhandled;
+  return std::nullopt;
 }
 
 void HttpApi::Impl::RouteDashboard() {

@@ -20,6 +20,9 @@ namespace lw::server {
 
 using Clock = std::chrono::steady_clock;
 
+/// The longest header field line httplib 0.11.4 parses (CPPHTTPLIB_HEADER_MAX_LENGTH).
+constexpr size_t kMaxHeaderLine = 8192;
+
 struct GuardedServer::Conn {
   int fd = -1;
   std::string ip;
@@ -29,6 +32,8 @@ struct GuardedServer::Conn {
   Clock::time_point deadline;
   size_t head_len = 0;          ///< bytes of the complete head at the start of buf
   uint64_t body_allowance = 0;  ///< body bytes the request may send (framing included)
+  uint64_t body_limit = 0;      ///< the request's body limit (the 413 message names it)
+  bool linger = false;          ///< handed back by a worker to drain unread body bytes, then close
   size_t served = 0;            ///< requests answered on this connection
   size_t lingered = 0;          ///< bytes discarded after an error reply
 };
@@ -152,7 +157,7 @@ class GuardedStream : public httplib::Stream {
   ssize_t read(char* ptr, size_t size) override {
     if (failed_) return -1;
     if (consumed_ >= budget_) {
-      Fail(413, "request body larger than " + std::to_string(limits_.max_body_bytes) + " bytes");
+      Fail(413, "request body larger than " + std::to_string(c_.body_limit) + " bytes");
       return -1;
     }
     size = static_cast<size_t>(std::min<uint64_t>(size, budget_ - consumed_));
@@ -409,6 +414,9 @@ void GuardedServer::ReadHead(Conn& c) {
     return;  // wait for more
   }
   c.head_len = end + 4;
+  // RFC 9110 5.5: a NUL in a field value is refused (httplib reads values as C strings: a token
+  // "a\0b" would be compared as "a").
+  if (std::memchr(c.buf.data(), '\0', c.head_len) != nullptr) return Refuse(c, 400, "a NUL byte in the request head");
   // What httplib would trust blindly: the body's framing. Checked here, before any body is read.
   size_t headers = 0;
   bool has_length = false, chunked = false;
@@ -421,9 +429,15 @@ void GuardedServer::ReadHead(Conn& c) {
     if (line.empty()) continue;
     if (++headers > limits_.max_headers)
       return Refuse(c, 431, "more than " + std::to_string(limits_.max_headers) + " header fields");
+    // httplib refuses a longer header line as a bare 400 (CPPHTTPLIB_HEADER_MAX_LENGTH).
+    if (line.size() > kMaxHeaderLine)
+      return Refuse(c, 431, "a header field longer than " + std::to_string(kMaxHeaderLine) + " bytes");
     const size_t colon = line.find(':');
     if (colon == std::string::npos) return Refuse(c, 400, "malformed header line");
-    const std::string name = Lower(TrimSpaces(line.substr(0, colon)));
+    // RFC 9112 5.1: whitespace between a field name and the colon is refused, never trimmed (a
+    // proxy and httplib could otherwise read different framing).
+    if (colon == 0 || line.find_first_of(" \t") < colon) return Refuse(c, 400, "whitespace in or before a header field name");
+    const std::string name = Lower(line.substr(0, colon));
     const std::string value = Lower(TrimSpaces(line.substr(colon + 1)));
     if (name == "content-length") {
       if (has_length || value.empty() || value.size() > 19 || value.find_first_not_of("0123456789") != std::string::npos) {
@@ -440,14 +454,21 @@ void GuardedServer::ReadHead(Conn& c) {
     }
   }
   if (has_length && chunked) return Refuse(c, 400, "both Content-Length and Transfer-Encoding");
-  if (has_length && length > limits_.max_body_bytes) {
+  // The route's limit, from the path as httplib will route it (decoded, without the query).
+  const size_t target_at = method.size() + 1;
+  const size_t target_end = std::min(c.buf.find(' ', target_at), eol);
+  const std::string target = target_at < target_end ? c.buf.substr(target_at, target_end - target_at) : std::string();
+  const std::string path = httplib::detail::decode_url(target.substr(0, target.find('?')), false);
+  c.body_limit = std::min(limits_.max_body_bytes, body_limit_ ? body_limit_(method, path) : limits_.max_body_bytes);
+  if (has_length && length > c.body_limit) {
     return Refuse(c, 413,
-                  "request body of " + std::to_string(length) + " bytes; at most " + std::to_string(limits_.max_body_bytes));
+                  "request body of " + std::to_string(length) + " bytes; at most " + std::to_string(c.body_limit) + " for " +
+                      method + " " + path);
   }
   const bool body_method = method == "POST" || method == "PUT" || method == "PATCH";
   if (body_method && !has_length && !chunked) return Refuse(c, 411, "a " + method + " needs Content-Length or chunked encoding");
   // Chunked: counted as received, framing included (64 KiB of it beyond the cap).
-  c.body_allowance = has_length ? length : chunked ? limits_.max_body_bytes + 64 * 1024 : 0;
+  c.body_allowance = has_length ? length : chunked ? c.body_limit + 64 * 1024 : 0;
   // A worker owns the connection now; it comes back through returned_ for keep-alive.
   conns_.erase(std::find(conns_.begin(), conns_.end(), &c));
   {
@@ -457,17 +478,30 @@ void GuardedServer::ReadHead(Conn& c) {
   jobs_cv_.notify_one();
 }
 
+GuardedServer::Conn* GuardedServer::TakeJob() {
+  const size_t cap = std::max<size_t>(limits_.max_requests_per_client, 1);
+  for (auto it = jobs_.begin(); it != jobs_.end(); ++it) {
+    Conn* c = *it;
+    size_t& busy = busy_per_client_[c->ip];
+    if (busy < cap) {
+      ++busy;
+      jobs_.erase(it);
+      return c;
+    }
+  }
+  return nullptr;
+}
+
 void GuardedServer::Worker() {
   while (true) {
     Conn* c = nullptr;
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      jobs_cv_.wait(lock, [this] { return stopping_ || !jobs_.empty(); });
-      if (jobs_.empty()) return;  // stopping
-      c = jobs_.front();
-      jobs_.pop_front();
+      jobs_cv_.wait(lock, [this, &c] { return (c = TakeJob()) != nullptr || stopping_; });
+      if (!c) return;  // stopping
     }
     bool keep = false;
+    bool linger = false;
     if (!stopping_) {
       GuardedStream strm(*c, limits_);
       const bool last = c->served + 1 >= limits_.max_requests_per_connection;
@@ -479,12 +513,23 @@ void GuardedServer::Worker() {
       // of a refused request unread; those bytes must not be parsed as the next request).
       keep = ok && !closed && !last && !strm.failed() && strm.complete() && !stopping_;
       if (keep) c->buf = strm.Leftover();
+      // Answered before its body was read (404, 405, 401, 403): closing with the body's bytes
+      // unread would reset the connection and could lose the reply; drain them for a moment.
+      linger = !keep && !stopping_ && !strm.failed() && !strm.complete();
     }
-    if (!keep) {
+    {
+      // The client's next queued head may now take a worker.
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (--busy_per_client_[c->ip] == 0) busy_per_client_.erase(c->ip);
+    }
+    jobs_cv_.notify_all();
+    if (!keep && !linger) {
       Release(*c);
       delete c;
       continue;
     }
+    if (linger) ::shutdown(c->fd, SHUT_WR);
+    c->linger = linger;
     c->head_len = 0;
     c->body_allowance = 0;
     {
@@ -509,8 +554,9 @@ void GuardedServer::Serve() {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       for (Conn* c : returned_) {
-        c->state = Conn::State::kIdle;
-        c->deadline = Clock::now() + std::chrono::milliseconds(limits_.idle_timeout_ms);
+        c->state = c->linger ? Conn::State::kLinger : Conn::State::kIdle;
+        if (c->linger) c->buf.clear();  // a lingering connection's bytes are discarded
+        c->deadline = Clock::now() + std::chrono::milliseconds(c->linger ? 2000 : limits_.idle_timeout_ms);
         conns_.push_back(c);
       }
       returned_.clear();
@@ -570,6 +616,8 @@ void GuardedServer::Serve() {
     std::lock_guard<std::mutex> lock(mutex_);
     conns_.insert(conns_.end(), returned_.begin(), returned_.end());
     returned_.clear();
+    conns_.insert(conns_.end(), jobs_.begin(), jobs_.end());  // heads no worker took
+    jobs_.clear();
   }
   for (Conn* c : conns_) {
     Release(*c);

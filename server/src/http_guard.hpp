@@ -6,7 +6,9 @@
 /// listening socket: one poll loop accepts connections and reads each request head with caps on
 /// bytes, header count and time as the bytes arrive, without a thread per connection; only a
 /// complete head is handed to a worker, whose stream caps the body's bytes and time. Idle
-/// keep-alive connections go back to the loop. Connections are capped in total and per client IP.
+/// keep-alive connections go back to the loop. Connections are capped in total and per client IP,
+/// and so are the requests one client IP has on workers at once (its other complete heads wait),
+/// so that one address trickling bodies cannot hold every worker.
 #include "server/http_api.hpp"
 
 // After Eigen (via http_api.hpp): <resolv.h> (via httplib) defines the macro _res, a parameter
@@ -16,9 +18,11 @@
 #include <atomic>
 #include <condition_variable>
 #include <deque>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -30,6 +34,12 @@ class GuardedServer : public httplib::Server {
   ~GuardedServer() override;
   GuardedServer(const GuardedServer&) = delete;
   GuardedServer& operator=(const GuardedServer&) = delete;
+
+  /// The body limit of a request from its method and decoded path (no query), checked as its head
+  /// arrives (Content-Length: 413 before any body is read) and as a chunked body arrives; never
+  /// above HttpLimits::max_body_bytes. Unset: max_body_bytes for every request. Set before Serve().
+  using BodyLimit = std::function<uint64_t(std::string_view method, std::string_view path)>;
+  void SetBodyLimit(BodyLimit limit) { body_limit_ = std::move(limit); }
 
   /// Accepts and serves on the socket bound by bind_to_port / bind_to_any_port until Shutdown().
   void Serve();
@@ -45,11 +55,13 @@ class GuardedServer : public httplib::Server {
   void Accept();
   void ReadHead(Conn& c);
   void Worker();
-  void Release(Conn& c);                                         // closes the socket and gives back the connection slots
+  Conn* TakeJob();        // with mutex_ held: the first queued head whose client IP is under its cap
+  void Release(Conn& c);  // closes the socket and gives back the connection slots
   void Refuse(Conn& c, int status, const std::string& message);  // replies, then lingers briefly
   void Wake();
 
   HttpLimits limits_;
+  BodyLimit body_limit_;
   int wake_[2] = {-1, -1};
   std::atomic<bool> stopping_{false};
   std::vector<std::thread> workers_;
@@ -61,6 +73,7 @@ class GuardedServer : public httplib::Server {
   std::vector<Conn*> returned_;  // keep-alive connections handed back by workers
   size_t open_ = 0;
   std::map<std::string, size_t> per_client_;
+  std::map<std::string, size_t> busy_per_client_;  // requests on a worker, per client IP
   bool served_ = false;
 };
 

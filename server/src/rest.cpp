@@ -78,6 +78,42 @@ Scope RequiredScope(std::string_view method, std::string_view path) {
   return Writes(method) ? Scope::kWrite : Scope::kRead;
 }
 
+namespace {
+/// Whether `path` matches `path_template` segment by segment, {name} matching one non-empty
+/// segment: what PathPattern's regular expression matches, without building one per request.
+bool PathMatches(std::string_view path_template, std::string_view path) {
+  size_t t = 0, p = 0;
+  while (t < path_template.size()) {
+    if (path_template[t] == '{') {
+      const size_t close = path_template.find('}', t);
+      const size_t end = std::min(path.find('/', p), path.size());
+      if (close == std::string_view::npos || end == p) return false;
+      t = close + 1;
+      p = end;
+      continue;
+    }
+    if (p >= path.size() || path[p] != path_template[t]) return false;
+    ++t;
+    ++p;
+  }
+  return p == path.size();
+}
+}  // namespace
+
+RouteMatch MatchRoute(std::string_view method, std::string_view path) {
+  RouteMatch m;
+  const std::string_view as = method == "HEAD" ? std::string_view("GET") : method;
+  for (const Route& r : Resources::Routes()) {
+    if (!PathMatches(r.path, path)) continue;
+    m.path_known = true;
+    if (as == MethodName(r.method)) {
+      m.route = &r;
+      break;
+    }
+  }
+  return m;
+}
+
 Response Error(int status, const std::string& message) {
   return Json(status, {{"error", message}});
 }
@@ -119,6 +155,7 @@ std::optional<std::string> EventStream::Next(const std::function<bool()>& client
   // is still there: a closed stream frees its slot and its worker at once.
   std::vector<Event> events;
   for (int waited = 0; waited < 15 && events.empty(); ++waited) {
+    if (Expired()) return std::nullopt;
     events = events_.WaitAfter(&after_, crusher_, std::chrono::milliseconds(1000));
     if (stopping_ || events_.closed()) return std::nullopt;
     if (events.empty() && client_gone && client_gone()) return std::nullopt;
@@ -156,7 +193,9 @@ const std::vector<Route>& Resources::Routes() {
        "Store readings {\"readings\": [{sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv}]}",
        {},
        "200",
-       &Resources::PostReadings},
+       &Resources::PostReadings,
+       {"application/json"},
+       kMaxReadingsBodyBytes},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/mesh",
        "As-new liner mesh: points, faces, face z and theta",
@@ -383,7 +422,8 @@ Response Resources::PostReadings(const Request& req) {
   if (!body.is_object() || !body.contains("readings") || !body["readings"].is_array()) {
     return Error(400, "body must be {\"readings\": [...]}");
   }
-  if (body["readings"].size() > 10000) return Error(413, "at most 10000 readings per request");
+  if (body["readings"].size() > kMaxPostedReadings)
+    return Error(413, "at most " + std::to_string(kMaxPostedReadings) + " readings per request");
   std::vector<Incoming> batch;
   for (const auto& r : body["readings"]) {
     batch.push_back({"", c->config.crusher_id, "", "", r.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)});
@@ -518,19 +558,33 @@ Response Resources::Events(const Request& req) {
   Response error;
   const Crusher* c = CrusherOf(req, &error);
   if (!c) return error;
-  if (event_streams_.load() >= max_event_streams_) {
-    return Error(503, "too many open event streams (" + std::to_string(max_event_streams_) + "); retry later");
+  const int per_client = static_cast<int>(std::max<size_t>(1, ctx_.limits.max_event_streams_per_client));
+  {
+    std::lock_guard<std::mutex> lock(streams_mutex_);
+    if (event_streams_ >= max_event_streams_)
+      return Error(503, "too many open event streams (" + std::to_string(max_event_streams_) + "); retry later");
+    if (streams_per_client_[req.client] >= per_client) {
+      return Error(
+          503, "too many open event streams from " + req.client + " (at most " + std::to_string(per_client) + "); retry later");
+    }
+    ++event_streams_;
+    ++streams_per_client_[req.client];
   }
   int64_t after = ctx_.events->LastId();
   // A client reconnecting after a server restart carries an id from the previous run: ids start
   // again at 1, so a larger one means "from now on", not "wait until the counter gets there".
   if (!req.last_event_id.empty()) after = std::min(after, std::max<int64_t>(0, std::atoll(req.last_event_id.c_str())));
   // Counts the stream while it exists (the HTTP layer drops it when the stream ends).
-  auto slot = std::shared_ptr<void>(nullptr, [this](void*) { --event_streams_; });
-  ++event_streams_;
+  auto slot = std::shared_ptr<void>(nullptr, [this, client = req.client](void*) {
+    std::lock_guard<std::mutex> lock(streams_mutex_);
+    --event_streams_;
+    if (--streams_per_client_[client] <= 0) streams_per_client_.erase(client);
+  });
   Response r;
   r.headers = {{"Cache-Control", "no-cache"}, {"X-Accel-Buffering", "no"}};
-  r.stream = std::shared_ptr<EventStream>(new EventStream(*ctx_.events, stopping_, c->config.crusher_id, after, std::move(slot)));
+  const auto ends_at = std::chrono::steady_clock::now() + std::chrono::seconds(ctx_.limits.event_stream_lifetime_s);
+  r.stream = std::shared_ptr<EventStream>(
+      new EventStream(*ctx_.events, stopping_, c->config.crusher_id, after, std::move(slot), ends_at));
   return r;
 }
 

@@ -1,5 +1,7 @@
 #include "server/server.hpp"
 
+#include "core/file_lock.hpp"
+#include "core/log.hpp"
 #include "core/sd_notify.hpp"
 
 #include <poll.h>
@@ -50,18 +52,14 @@ std::string Stamp() {
   return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(WallMs() / 1000)));
 }
 
-class Logger {
- public:
-  explicit Logger(std::ostream& out) : out_(out) {}
-  void operator()(const std::string& line) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    out_ << Stamp() << " linerwatch-server: " << line << std::endl;
-  }
+// Lines carry topics, sensor ids, times and error text from the broker and REST bodies: the one
+// log mechanism (core/log.hpp) escapes them, and rate-limits what outsiders can repeat.
+using Logger = core::Logger;
 
- private:
-  std::ostream& out_;
-  std::mutex mutex_;
-};
+/// The rate-limit kind of an ingest log line: its first word ("rejected", "conflict", "crusher").
+std::string IngestLogKind(const std::string& line) {
+  return "ingest " + line.substr(0, line.find(' '));
+}
 
 constexpr int64_t kMinFreeBytes = 8 << 20;  // SQLite's WAL grows to ~4 MB; docs/server.md
 
@@ -157,7 +155,7 @@ bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& st
 }  // namespace
 
 void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostream& log_stream) {
-  Logger log(log_stream);
+  Logger log(log_stream, "linerwatch-server", Stamp);
   if (::geteuid() == 0) {
     log("warning: running as root; run as an unprivileged user (the linerwatch-server package does; docs/deploy.md)");
   }
@@ -177,6 +175,9 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   if (!o.tokens.empty()) tokens = TokenStore::Load(o.tokens);
 
   if (!WaitForWritableDatabase(o, stop, log, *registry, tokens)) return;
+  // One server per database (two would both ack readings and fight over the wear). Destroyed
+  // after the Stores below (declared before them).
+  const core::ExclusiveFileLock db_lock(o.db, false, "linerwatch-server (one server per --db)");
   Store write(o.db);
   LockedStore read(std::make_unique<Store>(o.db));
   // Per-crusher state (counts, latest readings, wear and forecast inputs), loaded once here and kept
@@ -213,7 +214,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       });
       changed.insert(s.crusher);
     }
-    for (const auto& line : r.log) log(line);
+    for (const auto& line : r.log) log.Limited(IngestLogKind(line), line);
     for (const auto& c : changed) {
       wear.MarkChanged(c);
       metrics.WearChanged(c, WallMs());

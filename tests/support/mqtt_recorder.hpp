@@ -5,6 +5,7 @@
 //   observer.WaitFor(topic, "needle");          // exact topic, payload containing needle
 //   observer.Count("/sensors/", "\"seq\":9");   // topics containing a part
 // A refused subscription or publication is not an error here: what arrives is what tests check.
+#include <atomic>
 #include <chrono>
 #include <mutex>
 #include <string>
@@ -27,17 +28,18 @@ class MqttRecorder {
     std::string topic, payload;
     bool retained;
   };
-  /// Connects (clean session) with a user name and password; `ca_file` set: the URI is ssl:// and
-  /// the broker's certificate is checked against it.
+  /// Connects (a clean session unless `clean_session` is false) with a user name and password;
+  /// `ca_file` set: the URI is ssl:// and the broker's certificate is checked against it.
   MqttRecorder(const std::string& uri, const std::string& id, const std::string& user, const std::string& password,
-               const std::string& ca_file = "")
+               const std::string& ca_file = "", bool clean_session = true)
       : client_(uri, id, nullptr) {
     client_.set_message_callback([this](mqtt::const_message_ptr m) {
       std::lock_guard<std::mutex> lock(mutex_);
       received_.push_back({m->get_topic(), m->to_string(), m->is_retained()});
     });
+    client_.set_connection_lost_handler([this](const std::string&) { ++lost_; });
     mqtt::connect_options opts;
-    opts.set_clean_session(true);
+    opts.set_clean_session(clean_session);
     opts.set_user_name(user);
     opts.set_password(password);
     if (!ca_file.empty()) {
@@ -85,6 +87,8 @@ class MqttRecorder {
     }
     return false;
   }
+  /// How often the connection was lost (the broker closed it); there is no automatic reconnect.
+  int lost() const { return lost_; }
   /// The payload of the newest message on exactly `topic` ("" when none arrived).
   std::string Last(const std::string& topic) {
     std::string last;
@@ -106,6 +110,7 @@ class MqttRecorder {
   mqtt::async_client client_;
   std::mutex mutex_;
   std::vector<Message> received_;
+  std::atomic<int> lost_{0};
 };
 
 }  // namespace lw::test

@@ -14,6 +14,7 @@
 #include <tuple>
 #include <vector>
 
+#include "core/log.hpp"
 #include "gateway/byte_sink.hpp"
 #include "gateway/spool.hpp"
 #include "mqtt/publisher.hpp"
@@ -198,7 +199,7 @@ class Gateway {
   size_t pending_release_count_ = 0;
   int64_t pending_release_since_ms_ = 0;
   std::set<std::string> known_devices_;  // "address/sensor" already in the registry
-  std::map<std::string, uint64_t> log_counts_;
+  core::LogLimiter log_limiter_;
   bool records_dirty_ = true;            // every sensor's queue head must be looked at
   std::set<std::string> dirty_sensors_;  // sensors whose queue head changed since the last look
   bool all_devices_dirty_ = true;        // after a connect: every device's message

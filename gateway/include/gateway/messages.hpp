@@ -8,6 +8,7 @@
 #include <string_view>
 #include <vector>
 
+#include "core/log.hpp"
 #include "gateway/spool.hpp"
 #include "mqtt/messages.hpp"
 #include "protocol/sensor_payload.hpp"
@@ -33,8 +34,7 @@ std::string ReadingJson(const protocol::ReadingsHeader& header, const protocol::
 /// the node identifier and device type when known.
 std::string DeviceJson(const std::vector<DeviceEntry>& entries, const std::string& gateway_id, int64_t now_ms);
 
-/// `text` made safe for a one-line log: control characters (newline, ESC, ...), DEL, bytes above
-/// 0x7E and backslash as `\xNN` / `\\`; longer than `max_bytes`: cut, with the length noted.
-std::string SanitizeForLog(std::string_view text, size_t max_bytes = 2048);
+/// core::SanitizeForLog (core/log.hpp), the one the server's log uses too.
+using core::SanitizeForLog;
 
 }  // namespace lw::gateway

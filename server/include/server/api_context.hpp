@@ -35,6 +35,12 @@ struct HttpLimits {
   size_t max_connections = 256;            ///< open connections in all: 503
   size_t max_connections_per_client = 32;  ///< open connections from one IP address: 503
   size_t workers = 32;                     ///< threads serving complete requests
+  /// Requests from one IP address on workers at once; its further complete heads wait for one of
+  /// them to finish, so an address trickling bodies leaves the other workers to other addresses.
+  size_t max_requests_per_client = 8;
+  size_t max_event_streams_per_client = 4;  ///< open event streams from one IP address: 503
+  /// An event stream ends after this; EventSource reconnects with Last-Event-ID, missing nothing.
+  int event_stream_lifetime_s = 3600;
   size_t max_requests_per_connection = 100;
 };
 

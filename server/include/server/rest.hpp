@@ -6,8 +6,10 @@
 /// OpenApiJson() (server/openapi.hpp) is generated from it, so neither can list a route the other
 /// does not.
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -41,6 +43,7 @@ struct Request {
   std::string_view body;          ///< the request body (valid while the handler runs)
   std::string bearer;             ///< the bearer token presented (empty: none)
   std::string last_event_id;      ///< the Last-Event-ID header (event stream; empty: none)
+  std::string client;             ///< the client's IP address (per-address limits)
 };
 
 /// A body that is not JSON made here (the OpenAPI text, a VTK file, a JSON document made elsewhere).
@@ -68,19 +71,29 @@ class EventStream {
  public:
   /// The next chunk: first the `retry` preamble, then the events after the last one sent (waiting
   /// up to 15 s for one, then a keepalive comment). nullopt when the stream must end: the server is
-  /// stopping, or `client_gone()` (asked about once a second while waiting) says the client left.
+  /// stopping, `client_gone()` (asked about once a second while waiting) says the client left, or
+  /// the stream reached its lifetime (HttpLimits::event_stream_lifetime_s; EventSource reconnects
+  /// with Last-Event-ID and misses nothing).
   std::optional<std::string> Next(const std::function<bool()>& client_gone);
 
  private:
   friend class Resources;
-  EventStream(EventBus& events, const std::atomic<bool>& stopping, std::string crusher, int64_t after, std::shared_ptr<void> slot)
-      : events_(events), stopping_(stopping), crusher_(std::move(crusher)), after_(after), slot_(std::move(slot)) {}
+  EventStream(EventBus& events, const std::atomic<bool>& stopping, std::string crusher, int64_t after, std::shared_ptr<void> slot,
+              std::chrono::steady_clock::time_point ends_at)
+      : events_(events),
+        stopping_(stopping),
+        crusher_(std::move(crusher)),
+        after_(after),
+        slot_(std::move(slot)),
+        ends_at_(ends_at) {}
+  bool Expired() const { return std::chrono::steady_clock::now() >= ends_at_; }
   EventBus& events_;
   const std::atomic<bool>& stopping_;
   std::string crusher_;
   int64_t after_;
   bool first_ = true;
   std::shared_ptr<void> slot_;  ///< counts this stream while it exists
+  std::chrono::steady_clock::time_point ends_at_;
 };
 
 class Resources;
@@ -92,6 +105,17 @@ struct QueryDoc {
   const char* description;
 };
 
+/// A body limit for routes whose body is a small JSON document or nothing.
+inline constexpr uint64_t kSmallBodyBytes = 64 * 1024;
+/// Readings one POST may carry.
+inline constexpr size_t kMaxPostedReadings = 10000;
+/// Bytes allowed for each posted reading: the largest reading the gateway encodes (every optional
+/// field, a 64-character sensor id and gateway name: about 450 bytes) with room for whitespace.
+inline constexpr uint64_t kPostedReadingBytes = 1024;
+/// The readings route's body limit: 10,000 readings of kPostedReadingBytes and the envelope, so
+/// that a body is refused as it arrives, not after it is parsed whole.
+inline constexpr uint64_t kMaxReadingsBodyBytes = kMaxPostedReadings * kPostedReadingBytes + 4096;
+
 struct Route {
   Method method;
   /// OpenAPI path template; {name} is one path segment, passed in Request::path in order.
@@ -102,7 +126,19 @@ struct Route {
   Response (Resources::*handler)(const Request&);
   /// The media types of the success response (OpenAPI): JSON unless the route says otherwise.
   std::vector<const char*> content_types = {"application/json"};
+  /// The largest request body the route accepts, checked as the head arrives (Content-Length) or
+  /// as a chunked body arrives, before any of it is buffered: 413 beyond.
+  uint64_t max_body_bytes = kSmallBodyBytes;
 };
+
+/// How a request's method and decoded path meet the route table: the HTTP front end answers 404
+/// (no route has the path) or 405 (another method has it) before it reads a body.
+struct RouteMatch {
+  const Route* route = nullptr;  ///< the route serving the request; null when none
+  bool path_known = false;       ///< some route has the path
+};
+/// `path` is the decoded request path (no query); HEAD is matched as GET.
+RouteMatch MatchRoute(std::string_view method, std::string_view path);
 
 /// The names of `path_template`'s parameters in order: "crusher", "sensor".
 std::vector<std::string> PathParams(std::string_view path_template);
@@ -152,10 +188,13 @@ class Resources {
 
   ApiContext ctx_;
   std::atomic<bool> stopping_{false};
-  std::atomic<int> event_streams_{0};
   /// Each event stream holds one worker thread for its lifetime: at most half the workers, so
-  /// ordinary requests always find a thread.
+  /// ordinary requests always find a thread, and HttpLimits::max_event_streams_per_client from
+  /// one address, so that one address cannot hold every slot.
   int max_event_streams_;
+  std::mutex streams_mutex_;  ///< guards the two counts below
+  int event_streams_ = 0;
+  std::map<std::string, int> streams_per_client_;
   std::mutex post_mutex_;  ///< one readings body parsed at a time (a parsed body is ~20x its bytes)
 };
 

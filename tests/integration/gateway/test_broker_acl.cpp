@@ -5,7 +5,11 @@
 // - the same account cannot forge a commit ack (issue 15, finding 9: it would delete spooled
 //   records the server never stored), cannot publish the wear, and cannot publish readings or
 //   retained status for another site or read another site's commit acks (finding 16).
-// LW_IT_ACL=FILE runs the same checks against another ACL file (to see an older ACL fail).
+// - with the shipped single-site.conf's client-id and size settings, a gateway account cannot
+//   take over the server's or another gateway's client id (issue 45, finding 2) nor park a
+//   message larger than any linerwatch program accepts (finding 9).
+// LW_IT_ACL=FILE runs the same checks against another ACL file (to see an older ACL fail);
+// LW_IT_CONF=FILE takes the broker settings from another file.
 #include <unistd.h>
 
 #include <chrono>
@@ -141,4 +145,73 @@ TEST(BrokerAcl, AGatewayAccountServesItsOwnSiteAndCannotForgeAcksOrOtherSites) {
 
   gateway.Stop(SIGTERM);
   CHECK_TRUE(observer.WaitFor(kA + "gateway/status", "offline"));
+}
+
+namespace {
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+}  // namespace
+
+TEST(BrokerAcl, AGatewayPasswordCannotTakeTheServersOrAnotherGatewaysClientId) {
+  lw::test::TempDirectory dir("lw-acl-ids");
+  const char* conf_override = std::getenv("LW_IT_CONF");
+  const std::string shipped = ReadText(conf_override && *conf_override ? conf_override : LW_BROKER_CONF);
+  lw::test::MosquittoFixture::Options o;
+  o.username = "linerwatch-server";
+  o.password = "server-pass";
+  // The shipped settings that bind client ids and sizes (its listeners and files are the fixture's).
+  for (const char* line : {"use_username_as_clientid true\n", "message_size_limit 1048576\n"}) {
+    if (shipped.find(line) != std::string::npos) o.extra_config += line;
+  }
+  {
+    std::ofstream out(dir.File("acl"));
+    out << ReadText(LW_BROKER_ACL) << "\nuser observer\ntopic read linerwatch/#\n";
+  }
+  lw::test::MosquittoFixture::Access access;
+  access.more_users = {{"mine-a", "a-pass"}, {"mine-b", "b-pass"}, {"mine-b/cr2", "b2-pass"}, {"observer", "o-pass"}};
+  access.acl_file = dir.File("acl");
+  lw::test::MosquittoFixture broker(o, access);
+  broker.Start();
+
+  // The server and site B's two gateways, with persistent sessions as they run.
+  Client server(broker.uri(), "linerwatch-server", "linerwatch-server", "server-pass", "", false);
+  server.Subscribe("linerwatch/v1/+/+/sensors/+/reading");
+  Client gateway_b(broker.uri(), "gw-b", "mine-b", "b-pass", "", false);
+  gateway_b.Subscribe(kB + "sensors/+/committed");
+  Client gateway_b2(broker.uri(), "gw-b2", "mine-b/cr2", "b2-pass", "", false);
+  gateway_b2.Subscribe("linerwatch/v1/mine-b/cr2/sensors/+/committed");
+  // Site A's password, claiming each of their client ids in turn.
+  for (const char* id : {"linerwatch-server", "gw-b", "mine-b", "mine-b/cr2"}) {
+    Client claim(broker.uri(), id, "mine-a", "a-pass");
+    claim.Publish(kA + "gateway/stats", id);
+  }
+  Client attacker(broker.uri(), "attacker", "mine-a", "a-pass");
+  // All three still hold their sessions: what is published now reaches them.
+  attacker.Publish(kA + "sensors/1001/reading", R"({"sensor": "1001", "seq": 1})");
+  server.Publish(kB + "sensors/2001/committed", R"({"sensor": "2001", "seqs": [1]})");
+  server.Publish("linerwatch/v1/mine-b/cr2/sensors/3001/committed", R"({"sensor": "3001", "seqs": [1]})");
+  CHECK_TRUE(server.WaitFor(kA + "sensors/1001/reading", "\"seq\": 1"));
+  CHECK_TRUE(gateway_b.WaitFor(kB + "sensors/2001/committed", "[1]"));
+  CHECK_TRUE(gateway_b2.WaitFor("linerwatch/v1/mine-b/cr2/sensors/3001/committed", "[1]"));
+  LONGS_EQUAL(0, server.lost());
+  LONGS_EQUAL(0, gateway_b.lost());
+  LONGS_EQUAL(0, gateway_b2.lost());
+  // A per-crusher account reaches its own crusher only.
+  gateway_b2.Publish("linerwatch/v1/mine-b/cr9/sensors/3001/reading", R"({"forged": true})");
+  gateway_b2.Publish("linerwatch/v1/mine-b/cr2/sensors/3001/reading", R"({"seq": 2})");
+  CHECK_TRUE(server.WaitFor("linerwatch/v1/mine-b/cr2/sensors/3001/reading", "\"seq\": 2"));
+  CHECK_FALSE(server.Saw("linerwatch/v1/mine-b/cr9/sensors/3001/reading"));
+
+  // A retained message larger than any linerwatch program accepts is not kept (nor forwarded).
+  attacker.Publish(kA + "gateway/devices/0013A20040000001", std::string(1048577, 'x'), true);
+  attacker.Publish(kA + "gateway/devices/0013A20040000002", R"({"small": true})", true);
+  Client late(broker.uri(), "late", "observer", "o-pass");
+  late.Subscribe(kA + "gateway/devices/0013A20040000001");
+  late.Subscribe(kA + "gateway/devices/0013A20040000002");  // its retained message arrives after the first's
+  CHECK_TRUE(late.WaitFor(kA + "gateway/devices/0013A20040000002", "small"));
+  CHECK_FALSE(late.Saw(kA + "gateway/devices/0013A20040000001"));
 }

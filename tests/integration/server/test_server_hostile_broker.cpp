@@ -145,3 +145,34 @@ TEST(ServerHostileBroker, InvalidMessagesAreNotStoredAndNamedInTheLogAndABrokenC
   server.Signal(SIGTERM);
   LONGS_EQUAL_TEXT(0, server.Wait(), lw::test::FileTail(log).c_str());
 }
+
+// Finding (Low): a second server started on the same --db and ran beside the first (both acking
+// readings and publishing the wear). It now stops at once with the reason; the first runs on.
+TEST(ServerHostileBroker, ASecondServerOnTheSameDatabaseIsRefused) {
+  lw::test::CrusherFolder folder{5, 3};
+  const std::string broker = "tcp://127.0.0.1:" + std::to_string(lw::test::FreeLoopbackPort());  // nothing listens
+  const auto start = [&](lw::test::ChildProcess& p, int http_port, const std::string& log) {
+    p.Start({LW_SERVER_BIN, "--broker", broker, "--db", folder.dir.File("server.sqlite"), "--http",
+             "127.0.0.1:" + std::to_string(http_port), "--crusher-dir", folder.crushers, "--web-dir", ""},
+            log);
+  };
+  lw::test::ChildProcess first, second;
+  const int first_port = lw::test::FreeLoopbackPort();
+  start(first, first_port, folder.dir.File("first.log"));
+  httplib::Client http("127.0.0.1", first_port);
+  bool up = false;
+  for (const int64_t end = NowMs() + 90'000; !up && NowMs() < end;) {
+    const auto r = http.Get("/healthz");
+    up = r && (r->status == 200 || r->status == 503);
+    if (!up) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  CHECK_TEXT(up, lw::test::FileTail(folder.dir.File("first.log")).c_str());
+  start(second, lw::test::FreeLoopbackPort(), folder.dir.File("second.log"));
+  LONGS_EQUAL_TEXT(1, second.Wait(), lw::test::FileTail(folder.dir.File("second.log")).c_str());
+  const std::string said = ReadFile(folder.dir.File("second.log"));
+  CHECK_TEXT(said.find("is in use by another linerwatch-server") != std::string::npos, said.c_str());
+  const auto r = http.Get("/healthz");
+  CHECK(r && (r->status == 200 || r->status == 503));
+  first.Signal(SIGTERM);
+  LONGS_EQUAL(0, first.Wait());
+}

@@ -7,9 +7,11 @@
 #include <filesystem>
 #include <fstream>
 #include <thread>
+#include <tuple>
 
 #include "core/wear_map.hpp"
 #include "server/http_api.hpp"
+#include "mqtt/messages.hpp"
 #include "server/rest.hpp"
 #include "unit/server/server_fixture.hpp"
 
@@ -36,7 +38,9 @@ struct Api {
   std::unique_ptr<HttpApi> api;
   int port = 0;
 
-  explicit Api(bool with_tokens, const std::string& web_dir = "") : parts(Folder().crushers, with_tokens, web_dir) {
+  explicit Api(bool with_tokens, const std::string& web_dir = "", const HttpLimits& limits = {})
+      : parts(Folder().crushers, with_tokens, web_dir) {
+    parts.ctx.limits = limits;
     api = std::make_unique<HttpApi>(parts.ctx);
     port = api->Bind("127.0.0.1", 0);
     api->Start();
@@ -537,8 +541,11 @@ TEST(HttpApi, CrossSiteWritesAndForeignHostsAreRefused) {
 // Finding: an event stream's slot was freed only at its next 15 s keepalive.
 TEST(HttpApi, AClosedEventStreamFreesItsSlotPromptly) {
   Api a(false);
+  int opened = 0;
   auto open_stream = [&] {
-    const int fd = Connect(a.port);
+    // From four addresses in turn: one address may hold only max_event_streams_per_client (4).
+    const std::string from = "127.0.0." + std::to_string(11 + opened++ % 4);
+    const int fd = Connect(a.port, from.c_str());
     SendText(fd, "GET " + a.Base() + "/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
     std::string got;
     char buf[1024];
@@ -604,5 +611,155 @@ TEST(HttpApi, EveryRouteOfTheTableIsServedAndNothingElse) {
   LONGS_EQUAL(404, res->status);
   CHECK(res->body.find("no such resource") != std::string::npos);
   res = c.Put(a.Base() + "/readings", "{}", "application/json");  // a method the table does not list
-  LONGS_EQUAL(404, res->status);
+  LONGS_EQUAL(405, res->status);
+  STRCMP_EQUAL("POST", res->get_header_value("Allow").c_str());
+}
+
+namespace {
+/// Sends a head that announces `length` body bytes and none of them; what arrives within 5 s.
+std::string HeadOnly(int port, const std::string& method, const std::string& path, size_t length, const std::string& extra = "") {
+  const int fd = Connect(port);
+  SendText(fd, method + " " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n" + extra +
+                   "Content-Length: " + std::to_string(length) + "\r\n\r\n");
+  const std::string reply = Receive(fd, 5000);
+  ::close(fd);
+  return reply.substr(0, 12);  // "HTTP/1.1 NNN"
+}
+}  // namespace
+
+// Finding: a POST to /healthz or any path without a route had its body read (up to 16 MiB, 60 s)
+// before the 404, with or without --tokens; 32 connections trickling such bodies from one address
+// froze /healthz, the dashboard and the API for every other address.
+TEST(HttpApi, ABodyIsNotReadBeforeItsRouteAndScopeAreKnown) {
+  Api a(true);
+  for (const auto& [method, path, status] :
+       std::vector<std::tuple<std::string, std::string, std::string>>{{"POST", "/healthz", "HTTP/1.1 405"},
+                                                                      {"POST", "/", "HTTP/1.1 405"},
+                                                                      {"PUT", a.Base() + "/readings", "HTTP/1.1 405"},
+                                                                      {"POST", "/no/such/path", "HTTP/1.1 404"},
+                                                                      {"DELETE", "/api/v1/nothing", "HTTP/1.1 404"},
+                                                                      {"POST", a.Base() + "/readings", "HTTP/1.1 401"}}) {
+    const std::string got = HeadOnly(a.port, method, path, 100);
+    CHECK_TEXT(got == status, (method + " " + path + ": '" + got + "'").c_str());
+  }
+  const std::string reader =
+      HeadOnly(a.port, "POST", a.Base() + "/readings", 100, "Authorization: Bearer " + std::string(kReadToken) + "\r\n");
+  STRCMP_EQUAL("HTTP/1.1 403", reader.c_str());
+}
+
+// The same without --tokens: bodies trickled to /healthz and to the readings route from one
+// address; another address is still served (the trickles to /healthz get 405 without their body,
+// those to the readings route hold at most max_requests_per_client workers).
+TEST(HttpApi, TricklingBodiesFromOneAddressLeaveWorkersForOthers) {
+  Api a(false);
+  std::vector<int> trickles;
+  int refused_at_once = 0;
+  for (int i = 0; i < 32; ++i) {  // the per-address connection cap
+    const int fd = Connect(a.port, "127.0.0.2");
+    CHECK(fd >= 0);
+    const std::string path = i % 2 ? a.Base() + "/readings" : std::string("/healthz");
+    SendText(fd, "POST " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: 60\r\n\r\n");
+    trickles.push_back(fd);
+  }
+  std::atomic<bool> stop{false};
+  std::thread trickle([&] {
+    for (int t = 0; t < 20 && !stop; ++t) {
+      for (int fd : trickles) SendText(fd, " ");
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    }
+  });
+  int ok = 0;
+  for (int i = 0; i < 3; ++i) ok += Healthz(a) == 200;  // from 127.0.0.1, each within its 5 s
+  // Those to /healthz that reached a worker got 405 without their body; the others wait in line
+  // behind the same address's trickles to the readings route (8 on workers at once).
+  int answered_otherwise = 0;
+  for (size_t i = 0; i < trickles.size(); i += 2) {
+    const std::string reply = Receive(trickles[i], 2000);
+    refused_at_once += reply.rfind("HTTP/1.1 405", 0) == 0;
+    answered_otherwise += !reply.empty() && reply.rfind("HTTP/1.1 405", 0) != 0;
+  }
+  stop = true;
+  trickle.join();
+  for (int fd : trickles) ::close(fd);
+  LONGS_EQUAL(3, ok);
+  CHECK(refused_at_once > 0);
+  LONGS_EQUAL(0, answered_otherwise);
+}
+
+// Finding: the 10,000-readings check ran after the whole body (up to 16 MiB) was parsed; 30
+// parallel 15 MiB bodies took the server to 1.1 GB. The readings route takes a body as large as
+// 10,000 of the largest readings and refuses a larger one before reading it.
+TEST(HttpApi, TheReadingsBodyLimitIsRefusedBeforeTheBodyIsRead) {
+  Api a(false);
+  const std::string over = HeadOnly(a.port, "POST", a.Base() + "/readings", rest::kMaxReadingsBodyBytes + 1);
+  STRCMP_EQUAL("HTTP/1.1 413", over.c_str());
+  // 10,000 readings as large as the gateway makes them (every optional field, 64-character names).
+  json body = {{"readings", json::array()}};
+  for (size_t i = 0; i < rest::kMaxPostedReadings; ++i) {
+    lw::mqtt::ReadingMessage r;
+    r.sensor = std::string(64, 'S');
+    r.seq = 4'000'000'000u + static_cast<uint32_t>(i);
+    r.time = "2026-01-10T00:00:00.000Z";
+    r.thickness_mm = 123.45678901234567;
+    r.loops_intact = 4096;
+    r.flags = 65535;
+    r.battery_mv = 10000;
+    r.temperature_c = -128;
+    r.ladder_loops = 128;
+    r.loop_bitmap = std::string(32, 'f');
+    r.dropped_total = 9'000'000'000'000'000'000;
+    r.address = "0013a20041b2c3d4";
+    r.gateway = std::string(64, 'g');
+    r.received = "2026-01-10T00:00:01.000Z";
+    body["readings"].push_back(json::parse(lw::mqtt::EncodeReading(r)));
+  }
+  const std::string text = body.dump();
+  CHECK(text.size() <= rest::kMaxReadingsBodyBytes);
+  auto res = a.Client().Post(a.Base() + "/readings", text, "application/json");
+  CHECK(res);
+  CHECK_TEXT(res->status == 200 || res->status == 422, res->body.substr(0, 200).c_str());
+  LONGS_EQUAL(200, Healthz(a));
+}
+
+// Finding: one address could hold all 16 event-stream slots, for ever.
+TEST(HttpApi, EventStreamsAreCappedPerAddressAndEndAfterTheirLifetime) {
+  HttpLimits limits;
+  limits.event_stream_lifetime_s = 2;
+  Api a(false, "", limits);
+  auto open_from = [&](const char* from) {
+    const int fd = Connect(a.port, from);
+    SendText(fd, "GET " + a.Base() + "/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+    char head[16] = {};
+    const ssize_t n = ::recv(fd, head, 12, MSG_WAITALL);
+    return std::make_pair(fd, std::string(head, static_cast<size_t>(std::max<ssize_t>(n, 0))));
+  };
+  std::vector<int> fds;
+  for (size_t i = 0; i < limits.max_event_streams_per_client; ++i) {
+    auto [fd, head] = open_from("127.0.0.5");
+    STRCMP_EQUAL("HTTP/1.1 200", head.c_str());
+    fds.push_back(fd);
+  }
+  auto [extra, refused] = open_from("127.0.0.5");
+  STRCMP_EQUAL("HTTP/1.1 503", refused.c_str());
+  ::close(extra);
+  auto [other, served] = open_from("127.0.0.6");
+  STRCMP_EQUAL("HTTP/1.1 200", served.c_str());
+  // Each stream ends by itself once its lifetime is over: the server closes the connection (a
+  // stream without one would stay open, a keepalive every 15 s).
+  const std::string rest_of_stream = Receive(other, 20000);
+  char byte = 0;
+  LONGS_EQUAL_TEXT(0, ::recv(other, &byte, 1, MSG_DONTWAIT), rest_of_stream.c_str());
+  ::close(other);
+  for (int fd : fds) ::close(fd);
+}
+
+// Findings (Low): `Content-Length : 63` got 413 "larger than 16777216 bytes"; a 30 KB header got
+// 400; a bearer token was compared only up to a NUL.
+TEST(HttpApi, MalformedHeadersGetThePreciseRefusal) {
+  Api a(true);
+  STRCMP_EQUAL("HTTP/1.1 400", HeadOnly(a.port, "POST", a.Base() + "/readings", 0, "Content-Length : 63\r\n").c_str());
+  STRCMP_EQUAL("HTTP/1.1 431", HeadOnly(a.port, "GET", "/healthz", 0, "X-Big: " + std::string(30000, 'a') + "\r\n").c_str());
+  const std::string nul_token = std::string("Authorization: Bearer ") + kReadToken + std::string(1, '\0') + "junk\r\n";
+  const std::string nul = HeadOnly(a.port, "GET", "/api/v1/crushers", 0, nul_token);
+  CHECK_TEXT(nul == "HTTP/1.1 400" || nul == "HTTP/1.1 401", nul.c_str());
 }
