@@ -614,9 +614,14 @@ Response Resources::WhoAmI(const Request& req) {
 
 Response Resources::Metrics(const Request&) {
   if (!ctx_.metrics) return Error(503, "metrics are not kept by this server");
+  int streams = 0;
+  {
+    std::lock_guard<std::mutex> lock(streams_mutex_);
+    streams = event_streams_;
+  }
   Response r;
-  r.raw = RawBody{ctx_.metrics->Render(*ctx_.ingestor, *ctx_.registry, event_streams_.load(), core::WallClockMs()),
-                  core::prometheus::kContentType};
+  r.raw =
+      RawBody{ctx_.metrics->Render(*ctx_.ingestor, *ctx_.registry, streams, core::WallClockMs()), core::prometheus::kContentType};
   return r;
 }
 
