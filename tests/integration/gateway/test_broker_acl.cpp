@@ -75,8 +75,15 @@ TEST(BrokerAcl, AGatewayAccountServesItsOwnSiteAndCannotForgeAcksOrOtherSites) {
   // The real gateway with its site's account; its "serial port" is a file holding one frame.
   const auto frame =
       lw::gateway::test::ReadingsFrame(pr::ApiMode::kEscaped, 0x0013A20040000001ull, 1001, {lw::gateway::test::MakeRecord(1)});
-  std::ofstream(dir.File("serial"), std::ios::binary)
-      .write(reinterpret_cast<const char*>(frame.data()), static_cast<std::streamsize>(frame.size()));
+  // The gateway writes its AT NP / EE queries to the "port" at start-up, at the file's offset 0:
+  // 64 bytes of line noise in front of the frame take them (the decoder skips bytes before a
+  // start delimiter), so the frame itself is read intact.
+  {
+    std::ofstream serial(dir.File("serial"), std::ios::binary);
+    const std::string noise(64, '\0');
+    serial.write(noise.data(), static_cast<std::streamsize>(noise.size()));
+    serial.write(reinterpret_cast<const char*>(frame.data()), static_cast<std::streamsize>(frame.size()));
+  }
   lw::test::ChildProcess gateway;
   gateway.Start({LW_GATEWAY_BIN,
                  "--serial",
