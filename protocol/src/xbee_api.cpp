@@ -284,6 +284,27 @@ Status ParseTransmitRequest(const uint8_t* data, size_t len, TransmitRequest* ou
   return Status::kOk;
 }
 
+Status BuildRadioSettingsAnswer(const AtCommand& cmd, uint8_t np, uint8_t ee, uint8_t* out, size_t out_cap, size_t* written) {
+  AtCommandResponse rsp;
+  rsp.frame_id = cmd.frame_id;
+  rsp.command[0] = cmd.command[0];
+  rsp.command[1] = cmd.command[1];
+  uint8_t value[2] = {0, 0};
+  const bool query = cmd.parameter_len == 0;
+  if (query && cmd.command[0] == 'N' && cmd.command[1] == 'P') {
+    value[1] = np;
+    rsp.data = value;
+    rsp.data_len = 2;
+  } else if (query && cmd.command[0] == 'E' && cmd.command[1] == 'E') {
+    value[0] = ee;
+    rsp.data = value;
+    rsp.data_len = 1;
+  } else {
+    rsp.status = static_cast<uint8_t>(AtStatus::kInvalidCommand);
+  }
+  return BuildAtCommandResponse(rsp, out, out_cap, written);
+}
+
 Status ParseAtCommand(const uint8_t* data, size_t len, AtCommand* out) {
   const Status s = Check(data, len, 4, FrameType::kAtCommand);
   if (s != Status::kOk) return s;

@@ -211,26 +211,10 @@ void Fleet::OnSerialInput(const uint8_t* data, size_t len) {
 void Fleet::AnswerAt(const protocol::AtCommand& cmd) {
   ++counters_.at_queries;
   if (cmd.frame_id == 0) return;
-  protocol::AtCommandResponse rsp;
-  rsp.frame_id = cmd.frame_id;
-  rsp.command[0] = cmd.command[0];
-  rsp.command[1] = cmd.command[1];
-  uint8_t value[2] = {0, 0};
-  const bool query = cmd.parameter_len == 0;
-  if (query && cmd.command[0] == 'N' && cmd.command[1] == 'P') {
-    value[1] = options_.radio_np;  // two bytes, as Digi's modules answer
-    rsp.data = value;
-    rsp.data_len = 2;
-  } else if (query && cmd.command[0] == 'E' && cmd.command[1] == 'E') {
-    value[0] = options_.radio_ee;
-    rsp.data = value;
-    rsp.data_len = 1;
-  } else {
-    rsp.status = static_cast<uint8_t>(protocol::AtStatus::kInvalidCommand);
-  }
   uint8_t frame[16];
   size_t n = 0;
-  if (protocol::BuildAtCommandResponse(rsp, frame, sizeof frame, &n) == protocol::Status::kOk) {
+  if (protocol::BuildRadioSettingsAnswer(cmd, options_.radio_np, options_.radio_ee, frame, sizeof frame, &n) ==
+      protocol::Status::kOk) {
     AppendFrame(options_.serial_mode, frame, n, &serial_out_);
   }
 }

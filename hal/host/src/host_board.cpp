@@ -168,25 +168,9 @@ void HostRadio::Transmit(const protocol::TransmitRequest& req) {
 void HostRadio::AnswerAt(const protocol::AtCommand& cmd) {
   ++at_queries_;
   if (!answers_at_ || cmd.frame_id == 0) return;
-  protocol::AtCommandResponse rsp;
-  rsp.frame_id = cmd.frame_id;
-  rsp.command[0] = cmd.command[0];
-  rsp.command[1] = cmd.command[1];
-  uint8_t value[2] = {};
-  if (cmd.parameter_len == 0 && cmd.command[0] == 'N' && cmd.command[1] == 'P') {
-    value[1] = np_;  // Digi answers NP in two bytes
-    rsp.data = value;
-    rsp.data_len = 2;
-  } else if (cmd.parameter_len == 0 && cmd.command[0] == 'E' && cmd.command[1] == 'E') {
-    value[0] = ee_;
-    rsp.data = value;
-    rsp.data_len = 1;
-  } else {
-    rsp.status = static_cast<uint8_t>(protocol::AtStatus::kInvalidCommand);
-  }
   uint8_t frame[16];
   size_t n = 0;
-  if (protocol::BuildAtCommandResponse(rsp, frame, sizeof frame, &n) == protocol::Status::kOk) QueueFrame(frame, n);
+  if (protocol::BuildRadioSettingsAnswer(cmd, np_, ee_, frame, sizeof frame, &n) == protocol::Status::kOk) QueueFrame(frame, n);
 }
 
 void HostRadio::Inject(const uint8_t* payload, size_t len) {

@@ -222,6 +222,11 @@ constexpr uint8_t NextFrameId(uint8_t id) {
 }
 Status BuildAtCommand(const AtCommand& cmd, uint8_t* out, size_t out_cap, size_t* written);
 Status BuildAtCommandResponse(const AtCommandResponse& rsp, uint8_t* out, size_t out_cap, size_t* written);
+/// The local AT response a module whose settings are NP = `np` and EE = `ee` gives to `cmd`: NP in
+/// two bytes and EE in one, as Digi's modules answer those queries; any other command (or a
+/// command that sets a value) is answered "invalid command". The host port's radio and the
+/// simulator's coordinator both answer with it.
+Status BuildRadioSettingsAnswer(const AtCommand& cmd, uint8_t np, uint8_t ee, uint8_t* out, size_t out_cap, size_t* written);
 Status BuildTransmitStatus(const TransmitStatus& st, uint8_t* out, size_t out_cap, size_t* written);
 Status BuildReceivePacket(const ReceivePacket& rx, uint8_t* out, size_t out_cap, size_t* written);
 Status BuildModemStatus(const ModemStatus& ms, uint8_t* out, size_t out_cap, size_t* written);
