@@ -92,7 +92,15 @@ TEST(ServerMetricsScrape, PrometheusParsesItAndTheReadingsCounterMovesWithIngest
   CHECK(posted);
   LONGS_EQUAL_TEXT(200, posted->status, posted->body.c_str());
 
-  const std::string after = Scrape(http);
+  // httplib counts a request after its response is written, so the POST's count can trail its
+  // reply by a moment: scrape until it is there (bounded), then check everything on that scrape.
+  const std::string post_series =
+      "linerwatch_http_requests_total{method=\"POST\",route=\"/api/v1/crushers/{crusher}/readings\",code=\"200\"}";
+  std::string after = Scrape(http);
+  for (int i = 0; i < 100 && ValueOf(after, post_series) < 1; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    after = Scrape(http);
+  }
   DOUBLES_EQUAL(20, ValueOf(after, "linerwatch_readings_stored_total"), 0);
   DOUBLES_EQUAL(21, ValueOf(after, "linerwatch_readings_ingested_total"), 0);
   DOUBLES_EQUAL(1, ValueOf(after, "linerwatch_readings_rejected_total{reason=\"time\"}"), 0);
