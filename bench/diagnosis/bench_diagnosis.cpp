@@ -33,6 +33,7 @@
 #include "core/bundle.hpp"
 #include "core/reconstruction.hpp"
 #include "core/scan_correction.hpp"
+#include "core/thinnest_area.hpp"
 #include "diagnosis/diagnose.hpp"
 #include "realdem.hpp"
 #include "support/temp_directory.hpp"
@@ -212,6 +213,62 @@ double Median(std::vector<double> v) {
   if (v.empty()) return kNaN;
   std::sort(v.begin(), v.end());
   return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+/// The liner's thinnest area (core/thinnest_area.hpp) of one null against its truth.
+struct AreaOutcome {
+  bool done = false;
+  lw::core::ThinnestArea area;
+  double err_at = 0;    ///< estimate - the truth's mean over the reported area
+  double err_thin = 0;  ///< estimate - the truth's thinnest area of the same size
+  bool in_band = false;  ///< the truth's thinnest area of that size inside the reported band
+  int rows_supported = 0, rows = 0;
+  lw::core::MapCalibration calibration;  ///< the map's error factor measured at the sensors
+};
+
+/// Per case, then the figures issue 39 sets targets for: the share with a supported liner-level
+/// answer and its median patch, the error at the reported patch (median, worst), band coverage and
+/// half-width.
+void PrintAreaSummary(const char* title, const std::vector<std::pair<std::string, AreaOutcome>>& xs) {
+  if (xs.empty()) return;
+  std::printf("\nThinnest area (%s; estimate - truth, mm):\n", title);
+  std::printf("%-28s %9s %8s %8s %8s %17s %6s %5s %5s %8s %9s\n", "case", "supported", "shape/m", "err_at", "err_thin", "band",
+              "in", "extr", "rows", "halfw", "map_err_c");
+  std::vector<double> err_sup, patch_sup, halfw;
+  int in_band = 0, supported = 0, rows_sup = 0, rows = 0;
+  std::map<std::string, int> shapes;
+  for (const auto& [name, o] : xs) {
+    const lw::core::ThinnestArea& a = o.area;
+    const double hw = 0.5 * (a.hi_mm - a.lo_mm);
+    const char* shape = a.shape == lw::core::AreaShape::kSquare ? "sq" : a.shape == lw::core::AreaShape::kRing ? "ring" : "row";
+    std::printf("%-28s %9s %4s %3.2f %8.2f %8.2f %8.1f..%-8.1f %6s %5s %2d/%-2d %8.2f %5.2f (%zu)\n", name.c_str(),
+                a.supported ? "yes" : "no", shape, a.patch_m, o.err_at, o.err_thin,
+                a.lo_mm, a.hi_mm, o.in_band ? "yes" : "no", a.extrapolated ? "yes" : "no", o.rows_supported, o.rows, hw,
+                o.calibration.factor, o.calibration.sensors);
+    in_band += o.in_band;
+    rows_sup += o.rows_supported;
+    rows += o.rows;
+    halfw.push_back(hw);
+    if (a.supported) {
+      ++supported;
+      err_sup.push_back(std::fabs(o.err_at));
+      patch_sup.push_back(a.patch_m);  // a ring or a whole row: its height
+      ++shapes[a.shape == lw::core::AreaShape::kSquare ? "square" : a.shape == lw::core::AreaShape::kRing ? "ring" : "row"];
+    }
+  }
+  const size_t n = xs.size();
+  std::printf("supported liner-level answer: %d / %zu (target >= 80 %%)", supported, n);
+  if (!patch_sup.empty()) std::printf(", median patch %.2f m (target <= 0.8)", Median(patch_sup));
+  for (const auto& [k, v] : shapes) std::printf("; %s %d", k.c_str(), v);
+  std::printf("\n");
+  if (!err_sup.empty()) {
+    std::sort(err_sup.begin(), err_sup.end());
+    std::printf("|error| at the reported patch, supported answers: median %.2f mm, worst %.2f mm (targets <= 5, <= 15)\n",
+                Median(err_sup), err_sup.back());
+  }
+  std::printf("truth's thinnest area of the reported size inside the band: %d / %zu (target >= 90 %%); band half-width median "
+              "%.2f mm; rows supported %d / %d\n",
+              in_band, n, Median(halfw), rows_sup, rows);
 }
 
 }  // namespace
@@ -554,6 +611,9 @@ int main(int argc, char** argv) {
     // With a scan (day scan_day), 15 days later: the live map with and without the scan applied.
     bool scan_done = false;
     double scan_thin_err = 0, noscan_thin_err = 0, scan_rmse = 0, noscan_rmse = 0;
+    // The liner's thinnest area (core/thinnest_area.hpp) against the truth read at the reported area
+    // (err_at) and the truth's own thinnest area of the same size (err_thin, in_band: inside its band).
+    AreaOutcome area, area_scan;  // area_scan: 15 days after the scan, with it applied
   };
   struct Outcome {
     lw::diagnosis::DiagnosisResult result;
@@ -684,6 +744,29 @@ int main(int argc, char** argv) {
       const lw::core::Reconstruction lrec = lw::core::Reconstruct(plan, low);
       lv.low_only_thin = lrec.min_thickness_mm;
       lv.low_only_status = lrec.status;
+      // The thinnest area at the finest supported patch, the truth read there and at its own
+      // thinnest patch of that size (a whole row: the truth's thinnest row).
+      auto area_against_truth = [&](const lw::core::ReconstructionPlan& p, const lw::core::Reconstruction& r,
+                                    lw::core::TimePoint at, const Eigen::VectorXd& truth_remaining, AreaOutcome& o) {
+        std::vector<lw::core::Reading> used;
+        for (const size_t i : lw::core::LatestReadingIndices(bundle.crusher, bundle.readings, at)) used.push_back(bundle.readings[i]);
+        const lw::core::ThinnestAreas areas = lw::core::FindThinnestAreas(p, r, used);
+        const lw::core::ThinnestArea& area = o.area = areas.liner;
+        o.err_at = area.thickness_mm - lw::core::AreaMean(p, truth_remaining, area);
+        double truth_thin = std::numeric_limits<double>::quiet_NaN();
+        if (area.whole_row) {
+          for (const auto& row : areas.rows) truth_thin = std::fmin(truth_thin, lw::core::AreaMean(p, truth_remaining, row));
+        } else {
+          truth_thin = lw::core::ThinnestPatchOf(p, truth_remaining, -1, area.patch_m, area.shape).thickness_mm;
+        }
+        o.err_thin = area.thickness_mm - truth_thin;
+        o.in_band = truth_thin >= area.lo_mm - 1e-9 && truth_thin <= area.hi_mm + 1e-9;
+        for (const auto& row : areas.rows) o.rows_supported += row.supported;
+        o.rows = static_cast<int>(areas.rows.size());
+        o.calibration = r.calibration;
+        o.done = true;
+      };
+      area_against_truth(plan, rec, t_live, truth_rem, lv.area);
       lv.done = true;
       if (!bundle.scans.empty()) {
         const double later = day + 15;
@@ -702,6 +785,7 @@ int main(int argc, char** argv) {
         lv.scan_rmse = std::sqrt((with.remaining_mm - rem_l).squaredNorm() / static_cast<double>(tl.size()));
         lv.noscan_rmse = std::sqrt((without.remaining_mm - rem_l).squaredNorm() / static_cast<double>(tl.size()));
         lv.scan_done = true;
+        area_against_truth(scanned, with, t_later, rem_l, lv.area_scan);
       }
     }
     if (real) {
@@ -884,6 +968,14 @@ int main(int argc, char** argv) {
           cases.empty() ? 0.0 : cases[0].rd.scan_day, se.size(), Median(se), se.back(), Median(sn), sn.back(), Median(sr),
           Median(snr));
     }
+    std::vector<std::pair<std::string, AreaOutcome>> areas, areas_scan;
+    for (size_t k = 0; k < cases.size(); ++k) {
+      const std::string name = std::to_string(k) + " " + runs[cases[k].run].name;
+      if (outcomes[k].live.area.done) areas.emplace_back(name, outcomes[k].live.area);
+      if (outcomes[k].live.area_scan.done) areas_scan.emplace_back(name, outcomes[k].live.area_scan);
+    }
+    PrintAreaSummary("the liner's thinnest area at the inspection day, no scan", areas);
+    PrintAreaSummary("the same 15 days after the scan, with the scan applied", areas_scan);
     if (live_only) return 0;
   }
   std::printf("%-45s %-9s %-22s %-6s %8s %8s %8s\n", "truth", "level", "top finding", "conf", "base_mm", "impr_mm", "refit_mm");

@@ -296,6 +296,11 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
                   rec.status == core::kStatusOk ? "" : ": ", rec.status == core::kStatusOk ? "" : rec.status_detail.c_str());
     out << line;
   }
+  if (rec.calibration.sensors > 0) {
+    std::snprintf(line, sizeof line, "map error measured at the sensors: %.2f x the map model's (%zu sensors predicted from their row mates)\n",
+                  rec.calibration.factor, rec.calibration.sensors);
+    out << line;
+  }
   // The headline: the thinnest area the data support (the face minimum above is a single face's).
   out << core::ThinnestAreaText(areas.liner) << '\n';
   for (const core::ThinnestArea& a : areas.rows) out << "  " << core::ThinnestAreaText(a) << '\n';
@@ -313,6 +318,7 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
     j["min_face"] = rec.min_face;
     j["thinnest_area"] = core::ThinnestAreaJson(areas.liner);
     j["worn_through"] = areas.liner.worn_through;
+    j["map_error_at_sensors"] = core::MapCalibrationJson(rec.calibration);
     j["face_level"] = {{"estimate_at_zero_faces", rec.worn_through_faces},
                        {"band_reaches_zero_faces", rec.maybe_worn_through_faces}};
     j["sensors_stale"] = stale;

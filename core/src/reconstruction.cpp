@@ -22,6 +22,50 @@ double AngleDiffDeg(double a, double b) {
   return d;
 }
 
+/// One sensor in its row's least-squares scale: the map's intensity at it and its sd, its wear.
+struct ScaleMember {
+  size_t row;
+  double I, sd, w;
+};
+
+/// How far off the map is at the sensors, measured: each sensor of a row with others is predicted
+/// from them alone (the row scale without it, times the map at it) and its error set against the
+/// model's sd for that prediction (the map at it and at the others; quantisation apart). The
+/// factor c^2 pools the sensors' excess-error ratios with `prior_dof` pseudo-sensors at 1 (the
+/// model itself), so a few sensors move it only part of the way. The model's map error comes from
+/// the map alone (noise law, cross-validation) and, on real LIGGGHTS maps, is often several times
+/// what the sensors show; the sensors are the one independent measurement of the pattern there is.
+MapCalibration CalibrateAtSensors(const std::vector<ScaleMember>& members, size_t nrows, double q, double prior_dof) {
+  MapCalibration out;
+  if (!(prior_dof > 0)) return out;
+  double sum = 0;
+  for (size_t r = 0; r < nrows; ++r) {
+    for (size_t j = 0; j < members.size(); ++j) {
+      const ScaleMember& mj = members[j];
+      if (mj.row != r) continue;
+      double num = 0, den = 0;
+      for (size_t i = 0; i < members.size(); ++i)
+        if (i != j && members[i].row == r) num += members[i].I * members[i].w, den += members[i].I * members[i].I;
+      if (!(den > 0)) continue;
+      const double k = num / den;
+      // Variance of the prediction k I_j, split into the map's part and quantisation's.
+      double map_var = k * k * mj.sd * mj.sd, q_var = q;
+      for (size_t i = 0; i < members.size(); ++i) {
+        if (i == j || members[i].row != r) continue;
+        const double f = mj.I * members[i].I / den;
+        map_var += f * f * k * k * members[i].sd * members[i].sd;
+        q_var += f * f * q;
+      }
+      if (!(map_var > 0)) continue;
+      const double e = mj.w - k * mj.I;
+      sum += std::max(0.0, e * e - q_var) / map_var;
+      ++out.sensors;
+    }
+  }
+  out.factor = std::min(4.0, std::sqrt((sum + prior_dof) / (static_cast<double>(out.sensors) + prior_dof)));
+  return out;
+}
+
 // Weighted mean of `values` near (z, theta) on the surface; nearest face when none is within r.
 double LocalMean(const WearMap& map, const Eigen::VectorXd& values, double z, double theta_deg, double r) {
   double sw = 0, swv = 0, best = std::numeric_limits<double>::max();
@@ -354,11 +398,7 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
   std::vector<double> num(nrows, 0.0), den(nrows, 0.0);
   std::vector<size_t> used(nrows, 0);
   std::vector<size_t> without_intensity;
-  struct Member {
-    size_t row;
-    double I, sd, w;
-  };
-  std::vector<Member> members;
+  std::vector<ScaleMember> members;
   for (const auto& sw : sensor_wear) {
     for (size_t s = 0; s < crusher.sensors.size(); ++s) {
       if (crusher.sensors[s].id != sw.sensor_id) continue;
@@ -373,6 +413,9 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
       break;
     }
   }
+  const MapCalibration calibration =
+      CalibrateAtSensors(members, nrows, kQuantisationVar, plan.options.calibration_prior_dof);
+  for (ScaleMember& m : members) m.sd *= calibration.factor;
   std::vector<std::pair<double, double>> knots;  // (z centre, scale) of rows with sensors
   std::vector<double> knot_var;
   std::vector<double> row_scale(nrows, std::numeric_limits<double>::quiet_NaN()), row_var(nrows, 0.0);
@@ -385,7 +428,7 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
     if (!(den[r] > 0)) continue;
     const double k = row_scale[r];
     double v = 0, rss = 0;
-    for (const Member& m : members) {
+    for (const ScaleMember& m : members) {
       if (m.row != r) continue;
       v += m.I * m.I * (kQuantisationVar + k * k * m.sd * m.sd);
       rss += std::pow(m.w - k * m.I, 2);
@@ -450,6 +493,7 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
     return v;
   };
   Reconstruction& out = *result;
+  out.calibration = calibration;
   const Eigen::Index n = static_cast<Eigen::Index>(map.face_count());
   out.wear_mm.resize(n);  // no reallocation when `result` already holds arrays of this size
   out.remaining_mm.resize(n);
@@ -556,7 +600,8 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
     }
     if (nk != 0 && borrowed[static_cast<size_t>(r + 1)]) svar += kUnmeasuredRowRel * kUnmeasuredRowRel * scale * scale;
     const double w_est = std::max(0.0, intensity[i] * scale);
-    const double sd = std::sqrt(w_est * w_est * rel_sd[i] * rel_sd[i] + intensity[i] * intensity[i] * svar);
+    const double map_rel = rel_sd[i] * calibration.factor;
+    const double sd = std::sqrt(w_est * w_est * map_rel * map_rel + intensity[i] * intensity[i] * svar);
     // Physical: wear within [0, new]; a face whose estimate reaches the as-new thickness is worn through.
     const double w = std::min(w_est, new_mm);
     const double rem = new_mm - w;

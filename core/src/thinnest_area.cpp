@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 
 #include "core/time.hpp"
@@ -67,13 +68,20 @@ struct Context {
   const FaceErrors errors;
   double new_mm = 0;
   double sigmas = 2.0;
-  double kernel_area = 0;  ///< A_k = 4 pi sd_z sd_arc: the sampling noise's footprint after smoothing
+  /// The map error's correlation lengths after smoothing, along z and around (2 sqrt(pi) x the
+  /// kernel's sd, at least a face): an area of extent L keeps l / (l + L) of the variance per axis.
+  double ell_z = 0, ell_arc = 0;
 };
 
-/// Thickness and band of an area from its sums.
-void BandOf(const Context& c, const Sums& s, ThinnestArea* a) {
+/// Thickness and band of an area from its sums; `extent_z`, `extent_arc`: its size along z and
+/// around (a ring's: the circumference), which the map's error is averaged over.
+void BandOf(const Context& c, const Sums& s, double extent_z, double extent_arc, ThinnestArea* a) {
   const double wear = s.wear / s.area, scale = s.scale / s.area, bias = s.bias / s.area, noise = s.noise / s.area;
-  const double sd = std::sqrt(scale * scale + bias * bias + noise * noise * c.kernel_area / (c.kernel_area + s.area));
+  const double keep = c.ell_z / (c.ell_z + extent_z) * (c.ell_arc / (c.ell_arc + extent_arc));
+  const double map_var = (bias * bias + noise * noise) * keep;
+  const double sd = std::sqrt(scale * scale + map_var);
+  a->scale_sd_mm = scale;
+  a->map_sd_mm = std::sqrt(map_var);
   // From the unclamped estimate: an area estimated beyond the liner's thickness by more than its
   // band is worn through (hi 0); one at 0 within its band is not (yet) known to be.
   const double t = c.new_mm - wear;
@@ -116,12 +124,9 @@ class RadiusProfile {
   std::vector<double> sum_, weight_;
 };
 
-/// The row's thinnest square patch of side `patch` (centres on a half-patch grid within the row),
-/// with the band of the thinnest: [min lo, min hi] over its patches. nullopt when no patch has faces.
-std::optional<ThinnestArea> ThinnestPatch(const Context& c, const SurfaceIndex& index, const RadiusProfile& radius, int row,
-                                          double patch) {
-  const WearMap& map = *c.plan.map;
-  const Row& r = c.plan.crusher->rows[static_cast<size_t>(row)];
+/// The centres of a row's square patches of side `patch`: on a half-patch grid within the row
+/// (one height when the row is lower than a patch), around the circumference at the radius there.
+std::vector<std::pair<double, double>> PatchCentres(const Row& r, const RadiusProfile& radius, double patch) {
   const double half = 0.5 * patch, height = r.z_max_m - r.z_min_m;
   std::vector<double> zs;
   if (height <= patch) {
@@ -129,29 +134,52 @@ std::optional<ThinnestArea> ThinnestPatch(const Context& c, const SurfaceIndex& 
   } else {
     for (double z = r.z_min_m + half; z <= r.z_max_m - half + 1e-9; z += half) zs.push_back(z);
   }
+  std::vector<std::pair<double, double>> out;
+  for (const double z : zs) {
+    const int n_around = std::max(1, static_cast<int>(std::ceil(2.0 * M_PI * radius.At(z) / half)));
+    for (int k = 0; k < n_around; ++k) out.emplace_back(z, 360.0 * k / n_around);
+  }
+  return out;
+}
+
+/// Calls fn(face) for the faces of `row` in the patch centred at (z, theta) (index built with a
+/// half-patch reach); returns whether the patch is an area of the row: a patch mostly off the map
+/// (a hole, an edge) is not.
+template <typename Fn>
+bool VisitPatch(const ReconstructionPlan& plan, const SurfaceIndex& index, const RadiusProfile& radius, int row, double z,
+                double theta, double patch, Fn&& fn) {
+  const WearMap& map = *plan.map;
+  const Row& r = plan.crusher->rows[static_cast<size_t>(row)];
+  double area = 0;
+  index.Visit(z, theta, radius.At(z), [&](uint32_t j, double, double) {
+    if (plan.face_row[j] != row) return;
+    area += map.areas[static_cast<Eigen::Index>(j)];
+    fn(static_cast<Eigen::Index>(j));
+  });
+  return area >= 0.25 * patch * std::min(patch, r.z_max_m - r.z_min_m);
+}
+
+/// The row's thinnest square patch of side `patch`, with the band of the thinnest: [min lo, min hi]
+/// over its patches. nullopt when no patch has faces.
+std::optional<ThinnestArea> ThinnestPatch(const Context& c, const SurfaceIndex& index, const RadiusProfile& radius, int row,
+                                          double patch) {
+  const WearMap& map = *c.plan.map;
+  const Row& r = c.plan.crusher->rows[static_cast<size_t>(row)];
   std::optional<ThinnestArea> best;
   double lo = std::numeric_limits<double>::max(), hi = lo;
-  for (const double z : zs) {
-    const double rad = radius.At(z);
-    const int n_around = std::max(1, static_cast<int>(std::ceil(2.0 * M_PI * rad / half)));
-    for (int k = 0; k < n_around; ++k) {
-      const double theta = 360.0 * k / n_around;
-      Sums s;
-      index.Visit(z, theta, rad, [&](uint32_t j, double, double) {
-        const auto i = static_cast<Eigen::Index>(j);
-        if (c.plan.face_row[j] == row) s.Add(map.areas[i], c.rec.wear_estimate_mm[i], c.errors, i);
-      });
-      // A patch mostly off the map (a hole, an edge) is not an area of the row.
-      if (!(s.area >= 0.25 * patch * std::min(patch, height))) continue;
-      ThinnestArea a;
-      BandOf(c, s, &a);
-      lo = std::min(lo, a.lo_mm);
-      hi = std::min(hi, a.hi_mm);
-      if (!best || a.thickness_mm < best->thickness_mm) {
-        a.z_m = z;
-        a.theta_deg = theta;
-        best = a;
-      }
+  for (const auto& [z, theta] : PatchCentres(r, radius, patch)) {
+    Sums s;
+    if (!VisitPatch(c.plan, index, radius, row, z, theta, patch,
+                    [&](Eigen::Index i) { s.Add(map.areas[i], c.rec.wear_estimate_mm[i], c.errors, i); }))
+      continue;
+    ThinnestArea a;
+    BandOf(c, s, std::min(patch, r.z_max_m - r.z_min_m), patch, &a);
+    lo = std::min(lo, a.lo_mm);
+    hi = std::min(hi, a.hi_mm);
+    if (!best || a.thickness_mm < best->thickness_mm) {
+      a.z_m = z;
+      a.theta_deg = theta;
+      best = a;
     }
   }
   if (best) {
@@ -162,7 +190,87 @@ std::optional<ThinnestArea> ThinnestPatch(const Context& c, const SurfaceIndex& 
   return best;
 }
 
-ThinnestArea WholeRow(const Context& c, int row) {
+/// A row's faces sorted by z, with running sums of what an area's band needs: a ring's (a band of
+/// height h all around) sums are a difference of two entries.
+class RowRings {
+ public:
+  RowRings(const Context& c, int row) {
+    const WearMap& map = *c.plan.map;
+    for (Eigen::Index i = 0; i < map.z.size(); ++i)
+      if (c.plan.face_row[static_cast<size_t>(i)] == row) order_.push_back(i);
+    std::sort(order_.begin(), order_.end(), [&](Eigen::Index a, Eigen::Index b) { return map.z[a] < map.z[b]; });
+    z_.reserve(order_.size());
+    prefix_.assign(order_.size() + 1, Sums{});
+    for (size_t k = 0; k < order_.size(); ++k) {
+      const Eigen::Index i = order_[k];
+      z_.push_back(map.z[i]);
+      prefix_[k + 1] = prefix_[k];
+      prefix_[k + 1].Add(map.areas[i], c.rec.wear_estimate_mm[i], c.errors, i);
+    }
+  }
+  /// Sums over the faces with |z - zc| <= half.
+  Sums Between(double zc, double half) const {
+    const double tol = 1e-9 * std::max(1.0, half);
+    const size_t a = static_cast<size_t>(std::lower_bound(z_.begin(), z_.end(), zc - half - tol) - z_.begin());
+    const size_t b = static_cast<size_t>(std::upper_bound(z_.begin(), z_.end(), zc + half + tol) - z_.begin());
+    Sums s;
+    if (b <= a) return s;
+    s.area = prefix_[b].area - prefix_[a].area;
+    s.wear = prefix_[b].wear - prefix_[a].wear;
+    s.scale = prefix_[b].scale - prefix_[a].scale;
+    s.bias = prefix_[b].bias - prefix_[a].bias;
+    s.noise = prefix_[b].noise - prefix_[a].noise;
+    return s;
+  }
+
+ private:
+  std::vector<Eigen::Index> order_;
+  std::vector<double> z_;
+  std::vector<Sums> prefix_;
+};
+
+/// The centres of a row's rings of height `height` (a half-height grid; one, at mid-row, when the
+/// row is lower than that) and the ring's actual height.
+std::vector<double> RingCentres(const Row& r, double height) {
+  const double half = 0.5 * height, row_h = r.z_max_m - r.z_min_m;
+  std::vector<double> zs;
+  if (row_h <= height) return {0.5 * (r.z_min_m + r.z_max_m)};
+  for (double z = r.z_min_m + half; z <= r.z_max_m - half + 1e-9; z += half) zs.push_back(z);
+  return zs;
+}
+
+/// The row's thinnest ring of height `height` (all around the circumference), band [min lo, min hi]
+/// over its rings. nullopt when no ring has faces.
+std::optional<ThinnestArea> ThinnestRing(const Context& c, const RowRings& rings, const RadiusProfile& radius, int row,
+                                         double height) {
+  const Row& r = c.plan.crusher->rows[static_cast<size_t>(row)];
+  const double h = std::min(height, r.z_max_m - r.z_min_m);
+  std::optional<ThinnestArea> best;
+  double lo = std::numeric_limits<double>::max(), hi = lo;
+  for (const double z : RingCentres(r, height)) {
+    const Sums s = rings.Between(z, 0.5 * h);
+    const double circumference = 2.0 * M_PI * radius.At(z);
+    if (!(s.area >= 0.25 * h * circumference)) continue;  // mostly off the map
+    ThinnestArea a;
+    BandOf(c, s, h, circumference, &a);
+    lo = std::min(lo, a.lo_mm);
+    hi = std::min(hi, a.hi_mm);
+    if (!best || a.thickness_mm < best->thickness_mm) {
+      a.z_m = z;
+      best = a;
+    }
+  }
+  if (best) {
+    best->lo_mm = lo;
+    best->hi_mm = hi;
+    best->patch_m = h;
+    best->shape = AreaShape::kRing;
+    best->theta_deg = kNan;
+  }
+  return best;
+}
+
+ThinnestArea WholeRow(const Context& c, const RadiusProfile& radius, int row) {
   const WearMap& map = *c.plan.map;
   const Row& r = c.plan.crusher->rows[static_cast<size_t>(row)];
   Sums s;
@@ -170,11 +278,12 @@ ThinnestArea WholeRow(const Context& c, int row) {
     if (c.plan.face_row[static_cast<size_t>(i)] == row) s.Add(map.areas[i], c.rec.wear_estimate_mm[i], c.errors, i);
   ThinnestArea a;
   a.whole_row = true;
+  a.shape = AreaShape::kRow;
   a.patch_m = r.z_max_m - r.z_min_m;
   a.z_m = 0.5 * (r.z_min_m + r.z_max_m);
   a.theta_deg = kNan;
   if (s.area > 0) {
-    BandOf(c, s, &a);
+    BandOf(c, s, a.patch_m, 2.0 * M_PI * radius.At(a.z_m), &a);
   } else {
     a.thickness_mm = a.lo_mm = a.hi_mm = kNan;
   }
@@ -195,7 +304,8 @@ double NearestSensor(const CrusherConfig& crusher, const RadiusProfile& radius, 
     if (!s) continue;
     const double dz = s->z_m - a.z_m;
     const double arc =
-        a.whole_row ? 0.0 : radius.At(0.5 * (s->z_m + a.z_m)) * AngleDiffDeg(s->theta_deg, a.theta_deg) * kDegToRad;
+        a.shape != AreaShape::kSquare ? 0.0
+                                      : radius.At(0.5 * (s->z_m + a.z_m)) * AngleDiffDeg(s->theta_deg, a.theta_deg) * kDegToRad;
     best = std::min(best, std::hypot(dz, arc));
   }
   return best;
@@ -220,6 +330,8 @@ void Label(const Context& c, const RadiusProfile& radius, const std::vector<Read
   a->nearest_sensor_m = NearestSensor(*c.plan.crusher, radius, used, *a);
   a->extrapolated = !(a->nearest_sensor_m <= 0.5 * a->patch_m + cfg.sensor_reach_m);
   a->worn_through = a->supported && a->hi_mm <= 0.0;
+  for (const RowSummary& r : c.rec.rows)
+    if (r.row == a->row) a->row_sensors = r.sensors_used;
   if (!a->supported) a->sensor_fallback = ThinnestReading(*c.plan.crusher, used, a->row);
 }
 
@@ -228,13 +340,15 @@ void Label(const Context& c, const RadiusProfile& radius, const std::vector<Read
 ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used) {
   const CrusherConfig& crusher = *plan.crusher;
   const ThinnestAreaConfig& cfg = crusher.thinnest_area;
-  const double face_area = 0.5 * plan.model.face_size_m * plan.model.face_size_m;
+  const double face = plan.model.face_size_m;
+  const double root4pi = 2.0 * std::sqrt(M_PI);
   Context c{plan,
             rec,
             SplitErrors(plan, rec),
             crusher.thickness_new_mm,
             plan.options.band_sigmas,
-            std::max(face_area, 4.0 * M_PI * plan.model.bandwidth_m * plan.model.bandwidth_arc_m)};
+            std::max(face, root4pi * plan.model.bandwidth_m),
+            std::max(face, root4pi * plan.model.bandwidth_arc_m)};
   const RadiusProfile radius(*plan.map);
   const size_t nrows = crusher.rows.size();
   const double target = cfg.band_half_width_mm;
@@ -243,36 +357,50 @@ ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruc
   std::vector<bool> done(nrows, false);
   bool liner_done = false;
   const bool scaled = rec.status != kStatusNoSensors;
+  std::vector<RowRings> rings;
+  if (scaled)
+    for (size_t r = 0; r < nrows; ++r) rings.emplace_back(c, static_cast<int>(r));
+  // The ladder goes by height, the finest first: at each size a square patch, then the ring of that
+  // height all around; then (below) the whole row. Height first, because the thinnest wear of a
+  // gyratory concave is a band around it (the discharge edge): a large square there averages the
+  // band with the thicker liner above it, a ring of the band's height does not. Each row takes the
+  // first step whose band is narrow enough; so does the liner, from the thinnest of the rows' areas
+  // at that step (band [min lo, min hi]).
   for (const double patch : cfg.patches_m) {
-    if (!scaled) break;
-    const SurfaceIndex index(*plan.map, 0.5 * patch, 0.5 * patch);
-    std::optional<ThinnestArea> liner;  // the thinnest of the rows' at this patch, band [min lo, min hi]
-    for (size_t r = 0; r < nrows; ++r) {
-      std::optional<ThinnestArea> a = ThinnestPatch(c, index, radius, static_cast<int>(r), patch);
-      if (!a) continue;
-      a->row = crusher.rows[r].name;
-      if (!done[r] && Within(*a, target)) {
-        out.rows[r] = *a;
-        done[r] = true;
+    for (const AreaShape shape : {AreaShape::kSquare, AreaShape::kRing}) {
+      if (!scaled) break;
+      std::optional<SurfaceIndex> index;
+      if (shape == AreaShape::kSquare) index.emplace(*plan.map, 0.5 * patch, 0.5 * patch);
+      std::optional<ThinnestArea> liner;
+      for (size_t r = 0; r < nrows; ++r) {
+        std::optional<ThinnestArea> a = shape == AreaShape::kSquare
+                                            ? ThinnestPatch(c, *index, radius, static_cast<int>(r), patch)
+                                            : ThinnestRing(c, rings[r], radius, static_cast<int>(r), patch);
+        if (!a) continue;
+        a->row = crusher.rows[r].name;
+        if (!done[r] && Within(*a, target)) {
+          out.rows[r] = *a;
+          done[r] = true;
+        }
+        if (!liner) {
+          liner = a;
+        } else {
+          const double lo = std::min(liner->lo_mm, a->lo_mm), hi = std::min(liner->hi_mm, a->hi_mm);
+          if (a->thickness_mm < liner->thickness_mm) liner = a;
+          liner->lo_mm = lo;
+          liner->hi_mm = hi;
+        }
       }
-      if (!liner) {
-        liner = a;
-      } else {
-        const double lo = std::min(liner->lo_mm, a->lo_mm), hi = std::min(liner->hi_mm, a->hi_mm);
-        if (a->thickness_mm < liner->thickness_mm) liner = a;
-        liner->lo_mm = lo;
-        liner->hi_mm = hi;
+      if (!liner_done && liner && Within(*liner, target)) {
+        out.liner = *liner;
+        liner_done = true;
       }
-    }
-    if (!liner_done && liner && Within(*liner, target)) {
-      out.liner = *liner;
-      liner_done = true;
     }
   }
   // The whole row, where no patch was narrow enough; and for the liner, the thinnest row.
   std::optional<ThinnestArea> liner_row;
   for (size_t r = 0; r < nrows; ++r) {
-    ThinnestArea whole = WholeRow(c, static_cast<int>(r));
+    ThinnestArea whole = WholeRow(c, radius, static_cast<int>(r));
     whole.row = crusher.rows[r].name;
     if (!scaled) whole.thickness_mm = whole.lo_mm = whole.hi_mm = kNan;
     if (!done[r]) out.rows[r] = whole;
@@ -292,12 +420,86 @@ ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruc
     } else {
       out.liner.thickness_mm = out.liner.lo_mm = out.liner.hi_mm = out.liner.theta_deg = kNan;
       out.liner.whole_row = true;
+      out.liner.shape = AreaShape::kRow;
     }
   }
   for (ThinnestArea& a : out.rows) Label(c, radius, used, target, &a);
   Label(c, radius, used, target, &out.liner);
   if (!out.liner.supported) out.liner.sensor_fallback = ThinnestReading(crusher, used, "");
   return out;
+}
+
+double AreaMean(const ReconstructionPlan& plan, const Eigen::VectorXd& values, const ThinnestArea& area) {
+  const WearMap& map = *plan.map;
+  const CrusherConfig& crusher = *plan.crusher;
+  int row = -1;
+  for (size_t r = 0; r < crusher.rows.size(); ++r)
+    if (crusher.rows[r].name == area.row) row = static_cast<int>(r);
+  double sum = 0, w = 0;
+  if (row < 0 || !std::isfinite(area.z_m)) return kNan;
+  if (area.shape != AreaShape::kSquare) {
+    // A ring: the row's faces within half its height of its centre (RowRings::Between); a row: all.
+    const double half = 0.5 * area.patch_m, tol = 1e-9 * std::max(1.0, half);
+    for (Eigen::Index i = 0; i < map.z.size(); ++i)
+      if (plan.face_row[static_cast<size_t>(i)] == row &&
+          (area.shape == AreaShape::kRow || std::fabs(map.z[i] - area.z_m) <= half + tol))
+        sum += map.areas[i] * values[i], w += map.areas[i];
+  } else {
+    const SurfaceIndex index(map, 0.5 * area.patch_m, 0.5 * area.patch_m);
+    const RadiusProfile radius(map);
+    VisitPatch(plan, index, radius, row, area.z_m, area.theta_deg, area.patch_m,
+               [&](Eigen::Index i) { sum += map.areas[i] * values[i], w += map.areas[i]; });
+  }
+  return w > 0 ? sum / w : kNan;
+}
+
+ThinnestArea ThinnestPatchOf(const ReconstructionPlan& plan, const Eigen::VectorXd& remaining, int row, double patch_m,
+                             AreaShape shape) {
+  const WearMap& map = *plan.map;
+  const CrusherConfig& crusher = *plan.crusher;
+  const SurfaceIndex index(map, 0.5 * patch_m, 0.5 * patch_m);
+  const RadiusProfile radius(map);
+  ThinnestArea best;
+  best.thickness_mm = best.lo_mm = best.hi_mm = kNan;
+  best.patch_m = patch_m;
+  best.shape = shape;
+  best.whole_row = shape == AreaShape::kRow;
+  for (size_t r = 0; r < crusher.rows.size(); ++r) {
+    if (row >= 0 && static_cast<int>(r) != row) continue;
+    if (shape != AreaShape::kSquare) {
+      const Row& rw = crusher.rows[r];
+      const double h = shape == AreaShape::kRow ? rw.z_max_m - rw.z_min_m : std::min(patch_m, rw.z_max_m - rw.z_min_m);
+      const std::vector<double> zs = shape == AreaShape::kRow ? std::vector<double>{0.5 * (rw.z_min_m + rw.z_max_m)}
+                                                               : RingCentres(rw, patch_m);
+      for (const double z : zs) {
+        ThinnestArea a = best;
+        a.row = rw.name;
+        a.z_m = z;
+        a.patch_m = h;
+        a.theta_deg = kNan;
+        const double t = AreaMean(plan, remaining, a);
+        if (std::isfinite(t) && !(t >= best.thickness_mm)) {
+          a.thickness_mm = a.lo_mm = a.hi_mm = t;
+          best = a;
+        }
+      }
+      continue;
+    }
+    for (const auto& [z, theta] : PatchCentres(crusher.rows[r], radius, patch_m)) {
+      double sum = 0, w = 0;
+      if (!VisitPatch(plan, index, radius, static_cast<int>(r), z, theta, patch_m,
+                      [&](Eigen::Index i) { sum += map.areas[i] * remaining[i], w += map.areas[i]; }))
+        continue;
+      const double t = sum / w;
+      if (!(t >= best.thickness_mm)) {
+        best.thickness_mm = best.lo_mm = best.hi_mm = t;
+        best.z_m = z;
+        best.theta_deg = theta;
+        best.row = crusher.rows[r].name;
+      }
+    }
+  }
+  return best;
 }
 
 namespace {
@@ -316,6 +518,15 @@ std::string Detail(const ThinnestArea& a) {
   if (!a.supported) {
     std::snprintf(b, sizeof b, "band wider than the target at every patch up to the whole row");
     d = b;
+    // What would narrow it: the larger of the band's two parts.
+    if (a.scale_sd_mm >= a.map_sd_mm)
+      std::snprintf(b, sizeof b,
+                    "; most of it is row %s's scale, set by %zu sensor%s (more sensors in this row, or a scan, would narrow it)",
+                    a.row.c_str(), a.row_sensors, a.row_sensors == 1 ? "" : "s");
+    else
+      std::snprintf(b, sizeof b, "; most of it is the DEM map's own error here (a scan of the liner, or a longer DEM run, would "
+                                 "narrow it)");
+    d += b;
     if (a.sensor_fallback) {
       std::snprintf(b, sizeof b, "; the sensors show %.0f mm (sensor %s, %s)", a.sensor_fallback->thickness_mm,
                     a.sensor_fallback->sensor.c_str(), FormatIsoTime(a.sensor_fallback->time).c_str());
@@ -341,13 +552,15 @@ nlohmann::ordered_json ThinnestAreaJson(const ThinnestArea& a) {
   j["band_mm"] = nlohmann::ordered_json::array({Rounded(a.lo_mm, 0.01), Rounded(a.hi_mm, 0.01)});
   j["patch_m"] = Rounded(a.patch_m, 0.001);
   j["z_m"] = Rounded(a.z_m, 0.001);
-  j["theta_deg"] = a.whole_row ? nlohmann::ordered_json(nullptr) : Rounded(a.theta_deg, 0.1);
+  j["theta_deg"] = a.shape != AreaShape::kSquare ? nlohmann::ordered_json(nullptr) : Rounded(a.theta_deg, 0.1);
+  j["shape"] = a.shape == AreaShape::kSquare ? "square" : a.shape == AreaShape::kRing ? "ring" : "row";
   j["supported"] = a.supported;
   j["extrapolated"] = a.extrapolated;
   j["nearest_sensor_m"] = Rounded(a.nearest_sensor_m, 0.001);
   j["row"] = a.row;
   j["whole_row"] = a.whole_row;
   j["worn_through"] = a.worn_through;
+  j["band_parts_mm"] = {{"row_scale_sd", Rounded(a.scale_sd_mm, 0.01)}, {"map_sd", Rounded(a.map_sd_mm, 0.01)}};
   j["detail"] = Detail(a);
   if (a.sensor_fallback) {
     j["sensor_fallback"] = {{"sensor", a.sensor_fallback->sensor},
@@ -358,12 +571,19 @@ nlohmann::ordered_json ThinnestAreaJson(const ThinnestArea& a) {
   return j;
 }
 
+nlohmann::ordered_json MapCalibrationJson(const MapCalibration& calibration) {
+  return {{"factor", Rounded(calibration.factor, 0.001)}, {"sensors", calibration.sensors}};
+}
+
 std::string ThinnestAreaText(const ThinnestArea& a) {
   if (!std::isfinite(a.thickness_mm)) return "thinnest area: " + Detail(a);
   char b[240];
-  if (a.whole_row)
+  if (a.shape == AreaShape::kRow)
     std::snprintf(b, sizeof b, "thinnest area (row %s as a whole): %.1f mm, band %.1f..%.1f mm", a.row.c_str(), a.thickness_mm,
                   a.lo_mm, a.hi_mm);
+  else if (a.shape == AreaShape::kRing)
+    std::snprintf(b, sizeof b, "thinnest area (a %.2f m band all around, row %s, z %.2f m): %.1f mm, band %.1f..%.1f mm",
+                  a.patch_m, a.row.c_str(), a.z_m, a.thickness_mm, a.lo_mm, a.hi_mm);
   else
     std::snprintf(b, sizeof b, "thinnest area (%.2f m patch, row %s, z %.2f m, theta %.0f deg): %.1f mm, band %.1f..%.1f mm",
                   a.patch_m, a.row.c_str(), a.z_m, a.theta_deg, a.thickness_mm, a.lo_mm, a.hi_mm);

@@ -68,13 +68,21 @@ function ofThisLiner(sensors) {
   return sensors.map((x) => (x.latest?.previous_liner ? { ...x, latest: null } : x));
 }
 
-// A thinnest area's size in words: the patch, or the whole row.
+// A thinnest area's size in words: the square patch, the band of that height all around (a ring),
+// or the whole row.
 function areaSize(a) {
-  return a.whole_row ? `the whole row ${a.row}` : `${fmt(a.patch_m, 1)} m patch`;
+  if (a.whole_row) return `the whole row ${a.row}`;
+  return a.shape === 'ring' ? `${fmt(a.patch_m, 2)} m band all around` : `${fmt(a.patch_m, 1)} m patch`;
+}
+
+// Where it is: a ring or a row has a height and no angle.
+function hasAngle(a) {
+  return !a.whole_row && a.shape !== 'ring' && a.theta_deg != null;
 }
 
 function areaWhere(a) {
-  return a.whole_row ? `row ${a.row}` : `${a.row}, z ${fmt(a.z_m, 2)} m, θ ${fmt(a.theta_deg, 0)}°`;
+  if (a.whole_row) return `row ${a.row}`;
+  return hasAngle(a) ? `${a.row}, z ${fmt(a.z_m, 2)} m, θ ${fmt(a.theta_deg, 0)}°` : `${a.row}, z ${fmt(a.z_m, 2)} m, all around`;
 }
 
 function extrapolatedText(a) {
@@ -162,7 +170,7 @@ async function crusherPage(crusherId, initialSensor) {
       sensors: sensorState(),
       // The thinnest area the data support, drawn where it has a place (a whole row has no angle).
       min: w?.thinnest_area && w.thinnest_area.thickness_mm != null
-        ? { z_m: w.thinnest_area.z_m, theta_deg: w.thinnest_area.whole_row ? null : w.thinnest_area.theta_deg,
+        ? { z_m: w.thinnest_area.z_m, theta_deg: hasAngle(w.thinnest_area) ? w.thinnest_area.theta_deg : null,
           thickness: w.thinnest_area.thickness_mm, patch_m: w.thinnest_area.patch_m, extrapolated: w.thinnest_area.extrapolated }
         : null,
       selected: st.selected,
@@ -257,7 +265,7 @@ async function crusherPage(crusherId, initialSensor) {
             ? h('div', { class: 'band' }, a.supported ? `${fmt(a.band_mm[0])}–${fmt(a.band_mm[1])} mm` : `sensor ${a.sensor_fallback?.sensor ?? '–'}; map band ${fmt(a.band_mm[0])}–${fmt(a.band_mm[1])} mm`,
               a.worn_through ? ' · worn through' : '') : null),
         h('td', { class: 'where', 'data-label': 'Area' }, a ? [h('div', {}, a.supported ? areaSize(a) : 'no area supported'),
-          a.supported && !a.whole_row ? h('div', { class: 'band' }, `z ${fmt(a.z_m, 2)} m, θ ${fmt(a.theta_deg, 0)}°`) : null,
+          a.supported && !a.whole_row ? h('div', { class: 'band' }, hasAngle(a) ? `z ${fmt(a.z_m, 2)} m, θ ${fmt(a.theta_deg, 0)}°` : `z ${fmt(a.z_m, 2)} m, all around`) : null,
           a.extrapolated ? h('div', { class: 'band', 'data-testid': `row-extrapolated-${name}` }, extrapolatedText(a)) : null] : '–'),
         h('td', { class: 'num rate', 'data-label': 'Wear rate' }, f ? `${fmt(f.rate_mm_per_day, 2)} mm/d` : '–', r ? h('div', { class: 'band' }, `worn ${fmt(r.mean_wear_mm)} mm mean`) : null),
         h('td', { class: 'reline', 'data-label': 'Reline (band)', 'data-testid': `row-reline-${name}` }, f?.below_minimum_since

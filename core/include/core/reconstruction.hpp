@@ -40,6 +40,9 @@ struct ReconstructionOptions {
   MapModelOptions map_model;    ///< smoothing scale (default: chosen from the map's own noise), outliers
   bool interval_centre = true;  ///< use thickness + 0.5 mm (centre of [n, n+1)) as the estimate
   double band_sigmas = 2.0;     ///< half-width of the thinnest-point band in standard deviations
+  /// The map's error as the sensors measure it (MapCalibration): pseudo-sensors at the model's own
+  /// error that the sensors' evidence is pooled with; 0 or less: the model's error as it is.
+  double calibration_prior_dof = 2.0;
   /// Above this relative standard error of the thinnest point's wear the number is not supported
   /// (status "unsupported"): the band is still given.
   double max_rel_sd = 0.5;
@@ -50,6 +53,15 @@ struct ReconstructionOptions {
 inline constexpr const char* kStatusOk = "ok";
 inline constexpr const char* kStatusUnsupported = "unsupported";
 inline constexpr const char* kStatusNoSensors = "no_sensors";
+
+/// The map model's error (noise and smoothing, core/map_model.hpp) measured at the sensors: each
+/// sensor in a row with others predicted from the others alone, its error against the model's sd
+/// for that prediction. `factor` multiplies the map's part of every standard error (faces, row
+/// scales, bands); 1 when no row has two reporting sensors.
+struct MapCalibration {
+  double factor = 1.0;
+  size_t sensors = 0;  ///< sensors predicted from their row mates
+};
 
 struct Reconstruction {
   Eigen::VectorXd wear_mm;          ///< per face, in [0, thickness_new]
@@ -68,6 +80,7 @@ struct Reconstruction {
   double min_thickness_hi_mm = 0;       ///< [lo, hi] when every face is within band_sigmas sd
   size_t worn_through_faces = 0;        ///< estimated wear >= thickness_new
   size_t maybe_worn_through_faces = 0;  ///< band reaches 0
+  MapCalibration calibration;           ///< the map's error factor the bands use, and from how many sensors
   std::string status = kStatusOk;       ///< kStatusOk, kStatusUnsupported, kStatusNoSensors
   std::string status_detail;            ///< why, in words (empty when ok)
 };

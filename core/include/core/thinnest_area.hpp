@@ -37,20 +37,29 @@ struct SensorFallback {
   TimePoint time{};
 };
 
+/// An area's form: a square patch of side patch_m; a ring, the band of height patch_m all around the
+/// circumference; the whole row.
+enum class AreaShape { kSquare, kRing, kRow };
+
 struct ThinnestArea {
   std::string row;          ///< the row it lies in (the liner's: the row of its thinnest area)
   double thickness_mm = 0;  ///< area-mean remaining thickness (NaN: no row scale)
   double lo_mm = 0;         ///< band (band_sigmas sd), in [0, new]
   double hi_mm = 0;
   double patch_m = 0;                             ///< side of the square patch (m); a whole row: the row's height
-  bool whole_row = false;                         ///< the area is the whole row (no angle)
+  AreaShape shape = AreaShape::kSquare;
+  bool whole_row = false;                         ///< the area is the whole row (no angle): shape kRow
   double z_m = 0;                                 ///< centre (a whole row: its mid-height)
-  double theta_deg = 0;                           ///< centre (NaN for a whole row)
+  double theta_deg = 0;                           ///< centre (NaN for a ring or a whole row)
   bool supported = false;                         ///< the band half-width is within the target at patch_m
   bool extrapolated = false;                      ///< the centre is beyond the sensors' reach (from the DEM map alone)
   double nearest_sensor_m = 0;                    ///< surface distance from the centre to the nearest scale-setting sensor
   bool worn_through = false;                      ///< supported and the band's thick edge is at 0
   std::optional<SensorFallback> sensor_fallback;  ///< when not supported: what the sensors show
+  /// The band's two parts (one sd each, of the area whose number is given): the row scale's, and the
+  /// map's (its pattern and sampling error averaged over the area); what would narrow the band.
+  double scale_sd_mm = 0, map_sd_mm = 0;
+  size_t row_sensors = 0;  ///< sensors that set the area's row scale
 };
 
 struct ThinnestAreas {
@@ -63,11 +72,26 @@ struct ThinnestAreas {
 /// values the fallback. Faces outside every row are not part of any area.
 ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used);
 
+/// Area-weighted mean of a per-face field (a true remaining thickness, say) over `area` as
+/// FindThinnestAreas reads its own estimate there: the faces of its row within half a patch of its
+/// centre along z and around (a whole row: all of the row's faces). How a check reads the truth at
+/// the reported area. NaN when the area has no faces or no row.
+double AreaMean(const ReconstructionPlan& plan, const Eigen::VectorXd& values, const ThinnestArea& area);
+/// The thinnest square patch of side `patch_m` (or ring of that height, or row: `shape`) of a
+/// per-face field `remaining` on the grid FindThinnestAreas searches, in row index `row` (-1: every row): its mean (thickness_mm, and lo
+/// and hi the same), centre and row. How a check finds the truth's own thinnest area at the
+/// reported patch size.
+ThinnestArea ThinnestPatchOf(const ReconstructionPlan& plan, const Eigen::VectorXd& remaining, int row, double patch_m,
+                             AreaShape shape = AreaShape::kSquare);
+
 /// The one JSON form (REST `.../wear` and its rows, the retained MQTT `.../wear`, `linerwatch
 /// reconstruct --json`): {"thickness_mm", "band_mm": [lo, hi], "patch_m", "z_m", "theta_deg" (null
 /// for a whole row), "supported", "extrapolated", "nearest_sensor_m" (null: no sensor), "row",
 /// "whole_row", "worn_through", "detail", "sensor_fallback" (when not supported)}. NaN is null.
 nlohmann::ordered_json ThinnestAreaJson(const ThinnestArea& area);
+/// {"factor", "sensors"}: the map's error as the sensors measure it (core/reconstruction.hpp
+/// MapCalibration), in `.../wear` and `linerwatch reconstruct --json` as "map_error_at_sensors".
+nlohmann::ordered_json MapCalibrationJson(const MapCalibration& calibration);
 /// The same in words, one line: what a planner reads (the headline's wording).
 std::string ThinnestAreaText(const ThinnestArea& area);
 

@@ -388,3 +388,82 @@ TEST(Reconstruction, NoisyMapIsSmoothedAtADataChosenScaleAndOutputsArePhysical) 
   STRCMP_EQUAL(kStatusNoSensors, none.status.c_str());
   CHECK(std::isnan(none.min_thickness_mm));
 }
+
+namespace {
+
+/// A cylinder with per-face sampling noise (relative scatter ~0.46), and a crusher with three
+/// sensors in each of its two rows.
+WearMap NoisyCylinder() {
+  WearMap m = lw::test::CylinderMap(72, 40, [](double z) { return 2.0 - 0.5 * z; });
+  uint64_t state = 777;
+  for (Eigen::Index i = 0; i < m.wear.size(); ++i) {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    m.wear[i] *= 0.2 + 1.6 * (static_cast<double>(state >> 11) / 9007199254740992.0);
+  }
+  return m;
+}
+
+CrusherConfig SixSensors() {
+  CrusherConfig c = TwoRows();
+  c.sensors = {{"1001", "LDWN", 0.3, 0.0, 120, {}},  {"1003", "LDWN", 0.5, 120.0, 120, {}}, {"1005", "LDWN", 0.7, 240.0, 120, {}},
+               {"1002", "LUP", 1.3, 60.0, 120, {}},  {"1004", "LUP", 1.5, 180.0, 120, {}},  {"1006", "LUP", 1.7, 300.0, 120, {}}};
+  return c;
+}
+
+/// Each sensor's wear = the row's scale x the map model at it x (1 + rel[k]).
+std::vector<SensorWear> WearAgainstMap(const CrusherConfig& c, const ReconstructionPlan& plan, const std::vector<double>& rel) {
+  std::vector<SensorWear> w;
+  for (size_t s = 0; s < c.sensors.size(); ++s) {
+    const double scale = c.sensors[s].row == "LDWN" ? 30.0 : 15.0;
+    w.push_back({c.sensors[s].id, scale * plan.sensor_intensity[static_cast<Eigen::Index>(s)] * (1.0 + rel[s])});
+  }
+  return w;
+}
+
+}  // namespace
+
+// Sensors that agree with the map far better than the map's own error model says: the factor
+// falls below 1, held up by the model's pseudo-sensors, and every band narrows by it.
+TEST(Reconstruction, SensorsThatAgreeWithTheMapNarrowTheMapsErrorByTheFactorTheyMeasure) {
+  const CrusherConfig c = SixSensors();
+  const WearMap m = NoisyCylinder();
+  const ReconstructionPlan plan = PrepareReconstruction(c, m);
+  const std::vector<SensorWear> w = WearAgainstMap(c, plan, {0, 0, 0, 0, 0, 0});
+  const Reconstruction r = Reconstruct(plan, w);
+  LONGS_EQUAL(6, r.calibration.sensors);
+  // No error at any sensor beyond quantisation: c^2 = prior / (n + prior) = 2 / 8.
+  DOUBLES_EQUAL(0.5, r.calibration.factor, 0.02);
+  ReconstructionPlan off = plan;
+  off.options.calibration_prior_dof = 0;
+  const Reconstruction u = Reconstruct(off, w);
+  DOUBLES_EQUAL(1.0, u.calibration.factor, 1e-12);
+  LONGS_EQUAL(0, u.calibration.sensors);
+  // The map's part of a face's sd halves; the estimate itself does not move.
+  for (Eigen::Index i = 0; i < m.z.size(); i += 97) {
+    DOUBLES_EQUAL(u.remaining_mm[i], r.remaining_mm[i], 1e-9);
+    CHECK(r.remaining_sd_mm[i] < 0.75 * u.remaining_sd_mm[i]);
+  }
+  CHECK(r.rows[0].scale_sd < u.rows[0].scale_sd);
+}
+
+// Sensors that disagree with the map by more than its error model allows widen every band.
+TEST(Reconstruction, SensorsThatDisagreeWithTheMapWidenItsError) {
+  const CrusherConfig c = SixSensors();
+  const WearMap m = NoisyCylinder();
+  const ReconstructionPlan plan = PrepareReconstruction(c, m);
+  const Reconstruction calm = Reconstruct(plan, WearAgainstMap(c, plan, {0, 0, 0, 0, 0, 0}));
+  const Reconstruction r = Reconstruct(plan, WearAgainstMap(c, plan, {0.8, -0.6, 0.7, -0.7, 0.9, -0.5}));
+  LONGS_EQUAL(6, r.calibration.sensors);
+  CHECK(r.calibration.factor > 1.0);
+  CHECK(r.calibration.factor <= 4.0);
+  CHECK(r.remaining_sd_mm[100] > calm.remaining_sd_mm[100]);
+}
+
+// One sensor per row: nothing to predict a sensor from, the model's error as it is.
+TEST(Reconstruction, OneSensorPerRowLeavesTheMapsErrorAsTheModelSaysIt) {
+  const CrusherConfig c = TwoRows();
+  const WearMap m = NoisyCylinder();
+  const Reconstruction r = Reconstruct(PrepareReconstruction(c, m), {{"1001", 35.0}, {"1002", 12.5}});
+  LONGS_EQUAL(0, r.calibration.sensors);
+  DOUBLES_EQUAL(1.0, r.calibration.factor, 1e-12);
+}

@@ -148,3 +148,63 @@ TEST(ThinnestArea, NoSensorsGivesNoNumber) {
   CHECK_FALSE(a.liner.supported);
   CHECK(ThinnestAreaJson(a.liner)["thickness_mm"].is_null());
 }
+
+// A map that knows the height profile and nothing around the circumference (each face's noise
+// independent, no pattern around): a thin band at the bottom, with the sensors that agree with the
+// map. The square patches are too noisy for the target; a ring all around at the bottom is not,
+// and it is where the band is.
+TEST(ThinnestArea, WhereNoSquarePatchIsNarrowEnoughARingAllAroundIs) {
+  CrusherConfig c = TwoRows();
+  c.sensors = {{"1001", "LDWN", 0.4, 0.0, 120, {}},  {"1003", "LDWN", 0.6, 120.0, 120, {}}, {"1005", "LDWN", 0.8, 240.0, 120, {}},
+               {"1002", "LUP", 1.3, 60.0, 120, {}},  {"1004", "LUP", 1.5, 180.0, 120, {}},  {"1006", "LUP", 1.7, 300.0, 120, {}}};
+  WearMap m = lw::test::CylinderMap(72, 40, [](double z) { return z < 0.2 ? 2.0 : 1.0; });
+  uint64_t state = 99;
+  for (Eigen::Index i = 0; i < m.wear.size(); ++i) {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    m.wear[i] *= 0.1 + 1.8 * (static_cast<double>(state >> 11) / 9007199254740992.0);
+  }
+  const ReconstructionPlan plan = PrepareReconstruction(c, m);
+  std::vector<Reading> used;
+  std::vector<SensorWear> wear;
+  const TimePoint t = AddDays(c.installed_at, 60);
+  for (size_t s = 0; s < c.sensors.size(); ++s) {
+    const double w = 40.0 * plan.sensor_intensity[static_cast<Eigen::Index>(s)];
+    used.push_back({t, c.sensors[s].id, std::floor(120.0 - w), 0});
+    wear.push_back({c.sensors[s].id, 120.0 - (std::floor(120.0 - w) + 0.5)});
+  }
+  const Reconstruction rec = Reconstruct(plan, wear);
+  const ThinnestAreas a = FindThinnestAreas(plan, rec, used);
+  CHECK_TRUE(a.liner.supported);
+  CHECK(a.liner.shape == AreaShape::kRing);
+  CHECK_FALSE(a.liner.whole_row);
+  CHECK(a.liner.patch_m < 1.0);  // a band, not the whole 1 m row
+  CHECK(a.liner.z_m - 0.5 * a.liner.patch_m < 0.2);  // it reaches into the worn band at the bottom
+  CHECK(std::isnan(a.liner.theta_deg));
+  // Its number is the mean of the faces it names.
+  DOUBLES_EQUAL(a.liner.thickness_mm, AreaMean(plan, rec.remaining_mm, a.liner), 1e-6);
+  const nlohmann::ordered_json j = ThinnestAreaJson(a.liner);
+  STRCMP_EQUAL("ring", j["shape"].get<std::string>().c_str());
+  CHECK(j["theta_deg"].is_null());
+  CHECK(ThinnestAreaText(a.liner).find("band all around") != std::string::npos);
+}
+
+// A check reads the truth where the product reports: the mean over the faces of the reported square
+// is the reported number (no face estimated beyond the liner), and the thinnest patch of a field on
+// the same grid is the one the product finds when the field is its own estimate.
+TEST(ThinnestArea, AreaMeanAndThinnestPatchOfReadAFieldAsTheSearchReadsItsEstimate) {
+  const CrusherConfig c = TwoRows();
+  const WearMap m = NoisyMap();
+  const ReconstructionPlan plan = PrepareReconstruction(c, m);
+  const std::vector<Reading> used = Used(c, 60, 90);
+  const Reconstruction rec = Reconstruct(plan, WearOf(used));
+  CHECK(rec.worn_through_faces == 0);
+  const ThinnestAreas a = FindThinnestAreas(plan, rec, used);
+  for (const ThinnestArea& area : a.rows) {
+    DOUBLES_EQUAL(area.thickness_mm, AreaMean(plan, rec.remaining_mm, area), 1e-6);
+    if (area.shape != AreaShape::kSquare) continue;
+    const int row = area.row == "LDWN" ? 0 : 1;
+    const ThinnestArea same = ThinnestPatchOf(plan, rec.remaining_mm, row, area.patch_m);
+    DOUBLES_EQUAL(area.thickness_mm, same.thickness_mm, 1e-6);
+    DOUBLES_EQUAL(area.z_m, same.z_m, 1e-9);
+  }
+}
