@@ -219,8 +219,8 @@ double Median(std::vector<double> v) {
 struct AreaOutcome {
   bool done = false;
   lw::core::ThinnestArea area;
-  double err_at = 0;    ///< estimate - the truth's mean over the reported area
-  double err_thin = 0;  ///< estimate - the truth's thinnest area of the same size
+  double err_at = 0;     ///< estimate - the truth's mean over the reported area
+  double err_thin = 0;   ///< estimate - the truth's thinnest area of the same size
   bool in_band = false;  ///< the truth's thinnest area of that size inside the reported band
   int rows_supported = 0, rows = 0;
   lw::core::MapCalibration calibration;  ///< the map's error factor measured at the sensors
@@ -242,9 +242,8 @@ void PrintAreaSummary(const char* title, const std::vector<std::pair<std::string
     const double hw = 0.5 * (a.hi_mm - a.lo_mm);
     const char* shape = a.shape == lw::core::AreaShape::kSquare ? "sq" : a.shape == lw::core::AreaShape::kRing ? "ring" : "row";
     std::printf("%-28s %9s %4s %3.2f %8.2f %8.2f %8.1f..%-8.1f %6s %5s %2d/%-2d %8.2f %5.2f (%zu)\n", name.c_str(),
-                a.supported ? "yes" : "no", shape, a.patch_m, o.err_at, o.err_thin,
-                a.lo_mm, a.hi_mm, o.in_band ? "yes" : "no", a.extrapolated ? "yes" : "no", o.rows_supported, o.rows, hw,
-                o.calibration.factor, o.calibration.sensors);
+                a.supported ? "yes" : "no", shape, a.patch_m, o.err_at, o.err_thin, a.lo_mm, a.hi_mm, o.in_band ? "yes" : "no",
+                a.extrapolated ? "yes" : "no", o.rows_supported, o.rows, hw, o.calibration.factor, o.calibration.sensors);
     in_band += o.in_band;
     rows_sup += o.rows_supported;
     rows += o.rows;
@@ -266,9 +265,10 @@ void PrintAreaSummary(const char* title, const std::vector<std::pair<std::string
     std::printf("|error| at the reported patch, supported answers: median %.2f mm, worst %.2f mm (targets <= 5, <= 15)\n",
                 Median(err_sup), err_sup.back());
   }
-  std::printf("truth's thinnest area of the reported size inside the band: %d / %zu (target >= 90 %%); band half-width median "
-              "%.2f mm; rows supported %d / %d\n",
-              in_band, n, Median(halfw), rows_sup, rows);
+  std::printf(
+      "truth's thinnest area of the reported size inside the band: %d / %zu (target >= 90 %%); band half-width median "
+      "%.2f mm; rows supported %d / %d\n",
+      in_band, n, Median(halfw), rows_sup, rows);
 }
 
 }  // namespace
@@ -749,7 +749,8 @@ int main(int argc, char** argv) {
       auto area_against_truth = [&](const lw::core::ReconstructionPlan& p, const lw::core::Reconstruction& r,
                                     lw::core::TimePoint at, const Eigen::VectorXd& truth_remaining, AreaOutcome& o) {
         std::vector<lw::core::Reading> used;
-        for (const size_t i : lw::core::LatestReadingIndices(bundle.crusher, bundle.readings, at)) used.push_back(bundle.readings[i]);
+        for (const size_t i : lw::core::LatestReadingIndices(bundle.crusher, bundle.readings, at))
+          used.push_back(bundle.readings[i]);
         const lw::core::ThinnestAreas areas = lw::core::FindThinnestAreas(p, r, used);
         const lw::core::ThinnestArea& area = o.area = areas.liner;
         o.err_at = area.thickness_mm - lw::core::AreaMean(p, truth_remaining, area);

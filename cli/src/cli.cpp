@@ -297,7 +297,8 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
     out << line;
   }
   if (rec.calibration.sensors > 0) {
-    std::snprintf(line, sizeof line, "map error measured at the sensors: %.2f x the map model's (%zu sensors predicted from their row mates)\n",
+    std::snprintf(line, sizeof line,
+                  "map error measured at the sensors: %.2f x the map model's (%zu sensors predicted from their row mates)\n",
                   rec.calibration.factor, rec.calibration.sensors);
     out << line;
   }

@@ -413,8 +413,7 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
       break;
     }
   }
-  const MapCalibration calibration =
-      CalibrateAtSensors(members, nrows, kQuantisationVar, plan.options.calibration_prior_dof);
+  const MapCalibration calibration = CalibrateAtSensors(members, nrows, kQuantisationVar, plan.options.calibration_prior_dof);
   for (ScaleMember& m : members) m.sd *= calibration.factor;
   std::vector<std::pair<double, double>> knots;  // (z centre, scale) of rows with sensors
   std::vector<double> knot_var;

@@ -294,8 +294,8 @@ bool Within(const ThinnestArea& a, double target) {
   return std::isfinite(a.thickness_mm) && 0.5 * (a.hi_mm - a.lo_mm) <= target + 1e-9;
 }
 
-/// Surface distance from an area's centre to the nearest sensor of `used` (a whole row: along z
-/// from its mid-height); infinity when there is none.
+/// Surface distance from an area's centre to the nearest sensor of `used` (a ring or a whole row: along z
+/// from its centre height); infinity when there is none.
 double NearestSensor(const CrusherConfig& crusher, const RadiusProfile& radius, const std::vector<Reading>& used,
                      const ThinnestArea& a) {
   double best = std::numeric_limits<double>::infinity();
@@ -303,9 +303,9 @@ double NearestSensor(const CrusherConfig& crusher, const RadiusProfile& radius, 
     const SensorInfo* s = crusher.FindSensor(r.sensor_id);
     if (!s) continue;
     const double dz = s->z_m - a.z_m;
-    const double arc =
-        a.shape != AreaShape::kSquare ? 0.0
-                                      : radius.At(0.5 * (s->z_m + a.z_m)) * AngleDiffDeg(s->theta_deg, a.theta_deg) * kDegToRad;
+    const double arc = a.shape != AreaShape::kSquare
+                           ? 0.0
+                           : radius.At(0.5 * (s->z_m + a.z_m)) * AngleDiffDeg(s->theta_deg, a.theta_deg) * kDegToRad;
     best = std::min(best, std::hypot(dz, arc));
   }
   return best;
@@ -469,8 +469,8 @@ ThinnestArea ThinnestPatchOf(const ReconstructionPlan& plan, const Eigen::Vector
     if (shape != AreaShape::kSquare) {
       const Row& rw = crusher.rows[r];
       const double h = shape == AreaShape::kRow ? rw.z_max_m - rw.z_min_m : std::min(patch_m, rw.z_max_m - rw.z_min_m);
-      const std::vector<double> zs = shape == AreaShape::kRow ? std::vector<double>{0.5 * (rw.z_min_m + rw.z_max_m)}
-                                                               : RingCentres(rw, patch_m);
+      const std::vector<double> zs =
+          shape == AreaShape::kRow ? std::vector<double>{0.5 * (rw.z_min_m + rw.z_max_m)} : RingCentres(rw, patch_m);
       for (const double z : zs) {
         ThinnestArea a = best;
         a.row = rw.name;
@@ -524,8 +524,9 @@ std::string Detail(const ThinnestArea& a) {
                     "; most of it is row %s's scale, set by %zu sensor%s (more sensors in this row, or a scan, would narrow it)",
                     a.row.c_str(), a.row_sensors, a.row_sensors == 1 ? "" : "s");
     else
-      std::snprintf(b, sizeof b, "; most of it is the DEM map's own error here (a scan of the liner, or a longer DEM run, would "
-                                 "narrow it)");
+      std::snprintf(b, sizeof b,
+                    "; most of it is the DEM map's own error here (a scan of the liner, or a longer DEM run, would "
+                    "narrow it)");
     d += b;
     if (a.sensor_fallback) {
       std::snprintf(b, sizeof b, "; the sensors show %.0f mm (sensor %s, %s)", a.sensor_fallback->thickness_mm,

@@ -30,8 +30,9 @@ struct SensorInfo {
 /// crusher.json's optional "thinnest_area" (core/thinnest_area.hpp): the band target and the patch
 /// ladder of the thinnest area the data support, and how far a sensor's reach extends.
 struct ThinnestAreaConfig {
-  double band_half_width_mm = 10.0;                      ///< a band this narrow (half-width) supports a number
-  std::vector<double> patches_m = {0.1, 0.2, 0.4, 0.8};  ///< square patch sides tried, smallest first; then the whole row
+  double band_half_width_mm = 10.0;  ///< a band this narrow (half-width) supports a number
+  std::vector<double> patches_m = {
+      0.1, 0.2, 0.4, 0.8};  ///< area heights tried, smallest first (a square, then a ring of each); then the whole row
   /// An area whose centre lies more than half its patch plus this (surface distance, m) from every
   /// scale-setting sensor is "extrapolated" (from the DEM map alone).
   double sensor_reach_m = 0.5;

@@ -1,23 +1,26 @@
 #pragma once
-/// The thinnest area the data support: for the liner and for each row, the thinnest square patch
-/// of the smallest size on a ladder (ThinnestAreaConfig::patches_m, then the whole row) whose band
-/// half-width is at most the target. A finite DEM run cannot place a face-sized hot spot, but it
-/// can place a larger area: the per-face minimum of a noisy map is a noise spike, while a patch's
-/// mean carries less of the map's sampling noise. This is the number the server's headline, its
-/// rows, the forecast and `linerwatch reconstruct` report; the per-face values and their band stay
-/// in the faces array and the VTK.
+/// The thinnest area the data support: for the liner and for each row, the thinnest area of the
+/// smallest size on a ladder whose band half-width is at most the target. The ladder goes by
+/// height (ThinnestAreaConfig::patches_m): at each size a square patch of that side, then a ring
+/// (the band of that height all around the circumference), then the whole row. A finite DEM run
+/// cannot place a face-sized hot spot, but it can place a larger area: the per-face minimum of a
+/// noisy map is a noise spike, while an area's mean carries less of the map's error. Height comes
+/// first because a gyratory concave's thinnest wear is a band around it (the discharge edge): a
+/// ring of the band's height averages the map's error around the circumference without mixing in
+/// the thicker liner above. This is the number the server's headline, its rows, the forecast and
+/// `linerwatch reconstruct` report; the per-face values and their band stay in the faces array and
+/// the VTK.
 ///
-/// A patch's band is built from the same ingredients as a face's (core/reconstruction.hpp):
+/// An area's band has two parts (core/reconstruction.hpp), both scaled by the map's error as the
+/// sensors measure it (MapCalibration):
 ///  * the row scale's error (sensor quantisation, the map at the sensors): one number per row, so
-///    fully correlated over a patch: its sd is the area-weighted mean of the faces';
-///  * the smoothing's own error (the part of the map model's cross-validated error that sampling
-///    noise does not explain: a pattern error, correlated in space): fully correlated as well;
-///  * the map's sampling noise carried through the kernel (measured from the spread of the run's
-///    independent windows, or from neighbour differences): independent between faces before
-///    smoothing, so after smoothing correlated over the kernel's footprint and no further. A
-///    patch's mean of it has the variance of a face's times A_k / (A_k + A), A the patch's area and
-///    A_k = 4 pi sd_z sd_arc the kernel's noise footprint (1 / integral of the kernel squared).
-/// The band of the thinnest of many patches is [min lo, min hi] over the patches, as for faces.
+///    fully correlated over an area: its sd is the area-weighted mean of the faces';
+///  * the map's error after smoothing (its pattern error, the part of the cross-validated error
+///    that sampling noise does not explain, and its sampling noise carried through the kernel):
+///    correlated over about l = 2 sqrt(pi) x the kernel's sd (at least a face) per axis and no
+///    further, so an area of extent L_z x L_arc keeps l_z / (l_z + L_z) x l_arc / (l_arc + L_arc)
+///    of a face's variance. Averaging narrows this part, never the scale's.
+/// The band of the thinnest of many areas is [min lo, min hi] over them, as for faces.
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -46,7 +49,7 @@ struct ThinnestArea {
   double thickness_mm = 0;  ///< area-mean remaining thickness (NaN: no row scale)
   double lo_mm = 0;         ///< band (band_sigmas sd), in [0, new]
   double hi_mm = 0;
-  double patch_m = 0;                             ///< side of the square patch (m); a whole row: the row's height
+  double patch_m = 0;  ///< side of the square patch (m); a whole row: the row's height
   AreaShape shape = AreaShape::kSquare;
   bool whole_row = false;                         ///< the area is the whole row (no angle): shape kRow
   double z_m = 0;                                 ///< centre (a whole row: its mid-height)
@@ -78,9 +81,8 @@ ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruc
 /// the reported area. NaN when the area has no faces or no row.
 double AreaMean(const ReconstructionPlan& plan, const Eigen::VectorXd& values, const ThinnestArea& area);
 /// The thinnest square patch of side `patch_m` (or ring of that height, or row: `shape`) of a
-/// per-face field `remaining` on the grid FindThinnestAreas searches, in row index `row` (-1: every row): its mean (thickness_mm, and lo
-/// and hi the same), centre and row. How a check finds the truth's own thinnest area at the
-/// reported patch size.
+/// per-face field `remaining` on the grid FindThinnestAreas searches, in row index `row` (-1: every row): its mean (thickness_mm,
+/// and lo and hi the same), centre and row. How a check finds the truth's own thinnest area at the reported patch size.
 ThinnestArea ThinnestPatchOf(const ReconstructionPlan& plan, const Eigen::VectorXd& remaining, int row, double patch_m,
                              AreaShape shape = AreaShape::kSquare);
 

@@ -155,8 +155,8 @@ TEST(ThinnestArea, NoSensorsGivesNoNumber) {
 // and it is where the band is.
 TEST(ThinnestArea, WhereNoSquarePatchIsNarrowEnoughARingAllAroundIs) {
   CrusherConfig c = TwoRows();
-  c.sensors = {{"1001", "LDWN", 0.4, 0.0, 120, {}},  {"1003", "LDWN", 0.6, 120.0, 120, {}}, {"1005", "LDWN", 0.8, 240.0, 120, {}},
-               {"1002", "LUP", 1.3, 60.0, 120, {}},  {"1004", "LUP", 1.5, 180.0, 120, {}},  {"1006", "LUP", 1.7, 300.0, 120, {}}};
+  c.sensors = {{"1001", "LDWN", 0.4, 0.0, 120, {}}, {"1003", "LDWN", 0.6, 120.0, 120, {}}, {"1005", "LDWN", 0.8, 240.0, 120, {}},
+               {"1002", "LUP", 1.3, 60.0, 120, {}}, {"1004", "LUP", 1.5, 180.0, 120, {}},  {"1006", "LUP", 1.7, 300.0, 120, {}}};
   WearMap m = lw::test::CylinderMap(72, 40, [](double z) { return z < 0.2 ? 2.0 : 1.0; });
   uint64_t state = 99;
   for (Eigen::Index i = 0; i < m.wear.size(); ++i) {
@@ -177,7 +177,7 @@ TEST(ThinnestArea, WhereNoSquarePatchIsNarrowEnoughARingAllAroundIs) {
   CHECK_TRUE(a.liner.supported);
   CHECK(a.liner.shape == AreaShape::kRing);
   CHECK_FALSE(a.liner.whole_row);
-  CHECK(a.liner.patch_m < 1.0);  // a band, not the whole 1 m row
+  CHECK(a.liner.patch_m < 1.0);                      // a band, not the whole 1 m row
   CHECK(a.liner.z_m - 0.5 * a.liner.patch_m < 0.2);  // it reaches into the worn band at the bottom
   CHECK(std::isnan(a.liner.theta_deg));
   // Its number is the mean of the faces it names.
