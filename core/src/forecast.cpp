@@ -200,6 +200,114 @@ std::string Fixed(double v, int digits) {
   return b;
 }
 
+/// The dates of a row from its thinnest area: the area wears `ratio` times the row's mean sensor
+/// wear (`members`, their mean wear now `mean_wear`); `rf` holds the area's thickness and band.
+void AreaForecast(const CrusherConfig& crusher, const ThinnestArea& area, const std::vector<const SensorForecast*>& members,
+                  double mean_wear, double t_now, const ForecastOptions& options, RowForecast* rf) {
+  // At the band's thin edge the area has worn (new - lo) and wears proportionally faster, at the
+  // thick edge (new - hi).
+  const auto ratio_for = [&](double remaining) { return (crusher.thickness_new_mm - remaining) / mean_wear; };
+  const double ratio = ratio_for(area.thickness_mm);
+  const double n = static_cast<double>(members.size());
+  // Each sensor's curve is anchored at its own last reading; the row curve is the mean of the
+  // sensors' wear increments after `now`, scaled by the ratio of the area.
+  const auto increment = [&](double t, double sigmas, double r) {
+    double inc = 0, sd = 0;
+    for (const SensorForecast* f : members) {
+      inc += f->curve.Wear(t) - f->curve.Wear(f->curve.t_ref_days);  // wear after its last reading
+      sd += f->curve.Sd(t);
+    }
+    return r * (inc + sigmas * sd) / n;
+  };
+  double rate = 0, rate_sd = 0;  // sd summed: the sensors' rates move together (throughput, ore)
+  for (const SensorForecast* f : members) {
+    const double r = f->curve.RateMmPerDay(t_now);
+    rate += r;
+    rate_sd += std::sqrt(std::max(0.0, f->curve.cov(1, 1)) + std::pow(f->curve.rate_uncertainty * std::max(0.0, r), 2));
+  }
+  rf->rate_mm_per_day = ratio * rate / n;
+  rf->rate_sd_mm_per_day = ratio * rate_sd / n;
+  rf->ok = true;
+  const double k = options.band_sigmas;
+  const double lim = crusher.thickness_min_mm;
+  if (area.thickness_mm <= lim) {
+    // Past the minimum: since when, from the row's curves back in time.
+    const auto worn = [&](double t) {
+      double w = 0;
+      for (const SensorForecast* f : members) w += f->curve.Wear(t);
+      return ratio * w / n;
+    };
+    const auto since = FirstReach(worn, 0.0, std::max(0.0, t_now), crusher.thickness_new_mm - lim);
+    rf->below_minimum_since = AddDays(crusher.installed_at, std::min(t_now, since.value_or(t_now)));
+    rf->reach_note = "below minimum since " + FormatIsoTime(*rf->below_minimum_since).substr(0, 10);
+    return;
+  }
+  const double lo = std::min(area.lo_mm, area.thickness_mm);
+  const double hi = std::max(area.hi_mm, area.thickness_mm);
+  rf->reach_earliest = ToTime(
+      crusher, FirstReach([&](double t) { return increment(t, k, ratio_for(lo)); }, t_now, options.horizon_days, lo - lim));
+  if (rf->rate_mm_per_day - k * rf->rate_sd_mm_per_day <= 0.0) {
+    // A rate whose band reaches zero puts the date anywhere from the earliest to never: a central
+    // date would jump by months with every loop a slow row loses.
+    rf->reach_note = "thinning rate " + Fixed(rf->rate_mm_per_day, 3) + " +/- " + Fixed(k * rf->rate_sd_mm_per_day, 3) +
+                     " mm/day is not distinguishable from zero: beyond forecast (only the earliest date is given)";
+    return;
+  }
+  rf->reach = ToTime(crusher, FirstReach([&](double t) { return increment(t, 0.0, ratio); }, t_now, options.horizon_days,
+                                         area.thickness_mm - lim));
+  rf->reach_latest = ToTime(
+      crusher, FirstReach([&](double t) { return increment(t, -k, ratio_for(hi)); }, t_now, options.horizon_days, hi - lim));
+  if (!rf->reach || !rf->reach_latest)
+    rf->reach_note = "beyond forecast: more than " + Fixed(options.horizon_days, 0) + " days after the latest reading";
+}
+
+std::optional<TimePoint> Earlier(std::optional<TimePoint> a, std::optional<TimePoint> b) {
+  if (!a) return b;
+  if (!b) return a;
+  return std::min(*a, *b);
+}
+
+/// A row's thinnest area is no thicker than any point of it, its sensors included: a sensor whose
+/// own readings reach the minimum before the area's date sets the row's date. Where the map's band
+/// is too wide to place the area (the whole row, a band reaching 0), this is the date the data do
+/// support; a sensor already past the minimum puts the row below it.
+void BoundBySensors(const CrusherConfig& crusher, const std::vector<const SensorForecast*>& members, double t_now,
+                    RowForecast* rf) {
+  if (rf->below_minimum_since) return;
+  const SensorForecast* first = nullptr;
+  for (const SensorForecast* f : members)
+    if (f->reach && (!first || *f->reach < *first->reach)) first = f;
+  if (!first) return;
+  const SensorInfo* info = crusher.FindSensor(first->sensor_id);
+  const double t_last = DaysBetween(crusher.installed_at, first->last_time);
+  char b[200];
+  if (info && *first->reach <= first->last_time) {
+    const double limit = info->thickness_new_mm - crusher.thickness_min_mm;
+    const auto since = FirstReach([&](double t) { return first->curve.Wear(t); }, 0.0, std::max(0.0, t_last), limit);
+    rf->below_minimum_since = AddDays(crusher.installed_at, std::min(t_now, since.value_or(t_last)));
+    rf->reach = rf->reach_earliest = rf->reach_latest = std::nullopt;
+    rf->reach_set_by = first->sensor_id;
+    std::snprintf(b, sizeof b, "below minimum since %s (sensor %s reads %.0f mm)",
+                  FormatIsoTime(*rf->below_minimum_since).substr(0, 10).c_str(), first->sensor_id.c_str(),
+                  first->last_reading_mm);
+    rf->reach_note = b;
+    return;
+  }
+  // Within a day plus one loop's wear at the sensor's rate the two dates are the same estimate (an
+  // area at the sensor itself differs from the sensor's curve by its quantisation): the area's stands.
+  const double tolerance_days = 1.0 + 1.0 / std::max(first->rate_mm_per_day, 1e-3);
+  if (rf->reach && DaysBetween(*first->reach, *rf->reach) <= tolerance_days) return;
+  rf->reach = first->reach;
+  rf->reach_set_by = first->sensor_id;
+  for (const SensorForecast* f : members) {
+    rf->reach_earliest = Earlier(rf->reach_earliest, f->reach_earliest);
+    rf->reach_latest = Earlier(rf->reach_latest, f->reach_latest);
+  }
+  std::snprintf(b, sizeof b, "set by sensor %s, whose own readings (%.0f mm now) reach the minimum before the area's estimate",
+                first->sensor_id.c_str(), first->last_reading_mm);
+  rf->reach_note = b;
+}
+
 }  // namespace
 
 std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const std::vector<ThinnestArea>& areas,
@@ -218,80 +326,18 @@ std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const std::v
     rf.min_thickness_mm = area.thickness_mm;
     rf.min_thickness_lo_mm = area.lo_mm;
     rf.min_thickness_hi_mm = area.hi_mm;
-    if (!std::isfinite(area.thickness_mm)) {
-      rf.note = "no wear estimate for this row (no row scale)";
-      out.push_back(rf);
-      continue;
-    }
     double mean_wear = 0;
     const std::vector<const SensorForecast*> members = RowMembers(crusher, area.row, wear_now, by_id, &mean_wear);
-    if (members.empty()) {
+    if (!std::isfinite(area.thickness_mm))
+      rf.note = "no wear estimate for this row (no row scale)";
+    else if (members.empty())
       rf.note = "no sensor with a forecast in this row";
-      out.push_back(rf);
-      continue;
-    }
-    if (mean_wear <= 0.0) {
+    else if (mean_wear <= 0.0)
       rf.note = "no measurable wear yet";
-      out.push_back(rf);
-      continue;
+    else {
+      AreaForecast(crusher, area, members, mean_wear, t_now, options, &rf);
+      BoundBySensors(crusher, members, t_now, &rf);
     }
-    // The area wears `ratio` times the row's mean sensor wear; at the band's thin edge it has worn
-    // (new - lo) and wears proportionally faster, at the thick edge (new - hi).
-    const auto ratio_for = [&](double remaining) { return (crusher.thickness_new_mm - remaining) / mean_wear; };
-    const double ratio = ratio_for(area.thickness_mm);
-    const double n = static_cast<double>(members.size());
-    // Each sensor's curve is anchored at its own last reading; the row curve is the mean of the
-    // sensors' wear increments after `now`, scaled by the ratio of the area.
-    const auto increment = [&](double t, double sigmas, double r) {
-      double inc = 0, sd = 0;
-      for (const SensorForecast* f : members) {
-        inc += f->curve.Wear(t) - f->curve.Wear(f->curve.t_ref_days);  // wear after its last reading
-        sd += f->curve.Sd(t);
-      }
-      return r * (inc + sigmas * sd) / n;
-    };
-    double rate = 0, rate_sd = 0;  // sd summed: the sensors' rates move together (throughput, ore)
-    for (const SensorForecast* f : members) {
-      const double r = f->curve.RateMmPerDay(t_now);
-      rate += r;
-      rate_sd += std::sqrt(std::max(0.0, f->curve.cov(1, 1)) + std::pow(f->curve.rate_uncertainty * std::max(0.0, r), 2));
-    }
-    rf.rate_mm_per_day = ratio * rate / n;
-    rf.rate_sd_mm_per_day = ratio * rate_sd / n;
-    rf.ok = true;
-    const double k = options.band_sigmas;
-    const double lim = crusher.thickness_min_mm;
-    if (area.thickness_mm <= lim) {
-      // Past the minimum: since when, from the row's curves back in time.
-      const auto worn = [&](double t) {
-        double w = 0;
-        for (const SensorForecast* f : members) w += f->curve.Wear(t);
-        return ratio * w / n;
-      };
-      const auto since = FirstReach(worn, 0.0, std::max(0.0, t_now), crusher.thickness_new_mm - lim);
-      rf.below_minimum_since = AddDays(crusher.installed_at, std::min(t_now, since.value_or(t_now)));
-      rf.reach_note = "below minimum since " + FormatIsoTime(*rf.below_minimum_since).substr(0, 10);
-      out.push_back(rf);
-      continue;
-    }
-    const double lo = std::min(area.lo_mm, area.thickness_mm);
-    const double hi = std::max(area.hi_mm, area.thickness_mm);
-    rf.reach_earliest = ToTime(
-        crusher, FirstReach([&](double t) { return increment(t, k, ratio_for(lo)); }, t_now, options.horizon_days, lo - lim));
-    if (rf.rate_mm_per_day - k * rf.rate_sd_mm_per_day <= 0.0) {
-      // A rate whose band reaches zero puts the date anywhere from the earliest to never: a central
-      // date would jump by months with every loop a slow row loses.
-      rf.reach_note = "thinning rate " + Fixed(rf.rate_mm_per_day, 3) + " +/- " + Fixed(k * rf.rate_sd_mm_per_day, 3) +
-                      " mm/day is not distinguishable from zero: beyond forecast (only the earliest date is given)";
-      out.push_back(rf);
-      continue;
-    }
-    rf.reach = ToTime(crusher, FirstReach([&](double t) { return increment(t, 0.0, ratio); }, t_now, options.horizon_days,
-                                          area.thickness_mm - lim));
-    rf.reach_latest = ToTime(
-        crusher, FirstReach([&](double t) { return increment(t, -k, ratio_for(hi)); }, t_now, options.horizon_days, hi - lim));
-    if (!rf.reach || !rf.reach_latest)
-      rf.reach_note = "beyond forecast: more than " + Fixed(options.horizon_days, 0) + " days after the latest reading";
     out.push_back(rf);
   }
   return out;

@@ -270,6 +270,7 @@ ordered_json ForecastJson(const CrusherState& st) {
         {"reach_latest", OptTime(r.reach_latest)},
         {"below_minimum_since", OptTime(r.below_minimum_since)},
         {"reach_held", r.reach_held}};
+    o["reach_set_by_sensor"] = r.reach_set_by.empty() ? ordered_json(nullptr) : ordered_json(r.reach_set_by);
     if (r.reach_held) o["reach_estimate"] = OptTime(r.reach_estimate);
     if (!r.reach_note.empty()) o["reach_note"] = r.reach_note;
     if (!r.note.empty()) o["note"] = r.note;

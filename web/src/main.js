@@ -90,6 +90,11 @@ function extrapolatedText(a) {
     : `extrapolated from the DEM map, nearest sensor ${fmt(a.nearest_sensor_m, 2)} m away`;
 }
 
+// A row's date that its thinnest sensor's own readings set (the area's estimate would be later).
+function setBy(f) {
+  return f.reach_set_by_sensor ? h('div', { class: 'band', 'data-testid': `reach-set-by-${f.row}` }, `set by sensor ${f.reach_set_by_sensor}'s own readings`) : null;
+}
+
 async function crusherPage(crusherId, initialSensor) {
   crumbs.replaceChildren(h('a', { href: '#/' }, 'Crushers'), ' / ', crusherId);
   app.replaceChildren(h('div', { class: 'empty' }, `Loading ${crusherId}…`));
@@ -269,8 +274,8 @@ async function crusherPage(crusherId, initialSensor) {
           a.extrapolated ? h('div', { class: 'band', 'data-testid': `row-extrapolated-${name}` }, extrapolatedText(a)) : null] : '–'),
         h('td', { class: 'num rate', 'data-label': 'Wear rate' }, f ? `${fmt(f.rate_mm_per_day, 2)} mm/d` : '–', r ? h('div', { class: 'band' }, `worn ${fmt(r.mean_wear_mm)} mm mean`) : null),
         h('td', { class: 'reline', 'data-label': 'Reline (band)', 'data-testid': `row-reline-${name}` }, f?.below_minimum_since
-          ? h('span', {}, h('b', { class: 'overdue' }, 'below minimum'), h('div', { class: 'band' }, `since ${fmtDate(f.below_minimum_since)}`))
-          : f?.reach_date ? h('span', {}, h('b', {}, fmtDate(f.reach_date)),
+          ? h('span', {}, h('b', { class: 'overdue' }, 'below minimum'), h('div', { class: 'band' }, `since ${fmtDate(f.below_minimum_since)}`), setBy(f))
+          : f?.reach_date ? h('span', {}, h('b', {}, fmtDate(f.reach_date)), setBy(f),
             h('div', { class: 'band' }, `${fmtDate(f.reach_earliest)} – ${f.reach_latest ? fmtDate(f.reach_latest) : 'beyond forecast'}`),
             h('div', { class: 'reline-bar', title: 'from the latest reading to the latest reline date of any row' },
               Number.isFinite(parseTime(f.reach_earliest)) ? h('span', { class: 'rng', style: { left: X(parseTime(f.reach_earliest)), width: `calc(${X(parseTime(f.reach_latest) || hi)} - ${X(parseTime(f.reach_earliest))})` } }) : null,

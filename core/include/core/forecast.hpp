@@ -83,6 +83,9 @@ struct RowForecast {
   /// lies within the previous band and the previous date within the new one).
   bool reach_held = false;
   std::optional<TimePoint> reach_estimate;
+  /// The sensor whose own readings set the dates (it reaches the minimum before the area's
+  /// estimate does, or is past it); empty when the area's curve sets them.
+  std::string reach_set_by;
 };
 
 /// Per row: the thinnest area wears `k` times its row's mean sensor wear (Eq. 9), so its curve is
@@ -91,7 +94,9 @@ struct RowForecast {
 /// band as well as the curves': "earliest" starts from the thin edge of the band and wears at its
 /// rate, "latest" from the thick edge. A rate whose band reaches zero gives no central or latest
 /// date (it would be any date at all), only the earliest; an area below the minimum gives
-/// below_minimum_since instead of dates.
+/// below_minimum_since instead of dates. No row's date is later than its first sensor's own
+/// (a row's thinnest area is no thicker than a sensor in it): that sensor then sets the dates
+/// (reach_set_by).
 std::vector<RowForecast> ForecastRows(const CrusherConfig& crusher, const std::vector<ThinnestArea>& areas,
                                       const std::vector<SensorWear>& sensor_wear, const std::vector<SensorForecast>& sensors,
                                       TimePoint now, const ForecastOptions& options = {});

@@ -153,6 +153,40 @@ TEST(Forecast, ARowPastItsMinimumSaysBelowMinimumSince) {
 
 // A slow row that has lost no loop in its fit window: its rate's band reaches zero, so a central
 // date would be anywhere; it says so and gives only the earliest date.
+// A row whose map band is too wide for any smaller area reports its whole row: that mean wears
+// slower than the row's thinnest sensor, which then sets the row's date (the demo's LDWN: a 62 mm
+// row mean beside a sensor reading 35 mm).
+TEST(Forecast, ARowIsDueNoLaterThanItsThinnestSensor) {
+  const CrusherConfig c = Crusher();
+  // 1 mm/day: the sensor reads 40 mm at day 80 and reaches 30 mm at day 90.
+  const auto all = Ladder(c, "1", 80, [](double t) { return 120.0 - t; });
+  const std::vector<SensorForecast> sensors = {ForecastSensor(c, c.sensors[0], all), ForecastSensor(c, c.sensors[1], all)};
+  // The whole row's mean: 80 mm left, worn half the sensor's 80 mm: alone it would say day ~180.
+  const std::vector<ThinnestArea> areas = {Area("LDWN", 80.0, 30.0), Area("LUP", 110.0)};
+  const std::vector<SensorWear> wear = {{"1", 79.5}};
+  const auto rows = ForecastRows(c, areas, wear, sensors, AddDays(c.installed_at, 80));
+  CHECK_TRUE(rows[0].ok);
+  STRCMP_EQUAL("1", rows[0].reach_set_by.c_str());
+  DOUBLES_EQUAL(90.0, DaysTo(c, rows[0].reach), 2.0);
+  CHECK(DaysTo(c, rows[0].reach_latest) <= DaysTo(c, sensors[0].reach_latest) + 1e-6);
+  CHECK(DaysTo(c, rows[0].reach_earliest) <= DaysTo(c, rows[0].reach));
+  CHECK(rows[0].reach_note.find("sensor 1") != std::string::npos);
+  // A row whose area sets an earlier date than its sensor keeps the area's.
+  const auto thin = ForecastRows(c, {Area("LDWN", 35.0, 1.0), Area("LUP", 110.0)}, wear, sensors, AddDays(c.installed_at, 80));
+  CHECK_TRUE(thin[0].reach_set_by.empty());
+  CHECK(DaysTo(c, thin[0].reach) < 88.0);
+
+  // Past the minimum at the sensor (20 mm at day 100): the row is below it since the sensor's day 90.
+  const auto later = Ladder(c, "1", 100, [](double t) { return 120.0 - t; });
+  const std::vector<SensorForecast> past = {ForecastSensor(c, c.sensors[0], later), ForecastSensor(c, c.sensors[1], later)};
+  const auto rows2 =
+      ForecastRows(c, {Area("LDWN", 70.0, 30.0), Area("LUP", 110.0)}, {{"1", 99.5}}, past, AddDays(c.installed_at, 100));
+  CHECK_TRUE(rows2[0].below_minimum_since.has_value());
+  DOUBLES_EQUAL(90.0, DaysTo(c, rows2[0].below_minimum_since), 2.0);
+  CHECK_FALSE(rows2[0].reach.has_value());
+  STRCMP_EQUAL("1", rows2[0].reach_set_by.c_str());
+}
+
 TEST(Forecast, ARateNotDistinguishableFromZeroIsBeyondForecastWithTheReason) {
   const CrusherConfig c = Crusher();
   std::vector<Reading> all = Ladder(c, "1", 42, [](double t) { return 120.0 - t; });
