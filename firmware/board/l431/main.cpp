@@ -37,7 +37,7 @@ st::RtcWakeupClock<st::L4RtcFamily> rtc_clock;
 st::SysTickClock systick_clock;
 bool on_rtc = false;
 st::Iwdg<> watchdog;
-st::L4PageFlash flash(kStatePage);
+st::L4PageFlash<> flash(kStatePage);
 
 void EnableClocksAndPins() {
   st::Mmio::Write32(st::l4::kRccAhb2enr, st::Mmio::Read32(st::l4::kRccAhb2enr) | st::l4::kAhb2GpioA | st::l4::kAhb2GpioB);

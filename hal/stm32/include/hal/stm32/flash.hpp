@@ -9,7 +9,9 @@
 ///   programming (PSIZE x8, any supply voltage), no ECC. Not used under QEMU: its flash is a ROM
 ///   and the flash interface is not modelled.
 /// - RamFlash: two RAM pages standing in for flash where there is none to program (QEMU).
-/// Flash operations poll BSY with a bounded wait and report errors through the return value.
+/// Flash operations poll BSY with a bounded wait and report errors through the return value. The
+/// flash drivers take their register and flash-array accesses through `Io`, so a host test runs
+/// them against a model of the flash interface (tests/unit/hal/test_stm32_flash.cpp).
 #include <cstddef>
 #include <cstdint>
 
@@ -47,6 +49,7 @@ namespace detail {
 inline constexpr uint32_t kEraseSpins = 50000000;
 }  // namespace detail
 
+template <class Io = Mmio>
 class L4PageFlash final : public FlashPages {
  public:
   /// `first_page`: index of the first of the two pages (the linker script reserves them).
@@ -60,26 +63,26 @@ class L4PageFlash final : public FlashPages {
     return l4::kFlashBase + (first_page_ + page) * l4::kFlashPageSize + offset;
   }
   static bool Unlock() {
-    if (Mmio::Read32(l4::kFlashCr) & l4::kFlashCrLock) {
-      Mmio::Write32(l4::kFlashKeyr, 0x45670123);
-      Mmio::Write32(l4::kFlashKeyr, 0xCDEF89AB);
+    if (Io::Read32(l4::kFlashCr) & l4::kFlashCrLock) {
+      Io::Write32(l4::kFlashKeyr, 0x45670123);
+      Io::Write32(l4::kFlashKeyr, 0xCDEF89AB);
     }
-    if (!WaitClear<Mmio>(l4::kFlashSr, l4::kFlashSrBsy)) return false;
-    Mmio::Write32(l4::kFlashSr, l4::kFlashSrErrors | l4::kFlashSrEop);  // clear stale flags (w1c)
-    return (Mmio::Read32(l4::kFlashCr) & l4::kFlashCrLock) == 0;
+    if (!WaitClear<Io>(l4::kFlashSr, l4::kFlashSrBsy)) return false;
+    Io::Write32(l4::kFlashSr, l4::kFlashSrErrors | l4::kFlashSrEop);  // clear stale flags (w1c)
+    return (Io::Read32(l4::kFlashCr) & l4::kFlashCrLock) == 0;
   }
-  static void Lock() { Mmio::Write32(l4::kFlashCr, l4::kFlashCrLock); }
+  static void Lock() { Io::Write32(l4::kFlashCr, l4::kFlashCrLock); }
   static bool Finish(uint32_t spins) {
-    const bool done = WaitClear<Mmio>(l4::kFlashSr, l4::kFlashSrBsy, spins);
-    const bool ok = done && (Mmio::Read32(l4::kFlashSr) & l4::kFlashSrErrors) == 0;
-    Mmio::Write32(l4::kFlashSr, l4::kFlashSrErrors | l4::kFlashSrEop);
+    const bool done = WaitClear<Io>(l4::kFlashSr, l4::kFlashSrBsy, spins);
+    const bool ok = done && (Io::Read32(l4::kFlashSr) & l4::kFlashSrErrors) == 0;
+    Io::Write32(l4::kFlashSr, l4::kFlashSrErrors | l4::kFlashSrEop);
     return ok;
   }
   bool DoErase(size_t page) override {
     if (page >= kPages || !Unlock()) return false;
     const uint32_t pnb = (first_page_ + static_cast<uint32_t>(page)) << l4::kFlashCrPnbShift;
-    Mmio::Write32(l4::kFlashCr, l4::kFlashCrPer | (pnb & l4::kFlashCrPnbMask));
-    Mmio::Write32(l4::kFlashCr, l4::kFlashCrPer | (pnb & l4::kFlashCrPnbMask) | l4::kFlashCrStrt);
+    Io::Write32(l4::kFlashCr, l4::kFlashCrPer | (pnb & l4::kFlashCrPnbMask));
+    Io::Write32(l4::kFlashCr, l4::kFlashCrPer | (pnb & l4::kFlashCrPnbMask) | l4::kFlashCrStrt);
     const bool ok = Finish(detail::kEraseSpins);
     Lock();
     return ok;
@@ -92,7 +95,7 @@ class L4PageFlash final : public FlashPages {
     for (size_t dw = offset & ~size_t{7}; ok && dw < offset + len; dw += 8) {
       uint8_t old[8], now[8];
       for (size_t k = 0; k < 8; ++k) {
-        old[k] = *reinterpret_cast<const volatile uint8_t*>(Address(page, dw + k));
+        old[k] = Io::Read8(Address(page, dw + k));
         const size_t at = dw + k;
         now[k] = (at >= offset && at < offset + len) ? static_cast<uint8_t>(old[k] & data[at - offset]) : old[k];
       }
@@ -111,23 +114,24 @@ class L4PageFlash final : public FlashPages {
         lo |= static_cast<uint32_t>(now[k]) << (8 * k);
         hi |= static_cast<uint32_t>(now[k + 4]) << (8 * k);
       }
-      Mmio::Write32(l4::kFlashCr, l4::kFlashCrPg);
-      Mmio::Write32(Address(page, dw), lo);  // first word, then the second: starts the program
-      Mmio::Write32(Address(page, dw + 4), hi);
+      Io::Write32(l4::kFlashCr, l4::kFlashCrPg);
+      Io::Write32(Address(page, dw), lo);  // first word, then the second: starts the program
+      Io::Write32(Address(page, dw + 4), hi);
       ok = Finish(kSpinLimit);
-      Mmio::Write32(l4::kFlashCr, 0);
+      Io::Write32(l4::kFlashCr, 0);
     }
     Lock();
     return ok;
   }
   bool DoRead(size_t page, size_t offset, uint8_t* data, size_t len) override {
     if (page >= kPages || offset > l4::kFlashPageSize || len > l4::kFlashPageSize - offset) return false;
-    for (size_t i = 0; i < len; ++i) data[i] = *reinterpret_cast<const volatile uint8_t*>(Address(page, offset + i));
+    for (size_t i = 0; i < len; ++i) data[i] = Io::Read8(Address(page, offset + i));
     return true;
   }
   uint32_t first_page_;
 };
 
+template <class Io = Mmio>
 class F4SectorFlash final : public FlashPages {
  public:
   static constexpr size_t kSectorSize = 16 * 1024;
@@ -140,26 +144,26 @@ class F4SectorFlash final : public FlashPages {
   size_t DoPageCount() override { return kPages; }
   uintptr_t Address(size_t page, size_t offset) const { return 0x08000000u + (first_sector_ + page) * kSectorSize + offset; }
   static bool Unlock() {
-    if (Mmio::Read32(f4::kFlashCr) & f4::kFlashCrLock) {
-      Mmio::Write32(f4::kFlashKeyr, 0x45670123);
-      Mmio::Write32(f4::kFlashKeyr, 0xCDEF89AB);
+    if (Io::Read32(f4::kFlashCr) & f4::kFlashCrLock) {
+      Io::Write32(f4::kFlashKeyr, 0x45670123);
+      Io::Write32(f4::kFlashKeyr, 0xCDEF89AB);
     }
-    if (!WaitClear<Mmio>(f4::kFlashSr, f4::kFlashSrBsy)) return false;
-    Mmio::Write32(f4::kFlashSr, f4::kFlashSrErrors | f4::kFlashSrEop);
-    return (Mmio::Read32(f4::kFlashCr) & f4::kFlashCrLock) == 0;
+    if (!WaitClear<Io>(f4::kFlashSr, f4::kFlashSrBsy)) return false;
+    Io::Write32(f4::kFlashSr, f4::kFlashSrErrors | f4::kFlashSrEop);
+    return (Io::Read32(f4::kFlashCr) & f4::kFlashCrLock) == 0;
   }
-  static void Lock() { Mmio::Write32(f4::kFlashCr, f4::kFlashCrLock); }
+  static void Lock() { Io::Write32(f4::kFlashCr, f4::kFlashCrLock); }
   static bool Finish(uint32_t spins) {
-    const bool done = WaitClear<Mmio>(f4::kFlashSr, f4::kFlashSrBsy, spins);
-    const bool ok = done && (Mmio::Read32(f4::kFlashSr) & f4::kFlashSrErrors) == 0;
-    Mmio::Write32(f4::kFlashSr, f4::kFlashSrErrors | f4::kFlashSrEop);
+    const bool done = WaitClear<Io>(f4::kFlashSr, f4::kFlashSrBsy, spins);
+    const bool ok = done && (Io::Read32(f4::kFlashSr) & f4::kFlashSrErrors) == 0;
+    Io::Write32(f4::kFlashSr, f4::kFlashSrErrors | f4::kFlashSrEop);
     return ok;
   }
   bool DoErase(size_t page) override {
     if (page >= kPages || !Unlock()) return false;
     const uint32_t snb = (first_sector_ + static_cast<uint32_t>(page)) << f4::kFlashCrSnbShift;
-    Mmio::Write32(f4::kFlashCr, f4::kFlashCrSer | f4::kFlashCrPsizeX8 | snb);
-    Mmio::Write32(f4::kFlashCr, f4::kFlashCrSer | f4::kFlashCrPsizeX8 | snb | f4::kFlashCrStrt);
+    Io::Write32(f4::kFlashCr, f4::kFlashCrSer | f4::kFlashCrPsizeX8 | snb);
+    Io::Write32(f4::kFlashCr, f4::kFlashCrSer | f4::kFlashCrPsizeX8 | snb | f4::kFlashCrStrt);
     const bool ok = Finish(detail::kEraseSpins);
     Lock();
     return ok;
@@ -168,19 +172,19 @@ class F4SectorFlash final : public FlashPages {
     if (page >= kPages || offset > kSectorSize || len > kSectorSize - offset) return false;
     if (!Unlock()) return false;
     bool ok = true;
-    Mmio::Write32(f4::kFlashCr, f4::kFlashCrPg | f4::kFlashCrPsizeX8);
+    Io::Write32(f4::kFlashCr, f4::kFlashCrPg | f4::kFlashCrPsizeX8);
     for (size_t i = 0; ok && i < len; ++i) {
       const uintptr_t a = Address(page, offset + i);
-      Mmio::Write8(a, static_cast<uint8_t>(Mmio::Read8(a) & data[i]));
+      Io::Write8(a, static_cast<uint8_t>(Io::Read8(a) & data[i]));
       ok = Finish(kSpinLimit);
     }
-    Mmio::Write32(f4::kFlashCr, 0);
+    Io::Write32(f4::kFlashCr, 0);
     Lock();
     return ok;
   }
   bool DoRead(size_t page, size_t offset, uint8_t* data, size_t len) override {
     if (page >= kPages || offset > kSectorSize || len > kSectorSize - offset) return false;
-    for (size_t i = 0; i < len; ++i) data[i] = Mmio::Read8(Address(page, offset + i));
+    for (size_t i = 0; i < len; ++i) data[i] = Io::Read8(Address(page, offset + i));
     return true;
   }
   uint32_t first_sector_;
