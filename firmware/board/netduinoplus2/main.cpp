@@ -5,11 +5,16 @@
 // - USART2 (0x40004400, IRQ 38): the ladder test path (second -serial; QEMU's SPI bus has no
 //   shift registers to attach). The SPI driver for the real chain (Hc165Chain) is tested on the
 //   host against a register-level model of the F4 and L4 SPI and a 74HC165 chain.
-// - SysTick at 1 kHz for time and wake-up (QEMU has no STM32 RTC model); Sleep() is WFI.
-// - IWDG, RCC, GPIO: not modelled (reads 0, writes ignored); the drivers' waits are bounded, so
-//   they return at once and the reset cause reads as power-on.
+// - Time and sleep: the board first starts the RTC wake-up clock (LSE, 1 Hz, Stop mode), as the
+//   production board does. QEMU models no RTC and no RCC: the LSE never reports ready, the bounded
+//   wait gives up (about 4 s of emulated spinning at boot), Init() returns false and the board falls
+//   back to SysTick at 1 kHz with WFI sleep.
+// - IWDG, GPIO: not modelled (reads 0, writes ignored); the drivers run and have no effect, and the
+//   reset cause (RCC_CSR) reads as power-on.
 // - ADC1: modelled without the end-of-conversion flag: Read() fails (bounded), no battery value.
-// - Flash: a ROM without a flash interface: two RAM pages stand in (linker.ld FLASH_EMU).
+// - Flash: F4SectorFlash on sectors 2-3 when the flash interface answers (CR.LOCK = 1 after reset);
+//   QEMU's F405 flash is a ROM without an interface (CR reads 0), so two RAM pages stand in
+//   (linker.ld FLASH_EMU).
 // Tunables for this image: fast polls so a CI run sees many cycles in seconds.
 #include "firmware/app.hpp"
 #include "hal/port/uart_ladder.hpp"
@@ -31,16 +36,19 @@ constexpr uint32_t kBaud = 115200;
 constexpr uint32_t kUsart1Brr = (kCoreHz / 2 + kBaud / 2) / kBaud;  // APB2
 constexpr uint32_t kUsart2Brr = (kCoreHz / 4 + kBaud / 2) / kBaud;  // APB1
 
-// Ring sizes as on the MPS2 image: the radio ring holds what arrives while the board sleeps; the
-// ladder ring several test-path images (an emulator held up by a loaded host may get a few).
+// The radio ring holds what arrives while the board sleeps (as on MPS2); the ladder test path's
+// ring six 15-byte images (an emulator held up by a loaded host may get several; MPS2 lost a step
+// once with room for two), 96 B rather than MPS2's 128 to keep this image within its 4 KiB.
 st::Usart<st::f4::UsartLayout, 256> radio_uart(st::f4::kUsart1);
-st::Usart<st::f4::UsartLayout, 128> ladder_uart(st::f4::kUsart2);
+st::Usart<st::f4::UsartLayout, 96> ladder_uart(st::f4::kUsart2);
 lw::hal::port::UartLadder ladder(ladder_uart);
 st::PinOut<> ladder_power(st::f4::kGpioB, 0);
 st::F4Adc adc;
+st::RtcWakeupClock<st::F4RtcFamily> rtc_clock;
 st::SysTickClock clock;
 st::Iwdg<> watchdog;
-__attribute__((section(".flash_emu"))) st::RamFlash<256, 2> flash;
+st::F4SectorFlash<> sector_flash(2);
+__attribute__((section(".flash_emu"))) st::RamFlash<256, 2> ram_flash;
 
 lw::firmware::Config MakeConfig() {
   lw::firmware::Config c;
@@ -67,6 +75,9 @@ void EnableClocksAndPins() {
 extern "C" void SysTick_Handler() {
   clock.OnTick();
 }
+extern "C" void RTC_WKUP_IRQHandler() {
+  rtc_clock.OnWakeup();
+}
 extern "C" void USART1_IRQHandler() {
   radio_uart.OnInterrupt();
 }
@@ -81,10 +92,15 @@ int main() {
   ladder_uart.Init(kUsart2Brr);
   ladder_power.Init();
   adc.Init();
-  clock.Init(kCoreHz, cause);
+  const bool on_rtc = rtc_clock.Init(cause);
+  if (!on_rtc) clock.Init(kCoreHz, cause);
   // NVIC: USART1 = IRQ 37, USART2 = IRQ 38 (ISER1 bits 5 and 6).
   st::Mmio::Write32(st::core::kNvicIser + 4, (1u << (st::f4::kUsart1Irq - 32)) | (1u << (st::f4::kUsart2Irq - 32)));
-  const lw::hal::Board board{ladder, ladder_power, radio_uart, adc, clock, clock, watchdog, flash};
+  rtc_clock.KeepAliveInSleep(&watchdog);
+  lw::hal::Rtc& rtc = on_rtc ? static_cast<lw::hal::Rtc&>(rtc_clock) : clock;
+  lw::hal::Power& power = on_rtc ? static_cast<lw::hal::Power&>(rtc_clock) : clock;
+  lw::hal::FlashPages& flash = sector_flash.Present() ? static_cast<lw::hal::FlashPages&>(sector_flash) : ram_flash;
+  const lw::hal::Board board{ladder, ladder_power, radio_uart, adc, rtc, power, watchdog, flash};
   static lw::firmware::App app(MakeConfig(), board);
   app.Init();
   for (;;) app.RunOnce();

@@ -137,6 +137,11 @@ class F4SectorFlash final : public FlashPages {
   static constexpr size_t kSectorSize = 16 * 1024;
   /// `first_sector`: 1 or 2 (16 KiB sectors 1-3 at 0x08004000..0x0800FFFF); uses it and the next.
   explicit F4SectorFlash(uint32_t first_sector) : first_sector_(first_sector) {}
+  /// Whether a flash interface answers: after reset FLASH_CR reads LOCK = 1. Under QEMU the
+  /// interface is not modelled (reads 0) and the array is a ROM: erases and programs would report
+  /// success and change nothing, so a board checks this at boot (before any unlock) and keeps its
+  /// state pages elsewhere when it is false.
+  static bool Present() { return (Io::Read32(f4::kFlashCr) & f4::kFlashCrLock) != 0; }
 
  private:
   static constexpr size_t kPages = 2;
