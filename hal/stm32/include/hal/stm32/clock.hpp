@@ -3,8 +3,9 @@
 /// - SysTickClock: the Cortex-M SysTick at 1 kHz into a 64-bit millisecond count; Sleep() is WFI
 ///   in Sleep mode (SysTick stops in Stop mode, so it cannot be the wake source there). The
 ///   netduinoplus2 image uses it: QEMU models SysTick but not the STM32 RTC.
-/// - RtcWakeupClock<Family>: the RTC wake-up timer at 1 Hz from the 32.768 kHz LSE, counted in its
-///   interrupt; Sleep() enters Stop (F4: Stop with the low-power regulator; L4: Stop 2, ~1.3 uA
+/// - RtcWakeupClock<Family>: seconds from the RTC calendar (LSE, backup domain: it keeps counting
+///   through sleep and resets, as the Rtc contract asks; started at 2000-01-01 on the first power-up),
+///   woken every second by the RTC wake-up timer; Sleep() enters Stop (F4: Stop with the low-power regulator; L4: Stop 2, ~1.3 uA
 ///   with the RTC) until the alarm second, kicking the IWDG on each wake-up (it cannot be frozen on
 ///   the F4, and its longest timeout is ~32 s). The production image (STM32L431) uses it.
 #include <atomic>
@@ -44,6 +45,21 @@ class SysTickClock final : public Rtc, public Power {
   uint32_t alarm_s_ = 0;
   ResetCause cause_ = ResetCause::kPowerOn;
 };
+
+/// Seconds since 2000-01-01 00:00:00 from the RTC's BCD time (TR, 24-hour) and date (DR)
+/// registers, the same on F4 and L4; years 2000-2099 (every fourth one a leap year).
+constexpr uint32_t CalendarSeconds(uint32_t tr, uint32_t dr) {
+  const auto bcd = [](uint32_t v, uint32_t shift, uint32_t tens_mask) {
+    return ((v >> (shift + 4)) & tens_mask) * 10u + ((v >> shift) & 0xFu);
+  };
+  const uint32_t year = bcd(dr, 16, 0xF), month = bcd(dr, 8, 0x1), day = bcd(dr, 0, 0x3);
+  const uint32_t hours = bcd(tr, 16, 0x3), minutes = bcd(tr, 8, 0x7), seconds = bcd(tr, 0, 0x7);
+  constexpr uint32_t kBefore[12] = {0, 31, 59, 90, 120, 151, 181, 212, 243, 273, 304, 334};
+  const uint32_t m = (month >= 1 && month <= 12) ? month : 1;
+  uint32_t days = year * 365u + (year + 3u) / 4u + kBefore[m - 1] + (day > 0 ? day - 1 : 0);
+  if (year % 4u == 0 && m > 2) ++days;  // this year's 29 February is behind
+  return ((days * 24u + hours) * 60u + minutes) * 60u + seconds;
+}
 
 /// Family hooks for RtcWakeupClock: the backup-domain and EXTI registers and the Stop entry.
 struct F4RtcFamily {
@@ -90,8 +106,23 @@ class RtcWakeupClock final : public Rtc, public Power {
     }
     Mmio::Write32(rtc::kBase + rtc::kWpr, rtc::kWprKey1);
     Mmio::Write32(rtc::kBase + rtc::kWpr, rtc::kWprKey2);
-    Mmio::Write32(rtc::kBase + rtc::kCr, Mmio::Read32(rtc::kBase + rtc::kCr) & ~(rtc::kCrWute | rtc::kCrWutie));
-    const bool writable = WaitSet<Mmio>(rtc::kBase + rtc::kIsr, rtc::kIsrWutwf);
+    bool writable = true;
+    if ((Mmio::Read32(rtc::kBase + rtc::kIsr) & rtc::kIsrInits) == 0) {  // first power-up: start the calendar
+      Mmio::Write32(rtc::kBase + rtc::kIsr, 0xFFFFFFFFu);                // INIT = 1; writing 1 leaves the rc_w0 flags
+      writable = WaitSet<Mmio>(rtc::kBase + rtc::kIsr, rtc::kIsrInitf);
+      if (writable) {
+        Mmio::Write32(rtc::kBase + rtc::kPrer, rtc::kPrerLse1Hz & 0x7FFFu);  // synchronous first, then asynchronous
+        Mmio::Write32(rtc::kBase + rtc::kPrer, rtc::kPrerLse1Hz);
+        Mmio::Write32(rtc::kBase + rtc::kTr, 0);
+        Mmio::Write32(rtc::kBase + rtc::kDr, rtc::kDr20000101);
+        Mmio::Write32(rtc::kBase + rtc::kCr, Mmio::Read32(rtc::kBase + rtc::kCr) & ~rtc::kCrFmt);
+      }
+      Mmio::Write32(rtc::kBase + rtc::kIsr, Mmio::Read32(rtc::kBase + rtc::kIsr) & ~rtc::kIsrInit);
+    }
+    // Read the calendar counters directly (no shadow registers to resynchronise after Stop).
+    Mmio::Write32(rtc::kBase + rtc::kCr,
+                  (Mmio::Read32(rtc::kBase + rtc::kCr) | rtc::kCrBypshad) & ~(rtc::kCrWute | rtc::kCrWutie));
+    writable = writable && WaitSet<Mmio>(rtc::kBase + rtc::kIsr, rtc::kIsrWutwf);
     if (writable) {
       Mmio::Write32(rtc::kBase + rtc::kWutr, 0);  // every second
       Mmio::Write32(rtc::kBase + rtc::kCr,
@@ -107,30 +138,39 @@ class RtcWakeupClock final : public Rtc, public Power {
   /// Kicked on each wake-up of Sleep() (null: none).
   void KeepAliveInSleep(Watchdog* watchdog) { watchdog_ = watchdog; }
 
-  /// RTC_WKUP interrupt only: clears WUTF (rc_w0, keeping INIT) and the EXTI line, counts a second.
+  /// RTC_WKUP interrupt only: clears WUTF (rc_w0, keeping INIT) and the EXTI line.
   void OnWakeup() {
     Mmio::Write32(rtc::kBase + rtc::kIsr, ~rtc::kIsrWutf & ~rtc::kIsrInit & 0x1FFFFu);
     Mmio::Write32(Family::kExtiPr, Family::kExtiLine);
-    seconds_.store(seconds_.load(std::memory_order_relaxed) + 1, std::memory_order_release);
   }
 
  private:
   // The crystal takes up to ~2 s after power-on. 20 million polls of BDCR: about 20 s at the
   // L431's 4 MHz, about 0.7 s at the F405's 168 MHz (a real F405 board would poll longer).
   static constexpr uint32_t kLseStartSpins = 20000000;
-  uint32_t DoNowSeconds() override { return seconds_.load(std::memory_order_acquire); }
+  /// With BYPSHAD the counters are read live: time, date, time again, until the two times agree
+  /// (a second boundary between the reads would pair a new time with an old date at midnight).
+  uint32_t DoNowSeconds() override {
+    uint32_t tr = Mmio::Read32(rtc::kBase + rtc::kTr), dr = 0;
+    for (int i = 0; i < 4; ++i) {
+      dr = Mmio::Read32(rtc::kBase + rtc::kDr);
+      const uint32_t again = Mmio::Read32(rtc::kBase + rtc::kTr);
+      if (again == tr) break;
+      tr = again;
+    }
+    return CalendarSeconds(tr, dr);
+  }
   void DoSetAlarm(uint32_t at_seconds) override { alarm_s_ = at_seconds; }
   void DoSleep() override {
     Family::ConfigureStop();
     Mmio::Write32(core::kScbScr, Mmio::Read32(core::kScbScr) | core::kScrSleepDeep);
-    while (seconds_.load(std::memory_order_acquire) < alarm_s_) {
+    while (DoNowSeconds() < alarm_s_) {
       __asm volatile("dsb\n wfi");
       if (watchdog_) watchdog_->Kick();
     }
     Mmio::Write32(core::kScbScr, Mmio::Read32(core::kScbScr) & ~core::kScrSleepDeep);
   }
   ResetCause DoLastResetCause() override { return cause_; }
-  std::atomic<uint32_t> seconds_{0};
   uint32_t alarm_s_ = 0;
   Watchdog* watchdog_ = nullptr;
   ResetCause cause_ = ResetCause::kPowerOn;

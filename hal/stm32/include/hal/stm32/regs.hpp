@@ -34,10 +34,12 @@ inline constexpr uint32_t kSrPvu = 1u << 0, kSrRvu = 1u << 1;
 // ---- RTC wake-up timer (same registers on F4 and L4, same address) ----
 namespace rtc {
 inline constexpr uintptr_t kBase = 0x40002800;
-inline constexpr uintptr_t kCr = 0x08, kIsr = 0x0C, kWutr = 0x14, kWpr = 0x24;
+inline constexpr uintptr_t kTr = 0x00, kDr = 0x04, kCr = 0x08, kIsr = 0x0C, kPrer = 0x10, kWutr = 0x14, kWpr = 0x24;
 inline constexpr uint32_t kCrWucksel1Hz = 0x4;  // ck_spre (1 Hz from the 32.768 kHz LSE, reset PRER)
-inline constexpr uint32_t kCrWucksel = 0x7, kCrWute = 1u << 10, kCrWutie = 1u << 14;
-inline constexpr uint32_t kIsrWutwf = 1u << 2, kIsrInit = 1u << 7, kIsrWutf = 1u << 10;
+inline constexpr uint32_t kCrWucksel = 0x7, kCrBypshad = 1u << 5, kCrFmt = 1u << 6, kCrWute = 1u << 10, kCrWutie = 1u << 14;
+inline constexpr uint32_t kIsrWutwf = 1u << 2, kIsrInits = 1u << 4, kIsrInitf = 1u << 6, kIsrInit = 1u << 7, kIsrWutf = 1u << 10;
+inline constexpr uint32_t kPrerLse1Hz = (127u << 16) | 255u;          // 32768 / 128 / 256 = 1 Hz
+inline constexpr uint32_t kDr20000101 = (6u << 13) | (1u << 8) | 1u;  // Saturday 2000-01-01
 inline constexpr uint32_t kWprKey1 = 0xCA, kWprKey2 = 0x53, kWprLock = 0xFF;
 inline constexpr uint32_t kWakeupIrq = 3;  // RTC_WKUP on both families
 }  // namespace rtc
