@@ -32,7 +32,7 @@ constexpr uint32_t kStatePage = 126;                                            
 st::Usart<st::l4::UsartLayout, 256> radio_uart(st::l4::kLpuart1);
 st::Hc165Chain<st::l4::SpiLayout> ladder(st::l4::kSpi1, st::l4::kGpioA, 4);
 st::PinOut<> ladder_power(st::l4::kGpioB, 0);
-st::L4Adc adc;
+st::L4Adc<> adc;
 st::RtcWakeupClock<st::L4RtcFamily> rtc_clock;
 st::SysTickClock systick_clock;
 bool on_rtc = false;

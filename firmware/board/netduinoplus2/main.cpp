@@ -43,7 +43,7 @@ st::Usart<st::f4::UsartLayout, 256> radio_uart(st::f4::kUsart1);
 st::Usart<st::f4::UsartLayout, 96> ladder_uart(st::f4::kUsart2);
 lw::hal::port::UartLadder ladder(ladder_uart);
 st::PinOut<> ladder_power(st::f4::kGpioB, 0);
-st::F4Adc adc;
+st::F4Adc<> adc;
 st::RtcWakeupClock<st::F4RtcFamily> rtc_clock;
 st::SysTickClock clock;
 st::Iwdg<> watchdog;
