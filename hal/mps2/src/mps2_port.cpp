@@ -52,43 +52,6 @@ size_t CmsdkUartBase::DoWrite(const uint8_t* data, size_t len) {
   return len;
 }
 
-void UartLadder::Drain() {
-  uint8_t b;
-  while (link_.Read(&b, 1) == 1) {
-    switch (parse_state_) {
-      case 0:
-        if (b == 0x55) parse_state_ = 1;
-        break;
-      case 1:
-        parse_len_ = b;
-        parse_pos_ = 0;
-        parse_state_ = (b > 0 && b <= 16) ? 2 : 0;
-        break;
-      default:
-        parse_[parse_pos_++] = b;
-        if (parse_pos_ == parse_len_) {
-          for (uint8_t i = 0; i < parse_len_; ++i) image_[i] = parse_[i];
-          image_len_ = parse_len_;
-          parse_state_ = 0;
-        }
-        break;
-    }
-  }
-}
-
-bool UartLadder::DoTransfer(const uint8_t* /*tx*/, uint8_t* rx, size_t len) {
-  Drain();
-  for (size_t i = 0; i < len; ++i) {
-    if (i < image_len_)
-      rx[i] = image_[i];
-    else if (i == image_len_)
-      rx[i] = 0xA5;  // the chain's hard-wired signature register
-    else
-      rx[i] = 0;
-  }
-  return image_len_ > 0;  // no image yet: the bus "fails", like an unpowered chain
-}
-
 void Led::DoSet(bool high) {
   Reg(kFpgaLed) = high ? 1u : 0u;
 }

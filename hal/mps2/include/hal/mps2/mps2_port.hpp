@@ -4,9 +4,10 @@
 /// low-power part (docs/firmware.md); their ports follow this one's shape.
 ///
 /// - UART0 (CMSDK APB UART, 0x40004000): the XBee radio, RX by interrupt into a ring buffer.
-/// - UART1 (0x40005000): the test path standing in for the SPI ladder. The host sends frames
-///   `0x55, n, n bytes` (the shift registers' image, loop i = bit i%8 of byte i/8); Transfer()
-///   returns the latest image followed by the chain's signature byte.
+/// - UART1 (0x40005000): the test path standing in for the SPI ladder (port::UartLadder, shared
+///   with the netduinoplus2 image). The host sends frames `0x55, n, n bytes` (the shift
+///   registers' image, loop i = bit i%8 of byte i/8); Transfer() returns the latest image followed
+///   by the chain's signature byte.
 /// - SysTick at 1 kHz: the RTC (seconds since boot, from a 64-bit millisecond count) and the
 ///   wake-up alarm; Sleep() is WFI.
 /// - CMSDK watchdog (0x40008000): resets the core when not kicked.
@@ -19,6 +20,7 @@
 #include "hal/board.hpp"
 #include "hal/port/spsc_ring.hpp"
 #include "hal/port/tick_counter.hpp"
+#include "hal/port/uart_ladder.hpp"
 
 namespace lw::hal::mps2 {
 
@@ -68,21 +70,8 @@ class CmsdkUart final : public CmsdkUartBase {
   port::SpscRing<kRing> rx_;
 };
 
-class UartLadder final : public Spi {
- public:
-  explicit UartLadder(Uart& link) : link_(link) {}
-
- private:
-  bool DoTransfer(const uint8_t* tx, uint8_t* rx, size_t len) override;
-  void Drain();
-  Uart& link_;
-  uint8_t image_[17] = {};
-  uint8_t image_len_ = 0;
-  uint8_t parse_[17] = {};
-  uint8_t parse_state_ = 0;  // 0: wait 0x55, 1: length, 2: data
-  uint8_t parse_len_ = 0;
-  uint8_t parse_pos_ = 0;
-};
+/// The ladder test path over UART1 (shared with the netduinoplus2 image).
+using UartLadder = port::UartLadder;
 
 class Led final : public DigitalOut {
  private:
