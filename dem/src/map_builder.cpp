@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -163,11 +164,20 @@ nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::
   const int requested = windows > 0 ? windows : spec.windows;
   int k = ChooseWindowCount(span, min_window_s, requested);
   if (k > 0 && static_cast<long>(last - first) < k) k = static_cast<int>(last - first);
-  if (k < 2)
-    throw std::runtime_error(case_dir.string() + ": the steady span (" + std::to_string(span) +
-                             " s from t = " + std::to_string(steady.t_start) + " s) holds fewer than " +
-                             std::to_string(requested > 0 ? requested : 2) + " windows of " + std::to_string(min_window_s) +
-                             " s; raise chamber.simulated_s and run again (it resumes)");
+  if (k < 2) {
+    // What would be enough: the windows after the span's first dump, rounded up to a dump, so the
+    // user raises simulated_s once instead of by trial (the run resumes from its last restart).
+    const int want = requested > 0 ? requested : 2;
+    const double t_first = first < dump_t.size() ? dump_t[first] : steady.t_start;
+    const double need = std::ceil((t_first + want * min_window_s) / spec.dump_interval_s - 1e-9) * spec.dump_interval_s;
+    char b[400];
+    std::snprintf(b, sizeof b,
+                  ": the steady span (%.2f s from t = %.2f s) holds fewer than %d windows of %.2f s; raise "
+                  "chamber.simulated_s to at least %.1f s (now %.1f s) and run again (it resumes; a longer run can "
+                  "move the steady start, so allow a little more)",
+                  span, steady.t_start, want, min_window_s, need, spec.simulated_s);
+    throw std::runtime_error(case_dir.string() + b);
+  }
   const auto win = SplitWindows(first, last, k);
 
   // Load the dumps of the span; wear is cumulative, stresses are per-dump averages.

@@ -70,3 +70,21 @@ TEST(DemMapBuilder, ADumpThatIsNotAMeshIsRefusedNamingIt) {
   }
   CHECK_FALSE(fs::exists(scratch.path() / "map" / dem::MapFiles::kMap));
 }
+
+// Too few windows for the steady span: the refusal says how long a run would hold them, so the
+// user raises chamber.simulated_s once (the c6580 chamber took two tries without it).
+TEST(DemMapBuilder, TooShortARunSaysHowLongARunWouldDo) {
+  test::TempDirectory out;
+  const dem::ChamberSpec spec = Spec();
+  try {
+    dem::BuildMap(spec, kCase, {}, out.path(), 40);
+    FAIL("expected a refusal");
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    const size_t at = what.find("to at least ");
+    CHECK_TEXT(at != std::string::npos, e.what());
+    const double need = std::stod(what.substr(at + 12));
+    // 40 windows of at least one dump interval each cannot fit in the run as it is.
+    CHECK_TEXT(need >= spec.simulated_s + 30 * spec.dump_interval_s, e.what());
+  }
+}
