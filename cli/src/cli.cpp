@@ -18,7 +18,6 @@
 #include "core/cmdline.hpp"
 #include "core/reconstruction.hpp"
 #include "core/thinnest_area.hpp"
-#include "core/scan_correction.hpp"
 #include "core/time.hpp"
 #include "core/wear_map.hpp"
 #include "dem/case_writer.hpp"
@@ -26,6 +25,7 @@
 #include "dem/map_builder.hpp"
 #include "dem/runner.hpp"
 #include "diagnosis/diagnose.hpp"
+#include "estimate/estimate.hpp"
 
 namespace lw::cli {
 namespace {
@@ -211,74 +211,39 @@ int Diagnose(const std::vector<std::string>& args, std::ostream& out) {
   return 0;
 }
 
-int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
-  const Options o = Parse(ReconstructTable(), args);
-  if (o.Has("json")) CheckWritable(o.Get("json"), "json");
-  if (o.Has("vtk")) CheckWritable(o.Get("vtk"), "vtk");
-  std::optional<core::TimePoint> at;
-  if (o.Has("at")) at = ParseTime(o.Get("at"), "at");
-  const core::Bundle bundle = Load(o);
-  // Wear from each sensor's latest reading at or before `at`: a reading n means [n, n+1) mm, so the
-  // estimate is n + 0.5 as the server's (docs/bundle.md); --lower-bound uses n itself (thinner). A
-  // sensor whose latest reading lags the newest by more than 8 of its periods, or that reports one
-  // value while its row wears, sets no scale, as in the server (docs/server.md).
-  std::vector<std::string> stale, stuck;
-  const std::vector<size_t> live =
-      core::LiveReadingIndices(bundle.crusher, bundle.readings, at.value_or(core::TimePoint::max()), &stale, &stuck);
-  const std::vector<core::SensorWear> wear =
-      core::SensorWearFrom(bundle.crusher, bundle.readings, live, /*interval_centre=*/!o.Flag("lower_bound"));
-  if (wear.empty()) {
-    const auto previous = std::count_if(bundle.readings.begin(), bundle.readings.end(), [&](const core::Reading& r) {
-      return !bundle.crusher.OfThisLiner(r.sensor_id, r.time, r.thickness_mm);
-    });
-    throw BadInput(bundle.dir.string() + "/readings.csv: no reading of this liner at or before the requested time" +
-                   (previous > 0 ? " (" + std::to_string(previous) +
-                                       " of its readings are a previous liner's: dated before installed_at " +
-                                       core::FormatIsoTime(bundle.crusher.installed_at) + ")"
-                                 : std::string()));
-  }
-  core::ReconstructionPlan plan = core::PrepareReconstruction(bundle.crusher, bundle.map);
-  // The latest scan at or before `at` corrects the map between the sensors (docs/diagnosis.md).
-  std::string scan_line;
-  if (!o.Flag("no_scan")) {
-    if (const core::Scan* latest = core::LatestScanAt(bundle.scans, at.value_or(core::TimePoint::max()))) {
-      const core::ScanFaces sf = core::ProjectScanToFaces(bundle.map, *latest);
-      const core::ScanCorrection c = core::ApplyScan(
-          plan, sf,
-          core::ScanSensorWear(bundle.crusher, bundle.readings, latest->date, stuck, at.value_or(core::TimePoint::max()),
-                               /*interval_centre=*/!o.Flag("lower_bound")));
-      char buf[320];
-      if (c.detail.empty())
-        std::snprintf(buf, sizeof buf,
-                      "scan %s (%s): %zu of %zu points on the map, %zu faces corrected (%zu more from their neighbours), "
-                      "median corrected/map intensity %.2f\n",
-                      latest->file.c_str(), core::FormatIsoTime(latest->date).c_str(), sf.points_used, sf.points_total,
-                      c.faces_corrected, c.faces_filled, c.median_ratio);
-      else
-        std::snprintf(buf, sizeof buf, "scan %s not applied: %s\n", latest->file.c_str(), c.detail.c_str());
-      scan_line = buf;
-    }
-  }
-  const core::Reconstruction rec = core::Reconstruct(plan, wear);
-  std::vector<core::Reading> used;
-  for (const size_t i : live) used.push_back(bundle.readings[i]);
-  const core::ThinnestAreas areas = core::FindThinnestAreas(plan, rec, used);
-  const core::MapModel& model = plan.model;
+/// The per-row summary `linerwatch reconstruct` prints: the map model, the scan applied, the sensors
+/// left out, each row, the thinnest face and the thinnest areas the data support.
+void PrintReconstruction(const estimate::CrusherModel& model, const estimate::WearEstimate& est, std::ostream& out) {
+  const core::Reconstruction& rec = est.reconstruction;
+  const core::MapModel& m = model.plan.model;
   char line[320];
   std::snprintf(line, sizeof line,
                 "map model: smoothing %.3f m along z, %.3f m around (%s), per-face noise %.0f %% (%s), smoothing error %.1f %%, "
                 "%zu outlier faces capped\n",
-                model.bandwidth_m, model.bandwidth_arc_m, model.bandwidth_method.c_str(), 100.0 * model.face_cv,
-                model.noise_source.c_str(), 100.0 * model.smoothing_error_rel, model.outlier_faces);
-  out << line << scan_line;
-  if (!stale.empty()) {
+                m.bandwidth_m, m.bandwidth_arc_m, m.bandwidth_method.c_str(), 100.0 * m.face_cv, m.noise_source.c_str(),
+                100.0 * m.smoothing_error_rel, m.outlier_faces);
+  out << line;
+  if (est.scan) {
+    const estimate::ModelScan& s = model.scans[est.scan->scan];
+    const core::ScanCorrection& c = est.scan->correction;
+    if (c.detail.empty())
+      std::snprintf(line, sizeof line,
+                    "scan %s (%s): %zu of %zu points on the map, %zu faces corrected (%zu more from their neighbours), "
+                    "median corrected/map intensity %.2f\n",
+                    s.scan.file.c_str(), core::FormatIsoTime(s.scan.date).c_str(), s.faces.points_used, s.faces.points_total,
+                    c.faces_corrected, c.faces_filled, c.median_ratio);
+    else
+      std::snprintf(line, sizeof line, "scan %s not applied: %s\n", s.scan.file.c_str(), c.detail.c_str());
+    out << line;
+  }
+  if (!est.stale.empty()) {
     out << "stale sensors (latest reading more than 8 reporting periods behind the newest; no row scale):";
-    for (const std::string& id : stale) out << ' ' << id;
+    for (const std::string& id : est.stale) out << ' ' << id;
     out << '\n';
   }
-  if (!stuck.empty()) {
+  if (!est.stuck.empty()) {
     out << "stuck sensors (one value while the other sensors of their row wore 8 mm or more; no row scale):";
-    for (const std::string& id : stuck) out << ' ' << id;
+    for (const std::string& id : est.stuck) out << ' ' << id;
     out << '\n';
   }
   out << "row        scale_mm/unit  mean_wear_mm  min_thickness_mm  band_mm (+/-2 sd)  at_z_m  at_theta_deg  sensors\n";
@@ -303,60 +268,96 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
     out << line;
   }
   // The headline: the thinnest area the data support (the face minimum above is a single face's).
-  out << core::ThinnestAreaText(areas.liner) << '\n';
-  for (const core::ThinnestArea& a : areas.rows) out << "  " << core::ThinnestAreaText(a) << '\n';
+  out << core::ThinnestAreaText(est.areas.liner) << '\n';
+  for (const core::ThinnestArea& a : est.areas.rows) out << "  " << core::ThinnestAreaText(a) << '\n';
+}
 
-  OutputSet outputs;
-  if (o.Has("json")) {
-    auto num = [](double v) { return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr); };
-    nlohmann::ordered_json j;
-    j["crusher_id"] = bundle.crusher.crusher_id;
-    if (at) j["at"] = core::FormatIsoTime(*at);
-    j["status"] = rec.status;
-    if (!rec.status_detail.empty()) j["status_detail"] = rec.status_detail;
-    j["min_thickness_mm"] = num(rec.min_thickness_mm);
-    j["min_thickness_band_mm"] = {num(rec.min_thickness_lo_mm), num(rec.min_thickness_hi_mm)};
-    j["min_face"] = rec.min_face;
-    j["thinnest_area"] = core::ThinnestAreaJson(areas.liner);
-    j["worn_through"] = areas.liner.worn_through;
-    j["map_error_at_sensors"] = core::MapCalibrationJson(rec.calibration);
-    j["face_level"] = {{"estimate_at_zero_faces", rec.worn_through_faces},
-                       {"band_reaches_zero_faces", rec.maybe_worn_through_faces}};
-    j["sensors_stale"] = stale;
-    j["sensors_stuck"] = stuck;
-    j["map_model"] = {{"bandwidth_m", model.bandwidth_m},
-                      {"bandwidth_arc_m", model.bandwidth_arc_m},
-                      {"local_linear", model.local_linear},
-                      {"bandwidth_method", model.bandwidth_method},
-                      {"noise_source", model.noise_source},
-                      {"face_relative_noise", model.face_cv},
-                      {"smoothing_error_relative", model.smoothing_error_rel},
-                      {"outlier_faces_capped", model.outlier_faces}};
-    j["rows"] = nlohmann::ordered_json::array();
-    for (size_t k = 0; k < rec.rows.size(); ++k) {
-      const core::RowSummary& r = rec.rows[k];
-      nlohmann::ordered_json x;
-      x["row"] = r.row;
-      x["scale_mm_per_unit"] = num(r.scale_mm_per_unit);
-      x["scale_sd"] = num(r.scale_sd);
-      x["mean_wear_mm"] = num(r.mean_wear_mm);
-      x["min_thickness_mm"] = num(r.min_thickness_mm);
-      x["min_thickness_band_mm"] = {num(r.min_thickness_lo_mm), num(r.min_thickness_hi_mm)};
-      x["min_z_m"] = r.min_z_m;
-      x["min_theta_deg"] = r.min_theta_deg;
-      x["thinnest_area"] = core::ThinnestAreaJson(areas.rows[k]);
-      x["worn_through"] = areas.rows[k].worn_through;
-      x["face_level"] = {{"estimate_at_zero_faces", r.worn_through_faces}};
-      x["sensors_used"] = r.sensors_used;
-      j["rows"].push_back(x);
-    }
-    j["sensors"] = nlohmann::ordered_json::object();
-    for (const auto& w : wear) j["sensors"][w.sensor_id] = w.wear_mm;
-    outputs.Add(o.Get("json"), j.dump(2) + "\n");
+/// `linerwatch reconstruct --json`: per-row summary and wear map statistics (docs/diagnosis.md).
+nlohmann::ordered_json ReconstructionJson(const estimate::CrusherModel& model, const estimate::WearEstimate& est,
+                                          const std::optional<core::TimePoint>& at) {
+  const core::Reconstruction& rec = est.reconstruction;
+  const core::MapModel& m = model.plan.model;
+  auto num = [](double v) { return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr); };
+  nlohmann::ordered_json j;
+  j["crusher_id"] = model.config.crusher_id;
+  if (at) j["at"] = core::FormatIsoTime(*at);
+  j["status"] = rec.status;
+  if (!rec.status_detail.empty()) j["status_detail"] = rec.status_detail;
+  j["min_thickness_mm"] = num(rec.min_thickness_mm);
+  j["min_thickness_band_mm"] = {num(rec.min_thickness_lo_mm), num(rec.min_thickness_hi_mm)};
+  j["min_face"] = rec.min_face;
+  j["thinnest_area"] = core::ThinnestAreaJson(est.areas.liner);
+  j["worn_through"] = est.areas.liner.worn_through;
+  j["map_error_at_sensors"] = core::MapCalibrationJson(rec.calibration);
+  j["face_level"] = {{"estimate_at_zero_faces", rec.worn_through_faces},
+                     {"band_reaches_zero_faces", rec.maybe_worn_through_faces}};
+  j["sensors_stale"] = est.stale;
+  j["sensors_stuck"] = est.stuck;
+  j["map_model"] = {{"bandwidth_m", m.bandwidth_m},
+                    {"bandwidth_arc_m", m.bandwidth_arc_m},
+                    {"local_linear", m.local_linear},
+                    {"bandwidth_method", m.bandwidth_method},
+                    {"noise_source", m.noise_source},
+                    {"face_relative_noise", m.face_cv},
+                    {"smoothing_error_relative", m.smoothing_error_rel},
+                    {"outlier_faces_capped", m.outlier_faces}};
+  j["rows"] = nlohmann::ordered_json::array();
+  for (size_t k = 0; k < rec.rows.size(); ++k) {
+    const core::RowSummary& r = rec.rows[k];
+    nlohmann::ordered_json x;
+    x["row"] = r.row;
+    x["scale_mm_per_unit"] = num(r.scale_mm_per_unit);
+    x["scale_sd"] = num(r.scale_sd);
+    x["mean_wear_mm"] = num(r.mean_wear_mm);
+    x["min_thickness_mm"] = num(r.min_thickness_mm);
+    x["min_thickness_band_mm"] = {num(r.min_thickness_lo_mm), num(r.min_thickness_hi_mm)};
+    x["min_z_m"] = r.min_z_m;
+    x["min_theta_deg"] = r.min_theta_deg;
+    x["thinnest_area"] = core::ThinnestAreaJson(est.areas.rows[k]);
+    x["worn_through"] = est.areas.rows[k].worn_through;
+    x["face_level"] = {{"estimate_at_zero_faces", r.worn_through_faces}};
+    x["sensors_used"] = r.sensors_used;
+    j["rows"].push_back(x);
   }
+  j["sensors"] = nlohmann::ordered_json::object();
+  for (const auto& w : est.sensor_wear) j["sensors"][w.sensor_id] = w.wear_mm;
+  return j;
+}
+
+int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
+  const Options o = Parse(ReconstructTable(), args);
+  if (o.Has("json")) CheckWritable(o.Get("json"), "json");
+  if (o.Has("vtk")) CheckWritable(o.Get("vtk"), "vtk");
+  std::optional<core::TimePoint> at;
+  if (o.Has("at")) at = ParseTime(o.Get("at"), "at");
+  const core::Bundle bundle = Load(o);
+  // Live wear as the server computes it (estimate::Estimate): each sensor's latest reading at or
+  // before `at`, a reading n meaning [n, n+1) mm so n + 0.5 (docs/bundle.md; --lower-bound: n itself,
+  // thinner); stale and stuck sensors set no scale; the latest scan at or before `at` corrects the
+  // map between the sensors (--no-scan: the map alone).
+  const std::unique_ptr<estimate::CrusherModel> model = estimate::CrusherModel::FromBundle(bundle);
+  estimate::EstimateOptions options;
+  options.interval_centre = !o.Flag("lower_bound");
+  options.use_scans = !o.Flag("no_scan");
+  options.forecast = false;  // reconstruct prints wear, not reline dates
+  const estimate::WearEstimate est = estimate::Estimate(*model, estimate::SamplesOf(bundle.readings), at, options);
+  if (est.sensor_wear.empty()) {
+    const auto previous = std::count_if(bundle.readings.begin(), bundle.readings.end(), [&](const core::Reading& r) {
+      return !bundle.crusher.OfThisLiner(r.sensor_id, r.time, r.thickness_mm);
+    });
+    throw BadInput(bundle.dir.string() + "/readings.csv: no reading of this liner at or before the requested time" +
+                   (previous > 0 ? " (" + std::to_string(previous) +
+                                       " of its readings are a previous liner's: dated before installed_at " +
+                                       core::FormatIsoTime(bundle.crusher.installed_at) + ")"
+                                 : std::string()));
+  }
+  PrintReconstruction(*model, est, out);
+  OutputSet outputs;
+  if (o.Has("json")) outputs.Add(o.Get("json"), ReconstructionJson(*model, est, at).dump(2) + "\n");
+  const core::Reconstruction& rec = est.reconstruction;
   if (o.Has("vtk")) {
     core::WriteWearMapVtk(
-        o.Get("vtk"), bundle.map,
+        o.Get("vtk"), model->map,
         {{"wear_mm", &rec.wear_mm}, {"remaining_mm", &rec.remaining_mm}, {"remaining_sd_mm", &rec.remaining_sd_mm}});
   }
   try {

@@ -8,6 +8,7 @@
 #include "core/forecast.hpp"
 #include "core/reconstruction.hpp"
 #include "core/scan_correction.hpp"
+#include "estimate/estimate.hpp"
 
 namespace lw::diagnosis::detail {
 namespace {
@@ -187,20 +188,14 @@ void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const 
   // The thinnest point now: the live reconstruction (Eq. 9 from the latest readings, with its band),
   // then the diagnosis' two models at the same time, then both at the prediction time.
   if (!used.empty()) {
-    core::ReconstructionPlan plan = core::PrepareReconstruction(crusher, bundle.map, fields.model);
-    // The latest scan corrects the map between the sensors, as on the dashboard (server, reconstruct).
-    std::string with_scan;
-    if (const core::Scan* latest = core::LatestScanAt(bundle.scans, liner.now)) {
-      const core::ScanCorrection c = core::ApplyScan(plan, core::ProjectScanToFaces(bundle.map, *latest),
-                                                     core::FreshSensorWearAt(crusher, used, latest->date));
-      if (c.detail.empty()) with_scan = ", the map corrected by scan " + latest->file;
-    }
-    const std::vector<size_t> live = core::LiveReadingIndices(crusher, used, liner.now);
-    const std::vector<core::SensorWear> wear = core::SensorWearFrom(crusher, used, live);
-    const core::Reconstruction rec = core::Reconstruct(plan, wear);
-    std::vector<core::Reading> live_readings;
-    for (const size_t i : live) live_readings.push_back(used[i]);
-    const core::ThinnestAreas areas = core::FindThinnestAreas(plan, rec, live_readings);
+    // The live wear as the server computes it (estimate::Estimate on the diagnosis' map model): the
+    // latest scan corrects the map between the sensors, stale and stuck sensors set no scale.
+    const auto model = estimate::CrusherModel::FromBundle(bundle, fields.model);
+    const estimate::WearEstimate est = estimate::Estimate(*model, estimate::SamplesOf(used), liner.now);
+    const core::Reconstruction& rec = est.reconstruction;
+    const std::string with_scan = est.scan && est.scan->correction.detail.empty()
+                                      ? ", the map corrected by scan " + model->scans[est.scan->scan].scan.file
+                                      : std::string();
     if (rec.remaining_mm.size() == static_cast<Eigen::Index>(bundle.map.face_count())) {
       ThinnestPoint p;
       p.label = "live reconstruction (Eq. 9 from the latest readings" + with_scan + ", as the dashboard shows it)";
@@ -217,9 +212,7 @@ void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const 
       liner.thinnest.push_back(p);
       liner.remaining_now_mm = ToTiles(tiling, bundle.map, rec.remaining_mm);
     }
-    std::vector<core::SensorForecast> forecasts;
-    for (const core::SensorInfo& s : crusher.sensors) forecasts.push_back(core::ForecastSensor(crusher, s, used));
-    for (const core::RowForecast& r : core::ForecastRows(crusher, areas.rows, wear, forecasts, liner.now))
+    for (const core::RowForecast& r : est.row_forecasts)
       liner.reline.push_back({r.row, r.ok, r.note, r.reach, r.reach_earliest, r.reach_latest});
   }
   liner.thinnest.push_back(ModelThinnest("baseline model (plain Eq. 9, wear linear in time)", liner.now, bundle, base_now));

@@ -11,17 +11,6 @@
 #include "mqtt/messages.hpp"
 
 namespace lw::server {
-bool IsFaultReading(int64_t flags, int64_t loops_intact) {
-  constexpr int64_t kAllOpen = 1 << 3, kSpiStuck = 1 << 4;
-  if (flags & kSpiStuck) return true;
-  return (flags & kAllOpen) && loops_intact > 0;
-}
-
-bool UsableForWear(const core::CrusherConfig& crusher, const StoredReading& r) {
-  return !IsFaultReading(r.flags, r.loops_intact) &&
-         crusher.OfThisLiner(r.sensor, core::TimePoint(std::chrono::seconds(r.time_s)), r.thickness_mm);
-}
-
 namespace {
 
 /// ValidateReading's checks once the payload is decoded (`m`, `decode_error` and `id`: DecodeReading's
@@ -321,6 +310,11 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
   totals_.rejected += static_cast<int64_t>(result.rejected);
   ++totals_.batches;
   return result;
+}
+
+int64_t Ingestor::NowS() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return now_s_();
 }
 
 IngestCounters Ingestor::Counters() const {

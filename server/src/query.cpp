@@ -12,8 +12,6 @@ const std::string* FindParam(const QueryParams& params, const char* name) {
   return it == params.end() || it->first != name ? nullptr : &it->second;
 }
 
-namespace {
-
 bool TimeParam(const QueryParams& params, const char* name, int64_t* out, std::string* error) {
   const std::string* v = FindParam(params, name);
   if (!v) return true;
@@ -25,8 +23,6 @@ bool TimeParam(const QueryParams& params, const char* name, int64_t* out, std::s
   *out = t->time_since_epoch().count();
   return true;
 }
-
-}  // namespace
 
 bool WholeNumberParam(const QueryParams& params, const char* name, int min, int max, int* out, std::string* error) {
   const std::string* v = FindParam(params, name);

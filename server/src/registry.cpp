@@ -66,7 +66,7 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
     std::sort(files.begin(), files.end());
     for (const auto& f : files) {
       try {
-        CrusherScan s;
+        estimate::ModelScan s;
         s.scan = core::LoadScan(f);
         s.faces = core::ProjectScanToFaces(c->map, s.scan);
         if (s.faces.points_used < s.faces.points_total / 2) {
@@ -82,38 +82,9 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
         c->validation.warnings.push_back("scans/" + f.filename().string() + ": " + e.what() + " (scan ignored)");
       }
     }
-    std::stable_sort(c->scans.begin(), c->scans.end(),
-                     [](const CrusherScan& a, const CrusherScan& b) { return a.scan.date < b.scan.date; });
+    c->SortScans();
   }
   return c;
-}
-
-std::shared_ptr<const ScannedPlan> Crusher::PlanWithScan(const std::vector<core::Reading>& readings, core::TimePoint at,
-                                                         const std::vector<std::string>& stuck) const {
-  const CrusherScan* latest = nullptr;
-  size_t index = 0;
-  for (size_t k = 0; k < scans.size(); ++k)
-    if (scans[k].scan.date <= at) {
-      latest = &scans[k];
-      index = k;
-    }
-  if (!latest) return nullptr;
-  std::vector<core::SensorWear> wear = core::ScanSensorWear(config, readings, latest->scan.date, stuck, at);
-  std::lock_guard<std::mutex> lock(scan_mutex_);
-  const auto same = [&](const ScannedPlan& p) {
-    if (p.scan != index || p.wear_at_scan.size() != wear.size()) return false;
-    for (size_t k = 0; k < wear.size(); ++k)
-      if (p.wear_at_scan[k].sensor_id != wear[k].sensor_id || p.wear_at_scan[k].wear_mm != wear[k].wear_mm) return false;
-    return true;
-  };
-  if (scanned_ && same(*scanned_)) return scanned_;
-  auto p = std::make_shared<ScannedPlan>();
-  p->scan = index;
-  p->plan = plan;
-  p->correction = core::ApplyScan(p->plan, latest->faces, wear);
-  p->wear_at_scan = std::move(wear);
-  scanned_ = p;
-  return p;
 }
 
 std::unique_ptr<Registry> Registry::Load(const std::filesystem::path& dir, std::vector<std::string>* errors) {

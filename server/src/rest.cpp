@@ -206,7 +206,10 @@ const std::vector<Route>& Resources::Routes() {
        "/api/v1/crushers/{crusher}/wear",
        "Global wear (seed Eq. 9): per-face remaining thickness, per-row summary, minimum and where",
        {{"format", "string", "json (default), vtk (legacy VTK for ParaView) or csv (per face)"},
-        {"faces", "boolean", "false: leave out the per-face array"}},
+        {"faces", "boolean", "false: leave out the per-face array"},
+        {"at", "string",
+         "ISO-8601 UTC: the wear at that past time, from the readings and scans up to it (400 before installed_at, in the "
+         "future or malformed; docs/server.md, Wear at a past time)"}},
        "200",
        &Resources::Wear,
        {"application/json", "application/octet-stream", "text/csv"}},
@@ -467,52 +470,90 @@ Response Resources::Mesh(const Request& req) {
   return Json(200, {{"points", pts}, {"faces", faces}, {"face_z_m", z}, {"face_theta_deg", th}});
 }
 
+namespace {
+
+/// The per-face wear as a legacy VTK file (ParaView), made in a private directory (mkdtemp, mode
+/// 0700: nobody else can race a file name in it).
+Response WearVtk(const Crusher& c, const CrusherState& st) {
+  char tmpl[] = "/tmp/linerwatch-wear-XXXXXX";
+  if (!mkdtemp(tmpl)) return Error(500, "cannot create a temporary directory");
+  const std::filesystem::path tmp_dir = tmpl;
+  const std::filesystem::path path = tmp_dir / "wear.vtk";
+  std::stringstream ss;
+  try {
+    const Eigen::VectorXd& wear = st.reconstruction.wear_mm;
+    const Eigen::VectorXd& remaining = st.reconstruction.remaining_mm;
+    const Eigen::VectorXd& sd = st.reconstruction.remaining_sd_mm;
+    core::WriteWearMapVtk(path, c.map,
+                          {{"remaining_mm", &remaining},
+                           {"remaining_sd_mm", &sd},
+                           {"wear_mm", &wear},
+                           {"dem_wear", &c.map.wear},
+                           {"dem_intensity_smoothed", &c.plan.intensity}});
+    std::ifstream in(path, std::ios::binary);
+    ss << in.rdbuf();
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove_all(tmp_dir, ec);
+    throw;
+  }
+  std::error_code ec;
+  std::filesystem::remove_all(tmp_dir, ec);
+  Response r;
+  r.headers.emplace_back("Content-Disposition", "attachment; filename=\"" + c.config.crusher_id + "_wear.vtk\"");
+  r.raw = RawBody{ss.str(), "application/octet-stream"};
+  return r;
+}
+
+/// Whether `at_s` (GET .../wear?at=`text`) is a time the liner has wear at: not before its
+/// installation, not after the server's "now" (`now_s`, the clock readings are validated against:
+/// a later time has no readings yet); else *error says why, naming the parameter.
+bool CheckWearTime(const core::CrusherConfig& config, const std::string& text, int64_t at_s, int64_t now_s, std::string* error) {
+  if (core::TimePoint(std::chrono::seconds(at_s)) < config.installed_at) {
+    *error =
+        "at='" + text + "' is before the liner's installation (installed_at " + core::FormatIsoTime(config.installed_at) + ")";
+    return false;
+  }
+  if (at_s > now_s) {
+    *error = "at='" + text + "' is in the future (the server's time is " + Iso(now_s) + ")";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 Response Resources::Wear(const Request& req) {
   Response error;
   const Crusher* c = CrusherOf(req, &error);
   if (!c) return error;
-  const auto st = ctx_.wear->Get(c->config.crusher_id);
-  if (!st || !st->has_wear) return Error(404, "no readings yet for crusher " + c->config.crusher_id);
   const std::string* format_param = FindParam(req.query, "format");
   const std::string format = format_param ? *format_param : "json";
-  if (format == "vtk") {
-    // A private directory (mkdtemp, mode 0700): nobody else can race a file name in it.
-    char tmpl[] = "/tmp/linerwatch-wear-XXXXXX";
-    if (!mkdtemp(tmpl)) return Error(500, "cannot create a temporary directory");
-    const std::filesystem::path tmp_dir = tmpl;
-    const std::filesystem::path path = tmp_dir / "wear.vtk";
-    std::stringstream ss;
-    try {
-      const Eigen::VectorXd& wear = st->reconstruction.wear_mm;
-      const Eigen::VectorXd& remaining = st->reconstruction.remaining_mm;
-      const Eigen::VectorXd& sd = st->reconstruction.remaining_sd_mm;
-      core::WriteWearMapVtk(path, c->map,
-                            {{"remaining_mm", &remaining},
-                             {"remaining_sd_mm", &sd},
-                             {"wear_mm", &wear},
-                             {"dem_wear", &c->map.wear},
-                             {"dem_intensity_smoothed", &c->plan.intensity}});
-      std::ifstream in(path, std::ios::binary);
-      ss << in.rdbuf();
-    } catch (...) {
-      std::error_code ec;
-      std::filesystem::remove_all(tmp_dir, ec);
-      throw;
-    }
-    std::error_code ec;
-    std::filesystem::remove_all(tmp_dir, ec);
-    Response r;
-    r.headers.emplace_back("Content-Disposition", "attachment; filename=\"" + c->config.crusher_id + "_wear.vtk\"");
-    r.raw = RawBody{ss.str(), "application/octet-stream"};
-    return r;
+  if (format != "json" && format != "vtk" && format != "csv") return Error(400, "format='" + format + "': use json, vtk or csv");
+  std::shared_ptr<const CrusherState> st;
+  if (const std::string* at_param = FindParam(req.query, "at")) {
+    // A past time's wear: the stored readings up to it (a window loaded as the live state's) and the
+    // scans up to it, through the same estimate as the live wear.
+    int64_t at_s = 0;
+    std::string message;
+    if (!TimeParam(req.query, "at", &at_s, &message) ||
+        !CheckWearTime(c->config, *at_param, at_s, ctx_.ingestor->NowS(), &message))
+      return Error(400, message);
+    const core::TimePoint at{std::chrono::seconds(at_s)};
+    const estimate::ReadingWindow window = ctx_.read->With([&](Store& s) { return LoadWindow(s, *c, at_s); });
+    st = std::make_shared<const CrusherState>(ComputeCrusherState(*c, window.Readings(), at));
+    if (!st->has_wear) return Error(404, "no readings of crusher " + c->config.crusher_id + " at or before at=" + *at_param);
+  } else {
+    st = ctx_.wear->Get(c->config.crusher_id);
+    if (!st || !st->has_wear) return Error(404, "no readings yet for crusher " + c->config.crusher_id);
   }
+  if (format == "vtk") return WearVtk(*c, *st);
   if (format == "csv") {
     Response r;
     r.headers.emplace_back("Content-Disposition", "attachment; filename=\"" + c->config.crusher_id + "_wear.csv\"");
     r.raw = RawBody{WearCsv(*st), core::kCsvContentType};
     return r;
   }
-  if (format != "json") return Error(400, "format='" + format + "': use json, vtk or csv");
   const std::string* faces_param = FindParam(req.query, "faces");
   const bool faces = !(faces_param && *faces_param == "false");
   return Json(200, WearJson(*st, faces));

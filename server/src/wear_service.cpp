@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <set>
 
 #include "core/time.hpp"
 #include "server/ingest.hpp"
@@ -35,65 +34,28 @@ ordered_json Num(double v, double step) {
 
 }  // namespace
 
+CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<estimate::Sample>& readings,
+                                 std::optional<core::TimePoint> at, const CrusherState* previous) {
+  CrusherState st;
+  // Reline dates hold only against this crusher's own previous state.
+  const bool hold = previous && previous->crusher == &crusher;
+  static_cast<estimate::WearEstimate&>(st) = estimate::Estimate(crusher, readings, at, {}, hold ? previous : nullptr);
+  st.crusher = &crusher;
+  st.at = at;
+  return st;
+}
+
 CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<StoredReading>& readings,
                                  const CrusherState* previous) {
-  CrusherState st;
-  st.crusher = &crusher;
-  std::vector<core::Reading> usable;
-  std::vector<const StoredReading*> source;  // the stored reading behind each usable one
-  usable.reserve(readings.size());
-  source.reserve(readings.size());
+  std::vector<estimate::Sample> samples;
+  samples.reserve(readings.size());
   for (const StoredReading& r : readings) {
-    if (!UsableForWear(crusher.config, r)) continue;  // a fault, or a previous liner's (before a reline)
-    core::Reading c;
-    c.time = FromUnix(r.time_s);
-    c.sensor_id = r.sensor;
-    c.thickness_mm = r.thickness_mm;
-    usable.push_back(std::move(c));
-    source.push_back(&r);
-    st.time = std::max(st.time, FromUnix(r.time_s));
+    estimate::Sample s;
+    static_cast<estimate::Point&>(s) = PointOf(r);
+    s.sensor = r.sensor;
+    samples.push_back(std::move(s));
   }
-  if (usable.empty()) return st;
-  // A sensor whose latest reading lags the newest by more than 8 of its reporting periods (dead, or
-  // its radio lost) would give an old day's wear, too little: it sets no row scale (core::Staleness);
-  // nor does one that keeps reporting one value while its row wears (core::StuckRule).
-  const std::vector<size_t> fresh = core::LiveReadingIndices(crusher.config, usable, st.time, &st.stale, &st.stuck);
-  st.sensor_wear = core::SensorWearFrom(crusher.config, usable, fresh);
-  for (const size_t i : fresh) st.used.push_back(*source[i]);  // the reading each sensor's wear came from
-  // The crusher's newest laser scan corrects the map between the sensors (even when it is dated after
-  // the latest reading: readings arrive late, a scan is the newest measurement of the pattern).
-  st.scan = crusher.PlanWithScan(usable, core::TimePoint::max(), st.stuck);
-  const core::ReconstructionPlan& plan = st.scan && st.scan->correction.detail.empty() ? st.scan->plan : crusher.plan;
-  st.reconstruction = core::Reconstruct(plan, st.sensor_wear);
-  std::vector<core::Reading> used;
-  for (const size_t i : fresh) used.push_back(usable[i]);
-  st.areas = core::FindThinnestAreas(plan, st.reconstruction, used);
-  st.has_wear = true;
-  for (const core::SensorInfo& s : crusher.config.sensors) {
-    core::SensorForecast f = core::ForecastSensor(crusher.config, s, usable);
-    if (std::find(st.stuck.begin(), st.stuck.end(), s.id) != st.stuck.end()) {
-      // A frozen value's curve would never reach the minimum: no forecast from it.
-      f.ok = false;
-      f.note = "stuck: its value has not moved while its row wore; left out (docs/server.md, Global wear)";
-      f.reach.reset();
-      f.reach_earliest.reset();
-      f.reach_latest.reset();
-      f.points.clear();
-    }
-    st.sensor_forecasts.push_back(std::move(f));
-  }
-  // A row whose only sensors are stale still gets its reline date from their curves (each anchored
-  // at its own last reading); a row with a fresh sensor takes the fresh ones alone.
-  std::vector<core::SensorWear> forecast_wear = st.sensor_wear;
-  if (!st.stale.empty()) {
-    std::set<std::string> fresh_rows;
-    for (const core::SensorWear& w : st.sensor_wear) fresh_rows.insert(crusher.config.FindSensor(w.sensor_id)->row);
-    for (const core::SensorWear& w : core::SensorWearAt(crusher.config, usable, st.time))
-      if (!fresh_rows.contains(crusher.config.FindSensor(w.sensor_id)->row)) forecast_wear.push_back(w);
-  }
-  st.row_forecasts = core::ForecastRows(crusher.config, st.areas.rows, forecast_wear, st.sensor_forecasts, st.time);
-  if (previous && previous->crusher == &crusher) core::HoldRowForecasts(previous->row_forecasts, &st.row_forecasts);
-  return st;
+  return ComputeCrusherState(crusher, samples, std::nullopt, previous);
 }
 
 namespace {
@@ -101,7 +63,7 @@ namespace {
 /// The reading each sensor contributed, named in every published result.
 ordered_json ReadingsUsedJson(const CrusherState& st) {
   ordered_json used = ordered_json::array();
-  for (const StoredReading& r : st.used) {
+  for (const estimate::Sample& r : st.used) {
     used.push_back({{"sensor", r.sensor},
                     {"seq", r.seq},
                     {"time", core::FormatIsoTime(FromUnix(r.time_s))},
@@ -117,6 +79,7 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
   const core::Reconstruction& rec = st.reconstruction;
   ordered_json j;
   j["crusher_id"] = c.config.crusher_id;
+  if (st.at) j["at"] = core::FormatIsoTime(*st.at);
   j["time"] = core::FormatIsoTime(st.time);
   j["map_sha256"] = c.map.sha256;
   j["thickness_new_mm"] = c.config.thickness_new_mm;
@@ -178,7 +141,7 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
                     {"outlier_faces_capped", m.outlier_faces},
                     {"windows", c.map.windows}};
   if (st.scan) {
-    const CrusherScan& sc = c.scans[st.scan->scan];
+    const estimate::ModelScan& sc = c.scans[st.scan->scan];
     const core::ScanCorrection& k = st.scan->correction;
     ordered_json scan = {{"file", sc.scan.file},
                          {"date", core::FormatIsoTime(sc.scan.date)},
@@ -330,8 +293,8 @@ std::shared_ptr<const CrusherState> WearService::ComputeLocked(const Crusher& cr
     previous = e.state;
   }
   // The version is read before the inputs: readings committed after it bump it again.
-  auto st =
-      std::make_shared<CrusherState>(ComputeCrusherState(crusher, live_.WearInputs(crusher.config.crusher_id), previous.get()));
+  auto st = std::make_shared<CrusherState>(
+      ComputeCrusherState(crusher, live_.WearSamples(crusher.config.crusher_id), std::nullopt, previous.get()));
   st->version = version;
   std::lock_guard<std::mutex> lock(mutex_);
   e.state = st;

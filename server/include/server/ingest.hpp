@@ -15,19 +15,32 @@
 #include <string_view>
 #include <vector>
 
+#include "estimate/window.hpp"
 #include "server/live_state.hpp"
 #include "server/registry.hpp"
 #include "server/store.hpp"
 
 namespace lw::server {
 
-/// Readings stored but not used for wear: SPI stuck, or every loop open while the board still
-/// holds loops intact (a cut cable). Every loop open with none intact is a consumed sensor: real wear.
-bool IsFaultReading(int64_t flags, int64_t loops_intact);
+/// Readings stored but not used for wear (estimate/window.hpp: the one rule).
+using estimate::IsFaultReading;
 
-/// Whether a stored reading measures this liner's wear: not a fault (IsFaultReading) and of this
-/// liner, not a previous one's (core::CrusherConfig::OfThisLiner; docs/server.md, Relining).
-bool UsableForWear(const core::CrusherConfig& crusher, const StoredReading& r);
+/// A stored reading as the wear estimate reads it.
+inline estimate::Point PointOf(const StoredReading& r) {
+  estimate::Point p;
+  p.seq = r.seq;
+  p.time_s = r.time_s;
+  p.thickness_mm = r.thickness_mm;
+  p.loops_intact = r.loops_intact;
+  p.flags = r.flags;
+  return p;
+}
+
+/// Whether a stored reading measures this liner's wear (estimate::UsableForWear: not a fault, and
+/// of this liner, not a previous one's; docs/server.md, Relining).
+inline bool UsableForWear(const core::CrusherConfig& crusher, const StoredReading& r) {
+  return estimate::UsableForWear(crusher, r.sensor, PointOf(r));
+}
 
 struct Incoming {
   std::string site;
@@ -96,6 +109,9 @@ class Ingestor {
   /// acked).
   IngestResult Ingest(std::vector<Incoming> messages);
   IngestCounters Counters() const;
+  /// Validation's "now" (unix seconds), under the ingestor's lock as Ingest() calls it: the time
+  /// after which nothing has been read yet (GET .../wear?at= refuses later times).
+  int64_t NowS() const;
   /// The site `crusher` belongs to: crusher.json's "site", else the first site a valid reading
   /// was heard from (kept in the database). Readings, acks and wear go only to this site's topics;
   /// a message for the crusher under any other site is quarantined and not acknowledged.

@@ -1,15 +1,13 @@
 #pragma once
 /// Per-crusher state kept in memory as readings are committed, so that no request and no wear
-/// recompute reads every stored reading of a crusher: per sensor the reading count, the latest
-/// reading, and the readings global wear and the forecast use (the forecast's fit window of usable
-/// readings, the latest usable reading at each laser scan's date, and the record lows the stuck rule
-/// reads before the window). Rebuilt once at startup from the store with indexed queries (per
-/// sensor: a count, the window, a few look-ups, and one pass over its readings for the record lows).
+/// recompute reads every stored reading of a crusher: per sensor the reading count and the latest
+/// reading, and the crusher's reading window (estimate::ReadingWindow: the readings global wear and
+/// the forecast use). Rebuilt once at startup from the store with indexed queries (per sensor: a
+/// count, the window's walks).
 ///
-/// The wear inputs are the readings ComputeCrusherState needs to give exactly the result it gives on
+/// The wear inputs are the readings estimate::Estimate needs to give exactly the result it gives on
 /// every stored reading (tests/unit/server/test_live_state.cpp proves the equality).
 #include <cstdint>
-#include <deque>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -17,10 +15,19 @@
 #include <string>
 #include <vector>
 
+#include "estimate/window.hpp"
 #include "server/registry.hpp"
 #include "server/store.hpp"
 
 namespace lw::server {
+
+/// One sensor's readings up to `to_s` from `store` into `window` (estimate::ReadingWindow::Load
+/// over the store's time index).
+void LoadSensorWindow(Store& store, const Crusher& crusher, const std::string& sensor, int64_t to_s,
+                      estimate::ReadingWindow* window);
+/// The crusher's reading window of its stored readings up to `to_s`: the live state's at startup,
+/// and a past time's (GET .../wear?at=TIME).
+estimate::ReadingWindow LoadWindow(Store& store, const Crusher& crusher, int64_t to_s);
 
 class LiveState {
  public:
@@ -47,51 +54,33 @@ class LiveState {
   int64_t CountReadings(const std::string& crusher) const;
   /// Time of the latest usable (not fault) reading; nullopt before the first.
   std::optional<int64_t> LatestUsableTime(const std::string& crusher) const;
-  /// The readings wear and forecast are computed from, ordered by sensor, time, seq (payload empty):
-  /// ComputeCrusherState on them equals ComputeCrusherState on every stored reading.
+  /// The readings wear and forecast are computed from (the window's), ordered by sensor, time, seq:
+  /// estimate::Estimate on them equals estimate::Estimate on every stored reading.
+  std::vector<estimate::Sample> WearSamples(const std::string& crusher) const;
+  /// The same as stored readings (payload empty): ComputeCrusherState on them equals
+  /// ComputeCrusherState on every stored reading.
   std::vector<StoredReading> WearInputs(const std::string& crusher) const;
 
  private:
-  struct Point {
-    int64_t time_s;
-    int64_t seq;
-    double thickness_mm;
-    int64_t loops_intact;
-    int64_t flags;
-  };
-  struct SensorState {
+  struct SensorCounts {
     int64_t count = 0;
-    std::optional<StoredReading> latest;       ///< by (time, seq), any flags
-    std::optional<int64_t> last_usable_s;      ///< newest usable reading's time
-    std::deque<Point> window;                  ///< usable readings the forecast may fit, by (time, seq)
-    std::vector<std::optional<Point>> anchor;  ///< per scan: latest usable at or before its date (thinnest at that time)
-    /// Record lows of the usable readings, by time: each new lowest whole-mm thickness when first
-    /// read (the thinnest reading of that time). The stuck rule's view of the days before the window
-    /// (core::StuckRule); at most one per loop, whatever the readings.
-    std::vector<Point> lows;
-    /// The newest usable reading a loop above the lowest: when the sensor's value has not changed
-    /// since before the window, its run began after this (a loop that read intact again).
-    std::optional<Point> above;
+    std::optional<StoredReading> latest;  ///< by (time, seq), any flags
   };
   struct CrusherLive {
-    const Crusher* crusher = nullptr;
+    explicit CrusherLive(const Crusher* c) : crusher(c), window(*c) {}
+    const Crusher* crusher;
     mutable std::mutex mutex;  ///< per crusher: copying one crusher's inputs never holds up another's
     bool loaded = false;       ///< guarded by mutex
-    std::map<std::string, SensorState> sensors;
-    std::optional<int64_t> last_usable_s;
+    std::map<std::string, SensorCounts> sensors;
+    estimate::ReadingWindow window;
   };
 
   /// The caller holds c.mutex.
   void AddLocked(CrusherLive& c, const StoredReading& r);
-  /// A usable reading into s.lows and s.above; `newest` the sensor's newest usable reading before it.
-  static void AddToRun(SensorState& s, const Point& p, const std::optional<Point>& newest);
   /// Reads `c`'s state from `store` into `out` (not shared yet: no lock needed).
   void LoadFrom(Store& store, const Crusher& crusher, CrusherLive& out) const;
   /// nullptr for a crusher not in the registry; otherwise loaded (lazily, see LoadLazily).
   const CrusherLive* Find(const std::string& crusher) const;
-  /// Earliest time the forecast's window may reach back to, for a sensor whose newest usable
-  /// reading is at `last_s` (with a day's margin: the fit selects its own window from what it gets).
-  int64_t WindowStart(const Crusher& c, int64_t last_s) const;
 
   const Registry& registry_;
   /// One per registry crusher, made once (never added to); mutable: a lazy load is no visible change.

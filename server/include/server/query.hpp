@@ -18,6 +18,11 @@ const std::string* FindParam(const QueryParams& params, const char* name);
 /// Returns false and sets `*error` (the 400 message: the parameter, its value, the range) otherwise.
 bool WholeNumberParam(const QueryParams& params, const char* name, int min, int max, int* out, std::string* error);
 
+/// Query parameter `name` as an ISO-8601 time (core::ParseIsoTime), unix seconds; `*out` is left
+/// alone when it is absent. Returns false and sets `*error` (the 400 message, naming the parameter
+/// and its value) when it is not a time.
+bool TimeParam(const QueryParams& params, const char* name, int64_t* out, std::string* error);
+
 /// GET /api/v1/crushers/{id}/sensors/{sensor}/readings?from=&to=&limit=&cursor=
 struct ReadingsQuery {
   int64_t from_s = std::numeric_limits<int64_t>::min();

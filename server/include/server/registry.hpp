@@ -3,7 +3,7 @@
 /// (docs/bundle.md) and its DEM wear map (wear_map.vtk, or wear_map.csv as an EDEM-style per-face
 /// export). Maps are validated and hashed on import; the reconstruction plan is prepared once.
 /// Laser scans in the folder's scans/ (scan_YYYY-MM-DD.xyz, docs/bundle.md) are projected onto the
-/// map's faces once, at load; live wear applies the latest one at or before its time (docs/server.md).
+/// map's faces once, at load; live wear applies the latest one (docs/server.md).
 #include <filesystem>
 #include <future>
 #include <map>
@@ -15,47 +15,19 @@
 
 #include "core/bundle.hpp"
 #include "core/reconstruction.hpp"
-#include "core/scan_correction.hpp"
 #include "core/wear_map.hpp"
+#include "estimate/model.hpp"
 
 namespace lw::server {
 
-/// A laser scan of the crusher projected onto its map (the points themselves are not kept).
-struct CrusherScan {
-  core::Scan scan;  ///< file and date; points emptied after projection
-  core::ScanFaces faces;
-};
-
-/// The crusher's plan corrected by one scan (core::ApplyScan), for the sensors' wear at its date.
-struct ScannedPlan {
-  size_t scan = 0;                             ///< index into Crusher::scans
-  std::vector<core::SensorWear> wear_at_scan;  ///< what the correction was computed from
-  core::ReconstructionPlan plan;
-  core::ScanCorrection correction;
-};
-
-struct Crusher {
+/// A crusher the server knows: its estimate model (config, map, map model, scans; estimate/model.hpp)
+/// and what the server shows of its folder.
+struct Crusher : estimate::CrusherModel {
   std::filesystem::path dir;
-  core::CrusherConfig config;
-  core::WearMap map;
   core::MapValidation validation;
-  core::ReconstructionPlan plan;  ///< points into config and map (a Crusher never moves)
   /// dem_summary.json of the folder when the map was made by `linerwatch dem` (docs/dem.md): its
   /// validation summary, shown by GET /api/v1/crushers/{c}; null when absent.
   nlohmann::json dem_summary;
-  std::vector<CrusherScan> scans;  ///< sorted by date; a file that failed to load is a warning
-
-  /// The plan live wear at `at` applies: `plan` corrected by the latest scan at or before `at`, with
-  /// the sensors' wear at the scan's date from `readings` (fault readings already left out; of the
-  /// sensors stuck now, `stuck`, those whose value had already frozen then too: core::ScanSensorWear);
-  /// nullptr when there is no such scan (then `plan` applies). Cached: recomputed only when the scan
-  /// or the sensors' wear at its date changed. Thread-safe.
-  std::shared_ptr<const ScannedPlan> PlanWithScan(const std::vector<core::Reading>& readings, core::TimePoint at,
-                                                  const std::vector<std::string>& stuck = {}) const;
-
- private:
-  mutable std::mutex scan_mutex_;
-  mutable std::shared_ptr<const ScannedPlan> scanned_;
 };
 
 class Registry {

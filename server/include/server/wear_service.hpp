@@ -1,34 +1,24 @@
 #pragma once
-/// Live global wear per crusher: Eq. 9 reconstruction from each sensor's latest usable reading and
-/// the remaining-life forecast, recomputed when readings changed, shared read-only with REST/MQTT.
+/// Live global wear per crusher (estimate::Estimate over the live state's reading window),
+/// recomputed when readings changed, shared read-only with REST/MQTT; and its JSON and CSV.
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include "core/forecast.hpp"
-#include "core/reconstruction.hpp"
-#include "core/thinnest_area.hpp"
+#include "estimate/estimate.hpp"
 #include "server/live_state.hpp"
 #include "server/registry.hpp"
 #include "server/store.hpp"
 
 namespace lw::server {
 
-struct CrusherState {
+/// A crusher's wear as published: estimate::Estimate's result, for which crusher and when.
+struct CrusherState : estimate::WearEstimate {
   const Crusher* crusher = nullptr;
-  bool has_wear = false;
-  core::TimePoint time{};           ///< latest reading used
-  std::vector<StoredReading> used;  ///< the reading each sensor's wear came from
-  std::vector<core::SensorWear> sensor_wear;
-  std::vector<std::string> stale;  ///< sensors whose latest reading is too old to set a scale
-  std::vector<std::string> stuck;  ///< sensors reporting one value while their row wears (core::StuckRule)
-  core::Reconstruction reconstruction;
-  core::ThinnestAreas areas;                ///< the thinnest areas the data support (liner, rows)
-  std::shared_ptr<const ScannedPlan> scan;  ///< the scan applied (nullptr: the map alone)
-  std::vector<core::SensorForecast> sensor_forecasts;
-  std::vector<core::RowForecast> row_forecasts;
+  std::optional<core::TimePoint> at;  ///< the past time asked for (GET .../wear?at=TIME); nullopt: live
   int64_t version = 0;
 };
 
@@ -37,8 +27,13 @@ struct CrusherState {
 /// (core::HoldRowForecasts).
 CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<StoredReading>& readings,
                                  const CrusherState* previous = nullptr);
+/// The same from the readings of a reading window (the live state's, or LoadWindow's), at `at`: the
+/// readings and scans up to it (nullopt: now, the newest scan whatever its date).
+CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<estimate::Sample>& readings,
+                                 std::optional<core::TimePoint> at, const CrusherState* previous = nullptr);
 
-/// The wear JSON of docs/server.md (GET .../wear and the retained MQTT `.../wear`, without faces).
+/// The wear JSON of docs/server.md (GET .../wear and the retained MQTT `.../wear`, without faces);
+/// "at" when the state is a past time's.
 nlohmann::ordered_json WearJson(const CrusherState& state, bool with_faces);
 nlohmann::ordered_json ForecastJson(const CrusherState& state);
 /// Per-face wear as CSV (`?format=csv`): face,row,z_m,theta_deg,remaining_mm,remaining_sd_mm,wear_mm

@@ -1,0 +1,164 @@
+// Estimate(model, window, at) is live wear for every caller: the server's REST wear equals
+// `linerwatch reconstruct --json` on the same bundle, GET .../wear?at=TIME equals `linerwatch
+// reconstruct --at TIME` (the readings and scans up to TIME only), and a bad `at` is refused naming it.
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "core/csv.hpp"
+#include "core/time.hpp"
+#include "server/rest.hpp"
+#include "support/temp_directory.hpp"
+#include "unit/cli/run_cli.hpp"
+#include "unit/server/server_fixture.hpp"
+
+#include <CppUTest/TestHarness.h>  // last: its leak-detection macros clash with std headers
+
+using namespace lw::server;
+using nlohmann::json;
+
+namespace {
+
+constexpr double kScanDay = 12;
+
+/// A 20-day campaign with its laser scan on day 12: a time before the scan and one after it.
+lw::test::CrusherFolder& Folder() {
+  static lw::test::CrusherFolder f(20, 5, kScanDay);
+  return f;
+}
+
+lw::core::TimePoint Day(double d) {
+  return lw::core::AddDays(Folder().bundle.crusher.installed_at, d);
+}
+
+/// A server's parts over the folder, every reading of the bundle posted.
+struct Served {
+  lw::test::ServerParts parts{Folder().crushers, false};
+  std::unique_ptr<rest::Resources> resources = std::make_unique<rest::Resources>(parts.ctx);
+  Served() {
+    json body = {{"readings", json::array()}};
+    for (const auto& m : lw::test::Messages(Folder().bundle)) body["readings"].push_back(json::parse(m.payload));
+    const std::string text = body.dump();
+    rest::Request post;
+    post.path = {Folder().id()};
+    post.body = text;
+    const rest::Response r =
+        resources->Call(rest::Resources::Find(rest::Method::kPost, "/api/v1/crushers/{crusher}/readings"), post);
+    LONGS_EQUAL_TEXT(200, r.status, r.json.dump().substr(0, 300).c_str());
+  }
+  rest::Response Wear(QueryParams query = {}) {
+    rest::Request get;
+    get.path = {Folder().id()};
+    get.query = std::move(query);
+    return resources->Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/wear"), get);
+  }
+};
+
+Served& Server() {
+  static Served s;
+  return s;
+}
+
+/// `linerwatch reconstruct` on the folder (a bundle) with `extra` options: its --json.
+json Reconstruct(const std::vector<std::string>& extra) {
+  lw::test::TempDirectory tmp{"lw-estimate"};
+  const std::string out = tmp.File("r.json");
+  std::vector<std::string> args = {"reconstruct", Folder().folder, "--json", out};
+  args.insert(args.end(), extra.begin(), extra.end());
+  const lw::test::CliRun r = lw::test::RunLinerwatch(args);
+  LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
+  std::ifstream in(out);
+  return json::parse(in);
+}
+
+/// The served wear (`served`, REST JSON) is the reconstruction `cli` (reconstruct --json) reports.
+void CheckSameWear(const json& served, const json& cli) {
+  CHECK_TEXT(served["thinnest_area"] == cli["thinnest_area"],
+             (served["thinnest_area"].dump() + "\n" + cli["thinnest_area"].dump()).c_str());
+  CHECK(served["status"] == cli["status"]);
+  CHECK(served["map_error_at_sensors"] == cli["map_error_at_sensors"]);
+  CHECK(served["sensors_stale"] == cli["sensors_stale"]);
+  CHECK(served["sensors_stuck"] == cli["sensors_stuck"]);
+  CHECK(served["face_level"] == cli["face_level"]);
+  DOUBLES_EQUAL(cli["min_thickness_mm"].get<double>(), served["min_thickness_mm"].get<double>(), 0.0005 + 1e-9);
+  LONGS_EQUAL(cli["rows"].size(), served["rows"].size());
+  for (size_t k = 0; k < cli["rows"].size(); ++k) {
+    const json &s = served["rows"][k], &c = cli["rows"][k];
+    CHECK(s["row"] == c["row"]);
+    CHECK(s["thinnest_area"] == c["thinnest_area"]);
+    CHECK(s["sensors_used"] == c["sensors_used"]);
+    DOUBLES_EQUAL(c["min_thickness_mm"].get<double>(), s["min_thickness_mm"].get<double>(), 0.0005 + 1e-9);
+  }
+}
+
+/// The smallest remaining_mm of a per-face wear CSV (GET .../wear?format=csv).
+double CsvMinRemaining(const std::string& csv) {
+  std::istringstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  CHECK_EQUAL(std::string("face,row,z_m,theta_deg,remaining_mm,remaining_sd_mm,wear_mm"), line.substr(0, line.find('\r')));
+  double lowest = std::numeric_limits<double>::infinity();
+  while (std::getline(in, line)) {
+    std::vector<std::string> fields;
+    std::stringstream ss(line);
+    for (std::string f; std::getline(ss, f, ',');) fields.push_back(f);
+    CHECK_TEXT(fields.size() >= 5, line.c_str());
+    lowest = std::min(lowest, std::stod(fields[4]));
+  }
+  return lowest;
+}
+
+}  // namespace
+
+TEST_GROUP(EstimateCallers){};
+
+TEST(EstimateCallers, RestWearEqualsReconstructJsonOnTheSameBundle) {
+  const rest::Response res = Server().Wear({{"faces", "false"}});
+  LONGS_EQUAL(200, res.status);
+  CHECK_FALSE(res.json.contains("at"));
+  CHECK(res.json["scan"].is_object());  // the folder's scan applies to both
+  CheckSameWear(res.json, Reconstruct({}));
+}
+
+// ?at=TIME: the readings up to TIME and the scans up to TIME, as `linerwatch reconstruct --at TIME`;
+// before the scan's date no scan applies, and the wear is less than now.
+TEST(EstimateCallers, AtGivesTheReconstructOfTheReadingsUpToThatTime) {
+  const double now_min = Server().Wear({{"faces", "false"}}).json["min_thickness_mm"].get<double>();
+  for (const double day : {kScanDay - 4, kScanDay + 3}) {
+    const std::string at = lw::core::FormatIsoTime(Day(day));
+    const rest::Response res = Server().Wear({{"at", at}, {"faces", "false"}});
+    LONGS_EQUAL_TEXT(200, res.status, res.json.dump().substr(0, 300).c_str());
+    CHECK_EQUAL(at, res.json["at"].get<std::string>());
+    const auto time = lw::core::ParseIsoTime(res.json["time"].get<std::string>());
+    CHECK(time && *time <= Day(day) && *time > Day(day - 1));
+    for (const auto& r : res.json["readings_used"]) CHECK(*lw::core::ParseIsoTime(r["time"].get<std::string>()) <= Day(day));
+    CHECK_EQUAL(day > kScanDay, res.json["scan"].is_object());
+    CheckSameWear(res.json, Reconstruct({"--at", at}));
+    // Thicker then than now: the past time's readings, not the latest.
+    CHECK_TEXT(res.json["min_thickness_mm"].get<double>() > now_min + 0.5, res.json["min_thickness_mm"].dump().c_str());
+    // The per-face CSV at the same time.
+    const rest::Response csv = Server().Wear({{"at", at}, {"format", "csv"}});
+    LONGS_EQUAL(200, csv.status);
+    CHECK(csv.raw.has_value());
+    DOUBLES_EQUAL(res.json["min_thickness_mm"].get<double>(), CsvMinRemaining(csv.raw->content), 0.0011);
+  }
+}
+
+TEST(EstimateCallers, BadAtIsRefusedNamingIt) {
+  const std::string before = lw::core::FormatIsoTime(Day(-2));
+  // After the server's "now" (the ingestor's clock, the one readings are validated against).
+  const std::string future =
+      lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(Server().parts.ingestor->NowS() + 1)));
+  for (const std::string& at : {std::string("yesterday"), std::string("2024-02-30"), before, future}) {
+    for (const char* format : {"json", "csv"}) {
+      const rest::Response res = Server().Wear({{"at", at}, {"format", format}});
+      LONGS_EQUAL_TEXT(400, res.status, (at + " " + format).c_str());
+      CHECK_FALSE(res.raw.has_value());
+      const std::string error = res.json.at("error").get<std::string>();
+      CHECK_TEXT(error.find("at") != std::string::npos && error.find(at) != std::string::npos, error.c_str());
+    }
+  }
+}
