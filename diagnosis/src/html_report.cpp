@@ -709,8 +709,10 @@ std::string SensorPlot(const SensorCurve& c) {
   std::ostringstream s;
   s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << w << "' height='" << h << "' class='plot'>";
   s << "<text x='" << ml << "' y='12' font-size='11'>" << Esc(c.sensor_id) << " (" << Esc(c.row) << ", &theta; "
-    << Num(c.theta_deg, 0) << " deg, z " << Num(c.z_m, 2) << " m)" << (c.used ? "" : " - not used (why: see the table below)")
-    << "</text>";
+    << Num(c.theta_deg, 0) << " deg, z " << Num(c.z_m, 2) << " m)</text>";
+  if (!c.used)
+    s << "<text x='" << ml + 6 << "' y='" << mt + 14 << "' font-size='11' fill='#c62828'>not used by the fit: why in the table "
+      << "below</text>";
   s << "<rect x='" << ml << "' y='" << mt << "' width='" << (w - ml - mr) << "' height='" << (h - mt - mb)
     << "' fill='none' stroke='#999'/>";
   for (int k = 0; k <= 4; ++k) {
@@ -989,7 +991,8 @@ std::string RenderHtml(const DiagnosisResult& r) {
   }
 
   h << "<h2>Sensors: measured vs predicted thickness</h2><p class='caption'>Dots: readings (red: excluded as "
-       "faults). Grey dashed: baseline. Blue: improved model.</p><div class='plots'>";
+       "faults). Grey dashed: baseline. Blue: "
+    << ImprovedWords(r) << ".</p><div class='plots'>";
   for (const SensorCurve& c : r.curves) h << SensorPlot(c);
   h << "</div>";
   h << SensorNoiseTable(r);

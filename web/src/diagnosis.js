@@ -95,9 +95,11 @@ export function renderDiagnosis(container, diag, { canWrite, onRun, runError }) 
   const nRegions = mm.regions?.length || 0;
   const noise = res.noise || {};
   container.append(h('p', { class: 'sub', 'data-testid': 'diagnosis-mismatch' }, !mm.detected
-    ? (noise.model_fits === false
-      ? `No mismatch detected, but the test could not have seen one: the noise model does not fit these data (${noise.model_fit_detail || ''}).`
-      : 'No mismatch between the DEM map and the sensors beyond the noise.')
+    ? (noise.mismatch_test_blind
+      ? `No mismatch detected, but the test could not have seen one: ${noise.mismatch_test_blind_detail || 'the noise is as large as the wear'}. Not testable with this map.`
+      : noise.model_fits === false
+        ? `No mismatch beyond the noise; the noise model is wider than these data scatter (${noise.model_fit_detail || ''}).`
+        : 'No mismatch between the DEM map and the sensors beyond the noise.')
     : nRegions
       ? `Mismatch found in ${nRegions} region(s), outlined on the map (purple: DEM predicts more wear than measured, green: less).`
       : 'Mismatch detected across the sensors as a whole, not confined to one region.'));
