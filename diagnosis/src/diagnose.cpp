@@ -8,6 +8,8 @@
 //   stage_findings     findings with explanations, hypotheses table, noise summary, metrics
 //   stage_regions      where the baseline misses beyond the noise
 //   stage_predictions  curves, residual grids, prediction, liner report
+//   stage_report       what the outputs say about the decisions: excluded sensors, residuals
+//                      beside their noise, whether the noise model fits, why hypotheses failed
 #include <algorithm>
 #include <optional>
 
@@ -19,6 +21,7 @@
 #include "stage_mismatch.hpp"
 #include "stage_predictions.hpp"
 #include "stage_regions.hpp"
+#include "stage_report.hpp"
 #include "stage_setup.hpp"
 
 namespace lw::diagnosis {
@@ -33,7 +36,7 @@ ImprovedModelText TextOf(ImprovedModel model) {
     case ImprovedModel::kFindings:
       return {"findings", "improved model (findings)"};
     case ImprovedModel::kRefitBaseline:
-      return {"refit_baseline", "improved model (no findings: the map recalibrated at the sensors)"};
+      return {"refit_baseline", "refit only (no findings: the map recalibrated at the sensors)"};
     case ImprovedModel::kBaseline:
       break;
   }
@@ -47,6 +50,20 @@ const char* ImprovedModelName(ImprovedModel model) {
 const char* ImprovedModelLabel(ImprovedModel model) {
   return TextOf(model).label;
 }
+const char* ImprovedModelDescription(ImprovedModel model) {
+  switch (model) {
+    case ImprovedModel::kFindings:
+      return "the Eq. 9 baseline with the findings modelled: their parameters, the row scales and each sensor's map-error "
+             "term fitted to these readings and scans";
+    case ImprovedModel::kRefitBaseline:
+      return "a refit, not a finding: the same Eq. 9 with the row scales and each sensor's map-error term fitted to these "
+             "same readings and scans, no physics added; its smaller error says the map was off at the sensors, not that "
+             "a model improved";
+    case ImprovedModel::kBaseline:
+      break;
+  }
+  return "Eq. 9 itself (the refit failed)";
+}
 
 DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& options) {
   DiagnosisResult result;
@@ -56,7 +73,15 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   result.installed_at = bundle.crusher.installed_at;
 
   detail::ProblemSetup setup = detail::SetUpProblem(bundle, options, result);
-  if (!setup.Diagnosable()) return result;
+  if (!setup.Diagnosable()) {
+    for (const detail::SensorData& s : setup.sensors) {
+      SensorNoise n;
+      n.sensor_id = s.id;
+      n.excluded_because = detail::ExcludedBecause(s, result.data_quality);
+      result.sensors.push_back(std::move(n));
+    }
+    return result;
+  }
   const detail::Baseline base = detail::FitBaseline(setup.prob);
   detail::CalibrateNoise(setup, base, result);
   const detail::Problem& prob = setup.prob;
@@ -75,7 +100,11 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   result.findings = detail::RankFindings({bundle, setup, null, hyp});
   result.mismatch_detected = detail::MismatchDetected(result.mismatch_z_score, result.findings);
   result.hypotheses = detail::HypothesesTable(hyp.evals, prob.rows);
+  detail::AnnotateHypotheses(result.hypotheses, hyp, null.log_n);
   detail::SummariseNoise(prob, null, folds, result);
+  result.sensors = detail::ExplainSensors(setup, base, null, result.data_quality,
+                                          result.noise.value("map_pattern_error_source", std::string()));
+  result.noise_fit = detail::JudgeNoiseFit(result.noise, result.mismatch_z_score, result.sensors);
   // The improved model: the chosen one; with nothing chosen, the refit baseline (row scales fitted
   // to the sensors and scans together, each sensor's map-noise term: the map recalibrated where it
   // was measured, no physics added), unless its fit failed; then Eq. 9 itself.

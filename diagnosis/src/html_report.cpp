@@ -156,6 +156,68 @@ std::string ImprovedWords(const DiagnosisResult& r) {
   return ImprovedModelLabel(r.improved_model);
 }
 
+// The right-hand map's title, short enough for the map's width.
+std::string AfterTitle(const DiagnosisResult& r) {
+  return r.improved_model == ImprovedModel::kFindings        ? ImprovedWords(r)
+         : r.improved_model == ImprovedModel::kRefitBaseline ? std::string("refit only (no findings)")
+                                                             : std::string("= baseline (refit failed)");
+}
+
+// What the residual maps' right-hand ("AFTER") map is, for their captions.
+std::string AfterWords(const DiagnosisResult& r) {
+  switch (r.improved_model) {
+    case ImprovedModel::kFindings:
+      return "right: the model with the findings";
+    case ImprovedModel::kRefitBaseline:
+      return "right: <b>a refit only, no findings</b>: its faces are Eq. 9's, the same as on the left; only the sensors "
+             "differ, each with the map-error term the refit fitted to its own readings (so they are expected to look "
+             "better: that is not a finding)";
+    case ImprovedModel::kBaseline:
+      break;
+  }
+  return "right: the same baseline (the refit failed)";
+}
+
+// Used sensors with a residual, largest |residual| first.
+std::vector<const SensorNoise*> ByResidual(const DiagnosisResult& r) {
+  std::vector<const SensorNoise*> v;
+  for (const SensorNoise& n : r.sensors)
+    if (n.used && std::isfinite(n.residual_mm) && std::isfinite(n.noise_sd_mm)) v.push_back(&n);
+  std::stable_sort(v.begin(), v.end(), [](const SensorNoise* a, const SensorNoise* b) {
+    return std::fabs(a->residual_mm) > std::fabs(b->residual_mm);
+  });
+  return v;
+}
+
+std::string Signed(double v, int digits = 1) {
+  return (v > 0 ? "+" : "") + Num(v, digits);
+}
+
+// A noise part's name in a sentence (SensorNoise::noise_source).
+std::string SourceWords(const std::string& source) {
+  if (source == "map_pattern_error") return "the map's pattern error";
+  if (source == "map_sampling_noise") return "the map's sampling noise";
+  if (source == "sensor_floor") return "the 2 % per-sensor floor";
+  if (source == "reading") return "the reading's own (1 mm loops, report interval)";
+  return source;
+}
+
+// "sensor <b>1008</b> is off by <b>+49.9 mm</b> (measured - predicted wear, day 94) where the noise
+// model's standard deviation is <b>29.8 mm</b> (1.7 sd), mostly the map's pattern error" for the `n`
+// largest residuals; with `detail`, the largest one's noise in full.
+std::string LargestResiduals(const DiagnosisResult& r, size_t n, bool detail) {
+  const std::vector<const SensorNoise*> v = ByResidual(r);
+  std::string s;
+  for (size_t k = 0; k < v.size() && k < n; ++k) {
+    const SensorNoise& x = *v[k];
+    s += (k ? "; " : "") + std::string("sensor <b>") + Esc(x.sensor_id) + "</b> is off by <b>" + Signed(x.residual_mm) +
+         " mm</b> (measured - predicted wear, day " + Num(x.day, 0) + ") where the noise model's standard deviation is <b>" +
+         Num(x.noise_sd_mm, 1) + " mm</b> (" + Num(std::fabs(x.z), 1) + " sd), mostly " +
+         Esc(k == 0 && detail ? x.noise_detail : SourceWords(x.noise_source));
+  }
+  return s;
+}
+
 const ParamInfo* FindParam(const std::string& key) {
   for (const ParamInfo& p : kParams)
     if (key == p.key) return &p;
@@ -475,13 +537,14 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
     m.title = std::isfinite(sr.day) ? "reading " + Num(sr.reading, 0) + " mm on day " + Num(sr.day, 1) : "no reading used";
     Marker m2 = m;
     if (std::isfinite(sr.before)) {
-      m.fill = div(-sr.before);
-      m.title += ", measured - predicted wear " + Num(-sr.before, 2) + " mm";
-      m2.fill = div(-sr.after);
-      m2.title += ", measured - predicted wear " + Num(-sr.after, 2) + " mm";
+      // Model thickness - measured thickness = measured wear - predicted wear: + wore more (red).
+      m.fill = div(sr.before);
+      m.title += ", measured - predicted wear " + Num(sr.before, 2) + " mm";
+      m2.fill = div(sr.after);
+      m2.title += ", measured - predicted wear " + Num(sr.after, 2) + " mm";
       if (!scan) {
-        m.value = (sr.before < 0 ? "+" : "") + Num(-sr.before, 1);
-        m2.value = (sr.after < 0 ? "+" : "") + Num(-sr.after, 1);
+        m.value = Signed(sr.before, 1);
+        m2.value = Signed(sr.after, 1);
       }
     }
     mb.push_back(m);
@@ -497,7 +560,9 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
     h << "<p class='caption'>Each face of the liner, unwrapped (&theta; across, height z up), coloured by "
          "<b>measured minus predicted wear</b> in mm: <span class='red'>red</span> = the liner wore <b>more</b> than "
          "the model says (thinner than predicted), <span class='blue'>blue</span> = less. Left: the baseline "
-         "(plain Eq. 9, before the diagnosis); right: the improved model (with the findings, if any). Same colour scale; values "
+         "(plain Eq. 9, before the diagnosis); "
+      << AfterWords(r)
+      << ". Same colour scale; values "
          "beyond "
          "&plusmn;"
       << Sig(scale)
@@ -511,14 +576,14 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
          "the sensors, labelled and filled with <b>measured minus predicted wear</b> (mm) at their latest reading (<span "
          "class='red'>red</span> = wore more than predicted, <span class='blue'>blue</span> = less; same scale, "
          "&plusmn;"
-      << Sig(scale)
-      << " mm). Left: baseline (plain Eq. 9); right: the improved model (with the findings, if any). "
+      << Sig(scale) << " mm). Left: baseline (plain Eq. 9); " << AfterWords(r)
+      << ". "
          "Dashed circles: sensors whose readings ran away from the baseline (mismatch regions).</p>";
   }
   h << "<div class='maps pair'>";
   if (scan) {
     h << LinerMap(ids, L, frame, before, div, "BEFORE: baseline (plain Eq. 9)", "mm", mb, regions, nullptr);
-    h << LinerMap(ids, L, frame, after, div, "AFTER: " + ImprovedWords(r), "mm", ma, regions, nullptr);
+    h << LinerMap(ids, L, frame, after, div, "AFTER: " + AfterTitle(r), "mm", ma, regions, nullptr);
   } else {
     double wmax = 1;
     for (double v : snap.baseline_mm)
@@ -529,7 +594,7 @@ std::string ResidualMaps(int& ids, const DiagnosisResult& r, const LinerSnapshot
     auto seq = [wmax](double v) { return Sequential(v / wmax); };
     h << LinerMap(ids, L, frame, snap.baseline_mm, seq, "BEFORE: baseline (plain Eq. 9), predicted wear", "mm wear", mb, regions,
                   nullptr);
-    h << LinerMap(ids, L, frame, snap.improved_mm, seq, "AFTER: " + ImprovedWords(r) + ", predicted wear", "mm wear", ma, regions,
+    h << LinerMap(ids, L, frame, snap.improved_mm, seq, "AFTER: " + AfterTitle(r) + ", predicted wear", "mm wear", ma, regions,
                   nullptr);
     h << "</div><div class='maps'>" << Legend(seq, 0, wmax, "background: predicted wear (mm)");
   }
@@ -644,7 +709,10 @@ std::string SensorPlot(const SensorCurve& c) {
   std::ostringstream s;
   s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << w << "' height='" << h << "' class='plot'>";
   s << "<text x='" << ml << "' y='12' font-size='11'>" << Esc(c.sensor_id) << " (" << Esc(c.row) << ", &theta; "
-    << Num(c.theta_deg, 0) << " deg, z " << Num(c.z_m, 2) << " m)" << (c.used ? "" : " - not used") << "</text>";
+    << Num(c.theta_deg, 0) << " deg, z " << Num(c.z_m, 2) << " m)</text>";
+  if (!c.used)
+    s << "<text x='" << ml + 6 << "' y='" << mt + 14 << "' font-size='11' fill='#c62828'>not used by the fit: why in the table "
+      << "below</text>";
   s << "<rect x='" << ml << "' y='" << mt << "' width='" << (w - ml - mr) << "' height='" << (h - mt - mb)
     << "' fill='none' stroke='#999'/>";
   for (int k = 0; k <= 4; ++k) {
@@ -700,9 +768,61 @@ std::string GridPlot(const ResidualGrid& g, const std::vector<double>& v, const 
   return s.str();
 }
 
+// Every sensor: used or why not; a used one's residual beside the noise the mismatch test allows.
+std::string SensorNoiseTable(const DiagnosisResult& r) {
+  if (r.sensors.empty()) return "";
+  std::ostringstream h;
+  h << "<h3 id='sensor-noise'>Sensors: residual and noise</h3><p class='caption'>At each sensor's latest loop crossing: "
+       "<b>measured minus predicted wear</b> of the baseline (plain Eq. 9; + = the liner wore more than predicted), beside "
+       "the standard deviation the mismatch test allows there, and that noise's parts (each a standard deviation; the "
+       "total is their root sum of squares): the map's pattern error (what the smoothed DEM map misses beyond its "
+       "sampling noise, relative to the predicted wear), the map's sampling noise at the sensor, the 2 % per-sensor "
+       "floor, and the reading's own (1 mm loops, report interval). A residual within about 2 sd counts as noise: the "
+       "largest part says where that noise comes from. <i>Refit's map error</i>: what the refit baseline (the "
+       "&quot;after&quot; of a campaign without findings) took up at the sensor, against its prior sd.</p>";
+  h << "<table><tr><th>sensor</th><th>used</th><th>day</th><th>measured - predicted wear (mm)</th><th>noise sd (mm)</th>"
+       "<th>|residual| / sd</th><th>map pattern / map sampling / floor / reading (mm)</th><th>largest part</th>"
+       "<th>refit's map error (prior sd)</th></tr>";
+  for (const SensorNoise& n : r.sensors) {
+    h << "<tr><td>" << Esc(n.sensor_id) << "</td>";
+    if (!n.used) {
+      h << "<td colspan='8'><b>not used</b>: "
+        << Esc(n.excluded_because.empty() ? std::string("(no reason recorded)") : n.excluded_because) << "</td></tr>";
+      continue;
+    }
+    if (!std::isfinite(n.residual_mm)) {
+      h << "<td>yes</td><td colspan='7'>no loop crossing to compare</td></tr>";
+      continue;
+    }
+    h << "<td>yes</td><td class='num'>" << Num(n.day, 0) << "</td><td class='num'>" << Signed(n.residual_mm, 1)
+      << "</td><td class='num'>" << Num(n.noise_sd_mm, 1) << "</td><td class='num'>" << Num(std::fabs(n.z), 1)
+      << "</td><td class='num'>" << Num(n.map_pattern_mm, 1) << " / " << Num(n.map_sampling_mm, 1) << " / "
+      << Num(n.sensor_floor_mm, 1) << " / " << Num(n.reading_mm, 1) << "</td><td>" << Esc(n.noise_detail)
+      << "</td><td class='num'>" << Signed(100 * n.refit_map_error_relative, 0) << " % ("
+      << Num(100 * n.map_error_prior_relative, 0) << " %)</td></tr>";
+  }
+  h << "</table>";
+  return h.str();
+}
+
 std::string Verdict(const DiagnosisResult& r) {
-  if (r.findings.empty())
-    return "<b class='good'>No mismatch</b>: the DEM-based prediction agrees with the recordings within the noise.";
+  if (r.findings.empty()) {
+    const std::string wide = r.noise_fit.fits
+                                 ? std::string()
+                                 : " The noise model is also wider than these data scatter (" + Esc(r.noise_fit.detail) + ").";
+    if (r.noise_fit.blind) {
+      const std::string largest = LargestResiduals(r, 2, false);
+      return "<b class='warn'>No mismatch detected, but this test could not have seen one</b>: " + Esc(r.noise_fit.blind_detail) +
+             ". &quot;Within the noise&quot; here means within a noise as large as the wear" +
+             (largest.empty() ? std::string(".") : ": " + largest + ".") +
+             " Read it as <i>not testable with this map</i>, not as agreement." + wide;
+    }
+    const std::string largest = LargestResiduals(r, 2, true);
+    return "<b class='good'>No mismatch beyond the noise</b>: the DEM-based prediction agrees with the recordings within "
+           "the noise model" +
+           (largest.empty() ? std::string(".") : ". Largest residuals: " + largest + ".") +
+           (r.noise_fit.fits ? std::string() : wide + " A mismatch smaller than the noise named here would pass unseen.");
+  }
   const Finding& top = r.findings.front();
   if (top.effect == kUnexplained)
     return "<b class='bad'>Mismatch, unexplained</b>: the recordings disagree with the DEM-based prediction beyond "
@@ -762,7 +882,8 @@ std::string RenderHtml(const DiagnosisResult& r) {
        "max-width:520px}.plots svg{margin:4px;border:1px solid #eee}.maps{display:flex;flex-wrap:wrap;gap:12px;"
        "align-items:flex-start}.maps svg.map{border:1px solid "
        "#ddd}.pair{flex-wrap:nowrap;overflow-x:auto}.caption{font-size:13px;color:#444;max-width:"
-       "1150px}.good{color:#2e7d32}.bad{color:#c62828}.red{color:#b2182b;font-weight:bold}.blue{color:#2166ac;"
+       "1150px}.good{color:#2e7d32}.bad{color:#c62828}.warn{color:#a15c00}.red{color:#b2182b;font-weight:bold}.blue{color:#"
+       "2166ac;"
        "font-weight:bold}.summary{background:#f7f7f7;border:1px solid #ddd;padding:8px 14px;max-width:1150px}"
        ".halo{paint-order:stroke;stroke:#fff;stroke-width:3px}h3{margin-bottom:4px}</style></head><body>";
   h << "<h1>Diagnosis: " << Esc(r.crusher_id) << "</h1>";
@@ -787,12 +908,26 @@ std::string RenderHtml(const DiagnosisResult& r) {
       h << "<li>Reline by <b>" << Date(*first->reach) << "</b> (row " << Esc(first->row) << "; earliest "
         << (first->earliest ? Date(*first->earliest) : std::string("-")) << ").</li>";
   }
-  h << "<li>Error of the prediction against the recordings (RMSE, mm of wear): baseline " << Num(r.baseline.rmse_mm) << " &rarr; "
-    << ImprovedWords(r) << " " << Num(r.improved.rmse_mm) << " (held out: " << Num(r.baseline.holdout_rmse_mm) << " &rarr; "
-    << Num(r.improved.holdout_rmse_mm) << ").</li>";
+  if (r.improved_model == ImprovedModel::kFindings) {
+    h << "<li>Error of the prediction against the recordings (RMSE, mm of wear): baseline " << Num(r.baseline.rmse_mm)
+      << " &rarr; with the findings " << Num(r.improved.rmse_mm) << " (held out: " << Num(r.baseline.holdout_rmse_mm)
+      << " &rarr; " << Num(r.improved.holdout_rmse_mm) << ").</li>";
+  } else {
+    h << "<li>Error of the baseline against the recordings (RMSE, mm of wear): " << Num(r.baseline.rmse_mm) << " (held out "
+      << Num(r.baseline.holdout_rmse_mm) << "). Nothing was found, so there is no improved model: the "
+      << "<a href='#error'>&quot;after&quot;</a> figures (" << Num(r.improved.rmse_mm) << ", held out "
+      << Num(r.improved.holdout_rmse_mm) << ") are " << Esc(ImprovedModelDescription(r.improved_model)) << ".</li>";
+  }
   if (!r.data_quality.empty())
     h << "<li>" << r.data_quality.size() << " sensor data-quality issue(s): see <a href='#quality'>Data quality</a> "
       << "(faulty readings are left out, never read as physics).</li>";
+  {
+    size_t excluded = 0;
+    for (const SensorNoise& n : r.sensors) excluded += n.used ? 0 : 1;
+    if (excluded)
+      h << "<li>" << excluded << " of " << r.sensors.size() << " sensors not used by the fit: <a href='#sensor-noise'>each "
+        << "with its reason</a>.</li>";
+  }
   if (!r.notes.empty()) h << "<li>Read the <a href='#notes'>notes</a>: they say which effects could not be tried.</li>";
   h << "</ul></div>";
 
@@ -811,7 +946,11 @@ std::string RenderHtml(const DiagnosisResult& r) {
   // --- Findings with their parameters ---
   h << "<h2 id='findings'>Findings</h2>";
   if (r.findings.empty()) {
-    h << "<p>No finding: the DEM-based reconstruction agrees with the recordings within the noise.</p>";
+    h << "<p>No finding: no mismatch beyond the noise model"
+      << (r.noise_fit.blind ? std::string(", which is as large as the wear here (see the verdict above): the test could "
+                                          "not have seen one.")
+                            : std::string("."))
+      << " What the noise is at each sensor: <a href='#sensor-noise'>Sensors: residual and noise</a>.</p>";
   } else {
     int k = 1;
     for (const Finding& f : r.findings) {
@@ -822,7 +961,7 @@ std::string RenderHtml(const DiagnosisResult& r) {
     }
   }
 
-  h << "<h2>Error (mm of wear)</h2><table><tr><th></th><th>RMSE</th><th>max |error|</th><th>held-out RMSE</th>"
+  h << "<h2 id='error'>Error (mm of wear)</h2><table><tr><th></th><th>RMSE</th><th>max |error|</th><th>held-out RMSE</th>"
        "<th>observations</th></tr>";
   h << "<tr><td>baseline (plain Eq. 9, wear linear in time)</td><td class='num'>" << Num(r.baseline.rmse_mm)
     << "</td><td class='num'>" << Num(r.baseline.max_abs_mm) << "</td><td class='num'>" << Num(r.baseline.holdout_rmse_mm)
@@ -830,6 +969,12 @@ std::string RenderHtml(const DiagnosisResult& r) {
   h << "<tr><td>" << ImprovedWords(r) << "</td><td class='num'>" << Num(r.improved.rmse_mm) << "</td><td class='num'>"
     << Num(r.improved.max_abs_mm) << "</td><td class='num'>" << Num(r.improved.holdout_rmse_mm) << "</td><td class='num'>"
     << r.improved.observations << "</td></tr></table>";
+  h << "<p class='caption'>Second line: " << Esc(ImprovedModelDescription(r.improved_model)) << "."
+    << (r.improved_model == ImprovedModel::kFindings
+            ? std::string("")
+            : std::string(" Its errors are those of a fit to the data it is measured on (held out: of the same refit on "
+                          "the folds); they are no evidence that anything was found or improved."))
+    << "</p>";
 
   if (!r.regions.empty()) {
     h << "<h2>Mismatch regions</h2><p class='caption'>Where the baseline (refit to all data) misses beyond 3 sigma. "
@@ -846,9 +991,11 @@ std::string RenderHtml(const DiagnosisResult& r) {
   }
 
   h << "<h2>Sensors: measured vs predicted thickness</h2><p class='caption'>Dots: readings (red: excluded as "
-       "faults). Grey dashed: baseline. Blue: improved model.</p><div class='plots'>";
+       "faults). Grey dashed: baseline. Blue: "
+    << ImprovedWords(r) << ".</p><div class='plots'>";
   for (const SensorCurve& c : r.curves) h << SensorPlot(c);
   h << "</div>";
+  h << SensorNoiseTable(r);
 
   h << "<h2 id='quality'>Data quality</h2>";
   if (r.data_quality.empty()) {
@@ -865,7 +1012,9 @@ std::string RenderHtml(const DiagnosisResult& r) {
   h << "<h2 id='hypotheses'>Hypotheses tried, ranked</h2><p class='caption'>Every physical change of the wear law that was "
        "fitted, best supported first. A model is accepted when &Delta;BIC > 10, the held-out &chi;&sup2; improves "
        "by more than 4 and 3 %, and every effect's size is more than 2 standard errors from zero and not at the "
-       "limit of its physical range (docs/diagnosis.md, section 5). Parameters in physical units.</p>";
+       "limit of its physical range (docs/diagnosis.md, section 5); a pair must also beat each of its effects alone. "
+       "A rejected model names each test it failed, its value and what was needed: a large held-out improvement "
+       "alone is not enough. Parameters in physical units.</p>";
   std::vector<const nlohmann::ordered_json*> hyps;
   for (const auto& hy : r.hypotheses) hyps.push_back(&hy);
   std::stable_sort(hyps.begin(), hyps.end(),
@@ -881,7 +1030,11 @@ std::string RenderHtml(const DiagnosisResult& r) {
     const std::string model = hy->value("model", "");
     const bool accepted = hy->value("accepted", false);
     std::string verdict =
-        accepted ? (model == top_model ? "<b class='good'>accepted, chosen</b>" : "accepted") : "not convincing";
+        accepted ? (model == top_model ? "<b class='good'>accepted, chosen</b>" : "accepted") : "<b>rejected</b>";
+    if (!accepted && hy->contains("rejected_because") && (*hy)["rejected_because"].is_string())
+      verdict += ": " + Esc((*hy)["rejected_because"].get<std::string>());
+    if (accepted && model != top_model && hy->contains("not_chosen_because") && (*hy)["not_chosen_because"].is_string())
+      verdict += "; not chosen: " + Esc((*hy)["not_chosen_because"].get<std::string>());
     h << "<tr><td class='num'>" << rank++ << "</td><td>" << Esc(ModelWords(model)) << "</td><td class='num'>"
       << Num(hy->value("delta_bic", 0.0), 1) << "</td><td class='num'>" << Num(100.0 * hy->value("holdout_improvement", 0.0), 1)
       << " %</td><td class='num'>" << Num(hy->value("significance", 0.0), 1) << "</td><td>" << verdict << "</td><td>"
@@ -892,7 +1045,9 @@ std::string RenderHtml(const DiagnosisResult& r) {
   if (!r.hypotheses.empty()) {
     h << "<p><b>Verdict:</b> ";
     if (r.findings.empty())
-      h << "no mismatch beyond the noise; no hypothesis needed.";
+      h << (r.noise_fit.blind ? "no mismatch detected, with a noise as large as the wear (see the verdict at the top): not "
+                                "testable with this map; no hypothesis accepted."
+                              : "no mismatch beyond the noise; no hypothesis accepted.");
     else if (r.findings.front().effect == kUnexplained)
       h << "<b>unexplained</b>: the mismatch is real but no hypothesis is convincing.";
     else

@@ -58,6 +58,7 @@ nlohmann::ordered_json ToJson(const DiagnosisResult& r) {
   }
   j["improved"] = Errors(r.improved);
   j["improved"]["model"] = ImprovedModelName(r.improved_model);
+  j["improved"]["what"] = ImprovedModelDescription(r.improved_model);
   j["data_quality"] = nlohmann::ordered_json::array();
   for (const DataQualityIssue& d : r.data_quality) {
     nlohmann::ordered_json x;
@@ -96,6 +97,39 @@ nlohmann::ordered_json ToJson(const DiagnosisResult& r) {
     j["prediction"] = p;
   }
   j["noise"] = r.noise;
+  j["noise"]["model_fits"] = r.noise_fit.fits;
+  if (!r.noise_fit.fits) j["noise"]["model_fit_detail"] = r.noise_fit.detail;
+  j["noise"]["mismatch_test_blind"] = r.noise_fit.blind;
+  if (r.noise_fit.blind) j["noise"]["mismatch_test_blind_detail"] = r.noise_fit.blind_detail;
+  // Every configured sensor: used or why not; a used one's latest residual beside its noise.
+  j["sensors"] = nlohmann::ordered_json::array();
+  j["excluded_sensors"] = nlohmann::ordered_json::array();
+  for (const SensorNoise& n : r.sensors) {
+    nlohmann::ordered_json x;
+    x["sensor_id"] = n.sensor_id;
+    x["used"] = n.used;
+    if (!n.used) {
+      x["excluded_because"] = n.excluded_because;
+      j["excluded_sensors"].push_back({{"sensor_id", n.sensor_id}, {"reason", n.excluded_because}});
+    }
+    if (std::isfinite(n.residual_mm)) {
+      x["day"] = Round(n.day, 2);
+      x["measured_wear_mm"] = Round(n.measured_wear_mm, 2);
+      x["predicted_wear_mm"] = Round(n.predicted_wear_mm, 2);
+      x["residual_mm"] = Round(n.residual_mm, 2);
+      x["noise_sd_mm"] = Round(n.noise_sd_mm, 2);
+      x["residual_z"] = Round(n.z, 2);
+      x["noise_parts_mm"] = {{"map_pattern_error", Round(n.map_pattern_mm, 2)},
+                             {"map_sampling_noise", Round(n.map_sampling_mm, 2)},
+                             {"sensor_floor", Round(n.sensor_floor_mm, 2)},
+                             {"reading", Round(n.reading_mm, 2)}};
+      x["noise_source"] = n.noise_source;
+      x["noise_detail"] = n.noise_detail;
+      x["refit_map_error_relative"] = Round(n.refit_map_error_relative, 3);
+      x["map_error_prior_relative"] = Round(n.map_error_prior_relative, 3);
+    }
+    j["sensors"].push_back(x);
+  }
   j["notes"] = r.notes;
   j["hypotheses"] = r.hypotheses;
   return j;

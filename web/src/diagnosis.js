@@ -12,7 +12,9 @@ const LABELS = {
   unexplained: 'Unexplained mismatch',
 };
 
-function metricChart(title, before, after) {
+// `found`: the "after" is a model with findings. Without, it is a refit of the same Eq. 9 to the same
+// readings: its bar is grey and its change is not coloured as an improvement.
+function metricChart(title, before, after, found) {
   const w = 220;
   const hgt = 96;
   const max = Math.max(before ?? 0, after ?? 0, 1e-9) * 1.15;
@@ -29,9 +31,9 @@ function metricChart(title, before, after) {
     h('div', { class: 'sub' }, title),
     s('svg', { viewBox: `0 0 ${w} ${hgt}`, height: hgt, preserveAspectRatio: 'xMinYMid meet' },
       bar(14, before, '#9aa6b2', 'before'),
-      bar(44, after, '#1565c0', 'after'),
-      s('text', { x: 0, y: 88, 'font-size': 11, fill: change != null && change < 0 ? '#2e7d32' : '#c62828' },
-        change == null ? '' : `${change < 0 ? '' : '+'}${fmt(change, 0)} %`)));
+      bar(44, after, found ? '#1565c0' : '#c3cad2', found ? 'after' : 'refit'),
+      s('text', { x: 0, y: 88, 'font-size': 11, fill: !found ? '#4a5868' : change != null && change < 0 ? '#2e7d32' : '#c62828' },
+        change == null ? '' : found ? `${change < 0 ? '' : '+'}${fmt(change, 0)} %` : 'refit to the same data: not an improvement')));
 }
 
 function predictionChart(pred, model) {
@@ -80,17 +82,24 @@ export function renderDiagnosis(container, diag, { canWrite, onRun, runError }) 
   }
   const b = res.baseline || {};
   const a = res.improved || {};
+  const found = a.model === 'findings';
   container.append(h('div', { class: 'diag-metrics' },
-    metricChart('RMSE on fitted readings', b.rmse_mm, a.rmse_mm),
-    metricChart('Largest error', b.max_abs_mm, a.max_abs_mm),
-    metricChart('RMSE on held-out data', b.holdout_rmse_mm, a.holdout_rmse_mm)));
+    metricChart('RMSE on fitted readings', b.rmse_mm, a.rmse_mm, found),
+    metricChart('Largest error', b.max_abs_mm, a.max_abs_mm, found),
+    metricChart('RMSE on held-out data', b.holdout_rmse_mm, a.holdout_rmse_mm, found)));
+  if (!found && a.what) container.append(h('p', { class: 'sub', 'data-testid': 'diagnosis-after' }, `Before: the DEM map alone (Eq. 9). After: ${a.what}.`));
   const pred = predictionChart(res.prediction, a.model);
   if (pred) container.append(pred);
 
   const mm = res.mismatch || {};
   const nRegions = mm.regions?.length || 0;
-  container.append(h('p', { class: 'sub' }, !mm.detected
-    ? 'No significant mismatch between the DEM map and the sensors.'
+  const noise = res.noise || {};
+  container.append(h('p', { class: 'sub', 'data-testid': 'diagnosis-mismatch' }, !mm.detected
+    ? (noise.mismatch_test_blind
+      ? `No mismatch detected, but the test could not have seen one: ${noise.mismatch_test_blind_detail || 'the noise is as large as the wear'}. Not testable with this map.`
+      : noise.model_fits === false
+        ? `No mismatch beyond the noise; the noise model is wider than these data scatter (${noise.model_fit_detail || ''}).`
+        : 'No mismatch between the DEM map and the sensors beyond the noise.')
     : nRegions
       ? `Mismatch found in ${nRegions} region(s), outlined on the map (purple: DEM predicts more wear than measured, green: less).`
       : 'Mismatch detected across the sensors as a whole, not confined to one region.'));
@@ -108,6 +117,11 @@ export function renderDiagnosis(container, diag, { canWrite, onRun, runError }) 
       f.parameters && Object.keys(f.parameters).length
         ? h('div', { class: 'params' }, Object.entries(f.parameters).map(([k, v]) => `${k} = ${typeof v === 'number' ? +v.toPrecision(4) : JSON.stringify(v)}`).join('   '))
         : null))));
+  const excluded = res.excluded_sensors || [];
+  if (excluded.length) {
+    container.append(h('h2', { style: { marginTop: '12px' } }, 'Sensors not used by the diagnosis'));
+    container.append(h('ul', { class: 'dq', 'data-testid': 'excluded-sensors' }, excluded.map((x) => h('li', {}, `sensor ${x.sensor_id}: ${x.reason}`))));
+  }
   const dq = res.data_quality || [];
   if (dq.length) {
     container.append(h('h2', { style: { marginTop: '12px' } }, 'Data quality (sensor faults, not wear)'));

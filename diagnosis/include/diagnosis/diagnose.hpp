@@ -6,6 +6,7 @@
 ///
 /// Thread safety: Diagnose() is re-entrant (no global state); results are plain values.
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -106,6 +107,49 @@ struct DataQualityIssue {
   core::TimePoint from{};
   core::TimePoint to{};
   std::string detail;
+};
+
+/// Per configured sensor: whether the diagnosis used it (and why not), and at its latest used loop
+/// crossing the Eq. 9 baseline's residual beside the noise the mismatch test allows there, part by
+/// part (docs/diagnosis.md, "Reading the report": what "within the noise" means at a sensor).
+/// Values NaN where not known (an excluded sensor has no residual).
+struct SensorNoise {
+  std::string sensor_id;
+  bool used = false;
+  std::string excluded_because;                           ///< empty when used: why the fit left the sensor out, in words
+  double day = std::numeric_limits<double>::quiet_NaN();  ///< latest used loop crossing, days since installation
+  double measured_wear_mm = std::numeric_limits<double>::quiet_NaN();
+  double predicted_wear_mm = std::numeric_limits<double>::quiet_NaN();  ///< Eq. 9 baseline (JSON `baseline`)
+  double residual_mm = std::numeric_limits<double>::quiet_NaN();        ///< measured - predicted: + wore more than predicted
+  /// The noise model's standard deviation of that residual (mm) and its parts (each a standard
+  /// deviation; noise_sd_mm^2 is the sum of their squares): the map's sampling noise at the sensor
+  /// (its faces' noise through the kernel), the map's pattern error (NoiseSummary, `map_pattern_error_*`),
+  /// the per-sensor floor (2 %), and the reading's own (1 mm ladder, time inside the report interval,
+  /// the 2 % model floor, the events' excess scatter).
+  double noise_sd_mm = std::numeric_limits<double>::quiet_NaN();
+  double map_sampling_mm = std::numeric_limits<double>::quiet_NaN();
+  double map_pattern_mm = std::numeric_limits<double>::quiet_NaN();
+  double sensor_floor_mm = std::numeric_limits<double>::quiet_NaN();
+  double reading_mm = std::numeric_limits<double>::quiet_NaN();
+  std::string noise_source;  ///< the largest part: "map_pattern_error", "map_sampling_noise", "sensor_floor", "reading"
+  std::string noise_detail;  ///< what that part is here, in words
+  double z = std::numeric_limits<double>::quiet_NaN();  ///< residual / noise_sd
+  /// The refit baseline's map-error term at the sensor (relative; what the refit absorbed there) and
+  /// its prior standard deviation (relative).
+  double refit_map_error_relative = std::numeric_limits<double>::quiet_NaN();
+  double map_error_prior_relative = std::numeric_limits<double>::quiet_NaN();
+};
+
+/// What the mismatch test's noise model says about the data (its premise). `fits`: the refit
+/// baseline's chi-square per sensor event and per scan cell are not far below 1 and its excess z not
+/// far below 0 (the modelled noise is not much wider than the data's scatter). `blind`: the noise is
+/// as large as the wear itself (the map's pattern error, or the noise sd at the median sensor, above
+/// half the predicted wear): "no mismatch" then means the test could not have seen one.
+struct NoiseFit {
+  bool fits = true;
+  std::string detail;  ///< why it does not fit, with the figures (empty when it fits)
+  bool blind = false;
+  std::string blind_detail;  ///< why the test is blind, with the figures (empty when it is not)
 };
 
 /// Per-sensor curves for the report: measured readings and the two models' thickness.
@@ -234,6 +278,9 @@ enum class ImprovedModel {
 const char* ImprovedModelName(ImprovedModel model);
 /// The model in a report's words: "improved model (findings)", ...
 const char* ImprovedModelLabel(ImprovedModel model);
+/// What the model is and what its error against the recordings means, in a sentence (the JSON's
+/// `improved.what`; the report's "after").
+const char* ImprovedModelDescription(ImprovedModel model);
 
 struct DiagnosisResult {
   std::string crusher_id;
@@ -253,6 +300,8 @@ struct DiagnosisResult {
   std::vector<std::string> notes;      ///< skipped hypotheses and why, noise estimates
   nlohmann::ordered_json noise = nlohmann::ordered_json::object();
   nlohmann::ordered_json hypotheses = nlohmann::ordered_json::array();  ///< every model tried
+  std::vector<SensorNoise> sensors;                                     ///< every configured sensor, configuration order
+  NoiseFit noise_fit;
   std::vector<SensorCurve> curves;
   std::vector<ResidualGrid> grids;
   LinerReport liner;  ///< unwrapped-liner maps and the thinnest point (report only, not in the JSON)

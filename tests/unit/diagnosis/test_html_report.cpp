@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 
@@ -24,12 +25,13 @@ struct Run {
   std::string html;
 };
 
-Run Diagnose(const lw::test::SyntheticSpec& spec) {
+Run Diagnose(const lw::test::SyntheticSpec& spec, const std::function<void(lw::core::Bundle&)>& edit = {}) {
   const lw::test::TempDirectory tmp("lw-report");
   const auto& dir = tmp.path();
   lw::test::WriteSyntheticBundle(dir, spec);
   Run run;
   run.bundle = lw::core::LoadBundle(dir);
+  if (edit) edit(run.bundle);
   lw::diagnosis::DiagnoseOptions options;
   options.try_pairs = false;
   run.result = lw::diagnosis::Diagnose(run.bundle, options);
@@ -206,4 +208,180 @@ TEST(HtmlReport, NamesFromTheBundleAreEscaped) {
   LONGS_EQUAL(0, Count(html, "<img"));
   LONGS_EQUAL(0, Count(html, "onerror='"));
   CHECK_TRUE(Count(html, "&lt;img src=x onerror=&#39;alert(1)&#39;&gt;&amp;&quot;") >= 6);
+}
+
+// The text between `from` and the next `to` (empty when `from` is missing).
+std::string Between(const std::string& text, const std::string& from, const std::string& to) {
+  const size_t a = text.find(from);
+  if (a == std::string::npos) return "";
+  const size_t b = text.find(to, a + from.size());
+  return text.substr(a, b == std::string::npos ? std::string::npos : b - a);
+}
+
+std::string Fixed(double v, int digits) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", digits, v);
+  return b;
+}
+
+// "No mismatch" names the noise at the sensors where the residuals are: the largest residual's
+// sensor, its size, the noise model's sd there and where that noise comes from; the "after" of a
+// campaign without findings says it is a refit, not an improvement; every rejected hypothesis says
+// which test it failed and by how much.
+TEST(HtmlReport, NoMismatchNamesTheNoiseWhereTheResidualIsAndTheAfterIsARefit) {
+  lw::test::SyntheticSpec spec;
+  spec.seed = 7;
+  spec.with_scan = false;
+  const Run run = Diagnose(spec);
+  const auto& r = run.result;
+  CHECK_TRUE(r.findings.empty());
+  STRCMP_EQUAL("refit_baseline", lw::diagnosis::ImprovedModelName(r.improved_model));
+  // Every configured sensor is listed, each used one with its residual and the noise allowed there.
+  LONGS_EQUAL(run.bundle.crusher.sensors.size(), r.sensors.size());
+  const lw::diagnosis::SensorNoise* largest = nullptr;
+  for (const auto& n : r.sensors) {
+    CHECK_TRUE(n.used);
+    CHECK_TRUE(std::isfinite(n.residual_mm));
+    CHECK_TRUE(n.noise_sd_mm > 0);
+    // The parts add up (root sum of squares) to the total.
+    const double sum = n.map_pattern_mm * n.map_pattern_mm + n.map_sampling_mm * n.map_sampling_mm +
+                       n.sensor_floor_mm * n.sensor_floor_mm + n.reading_mm * n.reading_mm;
+    DOUBLES_EQUAL(n.noise_sd_mm, std::sqrt(sum), 1e-6 * n.noise_sd_mm);
+    CHECK_FALSE(n.noise_source.empty());
+    CHECK_FALSE(n.noise_detail.empty());
+    if (!largest || std::fabs(n.residual_mm) > std::fabs(largest->residual_mm)) largest = &n;
+  }
+  CHECK_TRUE(largest != nullptr);
+  // The verdict at the top names that sensor, its residual, the noise sd there and its source.
+  const std::string verdict = Between(run.html, "<div class='summary'>", "</p>");
+  CHECK_FALSE(verdict.empty());
+  STRCMP_CONTAINS("No mismatch", verdict.c_str());
+  STRCMP_CONTAINS(("sensor <b>" + largest->sensor_id + "</b> is off by <b>").c_str(), verdict.c_str());
+  STRCMP_CONTAINS(((largest->residual_mm > 0 ? "+" : "") + Fixed(largest->residual_mm, 1) + " mm</b>").c_str(), verdict.c_str());
+  STRCMP_CONTAINS(("standard deviation is <b>" + Fixed(largest->noise_sd_mm, 1) + " mm</b>").c_str(), verdict.c_str());
+  STRCMP_CONTAINS(largest->noise_detail.substr(0, std::min<size_t>(20, largest->noise_detail.find('\''))).c_str(),
+                  verdict.c_str());
+  // ... and the per-sensor table has every sensor.
+  const std::string table = Between(run.html, "id='sensor-noise'", "</table>");
+  for (const auto& s : run.bundle.crusher.sensors)
+    STRCMP_CONTAINS(("<tr><td>" + s.id + "</td><td>yes</td>").c_str(), table.c_str());
+  // "After" is a refit: said so at the top, under the error table and over the right-hand map; no
+  // "with the findings" anywhere.
+  const std::string glance = Between(run.html, "<div class='summary'>", "</div>");
+  STRCMP_CONTAINS("there is no improved model", glance.c_str());
+  STRCMP_CONTAINS("a refit, not a finding", glance.c_str());
+  STRCMP_CONTAINS("a refit, not a finding", Between(run.html, "id='error'", "<h2").c_str());
+  STRCMP_CONTAINS("AFTER: refit only (no findings", run.html.c_str());
+  STRCMP_CONTAINS("a refit only, no findings", run.html.c_str());
+  LONGS_EQUAL(0, Count(run.html, "with the findings"));
+  // Every rejected hypothesis names a failed test with its value and threshold.
+  size_t rejected = 0;
+  const std::string hyps = Between(run.html, "id='hypotheses'", "</table>");
+  for (const auto& hy : r.hypotheses) {
+    if (hy.contains("accepted") && hy["accepted"].is_boolean() && hy["accepted"].get<bool>()) continue;
+    ++rejected;
+    CHECK_TRUE(hy.contains("rejected_because") && hy["rejected_because"].is_string());
+    const std::string why = hy["rejected_because"].get<std::string>();
+    CHECK_FALSE(why.empty());
+    CHECK_TRUE(hy.contains("failed_tests") && !hy["failed_tests"].empty());
+    STRCMP_CONTAINS("(needs ", why.c_str());
+    STRCMP_CONTAINS(("<b>rejected</b>: " + why.substr(0, 30)).c_str(), hyps.c_str());
+    const double delta_bic = hy["delta_bic"].get<double>();
+    if (delta_bic <= 10) STRCMP_CONTAINS(("delta BIC " + Fixed(delta_bic, 1) + " (needs > 10)").c_str(), why.c_str());
+  }
+  CHECK_TRUE(rejected > 0);
+  LONGS_EQUAL(0, Count(hyps, "not convincing"));
+  // The JSON says the same.
+  const auto j = lw::diagnosis::ToJson(r);
+  LONGS_EQUAL(r.sensors.size(), j["sensors"].size());
+  CHECK_TRUE(j["excluded_sensors"].empty());
+  CHECK_TRUE(j["sensors"][0].contains("noise_sd_mm") && j["sensors"][0].contains("noise_source"));
+  STRCMP_CONTAINS("a refit, not a finding", j["improved"]["what"].get<std::string>().c_str());
+  CHECK_TRUE(j["noise"].contains("model_fits"));
+}
+
+// A sensor the fit could not use says why, in the report and in the JSON.
+TEST(HtmlReport, EveryExcludedSensorSaysWhy) {
+  lw::test::SyntheticSpec spec;
+  spec.seed = 8;
+  spec.with_scan = false;
+  std::string quiet, silent, fast;
+  const Run run = Diagnose(spec, [&](lw::core::Bundle& b) {
+    // One sensor keeps only its first two readings (no loop crossing), one never reports, one
+    // wears 1.6 times as fast as the map says.
+    quiet = b.crusher.sensors.at(1).id;
+    silent = b.crusher.sensors.at(2).id;
+    fast = b.crusher.sensors.at(5).id;
+    std::vector<lw::core::Reading> kept;
+    size_t n = 0;
+    for (auto x : b.readings) {
+      if (x.sensor_id == silent || (x.sensor_id == quiet && n++ >= 2)) continue;
+      if (x.sensor_id == fast) x.thickness_mm = std::max(0.0, std::floor(100.0 - 1.6 * (100.0 - x.thickness_mm)));
+      kept.push_back(x);
+    }
+    b.readings = kept;
+  });
+  const auto& r = run.result;
+  size_t excluded = 0;
+  for (const auto& n : r.sensors) {
+    if (n.used) {
+      CHECK_TRUE(n.excluded_because.empty());
+      continue;
+    }
+    ++excluded;
+    CHECK_FALSE(n.excluded_because.empty());
+    // In the report's sensor table, with its reason.
+    STRCMP_CONTAINS(("<tr><td>" + n.sensor_id + "</td><td colspan='8'><b>not used</b>: " + n.excluded_because).c_str(),
+                    run.html.c_str());
+  }
+  LONGS_EQUAL(2, excluded);
+  const auto* q = [&]() -> const lw::diagnosis::SensorNoise* {
+    for (const auto& n : r.sensors)
+      if (n.sensor_id == quiet) return &n;
+    return nullptr;
+  }();
+  CHECK_TRUE(q != nullptr);
+  STRCMP_CONTAINS("loop crossing", q->excluded_because.c_str());
+  for (const auto& n : r.sensors)
+    if (n.sensor_id == silent) STRCMP_CONTAINS("never reported", n.excluded_because.c_str());
+  // The plot title points at the reason; the summary counts them.
+  LONGS_EQUAL(2, Count(run.html, ">not used by the fit: why in the table below</text>"));
+  STRCMP_CONTAINS(("2 of " + std::to_string(run.bundle.crusher.sensors.size()) + " sensors not used by the fit").c_str(),
+                  run.html.c_str());
+  // The fast sensor wore more than predicted: + in the JSON, in the table and on the maps' labels
+  // (measured - predicted wear), red.
+  for (const auto& n : r.sensors)
+    if (n.sensor_id == fast) {
+      CHECK_TRUE(n.residual_mm > 5);
+      STRCMP_CONTAINS(
+          ("<tr><td>" + fast + "</td><td>yes</td><td class='num'>" + Fixed(n.day, 0) + "</td><td class='num'>+").c_str(),
+          run.html.c_str());
+    }
+  const std::string before = SvgAfter(run.html, "BEFORE: baseline (plain Eq. 9), predicted wear");
+  STRCMP_CONTAINS((">" + fast + ": +").c_str(), before.c_str());
+  const auto j = lw::diagnosis::ToJson(r);
+  LONGS_EQUAL(2, j["excluded_sensors"].size());
+  for (const auto& x : j["excluded_sensors"]) CHECK_FALSE(x["reason"].get<std::string>().empty());
+}
+
+// When the noise model does not fit the data, "no mismatch" is not shown as agreement (no green).
+TEST(HtmlReport, NoMismatchWithANoiseModelThatDoesNotFitIsNotGreen) {
+  lw::test::SyntheticSpec spec;
+  spec.seed = 7;
+  spec.with_scan = false;
+  Run run = Diagnose(spec);
+  auto& r = run.result;
+  CHECK_TRUE(r.findings.empty());
+  CHECK_FALSE(r.noise_fit.blind);  // the forward model's map error is small
+  STRCMP_CONTAINS("<b class='good'>No mismatch beyond the noise</b>", run.html.c_str());
+  r.noise_fit = {false, "chi-square per sensor event 0.004 (1 expected)", true,
+                 "the map's pattern error is 87 % of the predicted wear"};
+  const std::string html = lw::diagnosis::RenderHtml(r);
+  const std::string verdict = Between(html, "<div class='summary'>", "</p>");
+  LONGS_EQUAL(0, Count(verdict, "class='good'"));
+  STRCMP_CONTAINS("could not have seen one", verdict.c_str());
+  STRCMP_CONTAINS("chi-square per sensor event 0.004", verdict.c_str());
+  STRCMP_CONTAINS("not testable with this map", verdict.c_str());
+  STRCMP_CONTAINS("the map&#39;s pattern error is 87 % of the predicted wear", verdict.c_str());
+  STRCMP_CONTAINS("as large as the wear here", Between(html, "id='findings'", "<h2").c_str());
 }

@@ -16,6 +16,7 @@
 #include "stage_mismatch.hpp"
 #include "stage_predictions.hpp"
 #include "stage_regions.hpp"
+#include "stage_report.hpp"
 #include "stage_setup.hpp"
 #include "support/temp_directory.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
@@ -642,4 +643,120 @@ TEST(ModelFit, AScanBandsProfileErrorIsProfiledOutWithItsPrior) {
   d::Residuals(prob, spec, Null().null.fit.x, all, opt, r_without, nullptr, w_fit);
   LONGS_EQUAL(r_without.size() + static_cast<Eigen::Index>(groups), r_with.size());
   CHECK_TRUE(r_with.squaredNorm() < r_without.squaredNorm());
+}
+
+TEST_GROUP(StageReport){};
+
+TEST(StageReport, TheNoiseModelFitsOrSaysWhyNotAndWhenTheTestIsBlind) {
+  nlohmann::ordered_json noise = {{"baseline_chi2_per_sensor_event", 1.1},
+                                  {"sensor_events", 300},
+                                  {"baseline_chi2_per_scan_cell", 0.9},
+                                  {"scan_cells", 0},
+                                  {"map_pattern_error_relative", 0.2},
+                                  {"map_pattern_error_source", "sensors"},
+                                  {"map_model", {{"smoothing_error_relative", 0.3}}}};
+  lw::diagnosis::SensorNoise s;
+  s.used = true;
+  s.predicted_wear_mm = 30;
+  s.noise_sd_mm = 6;
+  const std::vector<lw::diagnosis::SensorNoise> sensors(3, s);
+  lw::diagnosis::NoiseFit f = d::JudgeNoiseFit(noise, 0.5, sensors);
+  CHECK_TRUE(f.fits);
+  CHECK_TRUE(f.detail.empty());
+  CHECK_FALSE(f.blind);
+  CHECK_TRUE(f.blind_detail.empty());
+  // The demo's figures (issue 41): each one named with its value.
+  noise["baseline_chi2_per_sensor_event"] = 0.004;
+  noise["map_pattern_error_relative"] = 0.87;
+  noise["map_model"]["smoothing_error_relative"] = 1.07;
+  f = d::JudgeNoiseFit(noise, -10.3, sensors);
+  CHECK_FALSE(f.fits);
+  STRCMP_CONTAINS("chi-square per sensor event 0.004", f.detail.c_str());
+  STRCMP_CONTAINS("16 times", f.detail.c_str());
+  STRCMP_CONTAINS("z -10.3", f.detail.c_str());
+  CHECK_TRUE(f.blind);
+  STRCMP_CONTAINS("pattern error is 87 % of the predicted wear (measured from the sensors' spread", f.blind_detail.c_str());
+  STRCMP_CONTAINS("smoothing error is 107 %", f.blind_detail.c_str());
+  // A noise model wider than the scatter is not yet blind; a noise sd above half the wear at the
+  // median sensor is, whatever the pattern error.
+  noise["map_pattern_error_relative"] = 0.2;
+  f = d::JudgeNoiseFit(noise, -10.3, sensors);
+  CHECK_FALSE(f.fits);
+  CHECK_FALSE(f.blind);
+  std::vector<lw::diagnosis::SensorNoise> noisy = sensors;
+  for (auto& n : noisy) n.noise_sd_mm = 20;
+  f = d::JudgeNoiseFit(noise, 0.5, noisy);
+  CHECK_TRUE(f.blind);
+  STRCMP_CONTAINS("at the median sensor the noise model allows 67 % of the predicted wear", f.blind_detail.c_str());
+  // Scan cells count only when there are any.
+  noise = {
+      {"baseline_chi2_per_sensor_event", 1.0}, {"sensor_events", 300}, {"baseline_chi2_per_scan_cell", 0.1}, {"scan_cells", 0}};
+  CHECK_TRUE(d::JudgeNoiseFit(noise, 0, sensors).fits);
+  noise["scan_cells"] = 200;
+  CHECK_FALSE(d::JudgeNoiseFit(noise, 0, sensors).fits);
+}
+
+TEST(StageReport, ExcludedSensorsSayWhyAndUsedOnesTheirNoise) {
+  d::SensorData never = Sensor("S1", "LMID", false);
+  STRCMP_CONTAINS("never reported", d::ExcludedBecause(never, {}).c_str());
+  d::SensorData old = never;
+  STRCMP_CONTAINS("previous liner",
+                  d::ExcludedBecause(old, {{"S1", "previous_liner", lw::core::TimePoint{}, lw::core::TimePoint{}, ""}}).c_str());
+  d::SensorData flat = never;
+  flat.analysis.readings = {{1, 100}, {2, 100}, {3, 99}};
+  flat.analysis.used = {true, true, true};
+  flat.analysis.events.resize(1);
+  flat.field.intensity = 1;
+  const std::string why = d::ExcludedBecause(flat, {});
+  STRCMP_CONTAINS("1 loop crossing, at least 2 needed", why.c_str());
+  STRCMP_CONTAINS("3 kept readings lie between 99 and 100 mm", why.c_str());
+  flat.analysis.used = {false, false, false};
+  flat.analysis.issues.push_back({"stuck", 1, 3, ""});
+  STRCMP_CONTAINS("all 3 readings were excluded as faults (stuck)", d::ExcludedBecause(flat, {}).c_str());
+  d::SensorData dark = flat;
+  dark.analysis.used = {true, true, true};
+  dark.field.intensity = 0;
+  STRCMP_CONTAINS("predicts no wear at its position", d::ExcludedBecause(dark, {}).c_str());
+  // The null campaign: every sensor used, its noise part by part.
+  const Run& r = Null();
+  const auto sensors = d::ExplainSensors(r.setup, r.base, r.null, {}, "sensors");
+  LONGS_EQUAL(r.setup.sensors.size(), sensors.size());
+  for (const auto& n : sensors) {
+    CHECK_TRUE(n.used);
+    CHECK_TRUE(n.excluded_because.empty());
+    CHECK_TRUE(n.noise_sd_mm > n.reading_mm);
+    CHECK_TRUE(n.predicted_wear_mm > 0);
+    DOUBLES_EQUAL(n.measured_wear_mm - n.predicted_wear_mm, n.residual_mm, 1e-9);
+  }
+}
+
+TEST(StageReport, EveryRejectedHypothesisNamesTheTestItFailed) {
+  const Run& r = Hardening();
+  auto table = d::HypothesesTable(r.hyp.evals, r.setup.prob.rows);
+  d::AnnotateHypotheses(table, r.hyp, r.null.log_n);
+  size_t chosen = 0, rejected = 0;
+  for (size_t k = 0; k < table.size(); ++k) {
+    const auto& row = table[k];
+    const std::string verdict = row["verdict"].get<std::string>();
+    if (verdict == "chosen") {
+      ++chosen;
+      LONGS_EQUAL(r.hyp.best, static_cast<long>(k));
+      CHECK_FALSE(row.contains("rejected_because"));
+      continue;
+    }
+    if (verdict == "accepted") continue;
+    STRCMP_EQUAL("rejected", verdict.c_str());
+    CHECK_FALSE(r.hyp.evals[k].accepted);
+    ++rejected;
+    CHECK_FALSE(row["rejected_because"].get<std::string>().empty());
+    CHECK_FALSE(row["failed_tests"].empty());
+    // A failed threshold test carries the value that failed it.
+    for (const auto& t : row["failed_tests"]) {
+      const std::string test = t["test"].get<std::string>();
+      if (test == "delta_bic") CHECK_TRUE(t["value"].get<double>() <= 10.0 + 1e-3);
+      if (test == "significance") CHECK_TRUE(t["value"].get<double>() <= 2.0 + 1e-3);
+    }
+  }
+  LONGS_EQUAL(1, chosen);
+  CHECK_TRUE(rejected > 0);
 }
