@@ -519,7 +519,14 @@ std::string Detail(const ThinnestArea& a) {
     std::snprintf(b, sizeof b, "band wider than the target at every patch up to the whole row");
     d = b;
     // What would narrow it: the larger of the band's two parts.
-    if (a.scale_sd_mm >= a.map_sd_mm)
+    // Three or more sensors that still leave the scale this uncertain disagree with the map's
+    // pattern among themselves: more of them pins the scale, only a scan shows the pattern.
+    if (a.scale_sd_mm >= a.map_sd_mm && a.row_sensors >= 3)
+      std::snprintf(b, sizeof b,
+                    "; most of it is row %s's scale: its %zu sensors disagree with the DEM map's pattern (a scan of the "
+                    "liner would show the pattern; more sensors would pin the scale)",
+                    a.row.c_str(), a.row_sensors);
+    else if (a.scale_sd_mm >= a.map_sd_mm)
       std::snprintf(b, sizeof b,
                     "; most of it is row %s's scale, set by %zu sensor%s (more sensors in this row, or a scan, would narrow it)",
                     a.row.c_str(), a.row_sensors, a.row_sensors == 1 ? "" : "s");

@@ -629,6 +629,10 @@ std::string ThinnestSection(int& ids, const DiagnosisResult& r, const MapFrame& 
     h << "<p>Not available (no usable sensor readings or no map).</p>";
     return h.str();
   }
+  if (!L.thinnest_area.empty())
+    h << "<p><b>The number to act on</b>, the thinnest area the data support (the smallest area whose band is narrow "
+         "enough, else the sensors' own thinnest reading; the dashboard's headline and the reline dates use it): "
+      << Esc(L.thinnest_area) << ".</p>";
   h << "<table><tr><th>from</th><th>date</th><th>remaining thickness (mm)</th><th>band (2 sd, mm)</th>"
        "<th>&theta; (deg)</th><th>z (m)</th><th>row</th><th>status</th></tr>";
   for (const ThinnestPoint& p : L.thinnest) {
@@ -643,10 +647,11 @@ std::string ThinnestSection(int& ids, const DiagnosisResult& r, const MapFrame& 
       << (p.status_detail.empty() ? "" : ": ") << Esc(p.status_detail) << "</td></tr>";
   }
   h << "</table>";
-  h << "<p class='caption'>The first line is the number to act on: the live Eq. 9 reconstruction from each sensor's "
-       "latest valid reading (readings flagged as faults below are left out), with the band inside which the true "
-       "thinnest point lies when every face is within 2 standard deviations (map noise, 1 mm sensor quantisation, "
-       "row scale). The model lines show where the diagnosis' baseline and improved models put the thinnest face "
+  h << "<p class='caption'>The first line is the thinnest single face of the live Eq. 9 reconstruction from each "
+       "sensor's latest valid reading (readings flagged as faults below are left out), with the band inside which the "
+       "true thinnest face lies when every face is within 2 standard deviations (map noise, 1 mm sensor quantisation, "
+       "row scale): a face of a noisy DEM map, whose band is often most of the liner. The model lines show where the diagnosis' "
+       "baseline and improved models put the thinnest face "
        "at the same time; a large difference between them means the findings matter for the reline date. Minimum "
        "allowed thickness: "
     << Num(L.thickness_min_mm, 1) << " mm (as new " << Num(L.thickness_new_mm, 1) << " mm).</p>";
@@ -892,13 +897,18 @@ std::string RenderHtml(const DiagnosisResult& r) {
   h << "<div class='summary'><p>" << Verdict(r) << "</p><ul>";
   h << "<li>Installed " << Date(r.installed_at) << "; latest reading used " << Date(r.liner.now)
     << ". Mismatch test: chi-square excess " << Num(r.mismatch_z_score, 1) << " sigma over the noise model (real above 4).</li>";
+  if (!r.liner.thinnest_area.empty())
+    h << "<li><a href='#thinnest'>Thinnest area the data support</a> on " << Date(r.liner.now)
+      << " (the dashboard's headline): " << Esc(r.liner.thinnest_area) << ".</li>";
   if (!r.liner.thinnest.empty()) {
     const ThinnestPoint& p = r.liner.thinnest.front();
-    h << "<li><a href='#thinnest'>Thinnest point</a> on " << Date(p.time) << ": <b>" << Num(p.thickness_mm, 1) << " mm</b>";
+    h << "<li>Thinnest single face of the live map on " << Date(p.time) << ": <b>" << Num(p.thickness_mm, 1) << " mm</b>";
     if (std::isfinite(p.lo_mm) && std::isfinite(p.hi_mm))
       h << " (band " << Num(p.lo_mm, 1) << " .. " << Num(p.hi_mm, 1) << " mm)";
     h << " at &theta; " << Num(p.theta_deg, 0) << " deg, z " << Num(p.z_m, 2) << " m"
-      << (p.row.empty() ? "" : ", row " + Esc(p.row)) << ".</li>";
+      << (p.row.empty() ? "" : ", row " + Esc(p.row))
+      << (r.liner.thinnest_area.empty() ? "" : ": one face of a noisy DEM map, for ParaView, not the number to act on")
+      << ".</li>";
   }
   {
     const RelineDate* first = nullptr;

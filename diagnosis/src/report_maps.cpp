@@ -8,6 +8,7 @@
 #include "core/forecast.hpp"
 #include "core/reconstruction.hpp"
 #include "core/scan_correction.hpp"
+#include "core/thinnest_area.hpp"
 #include "estimate/estimate.hpp"
 
 namespace lw::diagnosis::detail {
@@ -212,6 +213,7 @@ void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const 
       liner.thinnest.push_back(p);
       liner.remaining_now_mm = ToTiles(tiling, bundle.map, rec.remaining_mm);
     }
+    liner.thinnest_area = core::ThinnestAreaText(est.areas.liner);
     for (const core::RowForecast& r : est.row_forecasts)
       liner.reline.push_back({r.row, r.ok, r.note, r.reach, r.reach_earliest, r.reach_latest});
   }

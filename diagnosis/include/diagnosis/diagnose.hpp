@@ -236,6 +236,9 @@ struct LinerReport {
   core::TimePoint now{};                 ///< latest reading the diagnosis used
   std::vector<double> remaining_now_mm;  ///< per tile: the live reconstruction's remaining thickness at `now`
   std::vector<ThinnestPoint> thinnest;   ///< now (reconstruction), models now, models at predict_at
+  /// The thinnest area the data support now, in words (core::ThinnestAreaText of the live estimate:
+  /// the dashboard's headline, what the reline dates use); empty without a live estimate.
+  std::string thinnest_area;
   std::vector<RelineDate> reline;
 };
 

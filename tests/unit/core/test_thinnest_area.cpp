@@ -208,3 +208,26 @@ TEST(ThinnestArea, AreaMeanAndThinnestPatchOfReadAFieldAsTheSearchReadsItsEstima
     DOUBLES_EQUAL(area.z_m, same.z_m, 1e-9);
   }
 }
+
+// An unsupported area says what would narrow its band: with two sensors, more sensors; with three
+// or more that still leave the scale this uncertain, the sensors disagree with the map's pattern.
+TEST(ThinnestArea, AnUnsupportedAreaSaysWhatWouldNarrowItsBand) {
+  ThinnestArea a;
+  a.row = "LDWN";
+  a.thickness_mm = 62.0;
+  a.lo_mm = 0.0;
+  a.hi_mm = 120.0;
+  a.shape = AreaShape::kRow;
+  a.whole_row = true;
+  a.scale_sd_mm = 25.0;
+  a.map_sd_mm = 5.0;
+  a.row_sensors = 2;
+  const std::string two = ThinnestAreaJson(a)["detail"].get<std::string>();
+  STRCMP_CONTAINS("set by 2 sensors (more sensors in this row", two.c_str());
+  a.row_sensors = 4;
+  const std::string four = ThinnestAreaJson(a)["detail"].get<std::string>();
+  STRCMP_CONTAINS("its 4 sensors disagree with the DEM map's pattern", four.c_str());
+  a.scale_sd_mm = 1.0;
+  const std::string map = ThinnestAreaJson(a)["detail"].get<std::string>();
+  STRCMP_CONTAINS("the DEM map's own error here", map.c_str());
+}

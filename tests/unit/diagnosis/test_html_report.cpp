@@ -146,6 +146,15 @@ TEST(HtmlReport, ThinnestPointWithBandAndParametersWithUnits) {
   STRCMP_CONTAINS(value, run.html.c_str());
   STRCMP_CONTAINS(("row " + p.row).c_str(), run.html.c_str());
   LONGS_EQUAL(1, Count(run.html, ">thinnest "));
+  // The number to act on is the thinnest area the data support (the dashboard's headline), in the
+  // summary and the section; the single face is named as what it is.
+  CHECK_FALSE(liner.thinnest_area.empty());
+  STRCMP_CONTAINS("thinnest area", liner.thinnest_area.c_str());
+  std::string escaped;  // as the report writes text: an apostrophe ("row R's scale") as &#39;
+  for (const char ch : liner.thinnest_area) escaped += ch == '\'' ? std::string("&#39;") : std::string(1, ch);
+  LONGS_EQUAL(2, Count(run.html, escaped));
+  STRCMP_CONTAINS("Thinnest single face of the live map", run.html.c_str());
+  CHECK_EQUAL(0, Count(run.html, "The first line is the number to act on"));
   LONGS_EQUAL(run.bundle.crusher.rows.size(), liner.reline.size());
 
   // The work-hardening finding's parameters as a table: names, values, units, uncertainties.
