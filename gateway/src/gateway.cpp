@@ -57,13 +57,13 @@ void Gateway::FlushReleases() {
 }
 
 void Gateway::Log(const std::string& line) const {
-  // Lines carry node identifiers, topics and message text from the radio and the broker: escape
-  // control characters so that nothing can forge or garble a log line.
-  const std::string safe = SanitizeForLog(line);
+  // Lines carry node identifiers, topics and message text from the radio and the broker. A sink
+  // makes them safe itself (the program's core::Logger: escaping here too would show a backslash
+  // as four); without one, escape control characters so nothing can forge or garble a line.
   if (options_.log) {
-    options_.log(safe);
+    options_.log(line);
   } else {
-    std::fprintf(stderr, "%s\n", safe.c_str());
+    std::fprintf(stderr, "%s\n", SanitizeForLog(line).c_str());
   }
 }
 

@@ -56,8 +56,10 @@ struct GatewayOptions {
   /// runs virtual time; spool bookkeeping and every timer keep `now_ms`. Called synchronously from
   /// within OnBytes, on the thread that calls the Gateway (main's loop).
   std::function<int64_t(int64_t now_ms)> stamp_clock;
-  /// Log sink (one line, no newline). Defaults to stderr. Called synchronously from within the
-  /// Gateway's methods, on the thread that calls them (main's loop): never concurrently.
+  /// Log sink (one line, no newline, as written: text from the radio and the broker unescaped, so
+  /// the sink must make it safe, as core::Logger does). Defaults to stderr, escaped. Called
+  /// synchronously from within the Gateway's methods, on the thread that calls them (main's loop):
+  /// never concurrently.
   std::function<void(const std::string&)> log;
 };
 

@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <map>
 #include <memory>
+#include <sstream>
 #include <string>
 
+#include "core/log.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/spool.hpp"
 #include "mqtt/messages.hpp"
@@ -736,13 +738,20 @@ TEST(Gateway, RegistryIsBoundedAndRefusalsAreCountedAndLogged) {
 
 // Finding 11/12 of issue 15: a node identifier with ESC and a newline wrote raw terminal escapes
 // and a forged second line into the log.
+// The lines go to the program's log as main wires it (core::Logger), escaped once: a backslash
+// shows as two, not four.
 TEST(Gateway, TextFromTheRadioAndTheBrokerIsEscapedInTheLog) {
-  Feed(NodeIdFrame(kAddrB, "A\x1B[2J\nFAKE: ok"));
+  Feed(NodeIdFrame(kAddrB, "A\x1B[2J\nFAKE: ok\\"));
   gateway->OnMessage("linerwatch/v1/s1/c1/sensors/1\n2\x1B/committed", "{oops", now);
+  std::ostringstream out;
+  lw::core::Logger logger(out, "linerwatch-gateway");
+  for (const auto& line : log) logger(line);
   bool saw_node = false, saw_topic = false;
-  for (const auto& line : log) {
+  std::istringstream lines(out.str());
+  for (std::string line; std::getline(lines, line);) {
     for (char c : line) CHECK_FALSE(static_cast<unsigned char>(c) < 0x20 || c == 0x7F);
-    saw_node |= line.find("A\\x1B[2J\\x0AFAKE: ok") != std::string::npos;
+    saw_node |= line.find("A\\x1B[2J\\x0AFAKE: ok\\\\") != std::string::npos;
+    CHECK_TEXT(line.find("\\\\\\\\") == std::string::npos, line.c_str());  // escaped twice
     saw_topic |= line.find("sensors/1\\x0A2\\x1B/committed") != std::string::npos;
   }
   CHECK_TRUE(saw_node);
