@@ -19,7 +19,7 @@ void Forecast(const CrusherModel& model, const std::vector<core::Reading>& usabl
     if (std::find(st.stuck.begin(), st.stuck.end(), s.id) != st.stuck.end()) {
       // A frozen value's curve would never reach the minimum: no forecast from it.
       f.ok = false;
-      f.note = "stuck: its value has not moved while its row wore; left out (docs/server.md, Global wear)";
+      f.note = "stuck: its value has not moved while its row wore; left out (docs/wear.md, Global wear)";
       f.reach.reset();
       f.reach_earliest.reset();
       f.reach_latest.reset();

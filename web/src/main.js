@@ -34,7 +34,7 @@ async function listPage() {
   app.replaceChildren(h('div', { class: 'empty' }, 'Loading crushers…'));
   const { crushers } = await api.get(paths.crushers());
   const cards = crushers.map((c) => {
-    // The thinnest area the data support (docs/server.md); the sensors' own reading where none is.
+    // The thinnest area the data support (docs/wear.md); the sensors' own reading where none is.
     const area = c.thinnest_area;
     const min = area ? (area.supported ? area.thickness_mm : area.sensor_fallback?.thickness_mm ?? null) : c.min_thickness_mm;
     const span = c.thickness_new_mm - 0;
@@ -198,14 +198,14 @@ async function crusherPage(crusherId, initialSensor) {
     const next = rowsWithDate[0];
     const fastest = frows.reduce((m, r) => (r.rate_mm_per_day > (m?.rate_mm_per_day ?? -Infinity) ? r : m), null);
     const latest = st.sensors.map((x) => x.latest?.time).filter(Boolean).sort().pop();
-    // The headline is the thinnest area the data support (docs/server.md, thinnest area): its band,
+    // The headline is the thinnest area the data support (docs/wear.md, thinnest area): its band,
     // its patch, whether a sensor is near it; the sensors' own reading where no area is supported.
     const a = w?.thinnest_area;
     const scaled = w && w.status !== 'no_sensors' && a && a.thickness_mm != null;
     const fb = a?.sensor_fallback;
     const shown = !scaled ? null : a.supported ? a.thickness_mm : fb ? fb.thickness_mm : null;
     const left = scaled ? (a.supported ? a.band_mm[0] : shown ?? a.band_mm[0]) - concave.thickness_min_mm : null;
-    // Sensors that stopped reporting set no row scale (docs/server.md, Global wear).
+    // Sensors that stopped reporting set no row scale (docs/wear.md, Global wear).
     const stale = [
       w?.sensors_stale?.length ? `not reporting, left out: ${w.sensors_stale.join(', ')}` : null,
       w?.sensors_stuck?.length ? `stuck (value not moving while its row wears), left out: ${w.sensors_stuck.join(', ')}` : null];

@@ -202,7 +202,7 @@ std::optional<DeviceMessage> DecodeDevice(std::string_view payload, std::string*
 
 // ---- wear: `wear` (retained), server ----
 
-/// The wear message is the server's wear result without faces (docs/server.md, *Global wear*),
+/// The wear message is the server's wear result without faces (docs/wear.md, *Global wear*),
 /// built by the server; this is its encoding (as the server has always sent it).
 std::string EncodeWear(const nlohmann::ordered_json& summary);
 

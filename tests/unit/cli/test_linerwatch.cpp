@@ -195,7 +195,7 @@ TEST(Linerwatch, ReconstructUsesTheIntervalCentreLikeTheServerAndLowerBoundOnReq
   CHECK(lower.min_thickness_mm >= 0.0);
 }
 
-// A sensor that stopped reporting sets no row scale, as in the server (docs/server.md, Global wear):
+// A sensor that stopped reporting sets no row scale, as in the server (docs/wear.md, Global wear):
 // `reconstruct` names it and its result equals the bundle without that sensor's readings at all.
 TEST(Linerwatch, ReconstructLeavesOutASensorThatStoppedReporting) {
   const fs::path b = Bundle();

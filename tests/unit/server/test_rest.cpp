@@ -526,7 +526,7 @@ TEST(RestHandlers, AScanWithoutReadingsAtItsDateIsNamedNotApplied) {
   STRCMP_EQUAL(lw::core::FormatIsoTime(scan.date).c_str(), j["date"].get<std::string>().c_str());
 }
 
-// docs/server.md, *Global wear*: a sensor whose latest reading lags the newest by more than 8 of
+// docs/wear.md, *Global wear*: a sensor whose latest reading lags the newest by more than 8 of
 // its reporting periods (a dead sensor) sets no row scale and is named in `sensors_stale`. Its old
 // reading would give the wear of its last day, too little. The live wear must equal the wear
 // computed without that sensor at all, and differ from the one its stale wear would give.
@@ -586,7 +586,7 @@ TEST(RestHandlers, ADeadSensorSetsNoRowScaleAndIsNamedStale) {
 
 namespace {
 
-// docs/server.md, *Global wear*: a sensor that keeps reporting one value while the other sensors of
+// docs/wear.md, *Global wear*: a sensor that keeps reporting one value while the other sensors of
 // its row wear (moisture across its loops) sets no row scale and is named in `sensors_stuck`. Its
 // frozen value would give its row too little wear: the live wear is the one without its reading.
 // The scan is corrected with the sensors' wear at its date: without the stuck sensor's when its value
