@@ -216,7 +216,9 @@ const std::vector<Route>& Resources::Routes() {
       {Method::kGet,
        "/api/v1/crushers/{crusher}/forecast",
        "Per row and sensor: the date the minimum thickness is reached, with a band",
-       {{"format", "string", "json (default) or csv (RFC 4180: one record per row, then per sensor)"}},
+       {{"format", "string", "json (default) or csv (RFC 4180: one record per row, then per sensor)"},
+        {"at", "string",
+         "ISO-8601 UTC: the forecast made from the readings and scans up to that past time (the same rules as .../wear?at=)"}},
        "200",
        &Resources::Forecast,
        {"application/json", "text/csv"}},
@@ -523,6 +525,35 @@ bool CheckWearTime(const core::CrusherConfig& config, const std::string& text, i
 
 }  // namespace
 
+std::shared_ptr<const CrusherState> Resources::StateOf(const Request& req, const Crusher& c, Response* error) {
+  const std::string* at_param = FindParam(req.query, "at");
+  if (!at_param) {
+    auto st = ctx_.wear->Get(c.config.crusher_id);
+    if (!st || !st->has_wear) {
+      *error = Error(404, "no readings yet for crusher " + c.config.crusher_id);
+      return nullptr;
+    }
+    return st;
+  }
+  // A past time's state: the stored readings up to it (a window loaded as the live state's) and the
+  // scans up to it, through the same estimate as the live wear.
+  int64_t at_s = 0;
+  std::string message;
+  if (!TimeParam(req.query, "at", &at_s, &message) ||
+      !CheckWearTime(c.config, *at_param, at_s, ctx_.ingestor->NowS(), &message)) {
+    *error = Error(400, message);
+    return nullptr;
+  }
+  const core::TimePoint at{std::chrono::seconds(at_s)};
+  const estimate::ReadingWindow window = ctx_.read->With([&](Store& s) { return LoadWindow(s, c, at_s); });
+  auto st = std::make_shared<const CrusherState>(ComputeCrusherState(c, window.Readings(), at));
+  if (!st->has_wear) {
+    *error = Error(404, "no readings of crusher " + c.config.crusher_id + " at or before at=" + *at_param);
+    return nullptr;
+  }
+  return st;
+}
+
 Response Resources::Wear(const Request& req) {
   Response error;
   const Crusher* c = CrusherOf(req, &error);
@@ -530,23 +561,8 @@ Response Resources::Wear(const Request& req) {
   const std::string* format_param = FindParam(req.query, "format");
   const std::string format = format_param ? *format_param : "json";
   if (format != "json" && format != "vtk" && format != "csv") return Error(400, "format='" + format + "': use json, vtk or csv");
-  std::shared_ptr<const CrusherState> st;
-  if (const std::string* at_param = FindParam(req.query, "at")) {
-    // A past time's wear: the stored readings up to it (a window loaded as the live state's) and the
-    // scans up to it, through the same estimate as the live wear.
-    int64_t at_s = 0;
-    std::string message;
-    if (!TimeParam(req.query, "at", &at_s, &message) ||
-        !CheckWearTime(c->config, *at_param, at_s, ctx_.ingestor->NowS(), &message))
-      return Error(400, message);
-    const core::TimePoint at{std::chrono::seconds(at_s)};
-    const estimate::ReadingWindow window = ctx_.read->With([&](Store& s) { return LoadWindow(s, *c, at_s); });
-    st = std::make_shared<const CrusherState>(ComputeCrusherState(*c, window.Readings(), at));
-    if (!st->has_wear) return Error(404, "no readings of crusher " + c->config.crusher_id + " at or before at=" + *at_param);
-  } else {
-    st = ctx_.wear->Get(c->config.crusher_id);
-    if (!st || !st->has_wear) return Error(404, "no readings yet for crusher " + c->config.crusher_id);
-  }
+  const std::shared_ptr<const CrusherState> st = StateOf(req, *c, &error);
+  if (!st) return error;
   if (format == "vtk") return WearVtk(*c, *st);
   if (format == "csv") {
     Response r;
@@ -566,8 +582,8 @@ Response Resources::Forecast(const Request& req) {
   std::string message;
   const auto format = FormatParam(req.query, {"json", "csv"}, &message);
   if (!format) return Error(400, message);
-  const auto st = ctx_.wear->Get(c->config.crusher_id);
-  if (!st || !st->has_wear) return Error(404, "no readings yet for crusher " + c->config.crusher_id);
+  const std::shared_ptr<const CrusherState> st = StateOf(req, *c, &error);
+  if (!st) return error;
   if (*format == "csv") {
     Response r;
     r.raw = RawBody{ForecastCsv(ForecastJson(*st)), core::kCsvContentType};

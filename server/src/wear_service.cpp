@@ -216,6 +216,7 @@ ordered_json ForecastJson(const CrusherState& st) {
   const Crusher& c = *st.crusher;
   ordered_json j;
   j["crusher_id"] = c.config.crusher_id;
+  if (st.at) j["at"] = core::FormatIsoTime(*st.at);
   j["time"] = core::FormatIsoTime(st.time);
   j["thickness_min_mm"] = c.config.thickness_min_mm;
   j["map_sha256"] = c.map.sha256;

@@ -173,6 +173,8 @@ class Resources {
   Response Readings(const Request&);
   Response PostReadings(const Request&);
   Response Mesh(const Request&);
+  /// The live state, or with ?at=TIME a past time's (400 naming `at`, 404 before any reading).
+  std::shared_ptr<const CrusherState> StateOf(const Request& req, const Crusher& c, Response* error);
   Response Wear(const Request&);
   Response Forecast(const Request&);
   Response Diagnosis(const Request&);

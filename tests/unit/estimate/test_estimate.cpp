@@ -55,6 +55,12 @@ struct Served {
     get.query = std::move(query);
     return resources->Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/wear"), get);
   }
+  rest::Response Forecast(QueryParams query = {}) {
+    rest::Request get;
+    get.path = {Folder().id()};
+    get.query = std::move(query);
+    return resources->Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/forecast"), get);
+  }
 };
 
 Served& Server() {
@@ -111,6 +117,18 @@ double CsvMinRemaining(const std::string& csv) {
   return lowest;
 }
 
+/// The smallest value of a legacy-VTK cell array `name` (GET .../wear?format=vtk).
+double VtkMinOf(const std::string& vtk, const std::string& name) {
+  const std::string head = "SCALARS " + name + " double 1\nLOOKUP_TABLE default\n";
+  const size_t at = vtk.find(head);
+  CHECK_TEXT(at != std::string::npos, name.c_str());
+  std::istringstream in(vtk.substr(at + head.size()));
+  double lowest = std::numeric_limits<double>::infinity();
+  for (std::string line; std::getline(in, line) && !line.empty() && line.rfind("SCALARS", 0) != 0;)
+    lowest = std::min(lowest, std::stod(line));
+  return lowest;
+}
+
 }  // namespace
 
 TEST_GROUP(EstimateCallers){};
@@ -145,6 +163,44 @@ TEST(EstimateCallers, AtGivesTheReconstructOfTheReadingsUpToThatTime) {
     CHECK(csv.raw.has_value());
     DOUBLES_EQUAL(res.json["min_thickness_mm"].get<double>(), CsvMinRemaining(csv.raw->content), 0.0011);
   }
+}
+
+// The VTK for ParaView at a past time carries that time's wear, not the latest.
+TEST(EstimateCallers, AtGivesThatTimesWearAsVtkToo) {
+  const std::string at = lw::core::FormatIsoTime(Day(kScanDay - 4));
+  const rest::Response past = Server().Wear({{"at", at}, {"format", "vtk"}});
+  const rest::Response now = Server().Wear({{"format", "vtk"}});
+  LONGS_EQUAL(200, past.status);
+  CHECK(past.raw.has_value() && now.raw.has_value());
+  const double past_min = Server().Wear({{"at", at}, {"faces", "false"}}).json["min_thickness_mm"].get<double>();
+  DOUBLES_EQUAL(past_min, VtkMinOf(past.raw->content, "remaining_mm"), 0.0011);
+  CHECK(VtkMinOf(past.raw->content, "remaining_mm") > VtkMinOf(now.raw->content, "remaining_mm") + 0.5);
+}
+
+// GET .../forecast?at=TIME: the reline dates as they were forecast from the readings up to TIME.
+TEST(EstimateCallers, AtGivesTheForecastMadeFromTheReadingsUpToThatTime) {
+  const rest::Response now = Server().Forecast();
+  LONGS_EQUAL(200, now.status);
+  CHECK_FALSE(now.json.contains("at"));
+  const std::string at = lw::core::FormatIsoTime(Day(kScanDay - 4));
+  const rest::Response past = Server().Forecast({{"at", at}});
+  LONGS_EQUAL_TEXT(200, past.status, past.json.dump().substr(0, 300).c_str());
+  CHECK_EQUAL(at, past.json["at"].get<std::string>());
+  for (const auto& r : past.json["readings_used"])
+    CHECK(*lw::core::ParseIsoTime(r["time"].get<std::string>()) <= Day(kScanDay - 4));
+  LONGS_EQUAL(now.json["rows"].size(), past.json["rows"].size());
+  for (size_t k = 0; k < now.json["rows"].size(); ++k) {
+    const json &p = past.json["rows"][k], &n = now.json["rows"][k];
+    if (!n["min_thickness_mm"].is_number()) continue;
+    CHECK_TEXT(p["min_thickness_mm"].get<double>() > n["min_thickness_mm"].get<double>() + 0.5, p.dump().c_str());
+  }
+  // The CSV form at the same time, and a bad time refused naming `at`.
+  const rest::Response csv = Server().Forecast({{"at", at}, {"format", "csv"}});
+  LONGS_EQUAL(200, csv.status);
+  CHECK(csv.raw.has_value());
+  const rest::Response bad = Server().Forecast({{"at", "2024-02-30"}});
+  LONGS_EQUAL(400, bad.status);
+  CHECK(bad.json.at("error").get<std::string>().find("at") != std::string::npos);
 }
 
 TEST(EstimateCallers, BadAtIsRefusedNamingIt) {

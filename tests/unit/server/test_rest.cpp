@@ -386,6 +386,26 @@ TEST(RestHandlers, WearAndForecastOnceThereAreReadings) {
   const rest::Response forecast = f.Get("/api/v1/crushers/{crusher}/forecast");
   LONGS_EQUAL(200, forecast.status);
   LONGS_EQUAL(3, forecast.json["rows"].size());
+  // A row's date is never later than its own sensors' (within a day and one loop's wear); the
+  // sensor named as setting it belongs to that row.
+  for (const auto& row : forecast.json["rows"]) {
+    CHECK_TEXT(row.contains("reach_set_by_sensor"), row.dump().c_str());
+    const std::string name = row["row"].get<std::string>();
+    if (!row["reach_set_by_sensor"].is_null()) {
+      const auto* info = Folder().bundle.crusher.FindSensor(row["reach_set_by_sensor"].get<std::string>());
+      CHECK_TEXT(info != nullptr && info->row == name, row.dump().c_str());
+    }
+    if (!row["reach_date"].is_string()) continue;
+    const auto row_reach = *lw::core::ParseIsoTime(row["reach_date"].get<std::string>());
+    for (const auto& s : forecast.json["sensors"]) {
+      const auto* info = Folder().bundle.crusher.FindSensor(s["id"].get<std::string>());
+      if (!info || info->row != name || !s.value("ok", false) || !s["reach_date"].is_string()) continue;
+      const double rate = std::max(s["rate_mm_per_day"].get<double>(), 1e-3);
+      const auto limit = *lw::core::ParseIsoTime(s["reach_date"].get<std::string>()) +
+                         std::chrono::seconds(static_cast<int64_t>((2.0 + 1.0 / rate) * 86400));
+      CHECK_TEXT(row_reach <= limit, (row.dump() + " vs " + s.dump().substr(0, 200)).c_str());
+    }
+  }
   const rest::Response mesh = f.Get("/api/v1/crushers/{crusher}/mesh");
   LONGS_EQUAL(Folder().bundle.map.face_count() * 3, mesh.json["faces"].size());
   // The list shows the wear as last computed.
