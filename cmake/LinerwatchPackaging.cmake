@@ -24,11 +24,19 @@ function(lw_man_page target component description)
     return()
   endif()
   set(page ${LW_MAN_DIR}/${target}.1)
+  set(program $<TARGET_FILE:${target}>)
+  if(CMAKE_CROSSCOMPILING_EMULATOR)
+    # A cross-built program runs on the build machine through its emulator (qemu-user).
+    string(JOIN " " emulator ${CMAKE_CROSSCOMPILING_EMULATOR})
+    set(program ${CMAKE_BINARY_DIR}/emulated/${target})
+    file(GENERATE OUTPUT ${program} CONTENT "#!/bin/sh\nexec ${emulator} $<TARGET_FILE:${target}> \"$@\"\n"
+         FILE_PERMISSIONS OWNER_READ OWNER_WRITE OWNER_EXECUTE GROUP_READ GROUP_EXECUTE WORLD_READ WORLD_EXECUTE)
+  endif()
   add_custom_command(OUTPUT ${page}.gz
     COMMAND ${CMAKE_COMMAND} -E make_directory ${LW_MAN_DIR}
     COMMAND ${LW_HELP2MAN} --no-info --no-discard-stderr --section=1
             --version-string=${PROJECT_VERSION} --name=${description}
-            --output=${page} $<TARGET_FILE:${target}>
+            --output=${page} ${program}
     COMMAND gzip -9nf ${page}
     DEPENDS ${target}
     COMMENT "Man page of ${target} (help2man)"
@@ -118,7 +126,15 @@ set(CPACK_INSTALL_PREFIX /usr)
 set(CPACK_SET_DESTDIR ON)
 set(CPACK_STRIP_FILES ON)
 set(CPACK_DEB_COMPONENT_INSTALL ON)
-set(CPACK_COMPONENTS_ALL gateway server tools)
+if(LW_GATEWAY_ONLY)
+  set(CPACK_COMPONENTS_ALL gateway)  # the arm64 build: the site gateway's package alone
+else()
+  set(CPACK_COMPONENTS_ALL gateway server tools)
+endif()
+if(LW_DEB_ARCHITECTURE)
+  # A cross build's packages are for the target (dpkg --print-architecture names the build machine).
+  set(CPACK_DEBIAN_PACKAGE_ARCHITECTURE ${LW_DEB_ARCHITECTURE})
+endif()
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_SECTION misc)
 set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)

@@ -17,7 +17,7 @@ function(lw_freestanding target)
   target_compile_options(${target} PRIVATE
     $<$<COMPILE_LANGUAGE:CXX>:-fno-exceptions -fno-rtti -fno-threadsafe-statics>
     -ffunction-sections -fdata-sections -Wconversion -Wsign-conversion)
-  if(CMAKE_CROSSCOMPILING)
+  if(LW_BARE_METAL)
     target_compile_options(${target} PRIVATE -ffreestanding -fno-unwind-tables -fno-asynchronous-unwind-tables)
   endif()
   lw_project_warnings(${target})
@@ -25,7 +25,7 @@ endfunction()
 
 # Prints the size of a freestanding static library after it is built (cross builds only).
 function(lw_print_size target)
-  if(CMAKE_CROSSCOMPILING AND CMAKE_SIZE)
+  if(LW_BARE_METAL AND CMAKE_SIZE)
     add_custom_command(TARGET ${target} POST_BUILD
       COMMAND ${CMAKE_SIZE} --totals $<TARGET_FILE:${target}>
       COMMENT "Size of ${target} (arm-none-eabi)")

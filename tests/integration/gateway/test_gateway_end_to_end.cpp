@@ -20,6 +20,7 @@
 #include <map>
 #include <mutex>
 #include <set>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -284,6 +285,17 @@ size_t Distinct(const TestServer::View& v) {
   return n;
 }
 
+// The gateway under test: this build's, or the command in LW_GATEWAY_UNDER_TEST (words split on
+// spaces; the arm64 build runs its gateway through qemu-user this way).
+std::vector<std::string> GatewayCommand() {
+  const char* under_test = std::getenv("LW_GATEWAY_UNDER_TEST");
+  if (!under_test || !*under_test) return {LW_GATEWAY_BIN};
+  std::vector<std::string> words;
+  std::istringstream in(under_test);
+  for (std::string w; in >> w;) words.push_back(w);
+  return words;
+}
+
 Outcome RunScenario(bool persistence, Disruption disruption, bool tls_and_login = false) {
   lw::test::MosquittoFixture::Options broker_options;
   broker_options.persistence = persistence;
@@ -298,31 +310,31 @@ Outcome RunScenario(bool persistence, Disruption disruption, bool tls_and_login 
   SensorSite site;
   TestServer server(broker.uri(), tls_and_login ? broker.ca_file() : "", broker_options.username, broker_options.password);
   lw::test::ChildProcess gateway;
-  std::vector<std::string> args = {LW_GATEWAY_BIN,
-                                   "--serial",
-                                   site.slave_name(),
-                                   "--baud",
-                                   "115200",
-                                   "--api-mode",
-                                   "2",
-                                   "--broker",
-                                   broker.uri(),
-                                   "--site",
-                                   "s1",
-                                   "--crusher",
-                                   "c1",
-                                   "--spool",
-                                   dir.File("spool.db"),
-                                   "--gateway-id",
-                                   "gw-it",
-                                   "--republish-after",
-                                   "1.5",
-                                   "--stats-interval",
-                                   "0.3",
-                                   "--reconnect-min",
-                                   "0.1",
-                                   "--reconnect-max",
-                                   "0.5"};
+  std::vector<std::string> args = GatewayCommand();
+  args.insert(args.end(), {"--serial",
+                           site.slave_name(),
+                           "--baud",
+                           "115200",
+                           "--api-mode",
+                           "2",
+                           "--broker",
+                           broker.uri(),
+                           "--site",
+                           "s1",
+                           "--crusher",
+                           "c1",
+                           "--spool",
+                           dir.File("spool.db"),
+                           "--gateway-id",
+                           "gw-it",
+                           "--republish-after",
+                           "1.5",
+                           "--stats-interval",
+                           "0.3",
+                           "--reconnect-min",
+                           "0.1",
+                           "--reconnect-max",
+                           "0.5"});
   if (tls_and_login) {
     args.insert(args.end(),
                 {"--tls-ca", broker.ca_file(), "--username", broker_options.username, "--password", broker_options.password});
