@@ -191,7 +191,8 @@ CampaignService::Outcome CampaignService::Reline(const std::string& crusher_id, 
     throw RelineError(422, "\"time\" " + when + " is not after the running campaign's start (" +
                                core::FormatIsoTime(FromUnix(closed.start_s)) + ")");
   }
-  if (time_s > now) throw RelineError(422, "\"time\" " + when + " is in the future (now " + core::FormatIsoTime(FromUnix(now)) + ")");
+  if (time_s > now)
+    throw RelineError(422, "\"time\" " + when + " is in the future (now " + core::FormatIsoTime(FromUnix(now)) + ")");
   CheckThickness(crusher->config, request.thickness_new_mm);
   CampaignRecord next;
   next.start_s = time_s;

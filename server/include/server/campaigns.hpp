@@ -40,7 +40,7 @@ class RelineError : public std::runtime_error {
 struct RelineRequest {
   core::TimePoint time{};
   double thickness_new_mm = 0;
-  std::string scan_xyz;                ///< the old liner's end-of-life scan; empty: none
+  std::string scan_xyz;                   ///< the old liner's end-of-life scan; empty: none
   std::optional<nlohmann::json> sensors;  ///< the new sensor layout (crusher.json sensor objects); nullopt: the same
 };
 /// Parses the JSON body. Throws RelineError naming the field.
