@@ -84,7 +84,7 @@ TEST(Campaigns, RelineKeepsHistoryAcrossRestartsAndWearUsesOnlyTheNewLiner) {
   {
     Api a(db);
     a.LoadAll();
-      LONGS_EQUAL(1, a.Campaigns().size());
+    LONGS_EQUAL(1, a.Campaigns().size());
     auto [status, made] = a.Reline({{"time", Day(12)}, {"thickness_new_mm", fresh}, {"scan_xyz", "0 0 1\n0.1 0 1.2\n"}});
     LONGS_EQUAL_TEXT(201, status, made.dump().c_str());
     DOUBLES_EQUAL(fresh, made["thickness_new_mm"].get<double>(), 1e-9);
