@@ -167,6 +167,52 @@ bool CrusherConfig::OfThisLiner(const std::string& sensor_id, TimePoint t, doubl
   return thickness_mm >= (s ? s->thickness_new_mm : thickness_new_mm) - kSlackWearMm;
 }
 
+void ParseSensors(const nlohmann::json& sensors, const std::string& file, CrusherConfig* config) {
+  if (!sensors.is_array()) throw InputError(file, 0, "\"sensors\" array is required");
+  CrusherConfig& c = *config;
+  c.sensors.clear();
+  for (const auto& s : sensors) {
+    if (!s.is_object()) throw InputError(file, 0, "each sensor must be a JSON object");
+    SensorInfo si;
+    if (s.contains("id") && s["id"].is_number_integer())
+      si.id = std::to_string(s["id"].get<long long>());
+    else
+      si.id = Get<std::string>(s, "id", "a sensor", file);
+    CheckIdentifier(si.id, "sensor id", file);
+    const std::string where = "sensor '" + si.id + "'";
+    si.row = Get<std::string>(s, "row", where, file);
+    si.z_m = Get<double>(s, "z_m", where, file);
+    si.theta_deg = Get<double>(s, "theta_deg", where, file);
+    si.thickness_new_mm = s.contains("thickness_new_mm") ? Get<double>(s, "thickness_new_mm", where, file) : c.thickness_new_mm;
+    if (s.contains("address")) {
+      const std::string a = Get<std::string>(s, "address", where, file);
+      try {
+        size_t used = 0;
+        si.address = std::stoull(a, &used, 16);
+        if (used != a.size()) throw std::invalid_argument("hex");
+      } catch (const std::exception&) {
+        throw InputError(file, 0, where + " address '" + a + "' is not a 64-bit hex number");
+      }
+    }
+    if (c.RowIndex(si.row) < 0) throw InputError(file, 0, where + " names row '" + si.row + "' that is not in concave.rows");
+    if (c.FindSensor(si.id)) throw InputError(file, 0, where + " is listed twice");
+    if (!(si.thickness_new_mm > 0) || si.thickness_new_mm > kMaxThicknessMm) {
+      throw InputError(file, 0,
+                       where + " thickness_new_mm must be in (0, " + std::to_string(static_cast<int>(kMaxThicknessMm)) + "]");
+    }
+    const Row& row = c.rows[static_cast<size_t>(c.RowIndex(si.row))];
+    if (si.z_m < row.z_min_m || si.z_m > row.z_max_m) {
+      throw InputError(file, 0,
+                       where + " z_m " + std::to_string(si.z_m) + " is outside its row '" + row.name + "' [" +
+                           std::to_string(row.z_min_m) + ", " + std::to_string(row.z_max_m) + "] m");
+    }
+    if (!(si.theta_deg >= -360 && si.theta_deg <= 360)) {
+      throw InputError(file, 0, where + " theta_deg " + std::to_string(si.theta_deg) + " is outside [-360, 360]");
+    }
+    c.sensors.push_back(si);
+  }
+}
+
 CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
   const std::string file = path.filename().string();
   std::ifstream in(path);
@@ -223,46 +269,8 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
     }
     c.rows.push_back(row);
   }
-  if (!j.contains("sensors") || !j["sensors"].is_array()) throw InputError(file, 0, "\"sensors\" array is required");
-  for (const auto& s : j["sensors"]) {
-    SensorInfo si;
-    if (s.contains("id") && s["id"].is_number_integer())
-      si.id = std::to_string(s["id"].get<long long>());
-    else
-      si.id = Get<std::string>(s, "id", "a sensor", file);
-    CheckIdentifier(si.id, "sensor id", file);
-    const std::string where = "sensor '" + si.id + "'";
-    si.row = Get<std::string>(s, "row", where, file);
-    si.z_m = Get<double>(s, "z_m", where, file);
-    si.theta_deg = Get<double>(s, "theta_deg", where, file);
-    si.thickness_new_mm = s.contains("thickness_new_mm") ? Get<double>(s, "thickness_new_mm", where, file) : c.thickness_new_mm;
-    if (s.contains("address")) {
-      const std::string a = Get<std::string>(s, "address", where, file);
-      try {
-        size_t used = 0;
-        si.address = std::stoull(a, &used, 16);
-        if (used != a.size()) throw std::invalid_argument("hex");
-      } catch (const std::exception&) {
-        throw InputError(file, 0, where + " address '" + a + "' is not a 64-bit hex number");
-      }
-    }
-    if (c.RowIndex(si.row) < 0) throw InputError(file, 0, where + " names row '" + si.row + "' that is not in concave.rows");
-    if (c.FindSensor(si.id)) throw InputError(file, 0, where + " is listed twice");
-    if (!(si.thickness_new_mm > 0) || si.thickness_new_mm > kMaxThicknessMm) {
-      throw InputError(file, 0,
-                       where + " thickness_new_mm must be in (0, " + std::to_string(static_cast<int>(kMaxThicknessMm)) + "]");
-    }
-    const Row& row = c.rows[static_cast<size_t>(c.RowIndex(si.row))];
-    if (si.z_m < row.z_min_m || si.z_m > row.z_max_m) {
-      throw InputError(file, 0,
-                       where + " z_m " + std::to_string(si.z_m) + " is outside its row '" + row.name + "' [" +
-                           std::to_string(row.z_min_m) + ", " + std::to_string(row.z_max_m) + "] m");
-    }
-    if (!(si.theta_deg >= -360 && si.theta_deg <= 360)) {
-      throw InputError(file, 0, where + " theta_deg " + std::to_string(si.theta_deg) + " is outside [-360, 360]");
-    }
-    c.sensors.push_back(si);
-  }
+  if (!j.contains("sensors")) throw InputError(file, 0, "\"sensors\" array is required");
+  ParseSensors(j["sensors"], file, &c);
   if (j.contains("thinnest_area")) c.thinnest_area = ParseThinnestArea(j["thinnest_area"], c.thickness_new_mm, file);
   return c;
 }
@@ -335,17 +343,9 @@ std::vector<OperationsSample> LoadOperations(const std::filesystem::path& path) 
   return out;
 }
 
-Scan LoadScan(const std::filesystem::path& path) {
-  const std::string file = "scans/" + path.filename().string();
-  static const std::regex kName(R"(scan_(\d{4}-\d{2}-\d{2})\.xyz)");
-  std::smatch m;
-  const std::string name = path.filename().string();
-  if (!std::regex_match(name, m, kName)) throw InputError(file, 0, "scan file name must be scan_YYYY-MM-DD.xyz");
-  Scan s;
-  s.file = file;
-  s.date = ParseTime(m[1].str(), file, 0, "file name date");
-  std::ifstream in(path);
-  if (!in) throw InputError(file, 0, "cannot open '" + path.string() + "'");
+std::vector<Eigen::Vector3d> ParseScanPoints(const std::string& text, const std::string& file) {
+  std::vector<Eigen::Vector3d> points;
+  std::istringstream in(text);
   std::string line;
   size_t lineno = 0;
   while (std::getline(in, line)) {
@@ -357,9 +357,23 @@ Scan LoadScan(const std::filesystem::path& path) {
     if (!(ls >> x >> y >> z) || !std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) {
       throw InputError(file, lineno, "expected three finite numbers 'x y z' (metres)");
     }
-    s.points.emplace_back(x, y, z);
+    points.emplace_back(x, y, z);
   }
-  if (s.points.empty()) throw InputError(file, 0, "no points");
+  if (points.empty()) throw InputError(file, 0, "no points");
+  return points;
+}
+
+Scan LoadScan(const std::filesystem::path& path) {
+  const std::string file = "scans/" + path.filename().string();
+  static const std::regex kName(R"(scan_(\d{4}-\d{2}-\d{2})\.xyz)");
+  std::smatch m;
+  const std::string name = path.filename().string();
+  if (!std::regex_match(name, m, kName)) throw InputError(file, 0, "scan file name must be scan_YYYY-MM-DD.xyz");
+  Scan s;
+  s.file = file;
+  s.date = ParseTime(m[1].str(), file, 0, "file name date");
+  if (!std::filesystem::exists(path)) throw InputError(file, 0, "cannot open '" + path.string() + "'");
+  s.points = ParseScanPoints(ReadFile(path), file);
   return s;
 }
 

@@ -37,8 +37,6 @@ std::string Sha256Hex(const std::string& bytes) {
   return hex;
 }
 
-namespace {
-
 std::string ReadFile(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path.filename().string(), 0, "cannot open '" + path.string() + "'");
@@ -46,6 +44,8 @@ std::string ReadFile(const std::filesystem::path& path) {
   ss << in.rdbuf();
   return ss.str();
 }
+
+namespace {
 
 // Whitespace-separated tokens with their line numbers, read in place: a cursor over the text (a
 // million-face map is ~9 million tokens; one std::string each made the parse 10x slower). The

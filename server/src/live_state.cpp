@@ -78,11 +78,14 @@ void LiveState::AddLocked(CrusherLive& c, const StoredReading& r) {
 void LiveState::Add(const std::vector<StoredReading>& committed) {
   CrusherLive* c = nullptr;
   std::unique_lock<std::mutex> lock;
+  const std::string* id = nullptr;  // c's crusher id (the map's key: a reline never changes it)
   for (const StoredReading& r : committed) {
-    if (!c || r.crusher != c->crusher->config.crusher_id) {  // batches come mostly crusher by crusher
+    if (!c || r.crusher != *id) {  // batches come mostly crusher by crusher
       const auto it = crushers_.find(r.crusher);
       if (it == crushers_.end()) continue;
+      if (lock.owns_lock()) lock.unlock();
       c = &it->second;
+      id = &it->first;
       lock = std::unique_lock<std::mutex>(c->mutex);
     }
     if (c->loaded) AddLocked(*c, r);
@@ -99,6 +102,20 @@ void LiveState::Rebuild(Store& store) {
     live.window = std::move(c.window);
     live.loaded = true;
   }
+}
+
+void LiveState::Replace(const Crusher& crusher, Store& store) {
+  const auto it = crushers_.find(crusher.config.crusher_id);
+  if (it == crushers_.end()) return;
+  std::lock_guard<std::mutex> order(order_);
+  CrusherLive fresh(&crusher);
+  LoadFrom(store, crusher, fresh);
+  CrusherLive& live = it->second;
+  std::lock_guard<std::mutex> lock(live.mutex);
+  live.crusher = &crusher;
+  live.sensors = std::move(fresh.sensors);
+  live.window = std::move(fresh.window);
+  live.loaded = true;
 }
 
 void LiveState::LoadFrom(Store& store, const Crusher& crusher, CrusherLive& c) const {

@@ -1,6 +1,7 @@
 #include "server/openapi.hpp"
 
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "server/rest.hpp"
 
@@ -20,20 +21,35 @@ ordered_json Operation(const rest::Route& route) {
     params.push_back(
         {{"name", q.name}, {"in", "query"}, {"required", false}, {"description", q.description}, {"schema", {{"type", q.type}}}});
   }
+  const ordered_json object =
+      route.response_schema ? ordered_json::parse(route.response_schema) : ordered_json{{"type", "object"}};
   ordered_json content = ordered_json::object();
   for (const char* type : route.content_types) {
     const std::string t = type;
-    content[t] = {{"schema", t == "application/json" ? ordered_json{{"type", "object"}} : ordered_json{{"type", "string"}}}};
+    content[t] = {{"schema", t == "application/json" ? object : ordered_json{{"type", "string"}}}};
   }
-  return {{"summary", route.summary},
-          {"parameters", params},
-          {"responses",
-           {{route.ok_status, {{"description", "OK"}, {"content", content}}},
-            {"400", {{"$ref", "#/components/responses/Error"}}},
-            {"401", {{"$ref", "#/components/responses/Error"}}},
-            {"403", {{"$ref", "#/components/responses/Error"}}},
-            {"404", {{"$ref", "#/components/responses/Error"}}}}},
-          {"x-scope", rest::ScopeName(rest::RequiredScope(rest::MethodName(route.method), route.path))}};
+  ordered_json op = {{"summary", route.summary}, {"parameters", params}};
+  if (route.request_schema) {
+    op["requestBody"] = {{"required", true},
+                         {"content", {{"application/json", {{"schema", ordered_json::parse(route.request_schema)}}}}}};
+  }
+  ordered_json tail = {{"responses",
+                        {{route.ok_status, {{"description", "OK"}, {"content", content}}},
+                         {"400", {{"$ref", "#/components/responses/Error"}}},
+                         {"401", {{"$ref", "#/components/responses/Error"}}},
+                         {"403", {{"$ref", "#/components/responses/Error"}}},
+                         {"404", {{"$ref", "#/components/responses/Error"}}}}},
+                       {"x-scope", rest::ScopeName(rest::RequiredScope(rest::MethodName(route.method), route.path))}};
+  if (route.request_schema) {
+    // A body the route checks: 422 for a value that does not fit, 409 for a retry that differs;
+    // a retry of a stored one answers 200 with what it made.
+    if (std::string(route.ok_status) == "201")
+      tail["responses"]["200"] = {{"description", "Already stored"}, {"content", content}};
+    tail["responses"]["409"] = {{"$ref", "#/components/responses/Error"}};
+    tail["responses"]["422"] = {{"$ref", "#/components/responses/Error"}};
+  }
+  for (auto& [key, value] : tail.items()) op[key] = value;
+  return op;
 }
 
 }  // namespace

@@ -132,20 +132,43 @@ std::unique_ptr<Registry> Registry::Load(const std::filesystem::path& dir, std::
   return reg;
 }
 
+std::unique_ptr<Crusher> Registry::ForCampaign(const Crusher& base, core::CrusherConfig config) {
+  auto c = std::make_unique<Crusher>();
+  c->dir = base.dir;
+  c->validation = base.validation;
+  c->dem_summary = base.dem_summary;
+  c->config = std::move(config);
+  c->map = base.map;
+  core::CheckCrusherAgainstMap(c->config, c->map, "sensors");
+  c->plan = core::PrepareReconstruction(c->config, c->map, base.plan.model, base.plan.options);
+  for (const estimate::ModelScan& s : base.scans)
+    if (s.scan.date >= c->config.installed_at) c->scans.push_back(s);
+  return c;
+}
+
 const Crusher* Registry::Find(const std::string& crusher_id) const {
   const auto it = crushers_.find(crusher_id);
-  return it == crushers_.end() ? nullptr : it->second.get();
+  return it == crushers_.end() ? nullptr : it->second->current.load();
 }
 
 std::vector<const Crusher*> Registry::All() const {
   std::vector<const Crusher*> out;
-  for (const auto& [id, c] : crushers_) out.push_back(c.get());
+  for (const auto& [id, slot] : crushers_) out.push_back(slot->current.load());
   return out;
 }
 
 void Registry::Add(std::unique_ptr<Crusher> crusher) {
-  const std::string id = crusher->config.crusher_id;
-  crushers_[id] = std::move(crusher);
+  auto slot = std::make_unique<Slot>();
+  slot->current = crusher.get();
+  slot->models.push_back(std::move(crusher));
+  crushers_[slot->current.load()->config.crusher_id] = std::move(slot);
+}
+
+void Registry::Replace(std::unique_ptr<Crusher> crusher) {
+  Slot& slot = *crushers_.at(crusher->config.crusher_id);
+  std::lock_guard<std::mutex> lock(models_mutex_);
+  slot.current = crusher.get();
+  slot.models.push_back(std::move(crusher));
 }
 
 }  // namespace lw::server

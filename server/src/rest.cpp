@@ -166,6 +166,29 @@ std::optional<std::string> EventStream::Next(const std::function<bool()>& client
   return out;
 }
 
+/// OpenAPI schemas of the campaign routes (docs/campaigns.md).
+constexpr const char* kSensorSchema =
+    R"j({"type":"object","required":["id","row","z_m","theta_deg"],"properties":{"id":{"type":"string"},)j"
+    R"j("row":{"type":"string"},"z_m":{"type":"number"},"theta_deg":{"type":"number"},"thickness_new_mm":{"type":"number"},)j"
+    R"j("address":{"type":"string","description":"64-bit radio address, hex"}}})j";
+const std::string kRelineRequestSchema =
+    std::string(R"j({"type":"object","required":["time","thickness_new_mm"],"additionalProperties":false,"properties":{)j") +
+    R"j("time":{"type":"string","format":"date-time","description":"the reline: the old liner's end, the new one's start"},)j" +
+    R"j("thickness_new_mm":{"type":"number","description":"the new liner's thickness"},)j" +
+    R"j("scan_xyz":{"type":"string","description":"the old liner's end-of-life scan: one 'x y z' line per point (metres)"},)j" +
+    R"j("sensors":{"type":"array","minItems":1,"description":"the new sensor layout (default: the same, at the new thickness)","items":)j" +
+    kSensorSchema + "}}}";
+const std::string kCampaignSchema =
+    std::string(R"j({"type":"object","required":["start","end","thickness_new_mm","has_scan"],"properties":{)j") +
+    R"j("start":{"type":"string","format":"date-time"},"end":{"type":"string","format":"date-time","nullable":true},)j" +
+    R"j("running":{"type":"boolean"},"thickness_new_mm":{"type":"number"},"has_scan":{"type":"boolean"},)j" +
+    R"j("life_days":{"type":"number","description":"start to end (the running one: to now)"},"sensor_count":{"type":"integer"},)j" +
+    R"j("sensors":{"type":"array","items":)j" + kSensorSchema +
+    R"j(},"final_readings":{"type":"array","items":{"type":"object","properties":{"sensor":{"type":"string"},)j" +
+    R"j("time":{"type":"string","format":"date-time"},"thickness_mm":{"type":"number"},"seq":{"type":"integer"}}}}}})j";
+const std::string kCampaignListSchema =
+    R"j({"type":"object","required":["campaigns"],"properties":{"campaigns":{"type":"array","items":)j" + kCampaignSchema + "}}}";
+
 const std::vector<Route>& Resources::Routes() {
   static const std::vector<Route> routes = {
       {Method::kGet, "/healthz", "Liveness: database and broker state", {}, "200", &Resources::Health},
@@ -234,6 +257,27 @@ const std::vector<Route>& Resources::Routes() {
        {},
        "202",
        &Resources::StartDiagnosis},
+      {Method::kPost,
+       "/api/v1/crushers/{crusher}/relines",
+       "Reline: close the running liner campaign (its end-of-life scan and last readings kept) and start the next "
+       "(201; the same time again returns the campaign it started, 200)",
+       {},
+       "201",
+       &Resources::PostReline,
+       {"application/json"},
+       kMaxRelineBodyBytes,
+       kRelineRequestSchema.c_str(),
+       kCampaignSchema.c_str()},
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}/campaigns",
+       "The crusher's liner campaigns, oldest first (end null for the running one)",
+       {},
+       "200",
+       &Resources::CampaignList,
+       {"application/json"},
+       kSmallBodyBytes,
+       nullptr,
+       kCampaignListSchema.c_str()},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/events",
        "Server-Sent Events: `reading` and `wear` as they are committed",
@@ -609,6 +653,32 @@ Response Resources::StartDiagnosis(const Request& req) {
   if (!ctx_.diagnosis) return Error(503, "diagnosis is not available on this server");
   if (!ctx_.diagnosis->Start(c->config.crusher_id)) return Error(409, "a diagnosis is already running");
   return Json(202, {{"status", "running"}});
+}
+
+Response Resources::PostReline(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  if (!ctx_.campaigns) return Error(503, "campaigns are not available on this server");
+  CampaignService::Outcome out;
+  try {
+    out = ctx_.campaigns->Reline(c->config.crusher_id, ParseRelineBody(req.body));
+  } catch (const RelineError& e) {
+    return Error(e.status(), e.what());
+  }
+  if (out.created && ctx_.after_reline) ctx_.after_reline(c->config.crusher_id);
+  return Json(out.created ? 201 : 200, CampaignJson(out.campaign, ctx_.campaigns->Now()));
+}
+
+Response Resources::CampaignList(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  if (!ctx_.campaigns) return Error(503, "campaigns are not available on this server");
+  ordered_json list = ordered_json::array();
+  const int64_t now = ctx_.campaigns->Now();
+  for (const CampaignRecord& k : ctx_.campaigns->List(c->config.crusher_id)) list.push_back(CampaignJson(k, now));
+  return Json(200, {{"campaigns", std::move(list)}});
 }
 
 Response Resources::Events(const Request& req) {

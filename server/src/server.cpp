@@ -29,6 +29,7 @@
 #include "server/ingest.hpp"
 #include "server/live_state.hpp"
 #include "server/metrics.hpp"
+#include "server/campaigns.hpp"
 #include "server/registry.hpp"
 #include "server/store.hpp"
 #include "server/wear_service.hpp"
@@ -98,7 +99,7 @@ std::string StartApi(HttpApi& api, const ServerOptions& o) {
 /// the reason, take nothing from the broker (readings wait there and in the gateways' spools, none is
 /// acknowledged; REST writes get 503) and retry every few seconds. Returns true once the database
 /// opens for writing, false when stopped first. Any other failure to open is thrown as before.
-bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& stop, Logger& log, const Registry& registry,
+bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& stop, Logger& log, Registry& registry,
                              const TokenStore& tokens) {
   std::string reason;
   try {
@@ -120,6 +121,9 @@ bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& st
     }
   };
   std::unique_ptr<Store> read_store = open_read_only(true);
+  std::vector<std::string> applied;  // the running campaigns' models (docs/campaigns.md), read-only too
+  ApplyStoredCampaigns(registry, *read_store, &applied);
+  for (const std::string& line : applied) log(line);
   LiveState live(registry);
   live.Rebuild(*read_store);
   LockedStore read(std::move(read_store));
@@ -180,6 +184,13 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   const core::ExclusiveFileLock db_lock(o.db, false, "linerwatch-server (one server per --db)");
   Store write(o.db);
   LockedStore read(std::make_unique<Store>(o.db));
+  // Each crusher's running campaign (its relines, docs/campaigns.md) overrides crusher.json's
+  // installed_at, thickness and sensors, before anything reads the registry.
+  {
+    std::vector<std::string> applied;
+    ApplyStoredCampaigns(*registry, write, &applied);
+    for (const std::string& line : applied) log(line);
+  }
   // Per-crusher state (counts, latest readings, wear and forecast inputs), loaded once here and kept
   // up to date by the ingestor as it commits: no request or recompute reads all of a crusher's readings.
   // Each crusher's is loaded the first time it is asked for; the wear worker asks for all of them
@@ -196,6 +207,9 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   // The diagnosis loads every reading of a crusher: on its own connection, so REST reads do not wait for it.
   LockedStore diagnosis_store(std::make_unique<Store>(o.db));
   DiagnosisRunner diagnosis(*registry, diagnosis_store);
+  // Relines write campaigns and reload a crusher's state: on a connection of their own.
+  LockedStore campaign_store(std::make_unique<Store>(o.db));
+  CampaignService campaigns(*registry, campaign_store, live, wear, [&clock] { return clock.NowMs() / 1000; });
 
   std::mutex dirty_mutex;
   std::condition_variable dirty_cv;
@@ -254,6 +268,15 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     return j;
   };
   ctx.after_ingest = on_committed;
+  ctx.campaigns = &campaigns;
+  ctx.after_reline = [&](const std::string& crusher) {  // the new liner's wear, computed and published
+    metrics.WearChanged(crusher, WallMs());
+    {
+      std::lock_guard<std::mutex> lock(dirty_mutex);
+      dirty.insert(crusher);
+    }
+    dirty_cv.notify_one();
+  };
   HttpApi api(ctx);
   log("listening on " + StartApi(api, o) + " (REST /api/v1, dashboard " +
       (o.web_dir.empty() ? std::string("not built") : o.web_dir) + ")");

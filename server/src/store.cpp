@@ -19,7 +19,7 @@ using Db = core::sqlite::Database<std::runtime_error>;
 using Stmt = core::sqlite::Statement<std::runtime_error>;
 using Tx = core::sqlite::Transaction<std::runtime_error>;
 
-constexpr int kSchemaVersion = 2;
+constexpr int kSchemaVersion = 3;
 
 StoredReading Row(const Stmt& s) {
   StoredReading r;
@@ -103,7 +103,7 @@ struct Store::Impl {
   Db db;
   Stmt insert, existing, insert_rejected, latest, range, all, count, count_rejected, rejected_list, save_diag, load_diag;
   Stmt rejected_seen, rejected_oldest, rejected_delete, rejected_totals, meta_get, meta_add, sites_list, site_bind;
-  Stmt count_sensor, next_sensor, walk_up, walk_down, latest_of;
+  Stmt count_sensor, next_sensor, walk_up, walk_down, latest_of, campaigns_list, campaign_put;
   RejectedLimits limits;
   std::optional<std::pair<int64_t, int64_t>> rejected_size;  ///< (rows, bytes) of the rejected table
   Impl(const std::string& path, RejectedLimits l, bool read_only = false)
@@ -160,6 +160,14 @@ struct Store::Impl {
         latest_of(db,
                   "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, '' FROM readings"
                   " WHERE crusher=?1 AND sensor=?2 ORDER BY time DESC, seq DESC LIMIT 1"),
+        campaigns_list(db,
+                       "SELECT start, end, thickness_new_mm, sensors, final_scan, final_readings, created FROM campaigns"
+                       " WHERE crusher=?1 ORDER BY start"),
+        // A closed campaign that was stored when it began (its start is its key) gets its end here.
+        campaign_put(db,
+                     "INSERT INTO campaigns(crusher, start, end, thickness_new_mm, sensors, final_scan, final_readings, created)"
+                     " VALUES(?1,?2,?3,?4,?5,?6,?7,?8) ON CONFLICT(crusher, start) DO UPDATE SET end=?3, final_scan=?6,"
+                     " final_readings=?7"),
         limits(l) {}
 
   static void CheckVersion(const Db& db) {
@@ -221,6 +229,17 @@ struct Store::Impl {
           "CREATE TABLE IF NOT EXISTS crusher_sites (crusher TEXT PRIMARY KEY, site TEXT NOT NULL);"
           "CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value INTEGER NOT NULL);"
           "PRAGMA user_version=2;");
+      tx.Commit();
+    }
+    if (v < 3) {
+      // Version 3: liner campaigns (relines, docs/campaigns.md). end is NULL while a campaign runs;
+      // final_scan is the old liner's end-of-life scan text (NULL: none).
+      Tx tx(db);
+      db.Exec(
+          "CREATE TABLE IF NOT EXISTS campaigns (crusher TEXT NOT NULL, start INTEGER NOT NULL, end INTEGER,"
+          " thickness_new_mm REAL NOT NULL, sensors TEXT NOT NULL, final_scan TEXT, final_readings TEXT NOT NULL,"
+          " created INTEGER NOT NULL, PRIMARY KEY (crusher, start));"
+          "PRAGMA user_version=3;");
       tx.Commit();
     }
   }
@@ -450,6 +469,41 @@ std::vector<Rejected> Store::RejectedMessages(int limit) {
     out.push_back({im.rejected_list.Int(0), im.rejected_list.Text(1), im.rejected_list.Text(2), im.rejected_list.Text(3)});
   }
   return out;
+}
+
+std::vector<CampaignRecord> Store::Campaigns(const std::string& crusher) {
+  Impl& im = *impl_;
+  std::vector<CampaignRecord> out;
+  Stmt& s = im.campaigns_list;
+  InUse use_list(s);
+  s.Bind(1, crusher);
+  while (s.Step()) {
+    CampaignRecord c;
+    c.start_s = s.Int(0);
+    if (!s.IsNull(1)) c.end_s = s.Int(1);
+    c.thickness_new_mm = s.Real(2);
+    c.sensors_json = s.Text(3);
+    if (!s.IsNull(4)) c.final_scan = s.Text(4);
+    c.final_readings_json = s.Text(5);
+    c.created_s = s.Int(6);
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
+void Store::Reline(const std::string& crusher, const CampaignRecord& closed, const CampaignRecord& next) {
+  Impl& im = *impl_;
+  Tx tx(im.db);
+  for (const CampaignRecord* c : {&closed, &next}) {
+    Stmt& s = im.campaign_put;
+    InUse use_put(s);
+    s.Bind(1, crusher).Bind(2, c->start_s).Bind(4, c->thickness_new_mm).Bind(5, c->sensors_json);
+    if (c->end_s) s.Bind(3, *c->end_s);
+    if (!c->final_scan.empty()) s.Bind(6, c->final_scan);
+    s.Bind(7, c->final_readings_json).Bind(8, c->created_s);
+    s.Step();
+  }
+  tx.Commit();
 }
 
 void Store::SaveDiagnosis(const std::string& crusher, int64_t time_s, const std::string& json) {

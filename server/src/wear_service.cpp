@@ -284,6 +284,14 @@ void WearService::MarkChanged(const std::string& crusher) {
   ++entries_[crusher].version;
 }
 
+void WearService::Reset(const std::string& crusher) {
+  Entry& e = EntryOf(crusher);
+  std::lock_guard<std::mutex> compute(e.compute);  // a computation under way finishes first, then is dropped
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++e.version;
+  e.state = nullptr;
+}
+
 std::shared_ptr<const CrusherState> WearService::ComputeLocked(const Crusher& crusher, Entry& e) {
   int64_t version = 0;
   std::shared_ptr<const CrusherState> previous;  // the state published last: its dates hold within their band
@@ -307,7 +315,7 @@ std::shared_ptr<const CrusherState> WearService::Get(const std::string& crusher_
   if (!crusher) return nullptr;
   Entry& e = EntryOf(crusher_id);
   std::lock_guard<std::mutex> compute(e.compute);
-  return ComputeLocked(*crusher, e);
+  return ComputeLocked(*registry_.Find(crusher_id), e);  // the model of now: a reline may have replaced it meanwhile
 }
 
 std::shared_ptr<const CrusherState> WearService::Latest(const std::string& crusher_id) {
@@ -319,7 +327,7 @@ std::shared_ptr<const CrusherState> WearService::Latest(const std::string& crush
     if (e.state) return e.state;  // current, or the last one while new readings wait for the wear worker
   }
   std::lock_guard<std::mutex> compute(e.compute);  // never computed yet: the first computation
-  return ComputeLocked(*crusher, e);
+  return ComputeLocked(*registry_.Find(crusher_id), e);
 }
 
 }  // namespace lw::server

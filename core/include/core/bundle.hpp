@@ -3,6 +3,7 @@
 /// scans/scan_YYYY-MM-DD.xyz.
 #include <Eigen/Core>
 #include <filesystem>
+#include <nlohmann/json_fwd.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -98,12 +99,19 @@ struct Bundle {
 
 /// Parses crusher.json. Throws InputError (file, line, rule).
 CrusherConfig LoadCrusherConfig(const std::filesystem::path& path);
+/// crusher.json's "sensors" array into `config`'s sensors (replacing them), checked against its rows
+/// as LoadCrusherConfig checks them; a sensor without thickness_new_mm takes config's. Throws
+/// InputError naming `file` and the rule (a reline's new sensor layout is read by this too).
+void ParseSensors(const nlohmann::json& sensors, const std::string& file, CrusherConfig* config);
 /// Refuses (InputError naming `file`) rows and sensors outside the wear map's z extent.
 void CheckCrusherAgainstMap(const CrusherConfig& config, const WearMap& map, const std::string& file);
 /// Parses readings.csv (header time,sensor_id,thickness_mm; extra columns ignored).
 std::vector<Reading> LoadReadings(const std::filesystem::path& path);
 std::vector<OperationsSample> LoadOperations(const std::filesystem::path& path);
 Scan LoadScan(const std::filesystem::path& path);
+/// A scan file's text (`x y z` in metres per line, `#` comments, blank lines): its points. Throws
+/// InputError naming `file`, the line and the rule.
+std::vector<Eigen::Vector3d> ParseScanPoints(const std::string& text, const std::string& file);
 /// Every scans/*.xyz of a bundle or crusher folder, sorted by file name (none when there is no scans/).
 std::vector<Scan> LoadScans(const std::filesystem::path& dir);
 

@@ -27,6 +27,9 @@ class InputError : public std::runtime_error {
   std::string rule_;
 };
 
+/// A whole file's bytes. Throws InputError (the file name, "cannot open ...").
+std::string ReadFile(const std::filesystem::path& path);
+
 /// SHA-256 of `bytes` as 64 lower-case hex digits.
 std::string Sha256Hex(const std::string& bytes);
 

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "server/auth.hpp"
+#include "server/campaigns.hpp"
 #include "server/diagnosis_runner.hpp"
 #include "server/events.hpp"
 #include "server/ingest.hpp"
@@ -54,6 +55,7 @@ struct ApiContext {
   Ingestor* ingestor = nullptr;
   EventBus* events = nullptr;
   DiagnosisRunner* diagnosis = nullptr;  ///< may be null (diagnosis endpoints answer 503)
+  CampaignService* campaigns = nullptr;  ///< may be null (campaign endpoints answer 503)
   const TokenStore* tokens = nullptr;    ///< null or disabled: open API
   ServerMetrics* metrics = nullptr;      ///< null: GET /metrics answers 503 and requests are not counted
   std::filesystem::path web_dir;         ///< dashboard files served at / (empty: none)
@@ -65,6 +67,9 @@ struct ApiContext {
   /// handled one at a time, but it runs concurrently with whatever else commits readings (the
   /// server's MQTT loop).
   std::function<void(const IngestResult&)> after_ingest;
+  /// A reline of the crusher was stored (its new liner's wear is to be computed and published). Runs
+  /// on the HTTP worker thread that handled the POST, before the reply.
+  std::function<void(const std::string& crusher)> after_reline;
   HttpLimits limits;
   /// Host names (besides IP addresses and localhost) the API answers to: a request whose Host is
   /// anything else is refused (DNS rebinding). From --http's host and --allowed-hosts.

@@ -47,6 +47,11 @@ class LiveState {
   /// skip them (their load reads them from the database).
   void Add(const std::vector<StoredReading>& committed);
 
+  /// A reline made `crusher` the current model of its crusher_id (Registry::Replace): its state is
+  /// loaded again from `store` now, through the new model (only the new liner's readings count for
+  /// wear), with commits held off meanwhile (CommitGuard), so none is lost or counted twice.
+  void Replace(const Crusher& crusher, Store& store);
+
   /// As Store::LatestPerSensor (latest by time then seq, any flags; payload left empty), ordered
   /// by sensor. Empty for an unknown crusher.
   std::vector<Store::SensorSummary> LatestPerSensor(const std::string& crusher) const;
@@ -68,7 +73,7 @@ class LiveState {
   };
   struct CrusherLive {
     explicit CrusherLive(const Crusher* c) : crusher(c), window(*c) {}
-    const Crusher* crusher;
+    const Crusher* crusher;    ///< guarded by mutex (a reline replaces it)
     mutable std::mutex mutex;  ///< per crusher: copying one crusher's inputs never holds up another's
     bool loaded = false;       ///< guarded by mutex
     std::map<std::string, SensorCounts> sensors;

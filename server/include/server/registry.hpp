@@ -4,6 +4,7 @@
 /// export). Maps are validated and hashed on import; the reconstruction plan is prepared once.
 /// Laser scans in the folder's scans/ (scan_YYYY-MM-DD.xyz, docs/bundle.md) are projected onto the
 /// map's faces once, at load; live wear applies the latest one (docs/server.md).
+#include <atomic>
 #include <filesystem>
 #include <future>
 #include <map>
@@ -58,12 +59,30 @@ class Registry {
   static std::unique_ptr<Crusher> LoadCrusher(const std::filesystem::path& folder,
                                               const core::ReconstructionOptions& options = {}, MapModels* models = nullptr);
 
+  /// `base`'s crusher for another liner campaign (a reline, docs/campaigns.md): `config` (the folder's
+  /// with the campaign's installed_at, thickness and sensors) over base's map and map model, with
+  /// only base's scans dated from the campaign's start on (an older scan is a previous liner's).
+  /// Throws core::InputError naming "sensors" when a sensor lies off the map.
+  static std::unique_ptr<Crusher> ForCampaign(const Crusher& base, core::CrusherConfig config);
+
+  /// The crusher's current model: a pointer that stays valid for the registry's lifetime (a model
+  /// replaced by Replace() is kept, not freed). Safe to call while another thread calls Replace().
   const Crusher* Find(const std::string& crusher_id) const;
   std::vector<const Crusher*> All() const;
+  /// Before the registry is shared: a new crusher.
   void Add(std::unique_ptr<Crusher> crusher);
+  /// Makes `crusher` the current model of its (known) crusher_id; the one it replaces stays alive, so
+  /// pointers handed out before (a wear state computed on it) stay valid. Relines are rare: what
+  /// the kept models cost is a map copy per reline. Throws std::out_of_range for an unknown id.
+  void Replace(std::unique_ptr<Crusher> crusher);
 
  private:
-  std::map<std::string, std::unique_ptr<Crusher>> crushers_;
+  struct Slot {
+    std::atomic<const Crusher*> current{nullptr};
+    std::vector<std::unique_ptr<Crusher>> models;  ///< every model it had, the current last (guarded by models_mutex_)
+  };
+  std::map<std::string, std::unique_ptr<Slot>> crushers_;  ///< fixed once shared: only a slot's current changes
+  std::mutex models_mutex_;
 };
 
 }  // namespace lw::server

@@ -107,6 +107,8 @@ struct QueryDoc {
 
 /// A body limit for routes whose body is a small JSON document or nothing.
 inline constexpr uint64_t kSmallBodyBytes = 64 * 1024;
+/// A reline's body: its end-of-life scan may be a few hundred thousand points (~30 bytes a line).
+inline constexpr uint64_t kMaxRelineBodyBytes = 16u << 20;
 /// Readings one POST may carry.
 inline constexpr size_t kMaxPostedReadings = 10000;
 /// Bytes allowed for each posted reading: the largest reading the gateway encodes (every optional
@@ -129,6 +131,10 @@ struct Route {
   /// The largest request body the route accepts, checked as the head arrives (Content-Length) or
   /// as a chunked body arrives, before any of it is buffered: 413 beyond.
   uint64_t max_body_bytes = kSmallBodyBytes;
+  /// JSON schemas (OpenAPI, as JSON text) of the request body and the success response; null: a
+  /// body-less request, and a response of {"type": "object"}.
+  const char* request_schema = nullptr;
+  const char* response_schema = nullptr;
 };
 
 /// How a request's method and decoded path meet the route table: the HTTP front end answers 404
@@ -179,6 +185,8 @@ class Resources {
   Response Forecast(const Request&);
   Response Diagnosis(const Request&);
   Response StartDiagnosis(const Request&);
+  Response PostReline(const Request&);
+  Response CampaignList(const Request&);
   Response Events(const Request&);
   Response RejectedList(const Request&);
   Response WhoAmI(const Request&);

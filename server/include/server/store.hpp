@@ -67,6 +67,18 @@ std::string MakeCursor(int64_t time_s, int64_t seq);
 /// Reads a cursor back; throws std::invalid_argument ("cursor '...' is not one this server issued").
 void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq);
 
+/// One liner campaign of a crusher (docs/campaigns.md): from its start (the liner's installation) to
+/// its end (the reline that replaced it; none while it runs).
+struct CampaignRecord {
+  int64_t start_s = 0;
+  std::optional<int64_t> end_s;
+  double thickness_new_mm = 0;
+  std::string sensors_json;         ///< the campaign's sensors: a JSON array of crusher.json sensor objects
+  std::string final_scan;           ///< the liner's end-of-life scan (`x y z` text); empty: none
+  std::string final_readings_json;  ///< a JSON array of each sensor's last reading of the liner; "[]" while it runs
+  int64_t created_s = 0;            ///< when the server stored it
+};
+
 class Store {
  public:
   /// Opens (creating if needed) the database. Throws std::runtime_error naming the file on failure
@@ -122,6 +134,13 @@ class Store {
             const std::function<bool(const StoredReading&)>& visit);
   int64_t CountRejected();
   std::vector<Rejected> RejectedMessages(int limit);
+
+  /// The campaigns of `crusher` stored so far, oldest first (none before its first reline).
+  std::vector<CampaignRecord> Campaigns(const std::string& crusher);
+  /// A reline in ONE transaction: `closed` (the running campaign, with its end, final scan and final
+  /// readings) is stored or updated by its start, and `next` is stored. On any error nothing is
+  /// committed and std::runtime_error is thrown.
+  void Reline(const std::string& crusher, const CampaignRecord& closed, const CampaignRecord& next);
 
   void SaveDiagnosis(const std::string& crusher, int64_t time_s, const std::string& json);
   /// (time_s, json) of the latest diagnosis of `crusher`.

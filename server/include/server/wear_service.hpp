@@ -46,6 +46,9 @@ class WearService {
   WearService(const Registry& registry, const LiveState& live);
   /// Readings of `crusher` changed: the next Get() recomputes.
   void MarkChanged(const std::string& crusher);
+  /// `crusher` was relined: the next Get() recomputes on the new liner alone, without holding the
+  /// old liner's reline dates (no previous state), and Latest() waits for it.
+  void Reset(const std::string& crusher);
   /// Current state (recomputed if readings changed since; waits for a computation of this crusher
   /// already under way, never for another crusher's). nullptr for an unknown crusher.
   std::shared_ptr<const CrusherState> Get(const std::string& crusher);

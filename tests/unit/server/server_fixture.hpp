@@ -85,28 +85,37 @@ struct ServerParts {
   static constexpr const char* kWriteToken = "writer-secret";
 
   TempDirectory dir{"lw-api"};
+  std::string db_path;  ///< the database: in `dir`, or the one given (a restart on the same file)
   std::unique_ptr<server::Registry> registry;
-  server::Store write{dir.File("db.sqlite")};
-  server::LockedStore read{std::make_unique<server::Store>(dir.File("db.sqlite"))};
+  server::Store write{db_path};
+  server::LockedStore read{std::make_unique<server::Store>(db_path)};
+  server::LockedStore campaign_store{std::make_unique<server::Store>(db_path)};
   std::unique_ptr<server::LiveState> live;
   std::unique_ptr<server::Ingestor> ingestor;
   std::unique_ptr<server::WearService> wear;
   server::EventBus events;
   std::unique_ptr<server::DiagnosisRunner> diagnosis;
+  std::unique_ptr<server::CampaignService> campaigns;
+  std::vector<std::string> campaign_log;  ///< what ApplyStoredCampaigns did at "startup"
   server::TokenStore tokens;
   server::ApiContext ctx;
 
   /// `with_tokens`: tokens "reader" (kReadToken, read) and "writer" (kWriteToken, read and write).
   /// Readings posted through the API mark the wear changed and publish a `reading` event.
-  ServerParts(const std::string& crushers, bool with_tokens, const std::string& web_dir = "") {
+  /// `db`: the database file to open (empty: a fresh one in `dir`), as a server restarted on it would.
+  ServerParts(const std::string& crushers, bool with_tokens, const std::string& web_dir = "", const std::string& db = "")
+      : db_path(db.empty() ? dir.File("db.sqlite") : db) {
     std::vector<std::string> errors;
     registry = server::Registry::Load(crushers, &errors);
+    server::ApplyStoredCampaigns(*registry, write, &campaign_log);
     live = std::make_unique<server::LiveState>(*registry);
     read.With([&](server::Store& s) { live->Rebuild(s); });
     ingestor = std::make_unique<server::Ingestor>(
         write, *registry, [] { return int64_t{4'000'000'000}; }, live.get());
     wear = std::make_unique<server::WearService>(*registry, *live);
     diagnosis = std::make_unique<server::DiagnosisRunner>(*registry, read);
+    campaigns =
+        std::make_unique<server::CampaignService>(*registry, campaign_store, *live, *wear, [] { return int64_t{4'000'000'000}; });
     if (with_tokens) {
       tokens.Add({"reader", core::Sha256Hex(kReadToken), true, false});
       tokens.Add({"writer", core::Sha256Hex(kWriteToken), true, true});
@@ -118,6 +127,7 @@ struct ServerParts {
     ctx.ingestor = ingestor.get();
     ctx.events = &events;
     ctx.diagnosis = diagnosis.get();
+    ctx.campaigns = campaigns.get();
     ctx.tokens = &tokens;
     ctx.web_dir = web_dir;
     ctx.after_ingest = [this](const server::IngestResult& r) {

@@ -1,0 +1,89 @@
+#pragma once
+/// Liner campaigns (docs/campaigns.md): a reline closes the running campaign of a crusher (its end,
+/// liner life, end-of-life scan and each sensor's last reading) and starts the next, in the
+/// database, and the server goes on at once with the new liner's model: live wear, forecast and the
+/// stuck and stale rules read only the readings from the new campaign's start, with its thickness
+/// and its sensor layout. crusher.json stays the site's description (geometry, map, rows, minimum
+/// thickness); once a crusher has campaigns stored, the running one's installed_at, thickness_new_mm
+/// and sensors override crusher.json's.
+#include <cstdint>
+#include <functional>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/time.hpp"
+#include "server/live_state.hpp"
+#include "server/registry.hpp"
+#include "server/store.hpp"
+#include "server/wear_service.hpp"
+
+namespace lw::server {
+
+/// A refused reline: the HTTP status (400 malformed body, 409 conflicting retry, 422 invalid value,
+/// 500 not stored) and a message that names the field. Nothing was changed.
+class RelineError : public std::runtime_error {
+ public:
+  RelineError(int status, const std::string& message) : std::runtime_error(message), status_(status) {}
+  int status() const { return status_; }
+
+ private:
+  int status_;
+};
+
+/// The body of POST .../relines, parsed and checked for form (the values are checked against the
+/// crusher by CampaignService::Reline).
+struct RelineRequest {
+  core::TimePoint time{};
+  double thickness_new_mm = 0;
+  std::string scan_xyz;                   ///< the old liner's end-of-life scan; empty: none
+  std::optional<nlohmann::json> sensors;  ///< the new sensor layout (crusher.json sensor objects); nullopt: the same
+};
+/// Parses the JSON body. Throws RelineError naming the field.
+RelineRequest ParseRelineBody(std::string_view body);
+
+/// `base` (the crusher's configuration) for campaign `c`: its start as installed_at, its thickness
+/// and its sensors. Throws core::InputError naming "sensors" and the rule.
+core::CrusherConfig CampaignConfig(const core::CrusherConfig& base, const CampaignRecord& c);
+
+/// At startup, before the registry is shared: every crusher with stored campaigns gets its running
+/// campaign's model (Registry::ForCampaign). A campaign that no longer fits the crusher folder
+/// (a sensor off a new map) leaves crusher.json's in force; each line of what was done goes to `log`.
+void ApplyStoredCampaigns(Registry& registry, Store& store, std::vector<std::string>* log);
+
+/// One campaign as GET .../campaigns lists it (docs/campaigns.md); `now_s` gives the running one's life so far.
+nlohmann::ordered_json CampaignJson(const CampaignRecord& c, int64_t now_s);
+
+class CampaignService {
+ public:
+  /// `store` is a connection of the service's own (it writes campaigns); `now_s` the server's clock.
+  CampaignService(Registry& registry, LockedStore& store, LiveState& live, WearService& wear, std::function<int64_t()> now_s);
+
+  struct Outcome {
+    bool created = false;  ///< false: the same reline was stored before (a retry), `campaign` is that one
+    CampaignRecord campaign;
+  };
+  /// Relines `crusher_id` (known to the registry). Relines are handled one at a time. Throws
+  /// RelineError (nothing changed) on a value that does not fit the crusher.
+  Outcome Reline(const std::string& crusher_id, const RelineRequest& request);
+  /// Every campaign of the crusher, oldest first; before its first reline, the one crusher.json describes.
+  std::vector<CampaignRecord> List(const std::string& crusher_id);
+  int64_t Now() const { return now_s_(); }
+
+ private:
+  /// The crusher's stored campaigns, or the one crusher.json describes (not stored yet).
+  std::vector<CampaignRecord> CampaignsOf(Store& store, const Crusher& crusher) const;
+
+  Registry& registry_;
+  LockedStore& store_;
+  LiveState& live_;
+  WearService& wear_;
+  std::function<int64_t()> now_s_;
+  std::mutex reline_mutex_;
+};
+
+}  // namespace lw::server

@@ -1,0 +1,234 @@
+#include "server/campaigns.hpp"
+
+#include <chrono>
+#include <cmath>
+
+#include "core/bundle.hpp"
+#include "core/wear_map.hpp"
+#include "mqtt/messages.hpp"
+#include "server/ingest.hpp"
+
+namespace lw::server {
+namespace {
+
+using nlohmann::json;
+using nlohmann::ordered_json;
+
+int64_t Unix(core::TimePoint t) {
+  return t.time_since_epoch().count();
+}
+core::TimePoint FromUnix(int64_t s) {
+  return core::TimePoint(std::chrono::seconds(s));
+}
+
+/// `config`'s sensors as crusher.json sensor objects (core::CrusherConfigJson's, so they read back the same).
+json SensorsJson(const core::CrusherConfig& config) {
+  return json::parse(core::CrusherConfigJson(config))["sensors"];
+}
+
+/// The campaign crusher.json describes: before a crusher's first reline, its only one.
+CampaignRecord FolderCampaign(const core::CrusherConfig& config) {
+  CampaignRecord c;
+  c.start_s = Unix(config.installed_at);
+  c.thickness_new_mm = config.thickness_new_mm;
+  c.sensors_json = SensorsJson(config).dump();
+  c.final_readings_json = "[]";
+  return c;
+}
+
+/// Each sensor's last reading of the liner `config` describes, up to `end_s` (usable readings only:
+/// a fault or a previous liner's is not its last thickness), as a JSON array.
+std::string FinalReadings(Store& store, const core::CrusherConfig& config, int64_t end_s) {
+  json out = json::array();
+  for (const core::SensorInfo& s : config.sensors) {
+    std::optional<StoredReading> last;
+    store.Walk(config.crusher_id, s.id, Unix(config.LinerStart()), end_s, true, [&](const StoredReading& r) {
+      if (!UsableForWear(config, r)) return true;
+      last = r;
+      return false;
+    });
+    if (last) {
+      out.push_back({{"sensor", s.id},
+                     {"time", core::FormatIsoTime(FromUnix(last->time_s))},
+                     {"thickness_mm", last->thickness_mm},
+                     {"seq", last->seq}});
+    }
+  }
+  return out.dump();
+}
+
+/// Refuses a new liner thickness the crusher cannot have (422 naming thickness_new_mm).
+void CheckThickness(const core::CrusherConfig& config, double mm) {
+  const double band = config.thinnest_area.band_half_width_mm;
+  if (!std::isfinite(mm) || !(mm > config.thickness_min_mm) || mm > core::kMaxThicknessMm || mm < band) {
+    throw RelineError(422, "\"thickness_new_mm\" " + json(mm).dump() + " must be above the crusher's thickness_min_mm (" +
+                               json(config.thickness_min_mm).dump() + "), at least thinnest_area.band_half_width_mm (" +
+                               json(band).dump() + ") and at most " + json(core::kMaxThicknessMm).dump() + " mm");
+  }
+}
+
+}  // namespace
+
+RelineRequest ParseRelineBody(std::string_view text) {
+  if (mqtt::JsonNestingDepth(text) > 8) throw RelineError(400, "body is nested too deeply");
+  json body;
+  std::string error;
+  if (!mqtt::ParseJsonNamingField(text, &body, &error)) throw RelineError(400, "body is not valid JSON: " + error);
+  if (!body.is_object()) throw RelineError(400, "body must be a JSON object {\"time\", \"thickness_new_mm\", ...}");
+  for (const auto& [key, value] : body.items()) {
+    if (key != "time" && key != "thickness_new_mm" && key != "scan_xyz" && key != "sensors")
+      throw RelineError(400, "unknown field \"" + key + "\" (time, thickness_new_mm, scan_xyz, sensors)");
+  }
+  RelineRequest r;
+  if (!body.contains("time") || !body["time"].is_string()) throw RelineError(400, "\"time\" is required: an ISO-8601 UTC time");
+  const auto time = core::ParseIsoTime(body["time"].get<std::string>());
+  if (!time) throw RelineError(400, "\"time\" '" + body["time"].get<std::string>() + "' is not an ISO-8601 UTC time");
+  r.time = *time;
+  if (!body.contains("thickness_new_mm") || !body["thickness_new_mm"].is_number())
+    throw RelineError(400, "\"thickness_new_mm\" is required: the new liner's thickness in mm");
+  r.thickness_new_mm = body["thickness_new_mm"].get<double>();
+  if (body.contains("scan_xyz") && !body["scan_xyz"].is_null()) {
+    if (!body["scan_xyz"].is_string()) throw RelineError(400, "\"scan_xyz\" must be a string of 'x y z' lines");
+    r.scan_xyz = body["scan_xyz"].get<std::string>();
+    try {
+      core::ParseScanPoints(r.scan_xyz, "scan_xyz");
+    } catch (const core::InputError& e) {
+      throw RelineError(422, e.what());
+    }
+  }
+  if (body.contains("sensors") && !body["sensors"].is_null()) {
+    if (!body["sensors"].is_array() || body["sensors"].empty())
+      throw RelineError(400, "\"sensors\" must be a non-empty array of crusher.json sensor objects");
+    r.sensors = body["sensors"];
+  }
+  return r;
+}
+
+core::CrusherConfig CampaignConfig(const core::CrusherConfig& base, const CampaignRecord& c) {
+  core::CrusherConfig config = base;
+  config.installed_at = FromUnix(c.start_s);
+  config.thickness_new_mm = c.thickness_new_mm;
+  json sensors;
+  try {
+    sensors = json::parse(c.sensors_json);
+  } catch (const json::exception& e) {
+    throw core::InputError("sensors", 0, std::string("not valid JSON: ") + e.what());
+  }
+  core::ParseSensors(sensors, "sensors", &config);
+  return config;
+}
+
+void ApplyStoredCampaigns(Registry& registry, Store& store, std::vector<std::string>* log) {
+  for (const Crusher* c : registry.All()) {
+    const std::vector<CampaignRecord> stored = store.Campaigns(c->config.crusher_id);
+    if (stored.empty()) continue;
+    const CampaignRecord& running = stored.back();
+    const std::string id = c->config.crusher_id;
+    try {
+      registry.Replace(Registry::ForCampaign(*c, CampaignConfig(c->config, running)));
+      log->push_back("crusher " + id + ": campaign " + std::to_string(stored.size()) + " (from " +
+                     core::FormatIsoTime(FromUnix(running.start_s)) +
+                     ", the database's) sets installed_at, thickness_new_mm and sensors over crusher.json's");
+    } catch (const std::exception& e) {
+      log->push_back("crusher " + id + ": the database's running campaign does not fit the crusher folder (" + e.what() +
+                     "); crusher.json's installed_at, thickness_new_mm and sensors apply");
+    }
+  }
+}
+
+ordered_json CampaignJson(const CampaignRecord& c, int64_t now_s) {
+  const json sensors = json::parse(c.sensors_json, nullptr, false);
+  const json finals = json::parse(c.final_readings_json, nullptr, false);
+  const int64_t until = c.end_s ? *c.end_s : std::max(now_s, c.start_s);
+  ordered_json j = {{"start", core::FormatIsoTime(FromUnix(c.start_s))},
+                    {"end", c.end_s ? ordered_json(core::FormatIsoTime(FromUnix(*c.end_s))) : ordered_json(nullptr)},
+                    {"running", !c.end_s.has_value()},
+                    {"thickness_new_mm", c.thickness_new_mm},
+                    {"has_scan", !c.final_scan.empty()},
+                    {"life_days", std::round(static_cast<double>(until - c.start_s) / 864.0) / 100.0},
+                    {"sensor_count", sensors.is_array() ? sensors.size() : 0},
+                    {"sensors", sensors.is_array() ? sensors : json::array()},
+                    {"final_readings", finals.is_array() ? finals : json::array()}};
+  return j;
+}
+
+CampaignService::CampaignService(Registry& registry, LockedStore& store, LiveState& live, WearService& wear,
+                                 std::function<int64_t()> now_s)
+    : registry_(registry), store_(store), live_(live), wear_(wear), now_s_(std::move(now_s)) {}
+
+std::vector<CampaignRecord> CampaignService::CampaignsOf(Store& store, const Crusher& crusher) const {
+  std::vector<CampaignRecord> stored = store.Campaigns(crusher.config.crusher_id);
+  if (stored.empty()) stored.push_back(FolderCampaign(crusher.config));
+  return stored;
+}
+
+std::vector<CampaignRecord> CampaignService::List(const std::string& crusher_id) {
+  const Crusher* crusher = registry_.Find(crusher_id);
+  if (!crusher) return {};
+  return store_.With([&](Store& s) { return CampaignsOf(s, *crusher); });
+}
+
+CampaignService::Outcome CampaignService::Reline(const std::string& crusher_id, const RelineRequest& request) {
+  std::lock_guard<std::mutex> one_at_a_time(reline_mutex_);
+  const Crusher* crusher = registry_.Find(crusher_id);
+  if (!crusher) throw RelineError(404, "unknown crusher '" + crusher_id + "'");
+  const int64_t time_s = Unix(request.time), now = now_s_();
+  const std::string when = core::FormatIsoTime(request.time);
+  const std::vector<CampaignRecord> campaigns = store_.With([&](Store& s) { return CampaignsOf(s, *crusher); });
+  // A retry of a reline already stored (its time is the start of a campaign a reline began)
+  // returns that campaign: campaigns are keyed by (crusher, start).
+  for (size_t k = 1; k < campaigns.size(); ++k) {  // the first is the folder's: no reline started it
+    const CampaignRecord& c = campaigns[k];
+    if (c.start_s != time_s) continue;
+    if (std::fabs(c.thickness_new_mm - request.thickness_new_mm) > 1e-9) {
+      throw RelineError(409, "\"time\" " + when + " is the start of a campaign already stored with thickness_new_mm " +
+                                 json(c.thickness_new_mm).dump() + ", not " + json(request.thickness_new_mm).dump());
+    }
+    return {false, c};
+  }
+  CampaignRecord closed = campaigns.back();
+  if (time_s <= closed.start_s) {
+    throw RelineError(422, "\"time\" " + when + " is not after the running campaign's start (" +
+                               core::FormatIsoTime(FromUnix(closed.start_s)) + ")");
+  }
+  if (time_s > now)
+    throw RelineError(422, "\"time\" " + when + " is in the future (now " + core::FormatIsoTime(FromUnix(now)) + ")");
+  CheckThickness(crusher->config, request.thickness_new_mm);
+  CampaignRecord next;
+  next.start_s = time_s;
+  next.thickness_new_mm = request.thickness_new_mm;
+  json sensors = request.sensors ? *request.sensors : SensorsJson(crusher->config);
+  if (!request.sensors) {
+    for (json& s : sensors) s["thickness_new_mm"] = request.thickness_new_mm;  // the same boards' layout, a new liner
+  }
+  next.sensors_json = sensors.dump();
+  next.final_readings_json = "[]";
+  next.created_s = now;
+  std::unique_ptr<Crusher> model;
+  try {
+    core::CrusherConfig config = CampaignConfig(crusher->config, next);
+    next.sensors_json = SensorsJson(config).dump();  // as read: each sensor's thickness and id resolved
+    model = Registry::ForCampaign(*crusher, std::move(config));
+  } catch (const core::InputError& e) {
+    throw RelineError(422, std::string("\"sensors\": ") + e.rule());
+  }
+  closed.end_s = time_s;
+  closed.final_scan = request.scan_xyz;
+  if (closed.created_s == 0) closed.created_s = now;
+  store_.With([&](Store& s) {
+    closed.final_readings_json = FinalReadings(s, crusher->config, time_s);
+    try {
+      s.Reline(crusher_id, closed, next);
+    } catch (const std::exception& e) {
+      throw RelineError(500, std::string("not stored: ") + e.what());
+    }
+    // Stored: serve the new liner from now on (its readings only: the window is loaded again).
+    const Crusher& current = *model;
+    registry_.Replace(std::move(model));
+    live_.Replace(current, s);
+  });
+  wear_.Reset(crusher_id);
+  return {true, next};
+}
+
+}  // namespace lw::server
