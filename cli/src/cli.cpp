@@ -26,6 +26,7 @@
 #include "dem/runner.hpp"
 #include "diagnosis/diagnose.hpp"
 #include "estimate/estimate.hpp"
+#include "estimate/plan.hpp"
 
 namespace lw::cli {
 namespace {
@@ -77,6 +78,20 @@ const core::OptionTable& DemTable() {
   return table;
 }
 
+const core::OptionTable& PlanTable() {
+  static const core::OptionTable table(
+      {
+          Option::Whole("sensors", "K", 1, 10000, "how many sensors the next liner gets").Required(),
+          Option::Text("json", "OUT.json", "the plan as JSON (docs/plan.md)"),
+          Option::Number("edge-margin-m", "M", core::NumberRange{0, 10},
+                         "keep sensors M m inside each row's edges (default 0.1)"),
+          Option::Number("joint-clearance-deg", "D", core::NumberRange{0, 90},
+                         "keep sensors D degrees from concave.joints_theta_deg (default 5)"),
+      },
+      "CRUSHER_DIR", "bundle");
+  return table;
+}
+
 std::string Usage() {
   return "usage: linerwatch <command> [options]\n"
          "\n"
@@ -102,7 +117,14 @@ std::string Usage() {
          "      file), and build DIR/wear_map.vtk (wear over the steady, choke-fed span; wear_stderr from\n"
          "      K independent time windows; averaged stresses), wear_windows.vtk and dem_summary.json.\n"
          "      --install then copies them into CRUSHER_DIR (replacing its wear_map.vtk).\n" +
-         DemTable().Help(28, 6, false) +
+         DemTable().Help(28, 6, false) + "  plan CRUSHER_DIR " + PlanTable().Synopsis(19, 100) +
+         "\n"
+         "      Where to cast the next liner's K sensors (per row: z_m, theta_deg; inside each row by the margin,\n"
+         "      clear of concave.joints_theta_deg) so that the live wear's band at the reline point is narrowest,\n"
+         "      judged by the live wear's own band model on the DEM map's errors; compared with the crusher.json\n"
+         "      layout. With readings.csv (a running campaign) it also says how much a laser scan now would\n"
+         "      narrow the bands and the reline date (docs/plan.md).\n" +
+         PlanTable().Help(28, 6, false) +
          "\n"
          "options:\n"
          "  --config FILE   JSON object with the same options, e.g. {\"bundle\": \"b\", \"json\": \"out.json\",\n"
@@ -370,6 +392,50 @@ int Reconstruct(const std::vector<std::string>& args, std::ostream& out) {
   return 0;
 }
 
+/// A crusher folder (crusher.json, its map, scans/) with readings.csv when it has one: the plan's
+/// input. A folder with readings is a running campaign.
+core::Bundle LoadCrusherDir(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw BadInput(dir.string() + ": not a directory (a crusher folder holds crusher.json)");
+  if (!fs::is_regular_file(dir / "crusher.json", ec))
+    throw BadInput((dir / "crusher.json").string() + ": missing (a crusher folder holds crusher.json)");
+  if (fs::exists(dir / "readings.csv", ec)) return core::LoadBundle(dir);
+  core::Bundle b;
+  b.dir = dir;
+  b.crusher = core::LoadCrusherConfig(dir / "crusher.json");
+  fs::path map = dir / "wear_map.vtk";
+  if (!fs::exists(map, ec) && fs::exists(dir / "wear_map.csv", ec)) map = dir / "wear_map.csv";
+  if (!fs::exists(map, ec))
+    throw BadInput((dir / "wear_map.vtk").string() +
+                   ": missing (the plan needs the crusher's DEM wear map; linerwatch dem makes one)");
+  b.map = core::LoadWearMap(map, &b.map_validation);
+  core::CheckCrusherAgainstMap(b.crusher, b.map, "crusher.json");
+  b.scans = core::LoadScans(dir);
+  return b;
+}
+
+int Plan(const std::vector<std::string>& args, std::ostream& out) {
+  const Options o = Parse(PlanTable(), args);
+  if (!o.Has("bundle")) throw UsageError("plan needs CRUSHER_DIR (a folder with crusher.json and wear_map.vtk)");
+  if (o.Has("json")) CheckWritable(o.Get("json"), "json");
+  estimate::PlanOptions options;
+  options.sensors = o.parsed.Integer<size_t>("sensors", 0);
+  options.edge_margin_m = o.parsed.Number("edge-margin-m", options.edge_margin_m);
+  options.joint_clearance_deg = o.parsed.Number("joint-clearance-deg", options.joint_clearance_deg);
+  const core::Bundle bundle = LoadCrusherDir(o.Get("bundle"));
+  const std::unique_ptr<estimate::CrusherModel> model = estimate::CrusherModel::FromBundle(bundle);
+  estimate::SensorPlan plan;
+  try {
+    plan = estimate::PlanSensors(*model, options);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  if (!bundle.readings.empty()) plan.scan = estimate::AdviseScan(*model, estimate::SamplesOf(bundle.readings));
+  if (o.Has("json")) core::WriteFileAtomically(o.Get("json"), estimate::PlanJson(plan).dump(2) + "\n");
+  out << estimate::PlanText(plan);
+  return 0;
+}
+
 extern "C" void OnStopSignal(int) {
   dem::RequestStop();
 }
@@ -475,7 +541,7 @@ std::string OneLine(std::string s) {
 
 int RunCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   try {
-    if (args.empty()) throw UsageError("missing command (diagnose, reconstruct, dem); see --help");
+    if (args.empty()) throw UsageError("missing command (diagnose, reconstruct, dem, plan); see --help");
     const std::string& command = args[0];
     for (const auto& a : args) {
       if (a == "--help" || a == "-h") {
@@ -486,7 +552,8 @@ int RunCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (command == "diagnose") return Diagnose(args, out);
     if (command == "reconstruct") return Reconstruct(args, out);
     if (command == "dem") return Dem(args, out);
-    throw UsageError("unknown command '" + command + "' (diagnose, reconstruct, dem); see --help");
+    if (command == "plan") return Plan(args, out);
+    throw UsageError("unknown command '" + command + "' (diagnose, reconstruct, dem, plan); see --help");
   } catch (const core::ConfigFileError& e) {  // a bad --config file is bad input, not a usage error
     err << "linerwatch: " << OneLine(e.what()) << "\n";
     return 1;

@@ -269,6 +269,15 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
     }
     c.rows.push_back(row);
   }
+  if (cc.contains("joints_theta_deg")) {
+    c.joints_theta_deg = Get<std::vector<double>>(cc, "joints_theta_deg", "concave", file);
+    if (c.joints_theta_deg.size() > 360) throw InputError(file, 0, "concave.joints_theta_deg lists more than 360 joints");
+    for (double& t : c.joints_theta_deg) {
+      if (!std::isfinite(t) || t < -360.0 || t > 360.0)
+        throw InputError(file, 0, "concave.joints_theta_deg values must be angles in [-360, 360] degrees");
+      t = std::fmod(t + 360.0, 360.0);
+    }
+  }
   if (!j.contains("sensors")) throw InputError(file, 0, "\"sensors\" array is required");
   ParseSensors(j["sensors"], file, &c);
   if (j.contains("thinnest_area")) c.thinnest_area = ParseThinnestArea(j["thinnest_area"], c.thickness_new_mm, file);

@@ -19,6 +19,7 @@ std::string CrusherConfigJson(const CrusherConfig& c) {
   j["concave"] = {
       {"thickness_new_mm", c.thickness_new_mm}, {"thickness_min_mm", c.thickness_min_mm}, {"rows", nlohmann::json::array()}};
   for (const Row& r : c.rows) j["concave"]["rows"].push_back({{"name", r.name}, {"z_min_m", r.z_min_m}, {"z_max_m", r.z_max_m}});
+  if (!c.joints_theta_deg.empty()) j["concave"]["joints_theta_deg"] = c.joints_theta_deg;
   j["sensors"] = nlohmann::json::array();
   for (const SensorInfo& s : c.sensors) {
     nlohmann::json o = {

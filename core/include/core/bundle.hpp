@@ -49,6 +49,9 @@ struct CrusherConfig {
   double thickness_new_mm = 0;
   double thickness_min_mm = 0;
   std::vector<Row> rows;
+  /// crusher.json's optional concave.joints_theta_deg: the angles of the joints between the
+  /// concave's segments (degrees in [0, 360)), where no sensor can be cast (`linerwatch plan`).
+  std::vector<double> joints_theta_deg;
   std::vector<SensorInfo> sensors;
   ThinnestAreaConfig thinnest_area;
 

@@ -300,3 +300,55 @@ TEST(Linerwatch, ReconstructLeavesOutAPreviousLinersReadings) {
   CHECK(none.code != 0);
   CHECK_TEXT(OneLine(none.err) && none.err.find("previous liner") != std::string::npos, none.err.c_str());
 }
+
+// `plan BUNDLE --sensors K`: K positions, each inside its row; with as many sensors as crusher.json
+// has, the proposed layout's expected band is never wider than today's (today's layout is one of
+// the layouts the search starts from); the printout says the same figures.
+TEST(Linerwatch, PlanProposesKSensorsInsideTheirRowsNoWiderThanTodaysLayout) {
+  const fs::path b = Bundle();
+  const lw::core::CrusherConfig crusher = lw::core::LoadCrusherConfig(b / "crusher.json");
+  const size_t k = crusher.sensors.size();
+  const fs::path out = dir / "plan.json";
+  const Run r = Cli({"plan", b.string(), "--sensors", std::to_string(k), "--json", out.string()});
+  LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
+  const auto j = nlohmann::json::parse(Slurp(out));
+  LONGS_EQUAL(k, j.at("sensors").size());
+  for (const auto& s : j["sensors"]) {
+    const int row = crusher.RowIndex(s.at("row").get<std::string>());
+    CHECK_TEXT(row >= 0, s.dump().c_str());
+    const lw::core::Row& rr = crusher.rows[static_cast<size_t>(row)];
+    const double z = s.at("z_m").get<double>(), theta = s.at("theta_deg").get<double>();
+    CHECK_TEXT(z > rr.z_min_m && z < rr.z_max_m, s.dump().c_str());
+    CHECK_TEXT(theta >= 0 && theta < 360, s.dump().c_str());
+  }
+  const double current = j.at("expected_band_mm").at("current").get<double>();
+  const double proposed = j.at("expected_band_mm").at("proposed").get<double>();
+  CHECK_TEXT(proposed > 0 && proposed <= current + 1e-9, j["expected_band_mm"].dump().c_str());
+  char figure[32];
+  std::snprintf(figure, sizeof figure, "%.1f mm", proposed);
+  CHECK_TEXT(r.out.find(figure) != std::string::npos, r.out.c_str());
+}
+
+// Bad input: a one-line reason, a non-zero status and no --json file.
+TEST(Linerwatch, PlanRefusesBadInputWithOneLineAndNoOutput) {
+  const fs::path b = Bundle();
+  const fs::path out = dir / "plan.json";
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"plan", b.string(), "--sensors", "0", "--json", out.string()},
+        std::vector<std::string>{"plan", b.string(), "--sensors", "99999", "--json", out.string()},
+        std::vector<std::string>{"plan", (dir / "nothing-here").string(), "--sensors", "4", "--json", out.string()},
+        std::vector<std::string>{"plan", b.string(), "--json", out.string()}}) {
+    const Run r = Cli(args);
+    CHECK_TEXT(r.code != 0, args[2].c_str());
+    CHECK_TEXT(!r.err.empty() && std::count(r.err.begin(), r.err.end(), '\n') == 1, r.err.c_str());
+    CHECK_TEXT(!fs::exists(out), args[2].c_str());
+  }
+  // A crusher.json joint list that is not angles is refused naming the key.
+  auto cj = nlohmann::json::parse(Slurp(b / "crusher.json"));
+  cj["concave"]["joints_theta_deg"] = nlohmann::json::array({10.0, "north"});
+  std::ofstream(b / "crusher.json") << cj.dump(2);
+  const Run r = Cli({"plan", b.string(), "--sensors", "4", "--json", out.string()});
+  CHECK(r.code != 0);
+  CHECK_TEXT(r.err.find("joints_theta_deg") != std::string::npos, r.err.c_str());
+  CHECK(!fs::exists(out));
+}
