@@ -10,17 +10,12 @@
 #include <stdexcept>
 #include <unordered_map>
 
+#include "core/angles.hpp"
+
 namespace lw::core {
 namespace {
 
 constexpr double kDegToRad = M_PI / 180.0;
-
-double AngleDiffDeg(double a, double b) {
-  double d = std::fmod(a - b, 360.0);
-  if (d > 180.0) d -= 360.0;
-  if (d < -180.0) d += 360.0;
-  return d;
-}
 
 /// One sensor in its row's least-squares scale: the map's intensity at it and its sd, its wear.
 struct ScaleMember {

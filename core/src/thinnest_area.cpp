@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <map>
 
+#include "core/angles.hpp"
 #include "core/time.hpp"
 
 #include "core/surface_index.hpp"
@@ -16,13 +17,6 @@ namespace {
 
 constexpr double kDegToRad = M_PI / 180.0;
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
-
-double AngleDiffDeg(double a, double b) {
-  double d = std::fmod(a - b, 360.0);
-  if (d > 180.0) d -= 360.0;
-  if (d < -180.0) d += 360.0;
-  return d;
-}
 
 /// Per face: the three parts of its sd that combine
 /// differently over a patch (header): the row scale's, the smoothing's (both correlated), the

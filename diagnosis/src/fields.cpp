@@ -83,13 +83,6 @@ class UnwrappedIndex {
 
 }  // namespace
 
-double AngleDiffDeg(double a, double b) {
-  double d = std::fmod(a - b, 360.0);
-  if (d > 180.0) d -= 360.0;
-  if (d <= -180.0) d += 360.0;
-  return d;
-}
-
 int CellGrid::CellOf(double z, double theta_deg) const {
   const double fz = (z - z0) / dz;
   double rel = std::fmod(theta_deg - t0_deg + 720.0, 360.0);

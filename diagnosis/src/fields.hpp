@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "core/angles.hpp"
 #include "core/bundle.hpp"
 #include "core/map_model.hpp"
 
@@ -124,6 +125,6 @@ CellGrid BuildCellGrid(const core::WearMap& map, const MapFields& fields, size_t
 ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const CellGrid& grid, const core::Scan& scan,
                       double t_days, double thickness_new_mm);
 
-double AngleDiffDeg(double a, double b);  ///< signed a - b wrapped to (-180, 180]
+using core::AngleDiffDeg;  ///< signed a - b wrapped to (-180, 180]
 
 }  // namespace lw::diagnosis::detail

@@ -7,22 +7,17 @@
 #include <stdexcept>
 #include <tuple>
 
+#include "core/angles.hpp"
 #include "core/thinnest_area.hpp"
 #include "core/time.hpp"
 #include "estimate/estimate.hpp"
 
 namespace lw::estimate {
 namespace {
+using core::AngleDiffDeg;
 
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
 constexpr double kDegToRad = M_PI / 180.0;
-
-double AngleDiffDeg(double a, double b) {
-  double d = std::fmod(a - b, 360.0);
-  if (d > 180.0) d -= 360.0;
-  if (d < -180.0) d += 360.0;
-  return d;
-}
 
 /// Whether a sensor may sit at (row, z, theta): inside the row by the margin, clear of every joint.
 bool Allowed(const core::CrusherConfig& c, const core::Row& row, double z, double theta, const PlanOptions& o) {
