@@ -425,6 +425,38 @@ WearMap ParseCsv(const std::string& text, const std::string& file) {
   return map;
 }
 
+// Wear is a relative intensity, so its unit is free; but the map model squares and sums it over up
+// to millions of faces, which must stay finite and normal, and no DEM run gives one face more than
+// a trillion times the median face's wear: such a value is a corrupt export, and it would take over
+// every row's scale.
+constexpr double kMinWearScale = 1e-100, kMaxWearScale = 1e100, kMaxWearOverMedian = 1e12;
+
+void CheckWearScale(const Eigen::VectorXd& wear, const std::string& file) {
+  Eigen::Index top = 0;
+  const double max = wear.maxCoeff(&top);
+  char b[256];
+  if (max < kMinWearScale || max > kMaxWearScale) {
+    std::snprintf(b, sizeof b,
+                  "'wear' values reach %.3g, outside %.0e..%.0e: rescale the map (it is a relative intensity, any unit "
+                  "in that range scales the same)",
+                  max, kMinWearScale, kMaxWearScale);
+    throw InputError(file, 0, b);
+  }
+  std::vector<double> positive;
+  positive.reserve(static_cast<size_t>(wear.size()));
+  for (const double w : wear) {
+    if (w > 0) positive.push_back(w);
+  }
+  auto mid = positive.begin() + static_cast<std::ptrdiff_t>(positive.size() / 2);
+  std::nth_element(positive.begin(), mid, positive.end());
+  if (max > kMaxWearOverMedian * *mid) {
+    std::snprintf(b, sizeof b,
+                  "face %lld's 'wear' %.3g is more than %.0e times the median face's (%.3g): a corrupt value, not a hot spot",
+                  static_cast<long long>(top), max, kMaxWearOverMedian, *mid);
+    throw InputError(file, 0, b);
+  }
+}
+
 MapValidation Validate(WearMap& map) {
   MapValidation v;
   const auto n = static_cast<Eigen::Index>(map.face_count());
@@ -516,6 +548,9 @@ WearMap ParseWearMap(const std::string& text, const std::string& file, MapValida
   if (map.wear.size() != n)
     throw InputError(file, 0, "'wear' has " + std::to_string(map.wear.size()) + " values for " + std::to_string(n) + " faces");
   if (!(map.wear.maxCoeff() > 0)) throw InputError(file, 0, "every face has zero wear: the map cannot be scaled by the sensors");
+  CheckWearScale(map.wear, file);
+  if (map.has_wear_stderr() && map.wear_stderr.maxCoeff() > kMaxWearScale)
+    throw InputError(file, 0, "'wear_stderr' values beyond 1e+100: not on the scale of any 'wear'");
   map.ComputeGeometry();
   map.sha256 = Sha256Hex(text);
   MapValidation v = Validate(map);

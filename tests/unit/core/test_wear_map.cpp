@@ -132,13 +132,16 @@ TEST(WearMap, NumbersReadToTheSameDoubleAsStrtod) {
   text += "POLYGONS " + std::to_string(n) + " " + std::to_string(4 * n) + "\n";
   for (size_t i = 0; i < n; ++i)
     text += "3 " + std::to_string(i) + " " + std::to_string(i + 1) + " " + std::to_string(i + 2) + "\n";
+  // The spellings go in a stress array: `wear` itself must lie on a usable scale (its own test).
   text += "CELL_DATA " + std::to_string(n) + "\nSCALARS wear double 1\nLOOKUP_TABLE default\n";
+  for (size_t i = 0; i < n; ++i) text += "1\n";
+  text += "SCALARS normal_stress_average double 1\nLOOKUP_TABLE default\n";
   for (const std::string& w : spellings) text += w + "\n";
   dir.Write("n.vtk", text);
   const WearMap m = LoadWearMap(dir.path() / "n.vtk");
   for (size_t i = 0; i < n; ++i) {
     const double expected = std::strtod(spellings[i].c_str(), nullptr);
-    CHECK_TEXT(m.wear[static_cast<Eigen::Index>(i)] == expected, spellings[i].c_str());
+    CHECK_TEXT(m.normal_stress[static_cast<Eigen::Index>(i)] == expected, spellings[i].c_str());
   }
   // Beyond double's range, and not numbers at all: refused, naming the line.
   const std::string head = "# vtk DataFile Version 4.2\nmap\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n";
@@ -272,6 +275,41 @@ TEST(WearMap, ImplausibleMapsAreRefusedNotLoaded) {
   CHECK(m.find("neg.csv:3") != std::string::npos);
   m = message("far.csv", "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,5e3,1\n");
   CHECK(m.find("far.csv:2") != std::string::npos);
+}
+
+// Wear is relative, but not any number: a scale whose squares overflow or underflow, or one face a
+// trillion times the rest, would turn into a liner reported new or a false alarm downstream.
+TEST(WearMap, WearBeyondAUsableScaleOrOneCorruptFaceIsRefused) {
+  lw::test::TempDirectory dir;
+  WearMap m = Cone(24, 10);
+  const Eigen::VectorXd good = m.wear;
+  auto error_with = [&](const Eigen::VectorXd& wear) {
+    m.wear = wear;
+    WriteWearMapVtk(dir.path() / "m.vtk", m, {{"wear", &m.wear}});
+    try {
+      LoadWearMap(dir.path() / "m.vtk");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  std::string e = error_with(Eigen::VectorXd::Constant(good.size(), 1e308));
+  CHECK_TEXT(e.find("m.vtk: 'wear' values reach 1e+308, outside 1e-100..1e+100") != std::string::npos, e.c_str());
+  e = error_with(Eigen::VectorXd::Constant(good.size(), 1e-310));  // denormal: above zero, squares vanish
+  CHECK_TEXT(e.find("'wear' values reach 1e-310") != std::string::npos, e.c_str());
+  Eigen::VectorXd one = good;
+  one[7] = 1e308;
+  e = error_with(one);
+  CHECK_TEXT(e.find("outside") != std::string::npos, e.c_str());
+  one[7] = 1e30;
+  e = error_with(one);
+  CHECK_TEXT(e.find("face 7's 'wear' 1e+30 is more than 1e+12 times the median") != std::string::npos, e.c_str());
+  // Any unit in range loads, and a strong hot spot (a thousand times the median) is a hot spot.
+  STRCMP_EQUAL("", error_with(good * 1e-40).c_str());
+  STRCMP_EQUAL("", error_with(good * 1e40).c_str());
+  one = good;
+  one[7] = 1000 * good.maxCoeff();
+  STRCMP_EQUAL("", error_with(one).c_str());
 }
 
 TEST(WearMap, WearStderrAndTheTitlesWindowCountAreRead) {
