@@ -27,6 +27,7 @@
 #include "diagnosis/diagnose.hpp"
 #include "estimate/estimate.hpp"
 #include "estimate/plan.hpp"
+#include "remote.hpp"
 
 namespace lw::cli {
 namespace {
@@ -124,7 +125,7 @@ std::string Usage() {
          "      judged by the live wear's own band model on the DEM map's errors; compared with the crusher.json\n"
          "      layout. With readings.csv (a running campaign) it also says how much a laser scan now would\n"
          "      narrow the bands and the reline date (docs/plan.md).\n" +
-         PlanTable().Help(28, 6, false) +
+         PlanTable().Help(28, 6, false) + RemoteUsage(28, 6) +
          "\n"
          "options:\n"
          "  --config FILE   JSON object with the same options, e.g. {\"bundle\": \"b\", \"json\": \"out.json\",\n"
@@ -233,6 +234,12 @@ int Diagnose(const std::vector<std::string>& args, std::ostream& out) {
   return 0;
 }
 
+std::string Percent(double rel) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.0f %%", 100.0 * rel);
+  return b;
+}
+
 /// The per-row summary `linerwatch reconstruct` prints: the map model, the scan applied, the sensors
 /// left out, each row, the thinnest face and the thinnest areas the data support.
 void PrintReconstruction(const estimate::CrusherModel& model, const estimate::WearEstimate& est, std::ostream& out) {
@@ -246,8 +253,22 @@ void PrintReconstruction(const estimate::CrusherModel& model, const estimate::We
                 100.0 * m.smoothing_error_rel, m.outlier_faces);
   out << line;
   if (est.scan) {
-    const estimate::ModelScan& s = model.scans[est.scan->scan];
+    const estimate::ModelScan& s = model.ScanOf(*est.scan);
     const core::ScanCorrection& c = est.scan->correction;
+    if (const auto& p = est.scan->prior) {
+      // The previous liner's pattern stands in for a scan of this one: say how far it is trusted and why.
+      std::snprintf(line, sizeof line,
+                    "no scan of this liner: the prior is campaign %s's end-of-life scan; pattern change between campaigns "
+                    "taken as %.0f %% per face (%s)\n",
+                    model.prior->campaign.c_str(), 100.0 * p->change_rel,
+                    p->dof > 0
+                        ? ("this liner's sensors spread " + Percent(p->spread_prior_rel) + " around its pattern, " +
+                           Percent(p->spread_map_rel) + " around the DEM map's, " + std::to_string(p->sensors) +
+                           " sensors worn " + std::to_string(static_cast<int>(estimate::PriorCheck::kMinWearMm)) + " mm or more")
+                              .c_str()
+                        : "assumed: fewer than two sensors of a row have worn enough to compare");
+      out << line;
+    }
     if (c.detail.empty())
       std::snprintf(line, sizeof line,
                     "scan %s (%s): %zu of %zu points on the map, %zu faces corrected (%zu more from their neighbours), "
@@ -315,6 +336,7 @@ nlohmann::ordered_json ReconstructionJson(const estimate::CrusherModel& model, c
                      {"band_reaches_zero_faces", rec.maybe_worn_through_faces}};
   j["sensors_stale"] = est.stale;
   j["sensors_stuck"] = est.stuck;
+  j["scan"] = estimate::ScanJson(model, est.scan.get());
   j["map_model"] = {{"bandwidth_m", m.bandwidth_m},
                     {"bandwidth_arc_m", m.bandwidth_arc_m},
                     {"local_linear", m.local_linear},
@@ -541,7 +563,7 @@ std::string OneLine(std::string s) {
 
 int RunCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   try {
-    if (args.empty()) throw UsageError("missing command (diagnose, reconstruct, dem, plan); see --help");
+    if (args.empty()) throw UsageError("missing command (diagnose, reconstruct, dem, plan, reline, campaigns); see --help");
     const std::string& command = args[0];
     for (const auto& a : args) {
       if (a == "--help" || a == "-h") {
@@ -553,7 +575,9 @@ int RunCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (command == "reconstruct") return Reconstruct(args, out);
     if (command == "dem") return Dem(args, out);
     if (command == "plan") return Plan(args, out);
-    throw UsageError("unknown command '" + command + "' (diagnose, reconstruct, dem, plan); see --help");
+    if (command == "reline") return Reline(args, out);
+    if (command == "campaigns") return Campaigns(args, out);
+    throw UsageError("unknown command '" + command + "' (diagnose, reconstruct, dem, plan, reline, campaigns); see --help");
   } catch (const core::ConfigFileError& e) {  // a bad --config file is bad input, not a usage error
     err << "linerwatch: " << OneLine(e.what()) << "\n";
     return 1;

@@ -39,7 +39,18 @@ std::vector<std::string> SplitCsv(const std::string& line) {
   return out;
 }
 
+/// A value in a message: as short as it reads ("120", "119.5", "1e+308").
+std::string Number(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.10g", v);
+  return b;
+}
+
 double ParseNumber(const std::string& text, const std::string& file, size_t line, const std::string& column) {
+  // Decimal notation only: strtod also reads hex ("0x10" as 16), "inf" and "nan", none of which a
+  // sensor or a spreadsheet export means as a number.
+  if (text.find_first_not_of("+-.0123456789eE") != std::string::npos)
+    throw InputError(file, line, column + " '" + text + "' is not a number (decimal notation only, e.g. 119 or 1.2e2)");
   char* end = nullptr;
   const double v = std::strtod(text.c_str(), &end);
   if (text.empty() || end == text.c_str() || *end != '\0')
@@ -129,8 +140,8 @@ ThinnestAreaConfig ParseThinnestArea(const json& j, double thickness_new_mm, con
   return t;
 }
 
-/// Identifiers that become MQTT topic levels and are shown in the dashboard: 1-64 characters of
-/// letters, digits, '.', '_' and '-' (no '/', '+', '#', spaces, markup).
+}  // namespace
+
 void CheckIdentifier(const std::string& id, const std::string& what, const std::string& file) {
   const bool ok = !id.empty() && id.size() <= 64 && std::all_of(id.begin(), id.end(), [](char ch) {
     return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == '-';
@@ -139,8 +150,6 @@ void CheckIdentifier(const std::string& id, const std::string& what, const std::
     throw InputError(file, 0, what + " '" + id + "' must be 1-64 letters, digits, '.', '_' or '-' (it is an MQTT topic level)");
   }
 }
-
-}  // namespace
 
 const SensorInfo* CrusherConfig::FindSensor(const std::string& id) const {
   for (const auto& s : sensors) {
@@ -158,6 +167,13 @@ int CrusherConfig::RowIndex(const std::string& name) const {
 
 TimePoint CrusherConfig::LinerStart() const {
   return installed_at - std::chrono::days(1);
+}
+
+std::string ReadingThicknessError(const SensorInfo& sensor, double thickness_mm) {
+  const double max = sensor.thickness_new_mm + kReadingSlackMm;
+  if (std::isfinite(thickness_mm) && thickness_mm >= 0 && thickness_mm <= max) return "";
+  return Number(thickness_mm) + " is outside [0, " + Number(max) + "] (sensor '" + sensor.id + "': its thickness_new_mm " +
+         Number(sensor.thickness_new_mm) + " + " + Number(kReadingSlackMm) + " mm)";
 }
 
 bool CrusherConfig::OfThisLiner(const std::string& sensor_id, TimePoint t, double thickness_mm) const {
@@ -199,6 +215,14 @@ void ParseSensors(const nlohmann::json& sensors, const std::string& file, Crushe
     if (!(si.thickness_new_mm > 0) || si.thickness_new_mm > kMaxThicknessMm) {
       throw InputError(file, 0,
                        where + " thickness_new_mm must be in (0, " + std::to_string(static_cast<int>(kMaxThicknessMm)) + "]");
+    }
+    // A sensor cast into this liner is above the liner's minimum when new and no more than twice
+    // its nominal thickness: anything else is a units or copy mistake that would read as wear.
+    if (!(si.thickness_new_mm > c.thickness_min_mm) || si.thickness_new_mm > 2 * c.thickness_new_mm) {
+      throw InputError(file, 0,
+                       where + " thickness_new_mm " + Number(si.thickness_new_mm) + " must be above concave thickness_min_mm (" +
+                           Number(c.thickness_min_mm) + ") and at most twice concave thickness_new_mm (" +
+                           Number(c.thickness_new_mm) + ")");
     }
     const Row& row = c.rows[static_cast<size_t>(c.RowIndex(si.row))];
     if (si.z_m < row.z_min_m || si.z_m > row.z_max_m) {
@@ -386,6 +410,18 @@ Scan LoadScan(const std::filesystem::path& path) {
   return s;
 }
 
+namespace {
+/// Readings of `crusher`'s sensors with values they can give (LoadBundle's checks).
+void CheckReadings(const CrusherConfig& crusher, const std::vector<Reading>& readings, const std::string& file) {
+  for (const auto& r : readings) {
+    const SensorInfo* s = crusher.FindSensor(r.sensor_id);
+    if (!s) throw InputError(file, r.line, "sensor_id '" + r.sensor_id + "' is not a sensor in crusher.json");
+    const std::string error = ReadingThicknessError(*s, r.thickness_mm);
+    if (!error.empty()) throw InputError(file, r.line, "thickness_mm " + error);
+  }
+}
+}  // namespace
+
 Bundle LoadBundle(const std::filesystem::path& dir) {
   if (!std::filesystem::is_directory(dir)) throw InputError(dir.string(), 0, "bundle is not a directory");
   Bundle b;
@@ -398,15 +434,54 @@ Bundle LoadBundle(const std::filesystem::path& dir) {
   b.map = LoadWearMap(dir / "wear_map.vtk", &b.map_validation);
   CheckCrusherAgainstMap(b.crusher, b.map, "crusher.json");
   b.readings = LoadReadings(dir / "readings.csv");
-  // Every reading must name a known sensor.
-  for (const auto& r : b.readings) {
-    if (!b.crusher.FindSensor(r.sensor_id)) {
-      throw InputError("readings.csv", r.line, "sensor_id '" + r.sensor_id + "' is not a sensor in crusher.json");
-    }
-  }
+  // Every reading must name a known sensor and hold a value it can give (the server's rule).
+  CheckReadings(b.crusher, b.readings, "readings.csv");
   if (std::filesystem::exists(dir / "operations.csv")) b.operations = LoadOperations(dir / "operations.csv");
   b.scans = LoadScans(dir);
+  b.history = LoadHistory(dir, b.crusher, b.map);
   return b;
+}
+
+std::vector<PastCampaign> LoadHistory(const std::filesystem::path& dir, const CrusherConfig& current, const WearMap& map) {
+  namespace fs = std::filesystem;
+  std::vector<PastCampaign> out;
+  const fs::path root = dir / "history";
+  std::error_code ec;
+  if (!fs::exists(root, ec)) return out;
+  if (!fs::is_directory(root, ec)) throw InputError("history", 0, "is not a folder (it holds one folder per earlier campaign)");
+  std::vector<fs::path> folders;
+  for (const auto& e : fs::directory_iterator(root))
+    if (e.is_directory()) folders.push_back(e.path());
+  std::sort(folders.begin(), folders.end());
+  for (const fs::path& f : folders) {
+    PastCampaign p;
+    p.name = f.filename().string();
+    const std::string where = "history/" + p.name + "/";
+    try {
+      if (!fs::exists(f / "crusher.json")) throw InputError("crusher.json", 0, "required in every history folder is missing");
+      p.crusher = LoadCrusherConfig(f / "crusher.json");
+      CheckCrusherAgainstMap(p.crusher, map, "crusher.json");
+      if (p.crusher.crusher_id != current.crusher_id)
+        throw InputError("crusher.json", 0,
+                         "crusher_id '" + p.crusher.crusher_id + "' is not the bundle's '" + current.crusher_id +
+                             "' (history holds the same crusher's earlier liners)");
+      if (!(p.crusher.installed_at < current.installed_at))
+        throw InputError("crusher.json", 0,
+                         "installed_at " + FormatIsoTime(p.crusher.installed_at) + " is not before the bundle's " +
+                             FormatIsoTime(current.installed_at) + " (an earlier campaign)");
+      if (fs::exists(f / "readings.csv")) {
+        p.readings = LoadReadings(f / "readings.csv");
+        CheckReadings(p.crusher, p.readings, "readings.csv");
+      }
+      p.scans = LoadScans(f);
+    } catch (const InputError& e) {
+      throw InputError(where + e.file(), e.line(), e.rule());
+    }
+    out.push_back(std::move(p));
+  }
+  std::stable_sort(out.begin(), out.end(),
+                   [](const PastCampaign& a, const PastCampaign& b) { return a.crusher.installed_at < b.crusher.installed_at; });
+  return out;
 }
 
 std::vector<Scan> LoadScans(const std::filesystem::path& dir) {

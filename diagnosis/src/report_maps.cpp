@@ -195,7 +195,7 @@ void FillLinerReport(const core::Bundle& bundle, const MapFields& fields, const 
     const estimate::WearEstimate est = estimate::Estimate(*model, estimate::SamplesOf(used), liner.now);
     const core::Reconstruction& rec = est.reconstruction;
     const std::string with_scan = est.scan && est.scan->correction.detail.empty()
-                                      ? ", the map corrected by scan " + model->scans[est.scan->scan].scan.file
+                                      ? ", the map corrected by scan " + model->ScanOf(*est.scan).scan.file
                                       : std::string();
     if (rec.remaining_mm.size() == static_cast<Eigen::Index>(bundle.map.face_count())) {
       ThinnestPoint p;

@@ -1,6 +1,7 @@
 #include "estimate/estimate.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 
 namespace lw::estimate {
@@ -41,6 +42,37 @@ void Forecast(const CrusherModel& model, const std::vector<core::Reading>& usabl
 }
 
 }  // namespace
+
+nlohmann::ordered_json ScanJson(const CrusherModel& model, const ScannedPlan* scan) {
+  using nlohmann::ordered_json;
+  if (!scan) return nullptr;
+  const auto num = [](double v) {
+    return std::isfinite(v) ? ordered_json(std::round(v * 1000.0) / 1000.0) : ordered_json(nullptr);
+  };
+  const ModelScan& sc = model.ScanOf(*scan);
+  const core::ScanCorrection& k = scan->correction;
+  ordered_json j = {{"file", sc.scan.file},
+                    {"date", core::FormatIsoTime(sc.scan.date)},
+                    {"points_used", sc.faces.points_used},
+                    {"points_total", sc.faces.points_total},
+                    {"applied", k.detail.empty()}};
+  if (k.detail.empty()) {
+    j["faces_corrected"] = k.faces_corrected;
+    j["faces_filled"] = k.faces_filled;
+    j["median_ratio"] = num(k.median_ratio);
+    j["map_model_error_relative"] = num(k.map_model_error_rel);
+  } else {
+    j["detail"] = k.detail;
+  }
+  if (const auto& p = scan->prior) {
+    j["prior_campaign"] = model.prior->campaign;
+    j["pattern_change_relative"] = num(p->change_rel);
+    j["sensors_spread_prior_relative"] = num(p->spread_prior_rel);
+    j["sensors_spread_map_relative"] = num(p->spread_map_rel);
+    j["sensors_compared"] = p->sensors;
+  }
+  return j;
+}
 
 std::vector<Sample> SamplesOf(const std::vector<core::Reading>& readings) {
   std::vector<Sample> out;

@@ -65,9 +65,8 @@ Validation CheckReading(const Incoming& in, const std::optional<mqtt::ReadingMes
     return v;
   }
   const double thickness = m->thickness_mm;
-  if (!std::isfinite(thickness) || thickness < 0 || thickness > sensor->thickness_new_mm + 1.0) {
-    v.error = "\"thickness_mm\" " + nlohmann::json(thickness).dump() + " is outside [0, " +
-              std::to_string(sensor->thickness_new_mm + 1.0) + "]";
+  if (const std::string error = core::ReadingThicknessError(*sensor, thickness); !error.empty()) {
+    v.error = "\"thickness_mm\" " + error;
     return v;
   }
   StoredReading r;

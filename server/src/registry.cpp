@@ -132,7 +132,8 @@ std::unique_ptr<Registry> Registry::Load(const std::filesystem::path& dir, std::
   return reg;
 }
 
-std::unique_ptr<Crusher> Registry::ForCampaign(const Crusher& base, core::CrusherConfig config) {
+std::unique_ptr<Crusher> Registry::ForCampaign(const Crusher& base, core::CrusherConfig config,
+                                               const std::string& prior_scan_xyz) {
   auto c = std::make_unique<Crusher>();
   c->dir = base.dir;
   c->validation = base.validation;
@@ -143,6 +144,27 @@ std::unique_ptr<Crusher> Registry::ForCampaign(const Crusher& base, core::Crushe
   c->plan = core::PrepareReconstruction(c->config, c->map, base.plan.model, base.plan.options);
   for (const estimate::ModelScan& s : base.scans)
     if (s.scan.date >= c->config.installed_at) c->scans.push_back(s);
+  const std::string previous = "before " + core::FormatIsoTime(c->config.installed_at);
+  if (!prior_scan_xyz.empty()) {
+    core::Scan scan;
+    scan.date = c->config.installed_at;
+    scan.points = core::ParseScanPoints(prior_scan_xyz, "scan_xyz");
+    if (!c->SetPrior(previous, scan, "the reline's end-of-life scan (" + core::FormatIsoTime(scan.date) + ")"))
+      c->validation.warnings.push_back("the reline's end-of-life scan reaches none of the sensors: not used as the prior");
+  } else {
+    // The latest scan in scans/ of an earlier liner (its points are gone: loaded again from its file).
+    const estimate::ModelScan* last = nullptr;
+    for (const estimate::ModelScan& s : base.scans)
+      if (s.scan.date < c->config.installed_at) last = &s;
+    if (last) {
+      try {
+        if (!c->SetPrior(previous, core::LoadScan(base.dir / "scans" / last->scan.file), "scans/" + last->scan.file))
+          c->validation.warnings.push_back("scans/" + last->scan.file + " reaches none of the sensors: not used as the prior");
+      } catch (const std::exception& e) {
+        c->validation.warnings.push_back("scans/" + last->scan.file + ": " + e.what() + " (not used as the prior)");
+      }
+    }
+  }
   return c;
 }
 

@@ -15,6 +15,7 @@
 #include "core/wear_map.hpp"
 #include "mqtt/messages.hpp"
 #include "server/csv_export.hpp"
+#include "estimate/plan.hpp"
 #include "server/openapi.hpp"
 
 namespace lw::server::rest {
@@ -189,6 +190,18 @@ const std::string kCampaignSchema =
 const std::string kCampaignListSchema =
     R"j({"type":"object","required":["campaigns"],"properties":{"campaigns":{"type":"array","items":)j" + kCampaignSchema + "}}}";
 
+// linerwatch plan's JSON (docs/plan.md); numbers may be null where a band is not defined.
+const char* const kPlanSchema =
+    R"j({"type":"object","required":["sensors","expected_band_mm","liner_band_mm","rows","candidates","objective"],)j"
+    R"j("properties":{"sensors":{"type":"array","items":{"type":"object","required":["row","z_m","theta_deg"],)j"
+    R"j("properties":{"row":{"type":"string"},"z_m":{"type":"number"},"theta_deg":{"type":"number"},)j"
+    R"j("keeps":{"type":["string","null"]}}}},)j"
+    R"j("expected_band_mm":{"type":"object","properties":{"current":{"type":["number","null"]},"proposed":{"type":["number","null"]}}},)j"
+    R"j("liner_band_mm":{"type":"object","properties":{"current":{"type":["number","null"]},"proposed":{"type":["number","null"]}}},)j"
+    R"j("rows":{"type":"array","items":{"type":"object","required":["row","sensors","band_mm"]}},)j"
+    R"j("compared_on":{"type":"object"},"candidates":{"type":"integer"},"objective":{"type":"string"},)j"
+    R"j("scan_now":{"type":["object","null"]}}})j";
+
 const std::vector<Route>& Resources::Routes() {
   static const std::vector<Route> routes = {
       {Method::kGet, "/healthz", "Liveness: database and broker state", {}, "200", &Resources::Health},
@@ -278,6 +291,17 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        nullptr,
        kCampaignListSchema.c_str()},
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}/plan",
+       "Where to cast the next liner's sensors, the expected band of each layout, and what a scan now would do "
+       "(linerwatch plan, docs/plan.md)",
+       {{"sensors", "integer", "K, how many sensors the next liner gets (required, 1..1000)"}},
+       "200",
+       &Resources::Plan,
+       {"application/json"},
+       kSmallBodyBytes,
+       nullptr,
+       kPlanSchema},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/events",
        "Server-Sent Events: `reading` and `wear` as they are committed",
@@ -668,6 +692,30 @@ Response Resources::PostReline(const Request& req) {
   }
   if (out.created && ctx_.after_reline) ctx_.after_reline(c->config.crusher_id);
   return Json(out.created ? 201 : 200, CampaignJson(out.campaign, ctx_.campaigns->Now()));
+}
+
+Response Resources::Plan(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  int sensors = 0;
+  std::string message;
+  if (!FindParam(req.query, "sensors")) return Error(400, "sensors=K is required (how many sensors the next liner gets)");
+  if (!WholeNumberParam(req.query, "sensors", 1, 1000, &sensors, &message)) return Error(400, message);
+  estimate::PlanOptions options;
+  options.sensors = static_cast<size_t>(sensors);
+  estimate::SensorPlan plan;
+  try {
+    plan = estimate::PlanSensors(*c, options);
+  } catch (const std::invalid_argument& e) {  // more sensors than the rows have places for
+    return Error(422, e.what());
+  }
+  // The running campaign's stored readings: how much a scan now would narrow the bands.
+  const int64_t now = ctx_.ingestor->NowS();
+  const estimate::ReadingWindow window = ctx_.read->With([&](Store& s) { return LoadWindow(s, *c, now); });
+  const std::vector<estimate::Sample> readings = window.Readings();
+  if (!readings.empty()) plan.scan = estimate::AdviseScan(*c, readings);
+  return Json(200, estimate::PlanJson(plan));
 }
 
 Response Resources::CampaignList(const Request& req) {

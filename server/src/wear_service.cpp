@@ -140,26 +140,7 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
                     {"smoothing_error_relative", Round(m.smoothing_error_rel, 1e-3)},
                     {"outlier_faces_capped", m.outlier_faces},
                     {"windows", c.map.windows}};
-  if (st.scan) {
-    const estimate::ModelScan& sc = c.scans[st.scan->scan];
-    const core::ScanCorrection& k = st.scan->correction;
-    ordered_json scan = {{"file", sc.scan.file},
-                         {"date", core::FormatIsoTime(sc.scan.date)},
-                         {"points_used", sc.faces.points_used},
-                         {"points_total", sc.faces.points_total},
-                         {"applied", k.detail.empty()}};
-    if (k.detail.empty()) {
-      scan["faces_corrected"] = k.faces_corrected;
-      scan["faces_filled"] = k.faces_filled;
-      scan["median_ratio"] = Num(k.median_ratio, 1e-3);
-      scan["map_model_error_relative"] = Num(k.map_model_error_rel, 1e-3);
-    } else {
-      scan["detail"] = k.detail;
-    }
-    j["scan"] = scan;
-  } else {
-    j["scan"] = nullptr;
-  }
+  j["scan"] = estimate::ScanJson(c, st.scan.get());
   j["readings_used"] = ReadingsUsedJson(st);
   j["sensors_stale"] = st.stale;
   j["sensors_stuck"] = st.stuck;

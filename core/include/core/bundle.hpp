@@ -28,6 +28,19 @@ struct SensorInfo {
   std::optional<uint64_t> address;  ///< radio 64-bit address
 };
 
+/// Identifiers that become MQTT topic levels, URL path segments and dashboard text (crusher, site
+/// and sensor ids): 1-64 characters of letters, digits, '.', '_' and '-' (no '/', '+', '#',
+/// spaces, markup). Throws InputError naming `file`, `what` and the id.
+void CheckIdentifier(const std::string& id, const std::string& what, const std::string& file);
+
+/// The slack above a sensor's as-new thickness a reading may show (one ladder loop).
+inline constexpr double kReadingSlackMm = 1.0;
+/// The one rule on a reading's value, shared by the server's ingest and the offline tools'
+/// readings.csv: finite and in [0, the sensor's thickness_new_mm + kReadingSlackMm]. Returns the
+/// rule broken, for the caller to put after the field's name ("500 is outside [0, 121] (sensor ...)"),
+/// or "" when the value is one `sensor` can give.
+std::string ReadingThicknessError(const SensorInfo& sensor, double thickness_mm);
+
 /// crusher.json's optional "thinnest_area" (core/thinnest_area.hpp): the band target and the patch
 /// ladder of the thinnest area the data support, and how far a sensor's reach extends.
 struct ThinnestAreaConfig {
@@ -90,6 +103,16 @@ struct Scan {
   std::vector<Eigen::Vector3d> points;  ///< metres, crusher frame
 };
 
+/// An earlier liner campaign of the same crusher, from a bundle's `history/NAME/` folder: its
+/// crusher.json, readings.csv (optional) and scans/ (its end-of-life scan is the next liner's prior
+/// for the wear pattern, estimate/model.hpp). The crusher's map is the bundle's.
+struct PastCampaign {
+  std::string name;  ///< the folder's name
+  CrusherConfig crusher;
+  std::vector<Reading> readings;  ///< sorted as Bundle::readings
+  std::vector<Scan> scans;        ///< sorted by date
+};
+
 struct Bundle {
   std::filesystem::path dir;
   CrusherConfig crusher;
@@ -98,6 +121,7 @@ struct Bundle {
   std::vector<Reading> readings;             ///< sorted by (sensor_id, time); duplicates kept
   std::vector<OperationsSample> operations;  ///< sorted by time; empty when no operations.csv
   std::vector<Scan> scans;                   ///< sorted by date
+  std::vector<PastCampaign> history;         ///< earlier campaigns, oldest first (installed_at)
 };
 
 /// Parses crusher.json. Throws InputError (file, line, rule).
@@ -112,6 +136,9 @@ void CheckCrusherAgainstMap(const CrusherConfig& config, const WearMap& map, con
 std::vector<Reading> LoadReadings(const std::filesystem::path& path);
 std::vector<OperationsSample> LoadOperations(const std::filesystem::path& path);
 Scan LoadScan(const std::filesystem::path& path);
+/// A bundle's `history/*/` folders (none: empty), each checked as a bundle's own files are, of the
+/// same crusher_id as `current` and installed before it; errors name `history/NAME/FILE`.
+std::vector<PastCampaign> LoadHistory(const std::filesystem::path& dir, const CrusherConfig& current, const WearMap& map);
 /// A scan file's text (`x y z` in metres per line, `#` comments, blank lines): its points. Throws
 /// InputError naming `file`, the line and the rule.
 std::vector<Eigen::Vector3d> ParseScanPoints(const std::string& text, const std::string& file);

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "core/forecast.hpp"
 #include "core/reconstruction.hpp"
 #include "core/thinnest_area.hpp"
@@ -52,6 +54,11 @@ WearEstimate Estimate(const CrusherModel& model, const ReadingWindow& window, st
                       const EstimateOptions& options = {}, const WearEstimate* previous = nullptr);
 
 /// A bundle's readings as samples (seq: their line in readings.csv; no flags: a bundle holds no fault readings).
+/// The scan applied (`scan`, null: none) as the wear JSON's "scan" (docs/server.md): its file and
+/// date, points, faces corrected, and for an earlier campaign's prior the pattern check
+/// (docs/wear.md, *Earlier campaigns*); null when `scan` is.
+nlohmann::ordered_json ScanJson(const CrusherModel& model, const ScannedPlan* scan);
+
 std::vector<Sample> SamplesOf(const std::vector<core::Reading>& readings);
 
 }  // namespace lw::estimate

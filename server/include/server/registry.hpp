@@ -63,7 +63,11 @@ class Registry {
   /// with the campaign's installed_at, thickness and sensors) over base's map and map model, with
   /// only base's scans dated from the campaign's start on (an older scan is a previous liner's).
   /// Throws core::InputError naming "sensors" when a sensor lies off the map.
-  static std::unique_ptr<Crusher> ForCampaign(const Crusher& base, core::CrusherConfig config);
+  /// The previous liner's end-of-life scan (`prior_scan_xyz`, the reline's `scan_xyz`; empty: none)
+  /// becomes the new campaign's prior for the wear pattern (docs/wear.md, *Earlier campaigns*); without
+  /// one, the latest of base's scans dated before the campaign's start does.
+  static std::unique_ptr<Crusher> ForCampaign(const Crusher& base, core::CrusherConfig config,
+                                              const std::string& prior_scan_xyz = "");
 
   /// The crusher's current model: a pointer that stays valid for the registry's lifetime (a model
   /// replaced by Replace() is kept, not freed). Safe to call while another thread calls Replace().

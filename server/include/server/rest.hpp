@@ -187,6 +187,7 @@ class Resources {
   Response StartDiagnosis(const Request&);
   Response PostReline(const Request&);
   Response CampaignList(const Request&);
+  Response Plan(const Request&);
   Response Events(const Request&);
   Response RejectedList(const Request&);
   Response WhoAmI(const Request&);

@@ -4,6 +4,7 @@
 #include <CppUTest/TestHarness.h>
 
 using namespace lw::core;
+namespace fs = std::filesystem;
 
 namespace {
 std::string ErrorOf(const lw::test::TempDirectory& dir) {
@@ -66,6 +67,66 @@ TEST(Bundle, BadReadingsNameFileLineAndRule) {
   CHECK(ErrorOf(dir).find("outside") != std::string::npos);
 }
 
+// history/NAME/ holds the same crusher's earlier campaigns: loaded oldest first, each checked as the
+// bundle's own files are, errors naming history/NAME/FILE.
+TEST(Bundle, HistoryFoldersAreEarlierCampaignsOfTheSameCrusher) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n2026-01-02T00:00:00Z,1001,119\n");
+  auto old_json = [](const std::string& from, const std::string& to) {
+    std::string j = lw::test::kCrusherJson;
+    j.replace(j.find(from), from.size(), to);
+    return j;
+  };
+  const std::string installed = "\"installed_at\": \"2026-01-01T00:00:00Z\"";
+  dir.Write("history/b-2025/crusher.json", old_json(installed, "\"installed_at\": \"2025-06-01T00:00:00Z\""));
+  dir.Write("history/b-2025/readings.csv", "time,sensor_id,thickness_mm\n2025-07-01T00:00:00Z,1001,100\n");
+  dir.Write("history/b-2025/scans/scan_2025-12-30.xyz", "1 0 0.5\n");
+  dir.Write("history/a-2025/crusher.json", old_json(installed, "\"installed_at\": \"2025-01-01T00:00:00Z\""));
+  Bundle b = LoadBundle(dir.path());
+  LONGS_EQUAL(2, b.history.size());
+  STRCMP_EQUAL("a-2025", b.history[0].name.c_str());  // oldest first, by installed_at
+  STRCMP_EQUAL("b-2025", b.history[1].name.c_str());
+  LONGS_EQUAL(1, b.history[1].readings.size());
+  LONGS_EQUAL(1, b.history[1].scans.size());
+  LONGS_EQUAL(0, b.history[0].scans.size());
+
+  dir.Write("history/b-2025/readings.csv", "time,sensor_id,thickness_mm\n2025-07-01T00:00:00Z,1001,500\n");
+  std::string e = ErrorOf(dir);
+  CHECK_TEXT(e.find("history/b-2025/readings.csv:2: thickness_mm 500 is outside") != std::string::npos, e.c_str());
+  dir.Write("history/b-2025/readings.csv", "time,sensor_id\n");
+  CHECK(ErrorOf(dir).find("history/b-2025/readings.csv") != std::string::npos);
+  fs::remove(dir.path() / "history/b-2025/readings.csv");
+  dir.Write("history/a-2025/crusher.json", old_json("\"crusher_id\": \"cr1\"", "\"crusher_id\": \"cr9\""));
+  e = ErrorOf(dir);
+  CHECK_TEXT(e.find("history/a-2025/crusher.json: crusher_id 'cr9' is not the bundle's 'cr1'") != std::string::npos, e.c_str());
+  dir.Write("history/a-2025/crusher.json", lw::test::kCrusherJson);  // installed with the bundle's liner
+  e = ErrorOf(dir);
+  CHECK_TEXT(e.find("history/a-2025/crusher.json: installed_at 2026-01-01T00:00:00Z is not before") != std::string::npos,
+             e.c_str());
+  fs::remove(dir.path() / "history/a-2025/crusher.json");
+  e = ErrorOf(dir);
+  CHECK_TEXT(e.find("history/a-2025/crusher.json") != std::string::npos, e.c_str());
+}
+
+// The offline tools hold readings to the server's rule (ingest refuses the same values): no value
+// above what the sensor's ladder can read, nothing beyond decimal notation.
+TEST(Bundle, ReadingsTheServerRefusesAreRefusedByLineAndRule) {
+  const std::string head = "time,sensor_id,thickness_mm\n2026-01-02T00:00:00Z,1001,119\n";
+  for (const char* value : {"500", "1e308", "121.5"}) {
+    lw::test::WriteBundle(dir, head + "2026-01-03T00:00:00Z,1001," + value + "\n");
+    const std::string e = ErrorOf(dir);
+    CHECK_TEXT(e.find("readings.csv:3: thickness_mm") != std::string::npos, e.c_str());
+    CHECK_TEXT(e.find("is outside [0, 121] (sensor '1001'") != std::string::npos, e.c_str());
+  }
+  for (const char* value : {"0x10", "inf", "nan", "1e999"}) {
+    lw::test::WriteBundle(dir, head + "2026-01-03T00:00:00Z,1001," + value + "\n");
+    const std::string e = ErrorOf(dir);
+    CHECK_TEXT(e.find("readings.csv:3: thickness_mm '" + std::string(value) + "'") != std::string::npos, e.c_str());
+  }
+  // One ladder loop above the as-new thickness is a reading, as the server takes it.
+  lw::test::WriteBundle(dir, head + "2026-01-03T00:00:00Z,1001,121\n");
+  STRCMP_EQUAL("", ErrorOf(dir).c_str());
+}
+
 TEST(Bundle, BadCrusherJsonIsRefusedWithTheRule) {
   lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
   std::string j = lw::test::kCrusherJson;
@@ -126,6 +187,14 @@ TEST(Bundle, ImplausibleCrusherJsonIsRefused) {
         std::string::npos);
   CHECK(with("\"thickness_new_mm\": 120", "\"thickness_new_mm\": 1e999").find("crusher.json") != std::string::npos);
   CHECK(with("\"thickness_new_mm\": 120", "\"thickness_new_mm\": 120000").find("thickness") != std::string::npos);
+  // A sensor's own as-new thickness: above the liner's minimum, at most twice the liner's.
+  for (const char* t : {"500", "30", "10"}) {
+    const std::string e = with("\"id\": \"1001\"", std::string("\"id\": \"1001\", \"thickness_new_mm\": ") + t);
+    CHECK_TEXT(e.find("sensor '1001' thickness_new_mm " + std::string(t) + " must be above concave thickness_min_mm (30)") !=
+                   std::string::npos,
+               e.c_str());
+  }
+  STRCMP_EQUAL("", with("\"id\": \"1001\"", "\"id\": \"1001\", \"thickness_new_mm\": 140").c_str());
   // Rows and sensors must lie on the map (z in [0, 2] m here): a row at 40-50 m is a units mistake.
   std::string j = lw::test::kCrusherJson;
   j.replace(j.find("\"z_min_m\": 1.0, \"z_max_m\": 2.0"), 30, "\"z_min_m\": 40.0, \"z_max_m\": 50.0");

@@ -218,3 +218,32 @@ TEST(EstimateCallers, BadAtIsRefusedNamingIt) {
     }
   }
 }
+
+// GET .../plan?sensors=K is `linerwatch plan CRUSHER_DIR --sensors K --json` on the same folder and
+// readings: the same layout, bands and scan advice; a missing or out-of-range K is refused by name.
+TEST(EstimateCallers, RestPlanEqualsThePlanCommand) {
+  const auto plan = [](QueryParams query) {
+    rest::Request get;
+    get.path = {Folder().id()};
+    get.query = std::move(query);
+    return Server().resources->Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/plan"), get);
+  };
+  const rest::Response res = plan({{"sensors", "5"}});
+  LONGS_EQUAL_TEXT(200, res.status, res.json.dump().substr(0, 300).c_str());
+  lw::test::TempDirectory tmp{"lw-estimate-plan"};
+  const std::string out = tmp.File("plan.json");
+  const lw::test::CliRun r = lw::test::RunLinerwatch({"plan", Folder().folder, "--sensors", "5", "--json", out});
+  LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
+  std::ifstream in(out);
+  const json cli = json::parse(in);
+  LONGS_EQUAL(5, res.json["sensors"].size());
+  for (const char* key : {"sensors", "expected_band_mm", "liner_band_mm", "rows", "candidates", "scan_now"})
+    CHECK_TEXT(json::parse(res.json[key].dump()) == cli[key],
+               (std::string(key) + ": " + res.json[key].dump() + "\n" + cli[key].dump()).c_str());
+  CHECK(res.json["scan_now"].is_object());  // a running campaign: what a scan now would do
+  for (const QueryParams& bad : {QueryParams{}, QueryParams{{"sensors", "0"}}, QueryParams{{"sensors", "many"}}}) {
+    const rest::Response refused = plan(bad);
+    LONGS_EQUAL(400, refused.status);
+    CHECK(refused.json["error"].get<std::string>().find("sensors") != std::string::npos);
+  }
+}

@@ -1,13 +1,12 @@
 // Relines through the real HTTP server on loopback and a real SQLite file (docs/server.md).
 #include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <string>
 
 #include "core/time.hpp"
-#include "server/http_api.hpp"
-#include "unit/server/server_fixture.hpp"
-
-// After Eigen: <resolv.h> (via httplib) defines the macro _res, a parameter name inside Eigen.
-#include <httplib.h>
+#include "unit/server/http_fixture.hpp"
 
 #include <CppUTest/TestHarness.h>  // last: its leak-detection macros clash with std headers
 
@@ -16,37 +15,17 @@ using nlohmann::json;
 
 namespace {
 lw::test::CrusherFolder& Folder() {
-  static lw::test::CrusherFolder f(20, 11);
-  return f;
+  return lw::test::HttpFolder();
 }
 const char* kReadToken = lw::test::ServerParts::kReadToken;
 const char* kWriteToken = lw::test::ServerParts::kWriteToken;
 
-/// A real HttpApi on 127.0.0.1 over the database `db` (empty: a fresh one).
-struct Api {
-  lw::test::ServerParts parts;
-  std::unique_ptr<HttpApi> api;
-  int port = 0;
-  explicit Api(const std::string& db = "") : parts(Folder().crushers, true, "", db) {
-    api = std::make_unique<HttpApi>(parts.ctx);
-    port = api->Bind("127.0.0.1", 0);
-    api->Start();
-  }
-  ~Api() { api->Stop(); }
-  httplib::Client Client(const char* token = kWriteToken) {
-    httplib::Client c("127.0.0.1", port);
-    c.set_read_timeout(60, 0);
-    c.set_bearer_token_auth(token);
-    return c;
-  }
+/// The demo folder's server on 127.0.0.1 over the database `db` (empty: a fresh one), with tokens.
+struct Api : lw::test::LiveApi {
+  explicit Api(const std::string& db = "") : LiveApi(Folder().crushers, true, "", db) {}
+  httplib::Client Client(const char* token = kWriteToken) const { return LiveApi::Client(token); }
   std::string Base() const { return "/api/v1/crushers/" + Folder().id(); }
-  void LoadAll() {
-    json body = {{"readings", json::array()}};
-    for (const auto& m : lw::test::Messages(Folder().bundle)) body["readings"].push_back(json::parse(m.payload));
-    auto res = Client().Post(Base() + "/readings", body.dump(), "application/json");
-    CHECK(res);
-    LONGS_EQUAL(200, res->status);
-  }
+  void LoadAll() const { LONGS_EQUAL(200, PostReadings(Folder(), kWriteToken)); }
   /// POSTs a reline; returns (status, body).
   std::pair<int, json> Reline(const json& body, const char* token = kWriteToken) {
     auto res = Client(token).Post(Base() + "/relines", body.dump(), "application/json");
@@ -159,4 +138,53 @@ TEST(Campaigns, BadRelinesNameTheFieldAndChangeNothing) {
   auto [status, err] = a.Reline({{"time", Day(5)}, {"thickness_new_mm", t}}, kReadToken);
   LONGS_EQUAL(403, status);
   CHECK(a.Campaigns() == before);
+}
+
+// The old liner's end-of-life scan posted with the reline is the new liner's prior for the wear
+// pattern (docs/wear.md, *Earlier campaigns*), in the wear JSON's "scan", and still after a restart.
+TEST(Campaigns, TheRelinesEndOfLifeScanIsTheNewLinersPrior) {
+  const lw::core::WearMap& map = Folder().bundle.map;
+  // A worn surface: each face's centroid moved outward by a wear that grows towards the discharge.
+  std::string scan;
+  char line[96];
+  for (size_t i = 0; i < map.centroids.size(); ++i) {
+    const double wear_m = 0.001 * (10.0 + 40.0 * std::exp(-map.z[static_cast<Eigen::Index>(i)]));
+    const Eigen::Vector3d p = map.centroids[i] - wear_m * map.normals[i];
+    std::snprintf(line, sizeof line, "%.6f %.6f %.6f\n", p.x(), p.y(), p.z());
+    scan += line;
+  }
+  // The folder without its scan (a scan of the new liner would win over the prior).
+  lw::test::TempDirectory keep{"lw-campaigns-prior"};
+  const std::string db = keep.File("db.sqlite"), crushers = keep.File("crushers");
+  std::filesystem::create_directories(crushers + "/demo");
+  for (const char* file : {"crusher.json", "wear_map.vtk"})
+    std::filesystem::copy_file(Folder().folder + "/" + file, crushers + "/demo/" + file);
+  struct Served : lw::test::LiveApi {
+    Served(const std::string& dir, const std::string& db) : LiveApi(dir, true, "", db) {}
+    json Wear() const {
+      auto res = Client(kReadToken).Get("/api/v1/crushers/" + Folder().id() + "/wear?faces=false");
+      CHECK(res);
+      LONGS_EQUAL_TEXT(200, res->status, res->body.c_str());
+      return json::parse(res->body);
+    }
+  };
+  const auto check_prior = [](const json& wear) {
+    CHECK_TEXT(wear["scan"].is_object(), wear["scan"].dump().c_str());
+    CHECK_TEXT(wear["scan"].contains("prior_campaign"), wear["scan"].dump().c_str());
+    CHECK(wear["scan"]["applied"].get<bool>());
+    CHECK(wear["scan"]["file"].get<std::string>().find("the reline's end-of-life scan") != std::string::npos);
+    CHECK(wear["scan"]["pattern_change_relative"].get<double>() > 0);
+  };
+  {
+    Served a(crushers, db);
+    LONGS_EQUAL(200, a.PostReadings(Folder(), kWriteToken));
+    CHECK_TRUE(a.Wear()["scan"].is_null());  // no scan yet
+    const json body = {{"time", Day(12)}, {"thickness_new_mm", Folder().bundle.crusher.thickness_new_mm}, {"scan_xyz", scan}};
+    auto res = a.Client(kWriteToken).Post("/api/v1/crushers/" + Folder().id() + "/relines", body.dump(), "application/json");
+    CHECK(res);
+    LONGS_EQUAL_TEXT(201, res->status, res->body.c_str());
+    check_prior(a.Wear());
+  }
+  Served restarted(crushers, db);
+  check_prior(restarted.Wear());
 }

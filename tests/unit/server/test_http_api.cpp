@@ -13,10 +13,7 @@
 #include "server/http_api.hpp"
 #include "mqtt/messages.hpp"
 #include "server/rest.hpp"
-#include "unit/server/server_fixture.hpp"
-
-// After Eigen: <resolv.h> (via httplib) defines the macro _res, a parameter name inside Eigen.
-#include <httplib.h>
+#include "unit/server/http_fixture.hpp"
 
 #include <CppUTest/TestHarness.h>  // last: its leak-detection macros clash with std headers
 
@@ -25,43 +22,19 @@ using nlohmann::json;
 
 namespace {
 lw::test::CrusherFolder& Folder() {
-  static lw::test::CrusherFolder f(20, 11);
-  return f;
+  return lw::test::HttpFolder();
 }
 const char* kReadToken = lw::test::ServerParts::kReadToken;
 const char* kWriteToken = lw::test::ServerParts::kWriteToken;
 
-/// A server's worth of parts around a real HttpApi on 127.0.0.1 (any free port).
-struct Api {
-  lw::test::ServerParts parts;
+/// The demo folder's server on 127.0.0.1 (any free port).
+struct Api : lw::test::LiveApi {
   EventBus& events = parts.events;
-  std::unique_ptr<HttpApi> api;
-  int port = 0;
 
   explicit Api(bool with_tokens, const std::string& web_dir = "", const HttpLimits& limits = {})
-      : parts(Folder().crushers, with_tokens, web_dir) {
-    parts.ctx.limits = limits;
-    api = std::make_unique<HttpApi>(parts.ctx);
-    port = api->Bind("127.0.0.1", 0);
-    api->Start();
-  }
-  ~Api() { api->Stop(); }
-
-  httplib::Client Client(const char* token = nullptr) {
-    httplib::Client c("127.0.0.1", port);
-    c.set_read_timeout(60, 0);
-    if (token) c.set_bearer_token_auth(token);
-    return c;
-  }
+      : LiveApi(Folder().crushers, with_tokens, web_dir, "", limits) {}
   std::string Base() const { return "/api/v1/crushers/" + Folder().id(); }
-
-  void LoadAll(const char* token = nullptr) {
-    json body = {{"readings", json::array()}};
-    for (const auto& m : lw::test::Messages(Folder().bundle)) body["readings"].push_back(json::parse(m.payload));
-    auto res = Client(token).Post(Base() + "/readings", body.dump(), "application/json");
-    CHECK(res);
-    LONGS_EQUAL(200, res->status);
-  }
+  void LoadAll(const char* token = nullptr) const { LONGS_EQUAL(200, PostReadings(Folder(), token)); }
 };
 
 json Get(httplib::Client& c, const std::string& path, int expect = 200) {

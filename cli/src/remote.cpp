@@ -1,0 +1,236 @@
+#include "remote.hpp"
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <system_error>
+
+#include "core/atomic_file.hpp"
+#include "core/bundle.hpp"
+#include "core/cmdline.hpp"
+#include "core/time.hpp"
+
+// After nlohmann: <resolv.h> (via httplib) defines macros that clash with common names.
+#include <httplib.h>
+
+namespace lw::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using core::Option;
+using nlohmann::json;
+
+// The server's request body limit for a reline (server/rest.hpp kMaxRelineBodyBytes): a larger scan
+// is refused here, before anything is sent.
+constexpr uintmax_t kMaxScanBytes = 15u << 20;
+
+Option ServerOption() {
+  return Option::Text("server", "URL", "the linerwatch-server, e.g. http://127.0.0.1:8080 (https:// too)").Required();
+}
+Option CrusherOption() {
+  return Option::Text("crusher", "ID", "the crusher (its crusher.json crusher_id)").Required();
+}
+Option TokenOption() {
+  return Option::Text("token-file", "FILE",
+                      "bearer token (its first line) for a server run with --tokens;\n"
+                      "default: the LINERWATCH_TOKEN environment variable");
+}
+
+const core::OptionTable& RelineTable() {
+  static const core::OptionTable table({
+      ServerOption(),
+      CrusherOption(),
+      Option::Text("time", "TIME", "when the old liner came out and the new one went in").Required(),
+      Option::Number("thickness", "MM", core::NumberRange{0, core::kMaxThicknessMm, true, false},
+                     "the new liner's thickness (mm)")
+          .Required(),
+      Option::Text("scan", "FILE.xyz", "the old liner's end-of-life laser scan (x y z metres per line)"),
+      Option::Text("sensors", "FILE.json",
+                   "the new liner's sensors: a JSON array of crusher.json sensor objects\n"
+                   "(or {\"sensors\": [...]}); default: the same boards"),
+      TokenOption(),
+  });
+  return table;
+}
+
+const core::OptionTable& CampaignsTable() {
+  static const core::OptionTable table({
+      ServerOption(),
+      CrusherOption(),
+      TokenOption(),
+      Option::Text("json", "OUT.json", "the server's answer as JSON"),
+  });
+  return table;
+}
+
+/// A file's whole text; BadInput-style runtime_error naming the option and the file.
+std::string ReadFile(const std::string& path, const std::string& option, uintmax_t max_bytes) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw std::runtime_error("--" + option + ": " + path + " is not a file");
+  if (fs::file_size(path, ec) > max_bytes)
+    throw std::runtime_error("--" + option + ": " + path + " is larger than " + std::to_string(max_bytes >> 20) + " MiB");
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (!in) throw std::runtime_error("--" + option + ": cannot read " + path);
+  return text.str();
+}
+
+/// The token: --token-file's first line, else $LINERWATCH_TOKEN, else none. Tokens never go on the
+/// command line, where every user of the machine can read them.
+std::string TokenOf(const core::ParsedOptions& o) {
+  std::string token;
+  if (o.Has("token-file")) {
+    std::istringstream lines(ReadFile(o.Text("token-file"), "token-file", 64 << 10));
+    std::getline(lines, token);
+    while (!token.empty() && (token.back() == '\r' || token.back() == ' ' || token.back() == '\t')) token.pop_back();
+    if (token.empty()) throw std::runtime_error("--token-file: " + o.Text("token-file") + " has no token on its first line");
+  } else if (const char* env = std::getenv("LINERWATCH_TOKEN")) {
+    token = env;
+  }
+  return token;
+}
+
+/// A client for --server; the URL is checked here so a typo is a usage error, not a network one.
+struct Server {
+  std::string url;
+  std::unique_ptr<httplib::Client> client;
+
+  Server(const core::ParsedOptions& o) : url(o.Text("server")) {
+    while (!url.empty() && url.back() == '/') url.pop_back();
+    const bool http = url.rfind("http://", 0) == 0, https = url.rfind("https://", 0) == 0;
+    const size_t host = http ? 7 : 8;
+    if ((!http && !https) || url.size() <= host || url.find('/', host) != std::string::npos)
+      throw core::UsageError("--server: '" + o.Text("server") + "' is not http://HOST[:PORT] or https://HOST[:PORT]");
+    client = std::make_unique<httplib::Client>(url);
+    client->set_connection_timeout(10, 0);
+    client->set_read_timeout(120, 0);  // a reline re-applies the live wear before it answers
+    if (const std::string token = TokenOf(o); !token.empty()) client->set_bearer_token_auth(token);
+  }
+
+  /// The answer, or a runtime_error naming the server and what went wrong.
+  httplib::Result Check(httplib::Result res, const std::string& what) const {
+    if (!res) throw std::runtime_error("cannot reach " + url + " to " + what + ": " + httplib::to_string(res.error()));
+    return res;
+  }
+};
+
+/// The crusher's path segment: crusher.json's identifier rule, so nothing else reaches the URL.
+std::string CrusherPath(const core::ParsedOptions& o) {
+  const std::string id = o.Text("crusher");
+  try {
+    core::CheckIdentifier(id, "--crusher", "command line");
+  } catch (const core::InputError& e) {
+    throw core::UsageError(e.rule());
+  }
+  return "/api/v1/crushers/" + id;
+}
+
+/// The server's refusal as one line: its status, its `error`, and what to do about a missing scope.
+[[noreturn]] void Refused(const httplib::Response& r, const std::string& what, const std::string& scan_path) {
+  std::string error = r.body;
+  const json j = json::parse(r.body, nullptr, false);
+  if (j.is_object() && j.contains("error") && j["error"].is_string()) error = j["error"].get<std::string>();
+  // The server names scan lines as scan_xyz:LINE; the user knows the file.
+  if (!scan_path.empty() && error.rfind("scan_xyz:", 0) == 0) error = scan_path + error.substr(8);
+  std::string hint;
+  if (r.status == 401 || r.status == 403)
+    hint = " (needs a token with the " + std::string(what == "reline" ? "write" : "read") +
+           " scope: --token-file FILE or LINERWATCH_TOKEN)";
+  throw std::runtime_error("the server refused the " + what + " (" + std::to_string(r.status) + "): " + error + hint);
+}
+
+std::string Mm(const json& v) {
+  if (!v.is_number()) return "?";
+  std::ostringstream s;
+  s << v.get<double>();
+  return s.str();
+}
+
+std::string Days(const json& v) {
+  if (!v.is_number()) return "-";
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(1) << v.get<double>();
+  return s.str();
+}
+
+}  // namespace
+
+int Reline(const std::vector<std::string>& args, std::ostream& out) {
+  const core::ParsedOptions o = core::ParseOptions(RelineTable(), std::vector<std::string>(args.begin() + 1, args.end()));
+  const std::string time = o.Text("time");
+  const auto t = core::ParseIsoTime(time);
+  if (!t) throw core::UsageError("--time: '" + time + "' is not an ISO-8601 time (YYYY-MM-DD[THH:MM:SSZ])");
+  json body = {{"time", core::FormatIsoTime(*t)}, {"thickness_new_mm", o.Number("thickness", 0)}};
+  std::string scan_path;
+  if (o.Has("scan")) {
+    scan_path = o.Text("scan");
+    body["scan_xyz"] = ReadFile(scan_path, "scan", kMaxScanBytes);
+  }
+  if (o.Has("sensors")) {
+    const std::string path = o.Text("sensors");
+    json s = json::parse(ReadFile(path, "sensors", 1 << 20), nullptr, false);
+    if (s.is_object() && s.contains("sensors")) s = s["sensors"];
+    if (!s.is_array())
+      throw std::runtime_error("--sensors: " + path + " is not a JSON array of sensors (or {\"sensors\": [...]})");
+    body["sensors"] = std::move(s);
+  }
+  const std::string path = CrusherPath(o);
+  Server server(o);
+  const httplib::Result res = server.Check(server.client->Post(path + "/relines", body.dump(), "application/json"), "reline");
+  if (res->status != 200 && res->status != 201) Refused(*res, "reline", scan_path);
+  const json c = json::parse(res->body, nullptr, false);
+  if (!c.is_object()) throw std::runtime_error("the server's answer to the reline is not JSON: " + res->body.substr(0, 200));
+  out << (res->status == 201 ? "reline recorded: " : "reline already recorded at this time (nothing changed): ")
+      << o.Text("crusher") << "'s campaign from " << c.value("start", "?") << ", " << Mm(c.value("thickness_new_mm", json()))
+      << " mm, " << c.value("sensor_count", 0) << " sensors; the old liner's scan " << (o.Has("scan") ? "kept" : "not given")
+      << "\n";
+  return 0;
+}
+
+int Campaigns(const std::vector<std::string>& args, std::ostream& out) {
+  const core::ParsedOptions o = core::ParseOptions(CampaignsTable(), std::vector<std::string>(args.begin() + 1, args.end()));
+  if (o.Has("json")) {
+    const fs::path p(o.Text("json"));
+    std::error_code ec;
+    if (p.has_parent_path() && !fs::is_directory(p.parent_path(), ec))
+      throw std::runtime_error("--json: directory " + p.parent_path().string() + " does not exist");
+  }
+  const std::string path = CrusherPath(o);
+  Server server(o);
+  const httplib::Result res = server.Check(server.client->Get(path + "/campaigns"), "list the campaigns");
+  if (res->status != 200) Refused(*res, "campaign list", "");
+  const json j = json::parse(res->body, nullptr, false);
+  if (!j.is_object() || !j.contains("campaigns") || !j["campaigns"].is_array())
+    throw std::runtime_error("the server's campaign list is not {\"campaigns\": [...]}: " + res->body.substr(0, 200));
+  if (o.Has("json")) core::WriteFileAtomically(o.Text("json"), j.dump(2) + "\n");
+  out << o.Text("crusher") << ": " << j["campaigns"].size() << " campaign(s), oldest first\n";
+  out << "  start                 end                   life (d)  new (mm)  sensors  end-of-life scan\n";
+  for (const json& c : j["campaigns"]) {
+    const std::string end = c.value("running", false) ? "running" : (c["end"].is_string() ? c["end"].get<std::string>() : "-");
+    out << "  " << std::left << std::setw(22) << c.value("start", "?") << std::setw(22) << end << std::right << std::setw(8)
+        << Days(c.value("life_days", json())) << std::setw(10) << Mm(c.value("thickness_new_mm", json())) << std::setw(9)
+        << c.value("sensor_count", 0) << "  " << (c.value("has_scan", false) ? "yes" : "no") << "\n";
+  }
+  return 0;
+}
+
+std::string RemoteUsage(size_t column, size_t indent) {
+  return "  reline " + RelineTable().Synopsis(9, 100) +
+         "\n"
+         "      Record a reline on the server (its write scope): the old liner's campaign ends at TIME with\n"
+         "      its last readings and, with --scan, its end-of-life scan; the next starts with MM and, with\n"
+         "      --sensors, a new sensor layout. Live wear switches at once. Posting the same TIME again\n"
+         "      changes nothing (docs/campaigns.md).\n" +
+         RelineTable().Help(column, indent, false) + "  campaigns " + CampaignsTable().Synopsis(12, 100) +
+         "\n"
+         "      List the crusher's liner campaigns on the server: start, end, life, thickness, sensors,\n"
+         "      whether the end-of-life scan is kept.\n" +
+         CampaignsTable().Help(column, indent, false);
+}
+
+}  // namespace lw::cli
