@@ -26,7 +26,8 @@ using nlohmann::json;
 
 // The server's request body limit for a reline (server/rest.hpp kMaxRelineBodyBytes): a larger scan
 // is refused here, before anything is sent.
-constexpr uintmax_t kMaxScanBytes = 15u << 20;
+constexpr uintmax_t kMaxScanBytes = 16u << 20;
+constexpr size_t kMaxBodyBytes = 16u << 20;
 
 Option ServerOption() {
   return Option::Text("server", "URL", "the linerwatch-server, e.g. http://127.0.0.1:8080 (https:// too)").Required();
@@ -104,7 +105,10 @@ struct Server {
     while (!url.empty() && url.back() == '/') url.pop_back();
     const bool http = url.rfind("http://", 0) == 0, https = url.rfind("https://", 0) == 0;
     const size_t host = http ? 7 : 8;
-    if ((!http && !https) || url.size() <= host || url.find('/', host) != std::string::npos)
+    const size_t colon = url.find(':', host);
+    const bool port_ok = colon == std::string::npos ||
+                         (colon + 1 < url.size() && url.find_first_not_of("0123456789", colon + 1) == std::string::npos);
+    if ((!http && !https) || url.size() <= host || url.find('/', host) != std::string::npos || !port_ok)
       throw core::UsageError("--server: '" + o.Text("server") + "' is not http://HOST[:PORT] or https://HOST[:PORT]");
     client = std::make_unique<httplib::Client>(url);
     client->set_connection_timeout(10, 0);
@@ -181,7 +185,11 @@ int Reline(const std::vector<std::string>& args, std::ostream& out) {
   }
   const std::string path = CrusherPath(o);
   Server server(o);
-  const httplib::Result res = server.Check(server.client->Post(path + "/relines", body.dump(), "application/json"), "reline");
+  const std::string text = body.dump();
+  if (text.size() > kMaxBodyBytes)
+    throw std::runtime_error("--scan: " + scan_path + " makes a request of " + std::to_string(text.size() >> 20) +
+                             " MiB, over the server's 16 MiB for a reline (thin the scan's points)");
+  const httplib::Result res = server.Check(server.client->Post(path + "/relines", text, "application/json"), "reline");
   if (res->status != 200 && res->status != 201) Refused(*res, "reline", scan_path);
   const json c = json::parse(res->body, nullptr, false);
   if (!c.is_object()) throw std::runtime_error("the server's answer to the reline is not JSON: " + res->body.substr(0, 200));

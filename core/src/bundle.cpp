@@ -416,6 +416,9 @@ void CheckReadings(const CrusherConfig& crusher, const std::vector<Reading>& rea
   for (const auto& r : readings) {
     const SensorInfo* s = crusher.FindSensor(r.sensor_id);
     if (!s) throw InputError(file, r.line, "sensor_id '" + r.sensor_id + "' is not a sensor in crusher.json");
+    // A previous liner's reading (before LinerStart, kept after a reline) may be of a thicker liner;
+    // the server never checks those against this one either.
+    if (r.time < crusher.LinerStart()) continue;
     const std::string error = ReadingThicknessError(*s, r.thickness_mm);
     if (!error.empty()) throw InputError(file, r.line, "thickness_mm " + error);
   }
@@ -450,13 +453,17 @@ std::vector<PastCampaign> LoadHistory(const std::filesystem::path& dir, const Cr
   if (!fs::exists(root, ec)) return out;
   if (!fs::is_directory(root, ec)) throw InputError("history", 0, "is not a folder (it holds one folder per earlier campaign)");
   std::vector<fs::path> folders;
-  for (const auto& e : fs::directory_iterator(root))
-    if (e.is_directory()) folders.push_back(e.path());
+  for (fs::directory_iterator e(root, ec), end; !ec && e != end; e.increment(ec))
+    if (e->is_directory(ec)) folders.push_back(e->path());
+  if (ec) throw InputError("history", 0, "cannot be read: " + ec.message());
   std::sort(folders.begin(), folders.end());
   for (const fs::path& f : folders) {
     PastCampaign p;
     p.name = f.filename().string();
     const std::string where = "history/" + p.name + "/";
+    // A folder with none of a campaign's files is not one (notes, a backup): ignored, as unknown
+    // extra files are.
+    if (!fs::exists(f / "crusher.json", ec) && !fs::exists(f / "readings.csv", ec) && !fs::exists(f / "scans", ec)) continue;
     try {
       if (!fs::exists(f / "crusher.json")) throw InputError("crusher.json", 0, "required in every history folder is missing");
       p.crusher = LoadCrusherConfig(f / "crusher.json");
@@ -476,6 +483,8 @@ std::vector<PastCampaign> LoadHistory(const std::filesystem::path& dir, const Cr
       p.scans = LoadScans(f);
     } catch (const InputError& e) {
       throw InputError(where + e.file(), e.line(), e.rule());
+    } catch (const std::exception& e) {  // a folder that cannot be read: named, not a bare filesystem error
+      throw InputError("history/" + p.name, 0, std::string("cannot be read: ") + e.what());
     }
     out.push_back(std::move(p));
   }

@@ -45,10 +45,16 @@ std::vector<core::SensorWear> ScanWearAtSensors(const core::CrusherConfig& confi
 
 /// The latest scan of the latest earlier campaign that has one, as `model`'s prior.
 void SetPriorFromHistory(const core::Bundle& bundle, CrusherModel& model) {
+  // The latest scan of scans/ dated before this liner's installation is the previous liner's own;
+  // a history/ campaign's is used when it is later.
+  const core::Scan* before = nullptr;
+  for (const core::Scan& s : bundle.scans)
+    if (s.date < model.config.installed_at && (!before || s.date >= before->date)) before = &s;
   for (auto c = bundle.history.rbegin(); c != bundle.history.rend(); ++c) {
-    if (c->scans.empty()) continue;
+    if (c->scans.empty() || (before && c->scans.back().date < before->date)) continue;
     if (model.SetPrior(c->name, c->scans.back(), "history/" + c->name + "/scans/" + c->scans.back().file)) return;
   }
+  if (before) model.SetPrior("before " + core::FormatIsoTime(model.config.installed_at), *before, "scans/" + before->file);
 }
 
 /// PriorCheck of `prior` against the sensors' wear now (`now`), and of the map's pattern for comparison.
@@ -92,14 +98,27 @@ PriorCheck CheckPrior(const CrusherModel& model, const PriorScan& prior, const s
   c.spread_map_rel = c.dof > 0 ? std::sqrt(std::max(0.0, excess_map / c.dof)) : nan;
   const double k0 = PriorCheck::kPriorChange0;
   c.change_rel = std::sqrt((PriorCheck::kPriorDof0 * k0 * k0 + c.dof * var_prior) / (PriorCheck::kPriorDof0 + c.dof));
-  // Rounded so that the corrected plan is recomputed when the weight moves, not at every reading.
-  c.change_rel = std::max(0.05, std::round(c.change_rel * 200.0) / 200.0);
+  // Rounded so that the corrected plan (and the check it reports) is recomputed when they move,
+  // not at every reading.
+  const auto round = [](double v) { return std::round(v * 200.0) / 200.0; };
+  c.change_rel = std::max(0.05, round(c.change_rel));
+  c.spread_prior_rel = round(c.spread_prior_rel);
+  c.spread_map_rel = round(c.spread_map_rel);
   return c;
 }
 
-/// `bundle`'s scans projected onto `model`'s map, by date.
+/// Whether two checks are the same as reported (NaN, "not measured", equal to NaN).
+bool SameCheck(const PriorCheck& a, const PriorCheck& b) {
+  const auto same = [](double x, double y) { return x == y || (std::isnan(x) && std::isnan(y)); };
+  return same(a.change_rel, b.change_rel) && same(a.spread_prior_rel, b.spread_prior_rel) &&
+         same(a.spread_map_rel, b.spread_map_rel) && a.sensors == b.sensors && a.dof == b.dof;
+}
+
+/// `bundle`'s scans of this liner (dated from its installation on) projected onto `model`'s map,
+/// by date; an earlier one is a previous liner's (SetPriorFromHistory).
 void ProjectScans(const core::Bundle& bundle, CrusherModel& model) {
   for (const core::Scan& scan : bundle.scans) {
+    if (scan.date < model.config.installed_at) continue;
     ModelScan s;
     s.faces = core::ProjectScanToFaces(model.map, scan);
     s.scan.file = scan.file;
@@ -179,12 +198,13 @@ std::shared_ptr<const ScannedPlan> CrusherModel::PlanWithScan(const std::vector<
 std::shared_ptr<const ScannedPlan> CrusherModel::PlanWithPrior(const std::vector<core::Reading>& readings, core::TimePoint at,
                                                                const std::vector<std::string>& stuck,
                                                                bool interval_centre) const {
-  std::vector<core::SensorWear> now = core::SensorWearAt(config, readings, at, interval_centre);
+  // The sensors that set the scales now: not stale (an old day's wear), not stuck.
+  std::vector<core::SensorWear> now = core::FreshSensorWearAt(config, readings, at, {}, nullptr, interval_centre);
   std::erase_if(now,
                 [&](const core::SensorWear& w) { return std::find(stuck.begin(), stuck.end(), w.sensor_id) != stuck.end(); });
   const PriorCheck check = CheckPrior(*this, *prior, now);
   std::lock_guard<std::mutex> lock(scan_mutex_);
-  if (scanned_ && scanned_->prior && scanned_->prior->change_rel == check.change_rel) return scanned_;
+  if (scanned_ && scanned_->prior && SameCheck(*scanned_->prior, check)) return scanned_;
   // The prior's faces with the pattern's change added to their error: it weighs against the map as
   // a scan of this liner would, less by as much as the pattern may have moved.
   core::ScanFaces faces = prior->scan.faces;

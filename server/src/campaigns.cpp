@@ -125,8 +125,10 @@ void ApplyStoredCampaigns(Registry& registry, Store& store, std::vector<std::str
     const CampaignRecord& running = stored.back();
     const std::string id = c->config.crusher_id;
     const std::string prior = stored.size() >= 2 ? stored[stored.size() - 2].final_scan : "";
+    const auto previous_start =
+        stored.size() >= 2 ? std::optional<core::TimePoint>(FromUnix(stored[stored.size() - 2].start_s)) : std::nullopt;
     try {
-      registry.Replace(Registry::ForCampaign(*c, CampaignConfig(c->config, running), prior));
+      registry.Replace(Registry::ForCampaign(*c, CampaignConfig(c->config, running), prior, previous_start));
       log->push_back("crusher " + id + ": campaign " + std::to_string(stored.size()) + " (from " +
                      core::FormatIsoTime(FromUnix(running.start_s)) +
                      ", the database's) sets installed_at, thickness_new_mm and sensors over crusher.json's");
@@ -209,7 +211,7 @@ CampaignService::Outcome CampaignService::Reline(const std::string& crusher_id, 
   try {
     core::CrusherConfig config = CampaignConfig(crusher->config, next);
     next.sensors_json = SensorsJson(config).dump();  // as read: each sensor's thickness and id resolved
-    model = Registry::ForCampaign(*crusher, std::move(config), request.scan_xyz);
+    model = Registry::ForCampaign(*crusher, std::move(config), request.scan_xyz, FromUnix(closed.start_s));
   } catch (const core::InputError& e) {
     throw RelineError(422, std::string("\"sensors\": ") + e.rule());
   }

@@ -60,6 +60,7 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
   // Laser scans: each projected onto the map once. A scan that does not load is a warning (live wear
   // goes on from the map and the sensors); one mostly off the map is applied where it covers.
   if (std::filesystem::is_directory(folder / "scans")) {
+    std::optional<core::Scan> previous;
     std::vector<std::filesystem::path> files;
     for (const auto& e : std::filesystem::directory_iterator(folder / "scans"))
       if (e.path().extension() == ".xyz") files.push_back(e.path());
@@ -73,6 +74,11 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
           c->validation.warnings.push_back(s.scan.file + ": only " + std::to_string(s.faces.points_used) + " of " +
                                            std::to_string(s.faces.points_total) + " points lie on the mapped surface");
         }
+        if (s.scan.date < c->config.installed_at) {
+          // A previous liner's scan (files sort by date: the last is the latest): the prior.
+          previous = std::move(s.scan);
+          continue;
+        }
         s.scan.points.clear();
         s.scan.points.shrink_to_fit();
         c->scans.push_back(std::move(s));
@@ -83,6 +89,8 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
       }
     }
     c->SortScans();
+    if (previous && !c->SetPrior("before " + core::FormatIsoTime(c->config.installed_at), *previous, "scans/" + previous->file))
+      c->validation.warnings.push_back("scans/" + previous->file + " reaches none of the sensors: not used as the prior");
   }
   return c;
 }
@@ -132,8 +140,8 @@ std::unique_ptr<Registry> Registry::Load(const std::filesystem::path& dir, std::
   return reg;
 }
 
-std::unique_ptr<Crusher> Registry::ForCampaign(const Crusher& base, core::CrusherConfig config,
-                                               const std::string& prior_scan_xyz) {
+std::unique_ptr<Crusher> Registry::ForCampaign(const Crusher& base, core::CrusherConfig config, const std::string& prior_scan_xyz,
+                                               std::optional<core::TimePoint> previous_start) {
   auto c = std::make_unique<Crusher>();
   c->dir = base.dir;
   c->validation = base.validation;
@@ -155,7 +163,7 @@ std::unique_ptr<Crusher> Registry::ForCampaign(const Crusher& base, core::Crushe
     // The latest scan in scans/ of an earlier liner (its points are gone: loaded again from its file).
     const estimate::ModelScan* last = nullptr;
     for (const estimate::ModelScan& s : base.scans)
-      if (s.scan.date < c->config.installed_at) last = &s;
+      if (s.scan.date < c->config.installed_at && (!previous_start || s.scan.date >= *previous_start)) last = &s;
     if (last) {
       try {
         if (!c->SetPrior(previous, core::LoadScan(base.dir / "scans" / last->scan.file), "scans/" + last->scan.file))

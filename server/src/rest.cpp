@@ -295,7 +295,7 @@ const std::vector<Route>& Resources::Routes() {
        "/api/v1/crushers/{crusher}/plan",
        "Where to cast the next liner's sensors, the expected band of each layout, and what a scan now would do "
        "(linerwatch plan, docs/plan.md)",
-       {{"sensors", "integer", "K, how many sensors the next liner gets (required, 1..1000)"}},
+       {{"sensors", "integer", "K, how many sensors the next liner gets (required, 1..100)"}},
        "200",
        &Resources::Plan,
        {"application/json"},
@@ -701,7 +701,8 @@ Response Resources::Plan(const Request& req) {
   int sensors = 0;
   std::string message;
   if (!FindParam(req.query, "sensors")) return Error(400, "sensors=K is required (how many sensors the next liner gets)");
-  if (!WholeNumberParam(req.query, "sensors", 1, 1000, &sensors, &message)) return Error(400, message);
+  // Each K costs a search over every candidate position: K is held to what a liner carries.
+  if (!WholeNumberParam(req.query, "sensors", 1, 100, &sensors, &message)) return Error(400, message);
   estimate::PlanOptions options;
   options.sensors = static_cast<size_t>(sensors);
   estimate::SensorPlan plan;

@@ -10,6 +10,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <memory>
+#include <optional>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -65,9 +66,11 @@ class Registry {
   /// Throws core::InputError naming "sensors" when a sensor lies off the map.
   /// The previous liner's end-of-life scan (`prior_scan_xyz`, the reline's `scan_xyz`; empty: none)
   /// becomes the new campaign's prior for the wear pattern (docs/wear.md, *Earlier campaigns*); without
-  /// one, the latest of base's scans dated before the campaign's start does.
+  /// one, the latest of base's scans of the previous campaign (dated from `previous_start`, before
+  /// this campaign's start) does.
   static std::unique_ptr<Crusher> ForCampaign(const Crusher& base, core::CrusherConfig config,
-                                              const std::string& prior_scan_xyz = "");
+                                              const std::string& prior_scan_xyz = "",
+                                              std::optional<core::TimePoint> previous_start = std::nullopt);
 
   /// The crusher's current model: a pointer that stays valid for the registry's lifetime (a model
   /// replaced by Replace() is kept, not freed). Safe to call while another thread calls Replace().

@@ -103,8 +103,10 @@ TEST(Bundle, HistoryFoldersAreEarlierCampaignsOfTheSameCrusher) {
   CHECK_TEXT(e.find("history/a-2025/crusher.json: installed_at 2026-01-01T00:00:00Z is not before") != std::string::npos,
              e.c_str());
   fs::remove(dir.path() / "history/a-2025/crusher.json");
+  STRCMP_EQUAL("", ErrorOf(dir).c_str());  // a folder with none of a campaign's files is ignored
+  dir.Write("history/a-2025/readings.csv", "time,sensor_id,thickness_mm\n");
   e = ErrorOf(dir);
-  CHECK_TEXT(e.find("history/a-2025/crusher.json") != std::string::npos, e.c_str());
+  CHECK_TEXT(e.find("history/a-2025/crusher.json: required") != std::string::npos, e.c_str());
 }
 
 // The offline tools hold readings to the server's rule (ingest refuses the same values): no value
@@ -122,6 +124,10 @@ TEST(Bundle, ReadingsTheServerRefusesAreRefusedByLineAndRule) {
     const std::string e = ErrorOf(dir);
     CHECK_TEXT(e.find("readings.csv:3: thickness_mm '" + std::string(value) + "'") != std::string::npos, e.c_str());
   }
+  // A previous liner's reading (before installed_at less a day) is not held to this liner's
+  // thickness: the old liner may have been thicker.
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n2025-12-20T00:00:00Z,1001,150\n" + head.substr(head.find('\n') + 1));
+  STRCMP_EQUAL("", ErrorOf(dir).c_str());
   // One ladder loop above the as-new thickness is a reading, as the server takes it.
   lw::test::WriteBundle(dir, head + "2026-01-03T00:00:00Z,1001,121\n");
   STRCMP_EQUAL("", ErrorOf(dir).c_str());

@@ -107,6 +107,18 @@ TEST(Prior, LastLinersScanBringsLiveWearCloserToTheTruthWhereThePatternHeld) {
              (std::to_string(check->spread_prior_rel) + " vs " + std::to_string(check->spread_map_rel)).c_str());
   CHECK(check->change_rel < estimate::PriorCheck::kPriorChange0);
 
+  // The same scan in scans/, dated before this liner's installation: a previous liner's, so the
+  // prior, not this liner's own scan.
+  test::TempDirectory plain{"lw-prior-plain"};
+  test::WriteSyntheticBundle(plain.path(), Spec(kDays, false));
+  fs::create_directories(plain.path() / "scans");
+  for (const auto& e : fs::directory_iterator(dir.path() / "history" / "c1" / "scans"))
+    fs::copy_file(e.path(), plain.path() / "scans" / e.path().filename());
+  std::optional<estimate::PriorCheck> from_scans;
+  const double rmse_scans = LiveWearRmse(core::LoadBundle(plain.path()), truth, &from_scans);
+  CHECK(from_scans.has_value());
+  DOUBLES_EQUAL(rmse_with, rmse_scans, 1e-9);
+
   // The CLI says which prior it used and how far it trusts it.
   const test::CliRun r = test::RunLinerwatch({"reconstruct", dir.path().string()});
   LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
