@@ -1,0 +1,192 @@
+// Checks `linerwatch plan`'s advice (docs/plan.md) on real LIGGGHTS maps: per run of a DEM library
+// and per seed, the map from half the run's windows and the truth from the other half
+// (bench/diagnosis/realdem.hpp); the same campaign read by three layouts of K sensors (K = the
+// crusher.json layout's): crusher.json's, the plan's, and a random one (uniform in each row's
+// z-range less the margin, and around). Live wear at the campaign's end: the band the live wear
+// reports (its thinnest area's half-width, the liner's and each row's mean) and whether it holds the
+// truth, per layout.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/bundle.hpp"
+#include "core/thinnest_area.hpp"
+#include "core/time.hpp"
+#include "estimate/estimate.hpp"
+#include "estimate/plan.hpp"
+#include "realdem.hpp"
+#include "support/temp_directory.hpp"
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+struct Outcome {
+  double half_band = kNaN;  ///< the liner's thinnest area: half its band (mm)
+  double row_half = kNaN;   ///< mean over rows of their thinnest area's half band (mm)
+  double err = kNaN;        ///< reported - the truth's thinnest area of that size (mm)
+  bool in_band = false;
+};
+
+/// `run` with its sensors at `layout` (the ids of crusher.json's, in order).
+lw::bench::DemRun WithLayout(const lw::bench::DemRun& run, const std::vector<lw::estimate::PlannedSensor>& layout) {
+  lw::bench::DemRun r = run;
+  for (size_t i = 0; i < layout.size() && i < r.crusher.sensors.size(); ++i) {
+    r.crusher.sensors[i].row = layout[i].row;
+    r.crusher.sensors[i].z_m = layout[i].z_m;
+    r.crusher.sensors[i].theta_deg = layout[i].theta_deg;
+  }
+  return r;
+}
+
+/// The campaign of `run` (its sensors as laid out there) written to `dir`, crusher.json's sensors
+/// replaced by the run's, then live wear at its end against its truth.
+Outcome Measure(const lw::bench::DemRun& run, const lw::bench::RealDemSpec& spec, const std::filesystem::path& dir) {
+  const lw::bench::RealDemCampaign c(run, spec);
+  c.WriteBundle(dir);
+  std::ifstream in(dir / "crusher.json");
+  nlohmann::json j = nlohmann::json::parse(in);
+  in.close();
+  for (size_t i = 0; i < run.crusher.sensors.size(); ++i) {
+    j["sensors"][i]["row"] = run.crusher.sensors[i].row;
+    j["sensors"][i]["z_m"] = run.crusher.sensors[i].z_m;
+    j["sensors"][i]["theta_deg"] = run.crusher.sensors[i].theta_deg;
+  }
+  std::ofstream(dir / "crusher.json") << j.dump(2);
+  const lw::core::Bundle b = lw::core::LoadBundle(dir);
+  const auto model = lw::estimate::CrusherModel::FromBundle(b);
+  const auto at = lw::core::AddDays(b.crusher.installed_at, spec.days);
+  lw::estimate::EstimateOptions options;
+  options.use_scans = false;
+  const lw::estimate::WearEstimate est = lw::estimate::Estimate(*model, lw::estimate::SamplesOf(b.readings), at, options);
+  const double new_mm = b.crusher.thickness_new_mm;
+  const Eigen::VectorXd truth_rem = (new_mm - c.TrueFaceWear(spec.days).array().min(new_mm)).matrix();
+  Outcome o;
+  const lw::core::ThinnestArea& a = est.areas.liner;
+  double truth_thin = kNaN;
+  if (a.whole_row) {
+    for (const auto& row : est.areas.rows) truth_thin = std::fmin(truth_thin, lw::core::AreaMean(model->plan, truth_rem, row));
+  } else {
+    truth_thin = lw::core::ThinnestPatchOf(model->plan, truth_rem, -1, a.patch_m, a.shape).thickness_mm;
+  }
+  o.half_band = 0.5 * (a.hi_mm - a.lo_mm);
+  o.err = a.thickness_mm - truth_thin;
+  o.in_band = truth_thin >= a.lo_mm - 1e-9 && truth_thin <= a.hi_mm + 1e-9;
+  double sum = 0;
+  for (const auto& row : est.areas.rows) sum += 0.5 * (row.hi_mm - row.lo_mm);
+  o.row_half = est.areas.rows.empty() ? kNaN : sum / static_cast<double>(est.areas.rows.size());
+  return o;
+}
+
+double Median(std::vector<double> v) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return kNaN;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string dem_dir;
+  int seeds = 4;
+  double days = 90;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "lw_bench_plan: %s needs a value\n", a.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--help" || a == "-h") {
+      std::printf(
+          "usage: lw_bench_plan --dem-dir DIR [--seeds N] [--days D]\n"
+          "Checks linerwatch plan's advice on each LIGGGHTS run of DIR (folders with wear_windows.vtk and\n"
+          "crusher.json, data/dem*): per seed (default 4) one campaign of D days (default 90), no scan, read by\n"
+          "three layouts of as many sensors as crusher.json has: crusher.json's, the plan's, a random one.\n"
+          "Prints, per case and in sum, the band live wear reports at the end (the liner's thinnest area and\n"
+          "the rows' mean half-width) and whether the truth (independent windows) lies inside it.\n");
+      return 0;
+    }
+    if (a == "--dem-dir")
+      dem_dir = next();
+    else if (a == "--seeds")
+      seeds = std::atoi(next().c_str());
+    else if (a == "--days")
+      days = std::atof(next().c_str());
+    else {
+      std::fprintf(stderr, "lw_bench_plan: unknown option '%s' (see --help)\n", a.c_str());
+      return 2;
+    }
+  }
+  if (dem_dir.empty() || seeds < 1 || !(days > 0)) {
+    std::fprintf(stderr, "lw_bench_plan: --dem-dir DIR is required; --seeds and --days must be positive\n");
+    return 2;
+  }
+  const std::vector<lw::bench::DemRun> runs = lw::bench::LoadDemRuns(dem_dir);
+  if (runs.empty()) {
+    std::fprintf(stderr, "lw_bench_plan: no folder of %s holds wear_windows.vtk and crusher.json\n", dem_dir.c_str());
+    return 1;
+  }
+  const char* names[3] = {"crusher.json", "plan", "random"};
+  std::vector<double> liner[3], rows[3], err[3];
+  int held[3] = {0, 0, 0}, n = 0, plan_narrower = 0, plan_narrower_random = 0;
+  std::printf("%-22s %4s  %-12s %9s %9s %7s %5s\n", "run", "seed", "layout", "liner_+-", "rows_+-", "err", "in");
+  for (const lw::bench::DemRun& run : runs) {
+    for (int k = 0; k < seeds; ++k) {
+      lw::bench::RealDemSpec spec;
+      spec.seed = static_cast<uint64_t>(k + 1);
+      spec.days = days;
+      spec.with_scan = false;
+      // The plan, from the map this seed's split makes (a bundle of crusher.json's layout).
+      lw::test::TempDirectory d0{"lw-bench-plan"}, d1{"lw-bench-plan"}, d2{"lw-bench-plan"};
+      const Outcome current = Measure(run, spec, d0.path());
+      const lw::core::Bundle b = lw::core::LoadBundle(d0.path());
+      const auto model = lw::estimate::CrusherModel::FromBundle(b);
+      lw::estimate::PlanOptions options;
+      options.sensors = run.crusher.sensors.size();
+      const lw::estimate::SensorPlan plan = lw::estimate::PlanSensors(*model, options);
+      // A random layout: the same number per row as the plan, uniform inside each row's margins.
+      std::mt19937_64 rng(static_cast<uint64_t>(1000 + k));
+      std::vector<lw::estimate::PlannedSensor> random = plan.sensors;
+      for (lw::estimate::PlannedSensor& s : random) {
+        const lw::core::Row& row = b.crusher.rows[static_cast<size_t>(b.crusher.RowIndex(s.row))];
+        const double lo = row.z_min_m + options.edge_margin_m, hi = std::max(lo, row.z_max_m - options.edge_margin_m);
+        s.z_m = std::uniform_real_distribution<double>(lo, hi)(rng);
+        s.theta_deg = std::uniform_real_distribution<double>(0.0, 360.0)(rng);
+      }
+      const Outcome planned = Measure(WithLayout(run, plan.sensors), spec, d1.path());
+      const Outcome randomly = Measure(WithLayout(run, random), spec, d2.path());
+      const Outcome* all[3] = {&current, &planned, &randomly};
+      for (int l = 0; l < 3; ++l) {
+        std::printf("%-22s %4d  %-12s %9.1f %9.1f %7.1f %5s\n", run.name.c_str(), k + 1, names[l], all[l]->half_band,
+                    all[l]->row_half, all[l]->err, all[l]->in_band ? "yes" : "no");
+        liner[l].push_back(all[l]->half_band);
+        rows[l].push_back(all[l]->row_half);
+        err[l].push_back(std::abs(all[l]->err));
+        held[l] += all[l]->in_band;
+      }
+      plan_narrower += planned.row_half < current.row_half;
+      plan_narrower_random += planned.row_half < randomly.row_half;
+      ++n;
+      std::fflush(stdout);
+    }
+  }
+  for (int l = 0; l < 3; ++l) {
+    std::printf(
+        "%-12s: liner band +/- %.1f mm median, rows' mean +/- %.1f mm median, |error| median %.1f mm, truth inside %d / %d\n",
+        names[l], Median(liner[l]), Median(rows[l]), Median(err[l]), held[l], n);
+  }
+  std::printf("the plan's rows' band narrower than crusher.json's in %d / %d cases, than the random layout's in %d / %d\n",
+              plan_narrower, n, plan_narrower_random, n);
+  return 0;
+}
