@@ -754,12 +754,7 @@ int main(int argc, char** argv) {
         const lw::core::ThinnestAreas areas = lw::core::FindThinnestAreas(p, r, used);
         const lw::core::ThinnestArea& area = o.area = areas.liner;
         o.err_at = area.thickness_mm - lw::core::AreaMean(p, truth_remaining, area);
-        double truth_thin = std::numeric_limits<double>::quiet_NaN();
-        if (area.whole_row) {
-          for (const auto& row : areas.rows) truth_thin = std::fmin(truth_thin, lw::core::AreaMean(p, truth_remaining, row));
-        } else {
-          truth_thin = lw::core::ThinnestPatchOf(p, truth_remaining, -1, area.patch_m, area.shape).thickness_mm;
-        }
+        const double truth_thin = lw::bench::TruthThinnest(p, areas, truth_remaining);
         o.err_thin = area.thickness_mm - truth_thin;
         o.in_band = truth_thin >= area.lo_mm - 1e-9 && truth_thin <= area.hi_mm + 1e-9;
         for (const auto& row : areas.rows) o.rows_supported += row.supported;

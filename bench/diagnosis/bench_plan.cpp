@@ -70,12 +70,7 @@ Outcome Measure(const lw::bench::DemRun& run, const lw::bench::RealDemSpec& spec
   const Eigen::VectorXd truth_rem = (new_mm - c.TrueFaceWear(spec.days).array().min(new_mm)).matrix();
   Outcome o;
   const lw::core::ThinnestArea& a = est.areas.liner;
-  double truth_thin = kNaN;
-  if (a.whole_row) {
-    for (const auto& row : est.areas.rows) truth_thin = std::fmin(truth_thin, lw::core::AreaMean(model->plan, truth_rem, row));
-  } else {
-    truth_thin = lw::core::ThinnestPatchOf(model->plan, truth_rem, -1, a.patch_m, a.shape).thickness_mm;
-  }
+  const double truth_thin = lw::bench::TruthThinnest(model->plan, est.areas, truth_rem);
   o.half_band = 0.5 * (a.hi_mm - a.lo_mm);
   o.err = a.thickness_mm - truth_thin;
   o.in_band = truth_thin >= a.lo_mm - 1e-9 && truth_thin <= a.hi_mm + 1e-9;
@@ -83,13 +78,6 @@ Outcome Measure(const lw::bench::DemRun& run, const lw::bench::RealDemSpec& spec
   for (const auto& row : est.areas.rows) sum += 0.5 * (row.hi_mm - row.lo_mm);
   o.row_half = est.areas.rows.empty() ? kNaN : sum / static_cast<double>(est.areas.rows.size());
   return o;
-}
-
-double Median(std::vector<double> v) {
-  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
-  if (v.empty()) return kNaN;
-  std::sort(v.begin(), v.end());
-  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
 }  // namespace
@@ -184,7 +172,8 @@ int main(int argc, char** argv) {
   for (int l = 0; l < 3; ++l) {
     std::printf(
         "%-12s: liner band +/- %.1f mm median, rows' mean +/- %.1f mm median, |error| median %.1f mm, truth inside %d / %d\n",
-        names[l], Median(liner[l]), Median(rows[l]), Median(err[l]), held[l], n);
+        names[l], lw::bench::FiniteMedian(liner[l]), lw::bench::FiniteMedian(rows[l]), lw::bench::FiniteMedian(err[l]), held[l],
+        n);
   }
   std::printf("the plan's rows' band narrower than crusher.json's in %d / %d cases, than the random layout's in %d / %d\n",
               plan_narrower, n, plan_narrower_random, n);

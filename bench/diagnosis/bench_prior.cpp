@@ -43,12 +43,7 @@ Outcome Measure(const lw::core::Bundle& bundle, lw::core::TimePoint at, const Ei
   Outcome o;
   const lw::core::ReconstructionPlan& plan = est.scan && est.scan->correction.detail.empty() ? est.scan->plan : model->plan;
   const lw::core::ThinnestArea& a = est.areas.liner;
-  double truth_thin = kNaN;
-  if (a.whole_row) {
-    for (const auto& row : est.areas.rows) truth_thin = std::fmin(truth_thin, lw::core::AreaMean(plan, truth_rem, row));
-  } else {
-    truth_thin = lw::core::ThinnestPatchOf(plan, truth_rem, -1, a.patch_m, a.shape).thickness_mm;
-  }
+  const double truth_thin = lw::bench::TruthThinnest(plan, est.areas, truth_rem);
   o.err_thin = a.thickness_mm - truth_thin;
   o.in_band = truth_thin >= a.lo_mm - 1e-9 && truth_thin <= a.hi_mm + 1e-9;
   o.patch_m = a.whole_row ? kNaN : a.patch_m;
@@ -76,13 +71,6 @@ void AddHistory(const std::filesystem::path& old_dir, const std::filesystem::pat
   }
 }
 
-double Median(std::vector<double> v) {
-  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
-  if (v.empty()) return kNaN;
-  std::sort(v.begin(), v.end());
-  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
-
 struct Summary {
   std::vector<double> err_alone, err_with, rmse_alone, rmse_with, change;
   int in_alone = 0, in_with = 0, n = 0;
@@ -104,8 +92,10 @@ void Print(const char* title, const Summary& s) {
       "%s (%d cases):\n  thinnest-area |error| median %.1f mm, worst %.1f mm with the prior against %.1f / %.1f mm without;"
       "\n  band holds the truth %d / %d against %d / %d; per-face RMSE median %.1f against %.1f mm (ratio %.2f); pattern"
       " change learned median %.2f\n",
-      title, s.n, Median(abs_of(s.err_with)), worst(s.err_with), Median(abs_of(s.err_alone)), worst(s.err_alone), s.in_with, s.n,
-      s.in_alone, s.n, Median(s.rmse_with), Median(s.rmse_alone), Median(s.rmse_with) / Median(s.rmse_alone), Median(s.change));
+      title, s.n, lw::bench::FiniteMedian(abs_of(s.err_with)), worst(s.err_with), lw::bench::FiniteMedian(abs_of(s.err_alone)),
+      worst(s.err_alone), s.in_with, s.n, s.in_alone, s.n, lw::bench::FiniteMedian(s.rmse_with),
+      lw::bench::FiniteMedian(s.rmse_alone), lw::bench::FiniteMedian(s.rmse_with) / lw::bench::FiniteMedian(s.rmse_alone),
+      lw::bench::FiniteMedian(s.change));
 }
 
 }  // namespace

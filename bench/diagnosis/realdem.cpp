@@ -497,4 +497,20 @@ void RealDemCampaign::WriteBundle(const std::filesystem::path& dir) const {
   }
 }
 
+double TruthThinnest(const core::ReconstructionPlan& plan, const core::ThinnestAreas& areas,
+                     const Eigen::VectorXd& truth_remaining) {
+  const core::ThinnestArea& a = areas.liner;
+  if (!a.whole_row) return core::ThinnestPatchOf(plan, truth_remaining, -1, a.patch_m, a.shape).thickness_mm;
+  double thin = std::numeric_limits<double>::quiet_NaN();
+  for (const auto& row : areas.rows) thin = std::fmin(thin, core::AreaMean(plan, truth_remaining, row));
+  return thin;
+}
+
+double FiniteMedian(std::vector<double> v) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
 }  // namespace lw::bench

@@ -15,6 +15,7 @@
 
 #include "core/bundle.hpp"
 #include "core/reconstruction.hpp"
+#include "core/thinnest_area.hpp"
 
 namespace lw::bench {
 
@@ -84,6 +85,16 @@ struct WindowSplitChoice {
   std::vector<std::tuple<double, double, double>> curve;
 };
 WindowSplitChoice ChooseScaleByWindowSplit(const core::WearMap& map, const std::vector<Eigen::VectorXd>& windows);
+
+/// The truth's thinnest area of the size live wear reported (`areas.liner`): its thinnest patch of
+/// that size and shape in `truth_remaining` (mm per face), or its thinnest row mean when the report
+/// is a whole row. What the benches compare the headline with.
+double TruthThinnest(const core::ReconstructionPlan& plan, const core::ThinnestAreas& areas,
+                     const Eigen::VectorXd& truth_remaining);
+
+/// The median of the finite values of `v` (NaN when there are none): the benches' summaries, where a
+/// case without an answer is NaN.
+double FiniteMedian(std::vector<double> v);
 
 class RealDemCampaign {
  public:
