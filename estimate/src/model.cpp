@@ -52,9 +52,9 @@ void SetPriorFromHistory(const core::Bundle& bundle, CrusherModel& model) {
     if (s.date < model.config.installed_at && (!before || s.date >= before->date)) before = &s;
   for (auto c = bundle.history.rbegin(); c != bundle.history.rend(); ++c) {
     if (c->scans.empty() || (before && c->scans.back().date < before->date)) continue;
-    if (model.SetPrior(c->name, c->scans.back(), "history/" + c->name + "/scans/" + c->scans.back().file)) return;
+    if (model.SetPrior(c->name, c->scans.back(), "history/" + c->name + "/" + c->scans.back().file)) return;
   }
-  if (before) model.SetPrior("before " + core::FormatIsoTime(model.config.installed_at), *before, "scans/" + before->file);
+  if (before) model.SetPrior("before " + core::FormatIsoTime(model.config.installed_at), *before, before->file);
 }
 
 /// PriorCheck of `prior` against the sensors' wear now (`now`), and of the map's pattern for comparison.

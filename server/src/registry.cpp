@@ -89,8 +89,8 @@ std::unique_ptr<Crusher> Registry::LoadCrusher(const std::filesystem::path& fold
       }
     }
     c->SortScans();
-    if (previous && !c->SetPrior("before " + core::FormatIsoTime(c->config.installed_at), *previous, "scans/" + previous->file))
-      c->validation.warnings.push_back("scans/" + previous->file + " reaches none of the sensors: not used as the prior");
+    if (previous && !c->SetPrior("before " + core::FormatIsoTime(c->config.installed_at), *previous, previous->file))
+      c->validation.warnings.push_back(previous->file + " reaches none of the sensors: not used as the prior");
   }
   return c;
 }
@@ -166,10 +166,11 @@ std::unique_ptr<Crusher> Registry::ForCampaign(const Crusher& base, core::Crushe
       if (s.scan.date < c->config.installed_at && (!previous_start || s.scan.date >= *previous_start)) last = &s;
     if (last) {
       try {
-        if (!c->SetPrior(previous, core::LoadScan(base.dir / "scans" / last->scan.file), "scans/" + last->scan.file))
-          c->validation.warnings.push_back("scans/" + last->scan.file + " reaches none of the sensors: not used as the prior");
+        // ModelScan::scan.file is "scans/NAME", relative to the crusher folder.
+        if (!c->SetPrior(previous, core::LoadScan(base.dir / last->scan.file), last->scan.file))
+          c->validation.warnings.push_back(last->scan.file + " reaches none of the sensors: not used as the prior");
       } catch (const std::exception& e) {
-        c->validation.warnings.push_back("scans/" + last->scan.file + ": " + e.what() + " (not used as the prior)");
+        c->validation.warnings.push_back(last->scan.file + ": " + e.what() + " (not used as the prior)");
       }
     }
   }

@@ -123,6 +123,7 @@ TEST(Prior, LastLinersScanBringsLiveWearCloserToTheTruthWhereThePatternHeld) {
   const test::CliRun r = test::RunLinerwatch({"reconstruct", dir.path().string()});
   LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
   CHECK_TEXT(r.out.find("the prior is campaign c1's end-of-life scan") != std::string::npos, r.out.c_str());
+  CHECK_TEXT(r.out.find("scan history/c1/scans/scan_2023-08-14.xyz (") != std::string::npos, r.out.c_str());
 }
 
 TEST(Prior, ChangedOreRaisesThePatternChangeAndAScanOfThisLinerWins) {

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "core/time.hpp"
@@ -187,4 +188,27 @@ TEST(Campaigns, TheRelinesEndOfLifeScanIsTheNewLinersPrior) {
   }
   Served restarted(crushers, db);
   check_prior(restarted.Wear());
+
+  // Without scan_xyz: the folder's scan taken during the closed campaign is the prior, found in
+  // the folder (its path relative to it), live and after a restart.
+  const std::string scan_file = "scans/scan_" + Day(10).substr(0, 10) + ".xyz";
+  std::filesystem::create_directories(crushers + "/demo/scans");
+  std::ofstream(crushers + "/demo/" + scan_file) << scan;
+  const std::string db2 = keep.File("db2.sqlite");
+  const auto check_folder_prior = [&](const json& wear) {
+    CHECK_TEXT(wear["scan"].contains("prior_campaign"), wear["scan"].dump().c_str());
+    STRCMP_EQUAL(scan_file.c_str(), wear["scan"]["file"].get<std::string>().c_str());
+    CHECK(wear["scan"]["applied"].get<bool>());
+  };
+  {
+    Served a(crushers, db2);
+    LONGS_EQUAL(200, a.PostReadings(Folder(), kWriteToken));
+    const json body = {{"time", Day(12)}, {"thickness_new_mm", Folder().bundle.crusher.thickness_new_mm}};
+    auto res = a.Client(kWriteToken).Post("/api/v1/crushers/" + Folder().id() + "/relines", body.dump(), "application/json");
+    CHECK(res);
+    LONGS_EQUAL_TEXT(201, res->status, res->body.c_str());
+    check_folder_prior(a.Wear());
+  }
+  Served again(crushers, db2);
+  check_folder_prior(again.Wear());
 }
