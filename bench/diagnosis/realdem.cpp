@@ -8,6 +8,7 @@
 #include <limits>
 #include <map>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <stdexcept>
 
@@ -66,8 +67,28 @@ std::map<std::string, Eigen::VectorXd> ReadCellScalars(const std::filesystem::pa
   return out;
 }
 
-/// The truth's smoothing: a top-hat of `radius` over the surface, a plain mean or local-linear in z
-/// (RealDemSpec::truth_local_linear).
+/// The truth's smoothing evaluated at a point (z, theta): a top-hat over the faces within the
+/// index's reach, a plain area-weighted mean or local-linear in z (RealDemSpec::truth_local_linear).
+/// NaN where no face is within reach.
+double SmoothTruthAt(const core::WearMap& map, const core::SurfaceIndex& index, const Eigen::VectorXd& values, double z,
+                     double theta_deg, double radius, bool local_linear) {
+  double s0 = 0, s1 = 0, s2 = 0, t0 = 0, t1 = 0;
+  index.ForEachWithin(z, theta_deg, radius, [&](uint32_t j, double) {
+    const auto jj = static_cast<Eigen::Index>(j);
+    const double a = map.areas[jj], dz = map.z[jj] - z, v = values[jj];
+    s0 += a;
+    s1 += a * dz;
+    s2 += a * dz * dz;
+    t0 += a * v;
+    t1 += a * dz * v;
+  });
+  if (!(s0 > 0)) return std::numeric_limits<double>::quiet_NaN();
+  const double det = s0 * s2 - s1 * s1;
+  if (local_linear && det > 1e-6 * s0 * s2 && s2 > 0) return std::max(0.0, (s2 * t0 - s1 * t1) / det);
+  return t0 / s0;
+}
+
+/// The truth's smoothing over every face (SmoothTruthAt at each face's centroid).
 Eigen::VectorXd SmoothTruth(const core::WearMap& map, const Eigen::VectorXd& values, double radius, bool local_linear) {
   if (!local_linear) return core::SmoothOverSurface(map, values, radius);
   const Eigen::Index n = values.size();
@@ -75,23 +96,8 @@ Eigen::VectorXd SmoothTruth(const core::WearMap& map, const Eigen::VectorXd& val
   const core::SurfaceIndex index(map, radius);
   Eigen::VectorXd out(n);
   for (Eigen::Index i = 0; i < n; ++i) {
-    double s0 = 0, s1 = 0, s2 = 0, t0 = 0, t1 = 0;
-    index.ForEachWithin(map.z[i], map.theta_deg[i], map.radius[i], [&](uint32_t j, double) {
-      const auto jj = static_cast<Eigen::Index>(j);
-      const double a = map.areas[jj], dz = map.z[jj] - map.z[i], v = values[jj];
-      s0 += a;
-      s1 += a * dz;
-      s2 += a * dz * dz;
-      t0 += a * v;
-      t1 += a * dz * v;
-    });
-    const double det = s0 * s2 - s1 * s1;
-    if (!(s0 > 0))
-      out[i] = values[i];
-    else if (det > 1e-6 * s0 * s2 && s2 > 0)
-      out[i] = std::max(0.0, (s2 * t0 - s1 * t1) / det);
-    else
-      out[i] = t0 / s0;
+    const double v = SmoothTruthAt(map, index, values, map.z[i], map.theta_deg[i], map.radius[i], true);
+    out[i] = std::isfinite(v) ? v : values[i];
   }
   return out;
 }
@@ -318,18 +324,24 @@ RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : r
   }
   const double n_to_i = n_mean > 0 ? i_mean / n_mean : 0;
   const double z_mid = 0.5 * (zlo + zhi);
-  auto make = [&](Eigen::Index i) {
+  auto make_from = [&](double t, double nval, double z, double theta_deg) {
     Point p;
-    p.intensity = T[i] / med;
-    p.normal_tilde = std::min(1.5, N[i] / nmax);
-    p.normal_i = N[i] * n_to_i;
-    p.zn = (tm.z[i] - z_mid) / height;
-    p.theta = tm.theta_deg[i] * kPi / 180.0;
+    p.intensity = t / med;
+    p.normal_tilde = std::min(1.5, nval / nmax);
+    p.normal_i = nval * n_to_i;
+    p.zn = (z - z_mid) / height;
+    p.theta = theta_deg * kPi / 180.0;
     return p;
   };
-  for (Eigen::Index i = 0; i < n; ++i) faces_.push_back(make(i));
+  for (Eigen::Index i = 0; i < n; ++i) faces_.push_back(make_from(T[i], N[i], tm.z[i], tm.theta_deg[i]));
+  // A sensor reads the truth at its own point (the truth's smoothing evaluated there), not at the
+  // nearest face's centroid: on a real map's steep height profile a face row's centroids sit a
+  // third of a face height from a sensor between them, and the nearest one's value is several per
+  // cent off the point's, the same sign for every sensor at that height, which biased each row's
+  // scale. The nearest face is kept where the smoothing reaches no face.
+  const core::SurfaceIndex truth_index(tm, std::max(radius, 1e-6));
+  const Eigen::VectorXd tpos = tsum.cwiseMax(0.0);
   for (const auto& s : run.crusher.sensors) {
-    // The truth is smooth: the nearest face's value.
     Eigen::Index best = 0;
     double bd = std::numeric_limits<double>::max();
     for (Eigen::Index i = 0; i < n; ++i) {
@@ -341,10 +353,13 @@ RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : r
       }
     }
     sensor_face_.push_back(best);
-    Point p = make(best);
-    p.zn = (s.z_m - z_mid) / height;
-    p.theta = s.theta_deg * kPi / 180.0;
-    sensors_.push_back(p);
+    double t = radius > 0 ? SmoothTruthAt(tm, truth_index, tpos, s.z_m, s.theta_deg, -1, spec.truth_local_linear) : T[best];
+    double n_at = run.normal_w.empty() || !(radius > 0)
+                      ? N[best]
+                      : SmoothTruthAt(tm, truth_index, tn, s.z_m, s.theta_deg, -1, spec.truth_local_linear);
+    if (!std::isfinite(t)) t = T[best];
+    if (!std::isfinite(n_at)) n_at = N[best];
+    sensors_.push_back(make_from(t, n_at, s.z_m, s.theta_deg));
   }
   // Rate: without effects, the truth's most worn face reaches 85 % of (new - minimum) at `days`
   // (the liner near its end: the thinnest point matters).
@@ -368,8 +383,17 @@ RealDemCampaign::RealDemCampaign(const DemRun& run, const RealDemSpec& spec) : r
 
 void RealDemCampaign::TruthConstruction(Eigen::VectorXd& faces, Eigen::VectorXd& sensors) const {
   faces = SmoothTruth(map_, map_.wear.cwiseMax(0.0), truth_radius_m_, spec_.truth_local_linear);
+  // At each sensor's point, as the campaign's sensors read the truth.
   sensors.resize(static_cast<Eigen::Index>(sensor_face_.size()));
-  for (size_t s = 0; s < sensor_face_.size(); ++s) sensors[static_cast<Eigen::Index>(s)] = faces[sensor_face_[s]];
+  const std::optional<core::SurfaceIndex> index =
+      truth_radius_m_ > 0 ? std::optional<core::SurfaceIndex>(std::in_place, map_, truth_radius_m_) : std::nullopt;
+  const Eigen::VectorXd pos = map_.wear.cwiseMax(0.0);
+  for (size_t s = 0; s < sensor_face_.size(); ++s) {
+    const auto& sn = run_.crusher.sensors[s];
+    const double v = index ? SmoothTruthAt(map_, *index, pos, sn.z_m, sn.theta_deg, -1, spec_.truth_local_linear)
+                           : std::numeric_limits<double>::quiet_NaN();
+    sensors[static_cast<Eigen::Index>(s)] = std::isfinite(v) ? v : faces[sensor_face_[s]];
+  }
 }
 
 double RealDemCampaign::Throughput(double t) const {

@@ -132,7 +132,7 @@ class RealDemCampaign {
   double q_mean_ = 1;
   double normal_tilde_mean_ = 1;  ///< area mean of the truth's normal_tilde (alt squeeze form)
   double truth_radius_m_ = 0;
-  std::vector<Eigen::Index> sensor_face_;  ///< per sensor: the face whose truth it reads
+  std::vector<Eigen::Index> sensor_face_;  ///< per sensor: the nearest face (its truth where the smoothing reaches none)
 };
 
 }  // namespace lw::bench
