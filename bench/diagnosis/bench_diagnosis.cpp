@@ -239,7 +239,7 @@ void PrintAreaSummary(const char* title, const std::vector<std::pair<std::string
   std::map<std::string, int> shapes;
   for (const auto& [name, o] : xs) {
     const lw::core::ThinnestArea& a = o.area;
-    const double hw = 0.5 * (a.hi_mm - a.lo_mm);
+    const double hw = a.half_width_mm;
     const char* shape = a.shape == lw::core::AreaShape::kSquare ? "sq" : a.shape == lw::core::AreaShape::kRing ? "ring" : "row";
     std::printf("%-28s %9s %4s %3.2f %8.2f %8.2f %8.1f..%-8.1f %6s %5s %2d/%-2d %8.2f %5.2f (%zu)\n", name.c_str(),
                 a.supported ? "yes" : "no", shape, a.patch_m, o.err_at, o.err_thin, a.lo_mm, a.hi_mm, o.in_band ? "yes" : "no",

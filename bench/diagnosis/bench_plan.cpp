@@ -71,11 +71,11 @@ Outcome Measure(const lw::bench::DemRun& run, const lw::bench::RealDemSpec& spec
   Outcome o;
   const lw::core::ThinnestArea& a = est.areas.liner;
   const double truth_thin = lw::bench::TruthThinnest(model->plan, est.areas, truth_rem);
-  o.half_band = 0.5 * (a.hi_mm - a.lo_mm);
+  o.half_band = a.half_width_mm;
   o.err = a.thickness_mm - truth_thin;
   o.in_band = truth_thin >= a.lo_mm - 1e-9 && truth_thin <= a.hi_mm + 1e-9;
   double sum = 0;
-  for (const auto& row : est.areas.rows) sum += 0.5 * (row.hi_mm - row.lo_mm);
+  for (const auto& row : est.areas.rows) sum += row.half_width_mm;
   o.row_half = est.areas.rows.empty() ? kNaN : sum / static_cast<double>(est.areas.rows.size());
   return o;
 }

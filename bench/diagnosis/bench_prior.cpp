@@ -47,7 +47,7 @@ Outcome Measure(const lw::core::Bundle& bundle, lw::core::TimePoint at, const Ei
   o.err_thin = a.thickness_mm - truth_thin;
   o.in_band = truth_thin >= a.lo_mm - 1e-9 && truth_thin <= a.hi_mm + 1e-9;
   o.patch_m = a.whole_row ? kNaN : a.patch_m;
-  o.half_band = 0.5 * (a.hi_mm - a.lo_mm);
+  o.half_band = a.half_width_mm;
   o.rmse = std::sqrt((est.reconstruction.remaining_mm - truth_rem).squaredNorm() / static_cast<double>(truth_rem.size()));
   if (est.scan && est.scan->prior) o.change = est.scan->prior->change_rel;
   return o;
@@ -101,7 +101,7 @@ void Print(const char* title, const Summary& s) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string dem_dir;
+  std::string dem_dir, keep;
   int seeds = 6;
   double days1 = 120, days2 = 60, feed = 0.3;
   for (int i = 1; i < argc; ++i) {
@@ -115,12 +115,13 @@ int main(int argc, char** argv) {
     };
     if (a == "--help" || a == "-h") {
       std::printf(
-          "usage: lw_bench_prior --dem-dir DIR [--seeds N] [--days1 D] [--days2 D] [--feed A]\n"
+          "usage: lw_bench_prior --dem-dir DIR [--seeds N] [--days1 D] [--days2 D] [--feed A] [--keep DIR]\n"
           "Two campaigns per LIGGGHTS run of DIR (folders with wear_windows.vtk and crusher.json, data/dem*) and seed:\n"
           "campaign 1 scanned at its end (day D1, default 120), campaign 2 live at its end (day D2, default 60) with no\n"
           "scan of its own, its feed moved off-centre by A (default 0.3) in every third seed. Prints live wear with\n"
           "the old liner's scan as the prior (history/) beside the map alone, per case and summed up for the cases\n"
-          "where the pattern held and where it broke. Seeds default to 6 per run.\n");
+          "where the pattern held and where it broke. Seeds default to 6 per run. --keep DIR keeps each case's second\n"
+          "campaign, its history/ included, as DIR/RUN-SEED (a bundle for linerwatch reconstruct).\n");
       return 0;
     }
     if (a == "--dem-dir")
@@ -133,6 +134,8 @@ int main(int argc, char** argv) {
       days2 = std::atof(next().c_str());
     else if (a == "--feed")
       feed = std::atof(next().c_str());
+    else if (a == "--keep")
+      keep = next();
     else {
       std::fprintf(stderr, "lw_bench_prior: unknown option '%s' (see --help)\n", a.c_str());
       return 2;
@@ -172,6 +175,12 @@ int main(int argc, char** argv) {
       const lw::core::Bundle alone = lw::core::LoadBundle(dir.path());
       AddHistory(old_dir.path(), dir.path(), days1 + 30);
       const lw::core::Bundle with = lw::core::LoadBundle(dir.path());
+      if (!keep.empty()) {
+        const std::filesystem::path kept = std::filesystem::path(keep) / (run.name + "-" + std::to_string(k + 1));
+        std::filesystem::remove_all(kept);
+        std::filesystem::create_directories(kept.parent_path());
+        std::filesystem::copy(dir.path(), kept, std::filesystem::copy_options::recursive);
+      }
       const auto at = lw::core::AddDays(alone.crusher.installed_at, days2);
       const double new_mm = alone.crusher.thickness_new_mm;
       const Eigen::VectorXd truth_rem = (new_mm - c2.TrueFaceWear(days2).array().min(new_mm)).matrix();

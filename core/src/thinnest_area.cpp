@@ -82,7 +82,28 @@ void BandOf(const Context& c, const Sums& s, double extent_z, double extent_arc,
   a->thickness_mm = std::clamp(t, 0.0, c.new_mm);
   a->lo_mm = std::clamp(t - c.sigmas * sd, 0.0, c.new_mm);
   a->hi_mm = std::clamp(t + c.sigmas * sd, 0.0, c.new_mm);
+  a->raw_lo_mm = t - c.sigmas * sd;
+  a->raw_hi_mm = t + c.sigmas * sd;
+  a->half_width_mm = c.sigmas * sd;
 }
+
+/// The band of the thinnest of several areas: [min lo, min hi] over them, clipped and not.
+struct MinBand {
+  double lo = std::numeric_limits<double>::max(), hi = lo, raw_lo = lo, raw_hi = lo;
+  void Add(const ThinnestArea& a) {
+    lo = std::min(lo, a.lo_mm);
+    hi = std::min(hi, a.hi_mm);
+    raw_lo = std::min(raw_lo, a.raw_lo_mm);
+    raw_hi = std::min(raw_hi, a.raw_hi_mm);
+  }
+  void Into(ThinnestArea* a) const {
+    a->lo_mm = lo;
+    a->hi_mm = hi;
+    a->raw_lo_mm = raw_lo;
+    a->raw_hi_mm = raw_hi;
+    a->half_width_mm = 0.5 * (raw_hi - raw_lo);
+  }
+};
 
 /// Mean surface radius at a height (faces binned by z), for the arc length of patch centres.
 class RadiusProfile {
@@ -160,7 +181,7 @@ std::optional<ThinnestArea> ThinnestPatch(const Context& c, const SurfaceIndex& 
   const WearMap& map = *c.plan.map;
   const Row& r = c.plan.crusher->rows[static_cast<size_t>(row)];
   std::optional<ThinnestArea> best;
-  double lo = std::numeric_limits<double>::max(), hi = lo;
+  MinBand band;
   for (const auto& [z, theta] : PatchCentres(r, radius, patch)) {
     Sums s;
     if (!VisitPatch(c.plan, index, radius, row, z, theta, patch,
@@ -168,8 +189,7 @@ std::optional<ThinnestArea> ThinnestPatch(const Context& c, const SurfaceIndex& 
       continue;
     ThinnestArea a;
     BandOf(c, s, std::min(patch, r.z_max_m - r.z_min_m), patch, &a);
-    lo = std::min(lo, a.lo_mm);
-    hi = std::min(hi, a.hi_mm);
+    band.Add(a);
     if (!best || a.thickness_mm < best->thickness_mm) {
       a.z_m = z;
       a.theta_deg = theta;
@@ -177,8 +197,7 @@ std::optional<ThinnestArea> ThinnestPatch(const Context& c, const SurfaceIndex& 
     }
   }
   if (best) {
-    best->lo_mm = lo;
-    best->hi_mm = hi;
+    band.Into(&*best);
     best->patch_m = patch;
   }
   return best;
@@ -240,23 +259,21 @@ std::optional<ThinnestArea> ThinnestRing(const Context& c, const RowRings& rings
   const Row& r = c.plan.crusher->rows[static_cast<size_t>(row)];
   const double h = std::min(height, r.z_max_m - r.z_min_m);
   std::optional<ThinnestArea> best;
-  double lo = std::numeric_limits<double>::max(), hi = lo;
+  MinBand band;
   for (const double z : RingCentres(r, height)) {
     const Sums s = rings.Between(z, 0.5 * h);
     const double circumference = 2.0 * M_PI * radius.At(z);
     if (!(s.area >= 0.25 * h * circumference)) continue;  // mostly off the map
     ThinnestArea a;
     BandOf(c, s, h, circumference, &a);
-    lo = std::min(lo, a.lo_mm);
-    hi = std::min(hi, a.hi_mm);
+    band.Add(a);
     if (!best || a.thickness_mm < best->thickness_mm) {
       a.z_m = z;
       best = a;
     }
   }
   if (best) {
-    best->lo_mm = lo;
-    best->hi_mm = hi;
+    band.Into(&*best);
     best->patch_m = h;
     best->shape = AreaShape::kRing;
     best->theta_deg = kNan;
@@ -284,8 +301,13 @@ ThinnestArea WholeRow(const Context& c, const RadiusProfile& radius, int row) {
   return a;
 }
 
+/// Whether the area's band supports acting on its number: its half-width before clipping. An
+/// estimate 75 mm past worn through with an 86 mm half-width is clipped to the band 0-11 mm, which
+/// says nothing about whether the area is 0 or 60 mm thick; and a noisy small patch estimated far
+/// past worn through (-96 +/- 95 mm beside its row's 37 +/- 31 mm, in the test) is no finding
+/// either, though its whole band lies below 0.
 bool Within(const ThinnestArea& a, double target) {
-  return std::isfinite(a.thickness_mm) && 0.5 * (a.hi_mm - a.lo_mm) <= target + 1e-9;
+  return std::isfinite(a.thickness_mm) && a.half_width_mm <= target + 1e-9;
 }
 
 /// Surface distance from an area's centre to the nearest sensor of `used` (a ring or a whole row: along z
@@ -379,10 +401,11 @@ ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruc
         if (!liner) {
           liner = a;
         } else {
-          const double lo = std::min(liner->lo_mm, a->lo_mm), hi = std::min(liner->hi_mm, a->hi_mm);
+          MinBand band;
+          band.Add(*liner);
+          band.Add(*a);
           if (a->thickness_mm < liner->thickness_mm) liner = a;
-          liner->lo_mm = lo;
-          liner->hi_mm = hi;
+          band.Into(&*liner);
         }
       }
       if (!liner_done && liner && Within(*liner, target)) {
@@ -402,10 +425,11 @@ ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruc
     if (!liner_row) {
       liner_row = whole;
     } else {
-      const double lo = std::min(liner_row->lo_mm, whole.lo_mm), hi = std::min(liner_row->hi_mm, whole.hi_mm);
+      MinBand band;
+      band.Add(*liner_row);
+      band.Add(whole);
       if (whole.thickness_mm < liner_row->thickness_mm) liner_row = whole;
-      liner_row->lo_mm = lo;
-      liner_row->hi_mm = hi;
+      band.Into(&*liner_row);
     }
   }
   if (!liner_done) {
@@ -562,6 +586,7 @@ nlohmann::ordered_json ThinnestAreaJson(const ThinnestArea& a) {
   j["row"] = a.row;
   j["whole_row"] = a.whole_row;
   j["worn_through"] = a.worn_through;
+  j["band_half_width_mm"] = Rounded(a.half_width_mm, 0.01);
   j["band_parts_mm"] = {{"row_scale_sd", Rounded(a.scale_sd_mm, 0.01)}, {"map_sd", Rounded(a.map_sd_mm, 0.01)}};
   j["detail"] = Detail(a);
   if (a.sensor_fallback) {

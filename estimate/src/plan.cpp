@@ -316,9 +316,9 @@ SensorPlan PlanSensors(const CrusherModel& model, const PlanOptions& options) {
 
 namespace {
 
-/// The band half-width the live wear reports for an area ([lo, hi] as it gives it).
+/// The band half-width the live wear judges an area by (before the band is clipped to [0, new]).
 double ReportedHalf(const core::ThinnestArea& a) {
-  return std::isfinite(a.lo_mm) && std::isfinite(a.hi_mm) ? 0.5 * (a.hi_mm - a.lo_mm) : kNan;
+  return std::isfinite(a.thickness_mm) ? a.half_width_mm : kNan;
 }
 
 double DateBandDays(const core::RowForecast& f) {

@@ -49,12 +49,17 @@ struct ThinnestArea {
   double thickness_mm = 0;  ///< area-mean remaining thickness (NaN: no row scale)
   double lo_mm = 0;         ///< band (band_sigmas sd), in [0, new]
   double hi_mm = 0;
-  double patch_m = 0;  ///< side of the square patch (m); a whole row: the row's height
+  /// band_sigmas sd before the band is clipped to [0, new]: what the data say about the area. A band
+  /// clipped at 0 mm (an estimate past worn through) or at the new thickness is narrower than that
+  /// only because thickness cannot leave [0, new]; support is judged on this half-width.
+  double half_width_mm = 0;
+  double raw_lo_mm = 0, raw_hi_mm = 0;  ///< the band's edges before clipping (half_width_mm is half their gap)
+  double patch_m = 0;                   ///< side of the square patch (m); a whole row: the row's height
   AreaShape shape = AreaShape::kSquare;
   bool whole_row = false;                         ///< the area is the whole row (no angle): shape kRow
   double z_m = 0;                                 ///< centre (a whole row: its mid-height)
   double theta_deg = 0;                           ///< centre (NaN for a ring or a whole row)
-  bool supported = false;                         ///< the band half-width is within the target at patch_m
+  bool supported = false;                         ///< half_width_mm is within the target at patch_m
   bool extrapolated = false;                      ///< the centre is beyond the sensors' reach (from the DEM map alone)
   double nearest_sensor_m = 0;                    ///< surface distance from the centre to the nearest scale-setting sensor
   bool worn_through = false;                      ///< supported and the band's thick edge is at 0

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 
 #include "core/reconstruction.hpp"
@@ -50,7 +51,7 @@ TEST(ThinnestArea, AFacesBandAtZeroIsNoWornThroughAreaTheHeadlineIsTheSupportedP
   const ThinnestAreas a = FindThinnestAreas(plan, rec, used);
   CHECK_FALSE(a.liner.worn_through);
   // Supported within the target, or said not to be and the sensors' own reading given.
-  CHECK(a.liner.supported == (a.liner.hi_mm - a.liner.lo_mm <= 2 * c.thinnest_area.band_half_width_mm + 1e-9));
+  CHECK(a.liner.supported == (a.liner.half_width_mm <= c.thinnest_area.band_half_width_mm + 1e-9));
   CHECK(a.liner.supported || a.liner.sensor_fallback.has_value());
   CHECK(a.liner.thickness_mm > rec.min_thickness_mm);
   CHECK(a.liner.lo_mm <= a.liner.thickness_mm && a.liner.thickness_mm <= a.liner.hi_mm);
@@ -137,6 +138,35 @@ TEST(ThinnestArea, WornThroughOnlyWhereTheSupportedBandSaysSo) {
   const std::vector<SensorWear> beyond = {{"1001", 130.0}, {"1002", 130.0}};  // past the liner
   a = FindThinnestAreas(plan, Reconstruct(plan, beyond), used);
   CHECK_TRUE(a.liner.worn_through);
+}
+
+// An estimate past worn through whose band is wide: the band clipped to [0, new] is narrow (it
+// cannot go below 0 mm), but the data do not say whether the area is 0 or tens of mm thick. Seen on
+// a LIGGGHTS map (c7815-tall, two sensors per row): "0.0 mm, band 0.0-10.9 mm, supported" where the
+// truth had 61 mm left and the unclipped band was +/-86 mm. Neither supported nor worn through:
+// the sensors' own reading is shown.
+TEST(ThinnestArea, ABandClippedAtZeroIsNotSupportedByItsClippedWidth) {
+  const CrusherConfig c = TwoRows();
+  WearMap m = NoisyMap();
+  for (Eigen::Index i = 0; i < m.wear.size(); ++i)
+    if (m.z[i] < 0.2) m.wear[i] *= 3.0;  // a discharge-edge band far below the sensor at z 0.5
+  const ReconstructionPlan plan = PrepareReconstruction(c, m);
+  const double target = c.thinnest_area.band_half_width_mm;
+  int seen = 0;
+  for (double r1001 = 70; r1001 >= 0; r1001 -= 1) {
+    const std::vector<Reading> used = Used(c, r1001, 110);
+    const ThinnestAreas a = FindThinnestAreas(plan, Reconstruct(plan, WearOf(used)), used);
+    for (const ThinnestArea* x : {&a.liner, &a.rows[0]}) {
+      DOUBLES_EQUAL(std::clamp(x->raw_hi_mm, 0.0, c.thickness_new_mm), x->hi_mm, 1e-9);
+      DOUBLES_EQUAL(std::clamp(x->raw_lo_mm, 0.0, c.thickness_new_mm), x->lo_mm, 1e-9);
+      if (!(x->lo_mm <= 0 && x->raw_hi_mm > 0 && 0.5 * (x->hi_mm - x->lo_mm) <= target && x->half_width_mm > target)) continue;
+      ++seen;
+      CHECK_FALSE(x->supported);
+      CHECK_FALSE(x->worn_through);
+      CHECK(x->sensor_fallback.has_value());
+    }
+  }
+  CHECK(seen > 0);  // the sweep reaches such a band
 }
 
 TEST(ThinnestArea, NoSensorsGivesNoNumber) {
