@@ -63,6 +63,12 @@ void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq) {
     if (cursor.size() < 4 || cursor[0] != 't' || s == std::string::npos) throw std::invalid_argument("");
     size_t used = 0;
     const std::string t = cursor.substr(1, s - 1), q = cursor.substr(s + 1);
+    // Exactly t<int>s<int> as MakeCursor writes it: std::stoll alone takes " 1" and "+1" too.
+    for (const std::string* part : {&t, &q}) {
+      const size_t digits = part->rfind('-', 0) == 0 ? 1 : 0;
+      if (part->size() == digits || part->find_first_not_of("0123456789", digits) != std::string::npos)
+        throw std::invalid_argument("");
+    }
     *time_s = std::stoll(t, &used);
     if (used != t.size()) throw std::invalid_argument("");
     *seq = std::stoll(q, &used);

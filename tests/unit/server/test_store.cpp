@@ -183,6 +183,17 @@ TEST(Store, RangeIsTheReadingsAfterTheCursorInTheWindowWithEveryFieldButThePaylo
 TEST(Store, MalformedCursorIsRefused) {
   Store s(db());
   CHECK_THROWS(std::invalid_argument, s.Range("c1", "a", 0, 10, 5, "t12x"));
+  // Finding: std::stoll skips leading blanks and takes a sign, so "t 1s 1" passed as a cursor.
+  for (const char* c : {"t 1s 1", "t1s 1", "t+1s1", "t1s+1", "t-s1", "t1s-", "t\t1s1"}) {
+    bool refused = false;
+    try {
+      s.Range("c1", "a", 0, 10, 5, c);
+    } catch (const std::invalid_argument&) {
+      refused = true;
+    }
+    CHECK_TEXT(refused, c);
+  }
+  s.Range("c1", "a", 0, 10, 5, "t-5s3");  // what MakeCursor writes, negative times too
 }
 
 TEST(Store, LatestPerSensorIsByTimeWithCounts) {
