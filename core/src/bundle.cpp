@@ -1,5 +1,7 @@
 #include "core/bundle.hpp"
 
+#include "core/json_unique.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -243,7 +245,9 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
   if (!in) throw InputError(file, 0, "cannot open '" + path.string() + "'");
   json j;
   try {
-    j = json::parse(in);
+    j = ParseJsonUniqueKeys(in);
+  } catch (const DuplicateJsonKey& e) {
+    throw InputError(file, 0, e.what());
   } catch (const json::out_of_range& e) {
     throw InputError(file, 0, std::string("a number does not fit a double: ") + e.what());
   } catch (const json::parse_error& e) {

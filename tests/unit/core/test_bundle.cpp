@@ -186,6 +186,10 @@ TEST(Bundle, ImplausibleCrusherJsonIsRefused) {
     CHECK_TEXT(e.find("sensor id") != std::string::npos, e.c_str());
   }
   CHECK(with("\"crusher_id\": \"cr1\"", "\"crusher_id\": \"c<b>\"").find("crusher_id") != std::string::npos);
+  // Finding: a key given twice kept its last value silently (a second "site" further down won).
+  CHECK(with("\"crusher_id\": \"cr1\"", "\"crusher_id\": \"cr1\", \"site\": \"a\", \"site\": \"b\"")
+            .find("key \"site\" appears twice in the top level") != std::string::npos);
+  CHECK(with("\"id\": \"1001\"", "\"id\": \"1001\", \"id\": \"1002\"").find("key \"id\" appears twice") != std::string::npos);
   CHECK(with("\"crusher_id\": \"cr1\"", "\"crusher_id\": \"cr1\", \"site\": \"a/b\"").find("site 'a/b'") != std::string::npos);
   CHECK(with("\"z_m\": 0.5", "\"z_m\": 50").find("outside its row 'LDWN'") != std::string::npos);
   CHECK(with("\"theta_deg\": 0", "\"theta_deg\": 9999").find("theta_deg") != std::string::npos);
