@@ -499,7 +499,12 @@ std::vector<PastCampaign> LoadHistory(const std::filesystem::path& dir, const Cr
 
 std::vector<Scan> LoadScans(const std::filesystem::path& dir) {
   std::vector<Scan> scans;
-  if (!std::filesystem::is_directory(dir / "scans")) return scans;
+  std::error_code ec;
+  const auto status = std::filesystem::status(dir / "scans", ec);
+  if (status.type() == std::filesystem::file_type::not_found) return scans;
+  // A `scans` that is a file (a scan copied to the wrong name) would be ignored silently.
+  if (status.type() != std::filesystem::file_type::directory)
+    throw InputError("scans", 0, "'" + (dir / "scans").string() + "' is not a folder (scans go in scans/scan_YYYY-MM-DD.xyz)");
   std::vector<std::filesystem::path> files;
   for (const auto& e : std::filesystem::directory_iterator(dir / "scans")) {
     if (e.path().extension() == ".xyz") files.push_back(e.path());

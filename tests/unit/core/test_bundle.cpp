@@ -172,6 +172,15 @@ TEST(Bundle, BadScansAndOperationsAreRefused) {
 
 // crusher.json values that would load and then give wrong answers (or can never match a topic,
 // or put markup into the dashboard) are refused, naming the rule.
+// Finding: a `scans` that is a file, not a folder, was ignored silently (no scan, no word).
+TEST(Bundle, ScansThatIsAFileIsRefused) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
+  STRCMP_EQUAL("", ErrorOf(dir).c_str());
+  dir.Write("scans", "0 0 0\n");
+  const std::string e = ErrorOf(dir);
+  CHECK_TEXT(e.find("is not a folder") != std::string::npos, e.c_str());
+}
+
 TEST(Bundle, ImplausibleCrusherJsonIsRefused) {
   lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
   auto with = [&](const std::string& from, const std::string& to) {
