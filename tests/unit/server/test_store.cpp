@@ -319,6 +319,21 @@ TEST(Store, AFloodOfOneRejectionClassEvictsOnlyItself) {
   LONGS_EQUAL(20, again.CountRejected());
 }
 
+// Finding: a read-only file system gave "unable to open database file" and nothing more. The
+// system's reason is now added (here: a folder that does not exist; on a read-only mount it reads
+// "Read-only file system").
+TEST(Store, AnOpenThatFailsSaysWhy) {
+  const std::string path = dir.File("no-such-folder/db.sqlite");
+  try {
+    Store s(path);
+    FAIL("a database in a folder that does not exist was opened");
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    CHECK_TEXT(what.find(path) != std::string::npos, what.c_str());
+    CHECK_TEXT(what.find("(No such file or directory)") != std::string::npos, what.c_str());
+  }
+}
+
 // Finding: a database truncated to 0 bytes was taken as a new one, all history gone, no word said.
 TEST(Store, AnEmptyDatabaseFileIsRefusedNotTakenAsNew) {
   FILE* f = fopen(db().c_str(), "w");
