@@ -1,12 +1,12 @@
 // The server's reading ingest (server/ingest.hpp): the MQTT topic, a newline, then the payload, as
 // the MQTT loop hands them to the Ingestor (mqtt::Topics::ParseAny, ValidateReading, Ingest into SQLite)
 // against the fixture crusher "fz1".
-// Properties: ValidateReading and Ingest never throw; a message is stored, a duplicate, a conflict
-// or rejected (exactly one); a message that named its sensor (the topic's) and seq under the crusher's
-// own site is acknowledged with that seq (a rejected one too, once quarantined); the commit ack the server publishes for it
-// parses in the gateway (mqtt::DecodeCommitAck) to the same sensor and seqs. A batch (several
-// records in one message, docs/mqtt.md *Batches*) counts as its records, each judged as if it had
-// come alone; a malformed batch is one rejected message and acknowledged by no seq.
+// Properties: ValidateReading and Ingest never throw; a message is stored, a duplicate, a conflict,
+// rejected or held (exactly one); a held one (ValidateReading's verdict) is never acknowledged; a message that named its sensor
+// (the topic's) and seq under the crusher's own site is acknowledged with that seq (a rejected one too, once quarantined); the
+// commit ack the server publishes for it parses in the gateway (mqtt::DecodeCommitAck) to the same sensor and seqs. A batch
+// (several records in one message, docs/mqtt.md *Batches*) counts as its records, each judged as if it had come alone; a
+// malformed batch is one rejected message and acknowledged by no seq.
 #include <memory>
 #include <set>
 #include <optional>
@@ -46,14 +46,17 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   Check(batch_ok || !batch_error.empty(), "a refused batch without a reason");
   if (records.empty()) records.push_back(payload);
   size_t valid = 0;
-  std::set<int64_t> to_ack;  // the seqs of records that named the topic's sensor
+  std::set<int64_t> to_ack;  // the seqs of records that named the topic's sensor and are not held
+  std::set<int64_t> held;    // held records' seqs: never acknowledged (their gateway publishes them again)
   for (const std::string& record : records) {
     const server::Validation v =
         server::ValidateReading({t->site, t->crusher, t->id, topic, record}, fuzz::FixtureRegistry(), fuzz::kNowS);
     Check(v.reading.has_value() || !v.error.empty(), "a refused reading without a reason");
+    Check(!v.held || !v.reading, "a held reading is also valid");
     if (batch_ok && v.reading) ++valid;
-    if (batch_ok && v.sensor == t->id && v.seq) to_ack.insert(*v.seq);
+    if (batch_ok && v.sensor == t->id && v.seq) (v.held ? held : to_ack).insert(*v.seq);
   }
+  for (const int64_t s : to_ack) held.erase(s);  // a seq also valid in the batch: acked for that record
 
   // The crusher's site before this message (a first valid reading binds it): a message under
   // another site is quarantined and, by design, never acknowledged (docs/security.md).
@@ -61,7 +64,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const server::IngestResult r = ingestor->Ingest({msg});
   const std::optional<std::string> site_after = ingestor->SiteOf(t->crusher);
   const bool own_site = (site_before && *site_before == t->site) || (site_after && *site_after == t->site);
-  Check(r.stored + r.duplicates + r.conflicts + r.rejected == records.size(), "a record was not counted exactly once");
+  Check(r.stored + r.duplicates + r.conflicts + r.rejected + r.held == records.size(), "a record was not counted exactly once");
   if (!batch_ok) Check(r.rejected == 1 && r.acks.empty(), "a malformed batch was not rejected whole, or was acknowledged");
   // ValidateReading knows no site binding: under a foreign site Ingest may reject a valid reading.
   if (own_site) Check(valid == r.stored + r.duplicates + r.conflicts, "Ingest and ValidateReading disagree on the message");
@@ -72,6 +75,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         "a message naming sensor " + t->id + " and " + std::to_string(to_ack.size()) + " seq(s) was not acknowledged with them");
   }
   for (const server::Ack& a : r.acks) {
+    for (const int64_t s : a.seqs) Check(!held.count(s), "a held reading was acknowledged");
     const std::string json = mqtt::EncodeCommitAck({a.sensor, {a.seqs.begin(), a.seqs.end()}, "2026-06-01T00:00:00Z"});
     std::string error;
     const auto back = mqtt::DecodeCommitAck(json, a.sensor, &error);

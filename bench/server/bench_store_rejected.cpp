@@ -41,7 +41,8 @@ Timing RunOnce(const std::filesystem::path& dir, int n) {
     std::vector<lw::server::Rejected> batch;
     batch.reserve(static_cast<size_t>(n));
     for (int i = 0; i < n; ++i)
-      batch.push_back({i, "", "{\"n\":" + std::to_string(i) + ",\"pad\":\"" + std::string(6000, 'z') + "\"}", "bad"});
+      batch.push_back(
+          {i, "", "{\"n\":" + std::to_string(i) + ",\"pad\":\"" + std::string(6000, 'z') + "\"}", "bad", "malformed"});
     const auto a = std::chrono::steady_clock::now();
     s.Commit({}, batch);
     const auto b = std::chrono::steady_clock::now();

@@ -1,5 +1,7 @@
 #include "core/bundle.hpp"
 
+#include "core/json_unique.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -243,7 +245,9 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
   if (!in) throw InputError(file, 0, "cannot open '" + path.string() + "'");
   json j;
   try {
-    j = json::parse(in);
+    j = ParseJsonUniqueKeys(in);
+  } catch (const DuplicateJsonKey& e) {
+    throw InputError(file, 0, e.what());
   } catch (const json::out_of_range& e) {
     throw InputError(file, 0, std::string("a number does not fit a double: ") + e.what());
   } catch (const json::parse_error& e) {
@@ -495,7 +499,12 @@ std::vector<PastCampaign> LoadHistory(const std::filesystem::path& dir, const Cr
 
 std::vector<Scan> LoadScans(const std::filesystem::path& dir) {
   std::vector<Scan> scans;
-  if (!std::filesystem::is_directory(dir / "scans")) return scans;
+  std::error_code ec;
+  const auto status = std::filesystem::status(dir / "scans", ec);
+  if (status.type() == std::filesystem::file_type::not_found) return scans;
+  // A `scans` that is a file (a scan copied to the wrong name) would be ignored silently.
+  if (status.type() != std::filesystem::file_type::directory)
+    throw InputError("scans", 0, "'" + (dir / "scans").string() + "' is not a folder (scans go in scans/scan_YYYY-MM-DD.xyz)");
   std::vector<std::filesystem::path> files;
   for (const auto& e : std::filesystem::directory_iterator(dir / "scans")) {
     if (e.path().extension() == ".xyz") files.push_back(e.path());

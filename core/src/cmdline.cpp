@@ -1,5 +1,7 @@
 #include "core/cmdline.hpp"
 
+#include "core/json_unique.hpp"
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -55,7 +57,9 @@ void ReadConfigFile(const OptionTable& table, const std::string& path, Collected
   if (!in) throw ConfigFileError(where + ": cannot be read");
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(in);
+    j = ParseJsonUniqueKeys(in);
+  } catch (const DuplicateJsonKey& e) {
+    throw ConfigFileError(where + ": " + e.what());
   } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for 1e999
     throw ConfigFileError(where + ": invalid JSON: " + e.what());
   }

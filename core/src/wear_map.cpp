@@ -9,6 +9,7 @@
 #include <string_view>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -184,7 +185,15 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
   std::getline(hs, l3);
   if (l1.rfind("# vtk DataFile Version", 0) != 0)
     throw InputError(file, 1, "not a legacy VTK file (expected '# vtk DataFile Version')");
-  const bool v5 = l1.find("5.") != std::string::npos;
+  // The legacy format's versions are 1.0 to 5.1: a later one may lay its data out otherwise.
+  std::string version = l1.substr(std::strlen("# vtk DataFile Version"));
+  while (!version.empty() && std::isspace(static_cast<unsigned char>(version.back()))) version.pop_back();
+  while (!version.empty() && version.front() == ' ') version.erase(0, 1);
+  const bool known = version.size() == 3 && version[1] == '.' && version[0] >= '1' && version[0] <= '5' &&
+                     std::isdigit(static_cast<unsigned char>(version[2])) && (version[0] < '5' || version[2] <= '1');
+  if (!known) throw InputError(file, 1, "VTK version '" + version + "' is not a legacy VTK version (1.0 to 5.1)");
+  const int major = version[0] - '0';
+  const bool v5 = major == 5;
   auto trim = [](std::string s) {
     while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
     return s;
@@ -208,6 +217,12 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
   }
   size_t cell_count = 0;
   bool in_cell_data = false, in_point_data = false;
+  // A cell array given twice would have its last copy win unseen (a second "wear" further down).
+  std::set<std::string> assigned;
+  const auto assign = [&](const std::string& name, Eigen::VectorXd v, size_t line) {
+    if (!assigned.insert(name).second) throw InputError(file, line, "cell array '" + name + "' appears twice");
+    Assign(map, name, std::move(v));
+  };
   size_t point_data_count = 0;
   while (!t.done()) {
     const size_t kw_line = t.line();
@@ -297,7 +312,7 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
         if (name == "wear" && v[static_cast<Eigen::Index>(i)] < 0)
           throw InputError(file, t.LastLine(), NegativeWear(i, v[static_cast<Eigen::Index>(i)]));
       }
-      if (in_cell_data && ncomp == 1) Assign(map, name, std::move(v));
+      if (in_cell_data && ncomp == 1) assign(name, std::move(v), t.LastLine());
     } else if (kw == "FIELD") {
       t.Next("field name");
       const auto arrays = t.Integer("array count");
@@ -318,7 +333,7 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
           v[i] = t.Number(name.c_str());
           if (name == "wear" && v[i] < 0) throw InputError(file, t.LastLine(), NegativeWear(static_cast<size_t>(i), v[i]));
         }
-        if (in_cell_data && ncomp == 1) Assign(map, name, std::move(v));
+        if (in_cell_data && ncomp == 1) assign(name, std::move(v), line);
       }
     } else if (kw == "VECTORS" || kw == "NORMALS") {
       t.Next("array name");

@@ -418,7 +418,32 @@ bool Gateway::AdmitDevice(const DeviceEntry& device, const std::vector<DeviceEnt
                                     device.address + " not registered (its readings are still spooled)");
     return false;
   }
+  // Identification frames cost nothing to forge: addresses known only from them take at most half
+  // of the registry, so a radio announcing made-up addresses cannot keep new sensors out.
+  if (!known && device.sensor.empty()) {
+    size_t announced = AnnouncedOnlyDevices();
+    for (const DeviceEntry& a : admitted) announced += a.sensor.empty() ? 1 : 0;
+    if (announced >= (options_.max_devices + 1) / 2) {
+      ++counters_.devices_refused;
+      LogLimited("registry_full", "registry: full for addresses known only from identification frames (" +
+                                      std::to_string(announced) + ", half of --max-devices); node at " + device.address +
+                                      " not registered");
+      return false;
+    }
+  }
   return true;
+}
+
+size_t Gateway::AnnouncedOnlyDevices() const {
+  // Keys are "address/sensor", sorted: an address's node entry "address/" comes just before its
+  // sensors' entries, if it has any.
+  size_t n = 0;
+  for (auto it = known_devices_.begin(); it != known_devices_.end(); ++it) {
+    if (it->empty() || it->back() != '/') continue;
+    const auto next = std::next(it);
+    if (next == known_devices_.end() || next->rfind(*it, 0) != 0) ++n;
+  }
+  return n;
 }
 
 void Gateway::DeviceRecorded(const DeviceEntry& device, bool changed) {

@@ -37,7 +37,9 @@ Validation CheckReading(const Incoming& in, const std::optional<mqtt::ReadingMes
   }
   const Crusher* crusher = registry.Find(in.crusher);
   if (!crusher) {
-    v.error = "unknown crusher '" + in.crusher + "'";
+    // A `--crusher` typo or a folder that failed to load: resent until one of that id loads.
+    v.error = "unknown crusher '" + in.crusher + "' (held, not acknowledged: stored once a crusher folder of that id loads)";
+    v.held = "unknown_crusher";
     return v;
   }
   const core::SensorInfo* sensor = crusher->config.FindSensor(v.sensor);
@@ -69,6 +71,13 @@ Validation CheckReading(const Incoming& in, const std::optional<mqtt::ReadingMes
     v.error = "\"thickness_mm\" " + error;
     return v;
   }
+  if (time_s > now_s + kFutureSlackS) {
+    v.error = "\"time\" " + m->time + " is " + std::to_string(time_s - now_s) + " s after the server's clock (" +
+              core::FormatIsoTime(core::TimePoint(std::chrono::seconds(now_s))) +
+              "): held, not acknowledged, until it is at most " + std::to_string(kFutureSlackS) + " s ahead";
+    v.held = "future";
+    return v;
+  }
   StoredReading r;
   r.crusher = in.crusher;
   r.sensor = v.sensor;
@@ -91,7 +100,7 @@ const char* RejectionReason(const Incoming& in, const Validation& v, bool foreig
   if (!in.sensor.empty() && v.sensor != in.sensor) return "sensor_mismatch";
   if (!v.seq) return "malformed";
   const Crusher* crusher = registry.Find(in.crusher);
-  if (!crusher) return "unknown_crusher";
+  if (!crusher) return "internal";  // held, never rejected
   if (!crusher->config.FindSensor(v.sensor)) return "unknown_sensor";
   if (v.error.rfind("\"time\" ", 0) == 0) return "time";
   if (v.error.rfind("\"thickness_mm\" ", 0) == 0 && v.error.find(" is outside ") != std::string::npos) return "thickness";
@@ -111,10 +120,47 @@ Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t
 
 Ingestor::Ingestor(Store& store, const Registry& registry, std::function<int64_t()> now_s, LiveState* live)
     : store_(store), registry_(registry), live_(live), now_s_(std::move(now_s)) {
+  for (const Crusher* c : registry_.All()) named_sites_ |= !c->config.site.empty();
   for (const auto& [crusher, site] : store_.CrusherSites()) sites_[crusher] = site;
-  // crusher.json's "site" binds; it overrides a binding learnt from the first reading.
   for (const Crusher* c : registry_.All()) {
-    if (!c->config.site.empty()) sites_[c->config.crusher_id] = c->config.site;
+    const std::string& id = c->config.crusher_id;
+    // crusher.json's "site" binds; it overrides a binding learnt from the first reading.
+    if (!c->config.site.empty()) {
+      sites_[id] = c->config.site;
+      continue;
+    }
+    if (!named_sites_) continue;
+    // With named sites a binding learnt from a first reading is not kept: whoever spoke first won it.
+    const auto learnt = sites_.find(id);
+    warnings_.push_back("crusher " + id + " has no \"site\" in " + (c->dir / "crusher.json").string() +
+                        " and this server's other crushers name theirs: its readings are held (not stored, not "
+                        "acknowledged) until you add \"site\": \"SITE\" (its gateway's --site" +
+                        (learnt == sites_.end() ? std::string() : "; it was first heard from '" + learnt->second + "'") +
+                        ") and restart");
+    if (learnt != sites_.end()) sites_.erase(learnt);
+  }
+}
+
+void Ingestor::CheckSite(const Incoming& in, Validation& v, bool* foreign, std::map<std::string, std::string>& new_sites) const {
+  const Crusher* crusher = in.site.empty() ? nullptr : registry_.Find(in.crusher);  // REST: no site
+  if (!crusher || v.held) return;
+  if (named_sites_ && crusher->config.site.empty()) {
+    v.reading.reset();
+    v.held = "no_site";
+    v.error = "crusher " + in.crusher +
+              " has no \"site\" in its crusher.json and this server's other crushers name theirs "
+              "(held, not acknowledged: add \"site\": \"" +
+              in.site + "\" to " + (crusher->dir / "crusher.json").string() + " if that is its site, and restart)";
+    return;
+  }
+  const auto bound = sites_.find(in.crusher);
+  const auto pending = new_sites.find(in.crusher);
+  const std::string* site = bound != sites_.end() ? &bound->second : pending != new_sites.end() ? &pending->second : nullptr;
+  if (!site && v.reading) site = &new_sites.emplace(in.crusher, in.site).first->second;
+  if (site && *site != in.site) {
+    *foreign = true;
+    v.reading.reset();
+    v.error = "site '" + in.site + "' is not crusher " + in.crusher + "'s site '" + *site + "' (quarantined, not acknowledged)";
   }
 }
 
@@ -138,6 +184,7 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
     std::string payload;  ///< its text: the message's, or the record's within its batch
     Validation v;
     bool foreign_site = false;  ///< a known crusher heard under another site
+    const char* reason = "";    ///< kRejectionReasons class when rejected
   };
   std::vector<Record> records;
   records.reserve(messages.size());
@@ -202,25 +249,15 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
     const Incoming& in = messages[rec.message];
     Validation& v = rec.v;
     // Sites are identities: a crusher's readings count only under its own site's topics.
-    if (!in.site.empty() && registry_.Find(in.crusher)) {
-      auto bound = sites_.find(in.crusher);
-      auto pending = new_sites.find(in.crusher);
-      const std::string* site = bound != sites_.end() ? &bound->second : pending != new_sites.end() ? &pending->second : nullptr;
-      if (!site && v.reading) site = &new_sites.emplace(in.crusher, in.site).first->second;
-      if (site && *site != in.site) {
-        rec.foreign_site = true;
-        v.reading.reset();
-        v.error =
-            "site '" + in.site + "' is not crusher " + in.crusher + "'s site '" + *site + "' (quarantined, not acknowledged)";
-      }
-    }
+    CheckSite(in, v, &rec.foreign_site, new_sites);
     if (v.reading) {
       v.reading->received_s = wall;
       v.reading->payload = std::move(rec.payload);
       readings.push_back(std::move(*v.reading));  // v.reading stays set: "valid" for the loops below
       reading_index.push_back(k);
-    } else {
-      rejected.push_back({wall, in.topic, rec.payload, v.error});
+    } else if (!v.held) {  // a held record is stored nowhere: its gateway keeps it
+      rec.reason = RejectionReason(in, v, rec.foreign_site, registry_);
+      rejected.push_back({wall, in.topic, rec.payload, v.error, rec.reason});
     }
   }
   std::unique_lock<std::mutex> commit_order;  // from the commit to live_->Add (LiveState::CommitGuard)
@@ -272,7 +309,7 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
         ++counters_of(r.crusher).conflicts;
         result.log.push_back("conflict: " + r.crusher + "/" + r.sensor + " seq " + std::to_string(r.seq) +
                              " was stored before with another time or thickness; the first is kept");
-        conflicted.push_back({wall, in.topic, std::move(r.payload), result.log.back() + ", this one quarantined"});
+        conflicted.push_back({wall, in.topic, std::move(r.payload), result.log.back() + ", this one quarantined", "conflict"});
         break;
     }
   }
@@ -287,9 +324,18 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
     const Validation& v = rec.v;
     if (v.reading) continue;
     const Incoming& in = messages[rec.message];
+    // Per crusher for known crushers only: a flood of made-up ids must not grow the map.
+    const bool known = registry_.Find(in.crusher) != nullptr;
+    if (v.held) {
+      ++result.held;
+      if (known) ++counters_of(in.crusher).held;
+      ++totals_.held_by_reason[v.held];
+      result.log.push_back("held " + (in.topic.empty() ? std::string("REST reading") : in.topic) + ": " + v.error);
+      continue;  // not acknowledged: the gateway publishes it again (docs/gateway.md, Replay)
+    }
     ++result.rejected;
-    ++counters_of(in.crusher).rejected;
-    ++totals_.rejected_by_reason[RejectionReason(in, v, rec.foreign_site, registry_)];
+    if (known) ++counters_of(in.crusher).rejected;
+    ++totals_.rejected_by_reason[rec.reason];
     result.log.push_back("rejected " + (in.topic.empty() ? std::string("REST reading") : in.topic) + ": " + v.error);
     // Quarantined in the database: the gateway may drop it (resending cannot make it valid). Not
     // under a site the crusher does not belong to: that publisher is not its gateway.
@@ -307,6 +353,7 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
   totals_.duplicates += static_cast<int64_t>(result.duplicates);
   totals_.conflicts += static_cast<int64_t>(result.conflicts);
   totals_.rejected += static_cast<int64_t>(result.rejected);
+  totals_.held += static_cast<int64_t>(result.held);
   ++totals_.batches;
   return result;
 }

@@ -118,7 +118,7 @@ void ServerMetrics::WearDone(const std::string& crusher, bool ok, double seconds
 void ServerMetrics::RenderIngest(Writer& w, const Ingestor& ingestor) const {
   const IngestCounters c = ingestor.Counters();
   w.Counter("linerwatch_readings_ingested_total", "Reading records validated by the ingest (MQTT and REST), whatever the outcome",
-            static_cast<double>(c.stored + c.duplicates + c.conflicts + c.rejected));
+            static_cast<double>(c.stored + c.duplicates + c.conflicts + c.rejected + c.held));
   w.Counter("linerwatch_readings_stored_total", "Readings committed to the database for the first time",
             static_cast<double>(c.stored));
   w.Counter("linerwatch_readings_duplicates_total", "Readings already stored (a republication): committed before, acked again",
@@ -131,6 +131,14 @@ void ServerMetrics::RenderIngest(Writer& w, const Ingestor& ingestor) const {
   for (const char* reason : kRejectionReasons) {
     const auto it = c.rejected_by_reason.find(reason);
     w.Sample({{"reason", reason}}, it == c.rejected_by_reason.end() ? 0.0 : static_cast<double>(it->second));
+  }
+  w.Family("linerwatch_readings_held_total",
+           "Readings neither stored nor quarantined nor acknowledged, kept by their gateway until they can be stored, by "
+           "reason class",
+           Type::kCounter);
+  for (const char* reason : kHeldReasons) {
+    const auto it = c.held_by_reason.find(reason);
+    w.Sample({{"reason", reason}}, it == c.held_by_reason.end() ? 0.0 : static_cast<double>(it->second));
   }
   w.Counter("linerwatch_ingest_commits_total", "Ingest transactions (one per MQTT batch or REST post)",
             static_cast<double>(c.batches));

@@ -509,14 +509,14 @@ Response Resources::PostReadings(const Request& req) {
     return Error(503, std::string("not stored: ") + e.what());
   }
   if (ctx_.after_ingest) ctx_.after_ingest(result);
-  ordered_json j = {{"stored", result.stored},
-                    {"duplicates", result.duplicates},
-                    {"conflicts", result.conflicts},
-                    {"rejected", result.rejected},
-                    {"errors", result.log}};
-  const bool all_rejected = result.rejected > 0 && result.rejected == posted;
-  if (all_rejected) j["error"] = "every reading was rejected";
-  return Json(all_rejected ? 422 : 200, std::move(j));
+  ordered_json j = {{"stored", result.stored},       {"duplicates", result.duplicates},
+                    {"conflicts", result.conflicts}, {"rejected", result.rejected},
+                    {"held", result.held},           {"errors", result.log}};
+  // Nothing taken: each reading was refused, or held (dated ahead of the server's clock: post it again later).
+  const bool none_taken = posted > 0 && result.rejected + result.held == posted;
+  if (none_taken)
+    j["error"] = result.held == 0 ? "every reading was rejected" : "no reading was stored: each was rejected or held";
+  return Json(none_taken ? 422 : 200, std::move(j));
 }
 
 Response Resources::Mesh(const Request& req) {
@@ -771,7 +771,11 @@ Response Resources::RejectedList(const Request& req) {
   return ctx_.read->With([&](Store& s) {
     ordered_json list = ordered_json::array();
     for (const auto& r : s.RejectedMessages(limit)) {
-      list.push_back({{"received", Iso(r.received_s)}, {"topic", r.topic}, {"payload", r.payload}, {"reason", r.reason}});
+      list.push_back({{"received", Iso(r.received_s)},
+                      {"topic", r.topic},
+                      {"payload", r.payload},
+                      {"reason", r.reason},
+                      {"class", r.reason_class}});
     }
     return Json(200, {{"total", s.CountRejected()}, {"evicted", s.RejectedEvicted()}, {"rejected", list}});
   });

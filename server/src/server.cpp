@@ -202,6 +202,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   const core::Clock clock(o.clock_file);
   Ingestor ingestor(
       write, *registry, [&clock] { return clock.NowMs() / 1000; }, &live);
+  for (const std::string& w : ingestor.Warnings()) log(w);
   WearService wear(*registry, live);
   EventBus events;
   // The diagnosis loads every reading of a crusher: on its own connection, so REST reads do not wait for it.
@@ -259,6 +260,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
                              {"readings_stored", c.stored},
                              {"duplicates", c.duplicates},
                              {"rejected", c.rejected},
+                             {"held", c.held},
                              {"crusher_errors", errors}};
     // Batches fail (and are not acked) once the disk fills: say why before the gateways' spools grow.
     if (const int64_t free = FreeBytes(o.db); free >= 0 && free < kMinFreeBytes) {

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 
 #include "core/wear_map.hpp"
@@ -19,7 +20,7 @@ using Db = core::sqlite::Database<std::runtime_error>;
 using Stmt = core::sqlite::Statement<std::runtime_error>;
 using Tx = core::sqlite::Transaction<std::runtime_error>;
 
-constexpr int kSchemaVersion = 3;
+constexpr int kSchemaVersion = 4;
 
 StoredReading Row(const Stmt& s) {
   StoredReading r;
@@ -62,6 +63,12 @@ void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq) {
     if (cursor.size() < 4 || cursor[0] != 't' || s == std::string::npos) throw std::invalid_argument("");
     size_t used = 0;
     const std::string t = cursor.substr(1, s - 1), q = cursor.substr(s + 1);
+    // Exactly t<int>s<int> as MakeCursor writes it: std::stoll alone takes " 1" and "+1" too.
+    for (const std::string* part : {&t, &q}) {
+      const size_t digits = part->rfind('-', 0) == 0 ? 1 : 0;
+      if (part->size() == digits || part->find_first_not_of("0123456789", digits) != std::string::npos)
+        throw std::invalid_argument("");
+    }
     *time_s = std::stoll(t, &used);
     if (used != t.size()) throw std::invalid_argument("");
     *seq = std::stoll(q, &used);
@@ -102,10 +109,16 @@ void CreatePrivate(const std::string& path) {
 struct Store::Impl {
   Db db;
   Stmt insert, existing, insert_rejected, latest, range, all, count, count_rejected, rejected_list, save_diag, load_diag;
-  Stmt rejected_seen, rejected_oldest, rejected_delete, rejected_totals, meta_get, meta_add, sites_list, site_bind;
+  Stmt rejected_seen, rejected_delete, meta_get, meta_add, sites_list, site_bind;
   Stmt count_sensor, next_sensor, walk_up, walk_down, latest_of, campaigns_list, campaign_put;
+  Stmt rejected_oldest_of, rejected_classes;
   RejectedLimits limits;
-  std::optional<std::pair<int64_t, int64_t>> rejected_size;  ///< (rows, bytes) of the rejected table
+  struct Size {
+    int64_t rows = 0, bytes = 0;
+  };
+  /// The rejected table's size per reason class, counted once, then kept up to date by this (the
+  /// only writing) connection.
+  std::optional<std::map<std::string, Size>> rejected_size;
   Impl(const std::string& path, RejectedLimits l, bool read_only = false)
       : db(read_only ? ImmutableUri(path) : (CreatePrivate(path), path), "database",
            read_only ? SQLITE_OPEN_READONLY | SQLITE_OPEN_URI : SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE),
@@ -114,7 +127,8 @@ struct Store::Impl {
             "INSERT INTO readings(crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload)"
             " VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10) ON CONFLICT DO NOTHING"),
         existing(db, "SELECT time, thickness_mm FROM readings WHERE crusher=?1 AND sensor=?2 AND seq=?3"),
-        insert_rejected(db, "INSERT INTO rejected(received, topic, payload, reason, digest, bytes) VALUES(?1,?2,?3,?4,?5,?6)"),
+        insert_rejected(
+            db, "INSERT INTO rejected(received, topic, payload, reason, digest, bytes, class) VALUES(?1,?2,?3,?4,?5,?6,?7)"),
         latest(db,
                "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, payload, n FROM ("
                " SELECT *, COUNT(*) OVER (PARTITION BY sensor) AS n,"
@@ -135,15 +149,13 @@ struct Store::Impl {
             " WHERE crusher=?1 ORDER BY sensor, time, seq"),
         count(db, "SELECT COUNT(*) FROM readings WHERE crusher=?1"),
         count_rejected(db, "SELECT COUNT(*) FROM rejected"),
-        rejected_list(db, "SELECT received, topic, payload, reason FROM rejected ORDER BY id DESC LIMIT ?1"),
+        rejected_list(db, "SELECT received, topic, payload, reason, class FROM rejected ORDER BY id DESC LIMIT ?1"),
         save_diag(db, "INSERT INTO diagnoses(crusher, time, json) VALUES(?1,?2,?3)"),
         load_diag(db, "SELECT time, json FROM diagnoses WHERE crusher=?1 ORDER BY id DESC LIMIT 1"),
         // A message resent by its publisher is quarantined once, not once per resend: an indexed
         // look-up of the SHA-256 of topic and full payload (not a scan comparing payloads).
         rejected_seen(db, "SELECT 1 FROM rejected WHERE digest=?1"),
-        rejected_oldest(db, "SELECT id, bytes FROM rejected ORDER BY id LIMIT 1"),
         rejected_delete(db, "DELETE FROM rejected WHERE id=?1"),
-        rejected_totals(db, "SELECT COUNT(*), COALESCE(SUM(bytes), 0) FROM rejected"),
         meta_get(db, "SELECT value FROM meta WHERE key=?1"),
         meta_add(db, "INSERT INTO meta(key, value) VALUES(?1, ?2) ON CONFLICT(key) DO UPDATE SET value=value+?2"),
         sites_list(db, "SELECT crusher, site FROM crusher_sites ORDER BY crusher"),
@@ -168,7 +180,88 @@ struct Store::Impl {
                      "INSERT INTO campaigns(crusher, start, end, thickness_new_mm, sensors, final_scan, final_readings, created)"
                      " VALUES(?1,?2,?3,?4,?5,?6,?7,?8) ON CONFLICT(crusher, start) DO UPDATE SET end=?3, final_scan=?6,"
                      " final_readings=?7"),
+        rejected_oldest_of(db, "SELECT id, bytes FROM rejected WHERE class=?1 ORDER BY id LIMIT 1"),
+        rejected_classes(db, "SELECT class, COUNT(*), COALESCE(SUM(bytes), 0) FROM rejected GROUP BY class"),
         limits(l) {}
+
+  /// The class that gives up its oldest row when the table is full: the one holding the most rows
+  /// (or bytes, when the byte cap is what is reached), `incoming` on a tie. So a flood of one kind
+  /// ends up evicting only itself once it holds the largest share, and every other class keeps at
+  /// least an equal share of the table.
+  std::string Victim(const std::map<std::string, Size>& sizes, const std::string& incoming, bool by_bytes) const {
+    std::string victim = incoming;
+    int64_t most = 0;
+    if (const auto it = sizes.find(incoming); it != sizes.end()) most = by_bytes ? it->second.bytes : it->second.rows;
+    for (const auto& [c, size] : sizes) {
+      const int64_t n = by_bytes ? size.bytes : size.rows;
+      if (n > most) most = n, victim = c;
+    }
+    return victim;
+  }
+
+  /// Stores rejected rows (each once), making room within the caps by Victim's rule; the
+  /// evictions are counted in meta. Inside Commit's transaction.
+  void Quarantine(const std::vector<Rejected>& rejected) {
+    if (!rejected_size) {
+      rejected_size.emplace();
+      InUse use_classes(rejected_classes);
+      while (rejected_classes.Step())
+        (*rejected_size)[rejected_classes.Text(0)] = {rejected_classes.Int(1), rejected_classes.Int(2)};
+    }
+    std::map<std::string, Size> sizes = *rejected_size;  // committed only with the transaction
+    Size total;
+    for (const auto& [c, size] : sizes) total.rows += size.rows, total.bytes += size.bytes;
+    int64_t evicted = 0;
+    for (const Rejected& r : rejected) {
+      const std::string digest = core::Sha256Hex(r.topic + '\n' + r.payload);
+      {
+        InUse use_seen(rejected_seen);
+        rejected_seen.Bind(1, digest);
+        if (rejected_seen.Step()) continue;
+      }
+      // Only the start of a large payload is kept (its size and digest identify it).
+      std::string payload = r.payload;
+      if (payload.size() > limits.max_payload_bytes) {
+        payload.resize(limits.max_payload_bytes);
+        payload += "... [truncated: " + std::to_string(r.payload.size()) + " bytes]";
+      }
+      const auto size = static_cast<int64_t>(r.topic.size() + payload.size() + r.reason.size());
+      while (total.rows > 0 && (total.rows + 1 > limits.max_rows || total.bytes + size > limits.max_bytes)) {
+        const std::string victim = Victim(sizes, r.reason_class, total.rows + 1 <= limits.max_rows);
+        int64_t id = 0, b = 0;
+        {
+          InUse use_oldest(rejected_oldest_of);
+          rejected_oldest_of.Bind(1, victim);
+          if (!rejected_oldest_of.Step()) break;
+          id = rejected_oldest_of.Int(0);
+          b = rejected_oldest_of.Int(1);
+        }
+        InUse use_delete(rejected_delete);
+        rejected_delete.Bind(1, id);
+        rejected_delete.Step();
+        --total.rows, total.bytes -= b;
+        Size& v = sizes[victim];
+        --v.rows, v.bytes -= b;
+        if (v.rows <= 0) sizes.erase(victim);
+        ++evicted;
+      }
+      InUse use_insert(insert_rejected);
+      insert_rejected.Bind(1, r.received_s).Bind(2, r.topic).Bind(3, payload).Bind(4, r.reason).Bind(5, digest).Bind(6, size);
+      insert_rejected.Bind(7, r.reason_class);
+      insert_rejected.Step();
+      ++total.rows, total.bytes += size;
+      Size& c = sizes[r.reason_class];
+      ++c.rows, c.bytes += size;
+    }
+    if (evicted > 0) {
+      InUse use_meta(meta_add);
+      meta_add.Bind(1, std::string("rejected_evicted")).Bind(2, evicted);
+      meta_add.Step();
+    }
+    pending_size = std::move(sizes);
+  }
+  /// Quarantine's sizes, taken as rejected_size once its transaction commits.
+  std::optional<std::map<std::string, Size>> pending_size;
 
   static void CheckVersion(const Db& db) {
     Stmt version(db, "PRAGMA user_version");
@@ -242,10 +335,39 @@ struct Store::Impl {
           "PRAGMA user_version=3;");
       tx.Commit();
     }
+    if (v < 4) {
+      // Version 4: rejected rows carry their reason class (Rejected::reason_class), the unit the
+      // table's caps share out. Rows from before have the class '' (one class of their own).
+      Tx tx(db);
+      db.Exec(
+          "ALTER TABLE rejected ADD COLUMN class TEXT NOT NULL DEFAULT '';"
+          "CREATE INDEX IF NOT EXISTS rejected_by_class ON rejected(class, id);"
+          "PRAGMA user_version=4;");
+      tx.Commit();
+    }
   }
 };
 
-Store::Store(const std::filesystem::path& path, RejectedLimits limits) : impl_(std::make_unique<Impl>(path.string(), limits)) {}
+Store::Store(const std::filesystem::path& path, RejectedLimits limits) {
+  const std::string name = path.string();
+  const bool file = !name.empty() && name != ":memory:" && name.rfind("file:", 0) != 0;
+  std::error_code ec;
+  const bool existed = file && std::filesystem::exists(path, ec);
+  // SQLite takes an empty file for a new database: a database truncated to 0 bytes (a failed
+  // copy, a file system repair) would silently start again with no history.
+  if (existed && std::filesystem::is_regular_file(path, ec) && std::filesystem::file_size(path, ec) == 0 && !ec) {
+    throw std::runtime_error("database " + name +
+                             " is an empty file (0 bytes), not a linerwatch database: restore it from a backup, or delete "
+                             "it to start a new database");
+  }
+  try {
+    impl_ = std::make_unique<Impl>(name, limits);
+  } catch (...) {
+    // Not left behind as an empty file of our making (e.g. on a full disk): the next start would refuse it.
+    if (file && !existed && std::filesystem::file_size(path, ec) == 0 && !ec) std::filesystem::remove(path, ec);
+    throw;
+  }
+}
 Store::Store(const std::filesystem::path& path, ReadOnlyTag)
     : impl_(std::make_unique<Impl>(path.string(), RejectedLimits{}, true)) {}
 std::unique_ptr<Store> Store::OpenReadOnly(const std::filesystem::path& path) {
@@ -280,55 +402,9 @@ std::vector<InsertOutcome> Store::Commit(const std::vector<StoredReading>& readi
     im.site_bind.Step();
   }
   if (!rejected.empty()) {
-    if (!im.rejected_size) {  // counted once; then kept up to date by this (the only writing) connection
-      InUse use_totals(im.rejected_totals);
-      im.rejected_totals.Step();
-      im.rejected_size = {im.rejected_totals.Int(0), im.rejected_totals.Int(1)};
-    }
-    int64_t rows = im.rejected_size->first, bytes = im.rejected_size->second, evicted = 0;
-    for (const Rejected& r : rejected) {
-      const std::string digest = core::Sha256Hex(r.topic + '\n' + r.payload);
-      {
-        InUse use_seen(im.rejected_seen);
-        im.rejected_seen.Bind(1, digest);
-        if (im.rejected_seen.Step()) continue;
-      }
-      // Only the start of a large payload is kept (its size and digest identify it).
-      std::string payload = r.payload;
-      if (payload.size() > im.limits.max_payload_bytes) {
-        payload.resize(im.limits.max_payload_bytes);
-        payload += "... [truncated: " + std::to_string(r.payload.size()) + " bytes]";
-      }
-      const auto size = static_cast<int64_t>(r.topic.size() + payload.size() + r.reason.size());
-      // The oldest rows make room (counted): the table stays within its row and byte caps.
-      while (rows > 0 && (rows + 1 > im.limits.max_rows || bytes + size > im.limits.max_bytes)) {
-        int64_t id = 0, b = 0;
-        {
-          InUse use_oldest(im.rejected_oldest);
-          if (!im.rejected_oldest.Step()) break;
-          id = im.rejected_oldest.Int(0);
-          b = im.rejected_oldest.Int(1);
-        }
-        InUse use_delete(im.rejected_delete);
-        im.rejected_delete.Bind(1, id);
-        im.rejected_delete.Step();
-        --rows;
-        bytes -= b;
-        ++evicted;
-      }
-      InUse use_insert_rejected(im.insert_rejected);
-      im.insert_rejected.Bind(1, r.received_s).Bind(2, r.topic).Bind(3, payload).Bind(4, r.reason).Bind(5, digest).Bind(6, size);
-      im.insert_rejected.Step();
-      ++rows;
-      bytes += size;
-    }
-    if (evicted > 0) {
-      InUse use_meta(im.meta_add);
-      im.meta_add.Bind(1, std::string("rejected_evicted")).Bind(2, evicted);
-      im.meta_add.Step();
-    }
+    im.Quarantine(rejected);
     tx.Commit();
-    im.rejected_size = {rows, bytes};
+    im.rejected_size = std::move(im.pending_size);
     return out;
   }
   tx.Commit();
@@ -466,7 +542,8 @@ std::vector<Rejected> Store::RejectedMessages(int limit) {
   InUse use_rejected_list(im.rejected_list);
   im.rejected_list.Bind(1, static_cast<int64_t>(limit));
   while (im.rejected_list.Step()) {
-    out.push_back({im.rejected_list.Int(0), im.rejected_list.Text(1), im.rejected_list.Text(2), im.rejected_list.Text(3)});
+    out.push_back({im.rejected_list.Int(0), im.rejected_list.Text(1), im.rejected_list.Text(2), im.rejected_list.Text(3),
+                   im.rejected_list.Text(4)});
   }
   return out;
 }

@@ -4,6 +4,8 @@
 /// std::runtime_error type of the caller's) with "<what> <path>: <step>: <sqlite message>".
 #include <sqlite3.h>
 
+#include <cstring>
+
 #include <cstdint>
 #include <string>
 
@@ -17,7 +19,10 @@ class Database {
   Database(const std::string& path, const std::string& what, int flags = SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE)
       : path_(path), what_(what) {
     if (sqlite3_open_v2(path.c_str(), &db_, flags | SQLITE_OPEN_FULLMUTEX, nullptr) != SQLITE_OK) {
-      const std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
+      std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
+      // SQLite's "unable to open database file" does not say why: the system's reason does
+      // ("Read-only file system", "No such file or directory", "Permission denied").
+      if (const int err = db_ ? sqlite3_system_errno(db_) : 0; err != 0) msg += std::string(" (") + std::strerror(err) + ")";
       sqlite3_close(db_);
       db_ = nullptr;
       throw Error(what_ + " " + path_ + ": cannot open: " + msg);

@@ -200,6 +200,8 @@ class Gateway {
   std::map<std::string, std::vector<uint32_t>> pending_release_;
   size_t pending_release_count_ = 0;
   int64_t pending_release_since_ms_ = 0;
+  /// Registry entries of addresses known only from identification frames (no sensor heard from them).
+  size_t AnnouncedOnlyDevices() const;
   std::set<std::string> known_devices_;  // "address/sensor" already in the registry
   core::LogLimiter log_limiter_;
   bool records_dirty_ = true;            // every sensor's queue head must be looked at

@@ -41,6 +41,7 @@ struct Rejected {
   std::string topic;
   std::string payload;
   std::string reason;
+  std::string reason_class;  ///< its kRejectionReasons class, or "conflict": the unit of the table's fair share
 };
 
 enum class InsertOutcome {

@@ -172,6 +172,15 @@ TEST(Bundle, BadScansAndOperationsAreRefused) {
 
 // crusher.json values that would load and then give wrong answers (or can never match a topic,
 // or put markup into the dashboard) are refused, naming the rule.
+// Finding: a `scans` that is a file, not a folder, was ignored silently (no scan, no word).
+TEST(Bundle, ScansThatIsAFileIsRefused) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
+  STRCMP_EQUAL("", ErrorOf(dir).c_str());
+  dir.Write("scans", "0 0 0\n");
+  const std::string e = ErrorOf(dir);
+  CHECK_TEXT(e.find("is not a folder") != std::string::npos, e.c_str());
+}
+
 TEST(Bundle, ImplausibleCrusherJsonIsRefused) {
   lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
   auto with = [&](const std::string& from, const std::string& to) {
@@ -186,6 +195,10 @@ TEST(Bundle, ImplausibleCrusherJsonIsRefused) {
     CHECK_TEXT(e.find("sensor id") != std::string::npos, e.c_str());
   }
   CHECK(with("\"crusher_id\": \"cr1\"", "\"crusher_id\": \"c<b>\"").find("crusher_id") != std::string::npos);
+  // Finding: a key given twice kept its last value silently (a second "site" further down won).
+  CHECK(with("\"crusher_id\": \"cr1\"", "\"crusher_id\": \"cr1\", \"site\": \"a\", \"site\": \"b\"")
+            .find("key \"site\" appears twice in the top level") != std::string::npos);
+  CHECK(with("\"id\": \"1001\"", "\"id\": \"1001\", \"id\": \"1002\"").find("key \"id\" appears twice") != std::string::npos);
   CHECK(with("\"crusher_id\": \"cr1\"", "\"crusher_id\": \"cr1\", \"site\": \"a/b\"").find("site 'a/b'") != std::string::npos);
   CHECK(with("\"z_m\": 0.5", "\"z_m\": 50").find("outside its row 'LDWN'") != std::string::npos);
   CHECK(with("\"theta_deg\": 0", "\"theta_deg\": 9999").find("theta_deg") != std::string::npos);

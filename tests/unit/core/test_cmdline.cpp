@@ -156,6 +156,9 @@ TEST(CommandLine, BadConfigFilesNameTheFileAndTheKey) {
   dir.Write("bad.json", "[1]");
   STRCMP_EQUAL(("config " + f + ": must be a JSON object of option names to values").c_str(), FileErrorOf(f).c_str());
   STRCMP_EQUAL(("config " + dir.File("none.json") + ": cannot be read").c_str(), FileErrorOf(dir.File("none.json")).c_str());
+  // A key given twice: nlohmann kept the last value silently.
+  dir.Write("bad.json", R"({"serial": "s", "baud": 9600, "baud": 115200})");
+  STRCMP_EQUAL(("config " + f + ": key \"baud\" appears twice in the top level").c_str(), FileErrorOf(f).c_str());
 }
 
 // Found by fuzz/ (fuzz_config): a number beyond double range made nlohmann::json throw

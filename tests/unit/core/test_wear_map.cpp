@@ -271,6 +271,14 @@ TEST(WearMap, ImplausibleMapsAreRefusedNotLoaded) {
   CHECK(m.find("the file holds only") != std::string::npos);
   m = message("cells.vtk", head + "POINTS 3 float\n1 0 0 0 1 0 1 0 1\nPOLYGONS 99999999999 4\n3 0 1 2\n");
   CHECK(m.find("[0, 4294967295]") != std::string::npos);
+  // Findings: "Version 99.0" was read as a legacy file, and a second wear array replaced the first unseen.
+  m = message("v99.vtk", "# vtk DataFile Version 99.0\nmap\nASCII\nDATASET POLYDATA\n" + tri + "1\n");
+  CHECK_TEXT(m.find("v99.vtk:1") != std::string::npos && m.find("VTK version '99.0'") != std::string::npos, m.c_str());
+  m = message("v5.vtk", "# vtk DataFile Version 5.9\nmap\nASCII\nDATASET POLYDATA\n" + tri + "1\n");
+  CHECK_TEXT(m.find("VTK version '5.9'") != std::string::npos, m.c_str());
+  m = message("twice.vtk", head + tri + "1\nFIELD FieldData 1\nwear 1 1 double\n1000\n");
+  CHECK_TEXT(m.find("twice.vtk:14") != std::string::npos && m.find("cell array 'wear' appears twice") != std::string::npos,
+             m.c_str());
   m = message("neg.csv", "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,1,1\n1,0,0,0,1,0,1,0,1,-2\n");
   CHECK(m.find("neg.csv:3") != std::string::npos);
   m = message("far.csv", "x1,y1,z1,x2,y2,z2,x3,y3,z3,wear\n1,0,0,0,1,0,1,0,5e3,1\n");

@@ -715,13 +715,13 @@ TEST(Gateway, RegistryIsBoundedAndRefusalsAreCountedAndLogged) {
   // A sensor that is not registered any more still has its readings spooled and acked.
   Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));
   gateway->Pump(now);
-  LONGS_EQUAL(5, spool->Devices().size());
-  LONGS_EQUAL(296, gateway->counters().devices_refused);
+  LONGS_EQUAL(4, spool->Devices().size());  // 3 announced (at most half of 5), then the sensor
+  LONGS_EQUAL(297, gateway->counters().devices_refused);
   LONGS_EQUAL(1, gateway->spool_depth());
   CHECK(radio.AckedSeqs() == std::vector<uint32_t>{1});
   const json stats = json::parse(gateway->StatsJson(now));
-  LONGS_EQUAL(5, stats["devices"].get<int>());
-  LONGS_EQUAL(296, stats["devices_refused"].get<int>());
+  LONGS_EQUAL(4, stats["devices"].get<int>());
+  LONGS_EQUAL(297, stats["devices_refused"].get<int>());
   size_t full_lines = 0;
   for (const auto& line : log) full_lines += line.find("registry: full") != std::string::npos ? 1 : 0;
   LONGS_EQUAL(10, full_lines);  // rate limited: the first 10 (then every 1000th)
@@ -734,6 +734,30 @@ TEST(Gateway, RegistryIsBoundedAndRefusalsAreCountedAndLogged) {
   Start(1'000, 1, 5);
   Feed(NodeIdFrame(0x0013A200600000FFull, "LATE"));
   LONGS_EQUAL(1, gateway->counters().devices_refused);
+}
+
+// Finding (issue 45, low): a radio announcing 1,000 made-up addresses filled the registry, and
+// genuine new sensors were refused. Addresses known only from identification frames now take at
+// most half of it.
+TEST(Gateway, AnnouncedOnlyAddressesTakeAtMostHalfOfTheRegistry) {
+  Start(1'000, 1, 10);
+  for (uint64_t i = 0; i < 300; ++i) Feed(NodeIdFrame(0x0013A20050000000ull + i, "FAKE"));
+  gateway->Pump(now);
+  LONGS_EQUAL(5, spool->Devices().size());
+  LONGS_EQUAL(295, gateway->counters().devices_refused);
+  // New sensors are still registered, and an announced address that sends readings stops being
+  // announced-only (its sensor entry joins it).
+  Feed(ReadingsFrame(kMode, kAddrA, 1001, {MakeRecord(1)}));
+  Feed(ReadingsFrame(kMode, kAddrB, 1002, {MakeRecord(1)}));
+  Feed(ReadingsFrame(kMode, 0x0013A20050000000ull, 1003, {MakeRecord(1)}));
+  gateway->Pump(now);
+  LONGS_EQUAL(8, spool->Devices().size());
+  LONGS_EQUAL(295, gateway->counters().devices_refused);
+  Feed(NodeIdFrame(0x0013A20060000000ull, "ONE-MORE"));  // 4 announced-only now: room for one
+  Feed(NodeIdFrame(0x0013A20060000001ull, "AND-ANOTHER"));
+  gateway->Pump(now);
+  LONGS_EQUAL(9, spool->Devices().size());
+  LONGS_EQUAL(296, gateway->counters().devices_refused);
 }
 
 // Finding 11/12 of issue 15: a node identifier with ESC and a newline wrote raw terminal escapes

@@ -3,6 +3,8 @@
 // scratch directory, and helpers to turn its readings into reading messages (docs/mqtt.md).
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <climits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -38,6 +40,15 @@ struct CrusherFolder {
   }
   std::string id() const { return bundle.crusher.crusher_id; }
 };
+
+/// The time (unix s) of the bundle's latest reading: readings.csv is not in time order, so its last
+/// row is not the latest (and an ingest "now" before a reading by more than
+/// server::kFutureSlackS holds it).
+inline int64_t LatestReadingS(const core::Bundle& b) {
+  int64_t latest = INT64_MIN;
+  for (const core::Reading& r : b.readings) latest = std::max<int64_t>(latest, r.time.time_since_epoch().count());
+  return latest;
+}
 
 /// The bundle's readings as reading messages with per-sensor seqs 1, 2, ... (file order by time).
 inline std::vector<server::Incoming> Messages(const core::Bundle& b, const std::string& site = "site1") {

@@ -1,5 +1,7 @@
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 
 #include "core/scan_correction.hpp"
@@ -18,9 +20,8 @@ lw::test::CrusherFolder& Folder() {
   return f;
 }
 int64_t Now() {
-  return Folder().bundle.readings.back().time.time_since_epoch().count() + 3600;
+  return lw::test::LatestReadingS(Folder().bundle) + 3600;
 }
-
 Incoming With(const std::string& payload, const std::string& sensor = "1001") {
   return {"site1", Folder().id(), sensor, "linerwatch/v1/site1/" + Folder().id() + "/sensors/" + sensor + "/reading", payload};
 }
@@ -289,10 +290,11 @@ TEST(Ingest, FaultReadingsAreStoredButNotUsedForWear) {
   ingestor.Ingest(lw::test::Messages(Folder().bundle));
   const Crusher& c = *registry->Find(Folder().id());
   const double before = ComputeCrusherState(c, store.All(Folder().id())).reconstruction.min_thickness_mm;
-  // An all-open reading (flag bit 3) of 0 mm after everything else: a cut cable, not wear.
+  // An all-open reading (flag bit 3) of 0 mm after everything else while the board still holds
+  // loops intact: a cut cable, not wear (with no loop intact it would be a consumed sensor: wear).
   const std::string t = lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(Now() - 60)));
   const IngestResult r = ingestor.Ingest({With(R"({"sensor":"1001","seq":100000,"time":")" + t +
-                                               R"(","thickness_mm":0,"loops_intact":0,"flags":8,"battery_mv":3500})")});
+                                               R"(","thickness_mm":0,"loops_intact":42,"flags":8,"battery_mv":3500})")});
   LONGS_EQUAL(1, r.stored);
   const double after = ComputeCrusherState(c, store.All(Folder().id())).reconstruction.min_thickness_mm;
   DOUBLES_EQUAL(before, after, 1e-12);
@@ -388,7 +390,7 @@ TEST(Ingest, CrusherJsonSiteBindsBeforeAnyReading) {
   CHECK_TEXT(errors.empty(), errors.empty() ? "" : errors[0].c_str());
   lw::test::TempDirectory dir{"lw-ingest"};
   Store store(dir.File("db.sqlite"));
-  Ingestor ingestor(store, *reg, [&] { return folder.bundle.readings.back().time.time_since_epoch().count(); });
+  Ingestor ingestor(store, *reg, [&] { return lw::test::LatestReadingS(folder.bundle); });
   IngestResult r = ingestor.Ingest({lw::test::Messages(folder.bundle, "site1")[0]});
   LONGS_EQUAL(0, r.stored);
   LONGS_EQUAL(0, r.acks.size());
@@ -461,4 +463,153 @@ TEST(Ingest, HostileElementsOfABatchAreEachJudgedAloneAndNothingElseIsAcked) {
   LONGS_EQUAL(1, conflicts);
   ingestor.Ingest({With(batch)});  // redelivered: quarantined once
   LONGS_EQUAL(6, store.CountRejected());
+}
+
+namespace {
+std::string At(int64_t t_s, int seq, double mm) {
+  return R"({"sensor":"1001","seq":)" + std::to_string(seq) + R"(,"time":")" +
+         lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(t_s))) + R"(","thickness_mm":)" + std::to_string(mm) +
+         R"(,"loops_intact":100,"flags":0,"battery_mv":3500})";
+}
+bool Acked(const IngestResult& r, int64_t seq) {
+  for (const Ack& a : r.acks)
+    if (std::find(a.seqs.begin(), a.seqs.end(), seq) != a.seqs.end()) return true;
+  return false;
+}
+}  // namespace
+
+// Finding: a reading stamped up to a day ahead was stored and became its sensor's latest, hiding
+// the later genuine ones (a 5 mm reading at now + 23.9 h hid the genuine 100 mm). Now a reading
+// more than 5 min ahead of the server's clock is held: not stored, not quarantined, not acked, so
+// its gateway keeps it and publishes it again; once the clock reaches it, it is stored and acked.
+TEST(Ingest, AReadingAheadOfTheServersClockIsHeldUntilTheClockReachesIt) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  int64_t now = Now();
+  Ingestor ingestor(store, *registry, [&] { return now; });
+  const int64_t ahead = now + 86040;  // 23.9 h
+  IngestResult r = ingestor.Ingest({With(At(ahead, 901, 5))});
+  LONGS_EQUAL(0, r.stored);
+  LONGS_EQUAL(0, r.rejected);
+  CHECK_FALSE(Acked(r, 901));
+  LONGS_EQUAL(0, store.CountRejected());
+  CHECK(r.log.at(0).rfind("held ", 0) == 0);
+  CHECK(r.log.at(0).find("after the server's clock") != std::string::npos);
+  // Within the slack (a gateway's clock a little ahead) is stored as before.
+  r = ingestor.Ingest({With(At(now + kFutureSlackS, 899, 100)), With(At(now + kFutureSlackS + 1, 900, 100))});
+  LONGS_EQUAL(1, r.stored);
+  CHECK(Acked(r, 899));
+  CHECK_FALSE(Acked(r, 900));
+  // The genuine reading is the sensor's latest, not the one from the future.
+  for (const auto& s : store.LatestPerSensor(Folder().id()))
+    if (s.latest.sensor == "1001") DOUBLES_EQUAL(100, s.latest.thickness_mm, 0);
+  LONGS_EQUAL(2, ingestor.Counters().held);
+  LONGS_EQUAL(2, ingestor.Counters().held_by_reason.at("future"));
+  // The gateway's republication once the server's clock has caught up: stored and acked.
+  now = ahead - kFutureSlackS;
+  r = ingestor.Ingest({With(At(ahead, 901, 5))});
+  LONGS_EQUAL(1, r.stored);
+  CHECK(Acked(r, 901));
+  // More than a day ahead is still refused (quarantined and acked): that clock is broken.
+  r = ingestor.Ingest({With(At(now + 2 * 86400, 902, 90))});
+  LONGS_EQUAL(1, r.rejected);
+  CHECK(Acked(r, 902));
+}
+
+// Finding: a reading for an unknown crusher (a --crusher typo, a folder that failed to load) was
+// quarantined and acked, so its gateway deleted it. Now it is held, and stored once a folder of
+// that id loads (the gateway still has it). Per-crusher counters do not grow for made-up ids.
+TEST(Ingest, AReadingForAnUnknownCrusherIsHeldAndStoredOnceItsFolderLoads) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  Incoming late = With(Reading(""));
+  late.crusher = "late";
+  late.topic = "linerwatch/v1/site1/late/sensors/1001/reading";
+  {
+    Ingestor ingestor(store, *registry, [] { return Now(); });
+    const IngestResult r = ingestor.Ingest({late});
+    LONGS_EQUAL(0, r.stored);
+    LONGS_EQUAL(0, r.rejected);
+    LONGS_EQUAL(1, r.held);
+    LONGS_EQUAL(0, r.acks.size());
+    LONGS_EQUAL(0, store.CountRejected());
+    CHECK(r.log.at(0).find("unknown crusher 'late'") != std::string::npos);
+    LONGS_EQUAL(0, ingestor.CrusherCounters("late").held);
+  }
+  // The folder is fixed (here: a copy of the fixture's under the id "late") and the server restarts.
+  lw::test::TempDirectory crushers{"lw-ingest-crushers"};
+  std::filesystem::copy(Folder().folder, crushers.File("late"), std::filesystem::copy_options::recursive);
+  const std::string json_path = crushers.File("late") + "/crusher.json";
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(json_path));
+  j["crusher_id"] = "late";
+  std::ofstream(json_path) << j.dump(2);
+  std::vector<std::string> errors;
+  const auto fixed = Registry::Load(crushers.path(), &errors);
+  CHECK_TEXT(errors.empty(), errors.empty() ? "" : errors[0].c_str());
+  Ingestor ingestor(store, *fixed, [] { return Now(); });
+  const IngestResult r = ingestor.Ingest({late});
+  LONGS_EQUAL(1, r.stored);
+  CHECK(Acked(r, 5));
+}
+
+namespace {
+/// Folder()'s crusher plus a copy of it as crusher `named` with "site": `site` in its crusher.json.
+std::unique_ptr<Registry> WithANamedSite(lw::test::TempDirectory& dir, const std::string& named, const std::string& site) {
+  std::filesystem::copy(Folder().folder, dir.File("demo"), std::filesystem::copy_options::recursive);
+  std::filesystem::copy(Folder().folder, dir.File(named), std::filesystem::copy_options::recursive);
+  const std::string json_path = dir.File(named) + "/crusher.json";
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(json_path));
+  j["crusher_id"] = named;
+  j["site"] = site;
+  std::ofstream(json_path) << j.dump(2);
+  std::vector<std::string> errors;
+  auto registry = Registry::Load(dir.path(), &errors);
+  CHECK_TEXT(errors.empty(), errors.empty() ? "" : errors[0].c_str());
+  return registry;
+}
+}  // namespace
+
+// Finding: a crusher without "site" was bound for good to whichever site spoke first, so another
+// site's gateway account could take it and the genuine site's readings were never acked. On a
+// server whose other crushers name their site, such a crusher now binds to none: its readings are
+// held (not stored, not acked), the server says what to add, and a binding learnt before is dropped.
+TEST(Ingest, OnAServerWithNamedSitesACrusherWithoutSiteBindsToNoSite) {
+  lw::test::TempDirectory crushers{"lw-ingest-crushers"};
+  const auto reg = WithANamedSite(crushers, "plant-crusher", "plant");
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  store.Commit({}, {}, {{Folder().id(), "evil"}});  // a binding learnt from a first reading before
+  Ingestor ingestor(store, *reg, [] { return Now(); });
+  CHECK_FALSE(ingestor.SiteOf(Folder().id()).has_value());
+  LONGS_EQUAL(1, ingestor.Warnings().size());
+  CHECK(ingestor.Warnings()[0].find("crusher " + Folder().id() + " has no \"site\"") == 0);
+  CHECK(ingestor.Warnings()[0].find("first heard from 'evil'") != std::string::npos);
+  for (const std::string site : {"evil", "site1"}) {
+    const IngestResult r = ingestor.Ingest({lw::test::Messages(Folder().bundle, site)[0]});
+    LONGS_EQUAL(0, r.stored);
+    LONGS_EQUAL(1, r.held);
+    LONGS_EQUAL(0, r.acks.size());
+    CHECK(r.log.at(0).find("add \"site\": \"" + site + "\"") != std::string::npos);
+  }
+  CHECK_FALSE(ingestor.SiteOf(Folder().id()).has_value());  // nothing bound it
+  LONGS_EQUAL(0, store.CountReadings(Folder().id()));
+  LONGS_EQUAL(2, ingestor.Counters().held_by_reason.at("no_site"));
+  // The named crusher works as before; REST (no site) stores for either.
+  Incoming named = lw::test::Messages(Folder().bundle, "plant")[0];
+  named.crusher = "plant-crusher";
+  LONGS_EQUAL(1, ingestor.Ingest({named}).stored);
+  Incoming rest = lw::test::Messages(Folder().bundle)[1];
+  rest.site = "";
+  LONGS_EQUAL(1, ingestor.Ingest({rest}).stored);
+}
+
+// The single-site case (data/dem's crusher.json files have no "site"): no crusher names a site,
+// so the first site heard binds, as before, with no warning.
+TEST(Ingest, WithoutNamedSitesTheFirstSiteHeardStillBinds) {
+  lw::test::TempDirectory dir{"lw-ingest"};
+  Store store(dir.File("db.sqlite"));
+  Ingestor ingestor(store, *registry, [] { return Now(); });
+  CHECK(ingestor.Warnings().empty());
+  LONGS_EQUAL(1, ingestor.Ingest({lw::test::Messages(Folder().bundle, "site1")[0]}).stored);
+  CHECK(ingestor.SiteOf(Folder().id()) == std::optional<std::string>("site1"));
 }

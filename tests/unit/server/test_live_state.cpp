@@ -27,7 +27,7 @@ lw::test::CrusherFolder& Folder() {
   return f;
 }
 int64_t Now() {
-  return Folder().bundle.readings.back().time.time_since_epoch().count() + 3600;
+  return lw::test::LatestReadingS(Folder().bundle) + 3600;
 }
 
 constexpr int kFractional = 300;
@@ -306,7 +306,7 @@ TEST(LiveState, AfterARelineThePreviousLinersReadingsAreHistoryOnly) {
     }
     return out;
   };
-  const int64_t end = f.bundle.readings.back().time.time_since_epoch().count() + 3600;
+  const int64_t end = lw::test::LatestReadingS(f.bundle) + 3600;
   std::vector<std::string> errors;
   const auto old_registry = Registry::Load(previous, &errors);
   const auto registry = Registry::Load(f.crushers, &errors);

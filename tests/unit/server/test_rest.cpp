@@ -308,10 +308,20 @@ TEST(RestHandlers, PostedReadingsAreStoredOnceAndServedBack) {
   LONGS_EQUAL(422, res.status);
   STRCMP_EQUAL("every reading was rejected", ErrorOf(res).c_str());
   LONGS_EQUAL(1, res.json["errors"].size());
+  // A reading dated an hour after the server's clock (4e9 s here) is held: not stored, counted, to be
+  // posted again later; with nothing else in the post, 422.
+  res = f.PostReadings(
+      R"({"readings":[{"sensor":"1001","seq":77,"time":"2096-10-02T08:06:40Z","thickness_mm":100,"loops_intact":100,)"
+      R"("flags":0,"battery_mv":3500}]})");
+  LONGS_EQUAL(422, res.status);
+  LONGS_EQUAL(1, res.json["held"].get<size_t>());
+  LONGS_EQUAL(0, res.json["rejected"].get<size_t>());
+  STRCMP_EQUAL("no reading was stored: each was rejected or held", ErrorOf(res).c_str());
+  CHECK(res.json["errors"][0].get<std::string>().rfind("held REST reading: ", 0) == 0);
   STRCMP_EQUAL("body is not valid JSON", ErrorOf(f.PostReadings("{oops")).c_str());
   STRCMP_EQUAL("body must be {\"readings\": [...]}", ErrorOf(f.PostReadings("[1]")).c_str());
   STRCMP_EQUAL("body is nested too deeply", ErrorOf(f.PostReadings(R"({"readings":[[[[[[[[[[[[]]]]]]]]]]]]})")).c_str());
-  LONGS_EQUAL(3, after_ingest);
+  LONGS_EQUAL(4, after_ingest);
 
   // The crusher's counters, its sensors' latest readings, and one sensor's readings page by page.
   const json detail = f.Get("/api/v1/crushers/{crusher}").json;

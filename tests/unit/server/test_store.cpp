@@ -56,7 +56,7 @@ TEST(Store, SameKeyOtherContentIsAConflictAndTheFirstIsKept) {
 TEST(Store, SurvivesReopenAndKeepsRejectedMessages) {
   {
     Store s(db());
-    s.Commit({R("a", 1, 100, 90)}, {{7, "t/x", "garbage", "malformed JSON"}});
+    s.Commit({R("a", 1, 100, 90)}, {{7, "t/x", "garbage", "malformed JSON", "malformed"}});
   }
   Store s(db());
   LONGS_EQUAL(1, s.CountReadings("c1"));
@@ -71,7 +71,7 @@ TEST(Store, SurvivesReopenAndKeepsRejectedMessages) {
 TEST(Store, ReadOnlyOpenReadsWhatIsStoredAndWritesNothing) {
   {
     Store s(db());
-    s.Commit({R("a", 1, 100, 90), R("a", 2, 200, 89)}, {{7, "t/x", "garbage", "malformed JSON"}});
+    s.Commit({R("a", 1, 100, 90), R("a", 2, 200, 89)}, {{7, "t/x", "garbage", "malformed JSON", "malformed"}});
   }
   std::error_code ec;
   CHECK(!std::filesystem::exists(db() + "-wal", ec) && !std::filesystem::exists(db() + "-shm", ec));
@@ -183,6 +183,17 @@ TEST(Store, RangeIsTheReadingsAfterTheCursorInTheWindowWithEveryFieldButThePaylo
 TEST(Store, MalformedCursorIsRefused) {
   Store s(db());
   CHECK_THROWS(std::invalid_argument, s.Range("c1", "a", 0, 10, 5, "t12x"));
+  // Finding: std::stoll skips leading blanks and takes a sign, so "t 1s 1" passed as a cursor.
+  for (const char* c : {"t 1s 1", "t1s 1", "t+1s1", "t1s+1", "t-s1", "t1s-", "t\t1s1"}) {
+    bool refused = false;
+    try {
+      s.Range("c1", "a", 0, 10, 5, c);
+    } catch (const std::invalid_argument&) {
+      refused = true;
+    }
+    CHECK_TEXT(refused, c);
+  }
+  s.Range("c1", "a", 0, 10, 5, "t-5s3");  // what MakeCursor writes, negative times too
 }
 
 TEST(Store, LatestPerSensorIsByTimeWithCounts) {
@@ -226,7 +237,7 @@ TEST(Store, AReaderConnectionSeesCommitsMadeAfterItsEarlierQueries) {
   LONGS_EQUAL(1, reader.CountReadings("c1"));
   LONGS_EQUAL(0, reader.CountRejected());
   LONGS_EQUAL(1, reader.LatestPerSensor("c1").size());
-  writer.Commit({R("a", 2, 200, 89), R("b", 1, 200, 70)}, {{1, "t", "p", "r"}});
+  writer.Commit({R("a", 2, 200, 89), R("b", 1, 200, 70)}, {{1, "t", "p", "r", "malformed"}});
   LONGS_EQUAL(3, reader.CountReadings("c1"));
   LONGS_EQUAL(1, reader.CountRejected());
   LONGS_EQUAL(2, reader.LatestPerSensor("c1").size());
@@ -235,8 +246,8 @@ TEST(Store, AReaderConnectionSeesCommitsMadeAfterItsEarlierQueries) {
 
 TEST(Store, AResentBadMessageIsQuarantinedOnce) {
   Store s(db());
-  s.Commit({}, {{1, "t/a", "garbage", "malformed JSON"}});
-  s.Commit({}, {{2, "t/a", "garbage", "malformed JSON"}, {2, "t/a", "other", "malformed JSON"}});
+  s.Commit({}, {{1, "t/a", "garbage", "malformed JSON", "malformed"}});
+  s.Commit({}, {{2, "t/a", "garbage", "malformed JSON", "malformed"}, {2, "t/a", "other", "malformed JSON", "malformed"}});
   LONGS_EQUAL(2, s.CountRejected());
 }
 
@@ -249,7 +260,8 @@ TEST(Store, RejectedRowsAreCappedTruncatedAndEvictedOldestFirst) {
   limits.max_payload_bytes = 100;
   Store s(db(), limits);
   std::vector<lw::server::Rejected> batch;
-  for (int i = 0; i < 80; ++i) batch.push_back({i, "t", "payload " + std::to_string(i) + std::string(300, 'x'), "bad"});
+  for (int i = 0; i < 80; ++i)
+    batch.push_back({i, "t", "payload " + std::to_string(i) + std::string(300, 'x'), "bad", "malformed"});
   s.Commit({}, batch);
   LONGS_EQUAL(50, s.CountRejected());
   LONGS_EQUAL(30, s.RejectedEvicted());
@@ -263,15 +275,80 @@ TEST(Store, RejectedRowsAreCappedTruncatedAndEvictedOldestFirst) {
   limits.max_bytes = 2000;
   {
     Store again(db(), limits);
-    again.Commit({}, {{100, "t", std::string(150, 'y'), "bad"}});
+    again.Commit({}, {{100, "t", std::string(150, 'y'), "bad", "malformed"}});
     CHECK(again.CountRejected() <= 2000 / 100);
     CHECK(again.RejectedEvicted() > 30);
   }
   // A resend of a truncated payload is still recognised (the digest covers the whole payload).
   Store third(db(), limits);
   const int64_t before = third.CountRejected();
-  third.Commit({}, {{101, "t", std::string(150, 'y'), "bad"}});
+  third.Commit({}, {{101, "t", std::string(150, 'y'), "bad", "malformed"}});
   LONGS_EQUAL(before, third.CountRejected());
+}
+
+// Finding: the table evicted its oldest rows whatever their kind, so a radio flood of made-up
+// sensor ids (20,000 in ~7 s) pushed every earlier quarantined reading out. Now the class holding
+// the largest share gives up its oldest row: the flood evicts only itself.
+TEST(Store, AFloodOfOneRejectionClassEvictsOnlyItself) {
+  lw::server::RejectedLimits limits;
+  limits.max_rows = 20;
+  limits.max_bytes = 1 << 20;
+  Store s(db(), limits);
+  std::vector<lw::server::Rejected> genuine;
+  for (int i = 0; i < 4; ++i) genuine.push_back({i, "t", "thick " + std::to_string(i), "\"thickness_mm\" 500", "thickness"});
+  genuine.push_back({4, "t", "conflicting", "conflict: ...", "conflict"});
+  s.Commit({}, genuine);
+  std::vector<lw::server::Rejected> flood;
+  for (int i = 0; i < 1000; ++i) flood.push_back({10 + i, "t", "fake " + std::to_string(i), "unknown sensor", "unknown_sensor"});
+  s.Commit({}, flood);
+  LONGS_EQUAL(20, s.CountRejected());
+  int kept = 0, fake = 0;
+  for (const auto& r : s.RejectedMessages(20)) {
+    kept += r.payload.rfind("thick ", 0) == 0 || r.payload == "conflicting";
+    fake += r.payload.rfind("fake ", 0) == 0;
+  }
+  LONGS_EQUAL(5, kept);   // all the earlier rows of other classes
+  LONGS_EQUAL(15, fake);  // the flood's newest
+  CHECK(s.RejectedMessages(1).front().payload == "fake 999");
+  // A class below its share takes room from the largest, after a reopen too (sizes recounted).
+  Store again(db(), limits);
+  again.Commit({}, {{2000, "t", "late thickness", "\"thickness_mm\" 600", "thickness"}});
+  kept = 0;
+  for (const auto& r : again.RejectedMessages(20)) kept += r.payload.rfind("thick ", 0) == 0 || r.payload == "late thickness";
+  LONGS_EQUAL(5, kept);
+  LONGS_EQUAL(20, again.CountRejected());
+}
+
+// Finding: a read-only file system gave "unable to open database file" and nothing more. The
+// system's reason is now added (here: a folder that does not exist; on a read-only mount it reads
+// "Read-only file system").
+TEST(Store, AnOpenThatFailsSaysWhy) {
+  const std::string path = dir.File("no-such-folder/db.sqlite");
+  try {
+    Store s(path);
+    FAIL("a database in a folder that does not exist was opened");
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    CHECK_TEXT(what.find(path) != std::string::npos, what.c_str());
+    CHECK_TEXT(what.find("(No such file or directory)") != std::string::npos, what.c_str());
+  }
+}
+
+// Finding: a database truncated to 0 bytes was taken as a new one, all history gone, no word said.
+TEST(Store, AnEmptyDatabaseFileIsRefusedNotTakenAsNew) {
+  FILE* f = fopen(db().c_str(), "w");
+  fclose(f);
+  try {
+    Store s(db());
+    FAIL("an empty database file was opened as a new database");
+  } catch (const std::runtime_error& e) {
+    CHECK(std::string(e.what()).find("empty file (0 bytes)") != std::string::npos);
+    CHECK(std::string(e.what()).find(db()) != std::string::npos);
+  }
+  // A database the server creates itself is still fine.
+  std::remove(db().c_str());
+  Store created(db());
+  LONGS_EQUAL(0, created.CountRejected());
 }
 
 // Its cost (once 212 s for one commit) is measured by bench/server/lw_bench_store_rejected, not here.
@@ -279,7 +356,7 @@ TEST(Store, TenThousandRejectedReadingsAreStoredOnceWhenCommittedTwice) {
   Store s(db());
   std::vector<lw::server::Rejected> batch;
   for (int i = 0; i < 10000; ++i)
-    batch.push_back({i, "", "{\"n\":" + std::to_string(i) + ",\"pad\":\"" + std::string(6000, 'z') + "\"}", "bad"});
+    batch.push_back({i, "", "{\"n\":" + std::to_string(i) + ",\"pad\":\"" + std::string(6000, 'z') + "\"}", "bad", "malformed"});
   s.Commit({}, batch);
   LONGS_EQUAL(10000, s.CountRejected());
   s.Commit({}, batch);  // all duplicates: found through the digest index
