@@ -181,8 +181,9 @@ std::vector<AlarmEngine::Finding> AlarmEngine::Findings(const Crusher& crusher, 
   return out;
 }
 
-bool AlarmEngine::Apply(const std::string& crusher, const core::AlarmConfig& rules, const std::vector<Finding>& findings,
+bool AlarmEngine::Apply(const core::CrusherConfig& config, const core::AlarmConfig& rules, const std::vector<Finding>& findings,
                         int64_t now_s) {
+  const std::string& crusher = config.crusher_id;
   std::map<std::pair<std::string, std::string>, const Finding*> by_key;
   for (const Finding& f : findings) {
     if (rules.Rule(f.rule).enabled) by_key[{f.rule, f.subject}] = &f;
@@ -192,7 +193,11 @@ bool AlarmEngine::Apply(const std::string& crusher, const core::AlarmConfig& rul
   std::set<std::pair<std::string, std::string>> still_open;
   for (auto it = open.begin(); it != open.end();) {
     const auto f = by_key.find({it->rule, it->subject});
-    if (f != by_key.end() && f->second->verdict != Verdict::kClear) {
+    // No finding: no data yet (the wear not computed, a gateway's status not heard since a
+    // restart) holds the alarm; a disabled rule or a sensor no longer fitted clears it.
+    const bool sensor_rule = it->rule == "sensor_silent" || it->rule == "battery_low";
+    const bool gone = !rules.Rule(it->rule).enabled || (sensor_rule && !config.FindSensor(it->subject));
+    if ((f == by_key.end() && !gone) || (f != by_key.end() && f->second->verdict != Verdict::kClear)) {
       still_open.insert({it->rule, it->subject});
       ++it;
       continue;
@@ -231,7 +236,7 @@ bool AlarmEngine::Evaluate(const std::string& crusher, const AlarmInputs& in) {
     const Crusher* c = registry_.Find(crusher);
     if (!c) return false;
     const core::AlarmConfig rules = RulesLocked(crusher);
-    changed = Apply(crusher, rules, Findings(*c, rules, in), in.now_s);
+    changed = Apply(c->config, rules, Findings(*c, rules, in), in.now_s);
   }
   if (changed && listener_) listener_(crusher);
   return changed;

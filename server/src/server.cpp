@@ -257,7 +257,9 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   std::vector<std::pair<std::string, std::string>> computed;        // (crusher, wear summary JSON)
   std::vector<std::pair<std::string, std::string>> alarm_messages;  // (crusher, its open alarms JSON)
   alarms.OnChange([&](const std::string& c) {
-    std::string message = AlarmsMessage(c, alarms.Open(c), clock.NowMs() / 1000);
+    const std::vector<AlarmRecord> open = alarms.Open(c);
+    log("crusher " + c + ": alarms changed, " + std::to_string(open.size()) + " open");
+    std::string message = AlarmsMessage(c, open, clock.NowMs() / 1000);
     events.Publish(c, "alarm", message);
     std::lock_guard<std::mutex> lock(computed_mutex);
     alarm_messages.emplace_back(c, std::move(message));

@@ -86,7 +86,8 @@ class AlarmEngine {
   std::vector<Finding> Findings(const Crusher& crusher, const core::AlarmConfig& rules, const AlarmInputs& in);
   /// Rejected readings of `crusher` in the hour before `now_s` (from the running counts seen).
   double RejectedLastHour(const std::string& crusher, int64_t now_s, int64_t total);
-  bool Apply(const std::string& crusher, const core::AlarmConfig& rules, const std::vector<Finding>& findings, int64_t now_s);
+  bool Apply(const core::CrusherConfig& config, const core::AlarmConfig& rules, const std::vector<Finding>& findings,
+             int64_t now_s);
   core::AlarmConfig RulesLocked(const std::string& crusher) const;
 
   const Registry& registry_;

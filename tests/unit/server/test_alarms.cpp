@@ -133,6 +133,8 @@ TEST(Alarms, ARestartKeepsEveryAlarmAndRaisesNoneTwice) {
       STRCMP_EQUAL("ops", a.acknowledged_by.c_str());
       LONGS_EQUAL(kT0 + 60, a.acknowledged_s.value_or(0));
     }
+    // No wear computed yet and no sensor data after the restart: held, not cleared (nor raised again).
+    CHECK_FALSE(p.alarms->Evaluate(Id(), Inputs(kT0 + 100, nullptr)));
     in.now_s = kT0 + 120;
     CHECK_FALSE(p.alarms->Evaluate(Id(), in));  // the same conditions: nothing new
     LONGS_EQUAL(2, p.alarms->List(Id(), "", 0, 100).size());
@@ -191,7 +193,7 @@ TEST(Alarms, EveryRuleRaisesHoldsAndClears) {
   st.row_forecasts[0].min_thickness_mm = cfg.thickness_min_mm + 2;
   LONGS_EQUAL(0, open("overdue"));
 
-  in.sensors = {{"s1", kT0 - 25 * 3600, 3600}};
+  in.sensors = {{cfg.sensors.front().id, kT0 - 25 * 3600, 3600}};
   LONGS_EQUAL(1, open("sensor_silent"));
   in.sensors[0].latest_s = kT0 - 13 * 3600;  // silent 13 h: more than 24 - 12
   LONGS_EQUAL(1, open("sensor_silent"));
