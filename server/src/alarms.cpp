@@ -107,12 +107,11 @@ double AlarmEngine::RejectedLastHour(const std::string& crusher, int64_t now_s, 
   return static_cast<double>(total - seen.front().second);
 }
 
-std::vector<AlarmEngine::Finding> AlarmEngine::Findings(const Crusher& crusher, const core::AlarmConfig& rules,
-                                                        const AlarmInputs& in) {
-  std::vector<Finding> out;
-  const core::CrusherConfig& cfg = crusher.config;
-  const CrusherState* w = in.wear && in.wear->has_wear ? in.wear : nullptr;
-  if (w) {
+void AlarmEngine::WearFindings(const core::CrusherConfig& cfg, const core::AlarmConfig& rules, const CrusherState& wear,
+                               int64_t now_s, std::vector<Finding>* findings) {
+  std::vector<Finding>& out = *findings;
+  const CrusherState* w = &wear;
+  {
     const core::ThinnestArea& a = w->areas.liner;
     const core::AlarmRule& r = rules.Rule("thinnest_area");
     Finding f{"thinnest_area", "liner", Verdict::kHold, a.thickness_mm, r.threshold, {}};
@@ -124,7 +123,7 @@ std::vector<AlarmEngine::Finding> AlarmEngine::Findings(const Crusher& crusher, 
       Finding due{"reline_due", rf.row, Verdict::kHold, {}, rules.Rule("reline_due").threshold, {}};
       if (rf.ok && !rf.below_minimum_since && !rf.reach_earliest) due.verdict = Verdict::kClear;
       if (rf.ok && !rf.below_minimum_since && rf.reach_earliest) {
-        const double days = static_cast<double>(Seconds(*rf.reach_earliest) - in.now_s) / 86400.0;
+        const double days = static_cast<double>(Seconds(*rf.reach_earliest) - now_s) / 86400.0;
         due.value = days;
         const core::AlarmRule& d = rules.Rule("reline_due");
         due.verdict = days <= d.threshold                 ? Verdict::kRaise
@@ -153,6 +152,11 @@ std::vector<AlarmEngine::Finding> AlarmEngine::Findings(const Crusher& crusher, 
     }
     out.push_back(std::move(u));
   }
+}
+
+void AlarmEngine::SensorFindings(const core::CrusherConfig& cfg, const core::AlarmConfig& rules, const AlarmInputs& in,
+                                 std::vector<Finding>* findings) {
+  std::vector<Finding>& out = *findings;
   for (const AlarmInputs::Sensor& s : in.sensors) {
     const core::AlarmRule& r = rules.Rule("sensor_silent");
     const int64_t last = s.latest_s.value_or(Seconds(cfg.installed_at));
@@ -166,6 +170,14 @@ std::vector<AlarmEngine::Finding> AlarmEngine::Findings(const Crusher& crusher, 
         {"battery_low", s.id, Low<Verdict>(static_cast<double>(s.battery_mv), b), static_cast<double>(s.battery_mv), b.threshold,
          "sensor " + s.id + ": battery " + std::to_string(s.battery_mv) + " mV, below " + Fixed(b.threshold, 0) + " mV"});
   }
+}
+
+std::vector<AlarmEngine::Finding> AlarmEngine::Findings(const Crusher& crusher, const core::AlarmConfig& rules,
+                                                        const AlarmInputs& in) {
+  std::vector<Finding> out;
+  const core::CrusherConfig& cfg = crusher.config;
+  if (in.wear && in.wear->has_wear) WearFindings(cfg, rules, *in.wear, in.now_s, &out);
+  SensorFindings(cfg, rules, in, &out);
   const core::AlarmRule& g = rules.Rule("gateway_offline");
   for (const auto& [id, status] : gateways_[cfg.crusher_id]) {
     const double minutes = static_cast<double>(in.now_s - status.since_s) / 60.0;

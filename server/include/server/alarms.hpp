@@ -84,6 +84,12 @@ class AlarmEngine {
     std::string detail;
   };
   std::vector<Finding> Findings(const Crusher& crusher, const core::AlarmConfig& rules, const AlarmInputs& in);
+  /// The rules on the wear: thinnest_area, reline_due and overdue per row, unsupported.
+  static void WearFindings(const core::CrusherConfig& cfg, const core::AlarmConfig& rules, const CrusherState& wear,
+                           int64_t now_s, std::vector<Finding>* out);
+  /// The rules on the sensors' latest readings: sensor_silent, battery_low.
+  static void SensorFindings(const core::CrusherConfig& cfg, const core::AlarmConfig& rules, const AlarmInputs& in,
+                             std::vector<Finding>* out);
   /// Rejected readings of `crusher` in the hour before `now_s` (from the running counts seen).
   double RejectedLastHour(const std::string& crusher, int64_t now_s, int64_t total);
   bool Apply(const core::CrusherConfig& config, const core::AlarmConfig& rules, const std::vector<Finding>& findings,
