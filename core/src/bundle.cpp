@@ -142,7 +142,100 @@ ThinnestAreaConfig ParseThinnestArea(const json& j, double thickness_new_mm, con
   return t;
 }
 
+/// One rule object of "alarms" over `rule`: only the keys of its spec, each checked by its name.
+AlarmRule ParseAlarmRule(const json& j, const AlarmRuleSpec& spec, AlarmRule rule, const std::string& file) {
+  const std::string where = std::string("alarms.") + spec.name;
+  if (!j.is_object()) throw InputError(file, 0, where + " must be an object");
+  for (const auto& [key, value] : j.items()) {
+    const bool known = key == "enabled" || key == "severity" || (spec.threshold_key && key == spec.threshold_key) ||
+                       (spec.hysteresis_key && key == spec.hysteresis_key);
+    if (!known) {
+      std::string keys = "enabled, severity";
+      for (const char* k : {spec.threshold_key, spec.hysteresis_key})
+        if (k) keys += std::string(", ") + k;
+      throw InputError(file, 0, where + "." + key + " is not a setting of this rule (it has " + keys + ")");
+    }
+  }
+  if (j.contains("enabled")) rule.enabled = Get<bool>(j, "enabled", where, file);
+  if (j.contains("severity")) {
+    rule.severity = Get<std::string>(j, "severity", where, file);
+    if (rule.severity != "info" && rule.severity != "warning" && rule.severity != "critical")
+      throw InputError(file, 0, where + ".severity '" + rule.severity + "' must be info, warning or critical");
+  }
+  const auto number = [&](const char* key, double* out) {
+    if (!key || !j.contains(key)) return;
+    *out = Get<double>(j, key, where, file);
+    if (!(*out >= 0 && *out <= spec.max))
+      throw InputError(file, 0, where + "." + key + " must be in [0, " + Number(spec.max) + "]");
+  };
+  number(spec.threshold_key, &rule.threshold);
+  number(spec.hysteresis_key, &rule.hysteresis);
+  // These two clear below their threshold (threshold - hysteresis): below zero, never.
+  const std::string name = spec.name;
+  if ((name == "sensor_silent" || name == "rejected_rate") && rule.hysteresis > rule.threshold)
+    throw InputError(file, 0, where + "." + spec.hysteresis_key + " must be at most " + spec.threshold_key);
+  return rule;
+}
+
 }  // namespace
+
+const std::vector<AlarmRuleSpec>& AlarmRuleSpecs() {
+  static const std::vector<AlarmRuleSpec> specs = {
+      {"thinnest_area", "below_mm", "hysteresis_mm", 10, 2, "warning", kMaxThicknessMm},
+      {"reline_due", "within_days", "hysteresis_days", 30, 2, "warning", 3650},
+      {"overdue", nullptr, "hysteresis_mm", 0, 2, "critical", 100},
+      {"sensor_silent", "hours", "hysteresis_hours", 24, 12, "warning", 8760},
+      {"battery_low", "below_mv", "hysteresis_mv", 3300, 100, "warning", 10000},
+      {"gateway_offline", "minutes", nullptr, 10, 0, "critical", 10080},
+      {"unsupported", nullptr, nullptr, 0, 0, "info", 0},
+      {"rejected_rate", "per_hour", "hysteresis_per_hour", 10, 5, "warning", 1e6},
+  };
+  return specs;
+}
+
+const AlarmRule& AlarmConfig::Rule(const std::string& name) const {
+  const auto& specs = AlarmRuleSpecs();
+  for (size_t k = 0; k < specs.size() && k < rules.size(); ++k)
+    if (name == specs[k].name) return rules[k];
+  throw std::out_of_range("no alarm rule '" + name + "'");
+}
+
+AlarmConfig DefaultAlarmConfig(const CrusherConfig& config) {
+  AlarmConfig out;
+  for (const AlarmRuleSpec& s : AlarmRuleSpecs()) out.rules.push_back({true, s.severity, s.threshold, s.hysteresis});
+  out.rules.front().threshold = config.thickness_min_mm + AlarmRuleSpecs().front().threshold;
+  return out;
+}
+
+AlarmConfig ParseAlarmConfig(const json& alarms, const AlarmConfig& base, const std::string& file) {
+  if (!alarms.is_object()) throw InputError(file, 0, "\"alarms\" must be an object");
+  const auto& specs = AlarmRuleSpecs();
+  AlarmConfig out = base;
+  for (const auto& [name, rule] : alarms.items()) {
+    size_t k = 0;
+    while (k < specs.size() && name != specs[k].name) ++k;
+    if (k == specs.size()) {
+      std::string names;
+      for (const AlarmRuleSpec& s : specs) names += (names.empty() ? "" : ", ") + std::string(s.name);
+      throw InputError(file, 0, "alarms." + name + " is not an alarm rule (the rules: " + names + ")");
+    }
+    out.rules[k] = ParseAlarmRule(rule, specs[k], out.rules[k], file);
+  }
+  return out;
+}
+
+nlohmann::ordered_json AlarmConfigJson(const AlarmConfig& config) {
+  nlohmann::ordered_json out = nlohmann::ordered_json::object();
+  const auto& specs = AlarmRuleSpecs();
+  for (size_t k = 0; k < specs.size() && k < config.rules.size(); ++k) {
+    const AlarmRule& r = config.rules[k];
+    nlohmann::ordered_json j{{"enabled", r.enabled}, {"severity", r.severity}};
+    if (specs[k].threshold_key) j[specs[k].threshold_key] = r.threshold;
+    if (specs[k].hysteresis_key) j[specs[k].hysteresis_key] = r.hysteresis;
+    out[specs[k].name] = std::move(j);
+  }
+  return out;
+}
 
 void CheckIdentifier(const std::string& id, const std::string& what, const std::string& file) {
   const bool ok = !id.empty() && id.size() <= 64 && std::all_of(id.begin(), id.end(), [](char ch) {
@@ -309,6 +402,8 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
   if (!j.contains("sensors")) throw InputError(file, 0, "\"sensors\" array is required");
   ParseSensors(j["sensors"], file, &c);
   if (j.contains("thinnest_area")) c.thinnest_area = ParseThinnestArea(j["thinnest_area"], c.thickness_new_mm, file);
+  c.alarms = DefaultAlarmConfig(c);
+  if (j.contains("alarms")) c.alarms = ParseAlarmConfig(j["alarms"], c.alarms, file);
   return c;
 }
 

@@ -41,8 +41,8 @@ bool ParseBelowRoot(std::string_view rest, ParsedTopic* out) {
     out->kind = levels[1] == "status" ? TopicKind::kStatus : TopicKind::kStats;
     return true;
   }
-  if (levels.size() == 1 && levels[0] == "wear") {
-    out->kind = TopicKind::kWear;
+  if (levels.size() == 1 && (levels[0] == "wear" || levels[0] == "alarms")) {
+    out->kind = levels[0] == "wear" ? TopicKind::kWear : TopicKind::kAlarms;
     return true;
   }
   return false;
@@ -67,6 +67,8 @@ std::string Topics::Build(TopicKind kind, std::string_view id) const {
       return root_ + std::string(kDevices) + std::string(id);
     case TopicKind::kWear:
       return root_ + "wear";
+    case TopicKind::kAlarms:
+      return root_ + "alarms";
   }
   return root_;
 }
@@ -90,12 +92,20 @@ std::string Topics::Wear() const {
   return Build(TopicKind::kWear);
 }
 
+std::string Topics::Alarms() const {
+  return Build(TopicKind::kAlarms);
+}
+
 std::string Topics::CommittedFilter() const {
   return Committed("+");
 }
 
 std::string Topics::ReadingsFilter(std::string_view prefix) {
   return Topics("+", "+", prefix).Reading("+");
+}
+
+std::string Topics::StatusFilter(std::string_view prefix) {
+  return Topics("+", "+", prefix).Status();
 }
 
 std::optional<ParsedTopic> Topics::Parse(std::string_view topic) const {

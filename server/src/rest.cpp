@@ -202,6 +202,20 @@ const char* const kPlanSchema =
     R"j("compared_on":{"type":"object"},"candidates":{"type":"integer"},"objective":{"type":"string"},)j"
     R"j("scan_now":{"type":["object","null"]}}})j";
 
+/// OpenAPI schemas of the alarm routes (docs/alarms.md).
+const std::string kAlarmSchema =
+    std::string(R"j({"type":"object","required":["id","rule","subject","severity","state","since","detail"],"properties":{)j") +
+    R"j("id":{"type":"integer"},"rule":{"type":"string"},"subject":{"type":"string"},)j" +
+    R"j("severity":{"type":"string","enum":["info","warning","critical"]},)j" +
+    R"j("state":{"type":"string","enum":["active","acknowledged","cleared"]},"since":{"type":"string","format":"date-time"},)j" +
+    R"j("detail":{"type":"string"},"value":{"type":"number","nullable":true},"threshold":{"type":"number","nullable":true},)j" +
+    R"j("acknowledged_at":{"type":"string","format":"date-time","nullable":true},)j" +
+    R"j("acknowledged_by":{"type":"string","nullable":true},"cleared_at":{"type":"string","format":"date-time","nullable":true},)j" +
+    R"j("audit":{"type":"array","items":{"type":"object","properties":{"time":{"type":"string","format":"date-time"},)j" +
+    R"j("action":{"type":"string"},"by":{"type":"string"},"detail":{"type":"string"}}}}}})j";
+const std::string kAlarmListSchema =
+    R"j({"type":"object","required":["alarms"],"properties":{"alarms":{"type":"array","items":)j" + kAlarmSchema + "}}}";
+
 const std::vector<Route>& Resources::Routes() {
   static const std::vector<Route> routes = {
       {Method::kGet, "/healthz", "Liveness: database and broker state", {}, "200", &Resources::Health},
@@ -291,6 +305,41 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        nullptr,
        kCampaignListSchema.c_str()},
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}/alarms",
+       "Alarms of the crusher, newest first: the open ones (active, acknowledged) and those cleared in the last 7 days, "
+       "each with its audit trail (docs/alarms.md)",
+       {{"state", "string", "active, acknowledged or cleared: only alarms in that state"},
+        {"limit", "integer", "1..1000, default 100"}},
+       "200",
+       &Resources::AlarmList,
+       {"application/json"},
+       kSmallBodyBytes,
+       nullptr,
+       kAlarmListSchema.c_str()},
+      {Method::kPost,
+       "/api/v1/crushers/{crusher}/alarms/{id}/ack",
+       "Acknowledge an alarm (the token's name and the time are kept; an acknowledged one again: 200, unchanged; "
+       "a cleared one: 409; an unknown id: 404)",
+       {},
+       "200",
+       &Resources::AckAlarm,
+       {"application/json"},
+       kSmallBodyBytes,
+       nullptr,
+       kAlarmSchema.c_str()},
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}/alarms/rules",
+       "The alarm rules in force: crusher.json's \"alarms\" with the changes made over REST (docs/alarms.md)",
+       {},
+       "200",
+       &Resources::AlarmRules},
+      {Method::kPost,
+       "/api/v1/crushers/{crusher}/alarms/rules",
+       "Change alarm rules: an \"alarms\" object as in crusher.json, only the keys given change (400 naming a bad key)",
+       {},
+       "200",
+       &Resources::SetAlarmRules},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/plan",
        "Where to cast the next liner's sensors, the expected band of each layout, and what a scan now would do "
@@ -692,6 +741,88 @@ Response Resources::PostReline(const Request& req) {
   }
   if (out.created && ctx_.after_reline) ctx_.after_reline(c->config.crusher_id);
   return Json(out.created ? 201 : 200, CampaignJson(out.campaign, ctx_.campaigns->Now()));
+}
+
+AlarmEngine* Resources::AlarmsOf(Response* error) const {
+  if (!ctx_.alarms) *error = Error(503, "alarms are not kept by this server");
+  return ctx_.alarms;
+}
+
+std::string Resources::TokenName(const Request& request) const {
+  if (!ctx_.tokens || !ctx_.tokens->enabled()) return "anonymous";
+  const auto token = ctx_.tokens->Check(request.bearer);
+  return token ? token->name : "unknown";
+}
+
+Response Resources::AlarmList(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  AlarmEngine* alarms = c ? AlarmsOf(&error) : nullptr;
+  if (!alarms) return error;
+  std::string state;
+  if (const std::string* s = FindParam(req.query, "state")) {
+    state = *s;
+    if (state != "active" && state != "acknowledged" && state != "cleared")
+      return Error(400, "state '" + state + "' must be active, acknowledged or cleared");
+  }
+  int limit = 100;
+  std::string message;
+  if (FindParam(req.query, "limit") && !WholeNumberParam(req.query, "limit", 1, 1000, &limit, &message))
+    return Error(400, message);
+  constexpr int64_t kRecentS = 7 * 86400;  // "recent": cleared alarms of the last week
+  ordered_json list = ordered_json::array();
+  for (const AlarmRecord& a : alarms->List(c->config.crusher_id, state, ctx_.ingestor->NowS() - kRecentS, limit)) {
+    const std::vector<AlarmAuditEntry> audit = alarms->Audit(a.id);
+    list.push_back(AlarmJson(a, &audit));
+  }
+  return Json(200, {{"alarms", std::move(list)}});
+}
+
+Response Resources::AckAlarm(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  AlarmEngine* alarms = c ? AlarmsOf(&error) : nullptr;
+  if (!alarms) return error;
+  const std::string& id_text = req.path.at(1);
+  char* end = nullptr;
+  const long long id = std::strtoll(id_text.c_str(), &end, 10);
+  const std::string unknown = "unknown alarm '" + id_text + "' of crusher '" + c->config.crusher_id + "'";
+  if (id_text.empty() || *end != '\0' || id <= 0) return Error(404, unknown);
+  AlarmRecord alarm;
+  switch (alarms->Acknowledge(c->config.crusher_id, id, TokenName(req), ctx_.ingestor->NowS(), &alarm)) {
+    case AlarmEngine::Ack::kUnknown:
+      return Error(404, unknown);
+    case AlarmEngine::Ack::kCleared:
+      return Error(409, "alarm " + id_text + " was cleared at " + Iso(alarm.cleared_s.value_or(0)) + ": nothing to acknowledge");
+    case AlarmEngine::Ack::kAcknowledged:
+    case AlarmEngine::Ack::kAlreadyAcknowledged:
+      break;
+  }
+  const std::vector<AlarmAuditEntry> audit = alarms->Audit(alarm.id);
+  return Json(200, AlarmJson(alarm, &audit));
+}
+
+Response Resources::AlarmRules(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  AlarmEngine* alarms = c ? AlarmsOf(&error) : nullptr;
+  if (!alarms) return error;
+  return Json(200, {{"rules", core::AlarmConfigJson(alarms->Rules(c->config.crusher_id))}});
+}
+
+Response Resources::SetAlarmRules(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  AlarmEngine* alarms = c ? AlarmsOf(&error) : nullptr;
+  if (!alarms) return error;
+  const nlohmann::json body = nlohmann::json::parse(req.body, nullptr, false);
+  if (body.is_discarded()) return Error(400, "the body is not JSON (an \"alarms\" object, docs/alarms.md)");
+  try {
+    const core::AlarmConfig rules = alarms->UpdateRules(c->config.crusher_id, body, TokenName(req), ctx_.ingestor->NowS());
+    return Json(200, {{"rules", core::AlarmConfigJson(rules)}});
+  } catch (const core::InputError& e) {
+    return Error(400, e.rule());
+  }
 }
 
 Response Resources::Plan(const Request& req) {

@@ -24,6 +24,7 @@
 #include "mqtt/outbox.hpp"
 #include "mqtt/mosquitto_link.hpp"
 #include "mqtt/topics.hpp"
+#include "server/alarms.hpp"
 #include "server/diagnosis_runner.hpp"
 #include "server/http_api.hpp"
 #include "server/ingest.hpp"
@@ -156,6 +157,43 @@ bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& st
   return false;
 }
 
+/// What the alarm rules of `crusher` look at now (`wear`: its latest state, may be null).
+AlarmInputs GatherAlarmInputs(const Crusher& crusher, const LiveState& live, const Ingestor& ingestor, const CrusherState* wear,
+                              int64_t now_s) {
+  AlarmInputs in;
+  in.now_s = now_s;
+  in.wear = wear;
+  std::map<std::string, const StoredReading*> latest;
+  const std::vector<Store::SensorSummary> summaries = live.LatestPerSensor(crusher.config.crusher_id);
+  for (const Store::SensorSummary& s : summaries) latest[s.latest.sensor] = &s.latest;
+  for (const core::SensorInfo& s : crusher.config.sensors) {
+    AlarmInputs::Sensor sensor{s.id, std::nullopt, 0};
+    if (const auto it = latest.find(s.id);
+        it != latest.end() &&
+        crusher.config.OfThisLiner(s.id, core::TimePoint(std::chrono::seconds(it->second->time_s)), it->second->thickness_mm)) {
+      sensor.latest_s = it->second->time_s;
+      sensor.battery_mv = it->second->battery_mv;
+    }
+    in.sensors.push_back(std::move(sensor));
+  }
+  in.rejected_total = ingestor.CrusherCounters(crusher.config.crusher_id).rejected;
+  return in;
+}
+
+/// A gateway's retained status (or last will) on `topic`: told to the alarm engine, for a known crusher.
+/// Returns false when the message is not one (logged by the caller as any other message would be).
+bool TakeGatewayStatus(const mqtt::ParsedTopic& t, const std::string& payload, const Registry& registry, AlarmEngine& alarms,
+                       int64_t now_s) {
+  std::string error;
+  const auto status = mqtt::DecodeStatus(payload, &error);
+  if (!status || !registry.Find(t.crusher)) return false;
+  int64_t since = now_s;
+  if (const auto at = core::ParseIsoTime(status->time))
+    since = std::min<int64_t>(now_s, std::chrono::duration_cast<std::chrono::seconds>(at->time_since_epoch()).count());
+  alarms.GatewayStatus(t.crusher, status->gateway.empty() ? std::string("gateway") : status->gateway, status->online, since);
+  return true;
+}
+
 }  // namespace
 
 void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostream& log_stream) {
@@ -212,6 +250,23 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   LockedStore campaign_store(std::make_unique<Store>(o.db));
   CampaignService campaigns(*registry, campaign_store, live, wear, [&clock] { return clock.NowMs() / 1000; });
 
+  // Alarms (docs/alarms.md): on a connection of their own; evaluated by the wear worker below. Each
+  // change goes out as an SSE `alarm` event and, from the MQTT loop, as the retained `.../alarms`.
+  LockedStore alarm_store(std::make_unique<Store>(o.db));
+  AlarmEngine alarms(*registry, alarm_store);
+  std::mutex computed_mutex;
+  std::vector<std::pair<std::string, std::string>> computed;        // (crusher, wear summary JSON)
+  std::vector<std::pair<std::string, std::string>> alarm_messages;  // (crusher, its open alarms JSON)
+  alarms.OnChange([&](const std::string& c) {
+    const std::vector<AlarmRecord> open = alarms.Open(c);
+    log("crusher " + c + ": alarms changed, " + std::to_string(open.size()) + " open");
+    std::string message = AlarmsMessage(c, open, clock.NowMs() / 1000);
+    events.Publish(c, "alarm", message);
+    std::lock_guard<std::mutex> lock(computed_mutex);
+    alarm_messages.emplace_back(c, std::move(message));
+  });
+  std::atomic<bool> alarms_due{false};  // a gateway's status changed: evaluate every crusher's alarms
+
   std::mutex dirty_mutex;
   std::condition_variable dirty_cv;
   std::set<std::string> dirty;  // crushers whose wear must be recomputed and published
@@ -248,7 +303,8 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   lo.password = o.password;
   lo.tls_ca = o.tls_ca;
   lo.clean_session = false;  // persistent session: the broker queues readings while we are away
-  lo.subscriptions = {mqtt::Topics::ReadingsFilter(o.topic_root)};
+  // Readings, and the gateways' retained status (their last will says offline) for the alarms.
+  lo.subscriptions = {mqtt::Topics::ReadingsFilter(o.topic_root), mqtt::Topics::StatusFilter(o.topic_root)};
   mqtt::MosquittoLink link(lo);  // read on this thread: docs/performance.md, *Ingest*
 
   ApiContext ctx = MakeApiContext(o, *registry, read, wear, live, ingestor, events, tokens);
@@ -271,6 +327,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   };
   ctx.after_ingest = on_committed;
   ctx.campaigns = &campaigns;
+  ctx.alarms = &alarms;
   ctx.after_reline = [&](const std::string& crusher) {  // the new liner's wear, computed and published
     metrics.WearChanged(crusher, WallMs());
     {
@@ -289,9 +346,29 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
 
   // Wear is recomputed on its own thread (at most every --wear-interval-ms), so a large map or a
   // long campaign never delays commit acks; this loop only publishes the summaries it hands back.
-  std::mutex computed_mutex;
-  std::vector<std::pair<std::string, std::string>> computed;  // (crusher, wear summary JSON)
   std::atomic<bool> worker_stop{false};
+  // Every crusher's alarms, at most every kAlarmIntervalMs (silence and offline gateways are
+  // matters of time, not of new readings) and when a gateway's status changed; a crusher whose wear
+  // was just recomputed is evaluated right after it.
+  constexpr int64_t kAlarmIntervalMs = 10'000;
+  int64_t last_alarms_ms = 0;
+  const auto evaluate_alarms = [&](const std::string& c, const CrusherState* st) {
+    const Crusher* crusher = registry->Find(c);
+    if (!crusher) return;
+    try {
+      alarms.Evaluate(c, GatherAlarmInputs(*crusher, live, ingestor, st, clock.NowMs() / 1000));
+    } catch (const std::exception& e) {
+      log("crusher " + c + ": alarms not evaluated: " + e.what());
+    }
+  };
+  const auto evaluate_all_alarms = [&](bool force) {
+    if (!force && !alarms_due.exchange(false) && WallMs() - last_alarms_ms < kAlarmIntervalMs) return;
+    last_alarms_ms = WallMs();
+    for (const Crusher* c : registry->All()) {
+      if (worker_stop) return;
+      evaluate_alarms(c->config.crusher_id, wear.Latest(c->config.crusher_id).get());
+    }
+  };
   std::thread wear_worker([&] {
     pthread_setname_np(pthread_self(), "lw-wear");  // named in top -H, perf and lw_bench_ingest's CPU by thread
     // Once at startup, every crusher's state and then its wear and forecast (not published: nothing
@@ -313,14 +390,25 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     }
     log("wear and forecast of every crusher computed (process CPU since start: " +
         std::to_string(CpuMs(CLOCK_PROCESS_CPUTIME_ID)) + " ms)");
+    // The open alarms as stored, retained again (a restart repeats none and loses none), then evaluated.
+    for (const Crusher* c : registry->All()) {
+      const std::string& id = c->config.crusher_id;
+      std::lock_guard<std::mutex> lock(computed_mutex);
+      alarm_messages.emplace_back(id, AlarmsMessage(id, alarms.Open(id), clock.NowMs() / 1000));
+    }
+    evaluate_all_alarms(true);
     int64_t last_ms = 0;
     while (!worker_stop) {
       std::set<std::string> work;
       {
         std::unique_lock<std::mutex> lock(dirty_mutex);
-        dirty_cv.wait_for(lock, std::chrono::milliseconds(200), [&] { return worker_stop || !dirty.empty(); });
+        dirty_cv.wait_for(lock, std::chrono::milliseconds(200), [&] { return worker_stop || !dirty.empty() || alarms_due; });
         if (worker_stop) break;
-        if (dirty.empty()) continue;
+        if (dirty.empty()) {
+          lock.unlock();
+          evaluate_all_alarms(false);
+          continue;
+        }
         const int64_t wait_ms = last_ms + o.wear_interval_ms - WallMs();
         if (wait_ms > 0) {
           lock.unlock();
@@ -340,9 +428,11 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
         } catch (const std::exception& e) {
           metrics.WearDone(c, false, seconds(), WallMs());
           log("crusher " + c + ": wear not computed: " + e.what());
+          evaluate_alarms(c, nullptr);
           continue;
         }
         metrics.WearDone(c, true, seconds(), WallMs());
+        evaluate_alarms(c, st.get());
         if (!st || !st->has_wear) continue;
         std::string summary = mqtt::EncodeWear(WearJson(*st, false));
         events.Publish(c, "wear", summary);
@@ -386,6 +476,10 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
         log("broker: " + e.payload);
       } else if (auto t = mqtt::Topics::ParseAny(e.topic, o.topic_root); t && t->kind == mqtt::TopicKind::kReading) {
         batch->push_back({std::move(t->site), std::move(t->crusher), std::move(t->id), std::move(e.topic), std::move(e.payload)});
+      } else if (t && t->kind == mqtt::TopicKind::kStatus &&
+                 TakeGatewayStatus(*t, e.payload, *registry, alarms, clock.NowMs() / 1000)) {
+        alarms_due = true;
+        dirty_cv.notify_one();
       } else if (ignored_logged < kIgnoredLogged) {
         ++ignored_logged;
         // Topics are UTF-8 without control characters (the link refuses others); long ones are cut
@@ -406,6 +500,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   // Commit acks the link refused (not connected) wait here and go
   // first at the next turn, instead of being dropped (the gateway would wait for its republication).
   mqtt::Outbox acks;
+  mqtt::Outbox alarm_outbox(10'000);
   uint64_t acks_dropped_logged = 0;
   // Kept from turn to turn with its room: grown from empty at each turn, it moved every message it
   // held (five strings each) at each doubling (3 % of the server's CPU at 7,000 messages a second).
@@ -460,15 +555,22 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       }
       on_committed(r);
     }
-    std::vector<std::pair<std::string, std::string>> ready;
+    std::vector<std::pair<std::string, std::string>> ready, ready_alarms;
     {
       std::lock_guard<std::mutex> lock(computed_mutex);
       ready.swap(computed);
+      ready_alarms.swap(alarm_messages);
     }
+    // Retained wear and alarms go only to the crusher's own site (crusher.json's "site" or the first
+    // site heard from), never to a site name a stray publisher made up.
     for (const auto& [c, summary] : ready) {
-      // Retained wear goes only to the crusher's own site (crusher.json's "site" or the first site
-      // heard from), never to a site name a stray publisher made up.
       if (const auto site = ingestor.SiteOf(c)) link.Publish({mqtt::Topics(*site, c, o.topic_root).Wear(), summary, 1, true});
+    }
+    // Alarm sets wait in their outbox while the broker is away (never dropped: the latest is sent last).
+    alarm_outbox.Flush(link);
+    for (auto& [c, message] : ready_alarms) {
+      if (const auto site = ingestor.SiteOf(c))
+        alarm_outbox.Send(link, {mqtt::Topics(*site, c, o.topic_root).Alarms(), std::move(message), 1, true});
     }
     if (now - last_stats_ms >= 60'000) {
       const IngestCounters c = ingestor.Counters();

@@ -20,7 +20,7 @@ using Db = core::sqlite::Database<std::runtime_error>;
 using Stmt = core::sqlite::Statement<std::runtime_error>;
 using Tx = core::sqlite::Transaction<std::runtime_error>;
 
-constexpr int kSchemaVersion = 4;
+constexpr int kSchemaVersion = 5;
 
 StoredReading Row(const Stmt& s) {
   StoredReading r;
@@ -345,6 +345,23 @@ struct Store::Impl {
           "PRAGMA user_version=4;");
       tx.Commit();
     }
+    if (v < 5) {
+      // Version 5: alarms (docs/alarms.md), their audit trail and the rules set over REST. An
+      // alarm's row lives from its raise to its clear and is kept after; value and threshold are
+      // NULL for the rules without one.
+      Tx tx(db);
+      db.Exec(
+          "CREATE TABLE IF NOT EXISTS alarms (id INTEGER PRIMARY KEY AUTOINCREMENT, crusher TEXT NOT NULL, rule TEXT NOT NULL,"
+          " subject TEXT NOT NULL, severity TEXT NOT NULL, state TEXT NOT NULL, since INTEGER NOT NULL, detail TEXT NOT NULL,"
+          " value REAL, threshold REAL, acknowledged INTEGER, acknowledged_by TEXT NOT NULL DEFAULT '', cleared INTEGER);"
+          "CREATE INDEX IF NOT EXISTS alarms_by_crusher ON alarms(crusher, id);"
+          "CREATE TABLE IF NOT EXISTS alarm_audit (id INTEGER PRIMARY KEY AUTOINCREMENT, alarm INTEGER NOT NULL,"
+          " time INTEGER NOT NULL, action TEXT NOT NULL, who TEXT NOT NULL, detail TEXT NOT NULL);"
+          "CREATE INDEX IF NOT EXISTS alarm_audit_by_alarm ON alarm_audit(alarm, id);"
+          "CREATE TABLE IF NOT EXISTS alarm_rules (crusher TEXT PRIMARY KEY, json TEXT NOT NULL);"
+          "PRAGMA user_version=5;");
+      tx.Commit();
+    }
   }
 };
 
@@ -580,6 +597,113 @@ void Store::Reline(const std::string& crusher, const CampaignRecord& closed, con
     s.Bind(7, c->final_readings_json).Bind(8, c->created_s);
     s.Step();
   }
+  tx.Commit();
+}
+
+namespace {
+
+constexpr const char* kAlarmColumns =
+    "id, crusher, rule, subject, severity, state, since, detail, value, threshold, acknowledged, acknowledged_by, cleared";
+
+AlarmRecord AlarmRow(const Stmt& s) {
+  AlarmRecord a;
+  a.id = s.Int(0);
+  a.crusher = s.Text(1);
+  a.rule = s.Text(2);
+  a.subject = s.Text(3);
+  a.severity = s.Text(4);
+  a.state = s.Text(5);
+  a.since_s = s.Int(6);
+  a.detail = s.Text(7);
+  if (!s.IsNull(8)) a.value = s.Real(8);
+  if (!s.IsNull(9)) a.threshold = s.Real(9);
+  if (!s.IsNull(10)) a.acknowledged_s = s.Int(10);
+  a.acknowledged_by = s.Text(11);
+  if (!s.IsNull(12)) a.cleared_s = s.Int(12);
+  return a;
+}
+
+std::vector<AlarmRecord> AlarmRows(Stmt& s) {
+  std::vector<AlarmRecord> out;
+  while (s.Step()) out.push_back(AlarmRow(s));
+  return out;
+}
+
+void AppendAudit(const Db& db, const AlarmAuditEntry& e) {
+  Stmt add(db, "INSERT INTO alarm_audit(alarm, time, action, who, detail) VALUES(?1,?2,?3,?4,?5)");
+  add.Bind(1, e.alarm).Bind(2, e.time_s).Bind(3, e.action).Bind(4, e.by).Bind(5, e.detail);
+  add.Step();
+}
+
+}  // namespace
+
+int64_t Store::SaveAlarm(const AlarmRecord& a, AlarmAuditEntry audit) {
+  Impl& im = *impl_;
+  Tx tx(im.db);
+  // Alarms change a few times a day: statements made per call, not kept.
+  Stmt put(im.db, a.id == 0 ? "INSERT INTO alarms(crusher, rule, subject, severity, state, since, detail, value, threshold,"
+                              " acknowledged, acknowledged_by, cleared) VALUES(?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13)"
+                              " RETURNING id"
+                            : "UPDATE alarms SET severity=?5, state=?6, detail=?8, acknowledged=?11, acknowledged_by=?12,"
+                              " cleared=?13 WHERE id=?1 RETURNING id");
+  put.Bind(1, a.id).Bind(2, a.crusher).Bind(3, a.rule).Bind(4, a.subject).Bind(5, a.severity).Bind(6, a.state);
+  put.Bind(7, a.since_s).Bind(8, a.detail).Bind(12, a.acknowledged_by);
+  if (a.value) put.Bind(9, *a.value);
+  if (a.threshold) put.Bind(10, *a.threshold);
+  if (a.acknowledged_s) put.Bind(11, *a.acknowledged_s);
+  if (a.cleared_s) put.Bind(13, *a.cleared_s);
+  if (!put.Step()) throw std::runtime_error("database " + im.db.path() + ": no alarm " + std::to_string(a.id) + " to update");
+  audit.alarm = put.Int(0);
+  put.Reset();
+  AppendAudit(im.db, audit);
+  tx.Commit();
+  return audit.alarm;
+}
+
+std::vector<AlarmRecord> Store::OpenAlarms() {
+  Stmt q(impl_->db, (std::string("SELECT ") + kAlarmColumns + " FROM alarms WHERE state!='cleared' ORDER BY id").c_str());
+  return AlarmRows(q);
+}
+
+std::vector<AlarmRecord> Store::Alarms(const std::string& crusher, const std::string& state, int64_t cleared_since_s, int limit) {
+  Stmt q(impl_->db, (std::string("SELECT ") + kAlarmColumns +
+                     " FROM alarms WHERE crusher=?1 AND (?2='' OR state=?2) AND (state!='cleared' OR cleared>=?3)"
+                     " ORDER BY id DESC LIMIT ?4")
+                        .c_str());
+  q.Bind(1, crusher).Bind(2, state).Bind(3, cleared_since_s).Bind(4, limit);
+  return AlarmRows(q);
+}
+
+std::optional<AlarmRecord> Store::Alarm(int64_t id) {
+  Stmt q(impl_->db, (std::string("SELECT ") + kAlarmColumns + " FROM alarms WHERE id=?1").c_str());
+  q.Bind(1, id);
+  std::vector<AlarmRecord> rows = AlarmRows(q);
+  if (rows.empty()) return std::nullopt;
+  return rows.front();
+}
+
+std::vector<AlarmAuditEntry> Store::AlarmAudit(int64_t id) {
+  Stmt q(impl_->db, "SELECT alarm, time, action, who, detail FROM alarm_audit WHERE alarm=?1 ORDER BY id");
+  q.Bind(1, id);
+  std::vector<AlarmAuditEntry> out;
+  while (q.Step()) out.push_back({q.Int(0), q.Int(1), q.Text(2), q.Text(3), q.Text(4)});
+  return out;
+}
+
+std::optional<std::string> Store::AlarmRules(const std::string& crusher) {
+  Stmt q(impl_->db, "SELECT json FROM alarm_rules WHERE crusher=?1");
+  q.Bind(1, crusher);
+  if (!q.Step()) return std::nullopt;
+  return q.Text(0);
+}
+
+void Store::SaveAlarmRules(const std::string& crusher, const std::string& json, const AlarmAuditEntry& audit) {
+  Impl& im = *impl_;
+  Tx tx(im.db);
+  Stmt put(im.db, "INSERT INTO alarm_rules(crusher, json) VALUES(?1, ?2) ON CONFLICT(crusher) DO UPDATE SET json=?2");
+  put.Bind(1, crusher).Bind(2, json);
+  put.Step();
+  AppendAudit(im.db, audit);
   tx.Commit();
 }
 

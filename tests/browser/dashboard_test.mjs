@@ -205,6 +205,21 @@ async function main() {
   check(Number.isFinite(rowMin0), `summary shows row ${row} minimum ${rowMin0} mm`);
   await page.waitForFunction(() => document.getElementById('live').dataset.state === 'live', null, { timeout: kPageWaitMs });
   check(true, 'live updates connected (SSE)');
+  // 4a. alarms (docs/alarms.md): the campaign's boards last reported weeks ago, so sensor_silent
+  // alarms are active: the banner counts them; acknowledging one from the list moves it to
+  // acknowledged (by "anonymous" on this open server) and out of the banner's count.
+  const banner = page.locator('[data-testid="alarm-banner"]:not([hidden])');
+  await banner.waitFor({ timeout: kPageWaitMs });
+  const active0 = Number(await banner.getAttribute('data-count'));
+  check(active0 > 0, `alarm banner shows ${active0} active alarms`);
+  const ackButton = page.locator('[data-testid^="alarm-ack-"]').first();
+  const ackId = (await ackButton.getAttribute('data-testid')).slice('alarm-ack-'.length);
+  await ackButton.click();
+  await page.waitForFunction((id) => document.querySelector(`[data-testid="alarm-${id}"]`)?.dataset.state === 'acknowledged', ackId, { timeout: kPageWaitMs });
+  const active1 = Number(await page.locator('[data-testid="alarm-banner"]').getAttribute('data-count'));
+  check(active1 === active0 - 1, `acknowledged alarm ${ackId} from the page: banner ${active0} -> ${active1}`);
+  const listed = (await http(base, 'GET', `/api/v1/crushers/${crusher}/alarms?state=acknowledged`)).json.alarms;
+  check(listed.some((a) => String(a.id) === ackId && a.acknowledged_by === 'anonymous'), 'the server has it acknowledged by anonymous');
   await page.screenshot({ path: path.join(artifacts, '1-crusher.png'), fullPage: true });
 
   // 4b. the headline is the thinnest area the data support, labelled; never single faces "worn through"

@@ -88,6 +88,8 @@ export const paths = {
   forecast: (c) => `/api/v1/crushers/${enc(c)}/forecast`,
   diagnosis: (c) => `/api/v1/crushers/${enc(c)}/diagnosis`,
   events: (c) => `/api/v1/crushers/${enc(c)}/events`,
+  alarms: (c) => `/api/v1/crushers/${enc(c)}/alarms`,
+  ack: (c, id) => `/api/v1/crushers/${enc(c)}/alarms/${enc(id)}/ack`,
 };
 
 // Reads every page of a sensor's readings (oldest first), from `from` (ISO time) when given.

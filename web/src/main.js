@@ -5,6 +5,7 @@ import { UnwrappedMap, drawLegend } from './map.js';
 import { LinerView } from './liner3d.js';
 import { renderSeries } from './series.js';
 import { renderDiagnosis } from './diagnosis.js';
+import { alarmsPanel } from './alarms.js';
 
 const app = document.getElementById('app');
 const crumbs = document.getElementById('crumbs');
@@ -128,11 +129,14 @@ async function crusherPage(crusherId, initialSensor) {
   const diagBox = h('div', { class: 'card', 'data-testid': 'diagnosis' });
   const mapSub = h('span', { class: 'sub' });
   const warnings = h('div');
+  const alarms = alarmsPanel(crusherId, showInlineError);
   app.replaceChildren(
     h('h1', {}, crusherId),
     h('div', { class: 'sub' }, `installed ${fmtDate(detail.installed_at)} · new ${concave.thickness_new_mm} mm, minimum ${concave.thickness_min_mm} mm · ${detail.sensors.length} sensors · wear map ${detail.map.face_count} faces (${String(detail.map.sha256).slice(0, 12)})`),
+    alarms.banner,
     warnings,
     kpis,
+    alarms.card,
     h('div', { class: 'grid-2' },
       h('section', { class: 'card' },
         h('div', { class: 'card-head' }, h('h2', {}, 'Unwrapped concave: remaining thickness'), mapSub),
@@ -414,7 +418,9 @@ async function crusherPage(crusherId, initialSensor) {
       refresh();
     },
     wear: () => { pulseLive(); refresh(); },
+    alarm: () => { pulseLive(); alarms.load(); },
   }, setLive);
+  alarms.load();
 
   return () => {
     stop();

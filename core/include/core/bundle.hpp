@@ -52,6 +52,35 @@ struct ThinnestAreaConfig {
   double sensor_reach_m = 0.5;
 };
 
+/// One alarm rule of crusher.json's optional "alarms" (docs/alarms.md). The threshold and the
+/// hysteresis are in the rule's own unit (AlarmRuleSpec): an alarm is raised past the threshold and
+/// cleared only once the value is back past it by the hysteresis, so a value at the edge never flaps.
+struct AlarmRule {
+  bool enabled = true;
+  std::string severity;   ///< "info", "warning" or "critical"
+  double threshold = 0;   ///< unused by the rules without a threshold key
+  double hysteresis = 0;  ///< unused by the rules without a hysteresis key
+};
+
+/// What a rule is called and which crusher.json keys set it: `alarms.NAME.THRESHOLD_KEY` etc.
+struct AlarmRuleSpec {
+  const char* name;
+  const char* threshold_key;   ///< nullptr: the rule has no threshold
+  const char* hysteresis_key;  ///< nullptr: the rule has no hysteresis
+  double threshold;            ///< default (thinnest_area: above thickness_min_mm, see DefaultAlarmConfig)
+  double hysteresis;
+  const char* severity;
+  double max;  ///< threshold and hysteresis lie in [0, max]
+};
+/// Every rule, in the order docs/alarms.md lists them.
+const std::vector<AlarmRuleSpec>& AlarmRuleSpecs();
+
+struct AlarmConfig {
+  std::vector<AlarmRule> rules;  ///< one per AlarmRuleSpecs() entry, in its order
+  /// The rule named `name` (one of AlarmRuleSpecs()); throws std::out_of_range otherwise.
+  const AlarmRule& Rule(const std::string& name) const;
+};
+
 /// Thicker than this (mm) is a units mistake, not a liner.
 inline constexpr double kMaxThicknessMm = 1000;
 
@@ -67,6 +96,7 @@ struct CrusherConfig {
   std::vector<double> joints_theta_deg;
   std::vector<SensorInfo> sensors;
   ThinnestAreaConfig thinnest_area;
+  AlarmConfig alarms;  ///< crusher.json's "alarms" over DefaultAlarmConfig
 
   const SensorInfo* FindSensor(const std::string& id) const;
   /// Index of the row with that name, or -1.
@@ -123,6 +153,15 @@ struct Bundle {
   std::vector<Scan> scans;                   ///< sorted by date
   std::vector<PastCampaign> history;         ///< earlier campaigns, oldest first (installed_at)
 };
+
+/// The default rules of a crusher: thinnest_area's threshold is thickness_min_mm + the spec's 10 mm.
+AlarmConfig DefaultAlarmConfig(const CrusherConfig& config);
+/// An "alarms" object (crusher.json's, or a REST rule update's body) over `base`: every key
+/// optional; an unknown rule or setting, a wrong type or a value out of range is refused with an
+/// InputError naming `file` and the key (`alarms.battery_low.below_mv`).
+AlarmConfig ParseAlarmConfig(const nlohmann::json& alarms, const AlarmConfig& base, const std::string& file);
+/// The rules as the "alarms" object ParseAlarmConfig reads (every key of every rule).
+nlohmann::ordered_json AlarmConfigJson(const AlarmConfig& config);
 
 /// Parses crusher.json. Throws InputError (file, line, rule).
 CrusherConfig LoadCrusherConfig(const std::filesystem::path& path);

@@ -18,6 +18,7 @@ enum class TopicKind {
   kStats,      ///< `gateway/stats`
   kDevice,     ///< `gateway/devices/{address}` (retained)
   kWear,       ///< `wear` (retained): server
+  kAlarms,     ///< `alarms` (retained): server, the active alarms (docs/alarms.md)
 };
 
 /// A topic taken apart.
@@ -44,6 +45,7 @@ class Topics {
   std::string Stats() const;
   std::string Device(std::string_view address) const;
   std::string Wear() const;
+  std::string Alarms() const;
   /// Any topic of `kind` of this crusher; `id` is the {sensor} or {address} level (ignored by the
   /// kinds that have none).
   std::string Build(TopicKind kind, std::string_view id = {}) const;
@@ -52,6 +54,8 @@ class Topics {
   std::string CommittedFilter() const;
   /// Subscription to every site's and crusher's readings: `{prefix}/+/+/sensors/+/reading`.
   static std::string ReadingsFilter(std::string_view prefix = kDefaultTopicPrefix);
+  /// Subscription to every gateway's retained status (and last will): `{prefix}/+/+/gateway/status`.
+  static std::string StatusFilter(std::string_view prefix = kDefaultTopicPrefix);
 
   /// A topic of this crusher (it starts with root()); nullopt for anything else.
   std::optional<ParsedTopic> Parse(std::string_view topic) const;

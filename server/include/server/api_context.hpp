@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "server/alarms.hpp"
 #include "server/auth.hpp"
 #include "server/campaigns.hpp"
 #include "server/diagnosis_runner.hpp"
@@ -56,6 +57,7 @@ struct ApiContext {
   EventBus* events = nullptr;
   DiagnosisRunner* diagnosis = nullptr;  ///< may be null (diagnosis endpoints answer 503)
   CampaignService* campaigns = nullptr;  ///< may be null (campaign endpoints answer 503)
+  AlarmEngine* alarms = nullptr;         ///< may be null (alarm endpoints answer 503)
   const TokenStore* tokens = nullptr;    ///< null or disabled: open API
   ServerMetrics* metrics = nullptr;      ///< null: GET /metrics answers 503 and requests are not counted
   std::filesystem::path web_dir;         ///< dashboard files served at / (empty: none)

@@ -187,6 +187,14 @@ class Resources {
   Response StartDiagnosis(const Request&);
   Response PostReline(const Request&);
   Response CampaignList(const Request&);
+  Response AlarmList(const Request&);
+  Response AckAlarm(const Request&);
+  Response AlarmRules(const Request&);
+  Response SetAlarmRules(const Request&);
+  /// The alarm engine, or nullptr with *error set to the 503 of a server that keeps none.
+  AlarmEngine* AlarmsOf(Response* error) const;
+  /// The name of the token that made `request` (the audit trail's "by"): "anonymous" on an open API.
+  std::string TokenName(const Request& request) const;
   Response Plan(const Request&);
   Response Events(const Request&);
   Response RejectedList(const Request&);

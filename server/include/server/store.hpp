@@ -80,6 +80,33 @@ struct CampaignRecord {
   int64_t created_s = 0;            ///< when the server stored it
 };
 
+/// One alarm as stored (docs/alarms.md): one row per episode of a rule on its subject (a row, a
+/// sensor, a gateway, the crusher), from its raise to its clear.
+struct AlarmRecord {
+  int64_t id = 0;  ///< 0 before it is first stored
+  std::string crusher;
+  std::string rule;     ///< core::AlarmRuleSpecs() name
+  std::string subject;  ///< what it is about: a row name, a sensor id, a gateway id, or the crusher id
+  std::string severity;
+  std::string state;  ///< "active", "acknowledged" or "cleared"
+  int64_t since_s = 0;
+  std::string detail;               ///< one line a person can act on
+  std::optional<double> value;      ///< the value that raised it, in the rule's unit
+  std::optional<double> threshold;  ///< the rule's threshold when it was raised
+  std::optional<int64_t> acknowledged_s;
+  std::string acknowledged_by;  ///< the token's name ("anonymous" on an open API)
+  std::optional<int64_t> cleared_s;
+};
+
+/// The audit trail of an alarm: raised, acknowledged (by whom), cleared; and rule changes (alarm 0).
+struct AlarmAuditEntry {
+  int64_t alarm = 0;
+  int64_t time_s = 0;
+  std::string action;  ///< "raised", "acknowledged", "cleared", "rules"
+  std::string by;      ///< "server", or the token's name
+  std::string detail;
+};
+
 class Store {
  public:
   /// Opens (creating if needed) the database. Throws std::runtime_error naming the file on failure
@@ -142,6 +169,22 @@ class Store {
   /// readings) is stored or updated by its start, and `next` is stored. On any error nothing is
   /// committed and std::runtime_error is thrown.
   void Reline(const std::string& crusher, const CampaignRecord& closed, const CampaignRecord& next);
+
+  /// Stores `alarm` (a new one when its id is 0) and appends `audit` (its alarm: the alarm's id)
+  /// in ONE transaction; returns the alarm's id. Throws std::runtime_error (nothing stored).
+  int64_t SaveAlarm(const AlarmRecord& alarm, AlarmAuditEntry audit);
+  /// Every alarm not cleared, of every crusher, oldest first.
+  std::vector<AlarmRecord> OpenAlarms();
+  /// Alarms of `crusher`, newest first, at most `limit`: in `state` (empty: any) and, when cleared,
+  /// cleared at or after `cleared_since_s`.
+  std::vector<AlarmRecord> Alarms(const std::string& crusher, const std::string& state, int64_t cleared_since_s, int limit);
+  std::optional<AlarmRecord> Alarm(int64_t id);
+  /// The audit trail of alarm `id`, oldest first.
+  std::vector<AlarmAuditEntry> AlarmAudit(int64_t id);
+  /// The REST override of `crusher`'s alarm rules (an "alarms" object, docs/alarms.md), if any.
+  std::optional<std::string> AlarmRules(const std::string& crusher);
+  /// Stores the override and its audit entry (alarm 0, action "rules") in ONE transaction.
+  void SaveAlarmRules(const std::string& crusher, const std::string& json, const AlarmAuditEntry& audit);
 
   void SaveDiagnosis(const std::string& crusher, int64_t time_s, const std::string& json);
   /// (time_s, json) of the latest diagnosis of `crusher`.

@@ -1,4 +1,5 @@
 #include "core/bundle.hpp"
+#include <nlohmann/json.hpp>
 #include "unit/core/bundle_fixture.hpp"
 
 #include <CppUTest/TestHarness.h>
@@ -248,6 +249,51 @@ TEST(Bundle, ThinnestAreaSettingsAreReadAndOutOfRangeValuesRefusedByName) {
   CHECK(with(R"({"sensor_reach_m": -1})").find("thinnest_area.sensor_reach_m") != std::string::npos);
   CHECK(with(R"({"band_half_width_mm": "ten"})").find("band_half_width_mm") != std::string::npos);
   CHECK(with("7").find("thinnest_area") != std::string::npos);
+}
+
+// crusher.json's "alarms" (docs/alarms.md): defaults without it (thinnest_area's threshold from the
+// liner's minimum), settings given kept and the others left at their defaults, and every bad rule,
+// setting, type or value refused naming its key.
+TEST(Bundle, AlarmRulesAreReadOverTheDefaultsAndBadValuesRefusedByName) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
+  auto with = [&](const std::string& setting) {
+    std::string j = lw::test::kCrusherJson;
+    j.replace(j.find("\"crusher_id\": \"cr1\""), 19, "\"crusher_id\": \"cr1\", \"alarms\": " + setting);
+    dir.Write("crusher.json", j);
+    return ErrorOf(dir);
+  };
+  const CrusherConfig plain = LoadCrusherConfig(dir.path() / "crusher.json");
+  DOUBLES_EQUAL(plain.thickness_min_mm + 10, plain.alarms.Rule("thinnest_area").threshold, 0);
+  DOUBLES_EQUAL(3300, plain.alarms.Rule("battery_low").threshold, 0);
+  STRCMP_EQUAL("critical", plain.alarms.Rule("overdue").severity.c_str());
+  STRCMP_EQUAL("",
+               with(R"({"battery_low": {"below_mv": 3100, "severity": "critical"}, "unsupported": {"enabled": false}})").c_str());
+  const CrusherConfig c = LoadCrusherConfig(dir.path() / "crusher.json");
+  DOUBLES_EQUAL(3100, c.alarms.Rule("battery_low").threshold, 0);
+  DOUBLES_EQUAL(100, c.alarms.Rule("battery_low").hysteresis, 0);
+  STRCMP_EQUAL("critical", c.alarms.Rule("battery_low").severity.c_str());
+  CHECK_FALSE(c.alarms.Rule("unsupported").enabled);
+  CHECK_TRUE(c.alarms.Rule("sensor_silent").enabled);
+  // What AlarmConfigJson writes reads back the same.
+  const AlarmConfig again = ParseAlarmConfig(nlohmann::json::parse(AlarmConfigJson(c.alarms).dump()), plain.alarms, "x");
+  DOUBLES_EQUAL(3100, again.Rule("battery_low").threshold, 0);
+  CHECK_FALSE(again.Rule("unsupported").enabled);
+  const std::pair<const char*, const char*> bad[] = {
+      {R"({"battery": {}})", "alarms.battery is not an alarm rule"},
+      {R"({"battery_low": {"below": 3000}})", "alarms.battery_low.below is not a setting"},
+      {R"({"battery_low": {"below_mv": -5}})", "alarms.battery_low.below_mv must be in"},
+      {R"({"battery_low": {"below_mv": "low"}})", "below_mv"},
+      {R"({"reline_due": {"within_days": 5000}})", "alarms.reline_due.within_days"},
+      {R"({"sensor_silent": {"hours": 6, "hysteresis_hours": 8}})", "alarms.sensor_silent.hysteresis_hours"},
+      {R"({"overdue": {"severity": "urgent"}})", "alarms.overdue.severity"},
+      {R"({"gateway_offline": {"enabled": "yes"}})", "enabled"},
+      {R"({"unsupported": 3})", "alarms.unsupported must be an object"},
+      {"[]", "\"alarms\" must be an object"},
+  };
+  for (const auto& [setting, needle] : bad) {
+    const std::string error = with(setting);
+    CHECK_TEXT(error.find(needle) != std::string::npos, (std::string(setting) + " -> " + error).c_str());
+  }
 }
 
 // core::WriteBundle is the inverse of LoadBundle: what it writes loads back the same (site, radio

@@ -46,6 +46,7 @@ TEST(Topics, EveryBuiltTopicParsesBackToItsParts) {
       {TopicKind::kStats, "mine", "cr7", ""},
       {TopicKind::kDevice, "mine", "cr7", "0013A20040A1B2C3"},
       {TopicKind::kWear, "mine", "cr7", ""},
+      {TopicKind::kAlarms, "mine", "cr7", ""},
   };
   for (const ParsedTopic& want : all) {
     const std::string topic = t.Build(want.kind, want.id);
@@ -65,6 +66,8 @@ TEST(Topics, ParsesTheServersReadingTopicsOnly) {
   STRCMP_EQUAL("1001", t->id.c_str());
   CHECK(Topics::ParseAny("linerwatch/v1/mine/cr7/sensors/1001/committed")->kind == TopicKind::kCommitted);
   CHECK(Topics::ParseAny("linerwatch/v1/mine/cr7/wear")->kind == TopicKind::kWear);
+  STRCMP_EQUAL("linerwatch/v1/mine/cr7/alarms", Topics("mine", "cr7").Alarms().c_str());
+  STRCMP_EQUAL("linerwatch/v1/+/+/gateway/status", Topics::StatusFilter().c_str());
   CHECK_FALSE(Topics::ParseAny("other/v1/mine/cr7/sensors/1001/reading"));
   CHECK_FALSE(Topics::ParseAny("linerwatch/v1/mine//sensors/1001/reading"));
   CHECK_FALSE(Topics::ParseAny("linerwatch/v1//cr7/sensors/1001/reading"));

@@ -101,13 +101,15 @@ struct ServerParts {
   server::Store write{db_path};
   server::LockedStore read{std::make_unique<server::Store>(db_path)};
   server::LockedStore campaign_store{std::make_unique<server::Store>(db_path)};
+  server::LockedStore alarm_store{std::make_unique<server::Store>(db_path)};
   std::unique_ptr<server::LiveState> live;
   std::unique_ptr<server::Ingestor> ingestor;
   std::unique_ptr<server::WearService> wear;
   server::EventBus events;
   std::unique_ptr<server::DiagnosisRunner> diagnosis;
   std::unique_ptr<server::CampaignService> campaigns;
-  std::vector<std::string> campaign_log;  ///< what ApplyStoredCampaigns did at "startup"
+  std::unique_ptr<server::AlarmEngine> alarms;  ///< evaluated by the test (the server's wear worker does it)
+  std::vector<std::string> campaign_log;        ///< what ApplyStoredCampaigns did at "startup"
   server::TokenStore tokens;
   server::ApiContext ctx;
 
@@ -127,6 +129,8 @@ struct ServerParts {
     diagnosis = std::make_unique<server::DiagnosisRunner>(*registry, read);
     campaigns =
         std::make_unique<server::CampaignService>(*registry, campaign_store, *live, *wear, [] { return int64_t{4'000'000'000}; });
+    alarms = std::make_unique<server::AlarmEngine>(*registry, alarm_store);
+    alarms->OnChange([this](const std::string& c) { events.Publish(c, "alarm", server::AlarmsMessage(c, alarms->Open(c), 0)); });
     if (with_tokens) {
       tokens.Add({"reader", core::Sha256Hex(kReadToken), true, false});
       tokens.Add({"writer", core::Sha256Hex(kWriteToken), true, true});
@@ -139,6 +143,7 @@ struct ServerParts {
     ctx.events = &events;
     ctx.diagnosis = diagnosis.get();
     ctx.campaigns = campaigns.get();
+    ctx.alarms = alarms.get();
     ctx.tokens = &tokens;
     ctx.web_dir = web_dir;
     ctx.after_ingest = [this](const server::IngestResult& r) {

@@ -127,7 +127,11 @@ TEST(RestRoutes, TheOpenApiDocumentHasOneOperationPerRouteAndNoOther) {
   }
   CHECK(routed == documented);
   // The operations docs/server.md lists, as the dashboard and the tests use them.
-  LONGS_EQUAL(19, routed.size());
+  LONGS_EQUAL(23, routed.size());
+  CHECK(documented.count({"get", "/api/v1/crushers/{crusher}/alarms"}));
+  CHECK(documented.count({"post", "/api/v1/crushers/{crusher}/alarms/{id}/ack"}));
+  CHECK(documented.count({"get", "/api/v1/crushers/{crusher}/alarms/rules"}));
+  CHECK(documented.count({"post", "/api/v1/crushers/{crusher}/alarms/rules"}));
   CHECK(documented.count({"get", "/api/v1/crushers/{crusher}/plan"}));
   CHECK(documented.count({"post", "/api/v1/crushers/{crusher}/relines"}));
   CHECK(documented.count({"get", "/api/v1/crushers/{crusher}/campaigns"}));
@@ -186,7 +190,7 @@ TEST(RestHandlers, EveryCrusherRouteAnswers404ForAnUnknownCrusher) {
     LONGS_EQUAL_TEXT(404, res.status, route.path);
     STRCMP_EQUAL("unknown crusher 'nope'", ErrorOf(res).c_str());
   }
-  LONGS_EQUAL(13, crusher_routes);
+  LONGS_EQUAL(17, crusher_routes);
 }
 
 // After a reline the old boards' last reports fall in the day of slack before installed_at: the readings
