@@ -580,7 +580,15 @@ int DemUntil(dem::ChamberSpec spec, const core::CrusherConfig& crusher, const fs
     if (!r.completed && !r.out_of_time) throw BadInput(r.message);
     dem::ChamberSpec as_run = spec;  // out of time: the map of every dump so far, on the last completed length
     if (r.out_of_time) as_run.simulated_s = completed_s;
-    const nlohmann::json summary = MapStage(as_run, work, crusher, windows, out);
+    nlohmann::json summary;
+    try {
+      summary = MapStage(as_run, work, crusher, windows, out);
+    } catch (const BadInput& e) {
+      if (!r.out_of_time) throw;
+      char b[200];
+      std::snprintf(b, sizeof b, "--max-hours %g: the budget is spent before the run made a map (", u.max_hours);
+      throw BadInput(b + std::string(e.what()) + "); dumps and restart files are kept: run again to resume");
+    }
     completed_s = as_run.simulated_s;
     const estimate::MapBand band = BandOfMap(crusher, work, u, out);
     const double to_s = summary["steady"]["to_s"].get<double>();
