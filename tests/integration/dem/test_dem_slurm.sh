@@ -13,6 +13,9 @@ fail() { echo "FAILED: $*"; exit 1; }
 for tool in munged slurmctld slurmd sbatch squeue sinfo liggghts; do
   command -v "$tool" >/dev/null 2>&1 || skip "$tool not found (scripts/install-deps installs slurm-wlm, munge and liggghts)"
 done
+# srun starts Open MPI programs through PMIx; Debian's Slurm loads it from libpmix-dev's libpmix.so.
+pmix=$(ls /usr/lib/*/pmix2/lib/libpmix.so 2>/dev/null | head -n 1)
+[ -n "$pmix" ] || skip "no libpmix.so for Slurm's mpi/pmix (scripts/install-deps installs libpmix-dev)"
 # slurmd starts job steps as their user and needs root for it; munged and slurmctld then run as root too.
 [ "$(id -u)" -eq 0 ] || skip "slurmd needs root to launch job steps (this test runs as $(id -un))"
 
@@ -68,7 +71,7 @@ SlurmdLogFile=$tmp/slurmd.log
 ProctrackType=proctrack/linuxproc
 TaskPlugin=task/none
 SwitchType=switch/none
-MpiDefault=none
+MpiDefault=pmix
 SchedulerType=sched/builtin
 SelectType=select/cons_tres
 SelectTypeParameters=CR_Core
