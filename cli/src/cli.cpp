@@ -1,12 +1,15 @@
 #include "cli/cli.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
@@ -24,6 +27,7 @@
 #include "dem/chamber.hpp"
 #include "dem/map_builder.hpp"
 #include "dem/runner.hpp"
+#include "dem/until.hpp"
 #include "diagnosis/diagnose.hpp"
 #include "estimate/estimate.hpp"
 #include "estimate/plan.hpp"
@@ -74,6 +78,11 @@ const core::OptionTable& DemTable() {
           Option::Text("mpirun", "PATH", "mpirun to use"),
           Option::Text("liggghts", "PATH", "LIGGGHTS executable to use"),
           Option::Whole("progress-every", "S", 1, 3600, "seconds between progress lines (default 10)"),
+          Option::Number("until-band", "MM", core::NumberRange::Positive(),
+                         "resume the run for more simulated time until the map's band at the patch is at most +/-MM mm"),
+          Option::Number("patch", "M", core::NumberRange::Positive(),
+                         "the square patch's side for --until-band, m (default the thinnest-area ladder's first)"),
+          Option::Number("max-hours", "H", core::NumberRange::Positive(), "wall-time budget of --until-band (default none)"),
       },
       "CRUSHER_DIR", "bundle");
   return table;
@@ -117,7 +126,10 @@ std::string Usage() {
          "      `mpirun -np N liggghts` (default N 2; after a stop it resumes from the newest restart\n"
          "      file), and build DIR/wear_map.vtk (wear over the steady, choke-fed span; wear_stderr from\n"
          "      K independent time windows; averaged stresses), wear_windows.vtk and dem_summary.json.\n"
-         "      --install then copies them into CRUSHER_DIR (replacing its wear_map.vtk).\n" +
+         "      --install then copies them into CRUSHER_DIR (replacing its wear_map.vtk). --until-band MM\n"
+         "      then resumes the run for more simulated time, in steps (each printed with its projected\n"
+         "      simulated and wall time), until the live wear's band of the thinnest --patch square at the\n"
+         "      reline point, from this map, is at most +/-MM mm; --max-hours stops it (exit 1).\n" +
          DemTable().Help(28, 6, false) + "  plan CRUSHER_DIR " + PlanTable().Synopsis(19, 100) +
          "\n"
          "      Where to cast the next liner's K sensors (per row: z_m, theta_deg; inside each row by the margin,\n"
@@ -462,6 +474,170 @@ extern "C" void OnStopSignal(int) {
   dem::RequestStop();
 }
 
+/// Runs the case in `work` (or resumes it) with SIGINT and SIGTERM stopping LIGGGHTS, not this process.
+dem::RunResult RunStage(const dem::ChamberSpec& spec, const fs::path& work, const dem::RunOptions& run, std::ostream& out) {
+  std::error_code ec;
+  if (!fs::is_regular_file(work / dem::CaseLayout::kInput, ec))
+    throw BadInput(work.string() + ": no case here (run with --stage case first)");
+  struct sigaction sa {};
+  sa.sa_handler = OnStopSignal;
+  sigemptyset(&sa.sa_mask);
+  struct sigaction old_int {
+  }, old_term{};
+  sigaction(SIGINT, &sa, &old_int);
+  sigaction(SIGTERM, &sa, &old_term);
+  const dem::RunResult r = dem::RunCase(spec, work, run, out);
+  sigaction(SIGINT, &old_int, nullptr);
+  sigaction(SIGTERM, &old_term, nullptr);
+  if (r.completed)
+    out << "dem: run complete"
+        << (r.wall_s > 0 ? " after " + std::to_string(std::lround(r.wall_s)) + " s of wall time" : std::string()) << "\n";
+  return r;
+}
+
+/// Builds the map from the run in `work` and prints its summary.
+nlohmann::json MapStage(const dem::ChamberSpec& spec, const fs::path& work, const core::CrusherConfig& crusher, int windows,
+                        std::ostream& out) {
+  nlohmann::json summary;
+  try {
+    summary = dem::BuildMap(spec, work, crusher.rows, work, windows);
+  } catch (const std::runtime_error& e) {
+    throw BadInput(e.what());
+  }
+  out << "dem: " << (work / dem::MapFiles::kMap).string() << ": " << summary["faces"].get<size_t>() << " faces, "
+      << summary["windows"]["count"].get<int>() << " windows of " << summary["windows"]["window_s"].get<double>()
+      << " s from t = " << summary["steady"]["from_s"].get<double>() << " s, median relative stderr "
+      << summary["median_rel_stderr"].get<double>() << "\n";
+  for (const auto& r : summary["rows"]) {
+    char line[200];
+    std::snprintf(line, sizeof line, "dem:   %-6s mean %.4g  ratio %.2f  CV %.2f  faces >10x mean %d\n",
+                  r["row"].get<std::string>().c_str(), r["mean_wear"].get<double>(), r["ratio"].get<double>(),
+                  r["cv"].get<double>(), r["faces_over_10x_mean"].get<int>());
+    out << line;
+  }
+  if (!summary["steady"]["note"].get<std::string>().empty())
+    out << "dem: caution: " << summary["steady"]["note"].get<std::string>() << "\n";
+  if (!summary["steady"]["choke_fed"].get<bool>())
+    out << "dem: caution: the hopper ran empty in the steady span (not choke fed)\n";
+  return summary;
+}
+
+void InstallMap(const fs::path& work, const fs::path& crusher_dir, std::ostream& out) {
+  for (const char* f : {dem::MapFiles::kMap, dem::MapFiles::kWindows, dem::MapFiles::kSummary})
+    core::CopyFileAtomically(work / f, crusher_dir / f);
+  out << "dem: installed wear_map.vtk, wear_windows.vtk and dem_summary.json into " << crusher_dir.string() << "\n";
+}
+
+/// --until-band, --patch, --max-hours.
+struct UntilOptions {
+  double band_mm = 0;
+  double patch_m = 0;
+  double max_hours = std::numeric_limits<double>::infinity();
+};
+
+/// The map's band at the patch (estimate::MapBandAt) for the map just built in `work`, printed.
+estimate::MapBand BandOfMap(const core::CrusherConfig& crusher, const fs::path& work, const UntilOptions& u, std::ostream& out) {
+  core::Bundle bundle;
+  bundle.dir = work;
+  bundle.crusher = crusher;
+  bundle.map = core::LoadWearMap(work / dem::MapFiles::kMap, &bundle.map_validation);
+  const std::unique_ptr<estimate::CrusherModel> model = estimate::CrusherModel::FromBundle(bundle);
+  estimate::MapBand b;
+  try {
+    b = estimate::MapBandAt(*model, u.patch_m);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  char line[400];
+  std::snprintf(line, sizeof line,
+                "dem: band +/-%.2f mm, target +/-%.2f mm (the live wear's, %.0f sd, of the thinnest %.2f m patch at the "
+                "reline point: row %s, z %.2f m, theta %.0f deg; sd %.2f mm from the map there, %.2f mm from the row scale)\n",
+                b.half_width_mm, u.band_mm, b.band_sigmas, b.patch_m, b.row.c_str(), b.z_m, b.theta_deg, b.map_sd_mm,
+                b.scale_sd_mm);
+  out << line;
+  return b;
+}
+
+/// `dem --until-band`: run, map, and resume for more simulated time until the map's band at the
+/// patch is within the target or the wall-time budget is spent (docs/dem.md). Exit 0 when within.
+int DemUntil(dem::ChamberSpec spec, const core::CrusherConfig& crusher, const fs::path& crusher_dir, const fs::path& work,
+             dem::RunOptions run, int windows, const UntilOptions& u, bool install, std::ostream& out) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (std::isfinite(u.max_hours))
+    run.deadline =
+        t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(u.max_hours * 3600));
+  // A case folder that already ran longer than crusher.json asks (an earlier --until-band) goes on from there.
+  const auto dumps = dem::StepsInFolder(work / dem::CaseLayout::kDumpDir, "concave_", ".vtk");
+  if (!dumps.empty()) spec.simulated_s = std::max(spec.simulated_s, static_cast<double>(dumps.back()) * spec.timestep_s);
+  dem::WriteCase(spec, work);
+  std::vector<dem::BandAfter> so_far;
+  double run_wall = 0, run_simulated = 0;  // this call's LIGGGHTS time and the simulated time it advanced
+  double completed_s = 0;                  // the last simulated time the run completed
+  for (;;) {
+    const dem::RunResult r = RunStage(spec, work, run, out);
+    run_wall += r.wall_s;
+    if (r.wall_s > 0) run_simulated += spec.simulated_s - static_cast<double>(r.resumed_from_step) * spec.timestep_s;
+    if (!r.completed && !r.out_of_time) throw BadInput(r.message);
+    dem::ChamberSpec as_run = spec;  // out of time: the map of every dump so far, on the last completed length
+    if (r.out_of_time) as_run.simulated_s = completed_s;
+    nlohmann::json summary;
+    try {
+      summary = MapStage(as_run, work, crusher, windows, out);
+    } catch (const BadInput& e) {
+      if (!r.out_of_time) throw;
+      char b[200];
+      std::snprintf(b, sizeof b, "--max-hours %g: the budget is spent before the run made a map (", u.max_hours);
+      throw BadInput(b + std::string(e.what()) + "); dumps and restart files are kept: run again to resume");
+    }
+    completed_s = as_run.simulated_s;
+    const estimate::MapBand band = BandOfMap(crusher, work, u, out);
+    const double to_s = summary["steady"]["to_s"].get<double>();
+    so_far.push_back({to_s, to_s - summary["steady"]["from_s"].get<double>(), band.half_width_mm});
+    dem::UntilBudget budget;
+    budget.wall_per_simulated_s = run_simulated > 0 ? run_wall / run_simulated
+                                  : summary["runtime_s"].get<double>() > 0
+                                      ? summary["runtime_s"].get<double>() / summary["simulated_s"].get<double>()
+                                      : std::numeric_limits<double>::quiet_NaN();
+    const auto restarts = dem::StepsInFolder(work / dem::CaseLayout::kRestartDir, "crusher.", ".restart");
+    budget.resume_from_s = restarts.empty() ? 0.0 : static_cast<double>(restarts.back()) * spec.timestep_s;
+    budget.remaining_wall_s = std::chrono::duration<double>(run.deadline - std::chrono::steady_clock::now()).count();
+    if (r.out_of_time) budget.remaining_wall_s = 0;
+    budget.dump_interval_s = spec.dump_interval_s;
+    budget.min_step_s = std::max(3 * 60.0 / spec.speed_rpm, spec.dump_interval_s);
+    const dem::UntilStep step = dem::PlanUntilStep(so_far, u.band_mm, budget);
+    char line[500];
+    if (step.verdict == dem::UntilStep::Verdict::kDone) {
+      std::snprintf(line, sizeof line, "dem: precise enough after %.1f s simulated (%.1f s steady): +/-%.2f mm <= %.2f mm\n",
+                    to_s, so_far.back().steady_s, band.half_width_mm, u.band_mm);
+      out << line;
+      if (install) InstallMap(work, crusher_dir, out);
+      return 0;
+    }
+    std::snprintf(line, sizeof line,
+                  "dem: projected: %.1f s simulated in all (%.1f s steady; the band falling as T^-%.2f, %s), about %s of wall "
+                  "time from the restart at %.1f s\n",
+                  step.projected_simulated_s, step.needed_steady_s, step.exponent,
+                  step.measured ? "measured over the steps so far" : "the 1/sqrt(T) law of sampling noise",
+                  core::FormatDuration(step.projected_wall_s).c_str(), budget.resume_from_s);
+    out << line;
+    if (step.verdict == dem::UntilStep::Verdict::kBudget) {
+      if (install) InstallMap(work, crusher_dir, out);
+      std::snprintf(line, sizeof line,
+                    "--max-hours %g: the budget is spent after %.1f s simulated with the band at +/-%.2f mm (target %.2f "
+                    "mm); the map of every window so far is in %s; run again with more hours to go on from the newest restart",
+                    u.max_hours, to_s, band.half_width_mm, u.band_mm, (work / dem::MapFiles::kMap).string().c_str());
+      throw BadInput(line);
+    }
+    std::snprintf(line, sizeof line, "dem: next step: to %.1f s simulated, about %s of wall time (%s left of the budget)\n",
+                  step.next_simulated_s, core::FormatDuration(step.step_wall_s).c_str(),
+                  std::isfinite(u.max_hours) ? core::FormatDuration(budget.remaining_wall_s).c_str() : "no limit");
+    out << line;
+    out.flush();
+    spec.simulated_s = step.next_simulated_s;
+    dem::WriteCase(spec, work);
+  }
+}
+
 int Dem(const std::vector<std::string>& args, std::ostream& out) {
   const Options o = Parse(DemTable(), args);
   if (!o.Has("bundle")) throw UsageError("dem needs CRUSHER_DIR (a folder with crusher.json)");
@@ -473,6 +649,9 @@ int Dem(const std::vector<std::string>& args, std::ostream& out) {
   const std::string stage = o.Has("stage") ? o.Get("stage") : "all";
   if (stage != "case" && stage != "run" && stage != "map" && stage != "all")
     throw UsageError("--stage must be case, run, map or all (not '" + stage + "')");
+  const bool until = o.Has("until-band");
+  if (!until && (o.Has("patch") || o.Has("max-hours"))) throw UsageError("--patch and --max-hours go with --until-band");
+  if (until && stage != "all") throw UsageError("--until-band runs and maps in turns: it goes with --stage all (the default)");
   dem::RunOptions run;
   run.np = o.parsed.Integer<int>("np", run.np);
   if (o.Has("mpirun")) run.mpirun = o.Get("mpirun");
@@ -497,6 +676,17 @@ int Dem(const std::vector<std::string>& args, std::ostream& out) {
     throw BadInput(e.what());
   }
   const fs::path work = o.Has("work") ? fs::path(o.Get("work")) : crusher_dir / "dem";
+  UntilOptions u;
+  if (until) {
+    u.band_mm = o.parsed.Number("until-band", 0);
+    u.patch_m = o.parsed.Number("patch", crusher.thinnest_area.patches_m.front());
+    u.max_hours = o.parsed.Number("max-hours", u.max_hours);
+    try {
+      estimate::CheckMapBandPatch(crusher, u.patch_m);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+  }
 
   if (stage == "case" || stage == "all") {
     dem::WriteCase(spec, work);
@@ -505,50 +695,14 @@ int Dem(const std::vector<std::string>& args, std::ostream& out) {
         << " concave faces, CSS " << std::lround(1000 * spec.closed_side_setting_m()) << " mm, " << st.total << " steps of "
         << spec.timestep_s << " s (" << spec.simulated_s << " s simulated), dumps every " << st.dump_every << " steps\n";
   }
+  if (until) return DemUntil(spec, crusher, crusher_dir, work, run, windows, u, o.Flag("install"), out);
   if (stage == "run" || stage == "all") {
-    if (!fs::is_regular_file(work / dem::CaseLayout::kInput, ec))
-      throw BadInput(work.string() + ": no case here (run with --stage case first)");
-    struct sigaction sa {};
-    sa.sa_handler = OnStopSignal;
-    sigemptyset(&sa.sa_mask);
-    struct sigaction old_int {
-    }, old_term{};
-    sigaction(SIGINT, &sa, &old_int);
-    sigaction(SIGTERM, &sa, &old_term);
-    const dem::RunResult r = dem::RunCase(spec, work, run, out);
-    sigaction(SIGINT, &old_int, nullptr);
-    sigaction(SIGTERM, &old_term, nullptr);
+    const dem::RunResult r = RunStage(spec, work, run, out);
     if (!r.completed) throw BadInput(r.message);
-    out << "dem: run complete"
-        << (r.wall_s > 0 ? " after " + std::to_string(std::lround(r.wall_s)) + " s of wall time" : std::string()) << "\n";
   }
   if (stage == "map" || stage == "all") {
-    nlohmann::json summary;
-    try {
-      summary = dem::BuildMap(spec, work, crusher.rows, work, windows);
-    } catch (const std::runtime_error& e) {
-      throw BadInput(e.what());
-    }
-    out << "dem: " << (work / dem::MapFiles::kMap).string() << ": " << summary["faces"].get<size_t>() << " faces, "
-        << summary["windows"]["count"].get<int>() << " windows of " << summary["windows"]["window_s"].get<double>()
-        << " s from t = " << summary["steady"]["from_s"].get<double>() << " s, median relative stderr "
-        << summary["median_rel_stderr"].get<double>() << "\n";
-    for (const auto& r : summary["rows"]) {
-      char line[200];
-      std::snprintf(line, sizeof line, "dem:   %-6s mean %.4g  ratio %.2f  CV %.2f  faces >10x mean %d\n",
-                    r["row"].get<std::string>().c_str(), r["mean_wear"].get<double>(), r["ratio"].get<double>(),
-                    r["cv"].get<double>(), r["faces_over_10x_mean"].get<int>());
-      out << line;
-    }
-    if (!summary["steady"]["note"].get<std::string>().empty())
-      out << "dem: caution: " << summary["steady"]["note"].get<std::string>() << "\n";
-    if (!summary["steady"]["choke_fed"].get<bool>())
-      out << "dem: caution: the hopper ran empty in the steady span (not choke fed)\n";
-    if (o.Flag("install")) {
-      for (const char* f : {dem::MapFiles::kMap, dem::MapFiles::kWindows, dem::MapFiles::kSummary})
-        core::CopyFileAtomically(work / f, crusher_dir / f);
-      out << "dem: installed wear_map.vtk, wear_windows.vtk and dem_summary.json into " << crusher_dir.string() << "\n";
-    }
+    MapStage(spec, work, crusher, windows, out);
+    if (o.Flag("install")) InstallMap(work, crusher_dir, out);
   }
   return 0;
 }

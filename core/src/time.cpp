@@ -1,6 +1,8 @@
 #include "core/time.hpp"
 
+#include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 
 namespace lw::core {
@@ -73,6 +75,17 @@ std::string FormatIsoTime(TimePoint t) {
                 static_cast<unsigned>(ymd.month()), static_cast<unsigned>(ymd.day()), static_cast<int>(hms.hours().count()),
                 static_cast<int>(hms.minutes().count()), static_cast<int>(hms.seconds().count()));
   return buf;
+}
+
+std::string FormatDuration(double seconds) {
+  if (!std::isfinite(seconds)) return "?";
+  char b[40];
+  const long v = std::lround(std::max(0.0, seconds));
+  if (v >= 3600)
+    std::snprintf(b, sizeof b, "%ldh%02ldm", v / 3600, (v % 3600) / 60);
+  else
+    std::snprintf(b, sizeof b, "%ldm%02lds", v / 60, v % 60);
+  return b;
 }
 
 }  // namespace lw::core

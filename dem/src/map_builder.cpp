@@ -99,10 +99,23 @@ core::WearMap SharedPointMesh(const core::WearMap& dump) {
   return m;
 }
 
+/// From the first LIGGGHTS log with a version line: `linerwatch dem`'s log.<n>.liggghts in order, then
+/// run.slurm's log.slurm-<job>.liggghts (a case run on a cluster has only those).
 std::string LiggghtsVersion(const fs::path& case_dir) {
-  for (int a = 1; a < 100; ++a) {
-    std::ifstream in(case_dir / ("log." + std::to_string(a) + ".liggghts"));
-    if (!in) break;
+  std::vector<fs::path> logs;
+  for (int a = 1; fs::exists(case_dir / ("log." + std::to_string(a) + ".liggghts")); ++a)
+    logs.push_back(case_dir / ("log." + std::to_string(a) + ".liggghts"));
+  std::vector<fs::path> others;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(case_dir, ec)) {
+    const std::string n = e.path().filename().string();
+    if (n.rfind("log.slurm-", 0) == 0 && n.size() > 9 && n.compare(n.size() - 9, 9, ".liggghts") == 0) others.push_back(e.path());
+  }
+  std::sort(others.begin(), others.end());
+  logs.insert(logs.end(), others.begin(), others.end());
+  for (const fs::path& log : logs) {
+    std::ifstream in(log);
+    if (!in) continue;
     std::string line;
     std::getline(in, line);
     const auto p = line.find("Version ");

@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "core/atomic_file.hpp"
+#include "core/time.hpp"
 #include "dem/case_writer.hpp"
 
 namespace lw::dem {
@@ -58,16 +59,6 @@ void TruncateMassSeries(const fs::path& file, double t_max) {
   }
   in.close();
   core::WriteFileAtomically(file, kept.str());
-}
-
-std::string Duration(double s) {
-  char b[32];
-  const long v = std::lround(std::max(0.0, s));
-  if (v >= 3600)
-    std::snprintf(b, sizeof b, "%ldh%02ldm", v / 3600, (v % 3600) / 60);
-  else
-    std::snprintf(b, sizeof b, "%ldm%02lds", v / 60, v % 60);
-  return b;
 }
 
 int NextAttempt(const fs::path& dir) {
@@ -179,13 +170,15 @@ RunResult RunCase(const ChamberSpec& spec, const fs::path& dir, const RunOptions
   for (;;) {
     const pid_t w = waitpid(pid, &status, WNOHANG);
     if (w == pid) break;
-    if (g_stop && !stop_sent) {
+    const auto now = std::chrono::steady_clock::now();
+    if ((g_stop || now >= options.deadline) && !stop_sent) {
       kill(-pid, SIGTERM);
       stop_sent = true;
-      progress << "dem: stopping LIGGGHTS (restart files kept; run again to resume)\n";
+      r.out_of_time = !g_stop;
+      progress << "dem: stopping LIGGGHTS" << (r.out_of_time ? " at the wall-time budget" : "")
+               << " (restart files kept; run again to resume)\n";
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
-    const auto now = std::chrono::steady_clock::now();
     if (std::chrono::duration<double>(now - last_report).count() < options.progress_every_s) continue;
     last_report = now;
     const auto series = ReadMassSeries(dir / CaseLayout::kMassSeries);
@@ -206,8 +199,8 @@ RunResult RunCase(const ChamberSpec& spec, const fs::path& dir, const RunOptions
     std::snprintf(line, sizeof line,
                   "dem: %6.2f / %.2f s simulated (%3.0f %%), %6.0f particles in chamber (%.1f t), flow %6.0f t/h, "
                   "elapsed %s, ETA %s\n",
-                  s.t, total_s, 100.0 * s.t / total_s, s.n, s.m_chamber / 1000.0, flow_tph, Duration(wall).c_str(),
-                  done > 0 ? Duration(eta).c_str() : "?");
+                  s.t, total_s, 100.0 * s.t / total_s, s.n, s.m_chamber / 1000.0, flow_tph, core::FormatDuration(wall).c_str(),
+                  done > 0 ? core::FormatDuration(eta).c_str() : "?");
     progress << line;
     progress.flush();
   }
@@ -217,7 +210,9 @@ RunResult RunCase(const ChamberSpec& spec, const fs::path& dir, const RunOptions
   r.completed = !after.empty() && after.back() >= steps.total && WIFEXITED(status) && WEXITSTATUS(status) == 0;
   if (!r.completed) {
     std::ostringstream m;
-    if (WIFEXITED(status))
+    if (r.out_of_time)
+      m << "LIGGGHTS was stopped at the wall-time budget";
+    else if (WIFEXITED(status))
       m << "LIGGGHTS stopped with exit status " << WEXITSTATUS(status);
     else if (WIFSIGNALED(status))
       m << "LIGGGHTS was killed by signal " << WTERMSIG(status);

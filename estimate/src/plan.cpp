@@ -85,10 +85,15 @@ class Evaluator {
 
   /// The reline point and the area layouts are compared on, from the reference layout: the wear
   /// scale at which the liner's thinnest area (the crusher's own ladder) reaches the minimum, and
-  /// that area's size.
-  void Calibrate(const std::vector<size_t>& reference) {
+  /// that area's size. With `patch_m` > 0 the area is the thinnest square of that side instead,
+  /// for the reline point as for the comparison.
+  void Calibrate(const std::vector<size_t>& reference, double patch_m = 0) {
     const core::CrusherConfig& c = model_.config;
     config_.thinnest_area = c.thinnest_area;
+    if (patch_m > 0) {  // a target every square meets: the liner's area is the first square
+      config_.thinnest_area.patches_m = {patch_m};
+      config_.thinnest_area.band_half_width_mm = std::numeric_limits<double>::max();
+    }
     const double target_wear = c.thickness_new_mm - c.thickness_min_mm;
     scale_ = plan_.intensity.size() && plan_.intensity.maxCoeff() > 0 ? target_wear / plan_.intensity.maxCoeff() : 1.0;
     core::ThinnestAreas areas;
@@ -99,6 +104,10 @@ class Evaluator {
       scale_ *= target_wear / wear;
     }
     areas = Areas(reference);
+    if (patch_m > 0) {
+      patch_ = patch_m;
+      return;
+    }
     on_row_ = areas.liner.shape == core::AreaShape::kRow || !std::isfinite(areas.liner.thickness_mm);
     patch_ = on_row_ ? 0.0 : areas.liner.patch_m;
     config_.thinnest_area.patches_m = {on_row_ ? c.thinnest_area.patches_m.back() : patch_};
@@ -128,6 +137,9 @@ class Evaluator {
     for (size_t r = 0; r < areas.rows.size(); ++r) b.rows[r] = half(areas.rows[r]);
     return b;
   }
+  /// The liner's thinnest area with `layout`, as the live wear reports it on the compared area.
+  core::ThinnestArea Liner(const std::vector<size_t>& layout) const { return Areas(layout).liner; }
+  double band_sigmas() const { return plan_.options.band_sigmas; }
   double Objective(const std::vector<size_t>& layout) const {
     const double j = Evaluate(layout).Objective();
     return std::isfinite(j) ? j : std::numeric_limits<double>::max();
@@ -312,6 +324,46 @@ SensorPlan PlanSensors(const CrusherModel& model, const PlanOptions& options) {
     out.rows.push_back(rp);
   }
   return out;
+}
+
+void CheckMapBandPatch(const core::CrusherConfig& crusher, double patch_m) {
+  double tallest = 0;
+  for (const core::Row& r : crusher.rows) tallest = std::max(tallest, r.z_max_m - r.z_min_m);
+  if (!(patch_m > 0 && patch_m <= tallest + 1e-9))
+    throw std::invalid_argument("--patch " + Evaluator::Fmt(patch_m, 3) + " is out of range: (0, " + Evaluator::Fmt(tallest, 3) +
+                                "] m (the tallest row's height; a larger area is the whole row)");
+}
+
+MapBand MapBandAt(const CrusherModel& model, double patch_m) {
+  CheckMapBandPatch(model.config, patch_m);
+  // The candidates only stand in for crusher.json's sensors when it has none: with readings that
+  // follow the map every layout gives the same estimate, and the map's part of the band does not
+  // depend on the layout.
+  PlanOptions o;
+  o.edge_margin_m = 0;
+  o.z_levels = 1;
+  o.theta_step_deg = 90;
+  Evaluator ev(model, o);
+  std::vector<size_t> layout;
+  for (size_t k = 0; k < model.config.sensors.size(); ++k) layout.push_back(ev.candidates() + k);
+  if (layout.empty())
+    for (size_t c = 0; c < ev.candidates(); ++c) layout.push_back(c);
+  ev.Calibrate(layout, patch_m);
+  const core::ThinnestArea a = ev.Liner(layout);
+  MapBand b;
+  b.patch_m = patch_m;
+  if (!std::isfinite(a.thickness_mm) || a.shape != core::AreaShape::kSquare)
+    throw std::invalid_argument("--patch " + Evaluator::Fmt(patch_m, 3) +
+                                ": no square of that side holds enough of the map's faces");
+  b.map_sd_mm = a.map_sd_mm;
+  b.scale_sd_mm = a.scale_sd_mm;
+  b.half_width_mm = ev.band_sigmas() * std::hypot(a.scale_sd_mm, a.map_sd_mm);
+  b.band_sigmas = ev.band_sigmas();
+  b.thickness_mm = a.thickness_mm;
+  b.row = a.row;
+  b.z_m = a.z_m;
+  b.theta_deg = a.theta_deg;
+  return b;
 }
 
 namespace {

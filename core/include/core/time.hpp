@@ -17,6 +17,10 @@ std::optional<TimePoint> ParseIsoTime(std::string_view text);
 /// Formats as "YYYY-MM-DDTHH:MM:SSZ".
 std::string FormatIsoTime(TimePoint t);
 
+/// A wall-time length for progress lines: "12m05s" under an hour, "3h07m" from an hour on; "?"
+/// when not finite (not known yet). Negative lengths count as 0.
+std::string FormatDuration(double seconds);
+
 /// Days (fractional) from a to b.
 inline double DaysBetween(TimePoint a, TimePoint b) {
   return std::chrono::duration<double>(b - a).count() / 86400.0;

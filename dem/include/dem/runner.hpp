@@ -2,6 +2,7 @@
 /// Runs a written case with `mpirun -np N liggghts`, resuming from the newest restart file when a
 /// previous run was stopped, and reports progress (simulated seconds, particles in the chamber,
 /// mass flow, ETA) while it runs. Each attempt keeps its own log (log.<n>.liggghts, log.<n>.screen).
+#include <chrono>
 #include <filesystem>
 #include <ostream>
 #include <string>
@@ -16,6 +17,8 @@ struct RunOptions {
   std::string mpirun = "mpirun";
   std::string liggghts = "liggghts";
   double progress_every_s = 10;  ///< wall seconds between progress lines
+  /// LIGGGHTS is stopped (as by RequestStop) when this passes: a wall-time budget (--max-hours).
+  std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
 };
 
 struct RunResult {
@@ -24,7 +27,8 @@ struct RunResult {
   long resumed_from_step = 0;
   int attempt = 0;  ///< number of this attempt (its log is log.<attempt>.liggghts)
   double wall_s = 0;
-  std::string message;  ///< one line: why it stopped when not completed
+  std::string message;       ///< one line: why it stopped when not completed
+  bool out_of_time = false;  ///< stopped at RunOptions::deadline
 };
 
 /// Step numbers of the files `<prefix><step><suffix>` in `dir`, ascending.

@@ -70,6 +70,30 @@ struct SensorPlan {
   std::optional<ScanAdvice> scan;  ///< a running campaign's (readings given)
 };
 
+/// The band the live wear would give from a DEM map (`linerwatch dem --until-band`): that of the
+/// liner's thinnest square patch of side `patch_m` at the reline point (the wear scaled so that the
+/// patch's mean reaches thickness_min_mm), with crusher.json's sensors reading what the map predicts
+/// there, as core::FindThinnestAreas computes it: half_width_mm = band_sigmas x sqrt(scale_sd^2 +
+/// map_sd^2), the factor the sensors measure in a campaign left at 1. Both parts come from the map's
+/// error (the windows' spread): map_sd_mm is its pattern and sampling error averaged over the
+/// patch; scale_sd_mm the row scale's, the map's error at the row's sensors with the readings'
+/// quantisation (its floor: a longer run cannot narrow that part). Without sensors in crusher.json,
+/// candidate positions over every row stand in.
+struct MapBand {
+  double patch_m = 0;
+  double half_width_mm = 0;  ///< band_sigmas x hypot(scale_sd_mm, map_sd_mm)
+  double map_sd_mm = 0, scale_sd_mm = 0;
+  double band_sigmas = 2;
+  double thickness_mm = 0;  ///< the patch mean at the reline point (thickness_min_mm)
+  std::string row;
+  double z_m = 0, theta_deg = 0;  ///< the patch's centre
+};
+/// Throws std::invalid_argument naming --patch when it is not in (0, the tallest row's height] or no
+/// square of that side holds enough faces.
+MapBand MapBandAt(const CrusherModel& model, double patch_m);
+/// The first check of MapBandAt, before any map exists: `patch_m` in (0, the tallest row's height].
+void CheckMapBandPatch(const core::CrusherConfig& crusher, double patch_m);
+
 /// The plan for `model`'s crusher. Throws std::invalid_argument naming the option when K is out of
 /// range, or a row is too low for the edge margin.
 SensorPlan PlanSensors(const CrusherModel& model, const PlanOptions& options);
