@@ -90,5 +90,5 @@ TEST(DemLibrary, EveryLibraryInDataLoadsAndMatchesItsSummary) {
     CHECK_TEXT(fs::exists(e.path() / "README.md"), e.path().string().c_str());
     CHECK_TEXT(CheckLibrary(e.path()) >= 1, e.path().string().c_str());
   }
-  CHECK(libraries >= 11);
+  CHECK(libraries >= 13);
 }
