@@ -586,7 +586,7 @@ nlohmann::ordered_json ThinnestAreaJson(const ThinnestArea& a) {
   j["row"] = a.row;
   j["whole_row"] = a.whole_row;
   j["worn_through"] = a.worn_through;
-  j["band_half_width_mm"] = Rounded(a.half_width_mm, 0.01);
+  j["half_width_mm"] = Rounded(a.half_width_mm, 0.01);
   j["band_parts_mm"] = {{"row_scale_sd", Rounded(a.scale_sd_mm, 0.01)}, {"map_sd", Rounded(a.map_sd_mm, 0.01)}};
   j["detail"] = Detail(a);
   if (a.sensor_fallback) {
