@@ -128,6 +128,13 @@ void LiveState::LoadFrom(Store& store, const Crusher& crusher, CrusherLive& c) c
   }
 }
 
+bool LiveState::Loaded(const std::string& crusher) const {
+  const auto it = crushers_.find(crusher);
+  if (it == crushers_.end()) return false;
+  std::lock_guard<std::mutex> lock(it->second.mutex);
+  return it->second.loaded;
+}
+
 std::vector<Store::SensorSummary> LiveState::LatestPerSensor(const std::string& crusher) const {
   std::vector<Store::SensorSummary> out;
   const CrusherLive* c = Find(crusher);

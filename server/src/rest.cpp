@@ -418,10 +418,14 @@ Response Resources::Health(const Request&) {
 Response Resources::Crushers(const Request&) {
   ordered_json list = ordered_json::array();
   for (const Crusher* c : ctx_.registry->All()) {
-    // Never waits behind a wear recompute: the wear as last computed (the wear worker recomputes a
-    // changed crusher within --wear-interval-ms); the latest reading time is always current.
-    const auto st = ctx_.wear->Latest(c->config.crusher_id);
-    const auto latest = ctx_.live->LatestUsableTime(c->config.crusher_id);
+    // Never waits behind a wear recompute and never loads or computes anything: the wear as last
+    // computed (the wear worker recomputes a changed crusher within --wear-interval-ms), the latest
+    // reading time as loaded. At startup, before the wear worker's first pass reaches a crusher, its
+    // entry says "pending" instead of making this request load and compute it.
+    const std::string& id = c->config.crusher_id;
+    const auto st = ctx_.wear->Latest(id);
+    const bool loaded = ctx_.live->Loaded(id);
+    const auto latest = loaded ? ctx_.live->LatestUsableTime(id) : std::nullopt;
     list.push_back({{"crusher_id", c->config.crusher_id},
                     {"installed_at", core::FormatIsoTime(c->config.installed_at)},
                     {"thickness_new_mm", c->config.thickness_new_mm},
@@ -435,7 +439,8 @@ Response Resources::Crushers(const Request&) {
                                              ? ordered_json(st->reconstruction.min_thickness_mm)
                                              : ordered_json(nullptr)},
                     {"wear_status", st && st->has_wear ? ordered_json(st->reconstruction.status) : ordered_json(nullptr)},
-                    {"thinnest_area", st && st->has_wear ? core::ThinnestAreaJson(st->areas.liner) : ordered_json(nullptr)}});
+                    {"thinnest_area", st && st->has_wear ? core::ThinnestAreaJson(st->areas.liner) : ordered_json(nullptr)},
+                    {"pending", !loaded || !st}});
   }
   return Json(200, {{"crushers", list}});
 }

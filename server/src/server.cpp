@@ -307,6 +307,9 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   lo.subscriptions = {mqtt::Topics::ReadingsFilter(o.topic_root), mqtt::Topics::StatusFilter(o.topic_root)};
   mqtt::MosquittoLink link(lo);  // read on this thread: docs/performance.md, *Ingest*
 
+  // The wear worker's first pass (every crusher loaded, then computed), for /healthz: until it ends
+  // the crusher list says "pending" for crushers it has not reached.
+  std::atomic<size_t> startup_loaded{0}, startup_computed{0};
   ApiContext ctx = MakeApiContext(o, *registry, read, wear, live, ingestor, events, tokens);
   ctx.diagnosis = &diagnosis;
   ctx.metrics = &metrics;
@@ -318,6 +321,11 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
                              {"rejected", c.rejected},
                              {"held", c.held},
                              {"crusher_errors", errors}};
+    const size_t crushers = registry->All().size();
+    j["startup"] = {{"crushers", crushers},
+                    {"loaded", startup_loaded.load()},
+                    {"computed", startup_computed.load()},
+                    {"done", startup_computed.load() >= crushers}};
     // Batches fail (and are not acked) once the disk fills: say why before the gateways' spools grow.
     if (const int64_t free = FreeBytes(o.db); free >= 0 && free < kMinFreeBytes) {
       j["status"] = "degraded";
@@ -377,6 +385,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
     for (const Crusher* c : registry->All()) {
       if (worker_stop) return;
       live.LatestUsableTime(c->config.crusher_id);  // loads it
+      ++startup_loaded;
     }
     log("per-crusher state loaded in " + std::to_string(WallMs() - load_start_ms) + " ms (" +
         std::to_string(CpuMs(CLOCK_THREAD_CPUTIME_ID) - load_start_cpu_ms) + " ms CPU)");
@@ -387,6 +396,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       } catch (const std::exception& e) {
         log("crusher " + c->config.crusher_id + ": wear not computed: " + e.what());
       }
+      ++startup_computed;  // also when it failed: the pass has been there (its error is logged)
     }
     log("wear and forecast of every crusher computed (process CPU since start: " +
         std::to_string(CpuMs(CLOCK_PROCESS_CPUTIME_ID)) + " ms)");

@@ -303,12 +303,8 @@ std::shared_ptr<const CrusherState> WearService::Latest(const std::string& crush
   const Crusher* crusher = registry_.Find(crusher_id);
   if (!crusher) return nullptr;
   Entry& e = EntryOf(crusher_id);
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (e.state) return e.state;  // current, or the last one while new readings wait for the wear worker
-  }
-  std::lock_guard<std::mutex> compute(e.compute);  // never computed yet: the first computation
-  return ComputeLocked(*registry_.Find(crusher_id), e);
+  std::lock_guard<std::mutex> lock(mutex_);
+  return e.state;  // current, the last one while new readings wait for the wear worker, or none yet
 }
 
 }  // namespace lw::server

@@ -59,6 +59,10 @@ class LiveState {
   int64_t CountReadings(const std::string& crusher) const;
   /// Time of the latest usable (not fault) reading; nullopt before the first.
   std::optional<int64_t> LatestUsableTime(const std::string& crusher) const;
+  /// Whether `crusher`'s state is loaded (false for an unknown crusher), without loading it: a
+  /// summary of many crushers asks this first, so that no request loads one (the wear worker loads
+  /// every crusher at startup).
+  bool Loaded(const std::string& crusher) const;
   /// The readings wear and forecast are computed from (the window's), ordered by sensor, time, seq:
   /// estimate::Estimate on them equals estimate::Estimate on every stored reading.
   std::vector<estimate::Sample> WearSamples(const std::string& crusher) const;

@@ -47,14 +47,15 @@ class WearService {
   /// Readings of `crusher` changed: the next Get() recomputes.
   void MarkChanged(const std::string& crusher);
   /// `crusher` was relined: the next Get() recomputes on the new liner alone, without holding the
-  /// old liner's reline dates (no previous state), and Latest() waits for it.
+  /// old liner's reline dates (no previous state); Latest() is nullptr until then.
   void Reset(const std::string& crusher);
   /// Current state (recomputed if readings changed since; waits for a computation of this crusher
   /// already under way, never for another crusher's). nullptr for an unknown crusher.
   std::shared_ptr<const CrusherState> Get(const std::string& crusher);
-  /// The state computed last, without computing or waiting (only a crusher never computed yet is
-  /// computed): for summaries of many crushers such as the crusher list. After new readings it is
-  /// the previous state until the next Get() (the wear worker's, within --wear-interval-ms).
+  /// The state computed last, without computing or waiting: for summaries of many crushers such as
+  /// the crusher list. After new readings it is the previous state until the next Get() (the wear
+  /// worker's, within --wear-interval-ms); nullptr for a crusher never computed yet (at startup,
+  /// until the wear worker's first pass reaches it), so no request computes one.
   std::shared_ptr<const CrusherState> Latest(const std::string& crusher);
 
  private:

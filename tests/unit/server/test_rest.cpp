@@ -416,7 +416,7 @@ TEST(RestHandlers, WearAndForecastOnceThereAreReadings) {
     const auto row_reach = *lw::core::ParseIsoTime(row["reach_date"].get<std::string>());
     for (const auto& s : forecast.json["sensors"]) {
       const auto* info = Folder().bundle.crusher.FindSensor(s["id"].get<std::string>());
-      if (!info || info->row != name || !s.value("ok", false) || !s["reach_date"].is_string()) continue;
+      if (!info || info->row != name || !(s.contains("ok") && s["ok"] == true) || !s["reach_date"].is_string()) continue;
       const double rate = std::max(s["rate_mm_per_day"].get<double>(), 1e-3);
       const auto limit = *lw::core::ParseIsoTime(s["reach_date"].get<std::string>()) +
                          std::chrono::seconds(static_cast<int64_t>((2.0 + 1.0 / rate) * 86400));
@@ -429,6 +429,38 @@ TEST(RestHandlers, WearAndForecastOnceThereAreReadings) {
   const json list = f.Get("/api/v1/crushers", {}).json;
   LONGS_EQUAL(1, list["crushers"].size());
   DOUBLES_EQUAL(f.Get(wear).json["min_thickness_mm"].get<double>(), list["crushers"][0]["min_thickness_mm"].get<double>(), 1e-3);
+}
+
+// At startup the server answers while its wear worker loads and computes each crusher: the crusher
+// list neither loads nor computes one on the request path (the first request is as fast as the
+// later ones), and says "pending" until the crusher's wear is there.
+TEST(RestHandlers, TheCrusherListNeverLoadsOrComputesAndSaysPending) {
+  Fixture first;
+  LONGS_EQUAL(200, first.PostReadings(Fixture::AllReadings()).status);
+  ServerParts restarted(Folder().crushers, false, "", first.parts.db_path);
+  // As the server starts: states loaded lazily (by the wear worker), nothing computed yet.
+  restarted.live->LoadLazily(std::make_unique<lw::server::Store>(first.parts.db_path));
+  rest::Resources resources(restarted.ctx);
+  const auto list = [&] {
+    return resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers"), {}).json["crushers"][0];
+  };
+  json entry = list();
+  CHECK(entry["pending"].get<bool>());
+  CHECK(entry["min_thickness_mm"].is_null());
+  CHECK(entry["latest_reading_time"].is_null());
+  CHECK_FALSE(restarted.live->Loaded(Folder().id()));   // the request loaded nothing
+  CHECK(restarted.wear->Latest(Folder().id()) == nullptr);  // and computed nothing
+  // The wear worker's first pass: loaded, then computed.
+  CHECK(restarted.live->LatestUsableTime(Folder().id()).has_value());
+  entry = list();
+  CHECK(entry["pending"].get<bool>());
+  CHECK(entry["latest_reading_time"].is_string());
+  const auto st = restarted.wear->Get(Folder().id());
+  entry = list();
+  CHECK_FALSE(entry["pending"].get<bool>());
+  DOUBLES_EQUAL(st->reconstruction.min_thickness_mm, entry["min_thickness_mm"].get<double>(), 1e-9);
+  const json wear = GetFrom(resources, "/api/v1/crushers/{crusher}/wear", Folder().id()).json;
+  DOUBLES_EQUAL(wear["min_thickness_mm"].get<double>(), entry["min_thickness_mm"].get<double>(), 1e-3);
 }
 
 // The headline of GET .../wear (and of each row) is the thinnest area the data support, in the
