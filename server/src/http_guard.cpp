@@ -22,6 +22,10 @@ using Clock = std::chrono::steady_clock;
 
 /// The longest header field line httplib 0.11.4 parses (CPPHTTPLIB_HEADER_MAX_LENGTH).
 constexpr size_t kMaxHeaderLine = 8192;
+/// How long a worker waits for a kept-alive client's next request before handing the connection
+/// back to the loop: a client that asks again at once (a page's next request, a script's next
+/// page) answers within this on loopback or a LAN; a slower one costs the worker no more than it.
+constexpr int kNextHeadWaitMs = 2;
 
 struct GuardedServer::Conn {
   int fd = -1;
@@ -298,7 +302,7 @@ void GuardedServer::Release(Conn& c) {
   if (--per_client_[c.ip] == 0) per_client_.erase(c.ip);
 }
 
-void GuardedServer::Refuse(Conn& c, int status, const std::string& message) {
+bool GuardedServer::Refuse(Conn& c, int status, const std::string& message) {
   const std::string reply = ErrorResponse(status, message);
   [[maybe_unused]] const ssize_t n = ::send(c.fd, reply.data(), reply.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
   // Linger: stop sending, drain what the client still sends for a moment, so that closing with
@@ -308,6 +312,7 @@ void GuardedServer::Refuse(Conn& c, int status, const std::string& message) {
   c.buf.clear();
   c.buf.shrink_to_fit();
   c.deadline = Clock::now() + std::chrono::milliseconds(2000);
+  return false;  // for ReadHead: no head to serve
 }
 
 void GuardedServer::Accept() {
@@ -361,7 +366,7 @@ void GuardedServer::Accept() {
   }
 }
 
-void GuardedServer::ReadHead(Conn& c) {
+bool GuardedServer::ReadHead(Conn& c) {
   if (c.state == Conn::State::kLinger) {
     char sink[16384];
     while (true) {
@@ -372,7 +377,7 @@ void GuardedServer::ReadHead(Conn& c) {
         continue;
       }
       if (n == 0 || (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) c.deadline = Clock::now();
-      return;
+      return false;
     }
   }
   // Read no further than one byte past the head cap: the cap holds whatever the client sends.
@@ -385,11 +390,11 @@ void GuardedServer::ReadHead(Conn& c) {
     if (n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) {
       c.state = Conn::State::kLinger;  // the client went away: close now
       c.deadline = Clock::now();
-      return;
+      return false;
     }
     if (n < 0) break;
   }
-  if (c.buf.empty()) return;
+  if (c.buf.empty()) return false;
   if (c.state == Conn::State::kIdle) {
     c.state = Conn::State::kHead;  // the head must now arrive complete within head_timeout_ms
     c.deadline = Clock::now() + std::chrono::milliseconds(limits_.head_timeout_ms);
@@ -398,7 +403,7 @@ void GuardedServer::ReadHead(Conn& c) {
   const size_t start = c.buf.find_first_not_of("\r\n");
   if (start == std::string::npos) {
     if (c.buf.size() >= limits_.max_head_bytes) return Refuse(c, 400, "no request line");
-    return;
+    return false;
   }
   if (start > 0 && c.buf[start - 1] == '\n') c.buf.erase(0, start);
   const size_t eol = c.buf.find('\n');
@@ -411,7 +416,7 @@ void GuardedServer::ReadHead(Conn& c) {
       return Refuse(c, 431,
                     "request head (request line and headers) longer than " + std::to_string(limits_.max_head_bytes) + " bytes");
     }
-    return;  // wait for more
+    return false;  // wait for more
   }
   c.head_len = end + 4;
   // RFC 9110 5.5: a NUL in a field value is refused (httplib reads values as C strings: a token
@@ -469,6 +474,10 @@ void GuardedServer::ReadHead(Conn& c) {
   if (body_method && !has_length && !chunked) return Refuse(c, 411, "a " + method + " needs Content-Length or chunked encoding");
   // Chunked: counted as received, framing included (64 KiB of it beyond the cap).
   c.body_allowance = has_length ? length : chunked ? c.body_limit + 64 * 1024 : 0;
+  return true;
+}
+
+void GuardedServer::HandOff(Conn& c) {
   // A worker owns the connection now; it comes back through returned_ for keep-alive.
   conns_.erase(std::find(conns_.begin(), conns_.end(), &c));
   {
@@ -492,6 +501,40 @@ GuardedServer::Conn* GuardedServer::TakeJob() {
   return nullptr;
 }
 
+GuardedServer::Served GuardedServer::ServeRequest(Conn& c) {
+  if (stopping_) return Served::kClose;
+  GuardedStream strm(c, limits_);
+  const bool last = c.served + 1 >= limits_.max_requests_per_connection;
+  bool closed = false;
+  const bool processed = process_request(strm, last, closed, nullptr);
+  const bool ok = strm.Flush() && processed;
+  ++c.served;
+  // Kept alive only when the request was read exactly to its end (httplib leaves the body of a
+  // refused request unread; those bytes must not be parsed as the next request).
+  if (ok && !closed && !last && !strm.failed() && strm.complete() && !stopping_) {
+    c.buf = strm.Leftover();
+    c.state = Conn::State::kIdle;
+    c.head_len = 0;
+    c.body_allowance = 0;
+    return Served::kKeep;
+  }
+  // Answered before its body was read (404, 405, 401, 403): closing with the body's bytes unread
+  // would reset the connection and could lose the reply; drain them for a moment.
+  return !stopping_ && !strm.failed() && !strm.complete() ? Served::kLinger : Served::kClose;
+}
+
+bool GuardedServer::NextHeadAtOnce(Conn& c) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stopping_ || !jobs_.empty()) return false;  // other heads wait: this worker is theirs
+  }
+  if (c.buf.empty()) {
+    pollfd p{c.fd, POLLIN, 0};
+    if (::poll(&p, 1, kNextHeadWaitMs) <= 0) return false;
+  }
+  return ReadHead(c);  // incomplete or refused: the loop goes on with it (state and deadline set)
+}
+
 void GuardedServer::Worker() {
   while (true) {
     Conn* c = nullptr;
@@ -500,38 +543,28 @@ void GuardedServer::Worker() {
       jobs_cv_.wait(lock, [this, &c] { return (c = TakeJob()) != nullptr || stopping_; });
       if (!c) return;  // stopping
     }
-    bool keep = false;
-    bool linger = false;
-    if (!stopping_) {
-      GuardedStream strm(*c, limits_);
-      const bool last = c->served + 1 >= limits_.max_requests_per_connection;
-      bool closed = false;
-      const bool processed = process_request(strm, last, closed, nullptr);
-      const bool ok = strm.Flush() && processed;
-      ++c->served;
-      // Kept alive only when the request was read exactly to its end (httplib leaves the body
-      // of a refused request unread; those bytes must not be parsed as the next request).
-      keep = ok && !closed && !last && !strm.failed() && strm.complete() && !stopping_;
-      if (keep) c->buf = strm.Leftover();
-      // Answered before its body was read (404, 405, 401, 403): closing with the body's bytes
-      // unread would reset the connection and could lose the reply; drain them for a moment.
-      linger = !keep && !stopping_ && !strm.failed() && !strm.complete();
-    }
+    // A client that sends its next request as soon as it has read the answer (a dashboard's page,
+    // a script paging readings) keeps this worker: without the two thread hand-offs through the
+    // loop, a kept-alive request costs what a request on a new connection costs.
+    Served served = ServeRequest(*c);
+    while (served == Served::kKeep && NextHeadAtOnce(*c)) served = ServeRequest(*c);
+    bool queued = false;
     {
-      // The client's next queued head may now take a worker.
       std::lock_guard<std::mutex> lock(mutex_);
       if (--busy_per_client_[c->ip] == 0) busy_per_client_.erase(c->ip);
+      queued = !jobs_.empty();
     }
-    jobs_cv_.notify_all();
-    if (!keep && !linger) {
+    // The client's next queued head may now take a worker. Only then are the workers woken: each
+    // idle worker woken for nothing costs two task switches, and with every request they were
+    // most of the server's CPU.
+    if (queued) jobs_cv_.notify_all();
+    if (served == Served::kClose) {
       Release(*c);
       delete c;
       continue;
     }
-    if (linger) ::shutdown(c->fd, SHUT_WR);
-    c->linger = linger;
-    c->head_len = 0;
-    c->body_allowance = 0;
+    c->linger = served == Served::kLinger;
+    if (c->linger) ::shutdown(c->fd, SHUT_WR);
     {
       std::lock_guard<std::mutex> lock(mutex_);
       returned_.push_back(c);
@@ -554,18 +587,22 @@ void GuardedServer::Serve() {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       for (Conn* c : returned_) {
-        c->state = c->linger ? Conn::State::kLinger : Conn::State::kIdle;
-        if (c->linger) c->buf.clear();  // a lingering connection's bytes are discarded
-        c->deadline = Clock::now() + std::chrono::milliseconds(c->linger ? 2000 : limits_.idle_timeout_ms);
+        if (c->linger) {
+          c->state = Conn::State::kLinger;
+          c->buf.clear();  // a lingering connection's bytes are discarded
+          c->deadline = Clock::now() + std::chrono::milliseconds(2000);
+        } else if (c->state == Conn::State::kIdle) {
+          c->deadline = Clock::now() + std::chrono::milliseconds(limits_.idle_timeout_ms);
+        }  // else a head the worker began to read (its head deadline runs) or refused (lingering)
         conns_.push_back(c);
       }
       returned_.clear();
     }
     for (size_t i = 0; i < conns_.size();) {
       Conn* c = conns_[i];
-      if (c->state == Conn::State::kIdle && !c->buf.empty()) {
-        ReadHead(*c);  // a pipelined request already received (may hand c to a worker)
-        if (i >= conns_.size() || conns_[i] != c) continue;
+      if (c->state == Conn::State::kIdle && !c->buf.empty() && ReadHead(*c)) {
+        HandOff(*c);  // a pipelined request already received
+        continue;
       }
       if (Clock::now() >= c->deadline) {
         if (c->state == Conn::State::kHead) {
@@ -597,7 +634,7 @@ void GuardedServer::Serve() {
       }
     }
     for (size_t k = 0; k < polled.size(); ++k) {
-      if (fds[k + 2].revents) ReadHead(*polled[k]);
+      if (fds[k + 2].revents && ReadHead(*polled[k])) HandOff(*polled[k]);
     }
     if (fds[1].revents & POLLIN) Accept();
   }

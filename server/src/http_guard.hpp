@@ -53,11 +53,20 @@ class GuardedServer : public httplib::Server {
   bool process_and_close_socket(socket_t sock) override;
 
   void Accept();
-  void ReadHead(Conn& c);
+  /// Reads what has arrived of c's next request head and checks it (refusing it as it arrives);
+  /// true when the head is complete and accepted. Touches c alone: the loop and a worker call it.
+  bool ReadHead(Conn& c);
+  void HandOff(Conn& c);  // the loop's: a complete head goes to the workers' queue
   void Worker();
+  /// Serves one request on c (a worker's). Kept: c is ready for the next request.
+  enum class Served { kKeep, kLinger, kClose };
+  Served ServeRequest(Conn& c);
+  /// The client's next request head, read on this worker when it arrives at once and no other
+  /// head waits for a worker; false: c goes back to the loop.
+  bool NextHeadAtOnce(Conn& c);
   Conn* TakeJob();        // with mutex_ held: the first queued head whose client IP is under its cap
   void Release(Conn& c);  // closes the socket and gives back the connection slots
-  void Refuse(Conn& c, int status, const std::string& message);  // replies, then lingers briefly
+  bool Refuse(Conn& c, int status, const std::string& message);  // replies, then lingers briefly; false
   void Wake();
 
   HttpLimits limits_;

@@ -736,3 +736,75 @@ TEST(HttpApi, MalformedHeadersGetThePreciseRefusal) {
   const std::string nul = HeadOnly(a.port, "GET", "/api/v1/crushers", 0, nul_token);
   CHECK_TEXT(nul == "HTTP/1.1 400" || nul == "HTTP/1.1 401", nul.c_str());
 }
+
+namespace {
+/// One response from `fd` (head and Content-Length body), `pending` holding bytes received past
+/// the previous one; "" when none arrives complete within 5 s.
+std::string OneResponse(int fd, std::string& pending) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (std::chrono::steady_clock::now() < deadline) {
+    const size_t end = pending.find("\r\n\r\n");
+    if (end != std::string::npos) {
+      size_t length = 0;
+      const size_t at = pending.find("Content-Length: ");
+      if (at != std::string::npos && at < end) length = std::stoul(pending.substr(at + 16));
+      if (pending.size() >= end + 4 + length) {
+        const std::string out = pending.substr(0, end + 4 + length);
+        pending.erase(0, out.size());
+        return out;
+      }
+    }
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 100) <= 0) continue;
+    char buf[16384];
+    const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+    if (n <= 0) break;
+    pending.append(buf, static_cast<size_t>(n));
+  }
+  return "";
+}
+}  // namespace
+
+// A kept-alive connection is served whether its next request comes at once (the worker that
+// answered reads it), later (the loop reads it), in pieces, pipelined, or malformed (the refusal
+// the loop gives), and always with the same answer.
+TEST(HttpApi, AKeptAliveConnectionIsServedWhateverItsNextRequestsTiming) {
+  Api a(false);
+  a.LoadAll();
+  const std::string path = a.Base() + "/sensors/" + Folder().bundle.crusher.sensors[0].id + "/readings?limit=3";
+  const std::string request = "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+  const int fd = Connect(a.port);
+  CHECK(fd >= 0);
+  std::string pending;
+  CHECK(SendText(fd, request));
+  const std::string first = OneResponse(fd, pending);
+  STRCMP_EQUAL("HTTP/1.1 200", first.substr(0, 12).c_str());
+  const std::string body = first.substr(first.find("\r\n\r\n") + 4);
+  CHECK(json::parse(body)["readings"].size() == 3);
+  const auto same = [&](const char* how) {
+    const std::string r = OneResponse(fd, pending);
+    STRCMP_EQUAL_TEXT("HTTP/1.1 200", r.substr(0, 12).c_str(), how);
+    STRCMP_EQUAL_TEXT(body.c_str(), r.substr(r.find("\r\n\r\n") + 4).c_str(), how);
+  };
+  for (int i = 0; i < 20; ++i) {  // at once, as a script paging readings asks
+    CHECK(SendText(fd, request));
+    same("at once");
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // later: the loop has it back
+  CHECK(SendText(fd, request));
+  same("after 100 ms");
+  CHECK(SendText(fd, request.substr(0, 10)));  // a head in two pieces, 50 ms apart
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  CHECK(SendText(fd, request.substr(10)));
+  same("in two pieces");
+  CHECK(SendText(fd, request + request));  // pipelined
+  same("pipelined, first");
+  same("pipelined, second");
+  // A malformed head right after an answer gets the loop's precise refusal, then the close.
+  CHECK(SendText(fd, "GET /healthz HTTP/1.1\r\nHost : 127.0.0.1\r\n\r\n"));
+  const std::string refused = OneResponse(fd, pending);
+  STRCMP_EQUAL("HTTP/1.1 400", refused.substr(0, 12).c_str());
+  CHECK(refused.find("whitespace in or before a header field name") != std::string::npos);
+  CHECK(Receive(fd, 3000).empty());
+  ::close(fd);
+}
