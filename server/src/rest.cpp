@@ -454,6 +454,7 @@ Response Resources::CrusherDetail(const Request& req) {
     sensors.push_back(
         {{"id", s.id}, {"row", s.row}, {"z_m", s.z_m}, {"theta_deg", s.theta_deg}, {"thickness_new_mm", s.thickness_new_mm}});
   }
+  if (Starting(*c, false, &error)) return error;
   const int64_t stored = ctx_.live->CountReadings(c->config.crusher_id);
   const IngestCounters cc = ctx_.ingestor->CrusherCounters(c->config.crusher_id);
   return Json(
@@ -481,6 +482,7 @@ Response Resources::Sensors(const Request& req) {
   Response error;
   const Crusher* c = CrusherOf(req, &error);
   if (!c) return error;
+  if (Starting(*c, false, &error)) return error;
   const std::vector<Store::SensorSummary> latest = ctx_.live->LatestPerSensor(c->config.crusher_id);
   ordered_json sensors = ordered_json::array();
   for (const auto& s : c->config.sensors) {
@@ -647,9 +649,20 @@ bool CheckWearTime(const core::CrusherConfig& config, const std::string& text, i
 
 }  // namespace
 
+bool Resources::Starting(const Crusher& c, bool need_wear, Response* error) {
+  if (!ctx_.starting || !ctx_.starting->load()) return false;
+  const std::string& id = c.config.crusher_id;
+  if (ctx_.live->Loaded(id) && (!need_wear || ctx_.wear->Latest(id))) return false;
+  *error = Error(503, "the server is starting: crusher " + id + "'s " + (need_wear ? "wear is" : "readings are") + " not " +
+                          (need_wear ? "computed" : "loaded") + " yet (GET /healthz: startup); retry in a few seconds");
+  error->headers.emplace_back("Retry-After", "2");
+  return true;
+}
+
 std::shared_ptr<const CrusherState> Resources::StateOf(const Request& req, const Crusher& c, Response* error) {
   const std::string* at_param = FindParam(req.query, "at");
   if (!at_param) {
+    if (Starting(c, true, error)) return nullptr;
     auto st = ctx_.wear->Get(c.config.crusher_id);
     if (!st || !st->has_wear) {
       *error = Error(404, "no readings yet for crusher " + c.config.crusher_id);
@@ -694,6 +707,12 @@ Response Resources::Wear(const Request& req) {
   }
   const std::string* faces_param = FindParam(req.query, "faces");
   const bool faces = !(faces_param && *faces_param == "false");
+  const std::string& body = faces ? st->wear_body : st->wear_body_no_faces;  // serialized as computed
+  if (!body.empty()) {
+    Response r;
+    r.raw = RawBody{body, "application/json"};
+    return r;
+  }
   return Json(200, WearJson(*st, faces));
 }
 
@@ -709,6 +728,11 @@ Response Resources::Forecast(const Request& req) {
   if (*format == "csv") {
     Response r;
     r.raw = RawBody{ForecastCsv(ForecastJson(*st)), core::kCsvContentType};
+    return r;
+  }
+  if (!st->forecast_body.empty()) {  // serialized as computed
+    Response r;
+    r.raw = RawBody{st->forecast_body, "application/json"};
     return r;
   }
   return Json(200, ForecastJson(*st));

@@ -310,8 +310,10 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   // The wear worker's first pass (every crusher loaded, then computed), for /healthz: until it ends
   // the crusher list says "pending" for crushers it has not reached.
   std::atomic<size_t> startup_loaded{0}, startup_computed{0};
+  std::atomic<bool> starting{true};
   ApiContext ctx = MakeApiContext(o, *registry, read, wear, live, ingestor, events, tokens);
   ctx.diagnosis = &diagnosis;
+  ctx.starting = &starting;
   ctx.metrics = &metrics;
   ctx.health = [&] {
     const IngestCounters c = ingestor.Counters();
@@ -398,6 +400,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       }
       ++startup_computed;  // also when it failed: the pass has been there (its error is logged)
     }
+    starting = false;  // from now on a request may compute a crusher whose readings changed
     log("wear and forecast of every crusher computed (process CPU since start: " +
         std::to_string(CpuMs(CLOCK_PROCESS_CPUTIME_ID)) + " ms)");
     // The open alarms as stored, retained again (a restart repeats none and loses none), then evaluated.

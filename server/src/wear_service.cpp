@@ -286,6 +286,12 @@ std::shared_ptr<const CrusherState> WearService::ComputeLocked(const Crusher& cr
   auto st = std::make_shared<CrusherState>(
       ComputeCrusherState(crusher, live_.WearSamples(crusher.config.crusher_id), std::nullopt, previous.get()));
   st->version = version;
+  const auto text = [](const nlohmann::ordered_json& j) {
+    return j.dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace);
+  };
+  st->wear_body = text(WearJson(*st, true));
+  st->wear_body_no_faces = text(WearJson(*st, false));
+  st->forecast_body = text(ForecastJson(*st));
   std::lock_guard<std::mutex> lock(mutex_);
   e.state = st;
   return st;

@@ -3,6 +3,7 @@
 /// from: the server's parts, the HTTP limits and the hosts it answers to.
 #include <cstddef>
 #include <cstdint>
+#include <atomic>
 #include <filesystem>
 #include <functional>
 #include <nlohmann/json.hpp>
@@ -72,6 +73,10 @@ struct ApiContext {
   /// A reline of the crusher was stored (its new liner's wear is to be computed and published). Runs
   /// on the HTTP worker thread that handled the POST, before the reply.
   std::function<void(const std::string& crusher)> after_reline;
+  /// Set by the server while its wear worker's first pass runs (null: no such pass, as in tests that
+  /// compute on demand): until it ends, a crusher's state is loaded and its wear computed by that
+  /// pass, never on a request, and a request that needs one not there yet gets 503 "starting".
+  const std::atomic<bool>* starting = nullptr;
   HttpLimits limits;
   /// Host names (besides IP addresses and localhost) the API answers to: a request whose Host is
   /// anything else is refused (DNS rebinding). From --http's host and --allowed-hosts.

@@ -181,6 +181,9 @@ class Resources {
   Response Mesh(const Request&);
   /// The live state, or with ?at=TIME a past time's (400 naming `at`, 404 before any reading).
   std::shared_ptr<const CrusherState> StateOf(const Request& req, const Crusher& c, Response* error);
+  /// While the server starts: true (and *error a 503 with Retry-After) when `c`'s state is not
+  /// loaded yet (`need_wear`: or its wear not computed yet), so that no request loads or computes it.
+  bool Starting(const Crusher& c, bool need_wear, Response* error);
   Response Wear(const Request&);
   Response Forecast(const Request&);
   Response Diagnosis(const Request&);

@@ -20,6 +20,10 @@ struct CrusherState : estimate::WearEstimate {
   const Crusher* crusher = nullptr;
   std::optional<core::TimePoint> at;  ///< the past time asked for (GET .../wear?at=TIME); nullopt: live
   int64_t version = 0;
+  /// The JSON bodies of GET .../wear (with and without faces) and .../forecast, serialized once as
+  /// the state is computed (by the wear worker, ahead of any request): a request only sends them.
+  /// Empty for a past time's state (GET .../wear?at=), which a request computes anyway.
+  std::string wear_body, wear_body_no_faces, forecast_body;
 };
 
 /// Computes the state from a crusher's stored readings (fault readings are left out). With the

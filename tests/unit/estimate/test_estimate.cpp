@@ -53,13 +53,14 @@ struct Served {
     rest::Request get;
     get.path = {Folder().id()};
     get.query = std::move(query);
-    return resources->Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/wear"), get);
+    return lw::test::WithJson(resources->Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/wear"), get));
   }
   rest::Response Forecast(QueryParams query = {}) {
     rest::Request get;
     get.path = {Folder().id()};
     get.query = std::move(query);
-    return resources->Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/forecast"), get);
+    return lw::test::WithJson(
+        resources->Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/forecast"), get));
   }
 };
 

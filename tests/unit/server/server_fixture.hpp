@@ -17,10 +17,18 @@
 #include "server/api_context.hpp"
 #include "server/ingest.hpp"
 #include "server/registry.hpp"
+#include "server/rest.hpp"
 #include "sim/campaign.hpp"
 #include "support/mosquitto_fixture.hpp"
 
 namespace lw::test {
+
+/// `r` with its JSON in r.json also when the resource sent JSON serialized ahead (a state's wear
+/// and forecast bodies, server::CrusherState): what a client parses from the response.
+inline server::rest::Response WithJson(server::rest::Response r) {
+  if (r.raw && r.raw->content_type == "application/json") r.json = nlohmann::ordered_json::parse(r.raw->content);
+  return r;
+}
 
 struct CrusherFolder {
   TempDirectory dir{"lw-server-test"};

@@ -75,7 +75,7 @@ struct Fixture {
     rest::Request r;
     r.path = std::move(path);
     r.query = std::move(query);
-    return resources->Call(rest::Resources::Find(rest::Method::kGet, route), r);
+    return lw::test::WithJson(resources->Call(rest::Resources::Find(rest::Method::kGet, route), r));
   }
 };
 

@@ -1,6 +1,7 @@
 // The REST resources without HTTP: the route table, the OpenAPI document generated from it, and
 // the handlers called through rest::Resources.
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <set>
@@ -33,7 +34,7 @@ struct Fixture {
     resources = std::make_unique<rest::Resources>(parts.ctx);
   }
   rest::Response Call(rest::Method method, const char* path, rest::Request request = {}) {
-    return resources->Call(rest::Resources::Find(method, path), request);
+    return lw::test::WithJson(resources->Call(rest::Resources::Find(method, path), request));
   }
   rest::Response Get(const char* path, std::vector<std::string> params = {Folder().id()}, QueryParams query = {}) {
     rest::Request r;
@@ -70,7 +71,7 @@ void PostReadingsTo(rest::Resources& resources, const std::string& crusher, cons
 rest::Response GetFrom(rest::Resources& resources, const char* route, const std::string& crusher) {
   rest::Request get;
   get.path = {crusher};
-  return resources.Call(rest::Resources::Find(rest::Method::kGet, route), get);
+  return lw::test::WithJson(resources.Call(rest::Resources::Find(rest::Method::kGet, route), get));
 }
 
 // In `row`, the served wear (`wear`: the REST wear JSON) equals `expected` (the live wear without a
@@ -440,22 +441,39 @@ TEST(RestHandlers, TheCrusherListNeverLoadsOrComputesAndSaysPending) {
   ServerParts restarted(Folder().crushers, false, "", first.parts.db_path);
   // As the server starts: states loaded lazily (by the wear worker), nothing computed yet.
   restarted.live->LoadLazily(std::make_unique<lw::server::Store>(first.parts.db_path));
+  std::atomic<bool> starting{true};
+  restarted.ctx.starting = &starting;
   rest::Resources resources(restarted.ctx);
   const auto list = [&] {
     return resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers"), {}).json["crushers"][0];
   };
+  // A crusher's own resources answer 503 until what they need is there, and compute nothing.
+  const auto starting_503 = [&](const char* route, const char* what) {
+    const rest::Response r = GetFrom(resources, route, Folder().id());
+    LONGS_EQUAL_TEXT(503, r.status, route);
+    CHECK_TEXT(r.json["error"].get<std::string>().find(what) != std::string::npos, r.json.dump().c_str());
+    CHECK(std::find(r.headers.begin(), r.headers.end(), std::make_pair(std::string("Retry-After"), std::string("2"))) !=
+          r.headers.end());
+  };
+  starting_503("/api/v1/crushers/{crusher}/sensors", "readings are not loaded yet");
+  starting_503("/api/v1/crushers/{crusher}", "readings are not loaded yet");
+  starting_503("/api/v1/crushers/{crusher}/wear", "wear is not computed yet");
   json entry = list();
   CHECK(entry["pending"].get<bool>());
   CHECK(entry["min_thickness_mm"].is_null());
   CHECK(entry["latest_reading_time"].is_null());
-  CHECK_FALSE(restarted.live->Loaded(Folder().id()));   // the request loaded nothing
+  CHECK_FALSE(restarted.live->Loaded(Folder().id()));       // the request loaded nothing
   CHECK(restarted.wear->Latest(Folder().id()) == nullptr);  // and computed nothing
   // The wear worker's first pass: loaded, then computed.
   CHECK(restarted.live->LatestUsableTime(Folder().id()).has_value());
   entry = list();
   CHECK(entry["pending"].get<bool>());
   CHECK(entry["latest_reading_time"].is_string());
+  LONGS_EQUAL(200, GetFrom(resources, "/api/v1/crushers/{crusher}/sensors", Folder().id()).status);
+  starting_503("/api/v1/crushers/{crusher}/forecast", "wear is not computed yet");
+  CHECK(restarted.wear->Latest(Folder().id()) == nullptr);
   const auto st = restarted.wear->Get(Folder().id());
+  LONGS_EQUAL(200, GetFrom(resources, "/api/v1/crushers/{crusher}/forecast", Folder().id()).status);
   entry = list();
   CHECK_FALSE(entry["pending"].get<bool>());
   DOUBLES_EQUAL(st->reconstruction.min_thickness_mm, entry["min_thickness_mm"].get<double>(), 1e-9);
@@ -563,7 +581,8 @@ TEST(RestHandlers, WearWithoutAScanHasScanNull) {
   LONGS_EQUAL_TEXT(200, posted.status, posted.json.dump().substr(0, 500).c_str());
   rest::Request get;
   get.path = {Folder().id()};
-  const rest::Response res = resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/wear"), get);
+  const rest::Response res =
+      lw::test::WithJson(resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers/{crusher}/wear"), get));
   LONGS_EQUAL(200, res.status);
   CHECK_TEXT(res.json.contains("scan"), res.json.dump().substr(0, 500).c_str());
   CHECK_TRUE(res.json["scan"].is_null());
