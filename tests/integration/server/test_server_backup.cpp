@@ -6,6 +6,8 @@
 // naming it with a nonzero exit.
 #include <atomic>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <map>
 #include <thread>
 
@@ -223,8 +225,16 @@ TEST(ServerBackup, TheOldestCopiesBeyondKeepAreDeletedAndNothingElse) {
     folder.dir.Write("backups/" + std::string(name), "old copy");
   folder.dir.Write("backups/notes.txt", "kept");
   folder.dir.Write("backups/server-2024.sqlite", "kept");
+  auto bytes = [](const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    return text.str();
+  };
+  const std::string live = bytes(db);
   std::string out;
   LONGS_EQUAL_TEXT(0, Backup({"--db", db, "--dir", dir.string(), "--keep", "2"}, folder.dir.File("b.log"), &out), out.c_str());
+  CHECK_TRUE_TEXT(bytes(db) == live, "the live database was written");
   const std::vector<fs::path> left = lw::server::ListBackups(dir);
   LONGS_EQUAL(2, left.size());
   STRCMP_EQUAL("server-20240103T000000Z.sqlite", left[0].filename().c_str());
