@@ -50,7 +50,8 @@ void CheckInputs(const BackupOptions& o) {
 void CheckSource(const Db& src) {
   Stmt readings(src, "SELECT COUNT(*) FROM sqlite_master WHERE type='table' AND name='readings'");
   readings.Step();
-  if (readings.Int(0) != 1) throw BackupError("database " + src.path() + ": not a linerwatch server database (no readings table)");
+  if (readings.Int(0) != 1)
+    throw BackupError("database " + src.path() + ": not a linerwatch server database (no readings table)");
 }
 
 /// The whole database in one step: one read transaction, so the copy is one consistent snapshot

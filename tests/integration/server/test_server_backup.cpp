@@ -35,8 +35,8 @@ struct Server {
   void Start(const std::string& broker, const std::string& db, const std::string& crushers, const std::string& log_file) {
     port = lw::test::FreeLoopbackPort();
     log = log_file;
-    process.Start({LW_SERVER_BIN, "--broker", broker, "--db", db, "--http", "127.0.0.1:" + std::to_string(port),
-                   "--crusher-dir", crushers, "--web-dir", ""},
+    process.Start({LW_SERVER_BIN, "--broker", broker, "--db", db, "--http", "127.0.0.1:" + std::to_string(port), "--crusher-dir",
+                   crushers, "--web-dir", ""},
                   log);
     // Up to 60 s: the map model is built at start-up, slow on a loaded machine.
     for (int i = 0; i < 1200 && !lw::test::PortAccepts(port); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -60,7 +60,8 @@ struct Server {
     for (size_t i = from; i < to; ++i) readings.push_back(json::parse(messages[i].payload));
     httplib::Client client("127.0.0.1", port);
     client.set_read_timeout(60, 0);
-    const auto res = client.Post("/api/v1/crushers/" + crusher + "/readings", json{{"readings", readings}}.dump(), "application/json");
+    const auto res =
+        client.Post("/api/v1/crushers/" + crusher + "/readings", json{{"readings", readings}}.dump(), "application/json");
     if (!res || res->status != 200) throw std::runtime_error("POST readings: " + (res ? res->body : std::string("no answer")));
     const json answer = json::parse(res->body);
     if (!answer.contains("stored") || answer.at("stored").get<int64_t>() != static_cast<int64_t>(to - from))
@@ -205,7 +206,8 @@ TEST(ServerBackup, ACopyTakenWhileTheServerRunsRestoresToTheSameRestAnswers) {
     for (const auto& [what, answer] : now) {
       const auto it = after.find(what);
       if (difference.empty() && (it == after.end() || answer != it->second))
-        difference = what + ": " + answer.dump().substr(0, 400) + " vs " + (it == after.end() ? "none" : it->second.dump().substr(0, 400));
+        difference =
+            what + ": " + answer.dump().substr(0, 400) + " vs " + (it == after.end() ? "none" : it->second.dump().substr(0, 400));
     }
     if (difference.empty()) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
