@@ -5,7 +5,8 @@
 #
 # Three components, one package each:
 #   gateway  linerwatch-gateway, its man page, systemd unit, /etc/linerwatch/gateway.json, docs
-#   server   linerwatch-server, the dashboard, its man page, unit, /etc/linerwatch/server.json, docs
+#   server   linerwatch-server, the dashboard, its man page, unit, /etc/linerwatch/server.json, docs;
+#            linerwatch-backup, its service and daily timer, /etc/linerwatch/backup.json
 #   tools    linerwatch (diagnose, reconstruct, dem), linerwatch-sim, their man pages
 # The units are templates (packaging/systemd/*.service.in) filled in at install time with the
 # prefix being installed to: /usr in the packages, /usr/local for `cmake --install build`.
@@ -49,6 +50,7 @@ if(NOT LW_HELP2MAN)
 endif()
 lw_man_page(linerwatch-gateway gateway "XBee coordinator serial port to MQTT with a durable spool")
 lw_man_page(linerwatch-server server "crusher liner wear readings to SQLite, live wear, forecasts, REST and dashboard")
+lw_man_page(linerwatch-backup server "online, checked copy of the linerwatch-server database, keeping N")
 lw_man_page(linerwatch tools "crusher liner wear: diagnose, reconstruct, DEM wear maps")
 lw_man_page(linerwatch-sim tools "crusher liner wear campaign generator and virtual sensor site")
 
@@ -95,6 +97,11 @@ endif()
 if(TARGET linerwatch-server)
   lw_install_unit(linerwatch-server server)
   lw_install_config(server.json server)
+  if(TARGET linerwatch-backup)
+    lw_install_unit(linerwatch-backup server)
+    install(FILES ${LW_PACKAGING_DIR}/systemd/linerwatch-backup.timer DESTINATION lib/systemd/system COMPONENT server)
+    lw_install_config(backup.json server)
+  endif()
   install(DIRECTORY DESTINATION /etc/linerwatch/crushers COMPONENT server)
   set(doc ${CMAKE_INSTALL_DATADIR}/doc/linerwatch-server)
   install(FILES ${PROJECT_SOURCE_DIR}/docs/server.md ${PROJECT_SOURCE_DIR}/docs/dashboard.md
@@ -169,35 +176,49 @@ set(CPACK_COMPONENT_TOOLS_DESCRIPTION "linerwatch tools: diagnosis, reconstructi
  site for testing a gateway).")
 
 # Maintainer scripts: system user, state directory, configuration mode, systemd, purge.
+#   lw_maintainer_scripts(component pkg user state role extra_groups
+#                         CONFS file.json... UNITS unit... [POSTINST text] [POSTRM text])
+# CONFS: the conffiles in /etc/linerwatch/ (group-readable by the user: they may hold passwords);
+# UNITS: enabled and started at install, stopped at removal (a service, or the timer of one).
 set(LW_DEB_DIR ${CMAKE_BINARY_DIR}/packaging/debian)
-function(lw_maintainer_scripts component pkg user state conf role extra_groups)
+function(lw_maintainer_scripts component pkg user state role extra_groups)
+  cmake_parse_arguments(PARSE_ARGV 6 M "" "POSTINST;POSTRM" "CONFS;UNITS")
   set(LW_PKG ${pkg})
   set(LW_USER ${user})
   set(LW_STATE ${state})
-  set(LW_CONF ${conf})
   set(LW_ROLE ${role})
-  set(LW_UNIT ${pkg}.service)
+  string(JOIN " " LW_CONFS ${M_CONFS})
+  string(JOIN " " LW_UNITS ${M_UNITS})
   set(LW_EXTRA_GROUPS "${extra_groups}")
-  set(LW_EXTRA_POSTINST "${ARGV7}")
-  set(LW_EXTRA_POSTRM "${ARGV8}")
+  set(LW_EXTRA_POSTINST "${M_POSTINST}")
+  set(LW_EXTRA_POSTRM "${M_POSTRM}")
   set(dir ${LW_DEB_DIR}/${component})
   foreach(script postinst prerm postrm)
     configure_file(${LW_PACKAGING_DIR}/debian/${script}.in ${dir}/${script} @ONLY
                    FILE_PERMISSIONS OWNER_READ OWNER_WRITE OWNER_EXECUTE GROUP_READ GROUP_EXECUTE
                                     WORLD_READ WORLD_EXECUTE)
   endforeach()
-  file(WRITE ${dir}/conffiles "/etc/linerwatch/${conf}\n")
+  list(TRANSFORM M_CONFS PREPEND "/etc/linerwatch/")
+  string(JOIN "\n" conffiles ${M_CONFS})
+  file(WRITE ${dir}/conffiles "${conffiles}\n")
   string(TOUPPER ${component} up)
   set(CPACK_DEBIAN_${up}_PACKAGE_CONTROL_EXTRA ${dir}/postinst ${dir}/prerm ${dir}/postrm ${dir}/conffiles
       PARENT_SCOPE)
   set(CPACK_DEBIAN_${up}_PACKAGE_CONTROL_STRICT_PERMISSION ON PARENT_SCOPE)
 endfunction()
-lw_maintainer_scripts(gateway linerwatch-gateway linerwatch-gateway gateway gateway.json gateway dialout)
-lw_maintainer_scripts(server linerwatch-server linerwatch-server server server.json server ""
-  "  install -d -m 0755 /etc/linerwatch/crushers"
-  "  # The crusher folders (crusher.json, wear maps) and the token file are configuration too:
-  # save the wear maps first (docs/deploy.md).
+lw_maintainer_scripts(gateway linerwatch-gateway linerwatch-gateway gateway gateway dialout
+  CONFS gateway.json UNITS linerwatch-gateway.service)
+lw_maintainer_scripts(server linerwatch-server linerwatch-server server server ""
+  CONFS server.json backup.json
+  UNITS linerwatch-server.service linerwatch-backup.timer
+  POSTINST "  install -d -m 0755 /etc/linerwatch/crushers
+  # The daily backups' folder (backup.json's \"dir\"), the server user's: linerwatch-backup.timer.
+  install -d -m 0750 -o \"$user\" -g \"$user\" /var/backups/linerwatch"
+  POSTRM "  # The crusher folders (crusher.json, wear maps) and the token file are configuration too:
+  # save the wear maps first (docs/deploy.md). The backups in /var/backups/linerwatch stay, like
+  # the database; the folder goes when it holds none.
   rm -rf /etc/linerwatch/crushers
-  rm -f /etc/linerwatch/tokens.json")
+  rm -f /etc/linerwatch/tokens.json
+  rmdir /var/backups/linerwatch 2>/dev/null || true")
 
 include(CPack)

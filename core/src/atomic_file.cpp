@@ -80,6 +80,18 @@ void CopyFileAtomically(const fs::path& from, const fs::path& to, Durability dur
   Commit(tmp, to, durability);
 }
 
+void MakeFileAtomically(const fs::path& path, const std::function<void(const fs::path& tmp)>& fill, Durability durability) {
+  const fs::path tmp = TempFor(path);
+  try {
+    fill(tmp);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw;
+  }
+  Commit(tmp, path, durability);
+}
+
 void WriteFolderAtomically(const fs::path& dir, const std::function<void(const fs::path& tmp)>& fill, const std::string& what) {
   if (fs::exists(dir) && !(fs::is_directory(dir) && fs::is_empty(dir))) {
     throw std::runtime_error(what + ": '" + dir.string() + "' exists and is not an empty directory");

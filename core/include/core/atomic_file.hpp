@@ -28,6 +28,13 @@ void WriteFileAtomically(const std::filesystem::path& path, const std::function<
 void CopyFileAtomically(const std::filesystem::path& from, const std::filesystem::path& to,
                         Durability durability = Durability::kSynced);
 
+/// Makes file `path` whole or not at all when something else writes it (SQLite's backup API, a
+/// library given a file name): `fill` creates and finishes the temporary whose path it is given,
+/// which is then renamed over `path` (the same guarantees). An exception from `fill` removes the
+/// temporary and propagates.
+void MakeFileAtomically(const std::filesystem::path& path, const std::function<void(const std::filesystem::path& tmp)>& fill,
+                        Durability durability = Durability::kSynced);
+
 /// Makes folder `dir` whole or not at all: `fill` writes into a temporary sibling folder, which is
 /// renamed to `dir` when it returns. `dir` must not exist or be an empty folder (std::runtime_error
 /// naming it, with `what` as the prefix); an exception from `fill` removes the temporary and propagates.

@@ -12,6 +12,7 @@
 
 using lw::core::CopyFileAtomically;
 using lw::core::Durability;
+using lw::core::MakeFileAtomically;
 using lw::core::WriteFileAtomically;
 namespace fs = std::filesystem;
 
@@ -79,4 +80,23 @@ TEST(AtomicFile, CopyReplacesTheTargetWhole) {
   CHECK_THROWS(std::runtime_error, CopyFileAtomically(dir.path() / "missing.txt", to));
   STRCMP_EQUAL("new content\n", Read(to).c_str());
   LONGS_EQUAL(2, Entries(dir.path()));
+}
+
+TEST(AtomicFile, MakeRenamesWhatTheFillerWroteAndRemovesItOnFailure) {
+  lw::test::TempDirectory dir;
+  const fs::path to = dir.Write("made.db", "old\n");
+  fs::path seen;
+  MakeFileAtomically(to, [&](const fs::path& tmp) {
+    seen = tmp;
+    CHECK_FALSE(fs::exists(tmp));  // the filler creates it (SQLite opens a file name)
+    std::ofstream(tmp, std::ios::binary) << "made by another writer\n";
+  });
+  STRCMP_EQUAL("made by another writer\n", Read(to).c_str());
+  CHECK_TRUE(seen.parent_path() == to.parent_path());  // beside it: the rename stays on one filesystem
+  CHECK_THROWS(std::logic_error, MakeFileAtomically(to, [](const fs::path& tmp) {
+                 std::ofstream(tmp, std::ios::binary) << "half";
+                 throw std::logic_error("the check of the copy failed");
+               }));
+  STRCMP_EQUAL("made by another writer\n", Read(to).c_str());
+  LONGS_EQUAL(1, Entries(dir.path()));
 }
