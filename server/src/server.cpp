@@ -381,18 +381,17 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   };
   std::thread wear_worker([&] {
     pthread_setname_np(pthread_self(), "lw-wear");  // named in top -H, perf and lw_bench_ingest's CPU by thread
-    // Once at startup, every crusher's state and then its wear and forecast (not published: nothing
-    // changed), so that requests find them loaded and computed.
-    const int64_t load_start_ms = WallMs(), load_start_cpu_ms = CpuMs(CLOCK_THREAD_CPUTIME_ID);
+    // Once at startup, each crusher's state and then at once its wear and forecast (not published:
+    // nothing changed), crusher by crusher, so that each answers as soon as its own pass is done
+    // rather than after every state of the fleet is loaded.
+    int64_t load_ms = 0, load_cpu_ms = 0;
     for (const Crusher* c : registry->All()) {
       if (worker_stop) return;
+      const int64_t start_ms = WallMs(), start_cpu_ms = CpuMs(CLOCK_THREAD_CPUTIME_ID);
       live.LatestUsableTime(c->config.crusher_id);  // loads it
+      load_ms += WallMs() - start_ms;
+      load_cpu_ms += CpuMs(CLOCK_THREAD_CPUTIME_ID) - start_cpu_ms;
       ++startup_loaded;
-    }
-    log("per-crusher state loaded in " + std::to_string(WallMs() - load_start_ms) + " ms (" +
-        std::to_string(CpuMs(CLOCK_THREAD_CPUTIME_ID) - load_start_cpu_ms) + " ms CPU)");
-    for (const Crusher* c : registry->All()) {
-      if (worker_stop) return;
       try {
         wear.Get(c->config.crusher_id);
       } catch (const std::exception& e) {
@@ -400,6 +399,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       }
       ++startup_computed;  // also when it failed: the pass has been there (its error is logged)
     }
+    log("per-crusher state loaded in " + std::to_string(load_ms) + " ms (" + std::to_string(load_cpu_ms) + " ms CPU)");
     starting = false;  // from now on a request may compute a crusher whose readings changed
     log("wear and forecast of every crusher computed (process CPU since start: " +
         std::to_string(CpuMs(CLOCK_PROCESS_CPUTIME_ID)) + " ms)");
