@@ -1,7 +1,7 @@
 // Issue 4 benchmark (a): readings per second through mosquitto -> linerwatch-server -> committed
 // in SQLite (counted when the server's `committed` ack for every reading has arrived), against a
 // bare subscriber (mosquitto_sub -q 1 to /dev/null) on the same broker with the same publisher,
-// alternated in one run (bare, server, bare, server, ...). Target (issue 16): server/bare >= 0.9.
+// alternated in one run (bare, server, bare, server, ...). Target (issue 47; issue 16 asked 0.9): server/bare >= 0.95.
 //   lw_bench_ingest [--readings N] [--reps R] [--batch N[,N...]] [--perf FILE] [--commit-delay-ms N[,N...]]
 //                   [--server BIN[,BIN...]]   (--help: every option; an unknown one is an error)
 // --batch: the readings go as messages of up to N records of one sensor (docs/mqtt.md, *Batches*:
@@ -527,9 +527,9 @@ int main(int argc, char** argv) {
                   n, n, Median(acks));
       std::printf(
           "    ratio server/bare             %.2f   (of the medians; paired ratios: median %.2f, range %.2f-%.2f; target >= "
-          "0.9)   %s\n",
+          "0.95)   %s\n",
           bare / srv, Median(ratios), *std::min_element(ratios.begin(), ratios.end()),
-          *std::max_element(ratios.begin(), ratios.end()), bare / srv >= 0.9 ? "MET" : "MISSED");
+          *std::max_element(ratios.begin(), ratios.end()), bare / srv >= 0.95 ? "MET" : "MISSED");
     }
     std::vector<double> ingest_s, ingest_cpu, store_s, store_cpu;
     for (const InProcess& p : f.in_process) {
