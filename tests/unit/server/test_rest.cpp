@@ -215,7 +215,9 @@ TEST(RestHandlers, APreviousLinersReadingIsMarkedInReadingsAndLatest) {
   PostReadingsTo(*f.resources, Folder().id(), body);
 
   const char* readings = "/api/v1/crushers/{crusher}/sensors/{sensor}/readings";
-  const json old = f.Get(readings, {Folder().id(), worn}).json["readings"];
+  const rest::Response old_page = f.Get(readings, {Folder().id(), worn});
+  STRCMP_CONTAINS("\"previous_liner\":true}", old_page.raw->content.c_str());
+  const json old = old_page.json["readings"];
   LONGS_EQUAL(1, old.size());
   CHECK(old[0].value("previous_liner", false));
   const json fresh = f.Get(readings, {Folder().id(), unworn}).json["readings"];
@@ -254,6 +256,12 @@ TEST(RestHandlers, TheReadingsAnswerCarriesTheDocumentedFieldsPageByPage) {
     if (!cursor.empty()) q.emplace("cursor", cursor);
     const rest::Response r = f.Get(route, {Folder().id(), sensor}, q);
     LONGS_EQUAL(200, r.status);
+    // The page is written as text: the bytes a compact dump of the same tree gives, numbers in
+    // nlohmann's form (a whole thickness keeps its ".0").
+    CHECK(r.raw.has_value());
+    STRCMP_EQUAL(nlohmann::ordered_json::parse(r.raw->content).dump().c_str(), r.raw->content.c_str());
+    STRCMP_CONTAINS(",\"thickness_mm\":", r.raw->content.c_str());
+    CHECK(r.raw->content.find(".0,\"loops_intact\":") != std::string::npos);
     std::vector<std::string> top;
     for (const auto& [k, v] : r.json.items()) top.push_back(k);
     CHECK((top == std::vector<std::string>{"readings", "next_cursor"}));
