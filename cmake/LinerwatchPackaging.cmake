@@ -113,6 +113,8 @@ if(TARGET linerwatch-server)
           DESTINATION ${doc}/examples/mosquitto COMPONENT server)
   install(PROGRAMS ${LW_PACKAGING_DIR}/mosquitto/make-certs
           DESTINATION ${doc}/examples/mosquitto COMPONENT server)
+  # The Grafana dashboard of the server's and the gateways' metrics (docs/deploy.md, Metrics and Grafana).
+  install(FILES ${LW_PACKAGING_DIR}/grafana/linerwatch.json DESTINATION ${doc}/examples/grafana COMPONENT server)
 endif()
 if(TARGET linerwatch)
   set(doc ${CMAKE_INSTALL_DATADIR}/doc/linerwatch-tools)

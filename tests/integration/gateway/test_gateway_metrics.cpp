@@ -11,6 +11,7 @@
 
 #include "protocol/sensor_payload.hpp"
 #include "protocol/xbee_api.hpp"
+#include "support/grafana.hpp"
 #include "support/mosquitto_fixture.hpp"
 #include "support/promtool.hpp"
 #include "support/raw_pty.hpp"
@@ -107,6 +108,16 @@ TEST(GatewayMetrics, PrometheusParsesItAndTheCountersMoveWithAFrame) {
   DOUBLES_EQUAL(1, ValueOf(text, "linerwatch_gateway_mqtt_connected"), 0);
   DOUBLES_EQUAL(1, ValueOf(text, "linerwatch_gateway_sensor_acks_total"), 0);
   DOUBLES_EQUAL(0, ValueOf(text, "linerwatch_gateway_acked_total"), 0);
+
+  // packaging/grafana/linerwatch.json's gateway panels name only families this scrape declares
+  // (their PromQL is parsed by test_server_metrics_scrape).
+  const auto gateway_families =
+      lw::test::MetricFamilies(lw::test::ReadGrafanaDashboard(LW_GRAFANA_DASHBOARD).panel_exprs,
+                               [](const std::string& n) { return n.rfind("linerwatch_gateway_", 0) == 0; });
+  CHECK(gateway_families.size() >= 5);
+  std::string missing;
+  for (const auto& n : lw::test::MissingFamilies(gateway_families, text)) missing += n + " ";
+  CHECK_TEXT(missing.empty(), ("named by the dashboard, not exported by the gateway: " + missing).c_str());
 
   const auto other = http.Get("/other");
   CHECK(other);

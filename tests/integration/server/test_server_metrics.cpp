@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "core/wear_map.hpp"  // Sha256Hex
+#include "support/grafana.hpp"
 #include "support/mosquitto_fixture.hpp"
 #include "support/promtool.hpp"
 #include "unit/server/server_fixture.hpp"
@@ -134,4 +135,27 @@ TEST(ServerMetricsScrape, WithTokensTheScrapeNeedsTheReadScope) {
   LONGS_EQUAL(401, refused->status);
   STRCMP_EQUAL("missing or unknown bearer token", json::parse(refused->body)["error"].get<std::string>().c_str());
   Scrape(http, {{"Authorization", "Bearer scrape-secret"}});
+}
+
+// packaging/grafana/linerwatch.json's server panels: every expression parses as PromQL and every
+// server metric it names is a family of this server's scrape (the gateway's are checked against
+// the gateway, test_gateway_metrics_scrape). The checks themselves fail on a bad expression and an
+// unknown name.
+TEST(ServerMetricsScrape, TheGrafanaDashboardParsesAndNamesOnlyMetricsTheServerExports) {
+  server.Start(broker.uri(), folder);
+  httplib::Client http("127.0.0.1", server.port);
+  const std::string text = Scrape(http);
+  const lw::test::GrafanaDashboard dash = lw::test::ReadGrafanaDashboard(LW_GRAFANA_DASHBOARD);
+  const std::string problem = lw::test::PromqlCheck(dash.panel_exprs);
+  CHECK_TEXT(problem.empty(), problem.c_str());
+  std::vector<std::string> exprs = dash.panel_exprs;
+  exprs.insert(exprs.end(), dash.variable_exprs.begin(), dash.variable_exprs.end());
+  const auto server_families =
+      lw::test::MetricFamilies(exprs, [](const std::string& n) { return n.rfind("linerwatch_gateway_", 0) != 0; });
+  CHECK(server_families.size() >= 10);  // the dashboard covers the server, not one metric of it
+  std::string missing;
+  for (const auto& n : lw::test::MissingFamilies(server_families, text)) missing += n + " ";
+  CHECK_TEXT(missing.empty(), ("named by the dashboard, not exported by the server: " + missing).c_str());
+  CHECK_FALSE(lw::test::PromqlCheck({"sum(rate(linerwatch_readings_stored_total[5m])"}).empty());
+  CHECK(lw::test::MissingFamilies({"linerwatch_no_such_metric"}, text).size() == 1);
 }
