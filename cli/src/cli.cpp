@@ -325,6 +325,7 @@ void PrintReconstruction(const estimate::CrusherModel& model, const estimate::We
   // The headline: the thinnest area the data support (the face minimum above is a single face's).
   out << core::ThinnestAreaText(est.areas.liner) << '\n';
   for (const core::ThinnestArea& a : est.areas.rows) out << "  " << core::ThinnestAreaText(a) << '\n';
+  out << core::SettingText(est.setting) << '\n';
 }
 
 /// `linerwatch reconstruct --json`: per-row summary and wear map statistics (docs/diagnosis.md).
@@ -343,6 +344,7 @@ nlohmann::ordered_json ReconstructionJson(const estimate::CrusherModel& model, c
   j["min_face"] = rec.min_face;
   j["thinnest_area"] = core::ThinnestAreaJson(est.areas.liner);
   j["worn_through"] = est.areas.liner.worn_through;
+  j["setting"] = core::SettingJson(est.setting);
   j["map_error_at_sensors"] = core::MapCalibrationJson(rec.calibration);
   j["face_level"] = {{"estimate_at_zero_faces", rec.worn_through_faces},
                      {"band_reaches_zero_faces", rec.maybe_worn_through_faces}};

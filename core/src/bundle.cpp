@@ -142,6 +142,26 @@ ThinnestAreaConfig ParseThinnestArea(const json& j, double thickness_new_mm, con
   return t;
 }
 
+/// crusher.json's "setting": every key optional, an unknown key or an out-of-range value refused by its name.
+SettingConfig ParseSetting(const json& j, const std::string& file) {
+  if (!j.is_object()) throw InputError(file, 0, "\"setting\" must be an object");
+  SettingConfig out;
+  const std::string where = "setting";
+  for (const auto& [key, value] : j.items())
+    if (key != "css_mm" && key != "ring_height_m")
+      throw InputError(file, 0, "setting." + key + " is not a setting key (they are css_mm, ring_height_m)");
+  if (j.contains("css_mm")) {
+    out.css_mm = Get<double>(j, "css_mm", where, file);
+    if (!(*out.css_mm > 0 && *out.css_mm <= 1000)) throw InputError(file, 0, "setting.css_mm must be in (0, 1000] mm");
+  }
+  if (j.contains("ring_height_m")) {
+    out.ring_height_m = Get<double>(j, "ring_height_m", where, file);
+    if (!(out.ring_height_m >= 0.01 && out.ring_height_m <= 2.0))
+      throw InputError(file, 0, "setting.ring_height_m must be in [0.01, 2] m");
+  }
+  return out;
+}
+
 /// One rule object of "alarms" over `rule`: only the keys of its spec, each checked by its name.
 AlarmRule ParseAlarmRule(const json& j, const AlarmRuleSpec& spec, AlarmRule rule, const std::string& file) {
   const std::string where = std::string("alarms.") + spec.name;
@@ -172,7 +192,7 @@ AlarmRule ParseAlarmRule(const json& j, const AlarmRuleSpec& spec, AlarmRule rul
   number(spec.hysteresis_key, &rule.hysteresis);
   // These two clear below their threshold (threshold - hysteresis): below zero, never.
   const std::string name = spec.name;
-  if ((name == "sensor_silent" || name == "rejected_rate") && rule.hysteresis > rule.threshold)
+  if ((name == "sensor_silent" || name == "rejected_rate" || name == "setting_open") && rule.hysteresis > rule.threshold)
     throw InputError(file, 0, where + "." + spec.hysteresis_key + " must be at most " + spec.threshold_key);
   return rule;
 }
@@ -189,6 +209,7 @@ const std::vector<AlarmRuleSpec>& AlarmRuleSpecs() {
       {"gateway_offline", "minutes", nullptr, 10, 0, "critical", 10080},
       {"unsupported", nullptr, nullptr, 0, 0, "info", 0},
       {"rejected_rate", "per_hour", "hysteresis_per_hour", 10, 5, "warning", 1e6},
+      {"setting_open", "above_mm", "hysteresis_mm", 20, 2, "warning", kMaxThicknessMm, false},
   };
   return specs;
 }
@@ -202,7 +223,8 @@ const AlarmRule& AlarmConfig::Rule(const std::string& name) const {
 
 AlarmConfig DefaultAlarmConfig(const CrusherConfig& config) {
   AlarmConfig out;
-  for (const AlarmRuleSpec& s : AlarmRuleSpecs()) out.rules.push_back({true, s.severity, s.threshold, s.hysteresis});
+  for (const AlarmRuleSpec& s : AlarmRuleSpecs())
+    out.rules.push_back({s.enabled_by_default, s.severity, s.threshold, s.hysteresis});
   out.rules.front().threshold = config.thickness_min_mm + AlarmRuleSpecs().front().threshold;
   return out;
 }
@@ -402,6 +424,7 @@ CrusherConfig LoadCrusherConfig(const std::filesystem::path& path) {
   if (!j.contains("sensors")) throw InputError(file, 0, "\"sensors\" array is required");
   ParseSensors(j["sensors"], file, &c);
   if (j.contains("thinnest_area")) c.thinnest_area = ParseThinnestArea(j["thinnest_area"], c.thickness_new_mm, file);
+  if (j.contains("setting")) c.setting = ParseSetting(j["setting"], file);
   c.alarms = DefaultAlarmConfig(c);
   if (j.contains("alarms")) c.alarms = ParseAlarmConfig(j["alarms"], c.alarms, file);
   return c;

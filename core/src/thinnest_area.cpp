@@ -351,20 +351,24 @@ void Label(const Context& c, const RadiusProfile& radius, const std::vector<Read
   if (!a->supported) a->sensor_fallback = ThinnestReading(*c.plan.crusher, used, a->row);
 }
 
+Context MakeContext(const ReconstructionPlan& plan, const Reconstruction& rec) {
+  const double face = plan.model.face_size_m;
+  const double root4pi = 2.0 * std::sqrt(M_PI);
+  return Context{plan,
+                 rec,
+                 SplitErrors(plan, rec),
+                 plan.crusher->thickness_new_mm,
+                 plan.options.band_sigmas,
+                 std::max(face, root4pi * plan.model.bandwidth_m),
+                 std::max(face, root4pi * plan.model.bandwidth_arc_m)};
+}
+
 }  // namespace
 
 ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used) {
   const CrusherConfig& crusher = *plan.crusher;
   const ThinnestAreaConfig& cfg = crusher.thinnest_area;
-  const double face = plan.model.face_size_m;
-  const double root4pi = 2.0 * std::sqrt(M_PI);
-  Context c{plan,
-            rec,
-            SplitErrors(plan, rec),
-            crusher.thickness_new_mm,
-            plan.options.band_sigmas,
-            std::max(face, root4pi * plan.model.bandwidth_m),
-            std::max(face, root4pi * plan.model.bandwidth_arc_m)};
+  const Context c = MakeContext(plan, rec);
   const RadiusProfile radius(*plan.map);
   const size_t nrows = crusher.rows.size();
   const double target = cfg.band_half_width_mm;
@@ -444,6 +448,40 @@ ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruc
   for (ThinnestArea& a : out.rows) Label(c, radius, used, target, &a);
   Label(c, radius, used, target, &out.liner);
   if (!out.liner.supported) out.liner.sensor_fallback = ThinnestReading(crusher, used, "");
+  return out;
+}
+
+SettingEstimate EstimateSetting(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used) {
+  const CrusherConfig& crusher = *plan.crusher;
+  SettingEstimate out;
+  out.css_set_mm = crusher.setting.css_mm;
+  ThinnestArea& a = out.ring;
+  a.shape = AreaShape::kRing;
+  a.theta_deg = kNan;
+  a.thickness_mm = a.lo_mm = a.hi_mm = kNan;
+  out.opening_mm = out.opening_lo_mm = out.opening_hi_mm = kNan;
+  int lowest = -1;
+  for (size_t r = 0; r < crusher.rows.size(); ++r)
+    if (lowest < 0 || crusher.rows[r].z_min_m < crusher.rows[static_cast<size_t>(lowest)].z_min_m) lowest = static_cast<int>(r);
+  if (lowest < 0) return out;
+  const Row& row = crusher.rows[static_cast<size_t>(lowest)];
+  const double h = std::min(crusher.setting.ring_height_m, row.z_max_m - row.z_min_m);
+  a.row = row.name;
+  a.patch_m = h;
+  a.z_m = row.z_min_m + 0.5 * h;
+  if (rec.status == kStatusNoSensors) return out;
+  const Context c = MakeContext(plan, rec);
+  const RadiusProfile radius(*plan.map);
+  const RowRings rings(c, lowest);
+  const Sums s = rings.Between(a.z_m, 0.5 * h);
+  if (!(s.area > 0)) return out;
+  BandOf(c, s, h, 2.0 * M_PI * radius.At(a.z_m), &a);
+  Label(c, radius, used, crusher.thinnest_area.band_half_width_mm, &a);
+  // The setting opens by the ring's wear: the liner's new thickness less what is left (its band
+  // edges swap: the thinnest edge is the widest opening).
+  out.opening_mm = c.new_mm - a.thickness_mm;
+  out.opening_lo_mm = c.new_mm - a.hi_mm;
+  out.opening_hi_mm = c.new_mm - a.lo_mm;
   return out;
 }
 
@@ -596,6 +634,57 @@ nlohmann::ordered_json ThinnestAreaJson(const ThinnestArea& a) {
                             {"time", FormatIsoTime(a.sensor_fallback->time)}};
   }
   return j;
+}
+
+nlohmann::ordered_json SettingJson(const SettingEstimate& s) {
+  const ThinnestArea& a = s.ring;
+  nlohmann::ordered_json j;
+  const auto css = [&](double opening) {
+    return s.css_set_mm ? Rounded(*s.css_set_mm + opening, 0.01) : nlohmann::ordered_json(nullptr);
+  };
+  j["opening_mm"] = Rounded(s.opening_mm, 0.01);
+  j["opening_band_mm"] = nlohmann::ordered_json::array({Rounded(s.opening_lo_mm, 0.01), Rounded(s.opening_hi_mm, 0.01)});
+  j["css_set_mm"] = s.css_set_mm ? nlohmann::ordered_json(*s.css_set_mm) : nlohmann::ordered_json(nullptr);
+  j["css_mm"] = css(s.opening_mm);
+  j["css_band_mm"] = s.css_set_mm ? nlohmann::ordered_json::array({css(s.opening_lo_mm), css(s.opening_hi_mm)})
+                                  : nlohmann::ordered_json(nullptr);
+  j["supported"] = a.supported;
+  j["half_width_mm"] = Rounded(a.half_width_mm, 0.01);
+  j["ring"] = {{"row", a.row},
+               {"z_m", Rounded(a.z_m, 0.001)},
+               {"height_m", Rounded(a.patch_m, 0.001)},
+               {"thickness_mm", Rounded(a.thickness_mm, 0.01)},
+               {"nearest_sensor_m", Rounded(a.nearest_sensor_m, 0.001)},
+               {"extrapolated", a.extrapolated}};
+  char basis[200];
+  std::snprintf(basis, sizeof basis,
+                "the concave's wear at its discharge ring (row %s, the lowest %.2f m all around), normal to the liner; the "
+                "mantle's wear is not measured",
+                a.row.c_str(), a.patch_m);
+  j["basis"] = basis;
+  j["detail"] = SettingText(s);
+  return j;
+}
+
+std::string SettingText(const SettingEstimate& s) {
+  const ThinnestArea& a = s.ring;
+  if (!std::isfinite(s.opening_mm)) return "setting: no estimate (no sensor sets a scale)";
+  char b[320];
+  if (s.css_set_mm)
+    std::snprintf(
+        b, sizeof b,
+        "setting: opened %.1f mm (band %.1f..%.1f) by the concave's wear at the discharge ring: CSS about %.0f mm (set %.0f)",
+        s.opening_mm, s.opening_lo_mm, s.opening_hi_mm, *s.css_set_mm + s.opening_mm, *s.css_set_mm);
+  else
+    std::snprintf(b, sizeof b, "setting: opened %.1f mm (band %.1f..%.1f) by the concave's wear at the discharge ring",
+                  s.opening_mm, s.opening_lo_mm, s.opening_hi_mm);
+  std::string out = b;
+  if (!a.supported) {
+    std::snprintf(b, sizeof b, "; not supported: its half-width %.1f mm is wider than the thinnest-area target", a.half_width_mm);
+    out += b;
+  }
+  if (a.extrapolated) out += "; from the DEM map alone (no sensor within reach of the ring)";
+  return out + "; the mantle's wear is not included";
 }
 
 nlohmann::ordered_json MapCalibrationJson(const MapCalibration& calibration) {

@@ -126,6 +126,7 @@ WearEstimate Estimate(const CrusherModel& model, const std::vector<Sample>& read
   std::vector<core::Reading> used;
   for (const size_t i : fresh) used.push_back(usable[i]);
   st.areas = core::FindThinnestAreas(plan, st.reconstruction, used);
+  st.setting = core::EstimateSetting(plan, st.reconstruction, used);
   st.has_wear = true;
   if (options.forecast) Forecast(model, usable, previous, st);
   return st;

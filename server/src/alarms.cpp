@@ -119,6 +119,17 @@ void AlarmEngine::WearFindings(const core::CrusherConfig& cfg, const core::Alarm
     f.detail = "thinnest area " + Fixed(a.thickness_mm) + " mm (band " + Fixed(a.lo_mm) + "-" + Fixed(a.hi_mm) + ") in row " +
                a.row + " at z " + Fixed(a.z_m, 2) + " m; alarm below " + Fixed(r.threshold) + " mm";
     out.push_back(std::move(f));
+    // The setting's opening by the concave's wear at the discharge ring: only a supported opening
+    // raises or clears (an unsupported band holds the alarm as it is).
+    const core::SettingEstimate& st = w->setting;
+    const core::AlarmRule& so = rules.Rule("setting_open");
+    Finding open{"setting_open", "discharge", Verdict::kHold, st.opening_mm, so.threshold, {}};
+    if (st.ring.supported && std::isfinite(st.opening_mm)) open.verdict = High<Verdict>(st.opening_mm, so);
+    open.detail = "the closed-side setting has opened " + Fixed(st.opening_mm) + " mm (band " + Fixed(st.opening_lo_mm) + "-" +
+                  Fixed(st.opening_hi_mm) +
+                  ") by the concave's wear at the discharge ring (the mantle's wear not included); alarm above " +
+                  Fixed(so.threshold) + " mm: raise the mantle, then raise alarms.setting_open.above_mm by the adjustment";
+    out.push_back(std::move(open));
     for (const core::RowForecast& rf : w->row_forecasts) {
       Finding due{"reline_due", rf.row, Verdict::kHold, {}, rules.Rule("reline_due").threshold, {}};
       if (rf.ok && !rf.below_minimum_since && !rf.reach_earliest) due.verdict = Verdict::kClear;

@@ -95,6 +95,7 @@ ordered_json WearJson(const CrusherState& st, bool with_faces) {
   // faces' own counts stay with the faces (face_level).
   j["thinnest_area"] = core::ThinnestAreaJson(st.areas.liner);
   j["worn_through"] = st.areas.liner.worn_through;
+  j["setting"] = core::SettingJson(st.setting);
   j["map_error_at_sensors"] = core::MapCalibrationJson(rec.calibration);
   j["face_level"] = {{"estimate_at_zero_faces", rec.worn_through_faces},
                      {"band_reaches_zero_faces", rec.maybe_worn_through_faces}};

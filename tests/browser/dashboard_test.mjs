@@ -228,6 +228,10 @@ async function main() {
   const served = (await http(base, 'GET', `/api/v1/crushers/${crusher}/wear?faces=false`)).json;
   if (served.thinnest_area.extrapolated)
     check(headline.includes('extrapolated from the DEM map, nearest sensor'), 'headline says the area is extrapolated from the DEM map');
+  // The setting's opening at the discharge ring, as served, with the mantle said to be left out.
+  const rate = await page.locator('[data-testid="kpi-rate-detail"]').textContent();
+  check(served.setting && /setting opened \d+\.\d mm \(band \d+\.\d–\d+\.\d\) at the discharge/.test(rate) && rate.includes('mantle not included'),
+    `setting line: ${rate}`);
   // Both sizes: the page and the per-row table fit without scrolling sideways, the reline column
   // shows, and the map's angle labels keep apart.
   for (const [vw, vh] of [[1400, 1000], [390, 844]]) {

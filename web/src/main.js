@@ -242,11 +242,20 @@ async function crusherPage(crusherId, initialSensor) {
       h('div', { class: 'card kpi', 'data-testid': 'kpi-rate' },
         h('div', { class: 'label' }, 'Fastest wear'),
         h('div', { class: 'value' }, fastest ? fmt(fastest.rate_mm_per_day, 2) : '–', ' ', h('small', {}, 'mm/day')),
-        detail('kpi-rate-detail', [fastest ? `row ${fastest.row}` : ''])),
+        detail('kpi-rate-detail', [fastest ? `row ${fastest.row}` : '', settingText(w?.setting)])),
       h('div', { class: 'card kpi', 'data-testid': 'kpi-latest' },
         h('div', { class: 'label' }, 'Latest reading'),
         h('div', { class: 'value', style: { fontSize: '20px' } }, latest ? fmtDateTime(latest) : '–'),
         detail('kpi-latest-detail', [`${st.detail.counters?.readings_stored ?? '–'} readings stored`, `${st.detail.counters?.duplicates ?? 0} duplicates · ${st.detail.counters?.rejected ?? 0} rejected${st.detail.counters?.conflicts ? ` · ${st.detail.counters.conflicts} conflicts` : ''}`])));
+  }
+
+  // The closed-side setting's opening by the concave's wear at the discharge ring (docs/wear.md,
+  // Setting): the mantle's wear is not in it, and an unsupported band says so.
+  function settingText(s) {
+    if (!s || s.opening_mm == null) return null;
+    const band = `${fmt(s.opening_band_mm[0])}–${fmt(s.opening_band_mm[1])}`;
+    const css = s.css_mm != null ? `: CSS ≈ ${fmt(s.css_mm, 0)} mm (set ${fmt(s.css_set_mm, 0)})` : '';
+    return `setting opened ${fmt(s.opening_mm)} mm (band ${band}) at the discharge${css}${s.supported ? '' : ', not supported'}; mantle not included`;
   }
 
   function drawTable() {

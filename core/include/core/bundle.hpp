@@ -52,6 +52,13 @@ struct ThinnestAreaConfig {
   double sensor_reach_m = 0.5;
 };
 
+/// crusher.json's optional "setting" (docs/bundle.md): what the closed-side setting's drift with the
+/// concave's wear is computed from (core::EstimateSetting).
+struct SettingConfig {
+  std::optional<double> css_mm;  ///< the closed-side setting set at installation (mm); none: the opening alone
+  double ring_height_m = 0.1;    ///< height of the discharge ring at the bottom of the lowest row
+};
+
 /// One alarm rule of crusher.json's optional "alarms" (docs/alarms.md). The threshold and the
 /// hysteresis are in the rule's own unit (AlarmRuleSpec): an alarm is raised past the threshold and
 /// cleared only once the value is back past it by the hysteresis, so a value at the edge never flaps.
@@ -71,6 +78,8 @@ struct AlarmRuleSpec {
   double hysteresis;
   const char* severity;
   double max;  ///< threshold and hysteresis lie in [0, max]
+  /// false: off until crusher.json or REST enables it (setting_open: the operator's own limit).
+  bool enabled_by_default = true;
 };
 /// Every rule, in the order docs/alarms.md lists them.
 const std::vector<AlarmRuleSpec>& AlarmRuleSpecs();
@@ -96,6 +105,7 @@ struct CrusherConfig {
   std::vector<double> joints_theta_deg;
   std::vector<SensorInfo> sensors;
   ThinnestAreaConfig thinnest_area;
+  SettingConfig setting;
   AlarmConfig alarms;  ///< crusher.json's "alarms" over DefaultAlarmConfig
 
   const SensorInfo* FindSensor(const std::string& id) const;

@@ -91,6 +91,24 @@ double AreaMean(const ReconstructionPlan& plan, const Eigen::VectorXd& values, c
 ThinnestArea ThinnestPatchOf(const ReconstructionPlan& plan, const Eigen::VectorXd& remaining, int row, double patch_m,
                              AreaShape shape = AreaShape::kSquare);
 
+/// How far the closed-side setting has opened with the concave's wear (docs/wear.md, Setting): the
+/// discharge ring (the lowest `setting.ring_height_m` of the lowest row, all around) as an area of
+/// FindThinnestAreas (the same sums, band and support), and the opening its wear makes. The
+/// mantle's wear is not measured, so the opening is the concave's part.
+struct SettingEstimate {
+  ThinnestArea ring;                 ///< the discharge ring: mean remaining thickness, band, support, reach
+  double opening_mm = 0;             ///< thickness_new - ring thickness (NaN: no scale)
+  double opening_lo_mm = 0;          ///< band: new - the ring's hi edge
+  double opening_hi_mm = 0;          ///< new - the ring's lo edge
+  std::optional<double> css_set_mm;  ///< crusher.json's setting.css_mm
+};
+SettingEstimate EstimateSetting(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used);
+/// {"opening_mm", "opening_band_mm", "css_set_mm", "css_mm", "css_band_mm" (null without css_mm),
+/// "supported", "half_width_mm", "ring": {...}, "basis", "detail"}; NaN is null.
+nlohmann::ordered_json SettingJson(const SettingEstimate& setting);
+/// One line for people: "setting: opened 12.3 mm (band ...) ...: CSS about 137 mm (set 125)".
+std::string SettingText(const SettingEstimate& setting);
+
 /// The one JSON form (REST `.../wear` and its rows, the retained MQTT `.../wear`, `linerwatch
 /// reconstruct --json`): {"thickness_mm", "band_mm": [lo, hi], "patch_m", "z_m", "theta_deg" (null
 /// for a whole row), "supported", "extrapolated", "nearest_sensor_m" (null: no sensor), "row",

@@ -37,6 +37,7 @@ struct WearEstimate {
   std::vector<std::string> stuck;  ///< sensors reporting one value while their row wears (core::StuckRule)
   core::Reconstruction reconstruction;
   core::ThinnestAreas areas;                ///< the thinnest areas the data support (liner, rows)
+  core::SettingEstimate setting;            ///< the closed-side setting's opening by the concave's wear
   std::shared_ptr<const ScannedPlan> scan;  ///< the latest scan up to the time (nullptr: none; applied when its detail is empty)
   std::vector<core::SensorForecast> sensor_forecasts;
   std::vector<core::RowForecast> row_forecasts;

@@ -251,6 +251,36 @@ TEST(Bundle, ThinnestAreaSettingsAreReadAndOutOfRangeValuesRefusedByName) {
   CHECK(with("7").find("thinnest_area") != std::string::npos);
 }
 
+// crusher.json's "setting" (the closed-side setting's drift, docs/wear.md): kept when in range,
+// every bad key or value refused by name; its alarm rule, setting_open, is off until enabled.
+TEST(Bundle, SettingIsReadAndBadKeysRefusedByNameItsAlarmOffByDefault) {
+  lw::test::WriteBundle(dir, "time,sensor_id,thickness_mm\n");
+  auto with = [&](const std::string& key, const std::string& value) {
+    std::string j = lw::test::kCrusherJson;
+    j.replace(j.find("\"crusher_id\": \"cr1\""), 19, "\"crusher_id\": \"cr1\", \"" + key + "\": " + value);
+    dir.Write("crusher.json", j);
+    return ErrorOf(dir);
+  };
+  const CrusherConfig plain = LoadCrusherConfig(dir.path() / "crusher.json");
+  CHECK_FALSE(plain.setting.css_mm.has_value());
+  DOUBLES_EQUAL(0.1, plain.setting.ring_height_m, 0);
+  CHECK_FALSE(plain.alarms.Rule("setting_open").enabled);
+  STRCMP_EQUAL("", with("setting", R"({"css_mm": 125, "ring_height_m": 0.2})").c_str());
+  const CrusherConfig c = LoadCrusherConfig(dir.path() / "crusher.json");
+  DOUBLES_EQUAL(125, *c.setting.css_mm, 0);
+  DOUBLES_EQUAL(0.2, c.setting.ring_height_m, 0);
+  STRCMP_CONTAINS("setting.css is not a setting key", with("setting", R"({"css": 125})").c_str());
+  STRCMP_CONTAINS("setting.css_mm must be in", with("setting", R"({"css_mm": 0})").c_str());
+  STRCMP_CONTAINS("setting.ring_height_m must be in", with("setting", R"({"ring_height_m": 5})").c_str());
+  STRCMP_CONTAINS("\"setting\" must be an object", with("setting", "125").c_str());
+  STRCMP_EQUAL("", with("alarms", R"({"setting_open": {"enabled": true, "above_mm": 15}})").c_str());
+  const CrusherConfig on = LoadCrusherConfig(dir.path() / "crusher.json");
+  CHECK(on.alarms.Rule("setting_open").enabled);
+  DOUBLES_EQUAL(15, on.alarms.Rule("setting_open").threshold, 0);
+  STRCMP_CONTAINS("alarms.setting_open.hysteresis_mm must be at most above_mm",
+                  with("alarms", R"({"setting_open": {"above_mm": 1, "hysteresis_mm": 2}})").c_str());
+}
+
 // crusher.json's "alarms" (docs/alarms.md): defaults without it (thinnest_area's threshold from the
 // liner's minimum), settings given kept and the others left at their defaults, and every bad rule,
 // setting, type or value refused naming its key.

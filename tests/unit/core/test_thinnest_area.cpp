@@ -261,3 +261,44 @@ TEST(ThinnestArea, AnUnsupportedAreaSaysWhatWouldNarrowItsBand) {
   const std::string map = ThinnestAreaJson(a)["detail"].get<std::string>();
   STRCMP_CONTAINS("the DEM map's own error here", map.c_str());
 }
+
+// The setting opens by the concave's wear at its discharge ring: the lowest ring_height_m of the
+// lowest row, all around. Its opening is the new thickness less the ring's mean remaining
+// thickness as the estimate has it there, its band the ring's band read from the other side, and
+// with crusher.json's css_mm the setting itself follows. Without a row scale there is no number.
+TEST(ThinnestArea, TheSettingOpensByTheDischargeRingsWear) {
+  CrusherConfig c = TwoRows();
+  c.setting.css_mm = 125;
+  c.setting.ring_height_m = 0.1;
+  const WearMap m = lw::test::CylinderMap(72, 40, [](double z) { return 2.0 - 0.5 * z; });
+  const ReconstructionPlan plan = PrepareReconstruction(c, m);
+  const std::vector<Reading> used = Used(c, 40, 70);
+  const Reconstruction rec = Reconstruct(plan, WearOf(used));
+  const SettingEstimate s = EstimateSetting(plan, rec, used);
+  STRCMP_EQUAL("LDWN", s.ring.row.c_str());
+  DOUBLES_EQUAL(0.05, s.ring.z_m, 1e-9);
+  DOUBLES_EQUAL(0.1, s.ring.patch_m, 1e-9);
+  CHECK(s.ring.shape == AreaShape::kRing);
+  DOUBLES_EQUAL(120.0 - AreaMean(plan, rec.remaining_mm, s.ring), s.opening_mm, 1e-6);
+  // The map wears 2 - z/2: the ring (z 0-0.1) about 1.975 / 1.75 times the sensor's 79.5 mm.
+  DOUBLES_EQUAL(79.5 * 1.975 / 1.75, s.opening_mm, 2.0);
+  CHECK(s.opening_lo_mm <= s.opening_mm && s.opening_mm <= s.opening_hi_mm);
+  DOUBLES_EQUAL(120.0 - s.ring.hi_mm, s.opening_lo_mm, 1e-9);
+  DOUBLES_EQUAL(120.0 - s.ring.lo_mm, s.opening_hi_mm, 1e-9);
+  const nlohmann::ordered_json j = SettingJson(s);
+  DOUBLES_EQUAL(125.0 + s.opening_mm, j["css_mm"].get<double>(), 0.01);
+  DOUBLES_EQUAL(125.0, j["css_set_mm"].get<double>(), 0);
+  STRCMP_CONTAINS("mantle", j["basis"].get<std::string>().c_str());
+  STRCMP_CONTAINS("CSS about", SettingText(s).c_str());
+
+  c.setting.css_mm.reset();
+  const ReconstructionPlan plain = PrepareReconstruction(c, m);
+  const nlohmann::ordered_json k = SettingJson(EstimateSetting(plain, Reconstruct(plain, WearOf(used)), used));
+  CHECK(k["css_mm"].is_null());
+  CHECK(k["css_band_mm"].is_null());
+  CHECK(k["opening_mm"].is_number());
+  const Reconstruction none = Reconstruct(plain, {});
+  const SettingEstimate n = EstimateSetting(plain, none, {});
+  CHECK(std::isnan(n.opening_mm));
+  CHECK(SettingJson(n)["opening_mm"].is_null());
+}

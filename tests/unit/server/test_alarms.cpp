@@ -213,6 +213,21 @@ TEST(Alarms, EveryRuleRaisesHoldsAndClears) {
   in.rejected_total = 14;  // 3 in the last hour
   LONGS_EQUAL(0, open("rejected_rate"));
 
+  st.setting.ring.supported = true;
+  st.setting.opening_mm = 30;  // above the default 20 mm, but the rule is off until enabled
+  LONGS_EQUAL(0, open("setting_open"));
+  p.alarms->UpdateRules(Id(), {{"setting_open", {{"enabled", true}}}}, "test", in.now_s);
+  LONGS_EQUAL(1, open("setting_open"));
+  STRCMP_CONTAINS("raise the mantle", p.alarms->Open(Id()).back().detail.c_str());
+  st.setting.opening_mm = 19;  // within 20 - 2
+  LONGS_EQUAL(1, open("setting_open"));
+  st.setting.ring.supported = false;  // an unsupported opening neither raises nor clears
+  st.setting.opening_mm = 0;
+  LONGS_EQUAL(1, open("setting_open"));
+  st.setting.ring.supported = true;
+  st.setting.opening_mm = 18;
+  LONGS_EQUAL(0, open("setting_open"));
+
   st.reconstruction.status = lw::core::kStatusUnsupported;
   LONGS_EQUAL(1, open("unsupported"));
   p.alarms->UpdateRules(Id(), {{"unsupported", {{"enabled", false}}}}, "test", in.now_s);

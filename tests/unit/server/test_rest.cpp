@@ -385,6 +385,19 @@ TEST(RestHandlers, WearAndForecastOnceThereAreReadings) {
   LONGS_EQUAL(200, res.status);
   LONGS_EQUAL(Folder().bundle.map.face_count(), res.json["remaining_mm"].size());
   CHECK_FALSE(f.Get(wear, {Folder().id()}, {{"faces", "false"}}).json.contains("remaining_mm"));
+  // The setting's opening at the discharge ring: the lowest row's bottom, a number with its band,
+  // no CSS without crusher.json's setting.css_mm.
+  {
+    const json& setting = res.json["setting"];
+    const auto& rows = Folder().bundle.crusher.rows;
+    const auto lowest =
+        std::min_element(rows.begin(), rows.end(), [](const auto& a, const auto& b) { return a.z_min_m < b.z_min_m; });
+    STRCMP_EQUAL(lowest->name.c_str(), setting["ring"]["row"].get<std::string>().c_str());
+    const double opening = setting["opening_mm"].get<double>();
+    CHECK(setting["opening_band_mm"][0].get<double>() <= opening && opening <= setting["opening_band_mm"][1].get<double>());
+    DOUBLES_EQUAL(Folder().bundle.crusher.thickness_new_mm - setting["ring"]["thickness_mm"].get<double>(), opening, 0.02);
+    CHECK(setting["css_mm"].is_null());
+  }
   res = f.Get(wear, {Folder().id()}, {{"format", "png"}});
   LONGS_EQUAL(400, res.status);
   STRCMP_EQUAL("format='png': use json, vtk or csv", ErrorOf(res).c_str());
