@@ -206,7 +206,8 @@ void ApiTour::Reads() {
   rec.Add("get", kCrusher + "/mesh", base + "/mesh", http_.Get(base + "/mesh"));
   for (const char* q : {"", "?faces=false", "?format=vtk", "?format=csv"})
     rec.Add("get", kCrusher + "/wear", base + "/wear" + q, http_.Get(base + "/wear" + q));
-  const std::string at = lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(lw::test::LatestReadingS(folder_.bundle) - 86400)));
+  const std::string at =
+      lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(lw::test::LatestReadingS(folder_.bundle) - 86400)));
   rec.Add("get", kCrusher + "/wear", base + "/wear?at=" + at, http_.Get(base + "/wear?at=" + at));
   rec.Add("get", kCrusher + "/wear", base + "/wear?format=xml", http_.Get(base + "/wear?format=xml"), 400);
   rec.Add("get", kCrusher + "/wear", base + "/wear?at=yesterday", http_.Get(base + "/wear?at=yesterday"), 400);
@@ -219,7 +220,6 @@ void ApiTour::Reads() {
   rec.Add("get", kCrusher + "/alarms/rules", base + "/alarms/rules", http_.Get(base + "/alarms/rules"));
   rec.Add("get", kCrusher + "/plan", base + "/plan?sensors=4", http_.Get(base + "/plan?sensors=4"));
   rec.Add("get", kCrusher + "/plan", base + "/plan", http_.Get(base + "/plan"), 400);
-  rec.Add("get", kCrusher + "/plan", base + "/plan?sensors=100", http_.Get(base + "/plan?sensors=100"), 0);
   rec.Add("get", "/api/v1/rejected", "/api/v1/rejected", http_.Get("/api/v1/rejected"));
   rec.Add("get", "/api/v1/rejected", "/api/v1/rejected?limit=0", http_.Get("/api/v1/rejected?limit=0"), 400);
   rec.Add("get", "/api/v1/whoami", "/api/v1/whoami", http_.Get("/api/v1/whoami"));
@@ -252,9 +252,14 @@ void ApiTour::Writes() {
     if (!res || json::parse(res->body)["status"] != "running") break;
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
-  const json bad_body = {{"readings", {{{"sensor", folder_.bundle.crusher.sensors.front().id}, {"seq", 1}, {"time", "not a time"}}}}};
-  rec.Add("post", kCrusher + "/readings", base + "/readings",
-          http_.Post(base + "/readings", bad_body.dump(), "application/json"), 422);
+  // Done, with its result: the result's schema is checked on a real diagnosis, not only on null.
+  const json diagnosis = json::parse(rec.exchanges.back()["body"].get<std::string>());
+  STRCMP_EQUAL_TEXT("done", diagnosis["status"].get<std::string>().c_str(), diagnosis.dump().substr(0, 300).c_str());
+  CHECK(diagnosis["result"].is_object());
+  const json bad_body = {
+      {"readings", {{{"sensor", folder_.bundle.crusher.sensors.front().id}, {"seq", 1}, {"time", "not a time"}}}}};
+  rec.Add("post", kCrusher + "/readings", base + "/readings", http_.Post(base + "/readings", bad_body.dump(), "application/json"),
+          422);
   rec.Add("post", kCrusher + "/readings", base + "/readings", http_.Post(base + "/readings", "{not json", "application/json"),
           400);
   rec.Add("post", kCrusher + "/readings", base + "/readings", http_.Post(base + "/readings", "{}", "text/plain"), 415);
@@ -313,8 +318,8 @@ void ApiTour::Refusals() {
           Raw(port, "GET /healthz HTTP/1.1\r\n" + host + "X-Big: " + std::string(20000, 'a') + "\r\n\r\n"), 431);
   rec.Add("get", "/healthz", "/healthz (Transfer-Encoding: gzip)",
           Raw(port, "GET /healthz HTTP/1.1\r\n" + host + "Transfer-Encoding: gzip\r\n\r\n"), 501);
-  rec.Add("get", "/healthz", "/healthz?x=<20 kB>", Raw(port, "GET /healthz?x=" + std::string(20000, 'a') + " HTTP/1.1\r\n" + host + "\r\n"),
-          414);
+  rec.Add("get", "/healthz", "/healthz?x=<20 kB>",
+          Raw(port, "GET /healthz?x=" + std::string(20000, 'a') + " HTTP/1.1\r\n" + host + "\r\n"), 414);
   rec.Add("get", "/healthz", "/healthz (a malformed header line)",
           Raw(port, "GET /healthz HTTP/1.1\r\n" + host + "no colon here\r\n\r\n"), 400);
 }
@@ -322,8 +327,8 @@ void ApiTour::Refusals() {
 /// A server with --tokens: no token, a token without the write scope, whoami with a token.
 void ApiTour::WithTokens() {
   const std::string tokens = folder_.dir.File("tokens.json");
-  std::ofstream(tokens) << json{{"tokens", {{{"name", "viewer"}, {"sha256", lw::core::Sha256Hex("view-secret")}, {"scopes", {"read"}}}}}}
-                               .dump();
+  std::ofstream(tokens)
+      << json{{"tokens", {{{"name", "viewer"}, {"sha256", lw::core::Sha256Hex("view-secret")}, {"scopes", {"read"}}}}}}.dump();
   Server guarded;
   guarded.Start(broker_.uri(), folder_, {"--tokens", tokens, "--client-id", "linerwatch-server-tokens"});
   httplib::Client http("127.0.0.1", guarded.port);
@@ -364,4 +369,5 @@ TEST(ServerOpenApiLive, EveryAnswerOfEveryOperationMatchesTheDocument) {
   std::string said;
   const std::string problem = Validate(folder.dir, doc->body, tour.rec.exchanges, &said);
   CHECK_TEXT(problem.empty(), problem.c_str());
+  UT_PRINT(said.c_str());  // the (operation, status) pairs checked, in ctest --verbose
 }

@@ -164,6 +164,8 @@ def main():
     statuses = sorted({(x["method"].upper() + " " + str(x["path"]), x["status"]) for x in exchanges})
     print("%d answers checked, %d operations called, %d distinct (operation, status) pairs" %
           (len(exchanges), len(called), len(statuses)))
+    for op, status in statuses:
+        print("  %s %d" % (op, status))
     for f in failures:
         print("FAIL " + f)
     return 1 if failures else 0
