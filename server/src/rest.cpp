@@ -221,16 +221,20 @@ const std::string kAlarmSchema =
 const std::string kAlarmListSchema =
     R"j({"type":"object","required":["alarms"],"properties":{"alarms":{"type":"array","items":)j" + kAlarmSchema + "}}}";
 
-const std::vector<Route>& Resources::Routes() {
+namespace {
+// Statuses several handlers share.
+constexpr StatusDoc kStarting = {"503",
+                                 "the server is starting: the crusher is not loaded (or its wear not computed) yet; "
+                                 "Retry-After: 2"};
+constexpr StatusDoc kReadOnly = {"503", "not kept by this server (it serves read-only: its disk is full)"};
+constexpr StatusDoc kBadQuery = {"400", "a query parameter is malformed or out of range (the message names it)"};
+constexpr const char* kJson = "application/json";
+}  // namespace
+
+/// The routes of liveness, crushers, sensors, readings and the mesh (in the order of the document).
+std::vector<Route> Resources::ReadingRoutes() {
   using namespace schemas;  // NOLINT: the schema constants, by their short names
-  const char* const kJson = "application/json";
-  // Statuses several handlers share.
-  const StatusDoc starting = {"503",
-                              "the server is starting: the crusher is not loaded (or its wear not computed) yet; "
-                              "Retry-After: 2"};
-  const StatusDoc read_only = {"503", "not kept by this server (it serves read-only: its disk is full)"};
-  const StatusDoc bad_query = {"400", "a query parameter is malformed or out of range (the message names it)"};
-  static const std::vector<Route> routes = {
+  return {
       {Method::kGet,
        "/healthz",
        "Liveness: database and broker state",
@@ -262,7 +266,7 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        nullptr,
        kCrusherDetail.c_str(),
-       {starting}},
+       {kStarting}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/sensors",
        "Latest reading of each sensor",
@@ -273,7 +277,7 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        nullptr,
        kSensorList.c_str(),
-       {starting}},
+       {kStarting}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/sensors/{sensor}/readings",
        "Readings of one sensor, oldest first, paged with cursors",
@@ -291,7 +295,7 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        nullptr,
        kReadingsPage.c_str(),
-       {bad_query, {"404", "unknown sensor of the crusher"}}},
+       {kBadQuery, {"404", "unknown sensor of the crusher"}}},
       {Method::kPost,
        "/api/v1/crushers/{crusher}/readings",
        "Store readings {\"readings\": [{sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv}]}",
@@ -317,6 +321,13 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        nullptr,
        kMesh.c_str()},
+  };
+}
+
+/// The routes of wear, forecast, diagnosis and liner campaigns.
+std::vector<Route> Resources::WearRoutes() {
+  using namespace schemas;  // NOLINT: the schema constants, by their short names
+  return {
       {Method::kGet,
        "/api/v1/crushers/{crusher}/wear",
        "Global wear (seed Eq. 9): per-face remaining thickness, per-row summary, minimum and where",
@@ -334,7 +345,7 @@ const std::vector<Route>& Resources::Routes() {
        {{"400", "format is not json, vtk or csv; at is malformed, before installed_at or in the future"},
         {"404", "no readings yet (or none at or before at=)"},
         {"500", "the VTK file cannot be made"},
-        starting}},
+        kStarting}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/forecast",
        "Per row and sensor: the date the minimum thickness is reached, with a band",
@@ -349,7 +360,7 @@ const std::vector<Route>& Resources::Routes() {
        kForecast.c_str(),
        {{"400", "format is not json or csv; at is malformed, before installed_at or in the future"},
         {"404", "no readings yet (or none at or before at=)"},
-        starting}},
+        kStarting}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/diagnosis",
        "Latest diagnosis (docs/diagnosis.md, section Output) and its status",
@@ -360,7 +371,7 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        nullptr,
        kDiagnosis.c_str(),
-       {read_only}},
+       {kReadOnly}},
       {Method::kPost,
        "/api/v1/crushers/{crusher}/diagnosis",
        "Start a diagnosis on the stored readings",
@@ -371,7 +382,7 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        nullptr,
        kDiagnosisStarted.c_str(),
-       {{"409", "a diagnosis of the crusher is already running"}, read_only}},
+       {{"409", "a diagnosis of the crusher is already running"}, kReadOnly}},
       {Method::kPost,
        "/api/v1/crushers/{crusher}/relines",
        "Reline: close the running liner campaign (its end-of-life scan and last readings kept) and start the next "
@@ -390,7 +401,7 @@ const std::vector<Route>& Resources::Routes() {
          "a value that does not fit: a thickness not above the minimum, a time not after the running campaign's "
          "start or in the future, a scan or sensors the crusher cannot have"},
         {"500", "not stored: the database refused it"},
-        read_only}},
+        kReadOnly}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/campaigns",
        "The crusher's liner campaigns, oldest first (end null for the running one)",
@@ -401,7 +412,14 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        nullptr,
        kCampaignListSchema.c_str(),
-       {read_only}},
+       {kReadOnly}},
+  };
+}
+
+/// The routes of alarms, the sensor plan, events, the quarantine, the caller, this document and metrics.
+std::vector<Route> Resources::AlarmAndServiceRoutes() {
+  using namespace schemas;  // NOLINT: the schema constants, by their short names
+  return {
       {Method::kGet,
        "/api/v1/crushers/{crusher}/alarms",
        "Alarms of the crusher, newest first: the open ones (active, acknowledged) and those cleared in the last 7 days, "
@@ -414,7 +432,7 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        nullptr,
        kAlarmListSchema.c_str(),
-       {{"400", "state is not active, acknowledged or cleared; limit is not 1..1000"}, read_only}},
+       {{"400", "state is not active, acknowledged or cleared; limit is not 1..1000"}, kReadOnly}},
       {Method::kPost,
        "/api/v1/crushers/{crusher}/alarms/{id}/ack",
        "Acknowledge an alarm (the token's name and the time are kept; an acknowledged one again: 200, unchanged; "
@@ -426,7 +444,7 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        nullptr,
        kAlarmSchema.c_str(),
-       {{"404", "unknown alarm of the crusher"}, {"409", "the alarm is cleared: nothing to acknowledge"}, read_only}},
+       {{"404", "unknown alarm of the crusher"}, {"409", "the alarm is cleared: nothing to acknowledge"}, kReadOnly}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/alarms/rules",
        "The alarm rules in force: crusher.json's \"alarms\" with the changes made over REST (docs/alarms.md)",
@@ -437,7 +455,7 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        nullptr,
        kAlarmRules.c_str(),
-       {read_only}},
+       {kReadOnly}},
       {Method::kPost,
        "/api/v1/crushers/{crusher}/alarms/rules",
        "Change alarm rules: an \"alarms\" object as in crusher.json, only the keys given change (400 naming a bad key)",
@@ -448,7 +466,7 @@ const std::vector<Route>& Resources::Routes() {
        kSmallBodyBytes,
        kAlarmRulesRequest.c_str(),
        kAlarmRules.c_str(),
-       {{"400", "the body is not JSON, or names a rule or setting that does not exist or a value out of range"}, read_only}},
+       {{"400", "the body is not JSON, or names a rule or setting that does not exist or a value out of range"}, kReadOnly}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/plan",
        "Where to cast the next liner's sensors, the expected band of each layout, and what a scan now would do "
@@ -511,6 +529,16 @@ const std::vector<Route>& Resources::Routes() {
        &Resources::Metrics,
        {"text/plain"}},
   };
+}
+
+const std::vector<Route>& Resources::Routes() {
+  static const std::vector<Route> routes = [] {
+    std::vector<Route> all;
+    for (std::vector<Route> (*group)() : {&ReadingRoutes, &WearRoutes, &AlarmAndServiceRoutes}) {
+      for (Route& r : group()) all.push_back(std::move(r));
+    }
+    return all;
+  }();
   return routes;
 }
 

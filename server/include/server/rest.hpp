@@ -184,6 +184,10 @@ class Resources {
   void Stop() { stopping_ = true; }
 
  private:
+  /// Routes(), in three parts (each a table of its handlers).
+  static std::vector<Route> ReadingRoutes();
+  static std::vector<Route> WearRoutes();
+  static std::vector<Route> AlarmAndServiceRoutes();
   Response Health(const Request&);
   Response Crushers(const Request&);
   Response CrusherDetail(const Request&);
