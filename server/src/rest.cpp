@@ -18,6 +18,7 @@
 #include "server/csv_export.hpp"
 #include "estimate/plan.hpp"
 #include "server/openapi.hpp"
+#include "rest_schemas.hpp"
 
 namespace lw::server::rest {
 namespace {
@@ -259,13 +260,17 @@ const std::string kCampaignListSchema =
 const char* const kPlanSchema =
     R"j({"type":"object","required":["sensors","expected_band_mm","liner_band_mm","rows","candidates","objective"],)j"
     R"j("properties":{"sensors":{"type":"array","items":{"type":"object","required":["row","z_m","theta_deg"],)j"
-    R"j("properties":{"row":{"type":"string"},"z_m":{"type":"number"},"theta_deg":{"type":"number"},)j"
-    R"j("keeps":{"type":["string","null"]}}}},)j"
-    R"j("expected_band_mm":{"type":"object","properties":{"current":{"type":["number","null"]},"proposed":{"type":["number","null"]}}},)j"
-    R"j("liner_band_mm":{"type":"object","properties":{"current":{"type":["number","null"]},"proposed":{"type":["number","null"]}}},)j"
-    R"j("rows":{"type":"array","items":{"type":"object","required":["row","sensors","band_mm"]}},)j"
-    R"j("compared_on":{"type":"object"},"candidates":{"type":"integer"},"objective":{"type":"string"},)j"
-    R"j("scan_now":{"type":["object","null"]}}})j";
+    R"j("properties":{"row":{"type":"string"},"z_m":{"type":"number","nullable":true},)j"
+    R"j("theta_deg":{"type":"number","nullable":true},"keeps":{"type":"string","nullable":true}}}},)j"
+    R"j("expected_band_mm":{"type":"object","properties":{"current":{"type":"number","nullable":true},"proposed":{"type":"number","nullable":true}}},)j"
+    R"j("liner_band_mm":{"type":"object","properties":{"current":{"type":"number","nullable":true},"proposed":{"type":"number","nullable":true}}},)j"
+    R"j("rows":{"type":"array","items":{"type":"object","required":["row","sensors","band_mm"],"properties":{)j"
+    R"j("row":{"type":"string"},"sensors":{"type":"object","properties":{"current":{"type":"integer"},)j"
+    R"j("proposed":{"type":"integer"}}},"band_mm":{"type":"object","properties":{"current":{"type":"number","nullable":true},)j"
+    R"j("proposed":{"type":"number","nullable":true}}}}}},)j"
+    R"j("compared_on":{"type":"object","properties":{"shape":{"type":"string","enum":["row","square"]},)j"
+    R"j("patch_m":{"type":"number","nullable":true}}},"candidates":{"type":"integer"},"objective":{"type":"string"},)j"
+    R"j("scan_now":{"type":"object","nullable":true,"additionalProperties":true}}})j";
 
 /// OpenAPI schemas of the alarm routes (docs/alarms.md).
 const std::string kAlarmSchema =
@@ -281,17 +286,63 @@ const std::string kAlarmSchema =
 const std::string kAlarmListSchema =
     R"j({"type":"object","required":["alarms"],"properties":{"alarms":{"type":"array","items":)j" + kAlarmSchema + "}}}";
 
-const std::vector<Route>& Resources::Routes() {
-  static const std::vector<Route> routes = {
-      {Method::kGet, "/healthz", "Liveness: database and broker state", {}, "200", &Resources::Health},
-      {Method::kGet, "/api/v1/crushers", "Crushers with their latest minimum thickness", {}, "200", &Resources::Crushers},
+namespace {
+// Statuses several handlers share.
+constexpr StatusDoc kStarting = {"503",
+                                 "the server is starting: the crusher is not loaded (or its wear not computed) yet; "
+                                 "Retry-After: 2"};
+constexpr StatusDoc kReadOnly = {"503", "not kept by this server (it serves read-only: its disk is full)"};
+constexpr StatusDoc kBadQuery = {"400", "a query parameter is malformed or out of range (the message names it)"};
+constexpr const char* kJson = "application/json";
+}  // namespace
+
+/// The routes of liveness, crushers, sensors, readings and the mesh (in the order of the document).
+std::vector<Route> Resources::ReadingRoutes() {
+  using namespace schemas;  // NOLINT: the schema constants, by their short names
+  return {
+      {Method::kGet,
+       "/healthz",
+       "Liveness: database and broker state",
+       {},
+       "200",
+       &Resources::Health,
+       {kJson},
+       kSmallBodyBytes,
+       nullptr,
+       kHealth.c_str(),
+       {{"503", "degraded: the database cannot be read or its disk is full (the same body as 200)", kHealth.c_str()}}},
+      {Method::kGet,
+       "/api/v1/crushers",
+       "Crushers with their latest minimum thickness",
+       {},
+       "200",
+       &Resources::Crushers,
+       {kJson},
+       kSmallBodyBytes,
+       nullptr,
+       kCrusherList.c_str()},
       {Method::kGet,
        "/api/v1/crushers/{crusher}",
        "Crusher geometry, sensors, map hash and counters",
        {},
        "200",
-       &Resources::CrusherDetail},
-      {Method::kGet, "/api/v1/crushers/{crusher}/sensors", "Latest reading of each sensor", {}, "200", &Resources::Sensors},
+       &Resources::CrusherDetail,
+       {kJson},
+       kSmallBodyBytes,
+       nullptr,
+       kCrusherDetail.c_str(),
+       {kStarting}},
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}/sensors",
+       "Latest reading of each sensor",
+       {},
+       "200",
+       &Resources::Sensors,
+       {kJson},
+       kSmallBodyBytes,
+       nullptr,
+       kSensorList.c_str(),
+       {kStarting}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/sensors/{sensor}/readings",
        "Readings of one sensor, oldest first, paged with cursors",
@@ -299,56 +350,104 @@ const std::vector<Route>& Resources::Routes() {
         {"to", "string", "ISO-8601 UTC, inclusive"},
         {"limit", "integer", "1..5000, default 500"},
         {"cursor", "string", "next_cursor of the previous page"},
-        {"format", "string", "json (default) or csv (RFC 4180; the next page's cursor in the X-Next-Cursor header)"}},
+        {"format",
+         "string",
+         "json (default) or csv (RFC 4180; the next page's cursor in the X-Next-Cursor header)",
+         {"json", "csv"}}},
        "200",
        &Resources::Readings,
-       {"application/json", "text/csv"}},
+       {kJson, "text/csv"},
+       kSmallBodyBytes,
+       nullptr,
+       kReadingsPage.c_str(),
+       {kBadQuery, {"404", "unknown sensor of the crusher"}}},
       {Method::kPost,
        "/api/v1/crushers/{crusher}/readings",
        "Store readings {\"readings\": [{sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv}]}",
        {},
        "200",
        &Resources::PostReadings,
-       {"application/json"},
-       kMaxReadingsBodyBytes},
+       {kJson},
+       kMaxReadingsBodyBytes,
+       kPostReadingsRequest.c_str(),
+       kPostReadingsResult.c_str(),
+       {{"400", "the body is not {\"readings\": [...]} JSON, or is nested too deeply"},
+        {"413", "more than 10000 readings"},
+        {"422", "no reading was taken: each was rejected or held (what happened to each, and why)",
+         kPostReadingsNoneTaken.c_str()},
+        {"503", "not stored: the database refused the batch (or the server serves read-only)"}}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/mesh",
        "As-new liner mesh: points, faces, face z and theta",
        {},
        "200",
-       &Resources::Mesh},
+       &Resources::Mesh,
+       {kJson},
+       kSmallBodyBytes,
+       nullptr,
+       kMesh.c_str()},
+  };
+}
+
+/// The routes of wear, forecast, diagnosis and liner campaigns.
+std::vector<Route> Resources::WearRoutes() {
+  using namespace schemas;  // NOLINT: the schema constants, by their short names
+  return {
       {Method::kGet,
        "/api/v1/crushers/{crusher}/wear",
        "Global wear (seed Eq. 9): per-face remaining thickness, per-row summary, minimum and where",
-       {{"format", "string", "json (default), vtk (legacy VTK for ParaView) or csv (per face)"},
+       {{"format", "string", "json (default), vtk (legacy VTK for ParaView) or csv (per face)", {"json", "vtk", "csv"}},
         {"faces", "boolean", "false: leave out the per-face array"},
         {"at", "string",
          "ISO-8601 UTC: the wear at that past time, from the readings and scans up to it (400 before installed_at, in the "
          "future or malformed; docs/server.md, Wear at a past time)"}},
        "200",
        &Resources::Wear,
-       {"application/json", "application/octet-stream", "text/csv"}},
+       {kJson, "application/octet-stream", "text/csv"},
+       kSmallBodyBytes,
+       nullptr,
+       kWear.c_str(),
+       {{"400", "format is not json, vtk or csv; at is malformed, before installed_at or in the future"},
+        {"404", "no readings yet (or none at or before at=)"},
+        {"500", "the VTK file cannot be made"},
+        kStarting}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/forecast",
        "Per row and sensor: the date the minimum thickness is reached, with a band",
-       {{"format", "string", "json (default) or csv (RFC 4180: one record per row, then per sensor)"},
+       {{"format", "string", "json (default) or csv (RFC 4180: one record per row, then per sensor)", {"json", "csv"}},
         {"at", "string",
          "ISO-8601 UTC: the forecast made from the readings and scans up to that past time (the same rules as .../wear?at=)"}},
        "200",
        &Resources::Forecast,
-       {"application/json", "text/csv"}},
+       {kJson, "text/csv"},
+       kSmallBodyBytes,
+       nullptr,
+       kForecast.c_str(),
+       {{"400", "format is not json or csv; at is malformed, before installed_at or in the future"},
+        {"404", "no readings yet (or none at or before at=)"},
+        kStarting}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/diagnosis",
        "Latest diagnosis (docs/diagnosis.md, section Output) and its status",
        {},
        "200",
-       &Resources::Diagnosis},
+       &Resources::Diagnosis,
+       {kJson},
+       kSmallBodyBytes,
+       nullptr,
+       kDiagnosis.c_str(),
+       {kReadOnly}},
       {Method::kPost,
        "/api/v1/crushers/{crusher}/diagnosis",
        "Start a diagnosis on the stored readings",
        {},
        "202",
-       &Resources::StartDiagnosis},
+       &Resources::StartDiagnosis,
+       {kJson},
+       kSmallBodyBytes,
+       nullptr,
+       kDiagnosisStarted.c_str(),
+       {{"409", "a diagnosis of the crusher is already running"}, kReadOnly}},
       {Method::kPost,
        "/api/v1/crushers/{crusher}/relines",
        "Reline: close the running liner campaign (its end-of-life scan and last readings kept) and start the next "
@@ -356,32 +455,49 @@ const std::vector<Route>& Resources::Routes() {
        {},
        "201",
        &Resources::PostReline,
-       {"application/json"},
+       {kJson},
        kMaxRelineBodyBytes,
        kRelineRequestSchema.c_str(),
-       kCampaignSchema.c_str()},
+       kCampaignSchema.c_str(),
+       {{"200", "already stored: the campaign this time started", kCampaignSchema.c_str()},
+        {"400", "the body is not the reline object (the message names the field)"},
+        {"409", "a campaign already starts at this time with other values"},
+        {"422",
+         "a value that does not fit: a thickness not above the minimum, a time not after the running campaign's "
+         "start or in the future, a scan or sensors the crusher cannot have"},
+        {"500", "not stored: the database refused it"},
+        kReadOnly}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/campaigns",
        "The crusher's liner campaigns, oldest first (end null for the running one)",
        {},
        "200",
        &Resources::CampaignList,
-       {"application/json"},
+       {kJson},
        kSmallBodyBytes,
        nullptr,
-       kCampaignListSchema.c_str()},
+       kCampaignListSchema.c_str(),
+       {kReadOnly}},
+  };
+}
+
+/// The routes of alarms, the sensor plan, events, the quarantine, the caller, this document and metrics.
+std::vector<Route> Resources::AlarmAndServiceRoutes() {
+  using namespace schemas;  // NOLINT: the schema constants, by their short names
+  return {
       {Method::kGet,
        "/api/v1/crushers/{crusher}/alarms",
        "Alarms of the crusher, newest first: the open ones (active, acknowledged) and those cleared in the last 7 days, "
        "each with its audit trail (docs/alarms.md)",
-       {{"state", "string", "active, acknowledged or cleared: only alarms in that state"},
+       {{"state", "string", "active, acknowledged or cleared: only alarms in that state", {"active", "acknowledged", "cleared"}},
         {"limit", "integer", "1..1000, default 100"}},
        "200",
        &Resources::AlarmList,
-       {"application/json"},
+       {kJson},
        kSmallBodyBytes,
        nullptr,
-       kAlarmListSchema.c_str()},
+       kAlarmListSchema.c_str(),
+       {{"400", "state is not active, acknowledged or cleared; limit is not 1..1000"}, kReadOnly}},
       {Method::kPost,
        "/api/v1/crushers/{crusher}/alarms/{id}/ack",
        "Acknowledge an alarm (the token's name and the time are kept; an acknowledged one again: 200, unchanged; "
@@ -389,22 +505,33 @@ const std::vector<Route>& Resources::Routes() {
        {},
        "200",
        &Resources::AckAlarm,
-       {"application/json"},
+       {kJson},
        kSmallBodyBytes,
        nullptr,
-       kAlarmSchema.c_str()},
+       kAlarmSchema.c_str(),
+       {{"404", "unknown alarm of the crusher"}, {"409", "the alarm is cleared: nothing to acknowledge"}, kReadOnly}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/alarms/rules",
        "The alarm rules in force: crusher.json's \"alarms\" with the changes made over REST (docs/alarms.md)",
        {},
        "200",
-       &Resources::AlarmRules},
+       &Resources::AlarmRules,
+       {kJson},
+       kSmallBodyBytes,
+       nullptr,
+       kAlarmRules.c_str(),
+       {kReadOnly}},
       {Method::kPost,
        "/api/v1/crushers/{crusher}/alarms/rules",
        "Change alarm rules: an \"alarms\" object as in crusher.json, only the keys given change (400 naming a bad key)",
        {},
        "200",
-       &Resources::SetAlarmRules},
+       &Resources::SetAlarmRules,
+       {kJson},
+       kSmallBodyBytes,
+       kAlarmRulesRequest.c_str(),
+       kAlarmRules.c_str(),
+       {{"400", "the body is not JSON, or names a rule or setting that does not exist or a value out of range"}, kReadOnly}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/plan",
        "Where to cast the next liner's sensors, the expected band of each layout, and what a scan now would do "
@@ -412,29 +539,53 @@ const std::vector<Route>& Resources::Routes() {
        {{"sensors", "integer", "K, how many sensors the next liner gets (required, 1..100)"}},
        "200",
        &Resources::Plan,
-       {"application/json"},
+       {kJson},
        kSmallBodyBytes,
        nullptr,
-       kPlanSchema},
+       kPlanSchema,
+       {{"400", "sensors is missing or not 1..100"}, {"422", "more sensors than the rows have places for"}}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/events",
        "Server-Sent Events: `reading` and `wear` as they are committed",
        {{"access_token", "string", "the bearer token (EventSource cannot set headers)"}},
        "200",
-       &Resources::Events},
+       &Resources::Events,
+       {"text/event-stream"},
+       kSmallBodyBytes,
+       nullptr,
+       nullptr,
+       {{"503", "too many open event streams (on the server, or from this address); retry later"}}},
       {Method::kGet,
        "/api/v1/rejected",
        "Quarantined messages that failed validation, newest first",
        {{"limit", "integer", "1..1000, default 100"}},
        "200",
-       &Resources::RejectedList},
+       &Resources::RejectedList,
+       {kJson},
+       kSmallBodyBytes,
+       nullptr,
+       kRejectedList.c_str(),
+       {{"400", "limit is not 1..1000"}}},
       {Method::kGet,
        "/api/v1/whoami",
        "The caller's token name and scopes ({auth: false} on an open server)",
        {},
        "200",
-       &Resources::WhoAmI},
-      {Method::kGet, "/api/v1/openapi.json", "This document", {}, "200", &Resources::OpenApi},
+       &Resources::WhoAmI,
+       {kJson},
+       kSmallBodyBytes,
+       nullptr,
+       kWhoAmI.c_str()},
+      {Method::kGet,
+       "/api/v1/openapi.json",
+       "This document",
+       {},
+       "200",
+       &Resources::OpenApi,
+       {kJson},
+       kSmallBodyBytes,
+       nullptr,
+       kOpenApi.c_str()},
       {Method::kGet,
        "/metrics",
        "Prometheus text format 0.0.4: ingest, wear worker, HTTP, event streams, store (docs/server.md, Metrics)",
@@ -443,6 +594,16 @@ const std::vector<Route>& Resources::Routes() {
        &Resources::Metrics,
        {"text/plain"}},
   };
+}
+
+const std::vector<Route>& Resources::Routes() {
+  static const std::vector<Route> routes = [] {
+    std::vector<Route> all;
+    for (std::vector<Route> (*group)() : {&ReadingRoutes, &WearRoutes, &AlarmAndServiceRoutes}) {
+      for (Route& r : group()) all.push_back(std::move(r));
+    }
+    return all;
+  }();
   return routes;
 }
 

@@ -103,6 +103,7 @@ struct QueryDoc {
   const char* name;
   const char* type;  ///< "string", "integer", "boolean"
   const char* description;
+  std::vector<const char*> values = {};  ///< the values it takes (an OpenAPI enum); empty: any of its type
 };
 
 /// A body limit for routes whose body is a small JSON document or nothing.
@@ -118,6 +119,15 @@ inline constexpr uint64_t kPostedReadingBytes = 1024;
 /// that a body is refused as it arrives, not after it is parsed whole.
 inline constexpr uint64_t kMaxReadingsBodyBytes = kMaxPostedReadings * kPostedReadingBytes + 4096;
 
+/// A status a route's handler answers besides its success status (OpenAPI): why, and the body's
+/// schema (null: the API's error body {"error": ...}). The statuses of the HTTP layer (http_api.cpp,
+/// http_guard.cpp) are added to every operation by the OpenAPI generator.
+struct StatusDoc {
+  const char* status;
+  const char* description;
+  const char* schema = nullptr;
+};
+
 struct Route {
   Method method;
   /// OpenAPI path template; {name} is one path segment, passed in Request::path in order.
@@ -131,10 +141,12 @@ struct Route {
   /// The largest request body the route accepts, checked as the head arrives (Content-Length) or
   /// as a chunked body arrives, before any of it is buffered: 413 beyond.
   uint64_t max_body_bytes = kSmallBodyBytes;
-  /// JSON schemas (OpenAPI, as JSON text) of the request body and the success response; null: a
-  /// body-less request, and a response of {"type": "object"}.
+  /// JSON schemas (OpenAPI, as JSON text) of the request body and the success response (JSON
+  /// routes; server/src/rest_schemas.hpp); null: a body-less request, a response that is not JSON.
   const char* request_schema = nullptr;
   const char* response_schema = nullptr;
+  /// The other statuses the handler answers (404 for an unknown {crusher} is the generator's).
+  std::vector<StatusDoc> statuses = {};
 };
 
 /// How a request's method and decoded path meet the route table: the HTTP front end answers 404
@@ -172,6 +184,10 @@ class Resources {
   void Stop() { stopping_ = true; }
 
  private:
+  /// Routes(), in three parts (each a table of its handlers).
+  static std::vector<Route> ReadingRoutes();
+  static std::vector<Route> WearRoutes();
+  static std::vector<Route> AlarmAndServiceRoutes();
   Response Health(const Request&);
   Response Crushers(const Request&);
   Response CrusherDetail(const Request&);

@@ -152,6 +152,80 @@ TEST(RestRoutes, TheOpenApiDocumentHasOneOperationPerRouteAndNoOther) {
   }
 }
 
+namespace {
+/// Every {"$ref": ...} under `node` that does not point into `doc`, and every object schema that
+/// says nothing of its members (the bare {"type": "object"} the document used to have).
+void FindLooseSchemas(const json& doc, const json& node, const std::string& where, std::vector<std::string>* out) {
+  if (node.is_array()) {
+    for (size_t i = 0; i < node.size(); ++i) FindLooseSchemas(doc, node[i], where + "/" + std::to_string(i), out);
+    return;
+  }
+  if (!node.is_object()) return;
+  if (node.contains("$ref") && node["$ref"].is_string()) {
+    const std::string ref = node["$ref"];
+    if (ref.rfind("#/", 0) != 0 || !doc.contains(json::json_pointer(ref.substr(1)))) out->push_back(where + ": $ref " + ref);
+  }
+  const bool says = node.contains("properties") || node.contains("additionalProperties") || node.contains("allOf") ||
+                    node.contains("anyOf") || node.contains("$ref");
+  if (node.value("type", json()) == "object" && !says) out->push_back(where + ": an object schema with no members");
+  for (const auto& [key, value] : node.items()) FindLooseSchemas(doc, value, where + "/" + key, out);
+}
+
+/// The statuses the document declares for `method` `path`.
+std::set<std::string> Statuses(const json& doc, const std::string& path, const std::string& method) {
+  std::set<std::string> out;
+  for (const auto& [status, response] : doc.at("paths").at(path).at(method).at("responses").items()) out.insert(status);
+  return out;
+}
+}  // namespace
+
+// The document says something: each JSON body has a schema with members (shared parts as
+// components, every $ref resolving), the event stream is text/event-stream, and each operation
+// lists the statuses its handler and the HTTP layer answer (test_server_openapi_live checks real
+// answers against it).
+TEST(RestRoutes, TheOpenApiDocumentHasSchemasStatusesAndMediaTypes) {
+  const json doc = json::parse(OpenApiJson());
+  std::vector<std::string> loose;
+  FindLooseSchemas(doc, doc, "", &loose);
+  std::string all;
+  for (const std::string& l : loose) all += l + "\n";
+  CHECK_TEXT(loose.empty(), all.c_str());
+  for (const auto& [path, operations] : doc["paths"].items()) {
+    for (const auto& [method, op] : operations.items()) {
+      for (const char* status : {"400", "408", "413", "414", "421", "431", "500", "501", "503"})
+        CHECK_TEXT(op["responses"].contains(status), (method + " " + path + " lacks " + status).c_str());
+      const bool has_crusher = path.find("{crusher}") != std::string::npos;
+      CHECK_EQUAL_TEXT(has_crusher, op["responses"].contains("404"), (method + " " + path).c_str());
+      CHECK_EQUAL_TEXT(path != "/healthz", op["responses"].contains("401"), (method + " " + path).c_str());
+      const json& ok = op["responses"].begin().value();
+      if (ok["content"].contains("application/json")) {
+        const json& schema = ok["content"]["application/json"]["schema"];
+        CHECK_TEXT(schema != json({{"type", "object"}}), (method + " " + path + ": a bare object").c_str());
+      }
+    }
+  }
+  const json& events = doc["paths"]["/api/v1/crushers/{crusher}/events"]["get"]["responses"]["200"]["content"];
+  CHECK(events.contains("text/event-stream"));
+  CHECK_FALSE(events.contains("application/json"));
+  const std::string readings = "/api/v1/crushers/{crusher}/readings";
+  CHECK(doc["paths"][readings]["post"].contains("requestBody"));
+  CHECK((std::set<std::string>{"200", "400", "401", "403", "404", "408", "411", "413", "414", "415", "421", "422", "431", "500",
+                               "501", "503"}) == Statuses(doc, readings, "post"));
+  CHECK((std::set<std::string>{"200", "400", "408", "413", "414", "415", "421", "431", "500", "501", "503"}) ==
+        Statuses(doc, "/healthz", "get"));
+  // /healthz's 503 is its own body (degraded) or the HTTP layer's error (busy).
+  CHECK(doc["paths"]["/healthz"]["get"]["responses"]["503"]["content"]["application/json"]["schema"].contains("anyOf"));
+  CHECK(Statuses(doc, "/api/v1/crushers/{crusher}/relines", "post").count("409"));
+  CHECK(Statuses(doc, "/api/v1/crushers/{crusher}/alarms/{id}/ack", "post").count("409"));
+  CHECK(Statuses(doc, "/api/v1/crushers/{crusher}/diagnosis", "post").count("202"));
+  CHECK_FALSE(Statuses(doc, "/api/v1/crushers/{crusher}/mesh", "get").count("422"));
+  const json& wear = doc["paths"]["/api/v1/crushers/{crusher}/wear"]["get"];
+  CHECK(wear["responses"]["200"]["content"].contains("application/octet-stream"));
+  for (const json& p : wear["parameters"]) {
+    if (p["name"] == "format") CHECK(p["schema"]["enum"] == json({"json", "vtk", "csv"}));
+  }
+}
+
 TEST(RestRoutes, PathTemplatesBecomeRoutingPatternsAndParameters) {
   STRCMP_EQUAL("/api/v1/crushers/([^/]+)/sensors/([^/]+)/readings",
                rest::PathPattern("/api/v1/crushers/{crusher}/sensors/{sensor}/readings").c_str());
