@@ -190,8 +190,8 @@ const std::string kMesh =
 
 const std::string kWear =
     R"j({"type":"object","required":["crusher_id","time","map_sha256","thickness_new_mm","thickness_min_mm","status",
-        "min_thickness_mm","min_thickness_band_mm","thinnest_area","worn_through","map_error_at_sensors","face_level","min",
-        "rows","map_model","scan","readings_used","sensors_stale","sensors_stuck","note"],
+        "min_thickness_mm","min_thickness_band_mm","thinnest_area","worn_through","setting","map_error_at_sensors","face_level",
+        "min","rows","map_model","scan","readings_used","sensors_stale","sensors_stuck","note"],
         "properties":{"crusher_id":{"type":"string"},
         "at":{"type":"string","format":"date-time","description":"only with ?at="},
         "time":{"type":"string","format":"date-time"},"map_sha256":{"type":"string"},
@@ -201,6 +201,18 @@ const std::string kWear =
         "min_thickness_band_mm":{"type":"array","nullable":true,"minItems":2,"maxItems":2,
           "items":{"type":"number","nullable":true}},
         "thinnest_area":{"$ref":"#/components/schemas/ThinnestArea"},"worn_through":{"type":"boolean"},
+        "setting":{"type":"object","description":"the closed-side setting's opening by the concave's wear at the discharge ring (docs/wear.md, Setting)",
+          "required":["opening_mm","opening_band_mm","css_set_mm","css_mm","css_band_mm","supported","half_width_mm","ring","basis","detail"],
+          "properties":{"opening_mm":{"type":"number","nullable":true},
+          "opening_band_mm":{"type":"array","minItems":2,"maxItems":2,"items":{"type":"number","nullable":true}},
+          "css_set_mm":{"type":"number","nullable":true},"css_mm":{"type":"number","nullable":true},
+          "css_band_mm":{"type":"array","nullable":true,"minItems":2,"maxItems":2,"items":{"type":"number","nullable":true}},
+          "supported":{"type":"boolean"},"half_width_mm":{"type":"number","nullable":true},
+          "ring":{"type":"object","required":["row","z_m","height_m","thickness_mm","nearest_sensor_m","extrapolated"],
+            "properties":{"row":{"type":"string"},"z_m":{"type":"number","nullable":true},"height_m":{"type":"number","nullable":true},
+            "thickness_mm":{"type":"number","nullable":true},"nearest_sensor_m":{"type":"number","nullable":true},
+            "extrapolated":{"type":"boolean"}}},
+          "basis":{"type":"string"},"detail":{"type":"string"}}},
         "map_error_at_sensors":{"type":"object","required":["factor","sensors"],"properties":{
           "factor":{"type":"number","nullable":true},"sensors":{"type":"integer"}}},
         "face_level":{"type":"object","required":["estimate_at_zero_faces","band_reaches_zero_faces"],"properties":{
