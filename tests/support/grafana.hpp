@@ -3,11 +3,6 @@
 // export: every panel's PromQL parses (Prometheus' own parser, through `promtool check rules`) and
 // every linerwatch metric it names is a family of a real scrape. A renamed metric or a typo in a
 // panel fails here instead of drawing an empty graph on a site.
-#include <stdio.h>
-#include <stdlib.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <fstream>
 #include <regex>
 #include <set>
@@ -16,6 +11,8 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
+
+#include "support/promtool.hpp"
 
 namespace lw::test {
 
@@ -60,26 +57,7 @@ inline std::string PromqlCheck(const std::vector<std::string>& exprs) {
     for (char ch : exprs[i]) quoted += ch == '\'' ? std::string("''") : std::string(1, ch);
     rules << "  - record: dashboard:expr_" << i << "\n    expr: '" << quoted << "'\n";
   }
-  char path[] = "/tmp/lw-rules-XXXXXX.yml";
-  const int fd = ::mkstemps(path, 4);
-  if (fd < 0) return "cannot create a temporary file";
-  const std::string text = rules.str();
-  const bool written = ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size());
-  ::close(fd);
-  if (!written) {
-    ::unlink(path);
-    return "cannot write a temporary file";
-  }
-  FILE* p = ::popen((std::string("promtool check rules ") + path + " 2>&1").c_str(), "r");
-  std::string said;
-  char buf[512];
-  while (p && ::fgets(buf, sizeof buf, p)) said += buf;
-  const int status = p ? ::pclose(p) : -1;
-  ::unlink(path);
-  if (status == 0) return {};
-  if (WIFEXITED(status) && WEXITSTATUS(status) == 127)
-    return "promtool not found: scripts/install-deps installs Debian's prometheus package, which has it";
-  return "promtool check rules failed (status " + std::to_string(status) + "): " + said;
+  return RunPromtool("check rules ", rules.str(), ".yml");
 }
 
 /// The linerwatch metric families the expressions name (a histogram's _bucket/_sum/_count series
