@@ -670,6 +670,15 @@ std::string SettingText(const SettingEstimate& s) {
   const ThinnestArea& a = s.ring;
   if (!std::isfinite(s.opening_mm)) return "setting: no estimate (no sensor sets a scale)";
   char b[320];
+  if (!a.supported) {
+    // An unsupported ring gives no number to act on: its band is clipped at the liner's bounds
+    // (a band of "120..120" on a real map whose half-width is 137 mm), so no CSS is named.
+    std::snprintf(b, sizeof b,
+                  "setting: not supported: the discharge ring's band half-width %.1f mm is wider than the thinnest-area "
+                  "target, so the opening by the concave's wear is not known better than 0..%.0f mm",
+                  a.half_width_mm, s.opening_mm + a.thickness_mm);
+    return std::string(b) + (a.extrapolated ? "; from the DEM map alone" : "") + "; the mantle's wear is not included";
+  }
   if (s.css_set_mm)
     std::snprintf(
         b, sizeof b,
@@ -679,10 +688,6 @@ std::string SettingText(const SettingEstimate& s) {
     std::snprintf(b, sizeof b, "setting: opened %.1f mm (band %.1f..%.1f) by the concave's wear at the discharge ring",
                   s.opening_mm, s.opening_lo_mm, s.opening_hi_mm);
   std::string out = b;
-  if (!a.supported) {
-    std::snprintf(b, sizeof b, "; not supported: its half-width %.1f mm is wider than the thinnest-area target", a.half_width_mm);
-    out += b;
-  }
   if (a.extrapolated) out += "; from the DEM map alone (no sensor within reach of the ring)";
   return out + "; the mantle's wear is not included";
 }

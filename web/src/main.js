@@ -253,9 +253,10 @@ async function crusherPage(crusherId, initialSensor) {
   // Setting): the mantle's wear is not in it, and an unsupported band says so.
   function settingText(s) {
     if (!s || s.opening_mm == null) return null;
+    if (!s.supported) return `setting: not supported (band half-width ${fmt(s.half_width_mm)} mm); mantle not included`;
     const band = `${fmt(s.opening_band_mm[0])}–${fmt(s.opening_band_mm[1])}`;
     const css = s.css_mm != null ? `: CSS ≈ ${fmt(s.css_mm, 0)} mm (set ${fmt(s.css_set_mm, 0)})` : '';
-    return `setting opened ${fmt(s.opening_mm)} mm (band ${band}) at the discharge${css}${s.supported ? '' : ', not supported'}; mantle not included`;
+    return `setting opened ${fmt(s.opening_mm)} mm (band ${band}) at the discharge${css}; mantle not included`;
   }
 
   function drawTable() {

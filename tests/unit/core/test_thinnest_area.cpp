@@ -290,6 +290,12 @@ TEST(ThinnestArea, TheSettingOpensByTheDischargeRingsWear) {
   DOUBLES_EQUAL(125.0, j["css_set_mm"].get<double>(), 0);
   STRCMP_CONTAINS("mantle", j["basis"].get<std::string>().c_str());
   STRCMP_CONTAINS("CSS about", SettingText(s).c_str());
+  // Unsupported, it names no CSS: the clipped band would look precise (on data/dem/c6275-std it
+  // read "120.0..120.0" beside a half-width of 137 mm).
+  SettingEstimate unsupported = s;
+  unsupported.ring.supported = false;
+  STRCMP_CONTAINS("not supported", SettingText(unsupported).c_str());
+  CHECK(SettingText(unsupported).find("CSS") == std::string::npos);
 
   c.setting.css_mm.reset();
   const ReconstructionPlan plain = PrepareReconstruction(c, m);
