@@ -66,7 +66,8 @@ class Reader {
     if (!j.contains(name)) return fallback;
     const nlohmann::json& v = j[name];
     if (!v.is_number_integer() || v.get<int64_t>() < min || v.get<int64_t>() > max)
-      Fail(key + "." + name, "must be a whole number in [" + std::to_string(min) + ", " + std::to_string(max) + "], not " + v.dump());
+      Fail(key + "." + name,
+           "must be a whole number in [" + std::to_string(min) + ", " + std::to_string(max) + "], not " + v.dump());
     return v.get<int64_t>();
   }
   std::string Url(const nlohmann::json& j, const std::string& key, const std::vector<std::string>& schemes) const {
@@ -198,7 +199,9 @@ std::string EmailMessage(const NotificationConfig& config, const EmailTarget& em
   std::ostringstream m;
   m << "From: " << email.from << "\r\n"
     << "To: " << to << "\r\n"
-    << "Subject: " << HeaderText("[linerwatch] " + upper + " " + a.severity + ": " + a.rule + " on " + a.crusher + " (" + a.subject + ")") << "\r\n"
+    << "Subject: "
+    << HeaderText("[linerwatch] " + upper + " " + a.severity + ": " + a.rule + " on " + a.crusher + " (" + a.subject + ")")
+    << "\r\n"
     << "Date: " << RfcDate(event.time_s) << "\r\n"
     << "Message-ID: <linerwatch-event-" << event_id << "@" << HeaderText(domain) << ">\r\n"
     << "MIME-Version: 1.0\r\n"
@@ -296,7 +299,8 @@ NotificationConfig ParseNotificationConfig(const nlohmann::json& j, const std::s
   if (j.contains("email")) c.email = ParseEmail(r, j["email"]);
   if (j.contains("dashboard_url")) c.dashboard_url = r.Url(j, "notifications.dashboard_url", {"http", "https"});
   c.retry_initial_s = r.Whole(j, "retry_initial_s", "notifications", c.retry_initial_s, 1, 86'400);
-  c.retry_max_s = r.Whole(j, "retry_max_s", "notifications", std::max(c.retry_max_s, c.retry_initial_s), c.retry_initial_s, 86'400);
+  c.retry_max_s =
+      r.Whole(j, "retry_max_s", "notifications", std::max(c.retry_max_s, c.retry_initial_s), c.retry_initial_s, 86'400);
   c.timeout_s = r.Whole(j, "timeout_s", "notifications", c.timeout_s, 1, 600);
   return c;
 }
@@ -332,9 +336,9 @@ SendResult SendWebhook(const std::string& url, const std::string& secret, const 
   Curl c(timeout_s, cancel);
   if (!c.h) return {false, "curl_easy_init failed"};
   for (const std::string& h : std::vector<std::string>{"Content-Type: application/json", "User-Agent: linerwatch-server",
-                               "X-Linerwatch-Signature: sha256=" + core::HmacSha256Hex(secret, body),
-                               "X-Linerwatch-Event: " + std::to_string(event_id),
-                               "X-Linerwatch-Delivery: " + std::to_string(delivery_id)})
+                                                       "X-Linerwatch-Signature: sha256=" + core::HmacSha256Hex(secret, body),
+                                                       "X-Linerwatch-Event: " + std::to_string(event_id),
+                                                       "X-Linerwatch-Delivery: " + std::to_string(delivery_id)})
     c.headers = curl_slist_append(c.headers, h.c_str());
   curl_easy_setopt(c.h, CURLOPT_URL, url.c_str());
   curl_easy_setopt(c.h, CURLOPT_PROTOCOLS_STR, "http,https");
@@ -383,8 +387,9 @@ Notifier::Notifier(NotificationConfig config, const std::string& db, Log log, Se
   if (metrics_) metrics_->SetNotificationsPending(pending);
   if (!config_.empty() || pending > 0) {
     log_("notifications: " + std::to_string(config_.webhooks.size()) + " webhook(s), e-mail " +
-         (config_.email ? "to " + std::to_string(config_.email->to.size()) + " recipient(s) via " + Redacted(config_.email->smtp_url)
-                        : std::string("off")) +
+         (config_.email
+              ? "to " + std::to_string(config_.email->to.size()) + " recipient(s) via " + Redacted(config_.email->smtp_url)
+              : std::string("off")) +
          "; " + std::to_string(pending) + " pending from before");
   }
 }
@@ -439,9 +444,8 @@ SendResult Notifier::Send(const NotificationRecord& n) {
 }
 
 int64_t Notifier::Turn() {
-  store_->QueueNotifications([&](const AlarmRecord& a, const AlarmAuditEntry& e, int64_t id) {
-    return MakeNotifications(config_, a, e, id);
-  });
+  store_->QueueNotifications(
+      [&](const AlarmRecord& a, const AlarmAuditEntry& e, int64_t id) { return MakeNotifications(config_, a, e, id); });
   int64_t next_s = kMaxCheckS;
   bool delivered = false;
   for (NotificationRecord& n : store_->PendingNotifications()) {
@@ -470,7 +474,8 @@ int64_t Notifier::Turn() {
       const int64_t delay = RetryDelay(config_, n.attempts);
       n.next_attempt_s = WallS() + delay;
       n.last_error = r.error;
-      log_(what + ": attempt " + std::to_string(n.attempts) + " failed: " + r.error + "; next in " + std::to_string(delay) + " s");
+      log_(what + ": attempt " + std::to_string(n.attempts) + " failed: " + r.error + "; next in " + std::to_string(delay) +
+           " s");
       next_s = std::min(next_s, delay);
     }
     store_->SaveNotificationAttempt(n);
