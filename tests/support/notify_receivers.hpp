@@ -87,8 +87,7 @@ class WebhookReceiver {
 class SmtpSink {
  public:
   /// The maildir is `dir`/mail; `port` 0: a free one, kept across Stop() and Start().
-  explicit SmtpSink(const std::string& dir, int port = 0)
-      : dir_(dir), port_(port == 0 ? FreeLoopbackPort() : port) {
+  explicit SmtpSink(const std::string& dir, int port = 0) : dir_(dir), port_(port == 0 ? FreeLoopbackPort() : port) {
     std::filesystem::create_directories(dir_);
   }
   std::string url() const { return "smtp://127.0.0.1:" + std::to_string(port_); }

@@ -133,9 +133,9 @@ TEST(ServerNotifications, ARaisedAlarmIsPostedSignedAndMailedOnce) {
 
   // Acknowledged over REST: one more POST, of that event.
   httplib::Client http("127.0.0.1", server.port);
-  const auto res = http.Post("/api/v1/crushers/" + folder.id() + "/alarms/" +
-                                 std::to_string(body["alarm"]["id"].get<int64_t>()) + "/ack",
-                             "", "application/json");
+  const auto res =
+      http.Post("/api/v1/crushers/" + folder.id() + "/alarms/" + std::to_string(body["alarm"]["id"].get<int64_t>()) + "/ack", "",
+                "application/json");
   CHECK(res);
   LONGS_EQUAL(200, res->status);
   CHECK(WaitUntil([&] { return GatewayPosts(hook).size() == 2; }));

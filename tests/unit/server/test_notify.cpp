@@ -15,9 +15,9 @@
 
 #include <CppUTest/TestHarness.h>  // last
 
-using nlohmann::json;
 using lw::server::NotificationConfig;
 using lw::server::ParseNotificationConfig;
+using nlohmann::json;
 
 namespace {
 
@@ -61,19 +61,19 @@ TEST_GROUP(NotifyConfig){};
 TEST(NotifyConfig, AFullConfigIsRead) {
   lw::test::TempDirectory dir;
   std::ofstream(dir.File("pw")) << "  hunter2\n";
-  const NotificationConfig c = ParseNotificationConfig(
-      {{"webhooks", {Hook(), {{"url", "http://127.0.0.1:9/x"}, {"secret", "t"}, {"events", {"raised"}}}}},
-       {"email",
-        {{"smtp_url", "smtp://mail:587"},
-         {"from", "lw@example.com"},
-         {"to", {"a@example.com", "b@example.com"}},
-         {"username", "lw"},
-         {"password_file", dir.File("pw")},
-         {"starttls", true}}},
-       {"dashboard_url", "http://dash/"},
-       {"retry_initial_s", 5},
-       {"retry_max_s", 60}},
-      "config server.json");
+  const NotificationConfig c =
+      ParseNotificationConfig({{"webhooks", {Hook(), {{"url", "http://127.0.0.1:9/x"}, {"secret", "t"}, {"events", {"raised"}}}}},
+                               {"email",
+                                {{"smtp_url", "smtp://mail:587"},
+                                 {"from", "lw@example.com"},
+                                 {"to", {"a@example.com", "b@example.com"}},
+                                 {"username", "lw"},
+                                 {"password_file", dir.File("pw")},
+                                 {"starttls", true}}},
+                               {"dashboard_url", "http://dash/"},
+                               {"retry_initial_s", 5},
+                               {"retry_max_s", 60}},
+                              "config server.json");
   LONGS_EQUAL(2, c.webhooks.size());
   LONGS_EQUAL(1, c.webhooks[1].events.size());
   CHECK_TRUE(c.email.has_value());
@@ -204,8 +204,8 @@ TEST(NotifyDelivery, AFailingWebhookGetsTheEventOnceItAnswers2xxAndNotAgainAfter
   lw::test::WebhookReceiver hook;
   hook.Answer(500);
   hook.Start();
-  NotificationConfig c =
-      ParseNotificationConfig({{"webhooks", {{{"url", hook.url()}, {"secret", "k"}}}}, {"retry_initial_s", 1}, {"retry_max_s", 1}}, "x");
+  NotificationConfig c = ParseNotificationConfig(
+      {{"webhooks", {{{"url", hook.url()}, {"secret", "k"}}}}, {"retry_initial_s", 1}, {"retry_max_s", 1}}, "x");
   std::vector<std::string> log;
   std::mutex log_mutex;
   const auto logger = [&](const std::string& line) {
