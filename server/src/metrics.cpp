@@ -206,6 +206,29 @@ void ServerMetrics::RenderHttpAndStore(Writer& w, int sse_clients) const {
           static_cast<double>(FreeBytes(db_)));
 }
 
+void ServerMetrics::CountNotification(const std::string& channel, bool ok) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++notifications_[{channel, ok}];
+}
+
+void ServerMetrics::RenderNotifications(Writer& w) const {
+  w.Family("linerwatch_notifications_sent_total",
+           "Delivery attempts of alarm notifications, by channel and result (ok: the receiver took it; error: retried later)",
+           Type::kCounter);
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const char* channel : {"webhook", "email"}) {
+      for (const bool ok : {true, false}) {
+        const auto it = notifications_.find({channel, ok});
+        w.Sample({{"channel", channel}, {"result", ok ? "ok" : "error"}},
+                 it == notifications_.end() ? 0.0 : static_cast<double>(it->second));
+      }
+    }
+  }
+  w.Gauge("linerwatch_notifications_pending", "Alarm notifications queued and not yet taken by their receiver",
+          static_cast<double>(notifications_pending_.load()));
+}
+
 std::string ServerMetrics::Render(const Ingestor& ingestor, const Registry& registry, int sse_clients, int64_t now_ms) const {
   Writer w;
   w.Family("linerwatch_build_info", "The server's version (the value is always 1)", Type::kGauge);
@@ -214,6 +237,7 @@ std::string ServerMetrics::Render(const Ingestor& ingestor, const Registry& regi
   RenderIngest(w, ingestor);
   RenderWear(w, registry, now_ms);
   RenderHttpAndStore(w, sse_clients);
+  RenderNotifications(w);
   return w.Take();
 }
 

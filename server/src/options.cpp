@@ -20,28 +20,33 @@ constexpr int64_t kMaxCommitDelayMs = 1000;
 using core::Option;
 
 const core::OptionTable& Table() {
-  static const core::OptionTable table{{
-      Option::Text("broker", "URI", "tcp://host:1883 or ssl://host:8883").Required(),
-      Option::Text("db", "FILE", "SQLite database (created if missing)").Required(),
-      Option::Text("http", "HOST:PORT", "REST API and dashboard (default 127.0.0.1:8080; port 0 picks a free one)"),
-      Option::Text("crusher-dir", "DIR", "one sub-folder per crusher with crusher.json and wear_map.vtk (or .csv)").Required(),
-      Option::Text("tokens", "FILE", "bearer tokens (SHA-256 hashes, read/write scopes); without it the API is open"),
-      Option::Text("allowed-hosts", "LIST",
-                   "comma-separated host names the API answers to (Host header), besides IP\n"
-                   "addresses, localhost and --http's host; others get 421 (DNS rebinding)"),
-      Option::Text("username", "U", "broker user name"),
-      Option::Text("password", "P", "broker password"),
-      Option::Text("tls-ca", "FILE", "CA certificate for ssl:// brokers"),
-      Option::Text("client-id", "ID", "MQTT client id of the persistent session (default linerwatch-server)"),
-      Option::Text("topic-root", "ROOT", "default linerwatch/v1"),
-      Option::Text("web-dir", "DIR", "dashboard files served at / (default: the installed dashboard)"),
-      Option::Whole("wear-interval-ms", "N", 0, kMaxWearIntervalMs, "publish global wear at most this often (default 1000)"),
-      Option::Whole("batch-max", "N", 1, kMaxBatch,
-                    "reading messages committed per transaction at most, a batch of records counting once (default 1000)"),
-      Option::Whole("commit-delay-ms", "N", 0, kMaxCommitDelayMs,
-                    "group commit: wait up to N ms for more readings before committing (default 5)"),
-      Option::Text("clock-file", "PATH", "simulation: read \"now\" (unix milliseconds) from PATH"),
-  }};
+  static const core::OptionTable table{
+      {
+          Option::Text("broker", "URI", "tcp://host:1883 or ssl://host:8883").Required(),
+          Option::Text("db", "FILE", "SQLite database (created if missing)").Required(),
+          Option::Text("http", "HOST:PORT", "REST API and dashboard (default 127.0.0.1:8080; port 0 picks a free one)"),
+          Option::Text("crusher-dir", "DIR", "one sub-folder per crusher with crusher.json and wear_map.vtk (or .csv)")
+              .Required(),
+          Option::Text("tokens", "FILE", "bearer tokens (SHA-256 hashes, read/write scopes); without it the API is open"),
+          Option::Text("allowed-hosts", "LIST",
+                       "comma-separated host names the API answers to (Host header), besides IP\n"
+                       "addresses, localhost and --http's host; others get 421 (DNS rebinding)"),
+          Option::Text("username", "U", "broker user name"),
+          Option::Text("password", "P", "broker password"),
+          Option::Text("tls-ca", "FILE", "CA certificate for ssl:// brokers"),
+          Option::Text("client-id", "ID", "MQTT client id of the persistent session (default linerwatch-server)"),
+          Option::Text("topic-root", "ROOT", "default linerwatch/v1"),
+          Option::Text("web-dir", "DIR", "dashboard files served at / (default: the installed dashboard)"),
+          Option::Whole("wear-interval-ms", "N", 0, kMaxWearIntervalMs, "publish global wear at most this often (default 1000)"),
+          Option::Whole("batch-max", "N", 1, kMaxBatch,
+                        "reading messages committed per transaction at most, a batch of records counting once (default 1000)"),
+          Option::Whole("commit-delay-ms", "N", 0, kMaxCommitDelayMs,
+                        "group commit: wait up to N ms for more readings before committing (default 5)"),
+          Option::Text("clock-file", "PATH", "simulation: read \"now\" (unix milliseconds) from PATH"),
+      },
+      "",
+      "",
+      /*keep_other_config_keys=*/true};  // "notifications", read below
   return table;
 }
 
@@ -56,6 +61,15 @@ std::vector<std::string> SplitList(const std::string& value) {
     start = comma + 1;
   }
   return out;
+}
+
+/// The --config file named in `args` (ParseOptions has read it).
+std::string ConfigFile(const std::vector<std::string>& args) {
+  for (size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == "--config" && i + 1 < args.size()) return args[i + 1];
+    if (args[i].rfind("--config=", 0) == 0) return args[i].substr(9);
+  }
+  return "";
 }
 
 }  // namespace
@@ -93,6 +107,12 @@ ServerOptions ParseServerOptions(const std::vector<std::string>& args) {
   o.wear_interval_ms = p.Whole("wear-interval-ms", o.wear_interval_ms);
   o.batch_max = p.Whole("batch-max", o.batch_max);
   o.commit_delay_ms = p.Whole("commit-delay-ms", o.commit_delay_ms);
+  // The config file's objects that are not flags: only "notifications" (docs/alarms.md).
+  for (const auto& [key, value] : p.other_config().items()) {
+    const std::string where = "config " + ConfigFile(args);
+    if (key != "notifications") throw core::ConfigFileError(where + ": unknown key '" + key + "' (see --help)");
+    o.notifications = ParseNotificationConfig(value, where);
+  }
   if (o.broker.empty()) throw core::UsageError("--broker is required");
   if (o.db.empty()) throw core::UsageError("--db is required");
   if (o.crusher_dir.empty()) throw core::UsageError("--crusher-dir is required");

@@ -30,6 +30,7 @@
 #include "server/ingest.hpp"
 #include "server/live_state.hpp"
 #include "server/metrics.hpp"
+#include "server/notify.hpp"
 #include "server/campaigns.hpp"
 #include "server/registry.hpp"
 #include "server/store.hpp"
@@ -257,7 +258,11 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   std::mutex computed_mutex;
   std::vector<std::pair<std::string, std::string>> computed;        // (crusher, wear summary JSON)
   std::vector<std::pair<std::string, std::string>> alarm_messages;  // (crusher, its open alarms JSON)
+  // Notifications of each alarm event (docs/alarms.md, *Notifications*): queued and sent by a
+  // thread of their own, so a slow or dead receiver delays neither ingest nor the wear worker.
+  std::unique_ptr<Notifier> notifier;
   alarms.OnChange([&](const std::string& c) {
+    if (notifier) notifier->Wake();
     const std::vector<AlarmRecord> open = alarms.Open(c);
     log("crusher " + c + ": alarms changed, " + std::to_string(open.size()) + " open");
     std::string message = AlarmsMessage(c, open, clock.NowMs() / 1000);
@@ -271,6 +276,10 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   std::condition_variable dirty_cv;
   std::set<std::string> dirty;  // crushers whose wear must be recomputed and published
   ServerMetrics metrics(o.db);
+  // Created before the wear worker and the API start, which are the only callers of the listener.
+  notifier = std::make_unique<Notifier>(
+      o.notifications, o.db, [&log](const std::string& line) { log(line); }, &metrics);
+  notifier->Start();
   const auto on_committed = [&](const IngestResult& r) {
     metrics.ObserveCommitted(r, clock.NowMs() / 1000);
     std::set<std::string> changed;

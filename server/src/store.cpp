@@ -20,7 +20,7 @@ using Db = core::sqlite::Database<std::runtime_error>;
 using Stmt = core::sqlite::Statement<std::runtime_error>;
 using Tx = core::sqlite::Transaction<std::runtime_error>;
 
-constexpr int kSchemaVersion = 5;
+constexpr int kSchemaVersion = 6;
 
 StoredReading Row(const Stmt& s) {
   StoredReading r;
@@ -360,6 +360,22 @@ struct Store::Impl {
           "CREATE INDEX IF NOT EXISTS alarm_audit_by_alarm ON alarm_audit(alarm, id);"
           "CREATE TABLE IF NOT EXISTS alarm_rules (crusher TEXT PRIMARY KEY, json TEXT NOT NULL);"
           "PRAGMA user_version=5;");
+      tx.Commit();
+    }
+    if (v < 6) {
+      // Version 6: the notification outbox (docs/alarms.md, *Notifications*): one row per alarm
+      // event and receiver, queued in one transaction with the cursor `notified_audit` (the last
+      // alarm_audit row queued), kept after delivery with its state. The cursor starts at the
+      // newest audit row: the alarms of before are not sent.
+      Tx tx(db);
+      db.Exec(
+          "CREATE TABLE IF NOT EXISTS notifications (id INTEGER PRIMARY KEY AUTOINCREMENT, audit INTEGER NOT NULL,"
+          " channel TEXT NOT NULL, target TEXT NOT NULL, event TEXT NOT NULL, body TEXT NOT NULL, created INTEGER NOT NULL,"
+          " state TEXT NOT NULL DEFAULT 'pending', attempts INTEGER NOT NULL DEFAULT 0, next_attempt INTEGER NOT NULL,"
+          " done INTEGER, last_error TEXT NOT NULL DEFAULT '');"
+          "CREATE INDEX IF NOT EXISTS notifications_pending ON notifications(state, target, id);"
+          "INSERT OR IGNORE INTO meta(key, value) SELECT 'notified_audit', COALESCE(MAX(id), 0) FROM alarm_audit;"
+          "PRAGMA user_version=6;");
       tx.Commit();
     }
   }
@@ -704,6 +720,103 @@ void Store::SaveAlarmRules(const std::string& crusher, const std::string& json, 
   put.Bind(1, crusher).Bind(2, json);
   put.Step();
   AppendAudit(im.db, audit);
+  tx.Commit();
+}
+
+int64_t Store::QueueNotifications(const NotificationMaker& make) {
+  Impl& im = *impl_;
+  Tx tx(im.db);
+  int64_t cursor = 0;
+  {
+    Stmt c(im.db, "SELECT value FROM meta WHERE key='notified_audit'");
+    if (c.Step()) cursor = c.Int(0);
+  }
+  // Rule changes (alarm 0) are audited but are not alarm events.
+  Stmt events(im.db, "SELECT id, alarm, time, action, who, detail FROM alarm_audit WHERE id>?1 ORDER BY id");
+  events.Bind(1, cursor);
+  std::vector<std::pair<int64_t, AlarmAuditEntry>> audit;
+  while (events.Step())
+    audit.push_back({events.Int(0), {events.Int(1), events.Int(2), events.Text(3), events.Text(4), events.Text(5)}});
+  events.Reset();
+  if (audit.empty()) return 0;
+  int64_t queued = 0;
+  Stmt put(im.db,
+           "INSERT INTO notifications(audit, channel, target, event, body, created, next_attempt) VALUES(?1,?2,?3,?4,?5,?6,0)");
+  for (const auto& [id, entry] : audit) {
+    if (entry.alarm == 0) continue;
+    const std::optional<AlarmRecord> alarm = Alarm(entry.alarm);
+    if (!alarm) continue;
+    for (const QueuedNotification& n : make(*alarm, entry, id)) {
+      put.Bind(1, id).Bind(2, n.channel).Bind(3, n.target).Bind(4, entry.action).Bind(5, n.body).Bind(6, entry.time_s);
+      put.Step();
+      put.Reset();
+      ++queued;
+    }
+  }
+  Stmt advance(im.db, "INSERT INTO meta(key, value) VALUES('notified_audit', ?1) ON CONFLICT(key) DO UPDATE SET value=?1");
+  advance.Bind(1, audit.back().first);
+  advance.Step();
+  tx.Commit();
+  return queued;
+}
+
+namespace {
+
+constexpr const char* kNotificationColumns =
+    "id, audit, channel, target, event, body, created, state, attempts, next_attempt, done, last_error";
+
+NotificationRecord NotificationRow(const Stmt& s) {
+  NotificationRecord n;
+  n.id = s.Int(0);
+  n.audit = s.Int(1);
+  n.channel = s.Text(2);
+  n.target = s.Text(3);
+  n.event = s.Text(4);
+  n.body = s.Text(5);
+  n.created_s = s.Int(6);
+  n.state = s.Text(7);
+  n.attempts = s.Int(8);
+  n.next_attempt_s = s.Int(9);
+  if (!s.IsNull(10)) n.done_s = s.Int(10);
+  n.last_error = s.Text(11);
+  return n;
+}
+
+}  // namespace
+
+std::vector<NotificationRecord> Store::PendingNotifications() {
+  // The oldest pending row of each receiver only: a receiver gets its events in order, a later
+  // one never before an earlier one that is still being retried.
+  Stmt q(impl_->db, (std::string("SELECT ") + kNotificationColumns +
+                     " FROM notifications WHERE id IN (SELECT MIN(id) FROM notifications WHERE state='pending'"
+                     " GROUP BY channel, target) ORDER BY id")
+                        .c_str());
+  std::vector<NotificationRecord> out;
+  while (q.Step()) out.push_back(NotificationRow(q));
+  return out;
+}
+
+std::vector<NotificationRecord> Store::Notifications(int limit) {
+  Stmt q(impl_->db, (std::string("SELECT ") + kNotificationColumns + " FROM notifications ORDER BY id LIMIT ?1").c_str());
+  q.Bind(1, limit);
+  std::vector<NotificationRecord> out;
+  while (q.Step()) out.push_back(NotificationRow(q));
+  return out;
+}
+
+int64_t Store::CountPendingNotifications() {
+  Stmt q(impl_->db, "SELECT COUNT(*) FROM notifications WHERE state='pending'");
+  q.Step();
+  return q.Int(0);
+}
+
+void Store::SaveNotificationAttempt(const NotificationRecord& n) {
+  Impl& im = *impl_;
+  Tx tx(im.db);
+  Stmt put(im.db, "UPDATE notifications SET state=?2, attempts=?3, next_attempt=?4, done=?5, last_error=?6 WHERE id=?1");
+  put.Bind(1, n.id).Bind(2, n.state).Bind(3, n.attempts).Bind(4, n.next_attempt_s).Bind(6, n.last_error);
+  if (n.done_s) put.Bind(5, *n.done_s);
+  put.Step();
   tx.Commit();
 }
 

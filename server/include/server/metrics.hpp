@@ -49,6 +49,11 @@ class ServerMetrics {
   void WearTaken(const std::string& crusher);
   void WearDone(const std::string& crusher, bool ok, double seconds, int64_t now_ms);
 
+  /// Notifications (server/notify.hpp): one delivery attempt on `channel` ("webhook", "email"),
+  /// taken (`ok`) or not; and how many wait for delivery.
+  void CountNotification(const std::string& channel, bool ok);
+  void SetNotificationsPending(int64_t pending) { notifications_pending_ = pending; }
+
   /// The exposition text: these counts with `ingestor`'s, the open event streams and the store's size.
   std::string Render(const Ingestor& ingestor, const Registry& registry, int sse_clients, int64_t now_ms) const;
 
@@ -56,11 +61,13 @@ class ServerMetrics {
   void RenderIngest(core::prometheus::Writer& w, const Ingestor& ingestor) const;
   void RenderWear(core::prometheus::Writer& w, const Registry& registry, int64_t now_ms) const;
   void RenderHttpAndStore(core::prometheus::Writer& w, int sse_clients) const;
+  void RenderNotifications(core::prometheus::Writer& w) const;
 
   std::string db_;
   std::atomic<uint64_t> acked_{0};
   std::atomic<uint64_t> acks_dropped_{0};
   std::atomic<bool> broker_connected_{false};
+  std::atomic<int64_t> notifications_pending_{0};
   core::prometheus::Histogram ingest_lag_;
   core::prometheus::Histogram wear_seconds_;
   const int64_t start_s_;
@@ -74,6 +81,7 @@ class ServerMetrics {
     uint64_t ok = 0, failed = 0;
   };
   std::map<std::string, WearState> wear_;
+  std::map<std::pair<std::string, bool>, uint64_t> notifications_;  ///< (channel, ok) -> attempts
 };
 
 }  // namespace lw::server

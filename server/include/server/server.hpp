@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "mqtt/topics.hpp"
+#include "server/notify.hpp"
 
 namespace lw::server {
 
@@ -27,7 +28,8 @@ struct ServerOptions {
   std::vector<std::string> allowed_hosts;  ///< host names the HTTP API answers to (besides addresses, localhost)
   int64_t wear_interval_ms = 1000;
   int64_t batch_max = 1000;
-  int64_t commit_delay_ms = 5;  ///< group commit: wait this long for more readings before a commit
+  int64_t commit_delay_ms = 5;       ///< group commit: wait this long for more readings before a commit
+  NotificationConfig notifications;  ///< the --config file's "notifications" (docs/alarms.md); empty: none
   bool help = false;
 };
 

@@ -107,6 +107,31 @@ struct AlarmAuditEntry {
   std::string detail;
 };
 
+/// One notification of an alarm event to one receiver (docs/alarms.md, *Notifications*): queued
+/// with the event, retried until the receiver takes it, kept after with its state.
+struct NotificationRecord {
+  int64_t id = 0;
+  int64_t audit = 0;    ///< the alarm_audit row of the event
+  std::string channel;  ///< "webhook" or "email"
+  std::string target;   ///< the webhook's URL, the e-mail's smtp_url
+  std::string event;    ///< "raised", "acknowledged", "cleared"
+  std::string body;     ///< what is sent (the webhook's JSON; the e-mail's JSON, written as text when sent)
+  int64_t created_s = 0;
+  std::string state;  ///< "pending", "delivered", "dropped" (its receiver is no longer configured)
+  int64_t attempts = 0;
+  int64_t next_attempt_s = 0;
+  std::optional<int64_t> done_s;  ///< delivered or dropped at
+  std::string last_error;
+};
+
+/// What Store::QueueNotifications stores for one event and receiver.
+struct QueuedNotification {
+  std::string channel, target, body;
+};
+/// The notifications of one alarm event (`alarm` as stored now, `event` its audit entry, `event_id` that entry's row id).
+using NotificationMaker =
+    std::function<std::vector<QueuedNotification>(const AlarmRecord& alarm, const AlarmAuditEntry& event, int64_t event_id)>;
+
 class Store {
  public:
   /// Opens (creating if needed) the database. Throws std::runtime_error naming the file on failure
@@ -185,6 +210,18 @@ class Store {
   std::optional<std::string> AlarmRules(const std::string& crusher);
   /// Stores the override and its audit entry (alarm 0, action "rules") in ONE transaction.
   void SaveAlarmRules(const std::string& crusher, const std::string& json, const AlarmAuditEntry& audit);
+
+  /// Queues the notifications `make` gives for each alarm event audited since the last call (of
+  /// any connection), and moves the cursor past them, in ONE transaction: an event is queued once,
+  /// and none is skipped by a crash. Returns the rows queued. Throws std::runtime_error (nothing stored).
+  int64_t QueueNotifications(const NotificationMaker& make);
+  /// The oldest pending notification of each receiver (channel, target), oldest first.
+  std::vector<NotificationRecord> PendingNotifications();
+  /// Every notification, oldest first, at most `limit`.
+  std::vector<NotificationRecord> Notifications(int limit);
+  int64_t CountPendingNotifications();
+  /// Stores a delivery attempt's outcome: state, attempts, next_attempt, done, last_error of `n`.
+  void SaveNotificationAttempt(const NotificationRecord& n);
 
   void SaveDiagnosis(const std::string& crusher, int64_t time_s, const std::string& json);
   /// (time_s, json) of the latest diagnosis of `crusher`.

@@ -1,0 +1,28 @@
+#include "core/hmac.hpp"
+
+#include <openssl/evp.h>
+#include <openssl/hmac.h>
+
+#include <cstdio>
+#include <stdexcept>
+
+namespace lw::core {
+
+std::string HmacSha256Hex(const std::string& key, const std::string& message) {
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int len = 0;
+  // OpenSSL's one-shot HMAC with the SHA-256 Sha256Hex uses (libcrypto is already linked for it).
+  if (!HMAC(EVP_sha256(), key.data(), static_cast<int>(key.size()), reinterpret_cast<const unsigned char*>(message.data()),
+            message.size(), digest, &len)) {
+    throw std::runtime_error("HMAC-SHA256 failed (OpenSSL)");
+  }
+  std::string hex;
+  char b[3];
+  for (unsigned i = 0; i < len; ++i) {
+    std::snprintf(b, sizeof b, "%02x", digest[i]);
+    hex += b;
+  }
+  return hex;
+}
+
+}  // namespace lw::core
