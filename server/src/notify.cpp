@@ -96,6 +96,17 @@ class Reader {
     if (b == std::string::npos) Fail(key + "." + file_name, "'" + path + "' is empty");
     return line.substr(b, e - b + 1);
   }
+  /// "ca_file": a readable file of PEM certificates, checked now so a typo is not found at the first alarm.
+  std::string CaFile(const nlohmann::json& j, const std::string& key) const {
+    if (!j.contains("ca_file")) return "";
+    const std::string path = Text(j, "ca_file", key, true);
+    std::ifstream in(path);
+    if (!in) Fail(key + ".ca_file", "cannot read '" + path + "'");
+    std::string line;
+    while (std::getline(in, line))
+      if (line.rfind("-----BEGIN CERTIFICATE-----", 0) == 0) return path;
+    Fail(key + ".ca_file", "'" + path + "' holds no PEM certificate (-----BEGIN CERTIFICATE-----)");
+  }
   std::set<std::string> Events(const nlohmann::json& j, const std::string& key) const {
     if (!j.contains("events")) return kEvents;
     const nlohmann::json& e = j["events"];
@@ -120,7 +131,7 @@ class Reader {
 
 EmailTarget ParseEmail(const Reader& r, const nlohmann::json& j) {
   const std::string key = "notifications.email";
-  r.Keys(j, key, {"smtp_url", "from", "to", "username", "password_file", "starttls", "events"});
+  r.Keys(j, key, {"smtp_url", "from", "to", "username", "password_file", "starttls", "ca_file", "events"});
   EmailTarget e;
   e.smtp_url = r.Url(j, key + ".smtp_url", {"smtp", "smtps"});
   e.from = r.Text(j, "from", key, true);
@@ -139,8 +150,12 @@ EmailTarget ParseEmail(const Reader& r, const nlohmann::json& j) {
     if (!j["starttls"].is_boolean()) r.Fail(key + ".starttls", "must be true or false");
     e.starttls = j["starttls"].get<bool>();
   }
-  if (e.starttls && e.smtp_url.rfind("smtps://", 0) == 0)
-    r.Fail(key + ".starttls", "smtps:// is TLS from the start; starttls is for smtp:// URLs");
+  const bool tls_from_start = e.smtp_url.rfind("smtps://", 0) == 0;
+  if (e.starttls && tls_from_start) r.Fail(key + ".starttls", "smtps:// is TLS from the start; starttls is for smtp:// URLs");
+  // A password never crosses the network in clear text: libcurl would send AUTH PLAIN on a plain link.
+  if (!e.password.empty() && !e.starttls && !tls_from_start)
+    r.Fail(key + ".password_file", "a password needs TLS: set \"starttls\": true or use an smtps:// URL");
+  e.ca_file = r.CaFile(j, key);
   e.events = r.Events(j, key);
   return e;
 }
@@ -286,12 +301,13 @@ NotificationConfig ParseNotificationConfig(const nlohmann::json& j, const std::s
     for (size_t i = 0; i < j["webhooks"].size(); ++i) {
       const std::string key = "notifications.webhooks[" + std::to_string(i) + "]";
       const nlohmann::json& w = j["webhooks"][i];
-      r.Keys(w, key, {"url", "secret", "secret_file", "events"});
+      r.Keys(w, key, {"url", "secret", "secret_file", "ca_file", "events"});
       WebhookTarget t;
       t.url = r.Url(w, key + ".url", {"http", "https"});
       for (const WebhookTarget& other : c.webhooks)
         if (other.url == t.url) r.Fail(key + ".url", "names the same URL as an earlier webhook");
       t.secret = r.Secret(w, key, "secret", "secret_file", true);
+      t.ca_file = r.CaFile(w, key);
       t.events = r.Events(w, key);
       c.webhooks.push_back(std::move(t));
     }
@@ -330,18 +346,19 @@ std::vector<QueuedNotification> MakeNotifications(const NotificationConfig& conf
   return out;
 }
 
-SendResult SendWebhook(const std::string& url, const std::string& secret, const std::string& body, int64_t event_id,
-                       int64_t delivery_id, int64_t timeout_s, const std::atomic<bool>* cancel) {
+SendResult SendWebhook(const WebhookTarget& hook, const std::string& body, int64_t event_id, int64_t delivery_id,
+                       int64_t timeout_s, const std::atomic<bool>* cancel) {
   CurlGlobalInit();
   Curl c(timeout_s, cancel);
   if (!c.h) return {false, "curl_easy_init failed"};
   for (const std::string& h : std::vector<std::string>{"Content-Type: application/json", "User-Agent: linerwatch-server",
-                                                       "X-Linerwatch-Signature: sha256=" + core::HmacSha256Hex(secret, body),
+                                                       "X-Linerwatch-Signature: sha256=" + core::HmacSha256Hex(hook.secret, body),
                                                        "X-Linerwatch-Event: " + std::to_string(event_id),
                                                        "X-Linerwatch-Delivery: " + std::to_string(delivery_id)})
     c.headers = curl_slist_append(c.headers, h.c_str());
-  curl_easy_setopt(c.h, CURLOPT_URL, url.c_str());
+  curl_easy_setopt(c.h, CURLOPT_URL, hook.url.c_str());
   curl_easy_setopt(c.h, CURLOPT_PROTOCOLS_STR, "http,https");
+  if (!hook.ca_file.empty()) curl_easy_setopt(c.h, CURLOPT_CAINFO, hook.ca_file.c_str());
   curl_easy_setopt(c.h, CURLOPT_HTTPHEADER, c.headers);
   curl_easy_setopt(c.h, CURLOPT_POST, 1L);
   curl_easy_setopt(c.h, CURLOPT_POSTFIELDS, body.data());
@@ -368,6 +385,7 @@ SendResult SendEmail(const EmailTarget& email, const std::string& message, int64
   curl_easy_setopt(c.h, CURLOPT_MAIL_RCPT, c.recipients);
   // STARTTLS required when asked: never a fall back to plain text after the server's answer.
   if (email.starttls) curl_easy_setopt(c.h, CURLOPT_USE_SSL, static_cast<long>(CURLUSESSL_ALL));
+  if (!email.ca_file.empty()) curl_easy_setopt(c.h, CURLOPT_CAINFO, email.ca_file.c_str());
   if (!email.username.empty()) {
     curl_easy_setopt(c.h, CURLOPT_USERNAME, email.username.c_str());
     curl_easy_setopt(c.h, CURLOPT_PASSWORD, email.password.c_str());
@@ -436,7 +454,7 @@ void Notifier::Run() {
 SendResult Notifier::Send(const NotificationRecord& n) {
   if (n.channel == "webhook") {
     for (const WebhookTarget& w : config_.webhooks)
-      if (w.url == n.target) return SendWebhook(w.url, w.secret, n.body, n.audit, n.id, config_.timeout_s, &stop_);
+      if (w.url == n.target) return SendWebhook(w, n.body, n.audit, n.id, config_.timeout_s, &stop_);
   } else if (n.channel == "email" && config_.email && config_.email->smtp_url == n.target) {
     return SendEmail(*config_.email, n.body, config_.timeout_s, &stop_);
   }

@@ -105,6 +105,20 @@ TEST(NotifyConfig, EachBadKeyOrValueIsNamed) {
              "key 'notifications.email.password_file': cannot read '/nonexistent/pw'");
   CheckError({{"email", {{"smtp_url", "smtp://mail"}, {"from", "a@b"}, {"to", {"c@d"}}, {"starttls", "yes"}}}},
              "key 'notifications.email.starttls': must be true or false");
+  // A password never goes in clear text; a private CA's file is read at start, not at the first alarm.
+  {
+    lw::test::TempDirectory dir;
+    std::ofstream(dir.File("pw")) << "hunter2\n";
+    std::ofstream(dir.File("not.pem")) << "hello\n";
+    CheckError(
+        {{"email",
+          {{"smtp_url", "smtp://mail"}, {"from", "a@b"}, {"to", {"c@d"}}, {"username", "u"}, {"password_file", dir.File("pw")}}}},
+        "key 'notifications.email.password_file': a password needs TLS: set \"starttls\": true or use an smtps:// URL");
+    CheckError({{"email", {{"smtp_url", "smtps://mail"}, {"from", "a@b"}, {"to", {"c@d"}}, {"ca_file", "/nonexistent/ca.pem"}}}},
+               "key 'notifications.email.ca_file': cannot read '/nonexistent/ca.pem'");
+    CheckError({{"webhooks", {{{"url", "https://x/y"}, {"secret", "s"}, {"ca_file", dir.File("not.pem")}}}}},
+               "key 'notifications.webhooks[0].ca_file': '" + dir.File("not.pem") + "' holds no PEM certificate");
+  }
   CheckError({{"retry_initial_s", 0}}, "key 'notifications.retry_initial_s': must be a whole number in [1, 86400], not 0");
   CheckError({{"timeout_s", 1.5}}, "key 'notifications.timeout_s': must be a whole number");
   CheckError({{"webhooks", {{{"url", "https://x/y"}, {"secret", "a\r\nX-Evil: 1"}}}}},
