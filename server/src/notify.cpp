@@ -121,7 +121,7 @@ class Reader {
   }
   void Address(const std::string& value, const std::string& key) const {
     // A bare address: the SMTP envelope takes it as it is.
-    if (value.find('@') == std::string::npos || value.find_first_of(" \t<>,;\"") != std::string::npos)
+    if (value.find('@') == std::string::npos || value.find_first_of(" \t\r\n<>,;\"") != std::string::npos)
       Fail(key, "'" + value + "' is not an e-mail address (name@domain, without a display name)");
   }
 
@@ -173,9 +173,11 @@ std::string Redacted(const std::string& url) {
 }
 
 /// A header value on one line of printable text.
+/// One line of text for a header or the body: control characters (CR, LF, tab, escapes) become
+/// spaces, so no value from a radio or a broker message can add a line or end the message.
 std::string HeaderText(std::string s) {
   for (char& c : s)
-    if (c == '\r' || c == '\n' || c == '\t') c = ' ';
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = ' ';
   return s;
 }
 
@@ -224,13 +226,13 @@ std::string EmailMessage(const NotificationConfig& config, const EmailTarget& em
     << "Content-Transfer-Encoding: 8bit\r\n"
     << "\r\n"
     << "Alarm " << event.action << " on crusher " << a.crusher << ".\r\n\r\n"
-    << "Rule:       " << a.rule << " (" << a.subject << ")\r\n"
-    << "Severity:   " << a.severity << "\r\n"
-    << "State:      " << a.state << "\r\n"
+    << "Rule:       " << HeaderText(a.rule) << " (" << HeaderText(a.subject) << ")\r\n"
+    << "Severity:   " << HeaderText(a.severity) << "\r\n"
+    << "State:      " << HeaderText(a.state) << "\r\n"
     << "Detail:     " << HeaderText(a.detail) << "\r\n"
     << "Value:      " << Number(a.value) << " (threshold " << Number(a.threshold) << ")\r\n"
     << "Since:      " << Iso(a.since_s) << "\r\n"
-    << "Event:      " << event.action << " at " << Iso(event.time_s) << " by " << event.by << "\r\n"
+    << "Event:      " << event.action << " at " << Iso(event.time_s) << " by " << HeaderText(event.by) << "\r\n"
     << "Alarm id:   " << a.id << " (event " << event_id << ")\r\n";
   if (!link.empty()) m << "Dashboard:  " << link << "\r\n";
   if (event.action != "cleared")
@@ -424,7 +426,10 @@ void Notifier::Start() {
 }
 
 void Notifier::Stop() {
-  stop_ = true;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);  // under the lock Run() waits with: the wake-up is not missed
+    stop_ = true;
+  }
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
 }
@@ -459,6 +464,22 @@ SendResult Notifier::Send(const NotificationRecord& n) {
     return SendEmail(*config_.email, n.body, config_.timeout_s, &stop_);
   }
   return {false, "not configured"};
+}
+
+void Notifier::SaveDelivered(const NotificationRecord& n, const std::string& what) {
+  // The receiver has it: a busy database (a long commit, an operator's sqlite3) must not make it
+  // pending again, or it would be sent twice. Retried until stored; only a stop leaves it (then
+  // the next start sends it again, with the same event id, as after a crash).
+  for (int attempt = 0; !stop_; ++attempt) {
+    try {
+      store_->SaveNotificationAttempt(n);
+      return;
+    } catch (const std::exception& e) {
+      if (attempt == 0) log_(what + " delivered, not yet recorded: " + e.what() + " (retrying)");
+    }
+    std::unique_lock<std::mutex> lock(mutex_);
+    cv_.wait_for(lock, std::chrono::milliseconds(500), [&] { return stop_.load(); });
+  }
 }
 
 int64_t Notifier::Turn() {
@@ -496,7 +517,11 @@ int64_t Notifier::Turn() {
            " s");
       next_s = std::min(next_s, delay);
     }
-    store_->SaveNotificationAttempt(n);
+    if (r.ok) {
+      SaveDelivered(n, what);
+    } else {
+      store_->SaveNotificationAttempt(n);
+    }
     if (r.ok) log_(what + " delivered (attempt " + std::to_string(n.attempts) + ")");
     if (metrics_) metrics_->CountNotification(n.channel, r.ok);
   }

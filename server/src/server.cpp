@@ -613,6 +613,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   }
   log("stopping");
   core::SdNotify("STOPPING=1");
+  notifier->Stop();  // before the metrics it counts into go (they are declared after it)
   api.Stop();
   link.Shutdown({}, 2000);
 }

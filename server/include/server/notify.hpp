@@ -101,6 +101,7 @@ class Notifier {
   void Run();
   /// Queues new events, then makes each due attempt; returns the seconds until the next one is due.
   int64_t Turn();
+  void SaveDelivered(const NotificationRecord& n, const std::string& what);
   SendResult Send(const NotificationRecord& n);
 
   NotificationConfig config_;
