@@ -148,13 +148,15 @@ Scope RequiredScope(std::string_view method, std::string_view path) {
 namespace {
 /// Whether `path` matches `path_template` segment by segment, {name} matching one non-empty
 /// segment: what PathPattern's regular expression matches, without building one per request.
-bool PathMatches(std::string_view path_template, std::string_view path) {
+/// `args` (when given) receives the segments the {name}s matched.
+bool PathMatches(std::string_view path_template, std::string_view path, std::vector<std::string>* args = nullptr) {
   size_t t = 0, p = 0;
   while (t < path_template.size()) {
     if (path_template[t] == '{') {
       const size_t close = path_template.find('}', t);
       const size_t end = std::min(path.find('/', p), path.size());
       if (close == std::string_view::npos || end == p) return false;
+      if (args) args->emplace_back(path.substr(p, end - p));
       t = close + 1;
       p = end;
       continue;
@@ -175,6 +177,7 @@ RouteMatch MatchRoute(std::string_view method, std::string_view path) {
     m.path_known = true;
     if (as == MethodName(r.method)) {
       m.route = &r;
+      PathMatches(r.path, path, &m.args);
       break;
     }
   }
