@@ -348,6 +348,8 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   ctx.campaigns = &campaigns;
   ctx.alarms = &alarms;
   ctx.after_reline = [&](const std::string& crusher) {  // the new liner's wear, computed and published
+    // The dashboard's campaign list reads .../campaigns again at this event (docs/dashboard.md).
+    events.Publish(crusher, "campaign", nlohmann::ordered_json({{"crusher", crusher}}).dump());
     metrics.WearChanged(crusher, WallMs());
     {
       std::lock_guard<std::mutex> lock(dirty_mutex);

@@ -208,6 +208,7 @@ class Resources {
   Response StartDiagnosis(const Request&);
   Response PostReline(const Request&);
   Response CampaignList(const Request&);
+  Response VoidReline(const Request&);
   Response AlarmList(const Request&);
   Response AckAlarm(const Request&);
   Response AlarmRules(const Request&);
