@@ -89,9 +89,16 @@ class Reader {
       return "";
     }
     const std::string path = Text(j, file_name, key, true);
-    std::ifstream in(path);
+    // One short line is read, no more: a path such as /dev/zero has no end of line, ever.
+    constexpr size_t kMaxLine = 4096;
+    std::ifstream in(path, std::ios::binary);
     std::string line;
-    if (!in || !std::getline(in, line)) Fail(key + "." + file_name, "cannot read '" + path + "'");
+    bool any = false;
+    for (char ch; line.size() <= kMaxLine && in.get(ch) && ch != '\n'; any = true) line += ch;
+    any = any || (in && line.empty());  // a first line that is empty, with a newline after it
+    if (!any) Fail(key + "." + file_name, "cannot read '" + path + "'");
+    if (line.size() > kMaxLine)
+      Fail(key + "." + file_name, "the first line of '" + path + "' is longer than " + std::to_string(kMaxLine) + " bytes");
     const size_t b = line.find_first_not_of(" \t\r"), e = line.find_last_not_of(" \t\r");
     if (b == std::string::npos) Fail(key + "." + file_name, "'" + path + "' is empty");
     return line.substr(b, e - b + 1);

@@ -148,6 +148,10 @@ TEST(HttpApi, TokensAreRequiredAndScopesEnforced) {
   LONGS_EQUAL(401, q->status);
   q = anon.Get(a.Base() + "/sensors?access_token=" + std::string(kReadToken));
   LONGS_EQUAL(401, q->status);
+  // A path merely shaped like .../events is not the event stream: the crusher "events" (a route of
+  // its own, the crusher detail) took the URL token when the path's ending decided.
+  q = anon.Get("/api/v1/crushers/events?access_token=" + std::string(kReadToken));
+  LONGS_EQUAL(401, q->status);
   const int fd = Connect(a.port);
   SendText(fd, "GET " + a.Base() + "/events?access_token=" + kReadToken + " HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
   char head[16] = {};

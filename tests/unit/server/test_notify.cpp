@@ -133,6 +133,20 @@ TEST(NotifyConfig, EachBadKeyOrValueIsNamed) {
   CHECK(e.find("notifications.webhooks[0].extra") != std::string::npos);
 }
 
+// A secret file is read for its first line only, and that line is short: a path such as /dev/zero
+// (no newline, ever) was read until memory ran out.
+TEST(NotifyConfig, ASecretFileIsReadForOneShortLineOnly) {
+  CheckError({{"webhooks", {{{"url", "https://x/y"}, {"secret_file", "/dev/zero"}}}}},
+             "key 'notifications.webhooks[0].secret_file': the first line of '/dev/zero' is longer than 4096 bytes");
+  lw::test::TempDirectory dir("lw-notify-secret");
+  const std::string file = dir.Write("secret", "  k3y \nsecond line ignored\n").string();
+  const NotificationConfig c =
+      ParseNotificationConfig({{"webhooks", {{{"url", "https://x/y"}, {"secret_file", file}}}}}, "config s.json");
+  STRCMP_EQUAL("k3y", c.webhooks.at(0).secret.c_str());
+  CheckError({{"webhooks", {{{"url", "https://x/y"}, {"secret_file", dir.Write("empty", "").string()}}}}}, "cannot read");
+  CheckError({{"webhooks", {{{"url", "https://x/y"}, {"secret_file", dir.Write("blank", " \t\n").string()}}}}}, "is empty");
+}
+
 TEST(NotifyConfig, TheServersConfigFileTakesNotificationsAndRefusesOtherObjects) {
   lw::test::TempDirectory dir;
   const std::string path = dir.File("server.json");
