@@ -57,7 +57,8 @@ TEST(GatewayReadOnlyFileSystem, ASpoolOnAReadOnlyMountStopsTheGatewayAndKeepsIts
   {
     lw::gateway::Spool s(spool, 1000);
     std::vector<lw::gateway::SpoolRecord> records;
-    for (uint32_t seq = 1; seq <= 5; ++seq) records.push_back({"1001", seq, 1000 + seq, false, "{\"seq\":" + std::to_string(seq) + "}"});
+    for (uint32_t seq = 1; seq <= 5; ++seq)
+      records.push_back({"1001", seq, 1000 + seq, false, "{\"seq\":" + std::to_string(seq) + "}"});
     s.Insert(records);
     LONGS_EQUAL(5, s.depth());
   }
