@@ -1,5 +1,6 @@
 #include "core/bundle.hpp"
 
+#include "core/identifier.hpp"
 #include "core/json_unique.hpp"
 
 #include <algorithm>
@@ -260,11 +261,8 @@ nlohmann::ordered_json AlarmConfigJson(const AlarmConfig& config) {
 }
 
 void CheckIdentifier(const std::string& id, const std::string& what, const std::string& file) {
-  const bool ok = !id.empty() && id.size() <= 64 && std::all_of(id.begin(), id.end(), [](char ch) {
-    return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == '-';
-  });
-  if (!ok) {
-    throw InputError(file, 0, what + " '" + id + "' must be 1-64 letters, digits, '.', '_' or '-' (it is an MQTT topic level)");
+  if (!IsIdentifier(id)) {
+    throw InputError(file, 0, what + " '" + id + "' must be " + std::string(kIdentifierRule) + " (it is an MQTT topic level)");
   }
 }
 

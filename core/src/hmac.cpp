@@ -1,5 +1,7 @@
 #include "core/hmac.hpp"
 
+#include "core/wear_map.hpp"
+
 #include <openssl/evp.h>
 #include <openssl/hmac.h>
 
@@ -7,6 +9,28 @@
 #include <stdexcept>
 
 namespace lw::core {
+namespace {
+
+std::string Hex(const unsigned char* digest, unsigned len) {
+  std::string hex;
+  char b[3];
+  for (unsigned i = 0; i < len; ++i) {
+    std::snprintf(b, sizeof b, "%02x", digest[i]);
+    hex += b;
+  }
+  return hex;
+}
+
+}  // namespace
+
+// Beside the HMAC so both digests share one hex encoding (declared in core/wear_map.hpp, whose
+// maps it fingerprints).
+std::string Sha256Hex(const std::string& bytes) {
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int len = 0;
+  EVP_Digest(bytes.data(), bytes.size(), digest, &len, EVP_sha256(), nullptr);
+  return Hex(digest, len);
+}
 
 std::string HmacSha256Hex(const std::string& key, const std::string& message) {
   unsigned char digest[EVP_MAX_MD_SIZE];
@@ -16,13 +40,7 @@ std::string HmacSha256Hex(const std::string& key, const std::string& message) {
             message.size(), digest, &len)) {
     throw std::runtime_error("HMAC-SHA256 failed (OpenSSL)");
   }
-  std::string hex;
-  char b[3];
-  for (unsigned i = 0; i < len; ++i) {
-    std::snprintf(b, sizeof b, "%02x", digest[i]);
-    hex += b;
-  }
-  return hex;
+  return Hex(digest, len);
 }
 
 }  // namespace lw::core

@@ -1,6 +1,7 @@
 #include "gateway/config.hpp"
 
 #include "core/cmdline.hpp"
+#include "core/identifier.hpp"
 #include "gateway/messages.hpp"
 
 #include <unistd.h>
@@ -50,14 +51,6 @@ std::string RequireUri(const std::string& uri) {
     if (uri.rfind(s, 0) == 0 && uri.size() > std::string(s).size()) return uri;
   }
   throw ConfigError("--broker: '" + uri + "' is not a broker URI (tcp://host:port or ssl://host:port)");
-}
-
-bool IsTopicLevel(const std::string& s) {
-  if (s.empty()) return false;
-  for (char c : s) {
-    if (c == '/' || c == '+' || c == '#' || c == '\0') return false;
-  }
-  return true;
 }
 
 }  // namespace
@@ -116,10 +109,13 @@ ParseResult ParseCommandLine(const std::vector<std::string>& args, Config* confi
   if (!IsSupportedBaud(c.baud))
     throw ConfigError("--baud: " + std::to_string(c.baud) + " is not a supported rate (1200..921600, standard values)");
   RequireUri(c.broker);
-  if (!IsTopicLevel(c.site))
-    throw ConfigError("--site: '" + c.site + "' must be a non-empty MQTT topic level without '/', '+' or '#'");
-  if (!IsTopicLevel(c.crusher))
-    throw ConfigError("--crusher: '" + c.crusher + "' must be a non-empty MQTT topic level without '/', '+' or '#'");
+  // The server and crusher.json refuse any other name, so a gateway publishing under one would
+  // have every reading quarantined.
+  for (const auto& [flag, value] : {std::pair{"--site", &c.site}, std::pair{"--crusher", &c.crusher}}) {
+    if (!core::IsIdentifier(*value))
+      throw ConfigError(std::string(flag) + ": '" + *value + "' must be " + std::string(core::kIdentifierRule) +
+                        ", as crusher.json's names (it is an MQTT topic level)");
+  }
   if (!c.metrics.empty()) {
     const size_t colon = c.metrics.rfind(':');
     if (colon == std::string::npos || colon == 0) throw ConfigError("--metrics: '" + c.metrics + "' must be HOST:PORT");

@@ -29,8 +29,8 @@ struct SensorInfo {
 };
 
 /// Identifiers that become MQTT topic levels, URL path segments and dashboard text (crusher, site
-/// and sensor ids): 1-64 characters of letters, digits, '.', '_' and '-' (no '/', '+', '#',
-/// spaces, markup). Throws InputError naming `file`, `what` and the id.
+/// and sensor ids) keep core::IsIdentifier (core/identifier.hpp). Throws InputError naming `file`,
+/// `what` and the id.
 void CheckIdentifier(const std::string& id, const std::string& what, const std::string& file);
 
 /// The slack above a sensor's as-new thickness a reading may show (one ladder loop).

@@ -93,6 +93,29 @@ TEST(Config, BadValuesAreNamed) {
   CHECK(Contains(ErrorOf(a), "--window needs a value"));
 }
 
+// The gateway's site and crusher become topic levels the server matches against crusher.json,
+// which allows only crusher.json's identifiers: a name only the gateway accepted (a space, an
+// escape, a non-ASCII letter, 65 characters) would have every reading quarantined at the server.
+TEST(Config, SiteAndCrusherKeepCrusherJsonsIdentifierRule) {
+  const char* refused[] = {"mine a", "cr\x1b[31m", "m\xc3\xa9", "a+b", "a#"};
+  for (int field : {6, 8}) {
+    for (const char* name : refused) {
+      auto a = Base();
+      a[field] = name;
+      const std::string error = ErrorOf(a);
+      CHECK_TEXT(Contains(error, field == 6 ? "--site: '" : "--crusher: '"), (std::string(name) + ": " + error).c_str());
+      CHECK_TEXT(Contains(error, "1-64 letters, digits, '.', '_' or '-'"), error.c_str());
+    }
+    auto a = Base();
+    a[field] = std::string(65, 'x');
+    CHECK(Contains(ErrorOf(a), "must be 1-64"));
+    a[field] = std::string(64, 'x');
+    STRCMP_EQUAL("", ErrorOf(a).c_str());
+    a[field] = "Mine-A.2_b";
+    STRCMP_EQUAL("", ErrorOf(a).c_str());
+  }
+}
+
 // Integer options were parsed as long long and then static_cast: `--api-mode 4294967297` ran in API
 // mode 1 and `--baud 4294976896` (9600 + 2^32) at 9600 baud. Each is now refused, naming the option,
 // its value and the allowed range, on the command line and in a --config file.
