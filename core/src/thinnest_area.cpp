@@ -636,18 +636,47 @@ nlohmann::ordered_json ThinnestAreaJson(const ThinnestArea& a) {
   return j;
 }
 
+double SettingEstimate::OpeningSince() const {
+  return opening_mm - (check ? check->opening_mm : 0.0);
+}
+
+void ApplySettingChecks(const std::vector<SettingCheck>& checks, TimePoint at, SettingEstimate* setting) {
+  setting->check.reset();
+  for (const SettingCheck& c : checks)
+    if (c.time <= at && (!setting->check || c.time > setting->check->time)) setting->check = c;
+}
+
+namespace {
+
+/// The CSS the setting is counted from: the latest measured one, else crusher.json's.
+std::optional<double> CssBase(const SettingEstimate& s) {
+  return s.check ? std::optional(s.check->css_mm) : s.css_set_mm;
+}
+
+}  // namespace
+
 nlohmann::ordered_json SettingJson(const SettingEstimate& s) {
   const ThinnestArea& a = s.ring;
   nlohmann::ordered_json j;
+  // The CSS is its base plus the opening since; the band is today's band shifted by the opening at
+  // the check, which the measured CSS then anchors.
+  const std::optional<double> base = CssBase(s);
+  const double at_base = s.check ? s.check->opening_mm : 0.0;
   const auto css = [&](double opening) {
-    return s.css_set_mm ? Rounded(*s.css_set_mm + opening, 0.01) : nlohmann::ordered_json(nullptr);
+    return base ? Rounded(*base + opening - at_base, 0.01) : nlohmann::ordered_json(nullptr);
   };
   j["opening_mm"] = Rounded(s.opening_mm, 0.01);
   j["opening_band_mm"] = nlohmann::ordered_json::array({Rounded(s.opening_lo_mm, 0.01), Rounded(s.opening_hi_mm, 0.01)});
   j["css_set_mm"] = s.css_set_mm ? nlohmann::ordered_json(*s.css_set_mm) : nlohmann::ordered_json(nullptr);
   j["css_mm"] = css(s.opening_mm);
-  j["css_band_mm"] = s.css_set_mm ? nlohmann::ordered_json::array({css(s.opening_lo_mm), css(s.opening_hi_mm)})
-                                  : nlohmann::ordered_json(nullptr);
+  j["css_band_mm"] =
+      base ? nlohmann::ordered_json::array({css(s.opening_lo_mm), css(s.opening_hi_mm)}) : nlohmann::ordered_json(nullptr);
+  j["opening_since_mm"] = Rounded(s.OpeningSince(), 0.01);
+  j["checked"] = s.check ? nlohmann::ordered_json{{"time", FormatIsoTime(s.check->time)},
+                                                  {"css_mm", s.check->css_mm},
+                                                  {"opening_mm", Rounded(s.check->opening_mm, 0.01)},
+                                                  {"by", s.check->by}}
+                         : nlohmann::ordered_json(nullptr);
   j["supported"] = a.supported;
   j["half_width_mm"] = Rounded(a.half_width_mm, 0.01);
   j["ring"] = {{"row", a.row},
@@ -679,7 +708,19 @@ std::string SettingText(const SettingEstimate& s) {
                   a.half_width_mm, s.opening_mm + a.thickness_mm);
     return std::string(b) + (a.extrapolated ? "; from the DEM map alone" : "") + "; the mantle's wear is not included";
   }
-  if (s.css_set_mm)
+  if (s.check && !std::isfinite(s.check->opening_mm))
+    std::snprintf(b, sizeof b,
+                  "setting: measured %.0f mm on %s; the opening since is not known (the discharge ring was not supported "
+                  "then), opened %.1f mm (band %.1f..%.1f) since installation",
+                  s.check->css_mm, FormatIsoTime(s.check->time).substr(0, 10).c_str(), s.opening_mm, s.opening_lo_mm,
+                  s.opening_hi_mm);
+  else if (s.check)
+    std::snprintf(b, sizeof b,
+                  "setting: opened %.1f mm (band %.1f..%.1f) by the concave's wear at the discharge ring since it was "
+                  "measured %.0f mm on %s: CSS about %.0f mm",
+                  s.OpeningSince(), s.opening_lo_mm - s.check->opening_mm, s.opening_hi_mm - s.check->opening_mm, s.check->css_mm,
+                  FormatIsoTime(s.check->time).substr(0, 10).c_str(), s.check->css_mm + s.OpeningSince());
+  else if (s.css_set_mm)
     std::snprintf(
         b, sizeof b,
         "setting: opened %.1f mm (band %.1f..%.1f) by the concave's wear at the discharge ring: CSS about %.0f mm (set %.0f)",

@@ -119,16 +119,22 @@ void AlarmEngine::WearFindings(const core::CrusherConfig& cfg, const core::Alarm
     f.detail = "thinnest area " + Fixed(a.thickness_mm) + " mm (band " + Fixed(a.lo_mm) + "-" + Fixed(a.hi_mm) + ") in row " +
                a.row + " at z " + Fixed(a.z_m, 2) + " m; alarm below " + Fixed(r.threshold) + " mm";
     out.push_back(std::move(f));
-    // The setting's opening by the concave's wear at the discharge ring: only a supported opening
-    // raises or clears (an unsupported band holds the alarm as it is).
+    // The setting's opening by the concave's wear at the discharge ring since the CSS was last
+    // known (a measured setting, else installation): only a supported opening raises or clears (an
+    // unsupported band holds the alarm as it is). Recording the CSS measured after raising the
+    // mantle (POST .../setting/checks) restarts the count, so the alarm clears.
     const core::SettingEstimate& st = w->setting;
     const core::AlarmRule& so = rules.Rule("setting_open");
-    Finding open{"setting_open", "discharge", Verdict::kHold, st.opening_mm, so.threshold, {}};
-    if (st.ring.supported && std::isfinite(st.opening_mm)) open.verdict = High<Verdict>(st.opening_mm, so);
-    open.detail = "the closed-side setting has opened " + Fixed(st.opening_mm) + " mm (band " + Fixed(st.opening_lo_mm) + "-" +
-                  Fixed(st.opening_hi_mm) +
-                  ") by the concave's wear at the discharge ring (the mantle's wear not included); alarm above " +
-                  Fixed(so.threshold) + " mm: raise the mantle, then raise alarms.setting_open.above_mm by the adjustment";
+    const double since = st.OpeningSince();
+    const double at_check = st.check ? st.check->opening_mm : 0.0;
+    Finding open{"setting_open", "discharge", Verdict::kHold, since, so.threshold, {}};
+    if (st.ring.supported && std::isfinite(since)) open.verdict = High<Verdict>(since, so);
+    open.detail = "the closed-side setting has opened " + Fixed(since) + " mm (band " + Fixed(st.opening_lo_mm - at_check) + "-" +
+                  Fixed(st.opening_hi_mm - at_check) + ") by the concave's wear at the discharge ring " +
+                  (st.check ? "since it was measured on " + core::FormatIsoTime(st.check->time).substr(0, 10)
+                            : std::string("since installation")) +
+                  " (the mantle's wear not included); alarm above " + Fixed(so.threshold) +
+                  " mm: raise the mantle, then record the CSS measured (POST .../setting/checks)";
     out.push_back(std::move(open));
     for (const core::RowForecast& rf : w->row_forecasts) {
       Finding due{"reline_due", rf.row, Verdict::kHold, {}, rules.Rule("reline_due").threshold, {}};

@@ -200,7 +200,9 @@ ordered_json CampaignJson(const CampaignRecord& c, int64_t now_s) {
 
 CampaignService::CampaignService(Registry& registry, LockedStore& store, LiveState& live, WearService& wear,
                                  std::function<int64_t()> now_s)
-    : registry_(registry), store_(store), live_(live), wear_(wear), now_s_(std::move(now_s)) {}
+    : registry_(registry), store_(store), live_(live), wear_(wear), now_s_(std::move(now_s)) {
+  LoadSettingChecks();
+}
 
 std::vector<CampaignRecord> CampaignService::CampaignsOf(Store& store, const Crusher& crusher) const {
   std::vector<CampaignRecord> stored = store.Campaigns(crusher.config.crusher_id);

@@ -263,6 +263,19 @@ const std::string kVoidRequestSchema =
     R"j({"type":"object","additionalProperties":false,"properties":{"reason":{"type":"string","maxLength":1000}}})j";
 const std::string kCampaignListSchema =
     R"j({"type":"object","required":["campaigns"],"properties":{"campaigns":{"type":"array","items":)j" + kCampaignSchema + "}}}";
+const std::string kSettingCheckRequestSchema =
+    std::string(R"j({"type":"object","required":["time","css_mm"],"additionalProperties":false,"properties":{)j") +
+    R"j("time":{"type":"string","format":"date-time","description":"when the setting was measured"},)j" +
+    R"j("css_mm":{"type":"number","minimum":0,"exclusiveMinimum":true,"maximum":1000,"description":"the closed-side setting measured, mm"},)j" +
+    R"j("note":{"type":"string","maxLength":1000}}})j";
+const std::string kSettingCheckSchema =
+    std::string(R"j({"type":"object","required":["time","css_mm","opening_mm","by","note","recorded"],"properties":{)j") +
+    R"j("time":{"type":"string","format":"date-time"},"css_mm":{"type":"number"},)j" +
+    R"j("opening_mm":{"type":"number","nullable":true,"description":"the concave's opening estimated at that time (null: not supported then)"},)j" +
+    R"j("by":{"type":"string","description":"the token's name"},"note":{"type":"string"},)j" +
+    R"j("recorded":{"type":"string","format":"date-time"}}})j";
+const std::string kSettingCheckListSchema =
+    R"j({"type":"object","required":["checks"],"properties":{"checks":{"type":"array","items":)j" + kSettingCheckSchema + "}}}";
 
 // linerwatch plan's JSON (docs/plan.md); numbers may be null where a band is not defined.
 const char* const kPlanSchema =
@@ -502,6 +515,34 @@ std::vector<Route> Resources::WearRoutes() {
         {"409", "the campaign from {time} is not the running one (void the later relines first) or began with no reline"},
         {"500", "not stored: the database refused it"},
         kReadOnly}},
+      {Method::kPost,
+       "/api/v1/crushers/{crusher}/setting/checks",
+       "Record the closed-side setting measured on the crusher (after raising the mantle, say): live wear counts the "
+       "setting and the setting_open alarm from it (201; the same again, 200)",
+       {},
+       "201",
+       &Resources::PostSettingCheck,
+       {kJson},
+       kSmallBodyBytes,
+       kSettingCheckRequestSchema.c_str(),
+       kSettingCheckSchema.c_str(),
+       {{"200", "already stored: the same setting at this time", kSettingCheckSchema.c_str()},
+        {"400", "the body is not the setting object (the message names the field)"},
+        {"409", "another setting is recorded at this time"},
+        {"422", "a time in the future or before the liner's installation, or a setting out of range"},
+        {"500", "not stored: the database refused it"},
+        kReadOnly}},
+      {Method::kGet,
+       "/api/v1/crushers/{crusher}/setting/checks",
+       "The closed-side settings measured on the crusher, oldest first (every liner's)",
+       {},
+       "200",
+       &Resources::SettingCheckList,
+       {kJson},
+       kSmallBodyBytes,
+       nullptr,
+       kSettingCheckListSchema.c_str(),
+       {kReadOnly}},
   };
 }
 
@@ -941,7 +982,8 @@ std::shared_ptr<const CrusherState> Resources::StateOf(const Request& req, const
   }
   const core::TimePoint at{std::chrono::seconds(at_s)};
   const estimate::ReadingWindow window = ctx_.read->With([&](Store& s) { return LoadWindow(s, c, at_s); });
-  auto st = std::make_shared<const CrusherState>(ComputeCrusherState(c, window.Readings(), at));
+  auto st = std::make_shared<const CrusherState>(
+      ComputeCrusherState(c, window.Readings(), at, nullptr, ctx_.wear->SettingChecks(c.config.crusher_id)));
   if (!st->has_wear) {
     *error = Error(404, "no readings of crusher " + c.config.crusher_id + " at or before at=" + *at_param);
     return nullptr;
@@ -1156,6 +1198,32 @@ Response Resources::VoidReline(const Request& req) {
   }
   if (out.created && ctx_.after_reline) ctx_.after_reline(c->config.crusher_id);
   return Json(200, CampaignJson(out.campaign, ctx_.campaigns->Now()));
+}
+
+Response Resources::PostSettingCheck(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  if (!ctx_.campaigns) return Error(503, "campaigns are not available on this server");
+  CampaignService::SettingOutcome out;
+  try {
+    out = ctx_.campaigns->CheckSetting(c->config.crusher_id, ParseSettingCheckBody(req.body), TokenName(req));
+  } catch (const RelineError& e) {
+    return Error(e.status(), e.what());
+  }
+  // The wear is computed and published again with the setting counted from the check, as after a reline.
+  if (out.created && ctx_.after_reline) ctx_.after_reline(c->config.crusher_id);
+  return Json(out.created ? 201 : 200, SettingCheckJson(out.check));
+}
+
+Response Resources::SettingCheckList(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  if (!ctx_.campaigns) return Error(503, "campaigns are not available on this server");
+  ordered_json list = ordered_json::array();
+  for (const SettingCheckRecord& k : ctx_.campaigns->SettingChecks(c->config.crusher_id)) list.push_back(SettingCheckJson(k));
+  return Json(200, {{"checks", std::move(list)}});
 }
 
 Response Resources::CampaignList(const Request& req) {

@@ -20,7 +20,7 @@ using Db = core::sqlite::Database<std::runtime_error>;
 using Stmt = core::sqlite::Statement<std::runtime_error>;
 using Tx = core::sqlite::Transaction<std::runtime_error>;
 
-constexpr int kSchemaVersion = 7;
+constexpr int kSchemaVersion = 8;
 
 StoredReading Row(const Stmt& s) {
   StoredReading r;
@@ -402,6 +402,17 @@ struct Store::Impl {
           "PRAGMA user_version=7;");
       tx.Commit();
     }
+    if (v < 8) {
+      // Version 8: closed-side settings measured on the crusher (docs/wear.md, *Setting*), one per
+      // crusher and time; opening_mm is the concave's opening the server estimated at that time
+      // (NULL: not supported then), which the measured CSS anchors.
+      Tx tx(db);
+      db.Exec(
+          "CREATE TABLE IF NOT EXISTS setting_checks (crusher TEXT NOT NULL, time INTEGER NOT NULL, css_mm REAL NOT NULL, opening_mm REAL,"
+          " by TEXT NOT NULL, note TEXT NOT NULL DEFAULT '', recorded INTEGER NOT NULL, PRIMARY KEY (crusher, time));"
+          "PRAGMA user_version=8;");
+      tx.Commit();
+    }
   }
 };
 
@@ -662,6 +673,31 @@ void Store::VoidReline(const CampaignRecord& voided, int64_t reopened_id) {
     s.Step();
   }
   tx.Commit();
+}
+
+bool Store::AddSettingCheck(const SettingCheckRecord& c) {
+  Impl& im = *impl_;
+  Stmt add(im.db,
+           "INSERT INTO setting_checks(crusher, time, css_mm, opening_mm, by, note, recorded) VALUES(?1,?2,?3,?4,?5,?6,?7)"
+           " ON CONFLICT(crusher, time) DO NOTHING");
+  add.Bind(1, c.crusher).Bind(2, c.time_s).Bind(3, c.css_mm).Bind(5, c.by).Bind(6, c.note).Bind(7, c.recorded_s);
+  if (c.opening_mm) add.Bind(4, *c.opening_mm);
+  add.Step();
+  return add.Changes() > 0;
+}
+
+std::vector<SettingCheckRecord> Store::SettingChecks(const std::string& crusher) {
+  Impl& im = *impl_;
+  Stmt list(im.db,
+            "SELECT crusher, time, css_mm, opening_mm, by, note, recorded FROM setting_checks WHERE crusher=?1 ORDER BY time");
+  list.Bind(1, crusher);
+  std::vector<SettingCheckRecord> out;
+  while (list.Step()) {
+    SettingCheckRecord c{list.Text(0), list.Int(1), list.Real(2), std::nullopt, list.Text(4), list.Text(5), list.Int(6)};
+    if (!list.IsNull(3)) c.opening_mm = list.Real(3);
+    out.push_back(std::move(c));
+  }
+  return out;
 }
 
 namespace {

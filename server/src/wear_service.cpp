@@ -35,11 +35,17 @@ ordered_json Num(double v, double step) {
 }  // namespace
 
 CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<estimate::Sample>& readings,
-                                 std::optional<core::TimePoint> at, const CrusherState* previous) {
+                                 std::optional<core::TimePoint> at, const CrusherState* previous,
+                                 const std::vector<core::SettingCheck>& checks) {
   CrusherState st;
   // Reline dates hold only against this crusher's own previous state.
   const bool hold = previous && previous->crusher == &crusher;
   static_cast<estimate::WearEstimate&>(st) = estimate::Estimate(crusher, readings, at, {}, hold ? previous : nullptr);
+  // A check before this liner's installation measured the liner before it.
+  std::vector<core::SettingCheck> this_liner;
+  for (const core::SettingCheck& c : checks)
+    if (c.time >= crusher.config.installed_at) this_liner.push_back(c);
+  core::ApplySettingChecks(this_liner, at.value_or(core::TimePoint::max()), &st.setting);
   st.crusher = &crusher;
   st.at = at;
   return st;
@@ -277,15 +283,17 @@ void WearService::Reset(const std::string& crusher) {
 std::shared_ptr<const CrusherState> WearService::ComputeLocked(const Crusher& crusher, Entry& e) {
   int64_t version = 0;
   std::shared_ptr<const CrusherState> previous;  // the state published last: its dates hold within their band
+  std::vector<core::SettingCheck> checks;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (e.state && e.state->version == e.version) return e.state;
     version = e.version;
     previous = e.state;
+    checks = e.checks;
   }
   // The version is read before the inputs: readings committed after it bump it again.
   auto st = std::make_shared<CrusherState>(
-      ComputeCrusherState(crusher, live_.WearSamples(crusher.config.crusher_id), std::nullopt, previous.get()));
+      ComputeCrusherState(crusher, live_.WearSamples(crusher.config.crusher_id), std::nullopt, previous.get(), checks));
   st->version = version;
   const auto text = [](const nlohmann::ordered_json& j) {
     return j.dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace);
@@ -304,6 +312,18 @@ std::shared_ptr<const CrusherState> WearService::Get(const std::string& crusher_
   Entry& e = EntryOf(crusher_id);
   std::lock_guard<std::mutex> compute(e.compute);
   return ComputeLocked(*registry_.Find(crusher_id), e);  // the model of now: a reline may have replaced it meanwhile
+}
+
+void WearService::SetSettingChecks(const std::string& crusher, std::vector<core::SettingCheck> checks) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Entry& e = entries_[crusher];
+  e.checks = std::move(checks);
+  ++e.version;
+}
+
+std::vector<core::SettingCheck> WearService::SettingChecks(const std::string& crusher) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return entries_[crusher].checks;
 }
 
 std::shared_ptr<const CrusherState> WearService::Latest(const std::string& crusher_id) {

@@ -264,6 +264,13 @@ async function crusherPage(crusherId, initialSensor) {
   function settingText(s) {
     if (!s || s.opening_mm == null) return null;
     if (!s.supported) return `setting: not supported (band half-width ${fmt(s.half_width_mm)} mm); mantle not included`;
+    if (s.checked) {
+      // A measured setting (POST .../setting/checks) anchors the CSS: the opening counts from it.
+      const on = `${fmt(s.checked.css_mm, 0)} mm on ${s.checked.time.slice(0, 10)}`;
+      if (s.opening_since_mm == null) return `setting measured ${on}; the opening since is not known; mantle not included`;
+      const css = s.css_mm != null ? `: CSS ≈ ${fmt(s.css_mm, 0)} mm` : '';
+      return `setting opened ${fmt(s.opening_since_mm)} mm since measured ${on}${css}; mantle not included`;
+    }
     const band = `${fmt(s.opening_band_mm[0])}–${fmt(s.opening_band_mm[1])}`;
     const css = s.css_mm != null ? `: CSS ≈ ${fmt(s.css_mm, 0)} mm (set ${fmt(s.css_set_mm, 0)})` : '';
     return `setting opened ${fmt(s.opening_mm)} mm (band ${band}) at the discharge${css}; mantle not included`;

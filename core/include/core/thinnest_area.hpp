@@ -95,16 +95,32 @@ ThinnestArea ThinnestPatchOf(const ReconstructionPlan& plan, const Eigen::Vector
 /// discharge ring (the lowest `setting.ring_height_m` of the lowest row, all around) as an area of
 /// FindThinnestAreas (the same sums, band and support), and the opening its wear makes. The
 /// mantle's wear is not measured, so the opening is the concave's part.
+/// A closed-side setting measured on the crusher (POST .../setting/checks, docs/wear.md): the CSS
+/// an operator measured at `time`, after raising the mantle say, and the concave's opening this
+/// estimate gave at that time. It anchors the CSS from then on: CSS = css_mm + the opening since.
+struct SettingCheck {
+  TimePoint time{};
+  double css_mm = 0;
+  double opening_mm = 0;  ///< the opening (since installation) estimated at `time`; NaN: not supported then
+  std::string by;         ///< who recorded it (the token's name)
+};
 struct SettingEstimate {
-  ThinnestArea ring;                 ///< the discharge ring: mean remaining thickness, band, support, reach
-  double opening_mm = 0;             ///< thickness_new - ring thickness (NaN: no scale)
-  double opening_lo_mm = 0;          ///< band: new - the ring's hi edge
-  double opening_hi_mm = 0;          ///< new - the ring's lo edge
-  std::optional<double> css_set_mm;  ///< crusher.json's setting.css_mm
+  ThinnestArea ring;                  ///< the discharge ring: mean remaining thickness, band, support, reach
+  double opening_mm = 0;              ///< thickness_new - ring thickness (NaN: no scale)
+  double opening_lo_mm = 0;           ///< band: new - the ring's hi edge
+  double opening_hi_mm = 0;           ///< new - the ring's lo edge
+  std::optional<double> css_set_mm;   ///< crusher.json's setting.css_mm
+  std::optional<SettingCheck> check;  ///< the latest measured setting up to the estimate's time, if any
+  /// The opening since the CSS was last known (the check, else installation): what the
+  /// setting_open rule compares and what the CSS adds to its base. NaN when not known.
+  double OpeningSince() const;
 };
 SettingEstimate EstimateSetting(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used);
+/// The latest of `checks` at or before `at` into `setting` (none: crusher.json's css_mm stays the base).
+void ApplySettingChecks(const std::vector<SettingCheck>& checks, TimePoint at, SettingEstimate* setting);
 /// {"opening_mm", "opening_band_mm", "css_set_mm", "css_mm", "css_band_mm" (null without css_mm),
-/// "supported", "half_width_mm", "ring": {...}, "basis", "detail"}; NaN is null.
+/// "supported", "half_width_mm", "ring": {...}, "basis", "detail", "checked" (the SettingCheck
+/// anchoring the CSS: time, css_mm, opening_mm, by; null: none), "opening_since_mm"}; NaN is null.
 nlohmann::ordered_json SettingJson(const SettingEstimate& setting);
 /// One line for people: "setting: opened 12.3 mm (band ...) ...: CSS about 137 mm (set 125)".
 std::string SettingText(const SettingEstimate& setting);

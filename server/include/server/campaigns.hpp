@@ -24,8 +24,8 @@
 
 namespace lw::server {
 
-/// A refused reline: the HTTP status (400 malformed body, 409 conflicting retry, 422 invalid value,
-/// 500 not stored) and a message that names the field. Nothing was changed.
+/// A refused reline, void or setting check: the HTTP status (400 malformed body, 409 conflicting
+/// retry, 422 invalid value, 500 not stored) and a message that names the field. Nothing was changed.
 class RelineError : public std::runtime_error {
  public:
   RelineError(int status, const std::string& message) : std::runtime_error(message), status_(status) {}
@@ -51,6 +51,19 @@ inline constexpr size_t kMaxVoidReasonBytes = 1000;
 /// The body of POST .../relines/{time}/void: empty, or {"reason": "..."}; returns the reason (empty:
 /// none). Throws RelineError (400) naming the field.
 std::string ParseVoidBody(std::string_view body);
+
+/// The body of POST .../setting/checks: the closed-side setting measured on the crusher.
+struct SettingCheckRequest {
+  core::TimePoint time{};
+  double css_mm = 0;
+  std::string note;
+};
+/// The longest note a setting check keeps.
+inline constexpr size_t kMaxSettingNoteBytes = 1000;
+/// Parses {"time", "css_mm", "note"?}. Throws RelineError (400) naming the field.
+SettingCheckRequest ParseSettingCheckBody(std::string_view body);
+/// One measured setting as GET .../setting/checks lists it (docs/wear.md, *Setting*).
+nlohmann::ordered_json SettingCheckJson(const SettingCheckRecord& check);
 
 /// `all` without the voided campaigns: the crusher's history as it counts, oldest first.
 std::vector<CampaignRecord> Counted(std::vector<CampaignRecord> all);
@@ -85,11 +98,27 @@ class CampaignService {
   /// returns the voided campaign (created false). Throws RelineError: 404 no reline at `start`, 409
   /// not the running campaign (or the first, which no reline started), 500 not stored.
   Outcome Void(const std::string& crusher_id, core::TimePoint start, const std::string& by, const std::string& reason);
+  /// Records the closed-side setting measured on `crusher_id` at request.time (after raising the
+  /// mantle, say) by `by` (the token's name), with the concave's opening estimated at that time from
+  /// the readings stored up to it; live wear then counts the setting from it (docs/wear.md,
+  /// *Setting*) and the setting_open alarm counts its opening from it. The same check again returns
+  /// the stored one (created false). Throws RelineError: 404 unknown crusher, 409 another CSS at
+  /// that time, 422 a time in the future or before the liner's installation, a CSS out of range,
+  /// 500 not stored.
+  struct SettingOutcome {
+    bool created = false;
+    SettingCheckRecord check;
+  };
+  SettingOutcome CheckSetting(const std::string& crusher_id, const SettingCheckRequest& request, const std::string& by);
+  /// The crusher's measured settings, oldest first (every liner's).
+  std::vector<SettingCheckRecord> SettingChecks(const std::string& crusher_id);
   /// Every campaign of the crusher (voided ones too), oldest first; before its first reline, the one crusher.json describes.
   std::vector<CampaignRecord> List(const std::string& crusher_id);
   int64_t Now() const { return now_s_(); }
 
  private:
+  /// Hands every crusher's stored setting checks to the wear service (at start-up).
+  void LoadSettingChecks();
   /// The crusher's stored campaigns, or the one crusher.json describes (not stored yet).
   std::vector<CampaignRecord> CampaignsOf(Store& store, const Crusher& crusher) const;
 

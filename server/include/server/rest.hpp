@@ -209,6 +209,8 @@ class Resources {
   Response PostReline(const Request&);
   Response CampaignList(const Request&);
   Response VoidReline(const Request&);
+  Response PostSettingCheck(const Request&);
+  Response SettingCheckList(const Request&);
   Response AlarmList(const Request&);
   Response AckAlarm(const Request&);
   Response AlarmRules(const Request&);

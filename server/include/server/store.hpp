@@ -87,6 +87,17 @@ struct CampaignRecord {
   std::string reline_scan;  ///< a voided reline's scan_xyz (the end-of-life scan it carried); empty: none
 };
 
+/// A closed-side setting measured on a crusher (docs/wear.md, *Setting*; POST .../setting/checks).
+struct SettingCheckRecord {
+  std::string crusher;
+  int64_t time_s = 0;  ///< when it was measured
+  double css_mm = 0;
+  std::optional<double> opening_mm;  ///< the concave's opening estimated at time_s; none: not supported then
+  std::string by;                    ///< the token's name
+  std::string note;
+  int64_t recorded_s = 0;  ///< when the server stored it
+};
+
 /// One alarm as stored (docs/alarms.md): one row per episode of a rule on its subject (a row, a
 /// sensor, a gateway, the crusher), from its raise to its clear.
 struct AlarmRecord {
@@ -206,6 +217,12 @@ class Store {
   /// voided_by, void_reason and reline_scan; the campaign `reopened_id` (the one its reline closed)
   /// runs again: no end, no final scan, no final readings. Throws std::runtime_error (nothing stored).
   void VoidReline(const CampaignRecord& voided, int64_t reopened_id);
+
+  /// Stores `check`; false (nothing changed) when the crusher has one at that time already. Throws
+  /// std::runtime_error (nothing stored).
+  bool AddSettingCheck(const SettingCheckRecord& check);
+  /// The crusher's measured settings, oldest first.
+  std::vector<SettingCheckRecord> SettingChecks(const std::string& crusher);
 
   /// Stores `alarm` (a new one when its id is 0) and appends `audit` (its alarm: the alarm's id)
   /// in ONE transaction; returns the alarm's id. Throws std::runtime_error (nothing stored).

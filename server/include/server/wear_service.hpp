@@ -32,9 +32,11 @@ struct CrusherState : estimate::WearEstimate {
 CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<StoredReading>& readings,
                                  const CrusherState* previous = nullptr);
 /// The same from the readings of a reading window (the live state's, or LoadWindow's), at `at`: the
-/// readings and scans up to it (nullopt: now, the newest scan whatever its date).
+/// readings and scans up to it (nullopt: now, the newest scan whatever its date). The setting is
+/// counted from the latest of `checks` (measured settings) up to `at` since the liner's installation.
 CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<estimate::Sample>& readings,
-                                 std::optional<core::TimePoint> at, const CrusherState* previous = nullptr);
+                                 std::optional<core::TimePoint> at, const CrusherState* previous = nullptr,
+                                 const std::vector<core::SettingCheck>& checks = {});
 
 /// The wear JSON of docs/server.md (GET .../wear and the retained MQTT `.../wear`, without faces);
 /// "at" when the state is a past time's.
@@ -61,11 +63,16 @@ class WearService {
   /// worker's, within --wear-interval-ms); nullptr for a crusher never computed yet (at startup,
   /// until the wear worker's first pass reaches it), so no request computes one.
   std::shared_ptr<const CrusherState> Latest(const std::string& crusher);
+  /// The crusher's measured settings (docs/wear.md, *Setting*): the next Get() counts the setting
+  /// from the latest of them.
+  void SetSettingChecks(const std::string& crusher, std::vector<core::SettingCheck> checks);
+  std::vector<core::SettingCheck> SettingChecks(const std::string& crusher);
 
  private:
   struct Entry {
     int64_t version = 1;
     std::shared_ptr<const CrusherState> state;
+    std::vector<core::SettingCheck> checks;
     std::mutex compute;  ///< one computation of this crusher at a time (held while computing)
   };
   /// Recomputes `e` if stale; the caller holds e.compute.

@@ -284,6 +284,24 @@ void ApiTour::Writes() {
     rec.Add("post", ack_t, ack, http_.Post(ack, "{}", "application/json"));
   }
   rec.Add("post", ack_t, base + "/alarms/999999/ack", http_.Post(base + "/alarms/999999/ack", "{}", "application/json"), 404);
+  // A measured setting (docs/wear.md, *Setting*): 201, the same again 200, another CSS at that
+  // time 409, a bad body 400, a time in the future 422; the list, and the wear counting from it.
+  const std::string checks = base + "/setting/checks";
+  const json check = {
+      {"time", lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(lw::test::LatestReadingS(folder_.bundle))))},
+      {"css_mm", 126},
+      {"note", "mantle raised"}};
+  const std::string checks_t = kCrusher + "/setting/checks";
+  rec.Add("post", checks_t, checks, http_.Post(checks, check.dump(), "application/json"), 201, &check);
+  rec.Add("post", checks_t, checks, http_.Post(checks, check.dump(), "application/json"), 200, &check);
+  json other = check;
+  other["css_mm"] = 127;
+  rec.Add("post", checks_t, checks, http_.Post(checks, other.dump(), "application/json"), 409);
+  rec.Add("post", checks_t, checks, http_.Post(checks, "{}", "application/json"), 400);
+  other["time"] = "2199-01-01T00:00:00Z";
+  rec.Add("post", checks_t, checks, http_.Post(checks, other.dump(), "application/json"), 422);
+  rec.Add("get", checks_t, checks, http_.Get(checks));
+  rec.Add("get", kCrusher + "/wear", base + "/wear?faces=false", http_.Get(base + "/wear?faces=false"));
   // Last: a reline starts a new liner (the wear then has no readings of it).
   const int64_t reline_s = lw::test::LatestReadingS(folder_.bundle) + 3600;
   const json reline = {{"time", lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(reline_s)))},

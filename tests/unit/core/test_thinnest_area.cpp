@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 
 #include "core/reconstruction.hpp"
@@ -296,6 +297,33 @@ TEST(ThinnestArea, TheSettingOpensByTheDischargeRingsWear) {
   unsupported.ring.supported = false;
   STRCMP_CONTAINS("not supported", SettingText(unsupported).c_str());
   CHECK(SettingText(unsupported).find("CSS") == std::string::npos);
+
+  // A measured setting anchors the CSS: the latest check up to the time asked, the CSS its
+  // measurement plus the opening since, the band shifted by the opening at the check.
+  const TimePoint t0 = c.installed_at;
+  const std::vector<SettingCheck> checks = {{t0 + std::chrono::hours(24 * 10), 130, s.opening_mm - 5, "ops"},
+                                            {t0 + std::chrono::hours(24 * 20), 128, s.opening_mm - 2, "ops"},
+                                            {t0 + std::chrono::hours(24 * 40), 127, std::nan(""), "ops"}};
+  SettingEstimate checked = s;
+  ApplySettingChecks(checks, t0 + std::chrono::hours(24 * 25), &checked);
+  CHECK(checked.check.has_value());
+  DOUBLES_EQUAL(128.0, checked.check->css_mm, 0);
+  DOUBLES_EQUAL(2.0, checked.OpeningSince(), 1e-9);
+  const nlohmann::ordered_json cj = SettingJson(checked);
+  DOUBLES_EQUAL(130.0, cj["css_mm"].get<double>(), 0.011);
+  DOUBLES_EQUAL(128.0 + s.opening_lo_mm - (s.opening_mm - 2), cj["css_band_mm"][0].get<double>(), 0.011);
+  DOUBLES_EQUAL(128.0 + s.opening_hi_mm - (s.opening_mm - 2), cj["css_band_mm"][1].get<double>(), 0.011);
+  DOUBLES_EQUAL(125.0, cj["css_set_mm"].get<double>(), 0);  // crusher.json's stays as it was
+  DOUBLES_EQUAL(128.0, cj["checked"]["css_mm"].get<double>(), 0);
+  DOUBLES_EQUAL(2.0, cj["opening_since_mm"].get<double>(), 0.011);
+  STRCMP_CONTAINS("since it was measured 128 mm on", SettingText(checked).c_str());
+  ApplySettingChecks(checks, t0 + std::chrono::hours(24 * 5), &checked);  // before the first: crusher.json's
+  CHECK_FALSE(checked.check.has_value());
+  DOUBLES_EQUAL(125.0 + s.opening_mm, SettingJson(checked)["css_mm"].get<double>(), 0.011);
+  ApplySettingChecks(checks, t0 + std::chrono::hours(24 * 50), &checked);  // a check the ring did not support
+  CHECK(SettingJson(checked)["css_mm"].is_null());
+  CHECK(std::isnan(checked.OpeningSince()));
+  STRCMP_CONTAINS("the opening since is not known", SettingText(checked).c_str());
 
   c.setting.css_mm.reset();
   const ReconstructionPlan plain = PrepareReconstruction(c, m);

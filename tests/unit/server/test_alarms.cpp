@@ -227,6 +227,19 @@ TEST(Alarms, EveryRuleRaisesHoldsAndClears) {
   st.setting.ring.supported = true;
   st.setting.opening_mm = 18;
   LONGS_EQUAL(0, open("setting_open"));
+  // A measured setting restarts the count: opened 31 mm since installation, but 3 since the CSS
+  // was measured at an opening of 28 (after raising the mantle) clears; 23 since raises again.
+  st.setting.opening_mm = 31;
+  LONGS_EQUAL(1, open("setting_open"));
+  st.setting.check = lw::core::SettingCheck{lw::core::TimePoint(std::chrono::seconds(kT0)), 125, 28, "ops"};
+  LONGS_EQUAL(0, open("setting_open"));
+  st.setting.opening_mm = 51;
+  LONGS_EQUAL(1, open("setting_open"));
+  STRCMP_CONTAINS("opened 23.0 mm", p.alarms->Open(Id()).back().detail.c_str());
+  STRCMP_CONTAINS("since it was measured on", p.alarms->Open(Id()).back().detail.c_str());
+  st.setting.check.reset();
+  st.setting.opening_mm = 18;
+  LONGS_EQUAL(0, open("setting_open"));
 
   st.reconstruction.status = lw::core::kStatusUnsupported;
   LONGS_EQUAL(1, open("unsupported"));

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <tuple>
 
 #include "core/time.hpp"
 #include "unit/server/http_fixture.hpp"
@@ -300,5 +301,98 @@ TEST(Campaigns, AVoidedRelineIsKeptAndTheCampaignItClosedRunsAgainAcrossARestart
     CHECK_TRUE(list[3]["running"].get<bool>());
     CHECK(list[1]["end"] == Day(16));
     DOUBLES_EQUAL(fresh - 5, list[3]["thickness_new_mm"].get<double>(), 1e-9);
+  }
+}
+
+// A closed-side setting measured on the crusher (docs/wear.md, *Setting*): kept with the opening the
+// server estimated at its time (as GET .../wear?at= gives it), the CSS counted from it from then on,
+// the same check again harmless, bad ones refused naming the field, and all of it kept across a
+// restart. The alarm side is in test_alarms.
+TEST(Campaigns, AMeasuredSettingAnchorsTheCssAndSurvivesARestart) {
+  lw::test::TempDirectory keep{"lw-setting"};
+  const std::string db = keep.File("db.sqlite");
+  const std::string at = Day(20);
+  const auto post = [](Api& a, const json& body, const char* token = kWriteToken) {
+    auto res = a.Client(token).Post(a.Base() + "/setting/checks", body.dump(), "application/json");
+    CHECK(res);
+    return std::pair<int, json>{res->status, json::parse(res->body)};
+  };
+  json made;
+  {
+    Api a(db);
+    // Before the liner's first reading nothing has opened: the check's opening is 0.
+    auto [early, first] = post(a, {{"time", Day(0)}, {"css_mm", 125}});
+    LONGS_EQUAL_TEXT(201, early, first.dump().c_str());
+    DOUBLES_EQUAL(0.0, first["opening_mm"].get<double>(), 1e-9);
+    a.LoadAll();
+    CHECK(a.Wear()["setting"]["checked"]["time"] == first["time"]);
+    auto then = a.Client(kReadToken).Get(a.Base() + "/wear?faces=false&at=" + at);
+    CHECK(then);
+    const json setting_then = json::parse(then->body)["setting"];
+    int status = 0;
+    std::tie(status, made) = post(a, {{"time", at}, {"css_mm", 131.5}, {"note", "mantle raised 12 mm"}});
+    LONGS_EQUAL_TEXT(201, status, made.dump().c_str());
+    STRCMP_EQUAL("writer", made["by"].get<std::string>().c_str());
+    STRCMP_EQUAL("mantle raised 12 mm", made["note"].get<std::string>().c_str());
+    // The opening stored is the one the wear at that time gives (null where the ring was not supported).
+    if (setting_then["supported"].get<bool>())
+      DOUBLES_EQUAL(setting_then["opening_mm"].get<double>(), made["opening_mm"].get<double>(), 0.011);
+    else
+      CHECK(made["opening_mm"].is_null());
+    const json setting = a.Wear()["setting"];
+    DOUBLES_EQUAL(131.5, setting["checked"]["css_mm"].get<double>(), 1e-9);
+    STRCMP_EQUAL(at.c_str(), setting["checked"]["time"].get<std::string>().c_str());
+    if (made["opening_mm"].is_number()) {
+      const double since = setting["opening_mm"].get<double>() - made["opening_mm"].get<double>();
+      DOUBLES_EQUAL(since, setting["opening_since_mm"].get<double>(), 0.011);
+      DOUBLES_EQUAL(131.5 + since, setting["css_mm"].get<double>(), 0.011);
+      STRCMP_CONTAINS("since it was measured 132 mm on", setting["detail"].get<std::string>().c_str());
+    } else {
+      CHECK(setting["css_mm"].is_null());
+      STRCMP_CONTAINS("the opening since is not known", setting["detail"].get<std::string>().c_str());
+    }
+    // A past time before the check counts from the check before it.
+    auto before = a.Client(kReadToken).Get(a.Base() + "/wear?faces=false&at=" + Day(10));
+    CHECK(before);
+    CHECK(json::parse(before->body)["setting"]["checked"]["time"] == first["time"]);
+    // The same check again: the stored one (200); another CSS at that time: 409; nothing changed.
+    auto [again, same] = post(a, {{"time", at}, {"css_mm", 131.5}, {"note", "mantle raised 12 mm"}});
+    LONGS_EQUAL(200, again);
+    CHECK(same == made);
+    struct Case {
+      json body;
+      int status;
+      const char* names;
+    } cases[] = {
+        {{{"time", at}, {"css_mm", 140}}, 409, "131.5 mm is already recorded"},
+        {{{"time", "2199-01-01T00:00:00Z"}, {"css_mm", 130}}, 422, "is in the future"},
+        {{{"time", Day(-30)}, {"css_mm", 130}}, 422, "before the running liner's installation"},
+        {{{"time", at}, {"css_mm", 0}}, 422, "\"css_mm\" 0.0 must be above 0 and at most 1000"},
+        {{{"time", Day(21)}, {"css_mm", 1e308}}, 422, "\"css_mm\""},
+        {{{"time", Day(21)}, {"css_mm", "130"}}, 400, "\"css_mm\" is required"},
+        {{{"time", "yesterday"}, {"css_mm", 130}}, 400, "\"time\" 'yesterday'"},
+        {{{"time", Day(21)}, {"css_mm", 130}, {"by", "me"}}, 400, "unknown field \"by\""},
+        {{{"time", Day(21)}, {"css_mm", 130}, {"note", std::string(1001, 'x')}}, 400, "\"note\" is longer"},
+    };
+    for (const Case& c : cases) {
+      auto [code, body] = post(a, c.body);
+      LONGS_EQUAL_TEXT(c.status, code, body.dump().c_str());
+      STRCMP_CONTAINS(c.names, body["error"].get<std::string>().c_str());
+    }
+    auto [read_only, refused] = post(a, {{"time", Day(21)}, {"css_mm", 130}}, kReadToken);
+    LONGS_EQUAL(403, read_only);
+    auto list = a.Client(kReadToken).Get(a.Base() + "/setting/checks");
+    CHECK(list);
+    LONGS_EQUAL(2, json::parse(list->body)["checks"].size());
+  }
+  {
+    Api a(db);  // a restart: the checks are read back and the CSS counts from the latest again
+    a.LoadAll();
+    auto list = a.Client(kReadToken).Get(a.Base() + "/setting/checks");
+    CHECK(list);
+    const json checks = json::parse(list->body)["checks"];
+    LONGS_EQUAL(2, checks.size());
+    CHECK(checks[1] == made);
+    DOUBLES_EQUAL(131.5, a.Wear()["setting"]["checked"]["css_mm"].get<double>(), 1e-9);
   }
 }

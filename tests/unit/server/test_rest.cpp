@@ -128,7 +128,7 @@ TEST(RestRoutes, TheOpenApiDocumentHasOneOperationPerRouteAndNoOther) {
   }
   CHECK(routed == documented);
   // The operations docs/server.md lists, as the dashboard and the tests use them.
-  LONGS_EQUAL(24, routed.size());
+  LONGS_EQUAL(26, routed.size());
   CHECK(documented.count({"get", "/api/v1/crushers/{crusher}/alarms"}));
   CHECK(documented.count({"post", "/api/v1/crushers/{crusher}/alarms/{id}/ack"}));
   CHECK(documented.count({"get", "/api/v1/crushers/{crusher}/alarms/rules"}));
@@ -268,7 +268,7 @@ TEST(RestHandlers, EveryCrusherRouteAnswers404ForAnUnknownCrusher) {
     LONGS_EQUAL_TEXT(404, res.status, route.path);
     STRCMP_EQUAL("unknown crusher 'nope'", ErrorOf(res).c_str());
   }
-  LONGS_EQUAL(18, crusher_routes);
+  LONGS_EQUAL(20, crusher_routes);
 }
 
 // After a reline the old boards' last reports fall in the day of slack before installed_at: the readings

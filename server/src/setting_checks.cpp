@@ -1,0 +1,130 @@
+// Measured closed-side settings (docs/wear.md, *Setting*): an operator raises the mantle and
+// measures the CSS; the server keeps the measurement with the concave's opening it estimated at that
+// time, and counts the setting from it.
+#include <chrono>
+#include <cmath>
+
+#include "core/time.hpp"
+#include "mqtt/messages.hpp"
+#include "server/campaigns.hpp"
+
+namespace lw::server {
+namespace {
+
+using nlohmann::json;
+using nlohmann::ordered_json;
+
+/// How far ahead of the server's clock a check's time may be (a measuring person's watch).
+constexpr int64_t kClockSlackS = 300;
+/// The widest closed-side setting accepted, mm (primary gyratories set 100-250 mm).
+constexpr double kMaxCssMm = 1000;
+
+core::SettingCheck ToCore(const SettingCheckRecord& r) {
+  return {core::TimePoint(std::chrono::seconds(r.time_s)), r.css_mm, r.opening_mm.value_or(std::nan("")), r.by};
+}
+
+std::vector<core::SettingCheck> ToCore(const std::vector<SettingCheckRecord>& records) {
+  std::vector<core::SettingCheck> out;
+  out.reserve(records.size());
+  for (const SettingCheckRecord& r : records) out.push_back(ToCore(r));
+  return out;
+}
+
+}  // namespace
+
+SettingCheckRequest ParseSettingCheckBody(std::string_view text) {
+  if (mqtt::JsonNestingDepth(text) > 4) throw RelineError(400, "body is nested too deeply");
+  json body;
+  std::string error;
+  if (!mqtt::ParseJsonNamingField(text, &body, &error)) throw RelineError(400, "body is not valid JSON: " + error);
+  if (!body.is_object()) throw RelineError(400, "body must be a JSON object {\"time\", \"css_mm\", \"note\"}");
+  for (const auto& [key, value] : body.items()) {
+    if (key != "time" && key != "css_mm" && key != "note")
+      throw RelineError(400, "unknown field \"" + key + "\" (time, css_mm, note)");
+  }
+  SettingCheckRequest r;
+  if (!body.contains("time") || !body["time"].is_string()) throw RelineError(400, "\"time\" is required: an ISO-8601 UTC time");
+  const auto time = core::ParseIsoTime(body["time"].get<std::string>());
+  if (!time) throw RelineError(400, "\"time\" '" + body["time"].get<std::string>() + "' is not an ISO-8601 UTC time");
+  r.time = *time;
+  if (!body.contains("css_mm") || !body["css_mm"].is_number())
+    throw RelineError(400, "\"css_mm\" is required: the closed-side setting measured, in mm");
+  r.css_mm = body["css_mm"].get<double>();
+  if (body.contains("note") && !body["note"].is_null()) {
+    if (!body["note"].is_string()) throw RelineError(400, "\"note\" must be a string");
+    r.note = body["note"].get<std::string>();
+    if (r.note.size() > kMaxSettingNoteBytes)
+      throw RelineError(400, "\"note\" is longer than " + std::to_string(kMaxSettingNoteBytes) + " bytes");
+  }
+  return r;
+}
+
+ordered_json SettingCheckJson(const SettingCheckRecord& c) {
+  const auto iso = [](int64_t s) { return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(s))); };
+  return {{"time", iso(c.time_s)},
+          {"css_mm", c.css_mm},
+          {"opening_mm", c.opening_mm ? ordered_json(std::round(*c.opening_mm * 100) / 100) : ordered_json(nullptr)},
+          {"by", c.by},
+          {"note", c.note},
+          {"recorded", iso(c.recorded_s)}};
+}
+
+CampaignService::SettingOutcome CampaignService::CheckSetting(const std::string& crusher_id, const SettingCheckRequest& request,
+                                                              const std::string& by) {
+  std::lock_guard<std::mutex> one_at_a_time(reline_mutex_);  // against a reline replacing the model meanwhile
+  const Crusher* crusher = registry_.Find(crusher_id);
+  if (!crusher) throw RelineError(404, "unknown crusher '" + crusher_id + "'");
+  const int64_t time_s = request.time.time_since_epoch().count();
+  const std::string when = core::FormatIsoTime(request.time);
+  if (!std::isfinite(request.css_mm) || !(request.css_mm > 0) || request.css_mm > kMaxCssMm)
+    throw RelineError(422, "\"css_mm\" " + json(request.css_mm).dump() + " must be above 0 and at most " +
+                               json(kMaxCssMm).dump() + " mm");
+  if (time_s > now_s_() + kClockSlackS) throw RelineError(422, "\"time\" " + when + " is in the future");
+  if (request.time < crusher->config.installed_at)
+    throw RelineError(422, "\"time\" " + when + " is before the running liner's installation (" +
+                               core::FormatIsoTime(crusher->config.installed_at) + "): it measured the liner before");
+  // The concave's opening at that time, from the readings stored up to it, through the same
+  // estimate as GET .../wear?at=; no reading of this liner yet: a new liner, nothing opened.
+  SettingCheckRecord record{crusher_id, time_s, request.css_mm, std::nullopt, by, request.note, now_s_()};
+  std::vector<SettingCheckRecord> all;
+  bool created = false;
+  try {
+    const estimate::ReadingWindow window = store_.With([&](Store& s) { return LoadWindow(s, *crusher, time_s); });
+    const CrusherState then = ComputeCrusherState(*crusher, window.Readings(), request.time);
+    if (!then.has_wear)
+      record.opening_mm = 0.0;
+    else if (then.setting.ring.supported && std::isfinite(then.setting.opening_mm))
+      record.opening_mm = then.setting.opening_mm;
+    store_.With([&](Store& s) {
+      created = s.AddSettingCheck(record);
+      all = s.SettingChecks(crusher_id);
+    });
+  } catch (const std::runtime_error& e) {
+    throw RelineError(500, std::string("not stored: ") + e.what());
+  }
+  SettingOutcome out{created, record};
+  if (!created) {
+    for (const SettingCheckRecord& c : all)
+      if (c.time_s == time_s) out.check = c;
+    if (out.check.css_mm != request.css_mm)
+      throw RelineError(409, "a setting of " + json(out.check.css_mm).dump() + " mm is already recorded at " + when +
+                                 " (by " + out.check.by + ")");
+    return out;
+  }
+  wear_.SetSettingChecks(crusher_id, ToCore(all));
+  return out;
+}
+
+std::vector<SettingCheckRecord> CampaignService::SettingChecks(const std::string& crusher_id) {
+  if (!registry_.Find(crusher_id)) return {};
+  return store_.With([&](Store& s) { return s.SettingChecks(crusher_id); });
+}
+
+void CampaignService::LoadSettingChecks() {
+  for (const Crusher* c : registry_.All()) {
+    const std::string& id = c->config.crusher_id;
+    wear_.SetSettingChecks(id, ToCore(store_.With([&](Store& s) { return s.SettingChecks(id); })));
+  }
+}
+
+}  // namespace lw::server
