@@ -33,6 +33,7 @@ struct Outcome {
   double row_half = kNaN;   ///< mean over rows of their thinnest area's half band (mm)
   double err = kNaN;        ///< reported - the truth's thinnest area of that size (mm)
   bool in_band = false;
+  std::string detail;  ///< --detail: where the area is, the band's parts, the truth there and at its own thinnest
 };
 
 /// `run` with its sensors at `layout` (the ids of crusher.json's, in order).
@@ -74,6 +75,25 @@ Outcome Measure(const lw::bench::DemRun& run, const lw::bench::RealDemSpec& spec
   o.half_band = a.half_width_mm;
   o.err = a.thickness_mm - truth_thin;
   o.in_band = truth_thin >= a.lo_mm - 1e-9 && truth_thin <= a.hi_mm + 1e-9;
+  // The error's two parts: the estimate against the truth over the reported area, and the truth
+  // there against the truth's own thinnest area of that size (elsewhere when the hot spot moved).
+  const lw::core::ThinnestArea t = a.whole_row ? a : lw::core::ThinnestPatchOf(model->plan, truth_rem, -1, a.patch_m, a.shape);
+  const double here = lw::core::AreaMean(model->plan, truth_rem, a);
+  std::string per_row;
+  for (const lw::core::Row& row : b.crusher.rows) {
+    int k = 0;
+    for (const auto& x : b.crusher.sensors) k += x.row == row.name;
+    per_row += " " + row.name + ":" + std::to_string(k);
+  }
+  char line[400];
+  std::snprintf(line, sizeof line,
+                "area %s z %.2f th %.0f patch %.2f%s | est %.1f truth there %.1f (est-truth %.1f) truth thinnest %.1f at %s z "
+                "%.2f th %.0f | sd scale %.1f map %.1f x%.1f, %zu row sensors, nearest %.2f m%s | sensors%s",
+                a.row.c_str(), a.z_m, a.theta_deg, a.patch_m, a.whole_row ? " (row)" : "", a.thickness_mm, here,
+                a.thickness_mm - here, truth_thin, t.row.c_str(), t.z_m, t.theta_deg, a.scale_sd_mm, a.map_sd_mm,
+                a.half_width_mm / std::max(1e-9, std::hypot(a.scale_sd_mm, a.map_sd_mm)), a.row_sensors, a.nearest_sensor_m,
+                a.extrapolated ? " (extrapolated)" : "", per_row.c_str());
+  o.detail = line;
   double sum = 0;
   for (const auto& row : est.areas.rows) sum += row.half_width_mm;
   o.row_half = est.areas.rows.empty() ? kNaN : sum / static_cast<double>(est.areas.rows.size());
@@ -86,6 +106,7 @@ int main(int argc, char** argv) {
   std::string dem_dir;
   int seeds = 4;
   double days = 90;
+  bool detail = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -97,12 +118,14 @@ int main(int argc, char** argv) {
     };
     if (a == "--help" || a == "-h") {
       std::printf(
-          "usage: lw_bench_plan --dem-dir DIR [--seeds N] [--days D]\n"
+          "usage: lw_bench_plan --dem-dir DIR [--seeds N] [--days D] [--detail]\n"
           "Checks linerwatch plan's advice on each LIGGGHTS run of DIR (folders with wear_windows.vtk and\n"
           "crusher.json, data/dem*): per seed (default 4) one campaign of D days (default 90), no scan, read by\n"
           "three layouts of as many sensors as crusher.json has: crusher.json's, the plan's, a random one.\n"
           "Prints, per case and in sum, the band live wear reports at the end (the liner's thinnest area and\n"
-          "the rows' mean half-width) and whether the truth (independent windows) lies inside it.\n");
+          "the rows' mean half-width) and whether the truth (independent windows) lies inside it.\n"
+          "--detail adds, per layout, where the reported area is, the band's parts (row scale, map; one sd),\n"
+          "the truth over that area and where the truth's own thinnest area is, and the sensors per row.\n");
       return 0;
     }
     if (a == "--dem-dir")
@@ -111,6 +134,8 @@ int main(int argc, char** argv) {
       seeds = std::atoi(next().c_str());
     else if (a == "--days")
       days = std::atof(next().c_str());
+    else if (a == "--detail")
+      detail = true;
     else {
       std::fprintf(stderr, "lw_bench_plan: unknown option '%s' (see --help)\n", a.c_str());
       return 2;
@@ -158,6 +183,7 @@ int main(int argc, char** argv) {
       for (int l = 0; l < 3; ++l) {
         std::printf("%-22s %4d  %-12s %9.1f %9.1f %7.1f %5s\n", run.name.c_str(), k + 1, names[l], all[l]->half_band,
                     all[l]->row_half, all[l]->err, all[l]->in_band ? "yes" : "no");
+        if (detail) std::printf("    %s\n", all[l]->detail.c_str());
         liner[l].push_back(all[l]->half_band);
         rows[l].push_back(all[l]->row_half);
         err[l].push_back(std::abs(all[l]->err));

@@ -44,7 +44,11 @@
 #include "support/mosquitto_fixture.hpp"
 
 #include <httplib.h>  // after Eigen (through core/): its macros would clash
+#include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <sqlite3.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 namespace {
 
@@ -201,6 +205,108 @@ class Direct {
   std::map<const char*, sqlite3_stmt*> cache_;
 };
 
+/// The socket floor: a thread of this process that answers every request head on a kept-alive
+/// loopback connection with the same fixed response (head and a body of the one-day answer's size,
+/// one send, TCP_NODELAY), parsing and computing nothing. What a request costs below any HTTP server:
+/// the system calls, loopback TCP and the wake-up of the thread on each side.
+class EchoServer {
+ public:
+  explicit EchoServer(size_t body_bytes) {
+    const std::string body(body_bytes, 'x');
+    response_ = "HTTP/1.1 200 OK\r\nContent-Type: application/json\r\nContent-Length: " + std::to_string(body.size()) +
+                "\r\nKeep-Alive: timeout=5, max=100000\r\n\r\n" + body;
+    listener_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t len = sizeof a;
+    if (listener_ < 0 || ::bind(listener_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || ::listen(listener_, 8) != 0 ||
+        ::getsockname(listener_, reinterpret_cast<sockaddr*>(&a), &len) != 0)
+      throw std::runtime_error("echo server: cannot listen on loopback");
+    port_ = ntohs(a.sin_port);
+    thread_ = std::thread([this] { Run(); });
+  }
+  ~EchoServer() {  // after its clients closed their connections
+    ::shutdown(listener_, SHUT_RDWR);
+    ::close(listener_);
+    thread_.join();
+    for (auto& t : served_) t.join();
+  }
+  EchoServer(const EchoServer&) = delete;
+  EchoServer& operator=(const EchoServer&) = delete;
+  int port() const { return port_; }
+
+ private:
+  void Run() {
+    while (true) {
+      const int fd = ::accept(listener_, nullptr, nullptr);
+      if (fd < 0) return;                               // closed
+      served_.emplace_back([this, fd] { Serve(fd); });  // a thread per connection, as a worker waits on it
+    }
+  }
+  void Serve(int fd) const {
+    const int one = 1;
+    ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    std::string got;
+    char buf[4096];
+    for (ssize_t n; (n = ::recv(fd, buf, sizeof buf, 0)) > 0;) {
+      got.append(buf, static_cast<size_t>(n));
+      for (size_t end; (end = got.find("\r\n\r\n")) != std::string::npos;) {
+        got.erase(0, end + 4);
+        if (::send(fd, response_.data(), response_.size(), MSG_NOSIGNAL) < 0) break;
+      }
+    }
+    ::close(fd);
+  }
+  std::string response_;
+  int listener_ = -1;
+  int port_ = 0;
+  std::thread thread_;
+  std::vector<std::thread> served_;  ///< Run's alone until it returns
+};
+
+/// A kept-alive client with nothing of an HTTP client: writes a request head, reads until the
+/// response's Content-Length bytes have arrived.
+class RawClient {
+ public:
+  explicit RawClient(int port) {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    a.sin_port = htons(static_cast<uint16_t>(port));
+    if (fd_ < 0 || ::connect(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0)
+      throw std::runtime_error("raw client: cannot connect");
+    const int one = 1;
+    ::setsockopt(fd_, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+  }
+  ~RawClient() { ::close(fd_); }
+  RawClient(const RawClient&) = delete;
+  RawClient& operator=(const RawClient&) = delete;
+  /// One request; false when the connection failed.
+  bool Get(const std::string& head) {
+    if (::send(fd_, head.data(), head.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(head.size())) return false;
+    std::string got;
+    char buf[16384];
+    size_t want = std::string::npos;
+    while (want == std::string::npos || got.size() < want) {
+      const ssize_t n = ::recv(fd_, buf, sizeof buf, 0);
+      if (n <= 0) return false;
+      got.append(buf, static_cast<size_t>(n));
+      const size_t end = got.find("\r\n\r\n");
+      if (want == std::string::npos && end != std::string::npos) {
+        const size_t at = got.find("Content-Length: ");
+        if (at == std::string::npos || at > end) return false;
+        want = end + 4 + std::stoul(got.substr(at + 16));
+      }
+    }
+    return true;
+  }
+
+ private:
+  int fd_ = -1;
+};
+
 // One day of one sensor, two ways. The cheapest a user could ask for the readings JSON: its columns
 // only, through the time index (battery_mv and received from the row: the index does not hold them).
 const char* kDayIndexSql =
@@ -218,6 +324,28 @@ const char* kLatestSql =
 const char* kWindowSql =
     "SELECT time, thickness_mm, flags, loops_intact FROM readings WHERE crusher=?1 AND sensor=?2"
     " AND time>=?3 ORDER BY time, seq";
+
+/// CPU time (ns, from each thread's /proc schedstat) and context switches of every thread of a process.
+struct ThreadTotals {
+  double cpu_ns = 0;
+  double switches = 0;
+};
+ThreadTotals ProcessTotals(int pid) {
+  ThreadTotals t;
+  const std::string base = "/proc/" + std::to_string(pid) + "/task";
+  std::error_code ec;
+  for (const auto& task : std::filesystem::directory_iterator(base, ec)) {
+    std::ifstream stat(task.path() / "schedstat");
+    double on_cpu = 0;
+    if (stat >> on_cpu) t.cpu_ns += on_cpu;
+    std::ifstream status(task.path() / "status");
+    for (std::string line; std::getline(status, line);) {
+      if (line.rfind("voluntary_ctxt_switches:", 0) == 0 || line.rfind("nonvoluntary_ctxt_switches:", 0) == 0)
+        t.switches += std::stod(line.substr(line.find(':') + 1));
+    }
+  }
+  return t;
+}
 
 std::string Iso(int64_t s) {
   return lw::core::FormatIsoTime(lw::core::TimePoint(std::chrono::seconds(s)));
@@ -428,6 +556,18 @@ int main(int argc, char** argv) {
   kept.set_keep_alive(true);
   kept.set_read_timeout(60, 0);
   size_t body_bytes = 0;
+  // The floor under the one-day query, interleaved with it: the same exchange against a thread that
+  // answers without HTTP (EchoServer), from a raw socket and from the bench's own httplib client.
+  std::optional<EchoServer> echo;
+  if (auto r = kept.Get(kinds.front().path(picks.front())); r && r->status == 200) echo.emplace(r->body.size());
+  if (!echo) {
+    std::fprintf(stderr, "GET %s failed\n", kinds.front().path(picks.front()).c_str());
+    return 1;
+  }
+  RawClient raw(echo->port());
+  httplib::Client echo_client("127.0.0.1", echo->port());
+  echo_client.set_keep_alive(true);
+  std::vector<double> t_raw, t_echo;
   for (const Kind& k : kinds) {
     // Interleaved: each pick asked of SQLite (each baseline), over the kept-alive connection and over
     // a new one in turn.
@@ -475,6 +615,17 @@ int main(int argc, char** argv) {
             if (!*r || (*r)->status != 200) failed = true;
           },
       };
+      if (&k == &kinds.front()) {
+        const std::string head = "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(echo->port()) +
+                                 "\r\nAccept: */*\r\nUser-Agent: cpp-httplib/0.11.4\r\n\r\n";
+        ways.push_back([&, head] { timed(t_raw, [&] { failed = failed || !raw.Get(head); }); });
+        ways.push_back([&] {
+          timed(t_echo, [&] {
+            auto r = echo_client.Get(path);
+            failed = failed || !r || r->status != 200;
+          });
+        });
+      }
       // The order rotates pick by pick: whichever way runs right after a long SQLite query finds
       // the server's threads asleep (a wake-up on a loaded machine), and no way always pays it.
       for (size_t w = 0; w < ways.size(); ++w) ways[(w + static_cast<size_t>(i)) % ways.size()]();
@@ -492,6 +643,34 @@ int main(int argc, char** argv) {
         "%-17s %6.3f / %6.3f %15s | %6.3f / %6.3f %5.1f / %5.1f %12s | %6.3f / %6.3f %5.1f / %5.1f  (%d requests, %zu bytes)\n",
         k.name, s.p50, s.p99, rows, a.p50, a.p99, a.p50 / s.p50, a.p99 / s.p99, rows_ratio, b.p50, b.p99, b.p50 / s.p50,
         b.p99 / s.p99, reps, body_bytes);
+    if (&k == &kinds.front()) {
+      const Stats r = Percentiles(t_raw), e = Percentiles(t_echo);
+      std::printf("%-17s %33s | %6.3f / %6.3f %5.1f / %5.1f   (socket floor: a thread answering a fixed %zu-byte response,\n",
+                  "  floor: socket", "", r.p50, r.p99, r.p50 / s.p50, r.p99 / s.p99, body_bytes);
+      std::printf(
+          "%-17s %33s | %6.3f / %6.3f %5.1f / %5.1f   no HTTP; from a raw socket, then from this bench's httplib client)\n",
+          "  floor: +client", "", e.p50, e.p99, e.p50 / s.p50, e.p99 / s.p99);
+    }
+  }
+  {
+    // The one-day query back to back on the kept-alive connection (a script paging readings): the
+    // server's CPU time and task switches per request, which move less with the machine's load than
+    // its latency does.
+    std::vector<double> t;
+    const ThreadTotals before = ProcessTotals(server.pid());
+    for (int i = 0; i < requests; ++i) {
+      const std::string path = kinds.front().path(picks[static_cast<size_t>(i)]);
+      const auto t0 = Clock::now();
+      auto r = kept.Get(path);
+      t.push_back(Ms(Clock::now() - t0));
+      if (!r || r->status != 200) return 1;
+    }
+    const ThreadTotals after = ProcessTotals(server.pid());
+    const Stats s = Percentiles(t);
+    std::printf(
+        "%-19s %17s | %7.3f / %7.3f   (one-day, back to back: the server's CPU %.0f us and %.1f task switches a request)\n",
+        "one-day, in a row", "", s.p50, s.p99, (after.cpu_ns - before.cpu_ns) / 1e3 / requests,
+        (after.switches - before.switches) / requests);
   }
   {
     std::vector<double> t;

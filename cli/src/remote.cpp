@@ -58,6 +58,17 @@ const core::OptionTable& RelineTable() {
   return table;
 }
 
+const core::OptionTable& VoidTable() {
+  static const core::OptionTable table({
+      ServerOption(),
+      CrusherOption(),
+      Option::Text("void", "TIME", "the reline to void: its time, as `linerwatch campaigns` lists it").Required(),
+      Option::Text("reason", "TEXT", "why (kept with the voided campaign)"),
+      TokenOption(),
+  });
+  return table;
+}
+
 const core::OptionTable& CampaignsTable() {
   static const core::OptionTable table({
       ServerOption(),
@@ -143,7 +154,7 @@ std::string CrusherPath(const core::ParsedOptions& o) {
   if (!scan_path.empty() && error.rfind("scan_xyz:", 0) == 0) error = scan_path + error.substr(8);
   std::string hint;
   if (r.status == 401 || r.status == 403)
-    hint = " (needs a token with the " + std::string(what == "reline" ? "write" : "read") +
+    hint = " (needs a token with the " + std::string(what == "reline" || what == "void" ? "write" : "read") +
            " scope: --token-file FILE or LINERWATCH_TOKEN)";
   throw std::runtime_error("the server refused the " + what + " (" + std::to_string(r.status) + "): " + error + hint);
 }
@@ -162,9 +173,30 @@ std::string Days(const json& v) {
   return s.str();
 }
 
+/// `linerwatch reline --void TIME`: POST .../relines/{TIME}/void (docs/campaigns.md, *Voiding a reline*).
+int VoidReline(const std::vector<std::string>& args, std::ostream& out) {
+  const core::ParsedOptions o = core::ParseOptions(VoidTable(), std::vector<std::string>(args.begin() + 1, args.end()));
+  const auto t = core::ParseIsoTime(o.Text("void"));
+  if (!t) throw core::UsageError("--void: '" + o.Text("void") + "' is not an ISO-8601 time (YYYY-MM-DD[THH:MM:SSZ])");
+  json body = json::object();
+  if (o.Has("reason")) body["reason"] = o.Text("reason");
+  const std::string path = CrusherPath(o) + "/relines/" + core::FormatIsoTime(*t) + "/void";
+  Server server(o);
+  const httplib::Result res = server.Check(server.client->Post(path, body.dump(), "application/json"), "void the reline");
+  if (res->status != 200) Refused(*res, "void", "");
+  const json c = json::parse(res->body, nullptr, false);
+  if (!c.is_object()) throw std::runtime_error("the server's answer to the void is not JSON: " + res->body.substr(0, 200));
+  out << "reline voided: " << o.Text("crusher") << "'s campaign from " << c.value("start", "?") << " ("
+      << Mm(c.value("thickness_new_mm", json())) << " mm) voided by " << c.value("voided_by", "?") << " at "
+      << c.value("voided_at", "?") << "; the campaign before it runs again\n";
+  return 0;
+}
+
 }  // namespace
 
 int Reline(const std::vector<std::string>& args, std::ostream& out) {
+  for (size_t k = 1; k < args.size(); ++k)
+    if (args[k] == "--void" || args[k].rfind("--void=", 0) == 0) return VoidReline(args, out);
   const core::ParsedOptions o = core::ParseOptions(RelineTable(), std::vector<std::string>(args.begin() + 1, args.end()));
   const std::string time = o.Text("time");
   const auto t = core::ParseIsoTime(time);
@@ -219,10 +251,18 @@ int Campaigns(const std::vector<std::string>& args, std::ostream& out) {
   out << o.Text("crusher") << ": " << j["campaigns"].size() << " campaign(s), oldest first\n";
   out << "  start                 end                   life (d)  new (mm)  sensors  end-of-life scan\n";
   for (const json& c : j["campaigns"]) {
-    const std::string end = c.value("running", false) ? "running" : (c["end"].is_string() ? c["end"].get<std::string>() : "-");
+    const std::string end = c.value("voided", false)    ? "voided"
+                            : c.value("running", false) ? "running"
+                                                        : (c["end"].is_string() ? c["end"].get<std::string>() : "-");
     out << "  " << std::left << std::setw(22) << c.value("start", "?") << std::setw(22) << end << std::right << std::setw(8)
         << Days(c.value("life_days", json())) << std::setw(10) << Mm(c.value("thickness_new_mm", json())) << std::setw(9)
-        << c.value("sensor_count", 0) << "  " << (c.value("has_scan", false) ? "yes" : "no") << "\n";
+        << c.value("sensor_count", 0) << "  " << (c.value("has_scan", false) ? "yes" : "no");
+    if (c.value("voided", false)) {
+      const std::string reason = c.value("void_reason", "");
+      out << "  (voided by " << c.value("voided_by", "?") << " at " << c.value("voided_at", "?")
+          << (reason.empty() ? "" : ": " + reason) << ")";
+    }
+    out << "\n";
   }
   return 0;
 }
@@ -234,7 +274,11 @@ std::string RemoteUsage(size_t column, size_t indent) {
          "      its last readings and, with --scan, its end-of-life scan; the next starts with MM and, with\n"
          "      --sensors, a new sensor layout. Live wear switches at once. Posting the same TIME again\n"
          "      changes nothing (docs/campaigns.md).\n" +
-         RelineTable().Help(column, indent, false) + "  campaigns " + CampaignsTable().Synopsis(12, 100) +
+         RelineTable().Help(column, indent, false) + "  reline " + VoidTable().Synopsis(9, 100) +
+         "\n"
+         "      Void a reline posted by mistake (wrong time or thickness, or none happened): its campaign is\n"
+         "      kept, marked voided by the token's name, and the campaign it closed runs again.\n" +
+         VoidTable().Help(column, indent, false) + "  campaigns " + CampaignsTable().Synopsis(12, 100) +
          "\n"
          "      List the crusher's liner campaigns on the server: start, end, life, thickness, sensors,\n"
          "      whether the end-of-life scan is kept.\n" +

@@ -1,6 +1,7 @@
 #include "server/campaigns.hpp"
 
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 
 #include "core/bundle.hpp"
@@ -67,7 +68,37 @@ void CheckThickness(const core::CrusherConfig& config, double mm) {
   }
 }
 
+/// The model of the last of `counted` (the crusher's campaigns not voided, oldest first; two or
+/// more) over the folder's model, with the one before it as the prior (its end-of-life scan, else
+/// its scans in the folder).
+std::unique_ptr<Crusher> RunningModel(const Crusher& folder, const std::vector<CampaignRecord>& counted) {
+  const CampaignRecord& before = counted[counted.size() - 2];
+  return Registry::ForCampaign(folder, CampaignConfig(folder.config, counted.back()), before.final_scan,
+                               FromUnix(before.start_s));
+}
+
 }  // namespace
+
+std::vector<CampaignRecord> Counted(std::vector<CampaignRecord> all) {
+  std::erase_if(all, [](const CampaignRecord& c) { return c.voided_s.has_value(); });
+  return all;
+}
+
+std::string ParseVoidBody(std::string_view text) {
+  if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) return "";
+  json body;
+  std::string error;
+  if (!mqtt::ParseJsonNamingField(text, &body, &error)) throw RelineError(400, "body is not valid JSON: " + error);
+  if (!body.is_object()) throw RelineError(400, "body must be a JSON object {\"reason\"} or empty");
+  for (const auto& [key, value] : body.items())
+    if (key != "reason") throw RelineError(400, "unknown field \"" + key + "\" (reason)");
+  if (!body.contains("reason") || body["reason"].is_null()) return "";
+  if (!body["reason"].is_string()) throw RelineError(400, "\"reason\" must be a string");
+  std::string reason = body["reason"].get<std::string>();
+  if (reason.size() > kMaxVoidReasonBytes)
+    throw RelineError(400, "\"reason\" is longer than " + std::to_string(kMaxVoidReasonBytes) + " bytes");
+  return reason;
+}
 
 RelineRequest ParseRelineBody(std::string_view text) {
   if (mqtt::JsonNestingDepth(text) > 8) throw RelineError(400, "body is nested too deeply");
@@ -120,15 +151,18 @@ core::CrusherConfig CampaignConfig(const core::CrusherConfig& base, const Campai
 
 void ApplyStoredCampaigns(Registry& registry, Store& store, std::vector<std::string>* log) {
   for (const Crusher* c : registry.All()) {
-    const std::vector<CampaignRecord> stored = store.Campaigns(c->config.crusher_id);
-    if (stored.empty()) continue;
-    const CampaignRecord& running = stored.back();
+    const std::vector<CampaignRecord> all = store.Campaigns(c->config.crusher_id);
+    if (all.empty()) continue;
     const std::string id = c->config.crusher_id;
-    const std::string prior = stored.size() >= 2 ? stored[stored.size() - 2].final_scan : "";
-    const auto previous_start =
-        stored.size() >= 2 ? std::optional<core::TimePoint>(FromUnix(stored[stored.size() - 2].start_s)) : std::nullopt;
+    const std::vector<CampaignRecord> stored = Counted(all);
+    if (stored.size() <= 1) {
+      log->push_back("crusher " + id + ": every reline in the database is voided; crusher.json's installed_at, " +
+                     "thickness_new_mm and sensors apply");
+      continue;
+    }
+    const CampaignRecord& running = stored.back();
     try {
-      registry.Replace(Registry::ForCampaign(*c, CampaignConfig(c->config, running), prior, previous_start));
+      registry.Replace(RunningModel(*c, stored));
       log->push_back("crusher " + id + ": campaign " + std::to_string(stored.size()) + " (from " +
                      core::FormatIsoTime(FromUnix(running.start_s)) +
                      ", the database's) sets installed_at, thickness_new_mm and sensors over crusher.json's");
@@ -143,15 +177,24 @@ ordered_json CampaignJson(const CampaignRecord& c, int64_t now_s) {
   const json sensors = json::parse(c.sensors_json, nullptr, false);
   const json finals = json::parse(c.final_readings_json, nullptr, false);
   const int64_t until = c.end_s ? *c.end_s : std::max(now_s, c.start_s);
+  const bool voided = c.voided_s.has_value();
   ordered_json j = {{"start", core::FormatIsoTime(FromUnix(c.start_s))},
                     {"end", c.end_s ? ordered_json(core::FormatIsoTime(FromUnix(*c.end_s))) : ordered_json(nullptr)},
-                    {"running", !c.end_s.has_value()},
+                    {"running", !c.end_s && !voided},
                     {"thickness_new_mm", c.thickness_new_mm},
                     {"has_scan", !c.final_scan.empty()},
-                    {"life_days", std::round(static_cast<double>(until - c.start_s) / 864.0) / 100.0},
+                    // A voided campaign was never a liner's life.
+                    {"life_days", voided ? ordered_json(nullptr)
+                                         : ordered_json(std::round(static_cast<double>(until - c.start_s) / 864.0) / 100.0)},
                     {"sensor_count", sensors.is_array() ? sensors.size() : 0},
                     {"sensors", sensors.is_array() ? sensors : json::array()},
-                    {"final_readings", finals.is_array() ? finals : json::array()}};
+                    {"final_readings", finals.is_array() ? finals : json::array()},
+                    {"voided", voided}};
+  if (voided) {
+    j["voided_at"] = core::FormatIsoTime(FromUnix(*c.voided_s));
+    j["voided_by"] = c.voided_by;
+    j["void_reason"] = c.void_reason;
+  }
   return j;
 }
 
@@ -177,9 +220,9 @@ CampaignService::Outcome CampaignService::Reline(const std::string& crusher_id, 
   if (!crusher) throw RelineError(404, "unknown crusher '" + crusher_id + "'");
   const int64_t time_s = Unix(request.time), now = now_s_();
   const std::string when = core::FormatIsoTime(request.time);
-  const std::vector<CampaignRecord> campaigns = store_.With([&](Store& s) { return CampaignsOf(s, *crusher); });
+  const std::vector<CampaignRecord> campaigns = Counted(store_.With([&](Store& s) { return CampaignsOf(s, *crusher); }));
   // A retry of a reline already stored (its time is the start of a campaign a reline began)
-  // returns that campaign: campaigns are keyed by (crusher, start).
+  // returns that campaign: campaigns not voided are keyed by (crusher, start).
   for (size_t k = 1; k < campaigns.size(); ++k) {  // the first is the folder's: no reline started it
     const CampaignRecord& c = campaigns[k];
     if (c.start_s != time_s) continue;
@@ -232,6 +275,62 @@ CampaignService::Outcome CampaignService::Reline(const std::string& crusher_id, 
   });
   wear_.Reset(crusher_id);
   return {true, next};
+}
+
+CampaignService::Outcome CampaignService::Void(const std::string& crusher_id, core::TimePoint start, const std::string& by,
+                                               const std::string& reason) {
+  std::lock_guard<std::mutex> one_at_a_time(reline_mutex_);
+  if (!registry_.Find(crusher_id)) throw RelineError(404, "unknown crusher '" + crusher_id + "'");
+  const int64_t start_s = Unix(start);
+  const std::string when = core::FormatIsoTime(start);
+  const std::vector<CampaignRecord> all = store_.With([&](Store& s) { return s.Campaigns(crusher_id); });
+  const std::vector<CampaignRecord> counted = Counted(all);
+  const auto at = std::find_if(counted.begin(), counted.end(), [&](const CampaignRecord& c) { return c.start_s == start_s; });
+  if (at == counted.end()) {
+    // A retry of a void already stored returns that campaign, unchanged.
+    for (auto it = all.rbegin(); it != all.rend(); ++it)
+      if (it->start_s == start_s) return {false, *it};
+    throw RelineError(404, "no reline of crusher '" + crusher_id + "' at " + when + " (GET .../campaigns lists them)");
+  }
+  if (at == counted.begin())
+    throw RelineError(409,
+                      "the campaign from " + when + " began with crusher.json's installed_at, not a reline: nothing to void");
+  if (at + 1 != counted.end()) {
+    throw RelineError(409, "the campaign from " + when + " is not the running one: void the later reline at " +
+                               core::FormatIsoTime(FromUnix(counted.back().start_s)) + " first");
+  }
+  CampaignRecord voided = *at;
+  const CampaignRecord& reopened = *(at - 1);
+  voided.voided_s = now_s_();
+  voided.voided_by = by;
+  voided.void_reason = reason;
+  voided.reline_scan = reopened.final_scan;  // the scan the mistaken reline carried, kept with it
+  const std::vector<CampaignRecord> after(counted.begin(), at);
+  // The first campaign reopened is the folder's own model, as before the first reline.
+  const Crusher& folder = registry_.Folder(crusher_id);
+  std::unique_ptr<Crusher> model;
+  try {
+    if (after.size() >= 2) model = RunningModel(folder, after);
+  } catch (const core::InputError& e) {
+    throw RelineError(409, "the campaign from " + core::FormatIsoTime(FromUnix(reopened.start_s)) +
+                               " no longer fits the crusher folder (" + e.what() + "): not voided");
+  }
+  store_.With([&](Store& s) {
+    try {
+      s.VoidReline(voided, reopened.id);
+    } catch (const std::exception& e) {
+      throw RelineError(500, std::string("not stored: ") + e.what());
+    }
+    // Stored: the reopened campaign's liner is served again (its readings from its start on).
+    const Crusher& current = model ? *model : folder;
+    if (model)
+      registry_.Replace(std::move(model));
+    else
+      registry_.Restore(crusher_id);
+    live_.Replace(current, s);
+  });
+  wear_.Reset(crusher_id);
+  return {true, voided};
 }
 
 }  // namespace lw::server

@@ -68,9 +68,10 @@ std::string OriginHost(const std::string& origin) {
   return {};
 }
 
-rest::Request ToRest(const httplib::Request& req) {
+/// `args`: the path's parameter values (from rest::MatchRoute).
+rest::Request ToRest(const httplib::Request& req, std::vector<std::string> args) {
   rest::Request r;
-  for (size_t i = 1; i < req.matches.size(); ++i) r.path.push_back(req.matches[i]);
+  r.path = std::move(args);
   r.query = req.params;
   r.body = req.body;
   r.bearer = BearerOf(req);
@@ -91,7 +92,9 @@ void Send(rest::Response&& r, httplib::Response& res) {
     });
   } else if (r.raw) {
     if (r.status != 200) res.status = r.status;
-    res.set_content(r.raw->content, r.raw->content_type);
+    res.body = std::move(r.raw->content);  // what set_content does, without copying the body
+    res.headers.erase("Content-Type");
+    res.set_header("Content-Type", r.raw->content_type);
   } else {
     Reply(res, r.status, r.json);
   }
@@ -216,8 +219,11 @@ void HttpApi::Impl::Routes() {
   // The API: every route of the one table (rest::Resources::Routes(), from which the OpenAPI
   // document is generated).
   for (const rest::Route& route : rest::Resources::Routes()) {
+    // Reached for POST routes (their body is read after Admit); GET routes are answered by Admit.
     const auto handler = [this, &route](const httplib::Request& req, httplib::Response& res) {
-      Send(resources.Call(route, ToRest(req)), res);
+      std::vector<std::string> args;
+      for (size_t i = 1; i < req.matches.size(); ++i) args.push_back(req.matches[i]);
+      Send(resources.Call(route, ToRest(req, std::move(args))), res);
     };
     const std::string pattern = rest::PathPattern(route.path);
     if (route.method == rest::Method::kGet)
@@ -258,6 +264,14 @@ httplib::Server::HandlerResponse HttpApi::Impl::Admit(const httplib::Request& re
       Error(res, 415, "a " + req.method + " needs Content-Type: application/json");
       return httplib::Server::HandlerResponse::Handled;
     }
+  }
+  // A GET route with no body to read is answered here, from the route already matched: httplib
+  // would match the path again against every route's regular expression in turn (std::regex, for
+  // each route before this one). A request with a body goes on to httplib, which reads it first.
+  if (route.route && route.route->method == rest::Method::kGet && !req.has_header("Transfer-Encoding") &&
+      req.get_header_value<uint64_t>("Content-Length") == 0) {
+    Send(resources.Call(*route.route, ToRest(req, route.args)), res);
+    return httplib::Server::HandlerResponse::Handled;
   }
   return httplib::Server::HandlerResponse::Unhandled;
 }

@@ -6,6 +6,7 @@
 #include <netinet/tcp.h>
 #include <poll.h>
 #include <strings.h>
+#include <sys/eventfd.h>
 #include <sys/socket.h>
 #include <sys/uio.h>
 #include <unistd.h>
@@ -22,15 +23,13 @@ using Clock = std::chrono::steady_clock;
 
 /// The longest header field line httplib 0.11.4 parses (CPPHTTPLIB_HEADER_MAX_LENGTH).
 constexpr size_t kMaxHeaderLine = 8192;
-/// How long a worker waits for a kept-alive client's next request before handing the connection
-/// back to the loop: a client that asks again at once (a page's next request, a script's next
-/// page) answers within this on loopback or a LAN; a slower one costs the worker no more than it.
-constexpr int kNextHeadWaitMs = 2;
 
 struct GuardedServer::Conn {
   int fd = -1;
   std::string ip;
   int port = 0;
+  std::string local_ip;  ///< the address the client connected to (httplib asks for it per request)
+  int local_port = 0;
   std::string buf;  ///< received, not yet consumed by a request
   enum class State { kIdle, kHead, kLinger } state = State::kIdle;
   Clock::time_point deadline;
@@ -38,6 +37,7 @@ struct GuardedServer::Conn {
   uint64_t body_allowance = 0;  ///< body bytes the request may send (framing included)
   uint64_t body_limit = 0;      ///< the request's body limit (the 413 message names it)
   bool linger = false;          ///< handed back by a worker to drain unread body bytes, then close
+  bool parked = false;          ///< handed back by a parked worker: its idle deadline is already set
   size_t served = 0;            ///< requests answered on this connection
   size_t lingered = 0;          ///< bytes discarded after an error reply
 };
@@ -117,6 +117,22 @@ bool SendBoth(int fd, std::string_view head, const char* body, size_t body_size,
 /// Writes all of `data` within `timeout_ms` (the socket is non-blocking). False on error or timeout.
 bool SendAll(int fd, const char* data, size_t size, int timeout_ms) {
   return SendBoth(fd, {}, data, size, timeout_ms);
+}
+
+/// The text form and port of a socket address (empty and 0 for a family other than IPv4/IPv6).
+std::string AddressText(const sockaddr_storage& addr, int* port) {
+  char host[INET6_ADDRSTRLEN] = {};
+  *port = 0;
+  if (addr.ss_family == AF_INET) {
+    const auto* a = reinterpret_cast<const sockaddr_in*>(&addr);
+    ::inet_ntop(AF_INET, &a->sin_addr, host, sizeof host);
+    *port = ntohs(a->sin_port);
+  } else if (addr.ss_family == AF_INET6) {
+    const auto* a = reinterpret_cast<const sockaddr_in6*>(&addr);
+    ::inet_ntop(AF_INET6, &a->sin6_addr, host, sizeof host);
+    *port = ntohs(a->sin6_port);
+  }
+  return host;
 }
 
 std::string Lower(std::string s) {
@@ -218,22 +234,8 @@ class GuardedStream : public httplib::Stream {
     port = c_.port;
   }
   void get_local_ip_and_port(std::string& ip, int& port) const override {
-    sockaddr_storage addr{};
-    socklen_t len = sizeof addr;
-    ip.clear();
-    port = 0;
-    if (::getsockname(c_.fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) return;
-    char host[INET6_ADDRSTRLEN] = {};
-    if (addr.ss_family == AF_INET) {
-      const auto* a = reinterpret_cast<const sockaddr_in*>(&addr);
-      ::inet_ntop(AF_INET, &a->sin_addr, host, sizeof host);
-      port = ntohs(a->sin_port);
-    } else if (addr.ss_family == AF_INET6) {
-      const auto* a = reinterpret_cast<const sockaddr_in6*>(&addr);
-      ::inet_ntop(AF_INET6, &a->sin6_addr, host, sizeof host);
-      port = ntohs(a->sin6_port);
-    }
-    ip = host;
+    ip = c_.local_ip;
+    port = c_.local_port;
   }
   socket_t socket() const override { return c_.fd; }
 
@@ -261,6 +263,12 @@ class GuardedStream : public httplib::Stream {
 
 GuardedServer::GuardedServer(const HttpLimits& limits) : limits_(limits) {
   if (::pipe2(wake_, O_CLOEXEC | O_NONBLOCK) != 0) throw std::runtime_error("cannot create a pipe");
+  park_fd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK | EFD_SEMAPHORE);
+  if (park_fd_ < 0) {
+    ::close(wake_[0]);
+    ::close(wake_[1]);
+    throw std::runtime_error("cannot create an eventfd");
+  }
 }
 
 GuardedServer::~GuardedServer() {
@@ -269,6 +277,7 @@ GuardedServer::~GuardedServer() {
   if (listener != INVALID_SOCKET) ::close(listener);
   ::close(wake_[0]);
   ::close(wake_[1]);
+  ::close(park_fd_);
 }
 
 bool GuardedServer::process_and_close_socket(socket_t sock) {
@@ -289,6 +298,8 @@ void GuardedServer::Shutdown() {
   }
   Wake();
   jobs_cv_.notify_all();
+  const uint64_t every = 1u << 20;  // more than any number of workers: each parked one wakes
+  [[maybe_unused]] const ssize_t n = ::write(park_fd_, &every, sizeof every);
   // Serve() joins the workers on its way out; wait for it to finish when it was started.
   std::unique_lock<std::mutex> lock(mutex_);
   jobs_cv_.wait(lock, [this] { return !served_; });
@@ -327,17 +338,10 @@ void GuardedServer::Accept() {
     }
     auto c = std::make_unique<Conn>();
     c->fd = fd;
-    char host[INET6_ADDRSTRLEN] = {};
-    if (addr.ss_family == AF_INET) {
-      const auto* a = reinterpret_cast<const sockaddr_in*>(&addr);
-      ::inet_ntop(AF_INET, &a->sin_addr, host, sizeof host);
-      c->port = ntohs(a->sin_port);
-    } else if (addr.ss_family == AF_INET6) {
-      const auto* a = reinterpret_cast<const sockaddr_in6*>(&addr);
-      ::inet_ntop(AF_INET6, &a->sin6_addr, host, sizeof host);
-      c->port = ntohs(a->sin6_port);
-    }
-    c->ip = host;
+    c->ip = AddressText(addr, &c->port);
+    sockaddr_storage local{};
+    socklen_t local_len = sizeof local;
+    if (::getsockname(fd, reinterpret_cast<sockaddr*>(&local), &local_len) == 0) c->local_ip = AddressText(local, &c->local_port);
     std::string refusal;
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -480,11 +484,17 @@ bool GuardedServer::ReadHead(Conn& c) {
 void GuardedServer::HandOff(Conn& c) {
   // A worker owns the connection now; it comes back through returned_ for keep-alive.
   conns_.erase(std::find(conns_.begin(), conns_.end(), &c));
+  bool release = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     jobs_.push_back(&c);
+    release = idle_workers_ == 0 && parked_ > 0;
   }
   jobs_cv_.notify_one();
+  if (release) {  // every worker is serving or parked: one parked worker gives its connection back
+    const uint64_t one = 1;
+    [[maybe_unused]] const ssize_t n = ::write(park_fd_, &one, sizeof one);
+  }
 }
 
 GuardedServer::Conn* GuardedServer::TakeJob() {
@@ -523,16 +533,55 @@ GuardedServer::Served GuardedServer::ServeRequest(Conn& c) {
   return !stopping_ && !strm.failed() && !strm.complete() ? Served::kLinger : Served::kClose;
 }
 
-bool GuardedServer::NextHeadAtOnce(Conn& c) {
+GuardedServer::Next GuardedServer::NextHead(Conn& c, bool* busy) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (stopping_ || !jobs_.empty()) return false;  // other heads wait: this worker is theirs
+    if (stopping_ || !jobs_.empty()) return Next::kBack;  // other heads wait: this worker is theirs
+    if (c.buf.empty()) {
+      if (--busy_per_client_[c.ip] == 0) busy_per_client_.erase(c.ip);
+      *busy = false;
+      ++parked_;
+    }
   }
-  if (c.buf.empty()) {
-    pollfd p{c.fd, POLLIN, 0};
-    if (::poll(&p, 1, kNextHeadWaitMs) <= 0) return false;
+  if (!*busy) {
+    c.deadline = Clock::now() + std::chrono::milliseconds(limits_.idle_timeout_ms);
+    Next waited = Next::kExpired;
+    while (true) {
+      pollfd p[2] = {{c.fd, POLLIN, 0}, {park_fd_, POLLIN, 0}};
+      const int n = ::poll(p, 2, RemainingMs(c.deadline));
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) break;  // idle until its timeout (or poll failed): close
+      if (p[0].revents) {
+        waited = Next::kServe;
+        break;
+      }
+      uint64_t token = 0;
+      if (::read(park_fd_, &token, sizeof token) == sizeof token || stopping_) {
+        waited = Next::kBack;  // a queued head needs this worker
+        break;
+      }  // else another parked worker took the release
+    }
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      --parked_;
+    }
+    if (waited != Next::kServe) {
+      c.parked = true;  // the loop keeps the idle deadline set above
+      return waited;
+    }
   }
-  return ReadHead(c);  // incomplete or refused: the loop goes on with it (state and deadline set)
+  if (!ReadHead(c)) return Next::kBack;  // incomplete or refused: the loop goes on with it (state and deadline set)
+  if (*busy) return Next::kServe;
+  std::lock_guard<std::mutex> lock(mutex_);
+  size_t& mine = busy_per_client_[c.ip];
+  if (stopping_ || !jobs_.empty() || mine >= std::max<size_t>(limits_.max_requests_per_client, 1)) {
+    if (mine == 0) busy_per_client_.erase(c.ip);
+    jobs_.push_back(&c);  // its turn comes as a queued head's; this worker takes the next job
+    return Next::kQueued;
+  }
+  ++mine;
+  *busy = true;
+  return Next::kServe;
 }
 
 void GuardedServer::Worker() {
@@ -540,20 +589,26 @@ void GuardedServer::Worker() {
     Conn* c = nullptr;
     {
       std::unique_lock<std::mutex> lock(mutex_);
+      ++idle_workers_;
       jobs_cv_.wait(lock, [this, &c] { return (c = TakeJob()) != nullptr || stopping_; });
+      --idle_workers_;
       if (!c) return;  // stopping
     }
-    // A client that sends its next request as soon as it has read the answer (a dashboard's page,
-    // a script paging readings) keeps this worker: without the two thread hand-offs through the
-    // loop, a kept-alive request costs what a request on a new connection costs.
+    // A kept-alive client's next request is served by the worker that answered the last one,
+    // waiting on the connection: through the loop it costs the loop's wake-up, a hand-off to a
+    // worker and the connection's return, each a task switch (on a busy machine a scheduler slice).
     Served served = ServeRequest(*c);
-    while (served == Served::kKeep && NextHeadAtOnce(*c)) served = ServeRequest(*c);
+    bool busy = true;
+    Next next = Next::kBack;
+    while (served == Served::kKeep && (next = NextHead(*c, &busy)) == Next::kServe) served = ServeRequest(*c);
     bool queued = false;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (--busy_per_client_[c->ip] == 0) busy_per_client_.erase(c->ip);
+      if (busy && --busy_per_client_[c->ip] == 0) busy_per_client_.erase(c->ip);
       queued = !jobs_.empty();
     }
+    if (served == Served::kKeep && next == Next::kQueued) continue;  // c is a queued head: this worker takes a job
+    if (served == Served::kKeep && next == Next::kExpired) served = Served::kClose;
     // The client's next queued head may now take a worker. Only then are the workers woken: each
     // idle worker woken for nothing costs two task switches, and with every request they were
     // most of the server's CPU.
@@ -591,9 +646,10 @@ void GuardedServer::Serve() {
           c->state = Conn::State::kLinger;
           c->buf.clear();  // a lingering connection's bytes are discarded
           c->deadline = Clock::now() + std::chrono::milliseconds(2000);
-        } else if (c->state == Conn::State::kIdle) {
+        } else if (c->state == Conn::State::kIdle && !c->parked) {
           c->deadline = Clock::now() + std::chrono::milliseconds(limits_.idle_timeout_ms);
         }  // else a head the worker began to read (its head deadline runs) or refused (lingering)
+        c->parked = false;
         conns_.push_back(c);
       }
       returned_.clear();

@@ -5,8 +5,9 @@
 /// the pool). GuardedServer keeps httplib's request parsing, routing and responses but owns the
 /// listening socket: one poll loop accepts connections and reads each request head with caps on
 /// bytes, header count and time as the bytes arrive, without a thread per connection; only a
-/// complete head is handed to a worker, whose stream caps the body's bytes and time. Idle
-/// keep-alive connections go back to the loop. Connections are capped in total and per client IP,
+/// complete head is handed to a worker, whose stream caps the body's bytes and time. An idle
+/// kept-alive connection waits on the worker that served it while other workers are free, else
+/// goes back to the loop. Connections are capped in total and per client IP,
 /// and so are the requests one client IP has on workers at once (its other complete heads wait),
 /// so that one address trickling bodies cannot hold every worker.
 #include "server/http_api.hpp"
@@ -61,9 +62,14 @@ class GuardedServer : public httplib::Server {
   /// Serves one request on c (a worker's). Kept: c is ready for the next request.
   enum class Served { kKeep, kLinger, kClose };
   Served ServeRequest(Conn& c);
-  /// The client's next request head, read on this worker when it arrives at once and no other
-  /// head waits for a worker; false: c goes back to the loop.
-  bool NextHeadAtOnce(Conn& c);
+  /// After a kept-alive response: the worker waits on c for the client's next request (parked;
+  /// it then counts against no client's cap) until the connection's idle timeout, or until a
+  /// queued head needs a worker and no other worker is free. kServe: the next head is complete and
+  /// this worker serves it (counted against its client's cap again); kBack: c goes back to the
+  /// loop; kQueued: the head is complete but waits in the queue (its client at its cap, or other
+  /// heads first); kExpired: idle too long, close. `busy`: whether c's client counts this worker.
+  enum class Next { kServe, kBack, kQueued, kExpired };
+  Next NextHead(Conn& c, bool* busy);
   Conn* TakeJob();        // with mutex_ held: the first queued head whose client IP is under its cap
   void Release(Conn& c);  // closes the socket and gives back the connection slots
   bool Refuse(Conn& c, int status, const std::string& message);  // replies, then lingers briefly; false
@@ -72,6 +78,7 @@ class GuardedServer : public httplib::Server {
   HttpLimits limits_;
   BodyLimit body_limit_;
   int wake_[2] = {-1, -1};
+  int park_fd_ = -1;  // eventfd (semaphore): each count releases one parked worker
   std::atomic<bool> stopping_{false};
   std::vector<std::thread> workers_;
   std::vector<Conn*> conns_;  // the loop's: idle, reading a head, or lingering after an error reply
@@ -84,6 +91,8 @@ class GuardedServer : public httplib::Server {
   std::map<std::string, size_t> per_client_;
   std::map<std::string, size_t> busy_per_client_;  // requests on a worker, per client IP
   bool served_ = false;
+  size_t idle_workers_ = 0;  // waiting for a job
+  size_t parked_ = 0;        // waiting on a kept-alive connection (NextHead)
 };
 
 }  // namespace lw::server

@@ -54,6 +54,13 @@ int64_t FreeBytes(const std::string& path) {
   return static_cast<int64_t>(v.f_bavail) * static_cast<int64_t>(v.f_frsize);
 }
 
+bool OnReadOnlyFileSystem(const std::string& path) {
+  std::filesystem::path dir = std::filesystem::path(path).parent_path();
+  if (dir.empty()) dir = ".";
+  struct statvfs v {};
+  return ::statvfs(dir.c_str(), &v) == 0 && (v.f_flag & ST_RDONLY) != 0;
+}
+
 std::string RouteLabel(std::string_view path) {
   for (const rest::Route& route : rest::Resources::Routes()) {
     if (Matches(route.path, path)) return route.path;

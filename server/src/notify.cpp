@@ -89,12 +89,30 @@ class Reader {
       return "";
     }
     const std::string path = Text(j, file_name, key, true);
-    std::ifstream in(path);
+    // One short line is read, no more: a path such as /dev/zero has no end of line, ever.
+    constexpr size_t kMaxLine = 4096;
+    std::ifstream in(path, std::ios::binary);
     std::string line;
-    if (!in || !std::getline(in, line)) Fail(key + "." + file_name, "cannot read '" + path + "'");
+    bool any = false;
+    for (char ch; line.size() <= kMaxLine && in.get(ch) && ch != '\n'; any = true) line += ch;
+    any = any || (in && line.empty());  // a first line that is empty, with a newline after it
+    if (!any) Fail(key + "." + file_name, "cannot read '" + path + "'");
+    if (line.size() > kMaxLine)
+      Fail(key + "." + file_name, "the first line of '" + path + "' is longer than " + std::to_string(kMaxLine) + " bytes");
     const size_t b = line.find_first_not_of(" \t\r"), e = line.find_last_not_of(" \t\r");
     if (b == std::string::npos) Fail(key + "." + file_name, "'" + path + "' is empty");
     return line.substr(b, e - b + 1);
+  }
+  /// "ca_file": a readable file of PEM certificates, checked now so a typo is not found at the first alarm.
+  std::string CaFile(const nlohmann::json& j, const std::string& key) const {
+    if (!j.contains("ca_file")) return "";
+    const std::string path = Text(j, "ca_file", key, true);
+    std::ifstream in(path);
+    if (!in) Fail(key + ".ca_file", "cannot read '" + path + "'");
+    std::string line;
+    while (std::getline(in, line))
+      if (line.rfind("-----BEGIN CERTIFICATE-----", 0) == 0) return path;
+    Fail(key + ".ca_file", "'" + path + "' holds no PEM certificate (-----BEGIN CERTIFICATE-----)");
   }
   std::set<std::string> Events(const nlohmann::json& j, const std::string& key) const {
     if (!j.contains("events")) return kEvents;
@@ -110,7 +128,7 @@ class Reader {
   }
   void Address(const std::string& value, const std::string& key) const {
     // A bare address: the SMTP envelope takes it as it is.
-    if (value.find('@') == std::string::npos || value.find_first_of(" \t<>,;\"") != std::string::npos)
+    if (value.find('@') == std::string::npos || value.find_first_of(" \t\r\n<>,;\"") != std::string::npos)
       Fail(key, "'" + value + "' is not an e-mail address (name@domain, without a display name)");
   }
 
@@ -120,7 +138,7 @@ class Reader {
 
 EmailTarget ParseEmail(const Reader& r, const nlohmann::json& j) {
   const std::string key = "notifications.email";
-  r.Keys(j, key, {"smtp_url", "from", "to", "username", "password_file", "starttls", "events"});
+  r.Keys(j, key, {"smtp_url", "from", "to", "username", "password_file", "starttls", "ca_file", "events"});
   EmailTarget e;
   e.smtp_url = r.Url(j, key + ".smtp_url", {"smtp", "smtps"});
   e.from = r.Text(j, "from", key, true);
@@ -139,8 +157,12 @@ EmailTarget ParseEmail(const Reader& r, const nlohmann::json& j) {
     if (!j["starttls"].is_boolean()) r.Fail(key + ".starttls", "must be true or false");
     e.starttls = j["starttls"].get<bool>();
   }
-  if (e.starttls && e.smtp_url.rfind("smtps://", 0) == 0)
-    r.Fail(key + ".starttls", "smtps:// is TLS from the start; starttls is for smtp:// URLs");
+  const bool tls_from_start = e.smtp_url.rfind("smtps://", 0) == 0;
+  if (e.starttls && tls_from_start) r.Fail(key + ".starttls", "smtps:// is TLS from the start; starttls is for smtp:// URLs");
+  // A password never crosses the network in clear text: libcurl would send AUTH PLAIN on a plain link.
+  if (!e.password.empty() && !e.starttls && !tls_from_start)
+    r.Fail(key + ".password_file", "a password needs TLS: set \"starttls\": true or use an smtps:// URL");
+  e.ca_file = r.CaFile(j, key);
   e.events = r.Events(j, key);
   return e;
 }
@@ -158,9 +180,11 @@ std::string Redacted(const std::string& url) {
 }
 
 /// A header value on one line of printable text.
+/// One line of text for a header or the body: control characters (CR, LF, tab, escapes) become
+/// spaces, so no value from a radio or a broker message can add a line or end the message.
 std::string HeaderText(std::string s) {
   for (char& c : s)
-    if (c == '\r' || c == '\n' || c == '\t') c = ' ';
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = ' ';
   return s;
 }
 
@@ -209,13 +233,13 @@ std::string EmailMessage(const NotificationConfig& config, const EmailTarget& em
     << "Content-Transfer-Encoding: 8bit\r\n"
     << "\r\n"
     << "Alarm " << event.action << " on crusher " << a.crusher << ".\r\n\r\n"
-    << "Rule:       " << a.rule << " (" << a.subject << ")\r\n"
-    << "Severity:   " << a.severity << "\r\n"
-    << "State:      " << a.state << "\r\n"
+    << "Rule:       " << HeaderText(a.rule) << " (" << HeaderText(a.subject) << ")\r\n"
+    << "Severity:   " << HeaderText(a.severity) << "\r\n"
+    << "State:      " << HeaderText(a.state) << "\r\n"
     << "Detail:     " << HeaderText(a.detail) << "\r\n"
     << "Value:      " << Number(a.value) << " (threshold " << Number(a.threshold) << ")\r\n"
     << "Since:      " << Iso(a.since_s) << "\r\n"
-    << "Event:      " << event.action << " at " << Iso(event.time_s) << " by " << event.by << "\r\n"
+    << "Event:      " << event.action << " at " << Iso(event.time_s) << " by " << HeaderText(event.by) << "\r\n"
     << "Alarm id:   " << a.id << " (event " << event_id << ")\r\n";
   if (!link.empty()) m << "Dashboard:  " << link << "\r\n";
   if (event.action != "cleared")
@@ -286,12 +310,13 @@ NotificationConfig ParseNotificationConfig(const nlohmann::json& j, const std::s
     for (size_t i = 0; i < j["webhooks"].size(); ++i) {
       const std::string key = "notifications.webhooks[" + std::to_string(i) + "]";
       const nlohmann::json& w = j["webhooks"][i];
-      r.Keys(w, key, {"url", "secret", "secret_file", "events"});
+      r.Keys(w, key, {"url", "secret", "secret_file", "ca_file", "events"});
       WebhookTarget t;
       t.url = r.Url(w, key + ".url", {"http", "https"});
       for (const WebhookTarget& other : c.webhooks)
         if (other.url == t.url) r.Fail(key + ".url", "names the same URL as an earlier webhook");
       t.secret = r.Secret(w, key, "secret", "secret_file", true);
+      t.ca_file = r.CaFile(w, key);
       t.events = r.Events(w, key);
       c.webhooks.push_back(std::move(t));
     }
@@ -330,18 +355,19 @@ std::vector<QueuedNotification> MakeNotifications(const NotificationConfig& conf
   return out;
 }
 
-SendResult SendWebhook(const std::string& url, const std::string& secret, const std::string& body, int64_t event_id,
-                       int64_t delivery_id, int64_t timeout_s, const std::atomic<bool>* cancel) {
+SendResult SendWebhook(const WebhookTarget& hook, const std::string& body, int64_t event_id, int64_t delivery_id,
+                       int64_t timeout_s, const std::atomic<bool>* cancel) {
   CurlGlobalInit();
   Curl c(timeout_s, cancel);
   if (!c.h) return {false, "curl_easy_init failed"};
   for (const std::string& h : std::vector<std::string>{"Content-Type: application/json", "User-Agent: linerwatch-server",
-                                                       "X-Linerwatch-Signature: sha256=" + core::HmacSha256Hex(secret, body),
+                                                       "X-Linerwatch-Signature: sha256=" + core::HmacSha256Hex(hook.secret, body),
                                                        "X-Linerwatch-Event: " + std::to_string(event_id),
                                                        "X-Linerwatch-Delivery: " + std::to_string(delivery_id)})
     c.headers = curl_slist_append(c.headers, h.c_str());
-  curl_easy_setopt(c.h, CURLOPT_URL, url.c_str());
+  curl_easy_setopt(c.h, CURLOPT_URL, hook.url.c_str());
   curl_easy_setopt(c.h, CURLOPT_PROTOCOLS_STR, "http,https");
+  if (!hook.ca_file.empty()) curl_easy_setopt(c.h, CURLOPT_CAINFO, hook.ca_file.c_str());
   curl_easy_setopt(c.h, CURLOPT_HTTPHEADER, c.headers);
   curl_easy_setopt(c.h, CURLOPT_POST, 1L);
   curl_easy_setopt(c.h, CURLOPT_POSTFIELDS, body.data());
@@ -368,6 +394,7 @@ SendResult SendEmail(const EmailTarget& email, const std::string& message, int64
   curl_easy_setopt(c.h, CURLOPT_MAIL_RCPT, c.recipients);
   // STARTTLS required when asked: never a fall back to plain text after the server's answer.
   if (email.starttls) curl_easy_setopt(c.h, CURLOPT_USE_SSL, static_cast<long>(CURLUSESSL_ALL));
+  if (!email.ca_file.empty()) curl_easy_setopt(c.h, CURLOPT_CAINFO, email.ca_file.c_str());
   if (!email.username.empty()) {
     curl_easy_setopt(c.h, CURLOPT_USERNAME, email.username.c_str());
     curl_easy_setopt(c.h, CURLOPT_PASSWORD, email.password.c_str());
@@ -406,7 +433,10 @@ void Notifier::Start() {
 }
 
 void Notifier::Stop() {
-  stop_ = true;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);  // under the lock Run() waits with: the wake-up is not missed
+    stop_ = true;
+  }
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
 }
@@ -436,11 +466,27 @@ void Notifier::Run() {
 SendResult Notifier::Send(const NotificationRecord& n) {
   if (n.channel == "webhook") {
     for (const WebhookTarget& w : config_.webhooks)
-      if (w.url == n.target) return SendWebhook(w.url, w.secret, n.body, n.audit, n.id, config_.timeout_s, &stop_);
+      if (w.url == n.target) return SendWebhook(w, n.body, n.audit, n.id, config_.timeout_s, &stop_);
   } else if (n.channel == "email" && config_.email && config_.email->smtp_url == n.target) {
     return SendEmail(*config_.email, n.body, config_.timeout_s, &stop_);
   }
   return {false, "not configured"};
+}
+
+void Notifier::SaveDelivered(const NotificationRecord& n, const std::string& what) {
+  // The receiver has it: a busy database (a long commit, an operator's sqlite3) must not make it
+  // pending again, or it would be sent twice. Retried until stored; only a stop leaves it (then
+  // the next start sends it again, with the same event id, as after a crash).
+  for (int attempt = 0; !stop_; ++attempt) {
+    try {
+      store_->SaveNotificationAttempt(n);
+      return;
+    } catch (const std::exception& e) {
+      if (attempt == 0) log_(what + " delivered, not yet recorded: " + e.what() + " (retrying)");
+    }
+    std::unique_lock<std::mutex> lock(mutex_);
+    cv_.wait_for(lock, std::chrono::milliseconds(500), [&] { return stop_.load(); });
+  }
 }
 
 int64_t Notifier::Turn() {
@@ -478,7 +524,11 @@ int64_t Notifier::Turn() {
            " s");
       next_s = std::min(next_s, delay);
     }
-    store_->SaveNotificationAttempt(n);
+    if (r.ok) {
+      SaveDelivered(n, what);
+    } else {
+      store_->SaveNotificationAttempt(n);
+    }
     if (r.ok) log_(what + " delivered (attempt " + std::to_string(n.attempts) + ")");
     if (metrics_) metrics_->CountNotification(n.channel, r.ok);
   }

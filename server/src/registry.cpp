@@ -195,6 +195,18 @@ void Registry::Add(std::unique_ptr<Crusher> crusher) {
   crushers_[slot->current.load()->config.crusher_id] = std::move(slot);
 }
 
+const Crusher& Registry::Folder(const std::string& crusher_id) {
+  Slot& slot = *crushers_.at(crusher_id);
+  std::lock_guard<std::mutex> lock(models_mutex_);
+  return *slot.models.front();
+}
+
+void Registry::Restore(const std::string& crusher_id) {
+  Slot& slot = *crushers_.at(crusher_id);
+  std::lock_guard<std::mutex> lock(models_mutex_);
+  slot.current = slot.models.front().get();
+}
+
 void Registry::Replace(std::unique_ptr<Crusher> crusher) {
   Slot& slot = *crushers_.at(crusher->config.crusher_id);
   std::lock_guard<std::mutex> lock(models_mutex_);

@@ -148,13 +148,15 @@ Scope RequiredScope(std::string_view method, std::string_view path) {
 namespace {
 /// Whether `path` matches `path_template` segment by segment, {name} matching one non-empty
 /// segment: what PathPattern's regular expression matches, without building one per request.
-bool PathMatches(std::string_view path_template, std::string_view path) {
+/// `args` (when given) receives the segments the {name}s matched.
+bool PathMatches(std::string_view path_template, std::string_view path, std::vector<std::string>* args = nullptr) {
   size_t t = 0, p = 0;
   while (t < path_template.size()) {
     if (path_template[t] == '{') {
       const size_t close = path_template.find('}', t);
       const size_t end = std::min(path.find('/', p), path.size());
       if (close == std::string_view::npos || end == p) return false;
+      if (args) args->emplace_back(path.substr(p, end - p));
       t = close + 1;
       p = end;
       continue;
@@ -175,6 +177,7 @@ RouteMatch MatchRoute(std::string_view method, std::string_view path) {
     m.path_known = true;
     if (as == MethodName(r.method)) {
       m.route = &r;
+      PathMatches(r.path, path, &m.args);
       break;
     }
   }
@@ -249,10 +252,15 @@ const std::string kCampaignSchema =
     std::string(R"j({"type":"object","required":["start","end","thickness_new_mm","has_scan"],"properties":{)j") +
     R"j("start":{"type":"string","format":"date-time"},"end":{"type":"string","format":"date-time","nullable":true},)j" +
     R"j("running":{"type":"boolean"},"thickness_new_mm":{"type":"number"},"has_scan":{"type":"boolean"},)j" +
-    R"j("life_days":{"type":"number","description":"start to end (the running one: to now)"},"sensor_count":{"type":"integer"},)j" +
+    R"j("life_days":{"type":"number","nullable":true,"description":"start to end (the running one: to now; a voided one: null)"},"sensor_count":{"type":"integer"},)j" +
     R"j("sensors":{"type":"array","items":)j" + kSensorSchema +
     R"j(},"final_readings":{"type":"array","items":{"type":"object","properties":{"sensor":{"type":"string"},)j" +
-    R"j("time":{"type":"string","format":"date-time"},"thickness_mm":{"type":"number"},"seq":{"type":"integer"}}}}}})j";
+    R"j("time":{"type":"string","format":"date-time"},"thickness_mm":{"type":"number"},"seq":{"type":"integer"}}}},)j" +
+    R"j("voided":{"type":"boolean","description":"a reline posted by mistake, voided: kept, never counted"},)j" +
+    R"j("voided_at":{"type":"string","format":"date-time"},"voided_by":{"type":"string","description":"the token's name"},)j" +
+    R"j("void_reason":{"type":"string"}}})j";
+const std::string kVoidRequestSchema =
+    R"j({"type":"object","additionalProperties":false,"properties":{"reason":{"type":"string","maxLength":1000}}})j";
 const std::string kCampaignListSchema =
     R"j({"type":"object","required":["campaigns"],"properties":{"campaigns":{"type":"array","items":)j" + kCampaignSchema + "}}}";
 
@@ -478,6 +486,22 @@ std::vector<Route> Resources::WearRoutes() {
        nullptr,
        kCampaignListSchema.c_str(),
        {kReadOnly}},
+      {Method::kPost,
+       "/api/v1/crushers/{crusher}/relines/{time}/void",
+       "Void the reline at {time} (posted by mistake): its campaign is kept, marked voided by the token's name, and "
+       "the campaign it closed runs again (a void again: 200, unchanged)",
+       {},
+       "200",
+       &Resources::VoidReline,
+       {kJson},
+       kSmallBodyBytes,
+       kVoidRequestSchema.c_str(),
+       kCampaignSchema.c_str(),
+       {{"400", "{time} is not an ISO-8601 UTC time, or the body is not {\"reason\"}"},
+        {"404", "no reline of the crusher at {time}"},
+        {"409", "the campaign from {time} is not the running one (void the later relines first) or began with no reline"},
+        {"500", "not stored: the database refused it"},
+        kReadOnly}},
   };
 }
 
@@ -1113,6 +1137,25 @@ Response Resources::Plan(const Request& req) {
   const std::vector<estimate::Sample> readings = window.Readings();
   if (!readings.empty()) plan.scan = estimate::AdviseScan(*c, readings);
   return Json(200, estimate::PlanJson(plan));
+}
+
+Response Resources::VoidReline(const Request& req) {
+  Response error;
+  const Crusher* c = CrusherOf(req, &error);
+  if (!c) return error;
+  if (!ctx_.campaigns) return Error(503, "campaigns are not available on this server");
+  const std::string& time_text = req.path.at(1);
+  const auto time = core::ParseIsoTime(time_text);
+  if (!time)
+    return Error(400, "{time} '" + time_text + "' is not an ISO-8601 UTC time (the reline's, as GET .../campaigns lists it)");
+  CampaignService::Outcome out;
+  try {
+    out = ctx_.campaigns->Void(c->config.crusher_id, *time, TokenName(req), ParseVoidBody(req.body));
+  } catch (const RelineError& e) {
+    return Error(e.status(), e.what());
+  }
+  if (out.created && ctx_.after_reline) ctx_.after_reline(c->config.crusher_id);
+  return Json(200, CampaignJson(out.campaign, ctx_.campaigns->Now()));
 }
 
 Response Resources::CampaignList(const Request& req) {

@@ -98,7 +98,7 @@ const std::vector<std::pair<const char*, std::string>>& SharedSchemas() {
        R"j({"type":"object","required":["status","version","db"],"properties":{
            "status":{"type":"string","enum":["ok","degraded"]},"version":{"type":"string"},
            "db":{"type":"string","description":"ok, or why the database cannot be read"},
-           "reason":{"type":"string","description":"why degraded (disk full)"},
+           "reason":{"type":"string","description":"why degraded (disk full, read-only file system)"},
            "broker":{"type":"string","description":"connected, disconnected, or why the server does not subscribe"},
            "readings_stored":{"type":"integer"},"duplicates":{"type":"integer"},"rejected":{"type":"integer"},
            "held":{"type":"integer"},"crusher_errors":{"type":"array","items":{"type":"string"}},

@@ -71,6 +71,14 @@ std::string DiskFull(const std::string& db, int64_t free) {
          std::to_string(kMinFreeBytes >> 20) + " MB)";
 }
 
+/// Why the database's file system takes no writes now: mounted read-only, or full; empty when it
+/// takes them. Both are states an operator fixes without touching the database (a remount, space).
+std::string NotWritable(const std::string& db) {
+  if (OnReadOnlyFileSystem(db)) return "read-only file system: " + db + " is on a file system mounted read-only";
+  if (const int64_t free = FreeBytes(db); free >= 0 && free < kMinFreeBytes) return DiskFull(db, free);
+  return {};
+}
+
 /// The REST API's context over these parts (both the normal and the read-only start use it).
 ApiContext MakeApiContext(const ServerOptions& o, const Registry& registry, LockedStore& read, WearService& wear,
                           const LiveState& live, Ingestor& ingestor, EventBus& events, const TokenStore& tokens) {
@@ -96,22 +104,30 @@ std::string StartApi(HttpApi& api, const ServerOptions& o) {
   return "http://" + o.http.substr(0, colon) + ":" + std::to_string(port) + "/";
 }
 
-/// A database that cannot be opened for writing because its file system is full: instead of exiting
-/// (and being restarted in a loop), serve what is stored read-only, report /healthz "degraded" with
-/// the reason, take nothing from the broker (readings wait there and in the gateways' spools, none is
-/// acknowledged; REST writes get 503) and retry every few seconds. Returns true once the database
-/// opens for writing, false when stopped first. Any other failure to open is thrown as before.
+/// A database that cannot be opened for writing because its file system is full or mounted
+/// read-only: instead of exiting (and being restarted in a loop), serve what is stored read-only,
+/// report /healthz "degraded" with the reason, take nothing from the broker (readings wait there and
+/// in the gateways' spools, none is acknowledged; REST writes get 503) and retry every few seconds.
+/// Returns true once the database opens for writing, false when stopped first. Any other failure to
+/// open is thrown.
 bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& stop, Logger& log, Registry& registry,
                              const TokenStore& tokens) {
-  std::string reason;
-  try {
+  // On a read-only mount SQLite may open an up-to-date database without writing (and fail at the
+  // first commit): the mount decides, not whether an open succeeds.
+  const auto writable = [&] {
+    if (OnReadOnlyFileSystem(o.db)) return false;
     Store probe(o.db);
     return true;
+  };
+  std::string reason;
+  try {
+    if (writable()) return true;
+    reason = NotWritable(o.db);
+    log(reason + "; serving stored data read-only and taking no readings until it is writable");
   } catch (const std::exception& e) {
-    const int64_t free = FreeBytes(o.db);
-    if (free < 0 || free >= kMinFreeBytes) throw;
-    reason = DiskFull(o.db, free);
-    log(reason + ": " + e.what() + "; serving stored data read-only and taking no readings until space returns");
+    reason = NotWritable(o.db);
+    if (reason.empty()) throw;
+    log(reason + ": " + e.what() + "; serving stored data read-only and taking no readings until it is writable");
   }
   // The REST reads' connection, and one of the refusing ingestor's own (each Store one thread at a time).
   const auto open_read_only = [&](bool log_failure) {
@@ -139,7 +155,8 @@ bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& st
   ctx.metrics = &metrics;
   ctx.health = [&] {
     std::lock_guard<std::mutex> lock(reason_mutex);
-    return nlohmann::ordered_json{{"status", "degraded"}, {"reason", reason}, {"broker", "not subscribed (disk full)"}};
+    return nlohmann::ordered_json{
+        {"status", "degraded"}, {"reason", reason}, {"broker", "not subscribed (database not writable)"}};
   };
   HttpApi api(ctx);
   log("listening on " + StartApi(api, o) + " (read-only: " + reason + ")");
@@ -147,13 +164,14 @@ bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& st
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
     if (tick % 25 != 24) continue;  // every 5 s
     try {
-      Store probe(o.db);
-      log("database " + o.db + " writable again: leaving read-only mode");
-      return true;
+      if (writable()) {
+        log("database " + o.db + " writable again: leaving read-only mode");
+        return true;
+      }
     } catch (const std::exception&) {
-      std::lock_guard<std::mutex> lock(reason_mutex);
-      reason = DiskFull(o.db, FreeBytes(o.db));
     }
+    std::lock_guard<std::mutex> lock(reason_mutex);
+    if (std::string now = NotWritable(o.db); !now.empty()) reason = std::move(now);
   }
   return false;
 }
@@ -337,10 +355,11 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
                     {"loaded", startup_loaded.load()},
                     {"computed", startup_computed.load()},
                     {"done", startup_computed.load() >= crushers}};
-    // Batches fail (and are not acked) once the disk fills: say why before the gateways' spools grow.
-    if (const int64_t free = FreeBytes(o.db); free >= 0 && free < kMinFreeBytes) {
+    // Batches fail (and are not acked) once the disk fills or is remounted read-only: say why
+    // before the gateways' spools grow.
+    if (std::string why = NotWritable(o.db); !why.empty()) {
       j["status"] = "degraded";
-      j["reason"] = DiskFull(o.db, free);
+      j["reason"] = std::move(why);
     }
     return j;
   };
@@ -348,6 +367,8 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   ctx.campaigns = &campaigns;
   ctx.alarms = &alarms;
   ctx.after_reline = [&](const std::string& crusher) {  // the new liner's wear, computed and published
+    // The dashboard's campaign list reads .../campaigns again at this event (docs/dashboard.md).
+    events.Publish(crusher, "campaign", nlohmann::ordered_json({{"crusher", crusher}}).dump());
     metrics.WearChanged(crusher, WallMs());
     {
       std::lock_guard<std::mutex> lock(dirty_mutex);
@@ -613,6 +634,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   }
   log("stopping");
   core::SdNotify("STOPPING=1");
+  notifier->Stop();  // before the metrics it counts into go (they are declared after it)
   api.Stop();
   link.Shutdown({}, 2000);
 }

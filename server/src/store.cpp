@@ -20,7 +20,7 @@ using Db = core::sqlite::Database<std::runtime_error>;
 using Stmt = core::sqlite::Statement<std::runtime_error>;
 using Tx = core::sqlite::Transaction<std::runtime_error>;
 
-constexpr int kSchemaVersion = 6;
+constexpr int kSchemaVersion = 7;
 
 StoredReading Row(const Stmt& s) {
   StoredReading r;
@@ -110,7 +110,7 @@ struct Store::Impl {
   Db db;
   Stmt insert, existing, insert_rejected, latest, range, all, count, count_rejected, rejected_list, save_diag, load_diag;
   Stmt rejected_seen, rejected_delete, meta_get, meta_add, sites_list, site_bind;
-  Stmt count_sensor, next_sensor, walk_up, walk_down, latest_of, campaigns_list, campaign_put;
+  Stmt count_sensor, next_sensor, walk_up, walk_down, latest_of, campaigns_list, campaign_put, campaign_void, campaign_reopen;
   Stmt rejected_oldest_of, rejected_classes;
   RejectedLimits limits;
   struct Size {
@@ -173,13 +173,16 @@ struct Store::Impl {
                   "SELECT crusher, sensor, seq, time, thickness_mm, loops_intact, flags, battery_mv, received, '' FROM readings"
                   " WHERE crusher=?1 AND sensor=?2 ORDER BY time DESC, seq DESC LIMIT 1"),
         campaigns_list(db,
-                       "SELECT start, end, thickness_new_mm, sensors, final_scan, final_readings, created FROM campaigns"
-                       " WHERE crusher=?1 ORDER BY start"),
-        // A closed campaign that was stored when it began (its start is its key) gets its end here.
+                       "SELECT id, start, end, thickness_new_mm, sensors, final_scan, final_readings, created, voided,"
+                       " voided_by, void_reason, reline_scan FROM campaigns WHERE crusher=?1 ORDER BY start, id"),
+        // A closed campaign that was stored when it began (its start is its key among the campaigns
+        // not voided) gets its end here.
         campaign_put(db,
                      "INSERT INTO campaigns(crusher, start, end, thickness_new_mm, sensors, final_scan, final_readings, created)"
-                     " VALUES(?1,?2,?3,?4,?5,?6,?7,?8) ON CONFLICT(crusher, start) DO UPDATE SET end=?3, final_scan=?6,"
-                     " final_readings=?7"),
+                     " VALUES(?1,?2,?3,?4,?5,?6,?7,?8) ON CONFLICT(crusher, start) WHERE voided IS NULL DO UPDATE SET end=?3,"
+                     " final_scan=?6, final_readings=?7"),
+        campaign_void(db, "UPDATE campaigns SET voided=?2, voided_by=?3, void_reason=?4, reline_scan=?5 WHERE id=?1"),
+        campaign_reopen(db, "UPDATE campaigns SET end=NULL, final_scan=NULL, final_readings='[]' WHERE id=?1"),
         rejected_oldest_of(db, "SELECT id, bytes FROM rejected WHERE class=?1 ORDER BY id LIMIT 1"),
         rejected_classes(db, "SELECT class, COUNT(*), COALESCE(SUM(bytes), 0) FROM rejected GROUP BY class"),
         limits(l) {}
@@ -376,6 +379,27 @@ struct Store::Impl {
           "CREATE INDEX IF NOT EXISTS notifications_pending ON notifications(state, target, id);"
           "INSERT OR IGNORE INTO meta(key, value) SELECT 'notified_audit', COALESCE(MAX(id), 0) FROM alarm_audit;"
           "PRAGMA user_version=6;");
+      tx.Commit();
+    }
+    if (v < 7) {
+      // Version 7: a reline posted by mistake is voided, not deleted (docs/campaigns.md, *Voiding a
+      // reline*): its row is kept with when, by whom and why, and the scan its reline carried
+      // (reline_scan, moved off the campaign it had closed, which runs again). A start is the key
+      // only among the campaigns not voided (a reline at the voided one's time may follow): the
+      // table is rebuilt with a row id and a partial unique index.
+      Tx tx(db);
+      db.Exec(
+          "CREATE TABLE campaigns_v7 (id INTEGER PRIMARY KEY AUTOINCREMENT, crusher TEXT NOT NULL, start INTEGER NOT NULL,"
+          " end INTEGER, thickness_new_mm REAL NOT NULL, sensors TEXT NOT NULL, final_scan TEXT, final_readings TEXT NOT NULL,"
+          " created INTEGER NOT NULL, voided INTEGER, voided_by TEXT NOT NULL DEFAULT '', void_reason TEXT NOT NULL DEFAULT '',"
+          " reline_scan TEXT);"
+          "INSERT INTO campaigns_v7(crusher, start, end, thickness_new_mm, sensors, final_scan, final_readings, created)"
+          " SELECT crusher, start, end, thickness_new_mm, sensors, final_scan, final_readings, created FROM campaigns"
+          " ORDER BY crusher, start;"
+          "DROP TABLE campaigns;"
+          "ALTER TABLE campaigns_v7 RENAME TO campaigns;"
+          "CREATE UNIQUE INDEX campaigns_by_start ON campaigns(crusher, start) WHERE voided IS NULL;"
+          "PRAGMA user_version=7;");
       tx.Commit();
     }
   }
@@ -589,13 +613,18 @@ std::vector<CampaignRecord> Store::Campaigns(const std::string& crusher) {
   s.Bind(1, crusher);
   while (s.Step()) {
     CampaignRecord c;
-    c.start_s = s.Int(0);
-    if (!s.IsNull(1)) c.end_s = s.Int(1);
-    c.thickness_new_mm = s.Real(2);
-    c.sensors_json = s.Text(3);
-    if (!s.IsNull(4)) c.final_scan = s.Text(4);
-    c.final_readings_json = s.Text(5);
-    c.created_s = s.Int(6);
+    c.id = s.Int(0);
+    c.start_s = s.Int(1);
+    if (!s.IsNull(2)) c.end_s = s.Int(2);
+    c.thickness_new_mm = s.Real(3);
+    c.sensors_json = s.Text(4);
+    if (!s.IsNull(5)) c.final_scan = s.Text(5);
+    c.final_readings_json = s.Text(6);
+    c.created_s = s.Int(7);
+    if (!s.IsNull(8)) c.voided_s = s.Int(8);
+    c.voided_by = s.Text(9);
+    c.void_reason = s.Text(10);
+    if (!s.IsNull(11)) c.reline_scan = s.Text(11);
     out.push_back(std::move(c));
   }
   return out;
@@ -611,6 +640,25 @@ void Store::Reline(const std::string& crusher, const CampaignRecord& closed, con
     if (c->end_s) s.Bind(3, *c->end_s);
     if (!c->final_scan.empty()) s.Bind(6, c->final_scan);
     s.Bind(7, c->final_readings_json).Bind(8, c->created_s);
+    s.Step();
+  }
+  tx.Commit();
+}
+
+void Store::VoidReline(const CampaignRecord& voided, int64_t reopened_id) {
+  Impl& im = *impl_;
+  Tx tx(im.db);
+  {
+    Stmt& s = im.campaign_void;
+    InUse use_void(s);
+    s.Bind(1, voided.id).Bind(2, voided.voided_s.value_or(0)).Bind(3, voided.voided_by).Bind(4, voided.void_reason);
+    if (!voided.reline_scan.empty()) s.Bind(5, voided.reline_scan);
+    s.Step();
+  }
+  {
+    Stmt& s = im.campaign_reopen;
+    InUse use_reopen(s);
+    s.Bind(1, reopened_id);
     s.Step();
   }
   tx.Commit();

@@ -282,6 +282,34 @@ async function main() {
   check(page.errors.length === 0, `no page errors (${page.errors.join('; ')})`);
   await page.screenshot({ path: path.join(artifacts, '2-after-live-reading.png'), fullPage: true });
 
+  // 5a. liner campaigns (docs/campaigns.md): the panel lists crusher.json's one campaign; a reline
+  // posted over REST shows at once (SSE `campaign`), the old campaign ended; voiding it shows it
+  // voided by anonymous and the first campaign running again. No reload.
+  const campaignRow = (i) => page.locator(`[data-testid="campaign-${i}"]`);
+  await campaignRow(0).waitFor();
+  check(await page.locator('[data-testid="campaigns"]').getAttribute('data-count') === '1' && await campaignRow(0).getAttribute('data-state') === 'running',
+    'campaign panel lists one running campaign');
+  const relineTime = new Date(Date.parse(config.installed_at) + 20 * 86400000).toISOString().replace(/\.\d{3}Z$/, 'Z');
+  const fresh = config.concave.thickness_new_mm + 5;
+  const relined = await http(base, 'POST', `/api/v1/crushers/${crusher}/relines`, { time: relineTime, thickness_new_mm: fresh });
+  check(relined.status === 201, `reline at ${relineTime} with ${fresh} mm posted over REST (${relined.status} ${relined.text.slice(0, 200)})`);
+  await page.waitForFunction(() => document.querySelector('[data-testid="campaigns"]')?.dataset.count === '2', null, { timeout: kPageWaitMs });
+  check(await campaignRow(0).getAttribute('data-state') === 'ended' && await campaignRow(1).getAttribute('data-state') === 'running',
+    'after the reline the panel shows the first campaign ended and the new one running');
+  check(await campaignRow(1).getAttribute('data-start') === relineTime && parseFloat(await page.locator('[data-testid="campaign-thickness-1"]').textContent()) === fresh,
+    `the new campaign starts ${relineTime} at ${fresh} mm`);
+  await page.waitForFunction((mm) => document.querySelector('[data-testid="liner-line"]')?.textContent.includes(`new ${mm} mm`), fresh, { timeout: kPageWaitMs });
+  check(true, `the page's liner line says new ${fresh} mm`);
+  await page.screenshot({ path: path.join(artifacts, '2a-after-reline.png'), fullPage: true });
+  const voided = await http(base, 'POST', `/api/v1/crushers/${crusher}/relines/${relineTime}/void`, { reason: 'posted by mistake' });
+  check(voided.status === 200 && voided.json.voided === true, `reline voided over REST (${voided.status} ${voided.text.slice(0, 200)})`);
+  await page.waitForFunction(() => document.querySelector('[data-testid="campaign-1"]')?.dataset.state === 'voided', null, { timeout: kPageWaitMs });
+  const voidText = await page.locator('[data-testid="campaign-state-1"]').textContent();
+  check(/voided by anonymous/.test(voidText) && voidText.includes('posted by mistake') && await campaignRow(0).getAttribute('data-state') === 'running',
+    `the panel shows the reline voided (${voidText}) and the first campaign running again`);
+  check(await page.evaluate(() => window.__noReload === true), 'no page reload');
+  check(page.errors.length === 0, `no page errors (${page.errors.join('; ')})`);
+
   // 6. token-protected server: the page asks for the token, then works
   await page.context().close();
   await stop(server);

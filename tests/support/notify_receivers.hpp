@@ -6,6 +6,8 @@
 //
 //   lw::test::WebhookReceiver hook;      hook.Start();   hook.url()  -> http://127.0.0.1:P/hook
 //   lw::test::SmtpSink smtp(dir);        smtp.Start();   smtp.url()  -> smtp://127.0.0.1:Q
+//   lw::test::SmtpSink tls(dir, 0, {cert, key});  a sink that refuses MAIL before STARTTLS
+//                                                 (tests/support/smtp_tls_sink.py, LW_SMTP_TLS_SINK)
 #include <atomic>
 #include <chrono>
 #include <filesystem>
@@ -13,6 +15,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -86,20 +89,38 @@ class WebhookReceiver {
 
 class SmtpSink {
  public:
-  /// The maildir is `dir`/mail; `port` 0: a free one, kept across Stop() and Start().
-  explicit SmtpSink(const std::string& dir, int port = 0) : dir_(dir), port_(port == 0 ? FreeLoopbackPort() : port) {
+  /// A certificate and its key (PEM files) for a sink that requires STARTTLS.
+  struct Tls {
+    std::string cert, key;
+  };
+  /// The maildir is `dir`/mail; `port` 0: a free one, kept across Stop() and Start(); with `tls`,
+  /// MAIL is refused until the client has said STARTTLS.
+  explicit SmtpSink(const std::string& dir, int port = 0, std::optional<Tls> tls = std::nullopt)
+      : dir_(dir), port_(port == 0 ? FreeLoopbackPort() : port), tls_(std::move(tls)) {
     std::filesystem::create_directories(dir_);
   }
   std::string url() const { return "smtp://127.0.0.1:" + std::to_string(port_); }
   void Start() {
     // Debian's python3-aiosmtpd is installed for the system's python3 (not another one on PATH).
-    process_.Start({"/usr/bin/python3", "-m", "aiosmtpd", "-n", "-l", "127.0.0.1:" + std::to_string(port_), "-c",
-                    "aiosmtpd.handlers.Mailbox", dir_ + "/mail"},
-                   dir_ + "/smtp.log");
+    if (tls_) {
+#ifdef LW_SMTP_TLS_SINK
+      process_.Start(
+          {"/usr/bin/python3", LW_SMTP_TLS_SINK, "127.0.0.1", std::to_string(port_), tls_->cert, tls_->key, dir_ + "/mail"},
+          dir_ + "/smtp.log");
+#else
+      throw std::runtime_error("SMTP sink: this test was built without LW_SMTP_TLS_SINK");
+#endif
+    } else {
+      process_.Start({"/usr/bin/python3", "-m", "aiosmtpd", "-n", "-l", "127.0.0.1:" + std::to_string(port_), "-c",
+                      "aiosmtpd.handlers.Mailbox", dir_ + "/mail"},
+                     dir_ + "/smtp.log");
+    }
     for (int i = 0; i < 300 && !PortAccepts(port_); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
     if (!PortAccepts(port_)) throw std::runtime_error("SMTP sink did not start: " + FileTail(dir_ + "/smtp.log"));
   }
-  void Stop() { process_.Stop(SIGTERM); }
+  void Stop() {
+    process_.Stop(SIGTERM);
+  }
   /// The messages delivered so far, each as received (headers and body).
   std::vector<std::string> Messages() const {
     std::vector<std::string> out;
@@ -116,6 +137,7 @@ class SmtpSink {
  private:
   std::string dir_;
   int port_;
+  std::optional<Tls> tls_;
   ChildProcess process_;
 };
 

@@ -90,6 +90,7 @@ export const paths = {
   events: (c) => `/api/v1/crushers/${enc(c)}/events`,
   alarms: (c) => `/api/v1/crushers/${enc(c)}/alarms`,
   ack: (c, id) => `/api/v1/crushers/${enc(c)}/alarms/${enc(id)}/ack`,
+  campaigns: (c) => `/api/v1/crushers/${enc(c)}/campaigns`,
 };
 
 // Reads every page of a sensor's readings (oldest first), from `from` (ISO time) when given.

@@ -6,6 +6,7 @@ import { LinerView } from './liner3d.js';
 import { renderSeries } from './series.js';
 import { renderDiagnosis } from './diagnosis.js';
 import { alarmsPanel } from './alarms.js';
+import { campaignsPanel } from './campaigns.js';
 
 const app = document.getElementById('app');
 const crumbs = document.getElementById('crumbs');
@@ -131,9 +132,17 @@ async function crusherPage(crusherId, initialSensor) {
   const mapSub = h('span', { class: 'sub' });
   const warnings = h('div');
   const alarms = alarmsPanel(crusherId, showInlineError);
+  const campaigns = campaignsPanel(crusherId, showInlineError);
+  // The liner in service: a reline or a void changes it (the detail is read again on each refresh).
+  const headline = h('div', { class: 'sub', 'data-testid': 'liner-line' });
+  const drawHeadline = () => {
+    const d = st.detail;
+    headline.textContent = `installed ${fmtDate(d.installed_at)} · new ${d.concave.thickness_new_mm} mm, minimum ${d.concave.thickness_min_mm} mm · ${d.sensors.length} sensors · wear map ${d.map.face_count} faces (${String(d.map.sha256).slice(0, 12)})`;
+  };
+  drawHeadline();
   app.replaceChildren(
     h('h1', {}, crusherId),
-    h('div', { class: 'sub' }, `installed ${fmtDate(detail.installed_at)} · new ${concave.thickness_new_mm} mm, minimum ${concave.thickness_min_mm} mm · ${detail.sensors.length} sensors · wear map ${detail.map.face_count} faces (${String(detail.map.sha256).slice(0, 12)})`),
+    headline,
     alarms.banner,
     warnings,
     kpis,
@@ -157,6 +166,7 @@ async function crusherPage(crusherId, initialSensor) {
           h('thead', {}, h('tr', {}, [['Row'], ['Thinnest (mm)', 'num'], ['Area', 'where'], ['Wear rate', 'num rate'], ['Reline (band)', 'reline'], ['Sensors', 'num sensors']].map(([t, c]) => h('th', { class: c }, t)))),
           table)),
         h('p', { class: 'sub', 'data-testid': 'wear-note' }))),
+    campaigns.card,
     diagBox);
   if (detail.map.warnings?.length) {
     warnings.append(h('div', { class: 'error-box' }, `Wear map warnings: ${detail.map.warnings.join('; ')}`));
@@ -401,6 +411,7 @@ async function crusherPage(crusherId, initialSensor) {
         const [sensorsRes, detailRes] = await Promise.all([api.get(paths.sensors(crusherId)), api.get(paths.crusher(crusherId)), loadWear()]);
         st.sensors = ofThisLiner(sensorsRes.sensors);
         st.detail = detailRes;
+        drawHeadline();
         drawKpis();
         drawTable();
         drawChips();
@@ -430,8 +441,11 @@ async function crusherPage(crusherId, initialSensor) {
     },
     wear: () => { pulseLive(); refresh(); },
     alarm: () => { pulseLive(); alarms.load(); },
+    // A reline or a void: the list, and the liner's wear, forecast and sensors, read again.
+    campaign: () => { pulseLive(); campaigns.load(); refresh(); },
   }, setLive);
   alarms.load();
+  campaigns.load();
 
   return () => {
     stop();

@@ -46,6 +46,15 @@ struct RelineRequest {
 /// Parses the JSON body. Throws RelineError naming the field.
 RelineRequest ParseRelineBody(std::string_view body);
 
+/// The longest reason a void keeps (POST .../relines/{time}/void).
+inline constexpr size_t kMaxVoidReasonBytes = 1000;
+/// The body of POST .../relines/{time}/void: empty, or {"reason": "..."}; returns the reason (empty:
+/// none). Throws RelineError (400) naming the field.
+std::string ParseVoidBody(std::string_view body);
+
+/// `all` without the voided campaigns: the crusher's history as it counts, oldest first.
+std::vector<CampaignRecord> Counted(std::vector<CampaignRecord> all);
+
 /// `base` (the crusher's configuration) for campaign `c`: its start as installed_at, its thickness
 /// and its sensors. Throws core::InputError naming "sensors" and the rule.
 core::CrusherConfig CampaignConfig(const core::CrusherConfig& base, const CampaignRecord& c);
@@ -70,7 +79,13 @@ class CampaignService {
   /// Relines `crusher_id` (known to the registry). Relines are handled one at a time. Throws
   /// RelineError (nothing changed) on a value that does not fit the crusher.
   Outcome Reline(const std::string& crusher_id, const RelineRequest& request);
-  /// Every campaign of the crusher, oldest first; before its first reline, the one crusher.json describes.
+  /// Voids the reline that started the running campaign at `start` (docs/campaigns.md, *Voiding a
+  /// reline*): kept, marked voided by `by` (the token's name) now with `reason`; the campaign it
+  /// closed runs again, and live wear, the forecast and the rules switch back to it. A void again
+  /// returns the voided campaign (created false). Throws RelineError: 404 no reline at `start`, 409
+  /// not the running campaign (or the first, which no reline started), 500 not stored.
+  Outcome Void(const std::string& crusher_id, core::TimePoint start, const std::string& by, const std::string& reason);
+  /// Every campaign of the crusher (voided ones too), oldest first; before its first reline, the one crusher.json describes.
   std::vector<CampaignRecord> List(const std::string& crusher_id);
   int64_t Now() const { return now_s_(); }
 

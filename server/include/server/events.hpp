@@ -15,7 +15,7 @@ namespace lw::server {
 struct Event {
   int64_t id = 0;
   std::string crusher;
-  std::string name;  ///< "reading" or "wear"
+  std::string name;  ///< "reading", "wear", "alarm" or "campaign"
   std::string data;  ///< JSON, one line
 };
 

@@ -21,6 +21,8 @@ namespace lw::server {
 
 /// Bytes an unprivileged writer may still use on the file system of `path`'s folder; -1 when unknown.
 int64_t FreeBytes(const std::string& path);
+/// True when the file system holding `path` (its folder) is mounted read-only (statvfs ST_RDONLY).
+bool OnReadOnlyFileSystem(const std::string& path);
 
 /// The route label of an HTTP request: the API route's path template it matches (`/api/v1/crushers/{crusher}/wear`),
 /// `/` or `/assets` for the dashboard, `other` for anything else: a bounded set, whatever the paths asked.

@@ -26,8 +26,9 @@ namespace lw::server {
 class ServerMetrics;
 
 struct WebhookTarget {
-  std::string url;     ///< http:// or https://
-  std::string secret;  ///< the HMAC-SHA256 key of X-Linerwatch-Signature
+  std::string url;      ///< http:// or https://
+  std::string secret;   ///< the HMAC-SHA256 key of X-Linerwatch-Signature
+  std::string ca_file;  ///< PEM certificates trusted for https (a private CA); empty: the system's
   std::set<std::string> events{"raised", "acknowledged", "cleared"};
 };
 
@@ -38,6 +39,7 @@ struct EmailTarget {
   std::string username;  ///< empty: no login
   std::string password;  ///< read from password_file
   bool starttls = false;
+  std::string ca_file;  ///< PEM certificates trusted for TLS (a private CA); empty: the system's
   std::set<std::string> events{"raised", "acknowledged", "cleared"};
 };
 
@@ -72,9 +74,9 @@ struct SendResult {
   bool ok = false;
   std::string error;  ///< why not (a curl error, "HTTP 500"); never a secret
 };
-/// One webhook POST of `body` (signed with `secret`; `event_id`, `delivery_id` in headers), within `timeout_s`.
-SendResult SendWebhook(const std::string& url, const std::string& secret, const std::string& body, int64_t event_id,
-                       int64_t delivery_id, int64_t timeout_s, const std::atomic<bool>* cancel = nullptr);
+/// One webhook POST of `body` to `hook` (signed with its secret; `event_id`, `delivery_id` in headers), within `timeout_s`.
+SendResult SendWebhook(const WebhookTarget& hook, const std::string& body, int64_t event_id, int64_t delivery_id,
+                       int64_t timeout_s, const std::atomic<bool>* cancel = nullptr);
 /// One e-mail `message` through `email`'s SMTP server, within `timeout_s`.
 SendResult SendEmail(const EmailTarget& email, const std::string& message, int64_t timeout_s,
                      const std::atomic<bool>* cancel = nullptr);
@@ -99,6 +101,7 @@ class Notifier {
   void Run();
   /// Queues new events, then makes each due attempt; returns the seconds until the next one is due.
   int64_t Turn();
+  void SaveDelivered(const NotificationRecord& n, const std::string& what);
   SendResult Send(const NotificationRecord& n);
 
   NotificationConfig config_;

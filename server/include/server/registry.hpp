@@ -75,6 +75,9 @@ class Registry {
   /// The crusher's current model: a pointer that stays valid for the registry's lifetime (a model
   /// replaced by Replace() is kept, not freed). Safe to call while another thread calls Replace().
   const Crusher* Find(const std::string& crusher_id) const;
+  /// The model loaded from the crusher's folder (its first, before any campaign replaced it): the
+  /// base of a campaign's model. Throws std::out_of_range for an unknown id.
+  const Crusher& Folder(const std::string& crusher_id);
   std::vector<const Crusher*> All() const;
   /// Before the registry is shared: a new crusher.
   void Add(std::unique_ptr<Crusher> crusher);
@@ -82,6 +85,8 @@ class Registry {
   /// pointers handed out before (a wear state computed on it) stay valid. Relines are rare: what
   /// the kept models cost is a map copy per reline. Throws std::out_of_range for an unknown id.
   void Replace(std::unique_ptr<Crusher> crusher);
+  /// Makes the folder's model (Folder()) the current one again: every reline of the crusher voided.
+  void Restore(const std::string& crusher_id);
 
  private:
   struct Slot {

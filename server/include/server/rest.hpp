@@ -154,6 +154,8 @@ struct Route {
 struct RouteMatch {
   const Route* route = nullptr;  ///< the route serving the request; null when none
   bool path_known = false;       ///< some route has the path
+  /// The values of the route's {name} segments in order (what its regular expression captures).
+  std::vector<std::string> args;
 };
 /// `path` is the decoded request path (no query); HEAD is matched as GET.
 RouteMatch MatchRoute(std::string_view method, std::string_view path);
@@ -206,6 +208,7 @@ class Resources {
   Response StartDiagnosis(const Request&);
   Response PostReline(const Request&);
   Response CampaignList(const Request&);
+  Response VoidReline(const Request&);
   Response AlarmList(const Request&);
   Response AckAlarm(const Request&);
   Response AlarmRules(const Request&);

@@ -71,6 +71,7 @@ void ParseCursor(const std::string& cursor, int64_t* time_s, int64_t* seq);
 /// One liner campaign of a crusher (docs/campaigns.md): from its start (the liner's installation) to
 /// its end (the reline that replaced it; none while it runs).
 struct CampaignRecord {
+  int64_t id = 0;  ///< the row's id; 0 before it is stored
   int64_t start_s = 0;
   std::optional<int64_t> end_s;
   double thickness_new_mm = 0;
@@ -78,6 +79,12 @@ struct CampaignRecord {
   std::string final_scan;           ///< the liner's end-of-life scan (`x y z` text); empty: none
   std::string final_readings_json;  ///< a JSON array of each sensor's last reading of the liner; "[]" while it runs
   int64_t created_s = 0;            ///< when the server stored it
+  /// A reline posted by mistake (docs/campaigns.md, *Voiding a reline*): when it was voided, by
+  /// whom (the token's name) and why; the campaign it closed runs again. Kept, never counted.
+  std::optional<int64_t> voided_s;
+  std::string voided_by;
+  std::string void_reason;
+  std::string reline_scan;  ///< a voided reline's scan_xyz (the end-of-life scan it carried); empty: none
 };
 
 /// One alarm as stored (docs/alarms.md): one row per episode of a rule on its subject (a row, a
@@ -188,12 +195,17 @@ class Store {
   int64_t CountRejected();
   std::vector<Rejected> RejectedMessages(int limit);
 
-  /// The campaigns of `crusher` stored so far, oldest first (none before its first reline).
+  /// The campaigns of `crusher` stored so far, voided ones too, oldest first (by start, then as stored;
+  /// none before its first reline).
   std::vector<CampaignRecord> Campaigns(const std::string& crusher);
   /// A reline in ONE transaction: `closed` (the running campaign, with its end, final scan and final
   /// readings) is stored or updated by its start, and `next` is stored. On any error nothing is
   /// committed and std::runtime_error is thrown.
   void Reline(const std::string& crusher, const CampaignRecord& closed, const CampaignRecord& next);
+  /// Voids a reline in ONE transaction: `voided` (a stored campaign, by its id) gets its voided_s,
+  /// voided_by, void_reason and reline_scan; the campaign `reopened_id` (the one its reline closed)
+  /// runs again: no end, no final scan, no final readings. Throws std::runtime_error (nothing stored).
+  void VoidReline(const CampaignRecord& voided, int64_t reopened_id);
 
   /// Stores `alarm` (a new one when its id is 0) and appends `audit` (its alarm: the alarm's id)
   /// in ONE transaction; returns the alarm's id. Throws std::runtime_error (nothing stored).

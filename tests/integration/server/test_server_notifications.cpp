@@ -37,11 +37,15 @@ struct Server {
   }
 };
 
-std::string WriteConfig(const lw::test::CrusherFolder& folder, const std::string& hook, const std::string& smtp) {
+/// `email_extra`: more keys of "email" (starttls, ca_file).
+std::string WriteConfig(const lw::test::CrusherFolder& folder, const std::string& hook, const std::string& smtp,
+                        const json& email_extra = json::object()) {
   const std::string path = folder.dir.File("server.json");
+  json email{{"smtp_url", smtp}, {"from", "linerwatch@example.com"}, {"to", {"ops@example.com"}}};
+  email.update(email_extra);
   std::ofstream(path) << json{{"notifications",
                                {{"webhooks", {{{"url", hook}, {"secret", kSecret}}}},
-                                {"email", {{"smtp_url", smtp}, {"from", "linerwatch@example.com"}, {"to", {"ops@example.com"}}}},
+                                {"email", email},
                                 {"dashboard_url", "http://dashboard.example:8080/"},
                                 {"retry_initial_s", 1},
                                 {"retry_max_s", 2},
@@ -64,6 +68,18 @@ std::vector<std::string> GatewayMails(const lw::test::SmtpSink& smtp) {
   for (const std::string& m : smtp.Messages())
     if (m.find("gateway_offline on ") != std::string::npos) out.push_back(m);
   return out;
+}
+
+/// A self-signed certificate for 127.0.0.1 and its key, by Debian's openssl: the sink's, and the
+/// server's ca_file (a site's private CA in miniature).
+lw::test::SmtpSink::Tls MakeCertificate(const lw::test::CrusherFolder& folder) {
+  const lw::test::SmtpSink::Tls tls{folder.dir.File("smtp-cert.pem"), folder.dir.File("smtp-key.pem")};
+  const std::string command =
+      "openssl req -x509 -newkey rsa:2048 -nodes -days 2 -subj /CN=127.0.0.1 -addext "
+      "subjectAltName=IP:127.0.0.1 -keyout '" +
+      tls.key + "' -out '" + tls.cert + "' >'" + folder.dir.File("openssl.log") + "' 2>&1";
+  if (std::system(command.c_str()) != 0) FAIL(("openssl: " + lw::test::FileTail(folder.dir.File("openssl.log"))).c_str());
+  return tls;
 }
 
 bool WaitUntil(const std::function<bool()>& ok) {
@@ -179,4 +195,35 @@ TEST(ServerNotifications, ReceiversDownAtTheRaiseGetEachEventOnceAfterTheyComeUp
   LONGS_EQUAL(1, GatewayMails(smtp).size());
   CheckNoEventTwice(hook);
   LONGS_EQUAL(hook.Posts().size(), smtp.Messages().size());
+}
+
+// "starttls": true with the site's CA: the mail goes over TLS to a relay that refuses MAIL before
+// STARTTLS. The same setting against a relay that offers no STARTTLS sends nothing in clear text:
+// the attempt fails, the mail stays queued.
+TEST(ServerNotifications, EmailGoesOverStartTlsAndNeverInClearText) {
+  const lw::test::SmtpSink::Tls tls = MakeCertificate(folder);
+  lw::test::WebhookReceiver hook;
+  lw::test::SmtpSink secure(folder.dir.File("smtp-tls"), 0, tls);
+  hook.Start();
+  secure.Start();
+  server.Start(broker.uri(), folder, WriteConfig(folder, hook.url(), secure.url(), {{"starttls", true}, {"ca_file", tls.cert}}));
+  RaiseGatewayOffline();
+  CHECK_TEXT(WaitUntil([&] { return GatewayMails(secure).size() == 1; }), lw::test::FileTail(server.log).c_str());
+  CHECK(GatewayMails(secure).front().find("gateway gw1 offline since") != std::string::npos);
+  server.process.Stop(SIGTERM);
+
+  // A relay without STARTTLS (plain aiosmtpd): refused by the server, not sent in clear text.
+  lw::test::SmtpSink plain(folder.dir.File("smtp-plain"));
+  plain.Start();
+  lw::test::CrusherFolder other{10, 5};  // the same crusher, a new database
+  Server second;
+  second.Start(broker.uri(), other, WriteConfig(other, hook.url(), plain.url(), {{"starttls", true}, {"ca_file", tls.cert}}));
+  RaiseGatewayOffline();
+  const bool refused = WaitUntil([&] {
+    const std::string log = lw::test::FileTail(second.log, 200'000);
+    return log.find("to email smtp://127.0.0.1:") != std::string::npos && log.find("attempt 1 failed") != std::string::npos;
+  });
+  CHECK_TEXT(refused, lw::test::FileTail(second.log).c_str());
+  LONGS_EQUAL(0, plain.Messages().size());
+  second.process.Stop(SIGTERM);
 }

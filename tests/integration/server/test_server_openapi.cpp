@@ -296,6 +296,19 @@ void ApiTour::Writes() {
   rec.Add("post", kCrusher + "/relines", relines, http_.Post(relines, differs.dump(), "application/json"), 409);
   rec.Add("post", kCrusher + "/relines", relines, http_.Post(relines, "{}", "application/json"), 400);
   rec.Add("get", kCrusher + "/campaigns", base + "/campaigns", http_.Get(base + "/campaigns"));
+  // Voiding it (a reline posted by mistake): 200 with the voided campaign, again 200 unchanged;
+  // the first campaign no reline started (409), a time with no reline (404), a malformed one (400).
+  const std::string void_t = kCrusher + "/relines/{time}/void";
+  const std::string voids = relines + "/" + reline["time"].get<std::string>() + "/void";
+  const json reason = {{"reason", "posted by mistake"}};
+  rec.Add("post", void_t, voids, http_.Post(voids, reason.dump(), "application/json"), 200, &reason);
+  rec.Add("post", void_t, voids, http_.Post(voids, "", "application/json"), 200);
+  const std::string first = relines + "/" + lw::core::FormatIsoTime(folder_.bundle.crusher.installed_at) + "/void";
+  rec.Add("post", void_t, first, http_.Post(first, "{}", "application/json"), 409);
+  const std::string none = relines + "/2001-01-01T00:00:00Z/void";
+  rec.Add("post", void_t, none, http_.Post(none, "{}", "application/json"), 404);
+  rec.Add("post", void_t, relines + "/yesterday/void", http_.Post(relines + "/yesterday/void", "{}", "application/json"), 400);
+  rec.Add("get", kCrusher + "/campaigns", base + "/campaigns", http_.Get(base + "/campaigns"));
 }
 
 /// What the HTTP layer refuses before any handler: requests no operation has, a Host not served,

@@ -329,6 +329,26 @@ TEST(Linerwatch, PlanProposesKSensorsInsideTheirRowsNoWiderThanTodaysLayout) {
   CHECK_TEXT(r.out.find(figure) != std::string::npos, r.out.c_str());
 }
 
+// Where K gives every row two sensors the plan leaves none with one: one sensor's row scale carries
+// only the map's sampling error there, and a search minimising that band sought such rows out
+// (bench/diagnosis/RESULTS.md, *Why the plan's bands miss in 5 of 60 cases*). On a real LIGGGHTS
+// map where the search alone put one sensor in BOTTOM and five in UPPER.
+TEST(Linerwatch, PlanLeavesEveryRowTwoSensorsWhenKGivesThem) {
+  const fs::path folder = fs::path(LW_DATA_DIR) / "dem-heldout8" / "c5060-coarse";
+  const lw::core::CrusherConfig crusher = lw::core::LoadCrusherConfig(folder / "crusher.json");
+  const size_t k = 2 * crusher.rows.size() + 2;
+  const fs::path out = dir / "plan.json";
+  const Run r = Cli({"plan", folder.string(), "--sensors", std::to_string(k), "--json", out.string()});
+  LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
+  const auto j = nlohmann::json::parse(Slurp(out));
+  LONGS_EQUAL(k, j.at("sensors").size());
+  for (const lw::core::Row& row : crusher.rows) {
+    size_t n = 0;
+    for (const auto& s : j["sensors"]) n += s.at("row").get<std::string>() == row.name;
+    CHECK_TEXT(n >= 2, (row.name + ": " + j["sensors"].dump()).c_str());
+  }
+}
+
 // Bad input: a one-line reason, a non-zero status and no --json file.
 TEST(Linerwatch, PlanRefusesBadInputWithOneLineAndNoOutput) {
   const fs::path b = Bundle();

@@ -146,3 +146,34 @@ TEST(CliRemote, RefusedRelinesAreOneLineAndRecordNothing) {
   LONGS_EQUAL_TEXT(1, r.code, r.err.c_str());
   CHECK_TEXT(r.err.find("cannot reach " + url + " to reline") != std::string::npos, r.err.c_str());
 }
+
+// `linerwatch reline --void TIME`: the reline is voided by the token's name (its write scope), the
+// list shows it voided with the reason; a reader's token and a TIME with no reline are refused on one line.
+TEST(CliRemote, AVoidedRelineIsListedVoidedByTheTokensName) {
+  Site site;
+  LONGS_EQUAL(0, lw::test::RunLinerwatch(site.Reline(Day(12), "135", site.write_token)).code);
+  const std::vector<std::string> base = {"reline", "--server", site.api.Url(), "--crusher", Folder().id()};
+  auto with = [&](std::vector<std::string> more) {
+    std::vector<std::string> args = base;
+    args.insert(args.end(), more.begin(), more.end());
+    return lw::test::RunLinerwatch(args);
+  };
+  lw::test::CliRun r = with({"--void", Day(12), "--token-file", site.read_token});
+  LONGS_EQUAL(1, r.code);
+  CHECK_TEXT(OneLine(r.err) && r.err.find("write scope") != std::string::npos, r.err.c_str());
+  r = with({"--void", Day(13), "--token-file", site.write_token});
+  LONGS_EQUAL(1, r.code);
+  CHECK_TEXT(OneLine(r.err) && r.err.find("(404)") != std::string::npos, r.err.c_str());
+  r = with({"--void", "soon", "--token-file", site.write_token});
+  LONGS_EQUAL(2, r.code);
+  r = with({"--void", Day(12), "--reason", "wrong day", "--token-file", site.write_token});
+  LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
+  CHECK_TEXT(r.out.find("reline voided: " + Folder().id() + "'s campaign from " + Day(12) + " (135 mm) voided by writer") !=
+                 std::string::npos,
+             r.out.c_str());
+  r = lw::test::RunLinerwatch(
+      {"campaigns", "--server", site.api.Url(), "--crusher", Folder().id(), "--token-file", site.read_token});
+  LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
+  CHECK_TEXT(r.out.find("voided") != std::string::npos && r.out.find("wrong day") != std::string::npos, r.out.c_str());
+  LONGS_EQUAL(2, site.CampaignCount());
+}

@@ -212,3 +212,93 @@ TEST(Campaigns, TheRelinesEndOfLifeScanIsTheNewLinersPrior) {
   Served again(crushers, db2);
   check_folder_prior(again.Wear());
 }
+
+// A reline posted by mistake is voided (docs/campaigns.md, *Voiding a reline*): kept in the list,
+// marked voided by the token's name, and the campaign it closed runs again; the wear and the
+// forecast are what they were before the mistake, live and after a restart.
+TEST(Campaigns, AVoidedRelineIsKeptAndTheCampaignItClosedRunsAgainAcrossARestart) {
+  const double fresh = Folder().bundle.crusher.thickness_new_mm + 15;
+  lw::test::TempDirectory keep{"lw-campaigns-void"};
+  const std::string db = keep.File("db.sqlite");
+  const auto wear = [](Api& a) {
+    json w = a.Wear();
+    w.erase("computed_at");
+    return w;
+  };
+  const auto forecast = [](Api& a) {
+    auto res = a.Client(kReadToken).Get(a.Base() + "/forecast");
+    CHECK(res);
+    LONGS_EQUAL_TEXT(200, res->status, res->body.c_str());
+    json f = json::parse(res->body);
+    f.erase("computed_at");
+    return f;
+  };
+  // What identifies a campaign (a running one's life_days counts to now).
+  const auto same = [](const json& x, const json& y) {
+    for (const char* k : {"start", "end", "running", "thickness_new_mm", "has_scan", "sensors", "final_readings"})
+      CHECK_TEXT(x[k] == y[k], (std::string(k) + ": " + x.dump().substr(0, 300) + " vs " + y.dump().substr(0, 300)).c_str());
+  };
+  const auto post_void = [](Api& a, const std::string& time, const json& body, const char* token = kWriteToken) {
+    auto res = a.Client(token).Post(a.Base() + "/relines/" + time + "/void", body.dump(), "application/json");
+    CHECK(res);
+    return std::pair<int, json>(res->status, json::parse(res->body));
+  };
+  json list_before, wear_before, forecast_before;
+  std::string voided_at;
+  const auto check_restored = [&](Api& a) {
+    const json list = a.Campaigns();
+    LONGS_EQUAL(3, list.size());
+    same(list[0], list_before[0]);
+    same(list[1], list_before[1]);
+    CHECK_TRUE(list[1]["running"].get<bool>());
+    CHECK_TRUE(list[2]["voided"].get<bool>());
+    CHECK_FALSE(list[2]["running"].get<bool>());
+    CHECK(list[2]["start"] == Day(16));
+    STRCMP_EQUAL("writer", list[2]["voided_by"].get<std::string>().c_str());
+    STRCMP_EQUAL("the crew relined on paper only", list[2]["void_reason"].get<std::string>().c_str());
+    CHECK(list[2]["voided_at"] == voided_at);
+    CHECK_TRUE(list[2]["life_days"].is_null());
+    CHECK_TEXT(wear(a) == wear_before, "the wear is not the one before the mistaken reline");
+    CHECK_TEXT(forecast(a) == forecast_before, "the forecast is not the one before the mistaken reline");
+  };
+  {
+    Api a(db);
+    a.LoadAll();
+    LONGS_EQUAL(201, a.Reline({{"time", Day(12)}, {"thickness_new_mm", fresh}, {"scan_xyz", "0 0 1\n0.1 0 1.2\n"}}).first);
+    list_before = a.Campaigns();
+    wear_before = wear(a);
+    forecast_before = forecast(a);
+    // The mistake: a second reline that did not happen.
+    auto [status, made] = a.Reline({{"time", Day(16)}, {"thickness_new_mm", fresh + 7}, {"scan_xyz", "0 0 1\n"}});
+    LONGS_EQUAL_TEXT(201, status, made.dump().c_str());
+    CHECK(wear(a) != wear_before);
+    // A reader may not void; the first campaign and a time with no reline cannot be voided.
+    LONGS_EQUAL(403, post_void(a, Day(16), json::object(), kReadToken).first);
+    LONGS_EQUAL(409, post_void(a, Day(12), json::object()).first);  // not the running campaign
+    LONGS_EQUAL(404, post_void(a, Day(14), json::object()).first);
+    LONGS_EQUAL(400, post_void(a, Day(16), {{"why", "x"}}).first);
+    auto [ok, voided] = post_void(a, Day(16), {{"reason", "the crew relined on paper only"}});
+    LONGS_EQUAL_TEXT(200, ok, voided.dump().c_str());
+    CHECK_TRUE(voided["voided"].get<bool>());
+    voided_at = voided["voided_at"].get<std::string>();
+    // A void again (a retry) changes nothing.
+    auto [again, same_void] = post_void(a, Day(16), json::object());
+    LONGS_EQUAL(200, again);
+    CHECK(same_void["voided_at"] == voided_at);
+    check_restored(a);
+  }
+  {
+    Api a(db);  // a restart on the same database
+    check_restored(a);
+    // The right reline at the voided one's time: a campaign of its own; the voided one stays listed.
+    auto [status, made] = a.Reline({{"time", Day(16)}, {"thickness_new_mm", fresh - 5}});
+    LONGS_EQUAL_TEXT(201, status, made.dump().c_str());
+    const json list = a.Campaigns();
+    LONGS_EQUAL(4, list.size());
+    CHECK_TRUE(list[2]["voided"].get<bool>());
+    CHECK(list[3]["start"] == Day(16));
+    CHECK_TRUE(list[3]["running"].get<bool>());
+    CHECK(list[1]["end"] == Day(16));
+    DOUBLES_EQUAL(fresh - 5, list[3]["thickness_new_mm"].get<double>(), 1e-9);
+  }
+}

@@ -148,6 +148,10 @@ TEST(HttpApi, TokensAreRequiredAndScopesEnforced) {
   LONGS_EQUAL(401, q->status);
   q = anon.Get(a.Base() + "/sensors?access_token=" + std::string(kReadToken));
   LONGS_EQUAL(401, q->status);
+  // A path merely shaped like .../events is not the event stream: the crusher "events" (a route of
+  // its own, the crusher detail) took the URL token when the path's ending decided.
+  q = anon.Get("/api/v1/crushers/events?access_token=" + std::string(kReadToken));
+  LONGS_EQUAL(401, q->status);
   const int fd = Connect(a.port);
   SendText(fd, "GET " + a.Base() + "/events?access_token=" + kReadToken + " HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
   char head[16] = {};
@@ -806,5 +810,53 @@ TEST(HttpApi, AKeptAliveConnectionIsServedWhateverItsNextRequestsTiming) {
   STRCMP_EQUAL("HTTP/1.1 400", refused.substr(0, 12).c_str());
   CHECK(refused.find("whitespace in or before a header field name") != std::string::npos);
   CHECK(Receive(fd, 3000).empty());
+  ::close(fd);
+}
+
+// After answering a kept-alive request the worker waits on that connection for the next one. It
+// must give way to another client's request when it is the only worker, and while it waits it
+// must not count against its address's cap on requests at once.
+TEST(HttpApi, AWorkerWaitingOnAKeptAliveConnectionGivesWay) {
+  const std::string request = "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+  for (const size_t workers : {1, 2}) {
+    HttpLimits limits;
+    limits.workers = workers;
+    limits.max_requests_per_client = 1;
+    limits.idle_timeout_ms = 20'000;  // longer than OneResponse waits: only giving way answers in time
+    Api a(false, "", limits);
+    std::string pending_a, pending_b;
+    const int kept = Connect(a.port);
+    CHECK(kept >= 0);
+    CHECK(SendText(kept, request));
+    STRCMP_EQUAL("HTTP/1.1 200", OneResponse(kept, pending_a).substr(0, 12).c_str());
+    // One worker: another client, while that worker waits on `kept`. Two: the same address's
+    // second connection, to the other worker (the waiting one does not count against the cap of 1).
+    const int next = Connect(a.port, workers == 1 ? "127.0.0.2" : "127.0.0.1");
+    CHECK(next >= 0);
+    CHECK(SendText(next, request));
+    STRCMP_EQUAL_TEXT("HTTP/1.1 200", OneResponse(next, pending_b).substr(0, 12).c_str(), workers == 1 ? "one worker" : "two");
+    for (const int fd : {kept, next}) {  // each still served, in turn
+      CHECK(SendText(fd, request));
+      std::string pending;
+      STRCMP_EQUAL("HTTP/1.1 200", OneResponse(fd, pending).substr(0, 12).c_str());
+      ::close(fd);
+    }
+  }
+}
+
+TEST(HttpApi, AKeptAliveConnectionIsClosedAtItsIdleTimeout) {
+  HttpLimits limits;
+  limits.idle_timeout_ms = 300;
+  Api a(false, "", limits);
+  const int fd = Connect(a.port);
+  CHECK(fd >= 0);
+  CHECK(SendText(fd, "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
+  std::string pending;
+  STRCMP_EQUAL("HTTP/1.1 200", OneResponse(fd, pending).substr(0, 12).c_str());
+  // Closed by the server: Receive returns at the close with nothing, and the socket reads its end
+  // (a connection still open would time out Receive and read EAGAIN).
+  CHECK(Receive(fd, 10'000).empty());
+  char byte = 0;
+  LONGS_EQUAL(0, ::recv(fd, &byte, 1, MSG_DONTWAIT));
   ::close(fd);
 }

@@ -3,6 +3,9 @@
 // delivery to a webhook that fails first (cpp-httplib receiver in this process).
 #include "server/notify.hpp"
 
+#include <sqlite3.h>
+
+#include <atomic>
 #include <chrono>
 #include <fstream>
 #include <thread>
@@ -105,6 +108,20 @@ TEST(NotifyConfig, EachBadKeyOrValueIsNamed) {
              "key 'notifications.email.password_file': cannot read '/nonexistent/pw'");
   CheckError({{"email", {{"smtp_url", "smtp://mail"}, {"from", "a@b"}, {"to", {"c@d"}}, {"starttls", "yes"}}}},
              "key 'notifications.email.starttls': must be true or false");
+  // A password never goes in clear text; a private CA's file is read at start, not at the first alarm.
+  {
+    lw::test::TempDirectory dir;
+    std::ofstream(dir.File("pw")) << "hunter2\n";
+    std::ofstream(dir.File("not.pem")) << "hello\n";
+    CheckError(
+        {{"email",
+          {{"smtp_url", "smtp://mail"}, {"from", "a@b"}, {"to", {"c@d"}}, {"username", "u"}, {"password_file", dir.File("pw")}}}},
+        "key 'notifications.email.password_file': a password needs TLS: set \"starttls\": true or use an smtps:// URL");
+    CheckError({{"email", {{"smtp_url", "smtps://mail"}, {"from", "a@b"}, {"to", {"c@d"}}, {"ca_file", "/nonexistent/ca.pem"}}}},
+               "key 'notifications.email.ca_file': cannot read '/nonexistent/ca.pem'");
+    CheckError({{"webhooks", {{{"url", "https://x/y"}, {"secret", "s"}, {"ca_file", dir.File("not.pem")}}}}},
+               "key 'notifications.webhooks[0].ca_file': '" + dir.File("not.pem") + "' holds no PEM certificate");
+  }
   CheckError({{"retry_initial_s", 0}}, "key 'notifications.retry_initial_s': must be a whole number in [1, 86400], not 0");
   CheckError({{"timeout_s", 1.5}}, "key 'notifications.timeout_s': must be a whole number");
   CheckError({{"webhooks", {{{"url", "https://x/y"}, {"secret", "a\r\nX-Evil: 1"}}}}},
@@ -114,6 +131,20 @@ TEST(NotifyConfig, EachBadKeyOrValueIsNamed) {
   const std::string e = Error({{"webhooks", {{{"url", "https://x/y"}, {"secret", "topsecret"}, {"extra", 1}}}}});
   CHECK(e.find("topsecret") == std::string::npos);
   CHECK(e.find("notifications.webhooks[0].extra") != std::string::npos);
+}
+
+// A secret file is read for its first line only, and that line is short: a path such as /dev/zero
+// (no newline, ever) was read until memory ran out.
+TEST(NotifyConfig, ASecretFileIsReadForOneShortLineOnly) {
+  CheckError({{"webhooks", {{{"url", "https://x/y"}, {"secret_file", "/dev/zero"}}}}},
+             "key 'notifications.webhooks[0].secret_file': the first line of '/dev/zero' is longer than 4096 bytes");
+  lw::test::TempDirectory dir("lw-notify-secret");
+  const std::string file = dir.Write("secret", "  k3y \nsecond line ignored\n").string();
+  const NotificationConfig c =
+      ParseNotificationConfig({{"webhooks", {{{"url", "https://x/y"}, {"secret_file", file}}}}}, "config s.json");
+  STRCMP_EQUAL("k3y", c.webhooks.at(0).secret.c_str());
+  CheckError({{"webhooks", {{{"url", "https://x/y"}, {"secret_file", dir.Write("empty", "").string()}}}}}, "cannot read");
+  CheckError({{"webhooks", {{{"url", "https://x/y"}, {"secret_file", dir.Write("blank", " \t\n").string()}}}}}, "is empty");
 }
 
 TEST(NotifyConfig, TheServersConfigFileTakesNotificationsAndRefusesOtherObjects) {
@@ -243,4 +274,70 @@ TEST(NotifyDelivery, AFailingWebhookGetsTheEventOnceItAnswers2xxAndNotAgainAfter
   }
   LONGS_EQUAL(1, hook.Posts().size());
   for (const std::string& line : log) CHECK_TEXT(line.find("/hook") == std::string::npos, line.c_str());  // paths redacted
+}
+
+// A value from a radio or a broker message (a gateway id, a detail) cannot add lines to an e-mail
+// or end it early; an address with a line break is refused at startup.
+TEST(NotifyMessages, NoFieldCanAddALineToTheMail) {
+  const NotificationConfig c =
+      ParseNotificationConfig({{"email", {{"smtp_url", "smtp://mail"}, {"from", "a@b.c"}, {"to", {"ops@example.com"}}}}}, "x");
+  lw::server::AlarmRecord a = Alarm();
+  a.subject = "gw1)\r\n\r\nURGENT: acknowledge at http://evil.example/ack\n.\r\nX";
+  const std::string mail =
+      lw::server::MakeNotifications(c, a, {1, a.since_s, "raised", "server\r\nBcc: x@y", a.detail}, 1).at(0).body;
+  CHECK_TEXT(mail.find("\r\nURGENT") == std::string::npos, mail.c_str());
+  CHECK_TEXT(mail.find("\n.") == std::string::npos, mail.c_str());
+  CHECK_TEXT(mail.find("\r\nBcc:") == std::string::npos, mail.c_str());
+  CheckError(
+      {{"email", {{"smtp_url", "smtp://mail"}, {"from", "a@b.c"}, {"to", {"ops@example.com\r\nBcc:evil@attacker.example"}}}}},
+      "key 'notifications.email.to': 'ops@example.com");
+}
+
+// A receiver that has taken an event gets it once even when the database is busy right after its
+// 2xx (a long commit, an operator's sqlite3 holding the write lock beyond the busy timeout).
+TEST(NotifyDelivery, ABusyDatabaseAfterTheReceiversAnswerSendsNothingTwice) {
+  const std::string db = dir.File("db.sqlite");
+  {
+    lw::server::Store s(db);
+    const lw::server::AlarmRecord a = Alarm();
+    s.SaveAlarm(a, {0, a.since_s, "raised", "server", a.detail});
+  }
+  std::atomic<int> posts{0};
+  httplib::Server receiver;
+  receiver.Post("/hook", [&](const httplib::Request&, httplib::Response& res) {
+    ++posts;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // the lock is taken meanwhile
+    res.status = 200;
+  });
+  const int port = receiver.bind_to_any_port("127.0.0.1");
+  std::thread serving([&] { receiver.listen_after_bind(); });
+  std::vector<std::string> log;
+  std::mutex log_mutex;
+  {
+    lw::server::Notifier n(
+        ParseNotificationConfig(
+            {{"webhooks", {Hook("http://127.0.0.1:" + std::to_string(port) + "/hook")}}, {"retry_initial_s", 1}}, "x"),
+        db,
+        [&](const std::string& l) {
+          std::lock_guard<std::mutex> lock(log_mutex);
+          log.push_back(l);
+        },
+        nullptr);
+    n.Start();
+    for (int i = 0; i < 300 && posts == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    CHECK(posts == 1);
+    sqlite3* h = nullptr;
+    sqlite3_open(db.c_str(), &h);
+    LONGS_EQUAL(SQLITE_OK, sqlite3_exec(h, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr));
+    std::this_thread::sleep_for(std::chrono::milliseconds(7000));  // beyond the store's 5 s busy timeout
+    sqlite3_exec(h, "COMMIT", nullptr, nullptr, nullptr);
+    sqlite3_close(h);
+    std::this_thread::sleep_for(std::chrono::milliseconds(3000));  // time for a repeat, if there were one
+    n.Stop();
+  }
+  receiver.stop();
+  serving.join();
+  LONGS_EQUAL(1, posts.load());
+  lw::server::Store s(db);
+  LONGS_EQUAL(0, s.CountPendingNotifications());
 }

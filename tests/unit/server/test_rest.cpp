@@ -128,7 +128,7 @@ TEST(RestRoutes, TheOpenApiDocumentHasOneOperationPerRouteAndNoOther) {
   }
   CHECK(routed == documented);
   // The operations docs/server.md lists, as the dashboard and the tests use them.
-  LONGS_EQUAL(23, routed.size());
+  LONGS_EQUAL(24, routed.size());
   CHECK(documented.count({"get", "/api/v1/crushers/{crusher}/alarms"}));
   CHECK(documented.count({"post", "/api/v1/crushers/{crusher}/alarms/{id}/ack"}));
   CHECK(documented.count({"get", "/api/v1/crushers/{crusher}/alarms/rules"}));
@@ -136,6 +136,9 @@ TEST(RestRoutes, TheOpenApiDocumentHasOneOperationPerRouteAndNoOther) {
   CHECK(documented.count({"get", "/api/v1/crushers/{crusher}/plan"}));
   CHECK(documented.count({"post", "/api/v1/crushers/{crusher}/relines"}));
   CHECK(documented.count({"get", "/api/v1/crushers/{crusher}/campaigns"}));
+  CHECK(documented.count({"post", "/api/v1/crushers/{crusher}/relines/{time}/void"}));
+  STRCMP_EQUAL("write",
+               doc["paths"]["/api/v1/crushers/{crusher}/relines/{time}/void"]["post"]["x-scope"].get<std::string>().c_str());
   CHECK(documented.count({"post", "/api/v1/crushers/{crusher}/diagnosis"}));
   STRCMP_EQUAL("write", doc["paths"]["/api/v1/crushers/{crusher}/readings"]["post"]["x-scope"].get<std::string>().c_str());
   STRCMP_EQUAL("none", doc["paths"]["/healthz"]["get"]["x-scope"].get<std::string>().c_str());
@@ -265,7 +268,7 @@ TEST(RestHandlers, EveryCrusherRouteAnswers404ForAnUnknownCrusher) {
     LONGS_EQUAL_TEXT(404, res.status, route.path);
     STRCMP_EQUAL("unknown crusher 'nope'", ErrorOf(res).c_str());
   }
-  LONGS_EQUAL(17, crusher_routes);
+  LONGS_EQUAL(18, crusher_routes);
 }
 
 // After a reline the old boards' last reports fall in the day of slack before installed_at: the readings

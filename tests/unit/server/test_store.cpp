@@ -398,3 +398,60 @@ TEST(Store, ALockedStoreIsUsedByOneThreadAtATime) {
   LONGS_EQUAL(0, overlaps.load());
   LONGS_EQUAL(101, shared.With([](Store& s) { return s.CountReadings("c1"); }));
 }
+
+// A version 6 database (campaigns keyed by (crusher, start), no voiding) is upgraded in place to
+// version 7: its campaigns are kept as they were, a reline can be voided and a campaign started
+// again at the voided one's time.
+TEST(Store, AVersion6DatabaseKeepsItsCampaignsAndGainsVoidedRelines) {
+  { Store fresh(db()); }
+  {
+    // The version 7 file turned back into version 6: the tables of both are the same but campaigns'.
+    sqlite3* h = nullptr;
+    sqlite3_open(db().c_str(), &h);
+    const int rc =
+        sqlite3_exec(h,
+                     "DROP TABLE campaigns;"
+                     "CREATE TABLE campaigns (crusher TEXT NOT NULL, start INTEGER NOT NULL, end INTEGER,"
+                     " thickness_new_mm REAL NOT NULL, sensors TEXT NOT NULL, final_scan TEXT, final_readings TEXT NOT NULL,"
+                     " created INTEGER NOT NULL, PRIMARY KEY (crusher, start));"
+                     "INSERT INTO campaigns VALUES('c1', 100, 200, 120, '[]', '0 0 1', '[{\"sensor\":\"a\"}]', 5),"
+                     " ('c1', 200, NULL, 125, '[]', NULL, '[]', 6);"
+                     "PRAGMA user_version=6;",
+                     nullptr, nullptr, nullptr);
+    sqlite3_close(h);
+    LONGS_EQUAL(SQLITE_OK, rc);
+  }
+  Store s(db());
+  std::vector<lw::server::CampaignRecord> c = s.Campaigns("c1");
+  LONGS_EQUAL(2, c.size());
+  LONGS_EQUAL(200, c[0].end_s.value_or(0));
+  STRCMP_EQUAL("0 0 1", c[0].final_scan.c_str());
+  STRCMP_EQUAL("[{\"sensor\":\"a\"}]", c[0].final_readings_json.c_str());
+  CHECK_FALSE(c[1].end_s.has_value());
+  CHECK(c[0].id > 0 && c[1].id > 0 && c[0].id != c[1].id);
+  CHECK_FALSE(c[0].voided_s.has_value() || c[1].voided_s.has_value());
+  lw::server::CampaignRecord voided = c[1];
+  voided.voided_s = 300;
+  voided.voided_by = "ops";
+  voided.reline_scan = c[0].final_scan;
+  s.VoidReline(voided, c[0].id);
+  lw::server::CampaignRecord closed = s.Campaigns("c1")[0], next;
+  CHECK_FALSE(closed.end_s.has_value());  // reopened
+  CHECK(closed.final_scan.empty());
+  closed.end_s = 200;
+  next.start_s = 200;
+  next.thickness_new_mm = 130;
+  next.sensors_json = "[]";
+  next.final_readings_json = "[]";
+  s.Reline("c1", closed, next);
+  c = s.Campaigns("c1");
+  LONGS_EQUAL(3, c.size());
+  LONGS_EQUAL(300, c[1].voided_s.value_or(0));
+  STRCMP_EQUAL("ops", c[1].voided_by.c_str());
+  STRCMP_EQUAL("0 0 1", c[1].reline_scan.c_str());
+  DOUBLES_EQUAL(125, c[1].thickness_new_mm, 1e-9);
+  LONGS_EQUAL(200, c[2].start_s);
+  DOUBLES_EQUAL(130, c[2].thickness_new_mm, 1e-9);
+  CHECK_FALSE(c[2].end_s.has_value());
+  LONGS_EQUAL(200, c[0].end_s.value_or(0));
+}
