@@ -4,6 +4,8 @@
 //   record --board B --sensor-id N [--api-mode 1|2] [--ladder-loops N] --out FILE
 //                                       writes the 16-byte record and prints where it goes
 //   show   --board B --record FILE      decodes a record (read back from a board)
+//   board  --board B                    the board's table entry as name=value lines (scripts/flash
+//                                       reads its addresses and chip id from here)
 // Exit status: 0 done, 1 refused (the line says why), 2 bad command line.
 #include <cstdio>
 #include <fstream>
@@ -53,19 +55,22 @@ int MarkerBoard(const std::vector<uint8_t>& image) {
 int Check(const proto::BoardInfo& board, const std::string& path) {
   const std::vector<uint8_t> image = ReadFile(path);
   if (image.size() >= 4 && image[0] == 0x7F && image[1] == 'E' && image[2] == 'L' && image[3] == 'F')
-    throw Refused(path + " is an ELF file; give the .bin (arm-none-eabi-objcopy -O binary; scripts/flash does it)");
+    throw Refused(
+        path +
+        " is an ELF file; give the .bin beside it (the cross build writes one; arm-none-eabi-objcopy -O binary makes one)");
   const int id = MarkerBoard(image);
   if (id < 0) throw Refused(path + " is not a linerwatch firmware image (no board marker 'LWBD' in it)");
   if (id != board.id) {
     const proto::BoardInfo* other = proto::FindBoardById(static_cast<uint16_t>(id));
-    throw Refused(path + " is an image for " + (other ? std::string(other->name) + " (" + other->part + ")" : "board id " + std::to_string(id)) +
+    throw Refused(path + " is an image for " +
+                  (other ? std::string(other->name) + " (" + other->part + ")" : "board id " + std::to_string(id)) +
                   ", not for " + board.name + " (" + board.part + ")");
   }
   if (image.size() > board.image_max)
-    throw Refused(path + " is " + std::to_string(image.size()) + " B, over the " + std::to_string(board.image_max) + " B " + board.name +
-                  " has below its provisioning page");
-  std::printf("image %s: %s (%s), %zu B of %u B, at 0x%08X\n", path.c_str(), board.name, board.part, image.size(), board.image_max,
-              board.flash_base);
+    throw Refused(path + " is " + std::to_string(image.size()) + " B, over the " + std::to_string(board.image_max) + " B " +
+                  board.name + " has below its provisioning page");
+  std::printf("image %s: %s (%s), %zu B of %u B, at 0x%08X\n", path.c_str(), board.name, board.part, image.size(),
+              board.image_max, board.flash_base);
   return 0;
 }
 
@@ -92,15 +97,32 @@ int Show(const proto::BoardInfo& board, const std::string& path) {
   const proto::ProvisionStatus s =
       bytes.size() < proto::kProvisionSize ? proto::ProvisionStatus::kMissing : proto::DecodeProvision(bytes.data(), &p);
   switch (s) {
-    case proto::ProvisionStatus::kOk: break;
-    case proto::ProvisionStatus::kMissing: throw Refused(path + ": no provisioning record (no 'LWPR' magic)");
-    case proto::ProvisionStatus::kBadCrc: throw Refused(path + ": provisioning record fails its CRC");
-    case proto::ProvisionStatus::kBadVersion: throw Refused(path + ": provisioning record of an unknown version");
-    case proto::ProvisionStatus::kBadValue: throw Refused(path + ": provisioning record with a value out of range");
+    case proto::ProvisionStatus::kOk:
+      break;
+    case proto::ProvisionStatus::kMissing:
+      throw Refused(path + ": no provisioning record (no 'LWPR' magic)");
+    case proto::ProvisionStatus::kBadCrc:
+      throw Refused(path + ": provisioning record fails its CRC");
+    case proto::ProvisionStatus::kBadVersion:
+      throw Refused(path + ": provisioning record of an unknown version");
+    case proto::ProvisionStatus::kBadValue:
+      throw Refused(path + ": provisioning record with a value out of range");
   }
-  if (p.board != board.id) throw Refused(path + ": record for board id " + std::to_string(p.board) + ", not " + board.name);
-  std::printf("record %s: board %s, sensor %u, api mode %u, %u loops\n", path.c_str(), board.name, p.sensor_id, unsigned{p.api_mode},
-              unsigned{p.ladder_loops});
+  if (p.board != board.id) {
+    const proto::BoardInfo* other = proto::FindBoardById(p.board);
+    throw Refused(path + ": a record for " + (other ? std::string(other->name) : "board id " + std::to_string(p.board)) +
+                  ", not for " + board.name);
+  }
+  std::printf("record %s: board %s, sensor %u, api mode %u, %u loops\n", path.c_str(), board.name, p.sensor_id,
+              unsigned{p.api_mode}, unsigned{p.ladder_loops});
+  return 0;
+}
+
+int Board(const proto::BoardInfo& board) {
+  std::printf(
+      "name=%s\npart=%s\nid=0x%04X\nchip_id=0x%03X\nflash_base=0x%08X\nimage_max=%u\nprovision_address=0x%08X\nrecord_size=%zu\n",
+      board.name, board.part, unsigned{board.id}, unsigned{board.chip_id}, board.flash_base, board.image_max,
+      board.provision_address, proto::kProvisionSize);
   return 0;
 }
 
@@ -131,7 +153,8 @@ int main(int argc, char** argv) {
   try {
     const lw::core::ParsedOptions o = lw::core::ParseOptions(Table(), args);
     if (o.help()) {
-      std::printf("usage: linerwatch-provision check|record|show %s\n%s", Table().Synopsis().c_str(), Table().Help().c_str());
+      std::printf("usage: linerwatch-provision check|record|show|board %s\n%s", Table().Synopsis().c_str(),
+                  Table().Help().c_str());
       return 0;
     }
     const proto::BoardInfo& board = BoardByName(o.Text("board"));
@@ -143,7 +166,8 @@ int main(int argc, char** argv) {
       return Record(board, o);
     }
     if (cmd == "show") return Show(board, Need(o, cmd, "record"));
-    throw lw::core::UsageError("unknown command '" + cmd + "' (check, record or show)");
+    if (cmd == "board") return Board(board);
+    throw lw::core::UsageError("unknown command '" + cmd + "' (check, record, show or board)");
   } catch (const Refused& e) {
     std::fprintf(stderr, "linerwatch-provision: refused: %s\n", e.what());
     return 1;

@@ -35,7 +35,9 @@ inline ProvisionResult ApplyProvision(uint16_t board_id, uintptr_t address, firm
 
 /// The fault state of a board that must not talk: no radio traffic, the core asleep for good
 /// (the watchdog is not started yet, so it stays there until the record is fixed and it is reset).
-[[noreturn]] inline void HaltUnprovisioned() {
+/// Not inlined: a debugger (openocd's `halt`, the QEMU test's monitor) tells by the program
+/// counter that the board stopped here.
+[[noreturn]] __attribute__((noinline)) inline void HaltUnprovisioned() {
   for (;;) __asm volatile("wfi");
 }
 

@@ -86,8 +86,7 @@ inline ProvisionStatus DecodeProvision(const uint8_t in[kProvisionSize], Provisi
   p->board = static_cast<uint16_t>(get(6, 2));
   p->sensor_id = get(8, 4);
   p->ladder_loops = in[12];
-  if ((p->api_mode != 1 && p->api_mode != 2) || p->ladder_loops == 0 || p->ladder_loops > kMaxLadderLoops ||
-      p->sensor_id == 0)
+  if ((p->api_mode != 1 && p->api_mode != 2) || p->ladder_loops == 0 || p->ladder_loops > kMaxLadderLoops || p->sensor_id == 0)
     return ProvisionStatus::kBadValue;
   return ProvisionStatus::kOk;
 }

@@ -1,0 +1,120 @@
+#!/usr/bin/env bash
+# scripts/flash (docs/firmware.md, "Flashing and provisioning") without a board attached:
+# --dry-run on each board and tool prints the tool commands with the board's openocd target, the
+# image at the flash base and the record at the address of the board's PROVISION region in its
+# linker script, and leaves the record it would write (decoded back by linerwatch-provision);
+# a wrong image, bad arguments, a missing tool and an absent probe or port are refused in one line.
+#   test_flash.sh SOURCE_DIR PROVISION_BIN ARM_BIN_DIR
+set -u
+src=$1 bin=$3
+export LW_PROVISION=$2
+flash=$src/scripts/flash
+work=$(mktemp -d "${TMPDIR:-/tmp}/lw-flash-test.XXXXXX")
+trap 'rm -rf "$work"' EXIT
+# The script's own temporary folders too (a dry run without --work keeps its record there).
+mkdir -p "$work/tmp"
+export TMPDIR=$work/tmp
+failed=0
+fail() { echo "FAIL: $*"; failed=1; }
+has() { grep -qF -- "$2" <<<"$1" || fail "${3:-output} lacks '$2':"$'\n'"$1"; }
+lacks() { ! grep -qF -- "$2" <<<"$1" || fail "${3:-output} has '$2':"$'\n'"$1"; }
+run() { out=$("$flash" "$@" 2>&1); rc=$?; }
+one_error_line() { [ "$(grep -c '^flash: ' <<<"$out")" = "${2:-1}" ] || fail "$1: not one line from flash:"$'\n'"$out"; }
+
+# The record's address as the board's linker script places its PROVISION region.
+provision_origin() {
+  local o
+  o=$(grep -E '^\s*PROVISION\s*\(' "$src/firmware/board/$1/linker.ld" | grep -oE 'ORIGIN = 0x[0-9A-Fa-f]+' | awk '{print $3}')
+  [ -n "$o" ] || fail "no PROVISION region in firmware/board/$1/linker.ld"
+  printf '0x%08X' "$o"
+}
+
+for board in netduinoplus2 l431; do
+  image=$bin/linerwatch-firmware-$board.bin
+  [ -f "$image" ] || { echo "FAIL: $image missing (the cross build makes it)"; exit 1; }
+  at=$(provision_origin "$board")
+  case $board in netduinoplus2) cfg=target/stm32f4x.cfg chip=0x413 ;; l431) cfg=target/stm32l4x.cfg chip=0x435 ;; esac
+  rec=$work/$board/record-$board-31337.bin rb=$work/$board/readback-$board-31337.bin
+
+  run --board "$board" --image "$image" --sensor-id 31337 --api-mode 1 --ladder-loops 90 --dry-run --work "$work/$board"
+  [ "$rc" = 0 ] || fail "$board openocd dry run: exit $rc: $out"
+  has "$out" "openocd -f interface/stlink.cfg -f $cfg -c init -c 'mdw 0xE0042000' -c shutdown    # the attached chip must be $chip"
+  has "$out" "openocd -f interface/stlink.cfg -f $cfg -c init -c 'reset init' -c 'flash write_image erase $image 0x08000000' -c 'verify_image $image 0x08000000' -c 'flash write_image erase $rec $at' -c 'verify_image $rec $at' -c 'dump_image $rb $at 16' -c 'reset run' -c shutdown"
+  has "$out" "linerwatch-provision show --board $board --record $rb"
+  has "$out" "nothing written"
+  [ -f "$rec" ] || fail "$board: the dry run left no record at $rec"
+  shown=$("$LW_PROVISION" show --board "$board" --record "$rec" 2>&1) || fail "$board: the record does not decode: $shown"
+  has "$shown" "board $board, sensor 31337, api mode 1, 90 loops" "the record"
+
+  run --board "$board" --image "$image" --sensor-id 31337 --tool st-flash --dry-run --work "$work/$board"
+  [ "$rc" = 0 ] || fail "$board st-flash dry run: exit $rc: $out"
+  has "$out" "st-info --chipid    # the attached chip must be $chip"
+  has "$out" "  st-flash write $image 0x08000000"$'\n'"  st-flash write $rec $at"$'\n'"  st-flash read $rb $at 16"$'\n'"  st-flash reset"
+
+  run --board "$board" --image "$image" --sensor-id 31337 --tool stm32flash --port /dev/ttyUSB7 --baud 57600 --dry-run --work "$work/$board"
+  [ "$rc" = 0 ] || fail "$board stm32flash dry run: exit $rc: $out"
+  has "$out" "stm32flash -b 57600 /dev/ttyUSB7    # the attached chip must be $chip"
+  has "$out" "  stm32flash -b 57600 -c -w $image -v -S 0x08000000 /dev/ttyUSB7"$'\n'"  stm32flash -b 57600 -c -w $rec -v -S $at /dev/ttyUSB7"$'\n'"  stm32flash -b 57600 -c -r $rb -S $at:16 /dev/ttyUSB7"$'\n'"  stm32flash -b 57600 -c -g 0x08000000 /dev/ttyUSB7"
+done
+
+# The other board's image: refused before any tool command, one line naming both boards.
+run --board l431 --image "$bin/linerwatch-firmware-netduinoplus2.bin" --sensor-id 5 --dry-run --work "$work/wrong"
+[ "$rc" = 1 ] || fail "wrong image: exit $rc, expected 1"
+has "$out" "flash: refused: $bin/linerwatch-firmware-netduinoplus2.bin is an image for netduinoplus2 (STM32F405), not for l431 (STM32L431)"
+lacks "$out" "openocd"
+one_error_line "wrong image"
+[ ! -e "$work/wrong" ] || fail "wrong image: a record was made"
+run --board netduinoplus2 --image "$bin/linerwatch-firmware-netduinoplus2.elf" --sensor-id 5 --dry-run
+[ "$rc" = 1 ] || fail "an ELF: exit $rc, expected 1"
+has "$out" "is an ELF file; give the .bin"
+
+# Bad command lines: exit 2 and the option named.
+l431=$bin/linerwatch-firmware-l431.bin
+bad() {
+  local text=$1
+  shift
+  run "$@" --dry-run
+  [ "$rc" = 2 ] || fail "scripts/flash $*: exit $rc, expected 2: $out"
+  has "$out" "$text" "scripts/flash $*"
+}
+bad "--sensor-id 0 is out of range" --board l431 --image "$l431" --sensor-id 0
+bad "--sensor-id is required" --board l431 --image "$l431"
+bad "--image is required" --board l431 --sensor-id 5
+bad "--board is required" --image "$l431" --sensor-id 5
+bad "unknown board 'f405'" --board f405 --image "$l431" --sensor-id 5
+bad "--api-mode" --board l431 --image "$l431" --sensor-id 5 --api-mode 0
+bad "--tool: unknown tool 'jlink'" --board l431 --image "$l431" --sensor-id 5 --tool jlink
+bad "--tool stm32flash needs --port" --board l431 --image "$l431" --sensor-id 5 --tool stm32flash
+bad "--port is for --tool stm32flash" --board l431 --image "$l431" --sensor-id 5 --port /dev/ttyUSB0
+bad "unknown argument '--sensor'" --board l431 --image "$l431" --sensor 5
+"$flash" --help | grep -qF -- "--dry-run" || fail "--help does not describe --dry-run"
+
+# A real run with no board: the missing tool, the absent port, no probe. The tools themselves are
+# hidden by a PATH holding only what the script needs besides them.
+mkdir -p "$work/path"
+for t in bash env sed grep tr mktemp mkdir rm dirname awk head tail cmp cat wc; do ln -s "$(command -v "$t")" "$work/path/$t"; done
+for tool in openocd st-flash; do
+  out=$(PATH=$work/path "$flash" --board l431 --image "$l431" --sensor-id 5 --tool $tool 2>&1)
+  rc=$?
+  [ "$rc" = 1 ] || fail "$tool missing: exit $rc, expected 1"
+  has "$out" "not found (apt-get install"
+done
+run --board l431 --image "$l431" --sensor-id 5 --tool stm32flash --port "$work/ttyNONE"
+[ "$rc" = 1 ] || fail "absent port: exit $rc"
+has "$out" "flash: $work/ttyNONE does not exist"
+# Only where no ST USB device (vendor 0483, the ST-LINKs') is plugged in.
+if ! grep -qx 0483 /sys/bus/usb/devices/*/idVendor 2>/dev/null; then
+  if command -v openocd >/dev/null; then
+    run --board l431 --image "$l431" --sensor-id 5
+    [ "$rc" = 1 ] || fail "no probe (openocd): exit $rc"
+    has "$out" "flash: no ST-LINK probe or chip answered"
+  fi
+  if command -v st-info >/dev/null; then
+    run --board l431 --image "$l431" --sensor-id 5 --tool st-flash
+    [ "$rc" = 1 ] || fail "no probe (st-flash): exit $rc"
+    has "$out" "flash: no ST-LINK probe or chip answered"
+  fi
+fi
+
+[ "$failed" = 0 ] && echo "test_flash: all checks passed"
+exit "$failed"
