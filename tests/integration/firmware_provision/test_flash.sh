@@ -3,7 +3,8 @@
 # --dry-run on each board and tool prints the tool commands with the board's openocd target, the
 # image at the flash base and the record at the address of the board's PROVISION region in its
 # linker script, and leaves the record it would write (decoded back by linerwatch-provision);
-# a wrong image, bad arguments, a missing tool and an absent probe or port are refused in one line.
+# a wrong image, bad arguments, a missing tool and an absent probe or port are refused in one line;
+# a real stm32flash run against a model of the serial bootloader writes the image and the record.
 #   test_flash.sh SOURCE_DIR PROVISION_BIN ARM_BIN_DIR
 set -u
 src=$1 bin=$3
@@ -114,6 +115,58 @@ if ! grep -qx 0483 /sys/bus/usb/devices/*/idVendor 2>/dev/null; then
     [ "$rc" = 1 ] || fail "no probe (st-flash): exit $rc"
     has "$out" "flash: no ST-LINK probe or chip answered"
   fi
+fi
+
+# A real run with stm32flash, against a model of the ROM bootloader on a pty
+# (tests/fakes/fake_stm32_bootloader.py): the flash it is left with must hold the image at the
+# flash base and the record scripts/flash made at the board's address, and another chip on the
+# port must be refused with nothing written. A pty cannot carry the bootloader's even parity
+# (Linux's pty drops PARENB, and stm32flash checks its settings took), so a shim on PATH runs the
+# real stm32flash with -m 8n1.
+fake_pid=""
+trap '[ -z "$fake_pid" ] || kill "$fake_pid" 2>/dev/null; rm -rf "$work"' EXIT
+start_bootloader() {  # PID_OF_CHIP FLASH_SIZE PAGES NAME
+  rm -f "$work/$4.tty"
+  /usr/bin/python3 "$src/tests/fakes/fake_stm32_bootloader.py" --link "$work/$4.tty" --pid "$1" \
+    --flash-size "$2" --pages "$3" --dump "$work/$4.flash" &
+  fake_pid=$!
+  for _ in $(seq 1 100); do [ -L "$work/$4.tty" ] && [ -f "$work/$4.flash" ] && return 0; sleep 0.1; done
+  fail "the bootloader model did not start"
+}
+stop_bootloader() { kill "$fake_pid" 2>/dev/null; wait "$fake_pid" 2>/dev/null; fake_pid=""; }
+if stm32flash_bin=$(command -v stm32flash) && [ -x /usr/bin/python3 ]; then
+  mkdir -p "$work/shim"
+  printf '#!/bin/sh\nexec %s -m 8n1 "$@"\n' "$stm32flash_bin" >"$work/shim/stm32flash"
+  chmod +x "$work/shim/stm32flash"
+  f405_sectors=16384,16384,16384,16384,65536,131072
+  for spec in "netduinoplus2 0x413 1048576 $f405_sectors" "l431 0x435 262144 2048"; do
+    read -r board chip size pages <<<"$spec"
+    image=$bin/linerwatch-firmware-$board.bin
+    at=$(provision_origin "$board")
+    start_bootloader "$chip" "$size" "$pages" "$board"
+    out=$(PATH=$work/shim:$PATH "$flash" --board "$board" --image "$image" --sensor-id 555 --api-mode 1 \
+      --tool stm32flash --port "$work/$board.tty" --work "$work/run-$board" 2>&1)
+    rc=$?
+    stop_bootloader
+    [ "$rc" = 0 ] || fail "$board through stm32flash: exit $rc: $out"
+    has "$out" "flash: chip $chip ("
+    has "$out" "and the record at $at with stm32flash, both verified; read back: board $board, sensor 555, api mode 1, 100 loops"
+    cmp -s -n "$(stat -c %s "$image")" "$image" "$work/$board.flash" || fail "$board: the flash does not start with the image"
+    "$LW_PROVISION" record --board "$board" --sensor-id 555 --api-mode 1 --out "$work/expected-$board.bin" >/dev/null
+    cmp -s -i "0:$(( at - 0x08000000 ))" -n 16 "$work/expected-$board.bin" "$work/$board.flash" ||
+      fail "$board: the flash does not hold the record at $at"
+  done
+  # An F405 on the port of an l431 job: refused after the chip id, the flash left erased.
+  start_bootloader 0x413 1048576 "$f405_sectors" wrong-chip
+  out=$(PATH=$work/shim:$PATH "$flash" --board l431 --image "$l431" --sensor-id 555 --tool stm32flash \
+    --port "$work/wrong-chip.tty" 2>&1)
+  rc=$?
+  stop_bootloader
+  [ "$rc" = 1 ] || fail "another chip: exit $rc, expected 1"
+  has "$out" "flash: the attached chip is 0x413, not 0x435 (STM32L431)"
+  [ "$(tr -d '\377' <"$work/wrong-chip.flash" | wc -c)" = 0 ] || fail "another chip: something was written"
+else
+  fail "stm32flash or /usr/bin/python3 missing (scripts/install-deps installs them)"
 fi
 
 [ "$failed" = 0 ] && echo "test_flash: all checks passed"
