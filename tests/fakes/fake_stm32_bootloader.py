@@ -9,7 +9,8 @@ given size that starts erased (0xFF), and after every write or erase leaves the 
   (--pages: the erase unit in bytes, one size for every page, or a comma list of sizes in order
   for sectors, e.g. an F405's 16384,16384,16384,16384,65536,131072,...)
 
-PATH becomes a symlink to the pty's device; the fake runs until it is killed.
+PATH becomes a symlink to the pty's device; the fake runs until it is killed. With --silent it
+reads and never answers, as a port with no board (or BOOT0 low) does.
 """
 import argparse
 import os
@@ -29,6 +30,7 @@ def main():
     ap.add_argument("--flash-size", required=True, type=int)
     ap.add_argument("--pages", required=True)
     ap.add_argument("--dump", required=True)
+    ap.add_argument("--silent", action="store_true")
     a = ap.parse_args()
     sizes = [int(x) for x in a.pages.split(",")]
     pages = []  # (start offset, size)
@@ -88,6 +90,8 @@ def main():
         return addr - BASE
 
     dump()
+    while a.silent:
+        read(1)
     while True:
         cmd = read(1)[0]
         if cmd == 0x7F:  # the init byte (auto-baud)

@@ -125,10 +125,10 @@ fi
 # real stm32flash with -m 8n1.
 fake_pid=""
 trap '[ -z "$fake_pid" ] || kill "$fake_pid" 2>/dev/null; rm -rf "$work"' EXIT
-start_bootloader() {  # PID_OF_CHIP FLASH_SIZE PAGES NAME
+start_bootloader() {  # PID_OF_CHIP FLASH_SIZE PAGES NAME [--silent]
   rm -f "$work/$4.tty"
   /usr/bin/python3 "$src/tests/fakes/fake_stm32_bootloader.py" --link "$work/$4.tty" --pid "$1" \
-    --flash-size "$2" --pages "$3" --dump "$work/$4.flash" &
+    --flash-size "$2" --pages "$3" --dump "$work/$4.flash" ${5:-} &
   fake_pid=$!
   for _ in $(seq 1 100); do [ -L "$work/$4.tty" ] && [ -f "$work/$4.flash" ] && return 0; sleep 0.1; done
   fail "the bootloader model did not start"
@@ -165,6 +165,14 @@ if stm32flash_bin=$(command -v stm32flash) && [ -x /usr/bin/python3 ]; then
   [ "$rc" = 1 ] || fail "another chip: exit $rc, expected 1"
   has "$out" "flash: the attached chip is 0x413, not 0x435 (STM32L431)"
   [ "$(tr -d '\377' <"$work/wrong-chip.flash" | wc -c)" = 0 ] || fail "another chip: something was written"
+  # A port where nothing answers (no board, BOOT0 low): stm32flash's init times out.
+  start_bootloader 0x435 262144 2048 silent --silent
+  out=$(PATH=$work/shim:$PATH "$flash" --board l431 --image "$l431" --sensor-id 555 --tool stm32flash \
+    --port "$work/silent.tty" 2>&1)
+  rc=$?
+  stop_bootloader
+  [ "$rc" = 1 ] || fail "no answer: exit $rc, expected 1"
+  has "$out" "flash: no bootloader answered on $work/silent.tty (BOOT0 high and reset?"
 else
   fail "stm32flash or /usr/bin/python3 missing (scripts/install-deps installs them)"
 fi
