@@ -8,8 +8,10 @@
 // - RTC wake-up timer at 1 Hz from the LSE, Stop 2 between wakes; SysTick (4 MHz MSI) as a
 //   fallback when the LSE does not start (the board keeps running, at a higher sleep current).
 // - IWDG (~32 s, kicked on every wake-up: IWDG_STOP is not assumed to be programmed).
+// - Flash page 125 (0x0803E800): the provisioning record (sensor id, api mode, ladder size).
 // - Flash pages 126 and 127 (0x0803F000, 2 KiB each) for the state slots.
 // - ADC1: battery (VDDA from VREFINT) and die temperature.
+#include "../stm32/provision.hpp"
 #include "firmware/app.hpp"
 #include "hal/stm32/adc.hpp"
 #include "hal/stm32/clock.hpp"
@@ -50,7 +52,13 @@ void EnableClocksAndPins() {
   for (uint32_t pin : kSpiPins) st::ConfigurePin<>(st::l4::kGpioA, pin, st::gpio::Mode::kAlternate, 5);
 }
 
+constexpr uint16_t kBoardId = lw::protocol::kBoards[1].id;
+static_assert(lw::protocol::kBoards[1].id == 0x0431, "kBoards[1] is l431");
+
 }  // namespace
+
+extern "C" __attribute__((used, section(".lw_board"))) const lw::board::BoardMarker lw_board_marker =
+    lw::board::MakeBoardMarker(kBoardId);
 
 extern "C" void SysTick_Handler() {
   systick_clock.OnTick();
@@ -63,6 +71,12 @@ extern "C" void LPUART1_IRQHandler() {
 }
 
 int main() {
+  // A production board talks only with its record (page 125, written by scripts/flash): without
+  // one, or with one for another board, it halts before its radio or watchdog start.
+  lw::firmware::Config config{};
+  if (lw::board::ApplyProvision(kBoardId, lw::protocol::kBoards[1].provision_address, config) !=
+      lw::board::ProvisionResult::kApplied)
+    lw::board::HaltUnprovisioned();
   const lw::hal::ResetCause cause = st::ResetCauseFromCsrL4();
   // The LSE first: it clocks the RTC and the radio's LPUART.
   on_rtc = rtc_clock.Init(cause);
@@ -79,7 +93,7 @@ int main() {
   const lw::hal::Board board{ladder, ladder_power, radio_uart, adc, rtc, power, watchdog, flash};
   // Production tunables (config.hpp defaults). watchdog_timeout_s (1860 s) is clamped by the IWDG
   // to ~32 s of awake time; the sleep loop kicks it on each 1 Hz wake-up.
-  static lw::firmware::App app(lw::firmware::Config{}, board);
+  static lw::firmware::App app(config, board);
   app.Init();
   for (;;) app.RunOnce();
 }

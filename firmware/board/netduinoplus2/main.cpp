@@ -17,6 +17,7 @@
 //   (linker.ld FLASH_EMU).
 // Tunables for this image: fast polls so a CI run sees many cycles in seconds.
 #include "firmware/app.hpp"
+#include "../stm32/provision.hpp"
 #include "hal/port/uart_ladder.hpp"
 #include "hal/stm32/adc.hpp"
 #include "hal/stm32/clock.hpp"
@@ -70,7 +71,13 @@ void EnableClocksAndPins() {
   for (uint32_t pin : kUartPins) st::ConfigurePin<>(st::f4::kGpioA, pin, st::gpio::Mode::kAlternate, 7);
 }
 
+constexpr uint16_t kBoardId = lw::protocol::kBoards[0].id;
+static_assert(lw::protocol::kBoards[0].id == 0x0405, "kBoards[0] is netduinoplus2");
+
 }  // namespace
+
+extern "C" __attribute__((used, section(".lw_board"))) const lw::board::BoardMarker lw_board_marker =
+    lw::board::MakeBoardMarker(kBoardId);
 
 extern "C" void SysTick_Handler() {
   clock.OnTick();
@@ -86,6 +93,12 @@ extern "C" void USART2_IRQHandler() {
 }
 
 int main() {
+  // The record in sector 4 (written by scripts/flash, or by QEMU's loader in the tests) gives the
+  // sensor id; without one the image runs as sensor 1001, a record for another board stops it.
+  lw::firmware::Config config = MakeConfig();
+  if (lw::board::ApplyProvision(kBoardId, lw::protocol::kBoards[0].provision_address, config) ==
+      lw::board::ProvisionResult::kRefused)
+    lw::board::HaltUnprovisioned();
   const lw::hal::ResetCause cause = st::ResetCauseFromCsrF4();
   EnableClocksAndPins();
   radio_uart.Init(kUsart1Brr);
@@ -101,7 +114,7 @@ int main() {
   lw::hal::Power& power = on_rtc ? static_cast<lw::hal::Power&>(rtc_clock) : clock;
   lw::hal::FlashPages& flash = sector_flash.Present() ? static_cast<lw::hal::FlashPages&>(sector_flash) : ram_flash;
   const lw::hal::Board board{ladder, ladder_power, radio_uart, adc, rtc, power, watchdog, flash};
-  static lw::firmware::App app(MakeConfig(), board);
+  static lw::firmware::App app(config, board);
   app.Init();
   for (;;) app.RunOnce();
 }

@@ -34,6 +34,15 @@
 #ifndef LW_QEMU_MACHINE
 #define LW_QEMU_MACHINE "mps2-an386"
 #endif
+// With LW_PROVISION_SENSOR (netduinoplus2 only), the board is provisioned as scripts/flash does
+// it: linerwatch-provision (LW_PROVISION_BIN) makes the record and QEMU's loader puts it at the
+// record's documented address (sector 4, 0x08010000), so the readings must carry that sensor id
+// instead of the image's own 1001.
+#ifdef LW_PROVISION_SENSOR
+constexpr const char* kExpectedSensor = LW_PROVISION_SENSOR;
+#else
+constexpr const char* kExpectedSensor = "1001";
+#endif
 
 using namespace lw::protocol;
 using Clock = std::chrono::steady_clock;
@@ -75,10 +84,19 @@ TEST(FirmwareToGateway, ReadingsReachMqttAndGatewayAcksReachTheFirmware) {
   broker.Start();
 
   // The firmware under QEMU: UART0 = its radio, UART1 = the ladder test path.
+  std::vector<std::string> qemu_argv{"qemu-system-arm", "-M",      LW_QEMU_MACHINE, "-nographic", "-monitor", "none", "-kernel",
+                                     LW_FIRMWARE_ELF,   "-serial", "pty",           "-serial",    "pty"};
+#ifdef LW_PROVISION_SENSOR
+  const std::string record = dir.File("record.bin");
+  LONGS_EQUAL_TEXT(0,
+                   lw::test::RunCommand({LW_PROVISION_BIN, "record", "--board", "netduinoplus2", "--sensor-id",
+                                         LW_PROVISION_SENSOR, "--out", record},
+                                        dir.File("provision.log")),
+                   lw::test::FileTail(dir.File("provision.log")).c_str());
+  qemu_argv.insert(qemu_argv.end(), {"-device", "loader,file=" + record + ",addr=0x08010000"});
+#endif
   lw::test::ChildProcess qemu;
-  qemu.Start({"qemu-system-arm", "-M", LW_QEMU_MACHINE, "-nographic", "-monitor", "none", "-kernel", LW_FIRMWARE_ELF, "-serial",
-              "pty", "-serial", "pty"},
-             dir.File("qemu.log"));
+  qemu.Start(qemu_argv, dir.File("qemu.log"));
   std::string radio_path, ladder_path;
   // QEMU names its ptys once it has started: seconds on a loaded machine.
   for (int i = 0; i < 1200 && (radio_path.empty() || ladder_path.empty()); ++i) {
@@ -158,7 +176,7 @@ TEST(FirmwareToGateway, ReadingsReachMqttAndGatewayAcksReachTheFirmware) {
         readings[j.at("seq").get<uint32_t>()] = j.at("thickness_mm").get<double>();
         sub.publish("linerwatch/v1/qemu/c1/sensors/" + j.at("sensor").get<std::string>() + "/committed",
                     nlohmann::json{{"sensor", j.at("sensor")}, {"seqs", {j.at("seq")}}}.dump(), 1, false);
-        STRCMP_EQUAL("1001", j.at("sensor").get<std::string>().c_str());
+        STRCMP_EQUAL(kExpectedSensor, j.at("sensor").get<std::string>().c_str());
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
