@@ -119,6 +119,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
 
   if (result.mismatch_detected) result.regions = detail::FindRegions(bundle, setup, null);
   detail::Predict({bundle, options, setup, base, null, model_fit, use_improved, chosen != nullptr}, result);
+  detail::AddExcludedEvidence(result.sensors, result.curves);
 
   std::stable_sort(result.data_quality.begin(), result.data_quality.end(),
                    [](const DataQualityIssue& a, const DataQualityIssue& b) {

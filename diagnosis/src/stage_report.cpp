@@ -349,6 +349,36 @@ NoiseFit JudgeNoiseFit(const nlohmann::ordered_json& noise, double mismatch_z, c
   return f;
 }
 
+void AddExcludedEvidence(std::vector<SensorNoise>& sensors, const std::vector<SensorCurve>& curves) {
+  for (SensorNoise& n : sensors) {
+    if (n.used) continue;
+    const auto c = std::find_if(curves.begin(), curves.end(), [&](const SensorCurve& x) { return x.sensor_id == n.sensor_id; });
+    if (c == curves.end() || c->model_days.size() < 2 || c->baseline_thickness_mm.size() != c->model_days.size()) continue;
+    double day = kNaN, reading = kNaN;
+    for (size_t k = 0; k < c->reading_days.size() && k < c->reading_mm.size(); ++k)
+      if ((k >= c->reading_used.size() || c->reading_used[k]) && std::isfinite(c->reading_mm[k]) &&
+          (!std::isfinite(day) || c->reading_days[k] >= day)) {
+        day = c->reading_days[k];
+        reading = c->reading_mm[k];
+      }
+    if (!std::isfinite(day)) continue;
+    // The baseline's thickness at that day, linear between its time steps.
+    const std::vector<double>& t = c->model_days;
+    const size_t k = static_cast<size_t>(std::upper_bound(t.begin(), t.end(), day) - t.begin());
+    const size_t a = std::clamp<size_t>(k, 1, t.size() - 1) - 1;
+    const double f = std::clamp((day - t[a]) / std::max(t[a + 1] - t[a], 1e-12), 0.0, 1.0);
+    const double base = c->baseline_thickness_mm[a] + f * (c->baseline_thickness_mm[a + 1] - c->baseline_thickness_mm[a]);
+    if (!std::isfinite(base)) continue;
+    const double worn_lo = std::max(0.0, c->thickness_new_mm - reading - 1),
+                 worn_hi = std::max(0.0, c->thickness_new_mm - reading);
+    const std::string worn = worn_hi <= 0 ? std::string("no wear") : Fmt("%.0f to %.0f mm of wear", worn_lo, worn_hi);
+    n.excluded_because +=
+        Fmt("; its last reading (day %.0f) is %.0f mm, %s, where the baseline (Eq. 9, row scales from the "
+            "other sensors) predicts %.1f mm of wear by then",
+            day, reading, worn.c_str(), c->thickness_new_mm - base);
+  }
+}
+
 void AddDetectionLimit(NoiseFit& fit, double mismatch_z, double dof, const std::vector<SensorNoise>& sensors) {
   const Thresholds th;
   std::vector<double> sd, wear;

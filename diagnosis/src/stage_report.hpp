@@ -47,6 +47,11 @@ std::vector<SensorNoise> ExplainSensors(const ProblemSetup& setup, const Baselin
 /// median used sensor, above 50 % of the predicted wear.
 NoiseFit JudgeNoiseFit(const nlohmann::ordered_json& noise, double mismatch_z, const std::vector<SensorNoise>& sensors);
 
+/// Adds to each unused sensor's reason (SensorNoise::excluded_because) what its readings show beside
+/// what the baseline predicts there (its curve in `curves`, from the other sensors' row scales):
+/// a sensor that read no wear where the map predicts some says so with both figures.
+void AddExcludedEvidence(std::vector<SensorNoise>& sensors, const std::vector<SensorCurve>& curves);
+
 /// What the mismatch test could have seen (NoiseFit::chi2_to_detect and the rest): from the z found,
 /// the refit's degrees of freedom `dof` and the used sensors' noise. A static error at the sensors
 /// costs the refit about (error / noise sd)^2 per sensor (its map-error term takes it up against

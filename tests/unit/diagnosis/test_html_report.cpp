@@ -372,6 +372,8 @@ TEST(HtmlReport, EveryExcludedSensorSaysWhy) {
   }();
   CHECK_TRUE(q != nullptr);
   STRCMP_CONTAINS("loop crossing", q->excluded_because.c_str());
+  // ... with what its readings show beside what the baseline predicts there.
+  STRCMP_CONTAINS("where the baseline (Eq. 9, row scales from the other sensors) predicts", q->excluded_because.c_str());
   for (const auto& n : r.sensors)
     if (n.sensor_id == silent) STRCMP_CONTAINS("never reported", n.excluded_because.c_str());
   // The plot title points at the reason; the summary counts them.
