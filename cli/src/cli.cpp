@@ -239,7 +239,7 @@ int Diagnose(const std::vector<std::string>& args, std::ostream& out) {
     if (o.Has("predict_vtk")) fs::remove(o.Get("predict_vtk"), ec);
     throw;
   }
-  out << "diagnosis of " << result.crusher_id << ": mismatch " << (result.mismatch_detected ? "detected" : "not detected") << "; "
+  out << "diagnosis of " << result.crusher_id << ": " << diagnosis::DescribeVerdict(result).headline << "; "
       << result.findings.size() << " finding(s)";
   if (!result.findings.empty()) out << ", top: " << result.findings.front().effect;
   out << "; " << result.data_quality.size() << " data-quality issue(s)\n";

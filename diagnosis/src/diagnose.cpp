@@ -105,6 +105,9 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   result.sensors = detail::ExplainSensors(setup, base, null, result.data_quality,
                                           result.noise.value("map_pattern_error_source", std::string()));
   result.noise_fit = detail::JudgeNoiseFit(result.noise, result.mismatch_z_score, result.sensors);
+  detail::AddDetectionLimit(result.noise_fit, result.mismatch_z_score,
+                            std::max(1.0, static_cast<double>(null.fit.n_train) - static_cast<double>(prob.rows)),
+                            result.sensors);
   // The improved model: the chosen one; with nothing chosen, the refit baseline (row scales fitted
   // to the sensors and scans together, each sensor's map-noise term: the map recalibrated where it
   // was measured, no physics added), unless its fit failed; then Eq. 9 itself.
@@ -116,6 +119,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
 
   if (result.mismatch_detected) result.regions = detail::FindRegions(bundle, setup, null);
   detail::Predict({bundle, options, setup, base, null, model_fit, use_improved, chosen != nullptr}, result);
+  detail::AddExcludedEvidence(result.sensors, result.curves);
 
   std::stable_sort(result.data_quality.begin(), result.data_quality.end(),
                    [](const DataQualityIssue& a, const DataQualityIssue& b) {

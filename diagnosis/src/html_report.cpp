@@ -193,31 +193,6 @@ std::string Signed(double v, int digits = 1) {
   return (v > 0 ? "+" : "") + Num(v, digits);
 }
 
-// A noise part's name in a sentence (SensorNoise::noise_source).
-std::string SourceWords(const std::string& source) {
-  if (source == "map_pattern_error") return "the map's pattern error";
-  if (source == "map_sampling_noise") return "the map's sampling noise";
-  if (source == "sensor_floor") return "the 2 % per-sensor floor";
-  if (source == "reading") return "the reading's own (1 mm loops, report interval)";
-  return source;
-}
-
-// "sensor <b>1008</b> is off by <b>+49.9 mm</b> (measured - predicted wear, day 94) where the noise
-// model's standard deviation is <b>29.8 mm</b> (1.7 sd), mostly the map's pattern error" for the `n`
-// largest residuals; with `detail`, the largest one's noise in full.
-std::string LargestResiduals(const DiagnosisResult& r, size_t n, bool detail) {
-  const std::vector<const SensorNoise*> v = ByResidual(r);
-  std::string s;
-  for (size_t k = 0; k < v.size() && k < n; ++k) {
-    const SensorNoise& x = *v[k];
-    s += (k ? "; " : "") + std::string("sensor <b>") + Esc(x.sensor_id) + "</b> is off by <b>" + Signed(x.residual_mm) +
-         " mm</b> (measured - predicted wear, day " + Num(x.day, 0) + ") where the noise model's standard deviation is <b>" +
-         Num(x.noise_sd_mm, 1) + " mm</b> (" + Num(std::fabs(x.z), 1) + " sd), mostly " +
-         Esc(k == 0 && detail ? x.noise_detail : SourceWords(x.noise_source));
-  }
-  return s;
-}
-
 const ParamInfo* FindParam(const std::string& key) {
   for (const ParamInfo& p : kParams)
     if (key == p.key) return &p;
@@ -783,64 +758,57 @@ std::string SensorNoiseTable(const DiagnosisResult& r) {
        "total is their root sum of squares): the map's pattern error (what the smoothed DEM map misses beyond its "
        "sampling noise, relative to the predicted wear), the map's sampling noise at the sensor, the 2 % per-sensor "
        "floor, and the reading's own (1 mm loops, report interval). A residual within about 2 sd counts as noise: the "
-       "largest part says where that noise comes from. <i>Refit's map error</i>: what the refit baseline (the "
+       "largest part says where that noise comes from. <i>Map's own sd</i>: the DEM map model's standard error of the "
+       "predicted wear at the sensor (its sampling noise and its smoothing's error there) and why it has that size "
+       "there. <i>Refit's map error</i>: what the refit baseline (the "
        "&quot;after&quot; of a campaign without findings) took up at the sensor, against its prior sd.</p>";
   h << "<table><tr><th>sensor</th><th>used</th><th>day</th><th>measured - predicted wear (mm)</th><th>noise sd (mm)</th>"
        "<th>|residual| / sd</th><th>map pattern / map sampling / floor / reading (mm)</th><th>largest part</th>"
-       "<th>refit's map error (prior sd)</th></tr>";
+       "<th>map's own sd (mm) and why</th><th>refit's map error (prior sd)</th></tr>";
   for (const SensorNoise& n : r.sensors) {
     h << "<tr><td>" << Esc(n.sensor_id) << "</td>";
     if (!n.used) {
-      h << "<td colspan='8'><b>not used</b>: "
+      h << "<td colspan='9'><b>not used</b>: "
         << Esc(n.excluded_because.empty() ? std::string("(no reason recorded)") : n.excluded_because) << "</td></tr>";
       continue;
     }
     if (!std::isfinite(n.residual_mm)) {
-      h << "<td>yes</td><td colspan='7'>no loop crossing to compare</td></tr>";
+      h << "<td>yes</td><td colspan='8'>no loop crossing to compare</td></tr>";
       continue;
     }
     h << "<td>yes</td><td class='num'>" << Num(n.day, 0) << "</td><td class='num'>" << Signed(n.residual_mm, 1)
       << "</td><td class='num'>" << Num(n.noise_sd_mm, 1) << "</td><td class='num'>" << Num(std::fabs(n.z), 1)
       << "</td><td class='num'>" << Num(n.map_pattern_mm, 1) << " / " << Num(n.map_sampling_mm, 1) << " / "
-      << Num(n.sensor_floor_mm, 1) << " / " << Num(n.reading_mm, 1) << "</td><td>" << Esc(n.noise_detail)
-      << "</td><td class='num'>" << Signed(100 * n.refit_map_error_relative, 0) << " % ("
-      << Num(100 * n.map_error_prior_relative, 0) << " %)</td></tr>";
+      << Num(n.sensor_floor_mm, 1) << " / " << Num(n.reading_mm, 1) << "</td><td>" << Esc(n.noise_detail) << "</td><td><b>"
+      << Num(n.map_sd_mm, 1) << "</b>: " << Esc(n.map_error_detail) << "</td><td class='num'>"
+      << Signed(100 * n.refit_map_error_relative, 0) << " % (" << Num(100 * n.map_error_prior_relative, 0) << " %)</td></tr>";
   }
   h << "</table>";
   return h.str();
 }
 
-std::string Verdict(const DiagnosisResult& r) {
-  if (r.findings.empty()) {
-    const std::string wide = r.noise_fit.fits
-                                 ? std::string()
-                                 : " The noise model is also wider than these data scatter (" + Esc(r.noise_fit.detail) + ").";
-    if (r.noise_fit.blind) {
-      const std::string largest = LargestResiduals(r, 2, false);
-      return "<b class='warn'>No mismatch detected, but this test could not have seen one</b>: " + Esc(r.noise_fit.blind_detail) +
-             ". &quot;Within the noise&quot; here means within a noise as large as the wear" +
-             (largest.empty() ? std::string(".") : ": " + largest + ".") +
-             " Read it as <i>not testable with this map</i>, not as agreement." + wide;
-    }
-    const std::string largest = LargestResiduals(r, 2, true);
-    return "<b class='good'>No mismatch beyond the noise</b>: the DEM-based prediction agrees with the recordings within "
-           "the noise model" +
-           (largest.empty() ? std::string(".") : ". Largest residuals: " + largest + ".") +
-           (r.noise_fit.fits ? std::string() : wide + " A mismatch smaller than the noise named here would pass unseen.");
+// The verdict (DescribeVerdict) with its headline coloured by what it says: green only for a
+// tested "no mismatch", amber where nothing was tested, red for a mismatch.
+std::string VerdictHtml(const DiagnosisResult& r) {
+  const Verdict v = DescribeVerdict(r);
+  const char* cls = v.kind == "no_mismatch"                                            ? "good"
+                    : v.kind == "not_testable" || v.kind == "noise_model_does_not_fit" ? "warn"
+                                                                                       : "bad";
+  return "<b class='" + std::string(cls) + "' data-verdict='" + Esc(v.kind) + "'>" + Esc(v.headline) + "</b>: " + Esc(v.detail);
+}
+
+// The used sensors whose residual is large (beyond 1 sd of the test's noise or of the map's own
+// standard error; at least the largest), largest first, at most `n`: each with its explanation.
+std::string LargeResiduals(const DiagnosisResult& r, size_t n) {
+  const std::vector<const SensorNoise*> v = ByResidual(r);
+  std::string s;
+  for (size_t k = 0; k < v.size() && k < n; ++k) {
+    const SensorNoise& x = *v[k];
+    const bool large = std::fabs(x.residual_mm) > x.noise_sd_mm || std::fabs(x.residual_mm) > x.map_sd_mm;
+    if (k > 0 && !large) break;
+    s += "<li>" + Esc(x.explanation) + ".</li>";
   }
-  const Finding& top = r.findings.front();
-  if (top.effect == kUnexplained)
-    return "<b class='bad'>Mismatch, unexplained</b>: the recordings disagree with the DEM-based prediction beyond "
-           "the noise, but none of the modelled effects is convincing. See the residual maps and the mismatch "
-           "regions.";
-  std::string s = "<b class='bad'>Mismatch found</b>. Most supported explanation: <b>" + Esc(EffectWords(top.effect)) +
-                  "</b> (confidence " + Num(top.confidence, 2) + ")";
-  if (r.findings.size() > 1) {
-    s += "; also ";
-    for (size_t k = 1; k < r.findings.size(); ++k)
-      s += (k > 1 ? ", " : "") + Esc(r.findings[k].effect) + " (" + Num(r.findings[k].confidence, 2) + ")";
-  }
-  return s + ".";
+  return s.empty() ? s : "<ul class='residuals'>" + s + "</ul>";
 }
 
 std::string EvidenceTable(const nlohmann::ordered_json& e) {
@@ -894,7 +862,12 @@ std::string RenderHtml(const DiagnosisResult& r) {
   h << "<h1>Diagnosis: " << Esc(r.crusher_id) << "</h1>";
 
   // --- At a glance ---
-  h << "<div class='summary'><p>" << Verdict(r) << "</p><ul>";
+  h << "<div class='summary'><p>" << VerdictHtml(r) << "</p>";
+  if (r.findings.empty()) {
+    const std::string large = LargeResiduals(r, 3);
+    if (!large.empty()) h << "<p>Where the residuals are largest, and the noise there:</p>" << large;
+  }
+  h << "<ul>";
   h << "<li>Installed " << Date(r.installed_at) << "; latest reading used " << Date(r.liner.now)
     << ". Mismatch test: chi-square excess " << Num(r.mismatch_z_score, 1) << " sigma over the noise model (real above 4).</li>";
   if (!r.liner.thinnest_area.empty())
@@ -956,10 +929,13 @@ std::string RenderHtml(const DiagnosisResult& r) {
   // --- Findings with their parameters ---
   h << "<h2 id='findings'>Findings</h2>";
   if (r.findings.empty()) {
-    h << "<p>No finding: no mismatch beyond the noise model"
-      << (r.noise_fit.blind ? std::string(", which is as large as the wear here (see the verdict above): the test could "
-                                          "not have seen one.")
-                            : std::string("."))
+    const Verdict v = DescribeVerdict(r);
+    h << "<p>No finding. "
+      << (v.kind == "noise_model_does_not_fit" ? "The noise model does not fit these data (see the verdict above): nothing "
+                                                 "was tested, so this is no evidence of agreement."
+          : v.kind == "not_testable"
+              ? "The noise is as large as the wear here (see the verdict above): the test could not have seen a mismatch."
+              : "No mismatch beyond the noise model.")
       << " What the noise is at each sensor: <a href='#sensor-noise'>Sensors: residual and noise</a>.</p>";
   } else {
     int k = 1;
@@ -1055,9 +1031,7 @@ std::string RenderHtml(const DiagnosisResult& r) {
   if (!r.hypotheses.empty()) {
     h << "<p><b>Verdict:</b> ";
     if (r.findings.empty())
-      h << (r.noise_fit.blind ? "no mismatch detected, with a noise as large as the wear (see the verdict at the top): not "
-                                "testable with this map; no hypothesis accepted."
-                              : "no mismatch beyond the noise; no hypothesis accepted.");
+      h << Esc(DescribeVerdict(r).headline) << "; no hypothesis accepted.";
     else if (r.findings.front().effect == kUnexplained)
       h << "<b>unexplained</b>: the mismatch is real but no hypothesis is convincing.";
     else

@@ -101,6 +101,15 @@ nlohmann::ordered_json ToJson(const DiagnosisResult& r) {
   if (!r.noise_fit.fits) j["noise"]["model_fit_detail"] = r.noise_fit.detail;
   j["noise"]["mismatch_test_blind"] = r.noise_fit.blind;
   if (r.noise_fit.blind) j["noise"]["mismatch_test_blind_detail"] = r.noise_fit.blind_detail;
+  if (std::isfinite(r.noise_fit.chi2_to_detect))
+    j["noise"]["detection_limit"] = {{"chi2_to_detect", Round(r.noise_fit.chi2_to_detect, 1)},
+                                     {"static_error_sd_per_sensor", Round(r.noise_fit.detectable_sd_per_sensor, 2)},
+                                     {"static_error_mm_median_sensor", Round(r.noise_fit.detectable_mm_median_sensor, 1)},
+                                     {"median_predicted_wear_mm", Round(r.noise_fit.median_predicted_wear_mm, 1)}};
+  {
+    const Verdict v = DescribeVerdict(r);
+    j["verdict"] = {{"kind", v.kind}, {"headline", v.headline}, {"detail", v.detail}};
+  }
   // Every configured sensor: used or why not; a used one's latest residual beside its noise.
   j["sensors"] = nlohmann::ordered_json::array();
   j["excluded_sensors"] = nlohmann::ordered_json::array();
@@ -127,6 +136,14 @@ nlohmann::ordered_json ToJson(const DiagnosisResult& r) {
       x["noise_detail"] = n.noise_detail;
       x["refit_map_error_relative"] = Round(n.refit_map_error_relative, 3);
       x["map_error_prior_relative"] = Round(n.map_error_prior_relative, 3);
+      if (std::isfinite(n.map_sd_mm)) {
+        x["map_sd_mm"] = Round(n.map_sd_mm, 2);
+        x["map_sd_parts_mm"] = {{"sampling_noise", Round(n.map_sd_sampling_mm, 2)},
+                                {"smoothing_error", Round(n.map_sd_smoothing_mm, 2)}};
+        x["map_error_why"] = n.map_error_why;
+        x["map_error_detail"] = n.map_error_detail;
+      }
+      x["explanation"] = n.explanation;
     }
     j["sensors"].push_back(x);
   }

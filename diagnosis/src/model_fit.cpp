@@ -313,19 +313,33 @@ double RayleighToZ(double r) {
   return 0.5 * (lo + hi);
 }
 
+bool AtLimit(const FitResult& f, Effect e, std::string* why) {
+  const int o = f.spec.Offset(e);
+  if (o < 0 || f.x.size() <= o) return false;
+  const ParamSpec main = EffectParams(e).front();
+  bool at = false;
+  double value = f.x[o];
+  if (e != Effect::kFeedSegregation) {
+    const double span = main.upper - main.lower;
+    at = (f.x[o] <= main.lower + 1e-3 * span && main.lower < 0) || f.x[o] >= main.upper - 1e-3 * span;
+  } else if (f.x.size() > o + 1) {
+    value = std::max(std::fabs(f.x[o]), std::fabs(f.x[o + 1]));
+    at = value >= 0.999 * main.upper;
+  }
+  if (at && why)
+    *why =
+        Fmt("its size %s = %.3g sits at the limit of its physical range [%.3g, %.3g]: the data want more than this effect "
+            "can be",
+            main.name.c_str(), value, main.lower, main.upper);
+  return at;
+}
+
 double Significance(const FitResult& f, Effect e, double dispersion, double map_harmonic1_sd) {
   const int o = f.spec.Offset(e);
   if (o < 0 || f.stderr_given_shape.size() != f.x.size()) return 0;
   // An effect size pinned at the limit of its physical range: the data want something this effect
   // cannot be, so it is not the explanation.
-  const ParamSpec main = EffectParams(e).front();
-  if (e != Effect::kFeedSegregation) {
-    const double span = main.upper - main.lower;
-    if (f.x[o] <= main.lower + 1e-3 * span && main.lower < 0) return 0;
-    if (f.x[o] >= main.upper - 1e-3 * span) return 0;
-  } else if (std::max(std::fabs(f.x[o]), std::fabs(f.x[o + 1])) >= 0.999 * main.upper) {
-    return 0;
-  }
+  if (AtLimit(f, e)) return 0;
   const double inflate = std::sqrt(std::max(1.0, dispersion));
   if (e == Effect::kFeedSegregation) {
     // The amplitude against the recordings' noise and the map's own first-harmonic error (a DEM

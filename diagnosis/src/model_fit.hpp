@@ -177,6 +177,10 @@ Eigen::VectorXd StderrGivenShape(const ModelSpec& spec, const Eigen::MatrixXd& j
 /// nuisance parameter present only under the alternative; the search over it is paid for by its
 /// ln N in delta BIC).
 double Significance(const FitResult& f, Effect e, double dispersion, double map_harmonic1_sd = 0);
+/// Whether effect `e`'s size in fit `f` is pinned at the limit of its physical range (then its
+/// significance is 0: the data want something this effect cannot be). `why`, when given, gets the
+/// size and the range in words.
+bool AtLimit(const FitResult& f, Effect e, std::string* why = nullptr);
 /// The one-parameter z with the same two-sided false-alarm rate as amplitude / per-component
 /// standard error `r` of a two-component (cosine, sine) amplitude, whose null law is Rayleigh:
 /// P(R > r) = exp(-r^2 / 2). So every effect is held to the same 2-sd level.

@@ -28,7 +28,181 @@ nlohmann::ordered_json Failed(const char* test, double value, const char* needed
   return {{"test", test}, {"value", Round(value, 3)}, {"needed", needed}};
 }
 
+// Area-weighted ring mean of the map's (outlier-capped) raw faces with z in [lo, hi]; NaN when no face.
+double RingMean(const core::MapModel& m, double lo, double hi) {
+  const core::WearMap& map = *m.map;
+  double sw = 0, sa = 0;
+  for (Eigen::Index i = 0; i < map.z.size() && i < m.clean.size(); ++i)
+    if (map.z[i] >= lo && map.z[i] <= hi) {
+      sw += map.areas[i] * m.clean[i];
+      sa += map.areas[i];
+    }
+  return sa > 0 ? sw / sa : kNaN;
+}
+
+// Area-weighted mean of the raw (outlier-capped) faces within `reach` (z and arc length) of a
+// point, and its standard error from the faces' noise law; NaN when no face.
+struct Local {
+  double mean = kNaN, sd = kNaN;
+};
+Local LocalMean(const core::MapModel& m, double z, double theta_deg, double reach) {
+  const core::WearMap& map = *m.map;
+  double sw = 0, sa = 0, sv = 0;
+  for (Eigen::Index i = 0; i < map.z.size() && i < m.clean.size(); ++i) {
+    const double arc = map.radius[i] * AngleDiffDeg(map.theta_deg[i], theta_deg) * M_PI / 180.0;
+    if (std::fabs(map.z[i] - z) <= reach && std::fabs(arc) <= reach) {
+      sw += map.areas[i] * m.clean[i];
+      sa += map.areas[i];
+      sv += map.areas[i] * map.areas[i] * m.FaceVariance(m.clean[i]);
+    }
+  }
+  Local l;
+  if (sa > 0) {
+    l.mean = sw / sa;
+    l.sd = std::sqrt(sv) / sa;
+  }
+  return l;
+}
+
+// The kernel's scale along z at a point: the nearest face's local scale (the map model's ICI), else
+// the global one.
+double KernelAt(const core::MapModel& m, double z, double theta_deg) {
+  if (m.local_bandwidth_m.size() != m.map->z.size() || m.map->z.size() == 0) return m.bandwidth_m;
+  Eigen::Index best = 0;
+  double best_d = 1e300;
+  for (Eigen::Index i = 0; i < m.map->z.size(); ++i) {
+    const double arc = m.map->radius[i] * AngleDiffDeg(m.map->theta_deg[i], theta_deg) * M_PI / 180.0;
+    const double d = (m.map->z[i] - z) * (m.map->z[i] - z) + arc * arc;
+    if (d < best_d) {
+      best_d = d;
+      best = i;
+    }
+  }
+  return m.local_bandwidth_m[best] > 0 ? m.local_bandwidth_m[best] : m.bandwidth_m;
+}
+
+// Where the test's noise at a sensor comes from, in words (SensorNoise::noise_detail).
+std::string NoiseDetail(const std::string& source, const std::string& tau_source, double tau, double rs) {
+  if (source == "map_pattern_error") {
+    if (tau_source == "scan")
+      return Fmt("the map's pattern error, %.0f %% of the predicted wear, measured on the scan's cells", 100 * tau);
+    if (tau_source == "sensors")
+      return Fmt(
+          "the map's pattern error, %.0f %% of the predicted wear, measured from the sensors' spread about their rows' "
+          "scales (these residuals themselves, so it cannot tell a map error from a real one)",
+          100 * tau);
+    return Fmt(
+        "the map's pattern error, %.0f %% of the predicted wear, taken from the map's own cross-validated smoothing "
+        "error (neither a scan nor the sensors' spread measured it smaller): the smoothed DEM map does not resolve "
+        "the wear pattern",
+        100 * tau);
+  }
+  if (source == "map_sampling_noise")
+    return Fmt(
+        "the DEM map's sampling noise at the sensor, %.0f %% of the predicted wear: the faces' noise between the run's "
+        "time windows through the smoothing kernel (a longer DEM run narrows it)",
+        100 * rs);
+  if (source == "sensor_floor") return "the 2 % per-sensor floor of the map's error (placement, local geometry)";
+  return "the reading's own: the 1 mm loop ladder, the time inside the report interval, the 2 % model floor";
+}
+
+// SensorNoise::explanation.
+std::string ExplainResidual(const SensorNoise& n) {
+  std::string s =
+      Fmt("sensor %s is off by %+.1f mm (measured - predicted wear, day %.0f); the mismatch test allows %.1f mm "
+          "(1 sd) there, %.1f sd, mostly %s",
+          n.sensor_id.c_str(), n.residual_mm, n.day, n.noise_sd_mm, std::fabs(n.z), n.noise_detail.c_str());
+  if (!std::isfinite(n.map_sd_mm)) return s;
+  s += Fmt("; the map's own standard error at sensor %s is %.1f mm (%.0f %% of the predicted wear), %s", n.sensor_id.c_str(),
+           n.map_sd_mm, n.predicted_wear_mm > 0 ? 100 * n.map_sd_mm / n.predicted_wear_mm : 0.0, n.map_error_detail.c_str());
+  const double ratio = n.map_sd_mm > 0 ? std::fabs(n.residual_mm) / n.map_sd_mm : kNaN;
+  if (std::isfinite(ratio))
+    s += ratio <= 2 ? Fmt("; the residual is %.1f times that: within what the map itself cannot resolve there", ratio)
+                    : Fmt("; the residual is %.1f times that: more than the map's own error there explains", ratio);
+  return s;
+}
+
 }  // namespace
+
+MapError ExplainMapError(const MapFields& f, const SensorData& s) {
+  MapError e;
+  e.sd_rel = s.field.rel_noise;
+  e.sampling_rel = std::min(s.field.rel_sampling, s.field.rel_noise);
+  const core::MapModel& m = f.model;
+  const bool have_map = m.map && m.map->face_count() > 0 && f.noise_estimated;
+  const core::MapModel::Point at = have_map ? m.At(s.z, s.theta) : core::MapModel::Point{};
+  if (at.intensity > 0) {
+    // The map model's own figures, not capped at 100 % as the fit's intensity error is.
+    const double q = QuantisationRel(f, s.field.intensity);
+    e.sd_rel = std::hypot(at.sd / at.intensity, q);
+    e.sampling_rel = std::hypot(at.noise_sd / at.intensity, q);
+  }
+  e.smoothing_rel = std::sqrt(std::max(0.0, e.sd_rel * e.sd_rel - e.sampling_rel * e.sampling_rel));
+  if (!have_map) {
+    e.why = "sampling_noise";
+    e.detail = Fmt("the map has too few faces to measure its own noise: %.0f %% assumed", 100 * e.sd_rel);
+    return e;
+  }
+  // Where the local scale stopped below the global one its bias is counted as large as its noise
+  // (core::MapModel): a tie is the smoothing's, the map changing faster than the kernel there.
+  if (e.sampling_rel > e.smoothing_rel * (1 + 1e-9)) {
+    e.why = "sampling_noise";
+    const double faces = std::max(1.0, static_cast<double>(s.field.faces));
+    e.detail =
+        Fmt("mostly its sampling noise: one face of the DEM run scatters by %.0f %% (%s) and the kernel averages "
+            "about %.0f faces here; a longer DEM run narrows it",
+            100 * m.face_cv, m.noise_source.c_str(), faces);
+    return e;
+  }
+  const double h = std::max(KernelAt(m, s.z, s.theta), f.face_size_m);
+  const double here = RingMean(m, s.z - 0.5 * h, s.z + 0.5 * h);
+  // The edges within the kernel's reach (3 sd): the concave's bottom is its discharge edge.
+  struct Edge {
+    const char* name;
+    double distance;
+    double lo, hi;
+  };
+  const Edge edges[2] = {{"discharge", s.z - f.z_bottom, f.z_bottom, f.z_bottom + h},
+                         {"feed", f.z_top - s.z, f.z_top - h, f.z_top}};
+  const Edge* edge = nullptr;
+  double edge_ratio = 1;
+  for (const Edge& g : edges) {
+    if (!(g.distance < 3 * h) || !(here > 0)) continue;
+    const double ratio = RingMean(m, g.lo, g.hi) / here;
+    if (std::isfinite(ratio) && std::fabs(std::log(ratio)) > std::fabs(std::log(edge_ratio))) {
+      edge = &g;
+      edge_ratio = ratio;
+    }
+  }
+  if (edge && (edge_ratio > 1.5 || edge_ratio < 1 / 1.5)) {
+    e.why = "edge_band";
+    e.detail =
+        Fmt("mostly its smoothing's error: the %s-edge band is unresolved: the DEM's ring-mean wear within %.2f m of "
+            "the %s edge is %.1f times that at the sensor's height, %.2f m away, inside the kernel's reach (3 x its "
+            "%.2f m sd along z), so the smoothed map there mixes the two",
+            edge->name, h, edge->name, edge_ratio, edge->distance, h);
+    return e;
+  }
+  // The raw faces around the sensor against the smoothed value there: a difference beyond twice
+  // their own mean's noise is structure the kernel flattens.
+  const Local local = LocalMean(m, s.z, s.theta, h);
+  if (at.intensity > 0 && std::isfinite(local.mean) && std::fabs(local.mean - at.intensity) > 2 * local.sd) {
+    e.why = "local_structure";
+    e.detail =
+        Fmt("mostly its smoothing's error: the raw DEM faces within %.2f m of the sensor wear %.0f %% %s than the "
+            "smoothed map says there (%.1f times their own mean's noise): structure finer than the kernel's %.2f m "
+            "sd that the smoothed map does not resolve",
+            h, 100 * std::fabs(local.mean / at.intensity - 1), local.mean > at.intensity ? "more" : "less",
+            std::fabs(local.mean - at.intensity) / std::max(local.sd, 1e-12), h);
+    return e;
+  }
+  e.why = "smoothing";
+  e.detail =
+      Fmt("mostly its smoothing's error: the map's cross-validated smoothing error is %.0f %% of the wear over the "
+          "liner (kernel sd %.2f m along z): the smoothed DEM map does not follow the DEM's own pattern closer than that",
+          100 * m.smoothing_error_rel, h);
+  return e;
+}
 
 std::string ExcludedBecause(const SensorData& s, const std::vector<DataQualityIssue>& data_quality) {
   if (s.usable) return "";
@@ -102,39 +276,16 @@ std::vector<SensorNoise> ExplainSensors(const ProblemSetup& setup, const Baselin
     n.refit_map_error_relative = ui < null.fit.u.size() ? null.fit.u[ui] : kNaN;
     n.map_error_prior_relative = su;
     const double parts[4] = {n.map_pattern_mm, n.map_sampling_mm, n.sensor_floor_mm, n.reading_mm};
-    const int largest = static_cast<int>(std::max_element(parts, parts + 4) - parts);
-    switch (largest) {
-      case 0:
-        n.noise_source = "map_pattern_error";
-        if (tau_source == "scan")
-          n.noise_detail = Fmt("the map's pattern error, %.0f %% of the predicted wear, measured on the scan's cells", 100 * tau);
-        else if (tau_source == "sensors")
-          n.noise_detail =
-              Fmt("the map's pattern error, %.0f %% of the predicted wear, measured from the sensors' spread about their rows' "
-                  "scales",
-                  100 * tau);
-        else
-          n.noise_detail =
-              Fmt("the map's pattern error, %.0f %% of the predicted wear, taken from the map's own cross-validated smoothing "
-                  "error (neither a scan nor the sensors' spread measured it smaller): the smoothed DEM map does not resolve "
-                  "the wear pattern",
-                  100 * tau);
-        break;
-      case 1:
-        n.noise_detail =
-            Fmt("the DEM map's sampling noise at the sensor, %.0f %% of the predicted wear: the faces' noise between the run's "
-                "time windows through the smoothing kernel (a longer DEM run narrows it)",
-                100 * rs);
-        n.noise_source = "map_sampling_noise";
-        break;
-      case 2:
-        n.noise_source = "sensor_floor";
-        n.noise_detail = "the 2 % per-sensor floor of the map's error (placement, local geometry)";
-        break;
-      default:
-        n.noise_source = "reading";
-        n.noise_detail = "the reading's own: the 1 mm loop ladder, the time inside the report interval, the 2 % model floor";
-    }
+    static const char* const kSources[4] = {"map_pattern_error", "map_sampling_noise", "sensor_floor", "reading"};
+    n.noise_source = kSources[std::max_element(parts, parts + 4) - parts];
+    n.noise_detail = NoiseDetail(n.noise_source, tau_source, tau, rs);
+    const MapError me = ExplainMapError(setup.fields, s);
+    n.map_sd_mm = me.sd_rel * p;
+    n.map_sd_sampling_mm = me.sampling_rel * p;
+    n.map_sd_smoothing_mm = me.smoothing_rel * p;
+    n.map_error_why = me.why;
+    n.map_error_detail = me.detail;
+    n.explanation = ExplainResidual(n);
     out.push_back(std::move(n));
   }
   return out;
@@ -198,6 +349,53 @@ NoiseFit JudgeNoiseFit(const nlohmann::ordered_json& noise, double mismatch_z, c
   return f;
 }
 
+void AddExcludedEvidence(std::vector<SensorNoise>& sensors, const std::vector<SensorCurve>& curves) {
+  for (SensorNoise& n : sensors) {
+    if (n.used) continue;
+    const auto c = std::find_if(curves.begin(), curves.end(), [&](const SensorCurve& x) { return x.sensor_id == n.sensor_id; });
+    if (c == curves.end() || c->model_days.size() < 2 || c->baseline_thickness_mm.size() != c->model_days.size()) continue;
+    double day = kNaN, reading = kNaN;
+    for (size_t k = 0; k < c->reading_days.size() && k < c->reading_mm.size(); ++k)
+      if ((k >= c->reading_used.size() || c->reading_used[k]) && std::isfinite(c->reading_mm[k]) &&
+          (!std::isfinite(day) || c->reading_days[k] >= day)) {
+        day = c->reading_days[k];
+        reading = c->reading_mm[k];
+      }
+    if (!std::isfinite(day)) continue;
+    // The baseline's thickness at that day, linear between its time steps.
+    const std::vector<double>& t = c->model_days;
+    const size_t k = static_cast<size_t>(std::upper_bound(t.begin(), t.end(), day) - t.begin());
+    const size_t a = std::clamp<size_t>(k, 1, t.size() - 1) - 1;
+    const double f = std::clamp((day - t[a]) / std::max(t[a + 1] - t[a], 1e-12), 0.0, 1.0);
+    const double base = c->baseline_thickness_mm[a] + f * (c->baseline_thickness_mm[a + 1] - c->baseline_thickness_mm[a]);
+    if (!std::isfinite(base)) continue;
+    const double worn_lo = std::max(0.0, c->thickness_new_mm - reading - 1),
+                 worn_hi = std::max(0.0, c->thickness_new_mm - reading);
+    const std::string worn = worn_hi <= 0 ? std::string("no wear") : Fmt("%.0f to %.0f mm of wear", worn_lo, worn_hi);
+    n.excluded_because +=
+        Fmt("; its last reading (day %.0f) is %.0f mm, %s, where the baseline (Eq. 9, row scales from the "
+            "other sensors) predicts %.1f mm of wear by then",
+            day, reading, worn.c_str(), c->thickness_new_mm - base);
+  }
+}
+
+void AddDetectionLimit(NoiseFit& fit, double mismatch_z, double dof, const std::vector<SensorNoise>& sensors) {
+  const Thresholds th;
+  std::vector<double> sd, wear;
+  for (const SensorNoise& n : sensors)
+    if (n.used && std::isfinite(n.noise_sd_mm) && n.noise_sd_mm > 0 && std::isfinite(n.predicted_wear_mm)) {
+      sd.push_back(n.noise_sd_mm);
+      wear.push_back(n.predicted_wear_mm);
+    }
+  if (sd.empty() || !(dof > 0) || !std::isfinite(mismatch_z)) return;
+  std::sort(sd.begin(), sd.end());
+  std::sort(wear.begin(), wear.end());
+  fit.chi2_to_detect = std::max(0.0, (th.mismatch_z - mismatch_z) * std::sqrt(2.0 * dof));
+  fit.detectable_sd_per_sensor = std::sqrt(fit.chi2_to_detect / static_cast<double>(sd.size()));
+  fit.detectable_mm_median_sensor = fit.detectable_sd_per_sensor * sd[sd.size() / 2];
+  fit.median_predicted_wear_mm = wear[wear.size() / 2];
+}
+
 void AnnotateHypotheses(nlohmann::ordered_json& table, const Hypotheses& h, double log_n) {
   const Thresholds th;
   const std::vector<ModelEval>& evals = h.evals;
@@ -237,9 +435,19 @@ void AnnotateHypotheses(nlohmann::ordered_json& table, const Hypotheses& h, doub
       failed.push_back(Failed("holdout_improvement", ev.ho_rel, "> 0.03"));
     }
     if (!(ev.significance > th.min_significance)) {
-      why.push_back(Fmt("effect size %.1f standard errors from zero (needs > %.0f): the data do not determine its size",
-                        ev.significance, th.min_significance));
-      failed.push_back(Failed("significance", ev.significance, "> 2"));
+      std::string limit;
+      for (Effect e : ev.full.spec.effects) {
+        std::string one;
+        if (AtLimit(ev.full, e, &one)) limit += (limit.empty() ? "" : "; ") + std::string(EffectName(e)) + ": " + one;
+      }
+      if (!limit.empty()) {
+        why.push_back("effect size at a bound (needs a size inside its physical range): " + limit);
+        failed.push_back(Failed("at_limit", ev.significance, "inside its physical range"));
+      } else {
+        why.push_back(Fmt("effect size %.1f standard errors from zero (needs > %.0f): the data do not determine its size",
+                          ev.significance, th.min_significance));
+        failed.push_back(Failed("significance", ev.significance, "> 2"));
+      }
     }
     if (why.empty() && k >= h.singles && k - h.singles < h.pair_parts.size()) {
       // The pair rules (ApplyPairRules): beat both single effects, and no accepted single effect
@@ -278,9 +486,87 @@ void AnnotateHypotheses(nlohmann::ordered_json& table, const Hypotheses& h, doub
           "fitted is the map's smoothing scale, not normal stress");
       failed.push_back({{"test", "stress_shape"}, {"needed", "better than the map smoothed like the stress"}});
     }
-    row["rejected_because"] = Join(why, "; ");
+    // A held-out gain that passed is named first: it alone does not make a finding.
+    const bool held_out_passed = ev.ho_gain > th.min_holdout_gain && ev.ho_rel > th.min_holdout_rel;
+    row["rejected_because"] =
+        (held_out_passed ? Fmt("the held-out improvement %.1f %% passes, but ", 100 * ev.ho_rel) : std::string()) +
+        Join(why, "; ");
     row["failed_tests"] = failed;
   }
 }
 
 }  // namespace lw::diagnosis::detail
+
+namespace lw::diagnosis {
+namespace {
+
+// What "no mismatch" can mean with these data (NoiseFit's detection limit), in a sentence; empty
+// when not known.
+std::string DetectionLimitText(const DiagnosisResult& r) {
+  const NoiseFit& f = r.noise_fit;
+  if (!std::isfinite(f.detectable_mm_median_sensor) || !std::isfinite(f.chi2_to_detect)) return "";
+  size_t used = 0;
+  for (const SensorNoise& n : r.sensors) used += n.used && std::isfinite(n.noise_sd_mm) ? 1 : 0;
+  std::string s = detail::Fmt(
+      "A mismatch is called at z above 4; from z %.1f that needs the refit's chi-square to rise by about %.0f: a static error of "
+      "about %.1f noise sd at each of the %zu used sensors, about %.0f mm of wear at the median sensor",
+      r.mismatch_z_score, f.chi2_to_detect, f.detectable_sd_per_sensor, used, f.detectable_mm_median_sensor);
+  if (std::isfinite(f.median_predicted_wear_mm) && f.median_predicted_wear_mm > 0)
+    s += detail::Fmt(" (%.0f %% of its predicted wear of %.0f mm)",
+                     100 * f.detectable_mm_median_sensor / f.median_predicted_wear_mm, f.median_predicted_wear_mm);
+  return s + ". A smaller error passes as noise.";
+}
+
+}  // namespace
+
+Verdict DescribeVerdict(const DiagnosisResult& r) {
+  Verdict v;
+  const NoiseFit& f = r.noise_fit;
+  const std::string misfit = f.fits ? std::string() : "The noise model does not fit these data: " + f.detail + ".";
+  if (!r.findings.empty()) {
+    const Finding& top = r.findings.front();
+    if (top.effect == kUnexplained) {
+      v.kind = "mismatch_unexplained";
+      v.headline = "Mismatch, unexplained";
+      v.detail = detail::Fmt(
+          "the recordings disagree with the DEM-based prediction beyond the noise (z %.1f), but none of the "
+          "modelled effects is convincing: see the residual maps and the mismatch regions.",
+          r.mismatch_z_score);
+    } else {
+      v.kind = "mismatch_explained";
+      v.headline = "Mismatch found";
+      v.detail = detail::Fmt("most supported explanation: %s (confidence %.2f)", top.effect.c_str(), top.confidence);
+      for (size_t k = 1; k < r.findings.size(); ++k)
+        v.detail += detail::Fmt("%s%s (%.2f)", k == 1 ? "; also " : ", ", r.findings[k].effect.c_str(), r.findings[k].confidence);
+      v.detail += ".";
+    }
+    if (!f.fits) v.detail += " " + misfit + " Every gain is measured against it: weigh the confidence accordingly.";
+    return v;
+  }
+  const std::string limit = DetectionLimitText(r);
+  if (!f.fits) {
+    v.kind = "noise_model_does_not_fit";
+    v.headline = "Not tested: the noise model does not fit these data";
+    v.detail = f.detail +
+               ". The test measured the residuals against a noise wider than they scatter, so it finds no mismatch whatever "
+               "the liner did inside that noise: this is no evidence that the DEM-based prediction agrees with the "
+               "recordings.";
+    if (f.blind) v.detail += " The noise is also as large as the wear: " + f.blind_detail + ".";
+    if (!limit.empty()) v.detail += " " + limit;
+    return v;
+  }
+  if (f.blind) {
+    v.kind = "not_testable";
+    v.headline = "No mismatch detected, but this test could not have seen one";
+    v.detail = f.blind_detail + ". Read it as not testable with this map, not as agreement." + (limit.empty() ? "" : " " + limit);
+    return v;
+  }
+  v.kind = "no_mismatch";
+  v.headline = "No mismatch beyond the noise";
+  v.detail =
+      detail::Fmt("the DEM-based prediction agrees with the recordings within the noise model (z %.1f).", r.mismatch_z_score) +
+      (limit.empty() ? "" : " " + limit);
+  return v;
+}
+
+}  // namespace lw::diagnosis

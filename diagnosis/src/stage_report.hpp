@@ -16,6 +16,20 @@
 
 namespace lw::diagnosis::detail {
 
+/// The DEM map model's own standard error at a sensor (relative to its intensity there), its two
+/// parts, and why it has that size there (SensorNoise::map_error_why / map_error_detail): its
+/// sampling noise (the run's faces scatter between its time windows, averaged by the kernel), or its
+/// smoothing's error, located where the map shows it: an edge band (the concave's bottom is its
+/// discharge edge, its top the feed) within the kernel's reach (3 sd) whose ring-mean wear is over
+/// 1.5 times (or under 1/1.5 of) the sensor height's; raw faces within one kernel sd of the sensor
+/// whose mean differs from the smoothed value by more than twice its own noise; else the map's
+/// cross-validated smoothing error over the whole liner.
+struct MapError {
+  double sd_rel = kNaN, sampling_rel = kNaN, smoothing_rel = kNaN;
+  std::string why, detail;
+};
+MapError ExplainMapError(const MapFields& fields, const SensorData& s);
+
 /// Why the fit left a configured sensor out, in words; empty when it is used.
 std::string ExcludedBecause(const SensorData& s, const std::vector<DataQualityIssue>& data_quality);
 
@@ -32,6 +46,17 @@ std::vector<SensorNoise> ExplainSensors(const ProblemSetup& setup, const Baselin
 /// -4 (the mirror of the mismatch threshold). Blind: the map's pattern error, or the noise sd at the
 /// median used sensor, above 50 % of the predicted wear.
 NoiseFit JudgeNoiseFit(const nlohmann::ordered_json& noise, double mismatch_z, const std::vector<SensorNoise>& sensors);
+
+/// Adds to each unused sensor's reason (SensorNoise::excluded_because) what its readings show beside
+/// what the baseline predicts there (its curve in `curves`, from the other sensors' row scales):
+/// a sensor that read no wear where the map predicts some says so with both figures.
+void AddExcludedEvidence(std::vector<SensorNoise>& sensors, const std::vector<SensorCurve>& curves);
+
+/// What the mismatch test could have seen (NoiseFit::chi2_to_detect and the rest): from the z found,
+/// the refit's degrees of freedom `dof` and the used sensors' noise. A static error at the sensors
+/// costs the refit about (error / noise sd)^2 per sensor (its map-error term takes it up against
+/// its prior), so the chi-square the threshold needs, spread over the sensors, gives the size.
+void AddDetectionLimit(NoiseFit& fit, double mismatch_z, double dof, const std::vector<SensorNoise>& sensors);
 
 /// Adds to each entry of the hypotheses table (`table[k]` is `h.evals[k]`): `verdict` ("chosen",
 /// "accepted" or "rejected"), for a rejected one `rejected_because` (each failed test with its value

@@ -289,7 +289,7 @@ const std::string kDiagnosis =
         "time":{"type":"string","format":"date-time","nullable":true,"description":"of the latest stored diagnosis"},
         "error":{"type":"string","description":"only when failed"},
         "result":{"type":"object","nullable":true,"required":["crusher_id","baseline","mismatch","findings","improved",
-          "data_quality","noise","sensors","excluded_sensors"],"properties":{"crusher_id":{"type":"string"},
+          "data_quality","noise","sensors","excluded_sensors","verdict"],"properties":{"crusher_id":{"type":"string"},
           "baseline":{"type":"object","required":["rmse_mm","max_abs_mm","holdout_rmse_mm","observations",
             "holdout_observations"],"properties":{"rmse_mm":{"type":"number"},"max_abs_mm":{"type":"number"},
             "holdout_rmse_mm":{"type":"number"},"observations":{"type":"integer"},"holdout_observations":{"type":"integer"}}},
@@ -314,7 +314,10 @@ const std::string kDiagnosis =
           "sensors":{"type":"array","items":{"type":"object","required":["sensor_id","used"],"properties":{
             "sensor_id":{"type":"string"},"used":{"type":"boolean"}}}},
           "excluded_sensors":{"type":"array","items":{"type":"object","required":["sensor_id","reason"],"properties":{
-            "sensor_id":{"type":"string"},"reason":{"type":"string"}}}}}}}})j";
+            "sensor_id":{"type":"string"},"reason":{"type":"string"}}}},
+          "verdict":{"type":"object","required":["kind","headline","detail"],"properties":{
+            "kind":{"type":"string","enum":["mismatch_explained","mismatch_unexplained","no_mismatch","not_testable",
+            "noise_model_does_not_fit"]},"headline":{"type":"string"},"detail":{"type":"string"}}}}}}})j";
 
 const std::string kDiagnosisStarted =
     R"j({"type":"object","required":["status"],"properties":{"status":{"type":"string","enum":["running"]}}})j";

@@ -2,9 +2,10 @@
 // headless chromium at 1400 px as an engineer reads it: a linerwatch-sim campaign with one sensor
 // cut to its first two readings, `linerwatch diagnose --json --html`, then checks that the page fits
 // the window, that the verdict's words hold where their condition holds (no green "no mismatch" when
-// the test was blind; "within the noise" with the noise's size at a sensor; a refit "after" said to
-// be one), that every sensor the fit left out says why and every rejected hypothesis which test it
-// failed. Screenshots go to --artifacts.
+// the noise model does not fit or the test was blind; "within the noise" with the noise's size and
+// the map's own standard error at a sensor; a refit "after" said to be one), that every sensor the
+// fit left out says why and every rejected hypothesis which test it failed. Screenshots go to
+// --artifacts.
 //
 // node report_test.mjs --bin BUILD/bin --modules NODE_MODULES --artifacts DIR [--chromium /usr/bin/chromium]
 import { createRequire } from 'node:module';
@@ -69,18 +70,29 @@ async function runCase(name, seed, days) {
   const verdict = await page.locator('div.summary > p').first().innerText();
   const verdictHtml = await page.locator('div.summary > p').first().innerHTML();
 
+  check(d.verdict && d.verdict.kind && d.verdict.headline, `the JSON has the verdict (${d.verdict?.kind})`);
+  check(verdict.startsWith(d.verdict.headline), 'the report leads with the JSON verdict\'s headline');
   if (d.findings.length === 0) {
-    check(/No mismatch/.test(verdict), 'no finding: the verdict says no mismatch');
-    if (d.noise.mismatch_test_blind) {
-      check(!/class="good"/.test(verdictHtml), 'a blind test is not shown in green');
-      check(verdict.includes('could not have seen one') && verdict.includes('not testable with this map'), 'a blind test says so');
+    if (d.verdict.kind === 'no_mismatch') {
+      check(/No mismatch beyond the noise/.test(verdict) && d.noise.model_fits && !d.noise.mismatch_test_blind, 'a tested "no mismatch" says so');
+    } else {
+      check(!/class="good"/.test(verdictHtml), `an untested "no mismatch" (${d.verdict.kind}) is not shown in green`);
+      if (d.verdict.kind === 'noise_model_does_not_fit')
+        check(!d.noise.model_fits && verdict.includes('Not tested') && verdict.includes('no evidence that the DEM-based prediction agrees'),
+          'a noise model that does not fit is said to test nothing');
+      else
+        check(verdict.includes('could not have seen one') && verdict.includes('not testable with this map'), 'a blind test says so');
     }
+    if (d.noise.detection_limit)
+      check(verdict.includes(`rise by about ${d.noise.detection_limit.chi2_to_detect.toFixed(0)}`), 'the verdict says what the test could have seen');
     const used = d.sensors.filter((s) => s.used && s.residual_mm !== undefined);
     used.sort((a, b) => Math.abs(b.residual_mm) - Math.abs(a.residual_mm));
     if (used.length) {
       const top = used[0];
-      check(verdict.includes(`sensor ${top.sensor_id} is off by`) && verdict.includes(`standard deviation is ${top.noise_sd_mm.toFixed(1)} mm`),
-        `"within the noise" names sensor ${top.sensor_id}'s residual and the noise sd there (${top.noise_sd_mm.toFixed(1)} mm)`);
+      const text = await summary.innerText();
+      check(text.includes(`sensor ${top.sensor_id} is off by`) && text.includes(`the mismatch test allows ${top.noise_sd_mm.toFixed(1)} mm`) &&
+        text.includes(`the map's own standard error at sensor ${top.sensor_id} is ${top.map_sd_mm.toFixed(1)} mm`),
+      `"within the noise" names sensor ${top.sensor_id}'s residual, the noise the test allowed (${top.noise_sd_mm.toFixed(1)} mm) and the map's own standard error there (${top.map_sd_mm.toFixed(1)} mm)`);
     }
   }
   if (d.improved.model !== 'findings') {

@@ -94,8 +94,9 @@ export function renderDiagnosis(container, diag, { canWrite, onRun, runError }) 
   const mm = res.mismatch || {};
   const nRegions = mm.regions?.length || 0;
   const noise = res.noise || {};
+  // The diagnosis' own verdict (what was found, or what was not tested) when it has one.
   container.append(h('p', { class: 'sub', 'data-testid': 'diagnosis-mismatch' }, !mm.detected
-    ? (noise.mismatch_test_blind
+    ? res.verdict?.headline ? `${res.verdict.headline}: ${res.verdict.detail}` : (noise.mismatch_test_blind
       ? `No mismatch detected, but the test could not have seen one: ${noise.mismatch_test_blind_detail || 'the noise is as large as the wear'}. Not testable with this map.`
       : noise.model_fits === false
         ? `No mismatch beyond the noise; the noise model is wider than these data scatter (${noise.model_fit_detail || ''}).`

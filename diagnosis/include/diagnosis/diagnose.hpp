@@ -138,6 +138,18 @@ struct SensorNoise {
   /// its prior standard deviation (relative).
   double refit_map_error_relative = std::numeric_limits<double>::quiet_NaN();
   double map_error_prior_relative = std::numeric_limits<double>::quiet_NaN();
+  /// The DEM map model's own standard error of the predicted wear at the sensor (mm; core::MapModel
+  /// at the sensor: its sampling noise through the kernel and its smoothing's error there), its two
+  /// parts, and why it is that size here, in words with the figures (map_error_why: "sampling_noise",
+  /// "edge_band", "local_structure" or "smoothing"; map_error_detail the sentence).
+  double map_sd_mm = std::numeric_limits<double>::quiet_NaN();
+  double map_sd_sampling_mm = std::numeric_limits<double>::quiet_NaN();
+  double map_sd_smoothing_mm = std::numeric_limits<double>::quiet_NaN();
+  std::string map_error_why;
+  std::string map_error_detail;
+  /// The residual in a sentence: its size beside the noise the test allowed (and where that comes
+  /// from) and beside the map's own standard error there (and why that is its size).
+  std::string explanation;
 };
 
 /// What the mismatch test's noise model says about the data (its premise). `fits`: the refit
@@ -150,6 +162,24 @@ struct NoiseFit {
   std::string detail;  ///< why it does not fit, with the figures (empty when it fits)
   bool blind = false;
   std::string blind_detail;  ///< why the test is blind, with the figures (empty when it is not)
+  /// What the test could have seen: the chi-square a mismatch must add to the refit's to reach the
+  /// mismatch threshold (z 4) from the z found, and that spread as a static error over the used
+  /// sensors' map-error terms: in noise sd per sensor and in mm at the median sensor (NaN when not
+  /// known). A static error smaller than this passes as "no mismatch".
+  double chi2_to_detect = std::numeric_limits<double>::quiet_NaN();
+  double detectable_sd_per_sensor = std::numeric_limits<double>::quiet_NaN();
+  double detectable_mm_median_sensor = std::numeric_limits<double>::quiet_NaN();
+  double median_predicted_wear_mm = std::numeric_limits<double>::quiet_NaN();
+};
+
+/// The diagnosis' conclusion in words (JSON `verdict`; the report's headline; the CLI's line).
+struct Verdict {
+  /// "mismatch_explained", "mismatch_unexplained", "no_mismatch", "not_testable" (the noise is as
+  /// large as the wear) or "noise_model_does_not_fit" (no finding, and the noise model's premise
+  /// fails: then "no mismatch" says nothing about agreement).
+  std::string kind;
+  std::string headline;  ///< one line
+  std::string detail;    ///< what it rests on and what it means for the conclusion
 };
 
 /// Per-sensor curves for the report: measured readings and the two models' thickness.
@@ -309,6 +339,10 @@ struct DiagnosisResult {
   std::vector<ResidualGrid> grids;
   LinerReport liner;  ///< unwrapped-liner maps and the thinnest point (report only, not in the JSON)
 };
+
+/// The conclusion of `result` in words (the JSON's `verdict`, the report's headline, the CLI's line):
+/// from its findings, its noise fit (NoiseFit: the premise of "no mismatch") and its sensors.
+Verdict DescribeVerdict(const DiagnosisResult& result);
 
 /// Runs the whole diagnosis on a loaded bundle. Never throws on physically odd data (faults are
 /// reported). A bundle with no usable sensor readings gives a result whose note says "no usable

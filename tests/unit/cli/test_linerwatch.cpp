@@ -165,6 +165,10 @@ TEST(Linerwatch, DiagnoseWritesJsonHtmlAndPredictionVtkFromConfig) {
   for (const char* key : {"baseline", "mismatch", "findings", "improved", "data_quality", "prediction"})
     CHECK_TRUE(j.contains(key));
   STRCMP_EQUAL("feed_segregation", j["findings"][0]["effect"].get<std::string>().c_str());
+  // The line printed is the JSON's verdict (what was found, or what was not tested), not a bare
+  // "mismatch (not) detected".
+  STRCMP_EQUAL("mismatch_explained", j["verdict"]["kind"].get<std::string>().c_str());
+  STRCMP_CONTAINS((": " + j["verdict"]["headline"].get<std::string>() + "; ").c_str(), r.out.c_str());
   STRCMP_EQUAL("2024-04-20T00:00:00Z", j["prediction"]["time"].get<std::string>().c_str());
   CHECK_TRUE(j["prediction"]["improved"]["sensors"].contains("LDWN-1"));
   const std::string v = Slurp(vtk);

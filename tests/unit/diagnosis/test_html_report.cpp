@@ -227,6 +227,13 @@ std::string Between(const std::string& text, const std::string& from, const std:
   return text.substr(a, b == std::string::npos ? std::string::npos : b - a);
 }
 
+// As the report writes text (an apostrophe as &#39;).
+std::string Escaped(const std::string& text) {
+  std::string out;
+  for (const char ch : text) out += ch == '\'' ? std::string("&#39;") : std::string(1, ch);
+  return out;
+}
+
 std::string Fixed(double v, int digits) {
   char b[64];
   std::snprintf(b, sizeof b, "%.*f", digits, v);
@@ -261,15 +268,29 @@ TEST(HtmlReport, NoMismatchNamesTheNoiseWhereTheResidualIsAndTheAfterIsARefit) {
     if (!largest || std::fabs(n.residual_mm) > std::fabs(largest->residual_mm)) largest = &n;
   }
   CHECK_TRUE(largest != nullptr);
-  // The verdict at the top names that sensor, its residual, the noise sd there and its source.
+  // The verdict at the top says what was tested; below it, the largest residual's sensor, its
+  // size, the noise the test allowed there and its source, and the map's own standard error there
+  // and why.
   const std::string verdict = Between(run.html, "<div class='summary'>", "</p>");
   CHECK_FALSE(verdict.empty());
-  STRCMP_CONTAINS("No mismatch", verdict.c_str());
-  STRCMP_CONTAINS(("sensor <b>" + largest->sensor_id + "</b> is off by <b>").c_str(), verdict.c_str());
-  STRCMP_CONTAINS(((largest->residual_mm > 0 ? "+" : "") + Fixed(largest->residual_mm, 1) + " mm</b>").c_str(), verdict.c_str());
-  STRCMP_CONTAINS(("standard deviation is <b>" + Fixed(largest->noise_sd_mm, 1) + " mm</b>").c_str(), verdict.c_str());
-  STRCMP_CONTAINS(largest->noise_detail.substr(0, std::min<size_t>(20, largest->noise_detail.find('\''))).c_str(),
-                  verdict.c_str());
+  const lw::diagnosis::Verdict v = lw::diagnosis::DescribeVerdict(r);
+  STRCMP_CONTAINS(("data-verdict='" + v.kind + "'>" + v.headline + "</b>").c_str(), verdict.c_str());
+  // This null campaign's noise model is far wider than its scatter (z far below -4): not a green
+  // "no mismatch" but "not tested".
+  CHECK_FALSE(r.noise_fit.fits);
+  STRCMP_EQUAL("noise_model_does_not_fit", v.kind.c_str());
+  LONGS_EQUAL(0, Count(verdict, "class='good'"));
+  const std::string summary = Between(run.html, "<div class='summary'>", "</div>");
+  CHECK_FALSE(largest->explanation.empty());
+  STRCMP_CONTAINS(("<li>" + Escaped(largest->explanation) + ".</li>").c_str(), summary.c_str());
+  STRCMP_CONTAINS(("sensor " + largest->sensor_id + " is off by " + (largest->residual_mm > 0 ? "+" : "") +
+                   Fixed(largest->residual_mm, 1) + " mm")
+                      .c_str(),
+                  largest->explanation.c_str());
+  STRCMP_CONTAINS(("the mismatch test allows " + Fixed(largest->noise_sd_mm, 1) + " mm").c_str(), largest->explanation.c_str());
+  STRCMP_CONTAINS(
+      ("the map's own standard error at sensor " + largest->sensor_id + " is " + Fixed(largest->map_sd_mm, 1) + " mm").c_str(),
+      largest->explanation.c_str());
   // ... and the per-sensor table has every sensor.
   const std::string table = Between(run.html, "id='sensor-noise'", "</table>");
   for (const auto& s : run.bundle.crusher.sensors)
@@ -340,7 +361,7 @@ TEST(HtmlReport, EveryExcludedSensorSaysWhy) {
     ++excluded;
     CHECK_FALSE(n.excluded_because.empty());
     // In the report's sensor table, with its reason.
-    STRCMP_CONTAINS(("<tr><td>" + n.sensor_id + "</td><td colspan='8'><b>not used</b>: " + n.excluded_because).c_str(),
+    STRCMP_CONTAINS(("<tr><td>" + n.sensor_id + "</td><td colspan='9'><b>not used</b>: " + n.excluded_because).c_str(),
                     run.html.c_str());
   }
   LONGS_EQUAL(2, excluded);
@@ -351,6 +372,8 @@ TEST(HtmlReport, EveryExcludedSensorSaysWhy) {
   }();
   CHECK_TRUE(q != nullptr);
   STRCMP_CONTAINS("loop crossing", q->excluded_because.c_str());
+  // ... with what its readings show beside what the baseline predicts there.
+  STRCMP_CONTAINS("where the baseline (Eq. 9, row scales from the other sensors) predicts", q->excluded_because.c_str());
   for (const auto& n : r.sensors)
     if (n.sensor_id == silent) STRCMP_CONTAINS("never reported", n.excluded_because.c_str());
   // The plot title points at the reason; the summary counts them.
@@ -373,7 +396,9 @@ TEST(HtmlReport, EveryExcludedSensorSaysWhy) {
   for (const auto& x : j["excluded_sensors"]) CHECK_FALSE(x["reason"].get<std::string>().empty());
 }
 
-// When the noise model does not fit the data, "no mismatch" is not shown as agreement (no green).
+// When the noise model does not fit the data, or the noise is as large as the wear, "no mismatch"
+// is not shown as agreement (no green): the verdict says what it means, with what the test could
+// have seen.
 TEST(HtmlReport, NoMismatchWithANoiseModelThatDoesNotFitIsNotGreen) {
   lw::test::SyntheticSpec spec;
   spec.seed = 7;
@@ -382,14 +407,41 @@ TEST(HtmlReport, NoMismatchWithANoiseModelThatDoesNotFitIsNotGreen) {
   auto& r = run.result;
   CHECK_TRUE(r.findings.empty());
   CHECK_FALSE(r.noise_fit.blind);  // the forward model's map error is small
-  STRCMP_CONTAINS("<b class='good'>No mismatch beyond the noise</b>", run.html.c_str());
-  r.noise_fit = {false, "chi-square per sensor event 0.004 (1 expected)", true,
-                 "the map's pattern error is 87 % of the predicted wear"};
-  const std::string html = lw::diagnosis::RenderHtml(r);
-  const std::string verdict = Between(html, "<div class='summary'>", "</p>");
+  CHECK_TRUE(std::isfinite(r.noise_fit.chi2_to_detect));
+  // A noise model that fits: green, with what the test could have seen.
+  r.noise_fit.fits = true;
+  r.noise_fit.detail.clear();
+  std::string html = lw::diagnosis::RenderHtml(r);
+  STRCMP_CONTAINS("<b class='good' data-verdict='no_mismatch'>No mismatch beyond the noise</b>", html.c_str());
+  STRCMP_CONTAINS(("rise by about " + Fixed(r.noise_fit.chi2_to_detect, 0)).c_str(),
+                  Between(html, "<div class='summary'>", "</p>").c_str());
+
+  // The noise model does not fit (not blind): never green, and it says nothing was tested.
+  r.noise_fit.fits = false;
+  r.noise_fit.detail = "chi-square per sensor event 0.004 (1 expected)";
+  html = lw::diagnosis::RenderHtml(r);
+  std::string verdict = Between(html, "<div class='summary'>", "</p>");
+  LONGS_EQUAL(0, Count(verdict, "class='good'"));
+  LONGS_EQUAL(0, Count(verdict, "No mismatch"));
+  STRCMP_CONTAINS("Not tested: the noise model does not fit these data", verdict.c_str());
+  STRCMP_CONTAINS("chi-square per sensor event 0.004", verdict.c_str());
+  STRCMP_CONTAINS("no evidence that the DEM-based prediction agrees with the recordings", verdict.c_str());
+  STRCMP_CONTAINS(("a static error of about " + Fixed(r.noise_fit.detectable_sd_per_sensor, 1) + " noise sd").c_str(),
+                  verdict.c_str());
+  STRCMP_CONTAINS("nothing was tested", Between(html, "id='findings'", "<h2").c_str());
+  const auto j = lw::diagnosis::ToJson(r);
+  STRCMP_EQUAL("noise_model_does_not_fit", j["verdict"]["kind"].get<std::string>().c_str());
+  CHECK_TRUE(j["noise"].contains("detection_limit"));
+
+  // The noise as large as the wear (the noise model otherwise fits): not testable.
+  r.noise_fit.fits = true;
+  r.noise_fit.detail.clear();
+  r.noise_fit.blind = true;
+  r.noise_fit.blind_detail = "the map's pattern error is 87 % of the predicted wear";
+  html = lw::diagnosis::RenderHtml(r);
+  verdict = Between(html, "<div class='summary'>", "</p>");
   LONGS_EQUAL(0, Count(verdict, "class='good'"));
   STRCMP_CONTAINS("could not have seen one", verdict.c_str());
-  STRCMP_CONTAINS("chi-square per sensor event 0.004", verdict.c_str());
   STRCMP_CONTAINS("not testable with this map", verdict.c_str());
   STRCMP_CONTAINS("the map&#39;s pattern error is 87 % of the predicted wear", verdict.c_str());
   STRCMP_CONTAINS("as large as the wear here", Between(html, "id='findings'", "<h2").c_str());

@@ -760,3 +760,157 @@ TEST(StageReport, EveryRejectedHypothesisNamesTheTestItFailed) {
   LONGS_EQUAL(1, chosen);
   CHECK_TRUE(rejected > 0);
 }
+
+namespace {
+
+// A sensor at (z, theta) on `fields`' map, as the set-up stage places it.
+d::SensorData SensorAt(const lw::core::Bundle& bundle, const d::MapFields& fields, double z, double theta) {
+  d::SensorData s = Sensor("X", "LDWN", true);
+  s.z = z;
+  s.theta = theta;
+  s.field = d::FieldAt(bundle.map, fields, z, theta);
+  return s;
+}
+
+lw::core::Bundle QuietMapBundle() {
+  lw::test::SyntheticSpec spec;
+  spec.seed = 11;
+  spec.with_scan = false;
+  spec.map_noise = 0.01;  // little sampling noise: the smoothing's error is what is left
+  const lw::test::TempDirectory tmp("lw-diag-maperror");
+  lw::test::WriteSyntheticBundle(tmp.path(), spec);
+  return lw::core::LoadBundle(tmp.path());
+}
+
+}  // namespace
+
+// "Within the noise" at a sensor names the map's own standard error there and why it has that
+// size: the parts add up, and the reason follows what the map shows around the sensor.
+TEST(StageReport, EachSensorGetsTheMapsOwnStandardErrorAndWhy) {
+  const Run& r = Null();
+  const auto sensors = d::ExplainSensors(r.setup, r.base, r.null, {}, "sensors");
+  for (size_t k = 0; k < sensors.size(); ++k) {
+    const auto& n = sensors[k];
+    CHECK_TRUE(n.map_sd_mm > 0);
+    DOUBLES_EQUAL(n.map_sd_mm, std::hypot(n.map_sd_sampling_mm, n.map_sd_smoothing_mm), 1e-6 * n.map_sd_mm);
+    const d::MapError e = d::ExplainMapError(r.setup.fields, r.setup.sensors[k]);
+    DOUBLES_EQUAL(e.sd_rel * n.predicted_wear_mm, n.map_sd_mm, 1e-9 * n.map_sd_mm);
+    STRCMP_EQUAL(e.why.c_str(), n.map_error_why.c_str());
+    CHECK_FALSE(n.map_error_detail.empty());
+    char own[160];
+    std::snprintf(own, sizeof own, "the map's own standard error at sensor %s is %.1f mm", n.sensor_id.c_str(), n.map_sd_mm);
+    STRCMP_CONTAINS(own, n.explanation.c_str());
+    STRCMP_CONTAINS(n.map_error_detail.c_str(), n.explanation.c_str());
+    STRCMP_CONTAINS(n.noise_detail.c_str(), n.explanation.c_str());
+  }
+
+  // A sharp discharge-edge band (the lowest faces wear 6 times as much): a sensor just above it,
+  // inside the kernel's reach, is told that band is unresolved; one at mid-height is not.
+  lw::core::Bundle edge = QuietMapBundle();
+  const double z0 = edge.map.z.minCoeff();
+  const d::MapFields plain = d::ComputeMapFields(edge);
+  const double band = 2 * plain.face_size_m;
+  for (Eigen::Index i = 0; i < edge.map.z.size(); ++i)
+    if (edge.map.z[i] < z0 + band) edge.map.wear[i] *= 6;
+  const d::MapFields fe = d::ComputeMapFields(edge);
+  const double h = std::max(fe.model.bandwidth_m, fe.face_size_m);
+  const d::MapError near = d::ExplainMapError(fe, SensorAt(edge, fe, z0 + band + 0.5 * h, 100));
+  CHECK_TRUE(near.smoothing_rel >= near.sampling_rel * (1 - 1e-9));  // equal where the local scale stopped early
+  STRCMP_EQUAL("edge_band", near.why.c_str());
+  STRCMP_CONTAINS("the discharge-edge band is unresolved", near.detail.c_str());
+  const double mid = 0.5 * (fe.z_bottom + fe.z_top);
+  const d::MapError far = d::ExplainMapError(fe, SensorAt(edge, fe, mid, 100));
+  CHECK_FALSE(far.why == "edge_band");
+
+  // A spot of raw faces finer than the kernel around a sensor: named as local structure, with
+  // its sign, when the smoothing's error is the larger part there.
+  lw::core::Bundle spot = QuietMapBundle();
+  const d::MapFields ps = d::ComputeMapFields(spot);
+  const double zs = mid, ts = 200, reach = 1.5 * ps.face_size_m;
+  for (Eigen::Index i = 0; i < spot.map.z.size(); ++i) {
+    const double arc = spot.map.radius[i] * d::AngleDiffDeg(spot.map.theta_deg[i], ts) * M_PI / 180.0;
+    if (std::fabs(spot.map.z[i] - zs) < reach && std::fabs(arc) < reach) spot.map.wear[i] *= 3;
+  }
+  const d::MapFields fs = d::ComputeMapFields(spot);
+  const d::MapError hot = d::ExplainMapError(fs, SensorAt(spot, fs, zs, ts));
+  CHECK_TRUE(hot.smoothing_rel >= hot.sampling_rel * (1 - 1e-9));
+  STRCMP_EQUAL("local_structure", hot.why.c_str());
+  STRCMP_CONTAINS("more than the smoothed map says there", hot.detail.c_str());
+
+  // Sampling noise dominates on a noisy map: named with the run's per-face noise.
+  lw::test::SyntheticSpec noisy;
+  noisy.seed = 12;
+  noisy.with_scan = false;
+  noisy.map_noise = 0.6;
+  const lw::test::TempDirectory tmp("lw-diag-maperror-noisy");
+  lw::test::WriteSyntheticBundle(tmp.path(), noisy);
+  const lw::core::Bundle nb = lw::core::LoadBundle(tmp.path());
+  const d::MapFields fn = d::ComputeMapFields(nb);
+  const d::MapError sn = d::ExplainMapError(fn, SensorAt(nb, fn, mid, 100));
+  if (sn.sampling_rel > sn.smoothing_rel) {
+    STRCMP_EQUAL("sampling_noise", sn.why.c_str());
+    STRCMP_CONTAINS("a longer DEM run narrows it", sn.detail.c_str());
+  } else {
+    CHECK_FALSE(sn.why == "sampling_noise");
+  }
+}
+
+// What "no mismatch" could have seen: the chi-square the threshold needs from the z found, spread
+// over the used sensors as a static error.
+TEST(StageReport, TheDetectionLimitFollowsFromTheZAndTheSensorsNoise) {
+  lw::diagnosis::SensorNoise s;
+  s.used = true;
+  s.predicted_wear_mm = 30;
+  std::vector<lw::diagnosis::SensorNoise> sensors(3, s);
+  sensors[0].noise_sd_mm = 4;
+  sensors[1].noise_sd_mm = 6;
+  sensors[2].noise_sd_mm = 9;
+  lw::diagnosis::SensorNoise unused;
+  unused.noise_sd_mm = 100;  // not used: not counted
+  sensors.push_back(unused);
+  lw::diagnosis::NoiseFit f;
+  d::AddDetectionLimit(f, -10.3, 800, sensors);
+  const double chi2 = (4 + 10.3) * std::sqrt(1600.0);
+  DOUBLES_EQUAL(chi2, f.chi2_to_detect, 1e-9);
+  DOUBLES_EQUAL(std::sqrt(chi2 / 3), f.detectable_sd_per_sensor, 1e-9);
+  DOUBLES_EQUAL(6 * std::sqrt(chi2 / 3), f.detectable_mm_median_sensor, 1e-9);
+  DOUBLES_EQUAL(30, f.median_predicted_wear_mm, 1e-12);
+  // A calibrated null (z 0) needs less; a z already beyond the threshold needs nothing more.
+  lw::diagnosis::NoiseFit g;
+  d::AddDetectionLimit(g, 0, 800, sensors);
+  CHECK_TRUE(g.detectable_mm_median_sensor < f.detectable_mm_median_sensor);
+  d::AddDetectionLimit(g, 6, 800, sensors);
+  DOUBLES_EQUAL(0, g.chi2_to_detect, 1e-12);
+}
+
+// A rejected hypothesis says which test failed and by how much: an effect pinned at its physical
+// limit says so (not "0 standard errors"), and a held-out gain that passed is named as passing.
+TEST(StageReport, ARejectedHypothesisAtItsLimitOrWithAHeldOutGainSaysSo) {
+  const Run& r = Hardening();
+  d::Hypotheses h = r.hyp;
+  // The first single effect other than the chosen one, pushed to the top of its range.
+  size_t k = 0;
+  while (k < h.singles && static_cast<long>(k) == h.best) ++k;
+  CHECK_TRUE(k < h.singles);
+  d::ModelEval& ev = h.evals[k];
+  const d::Effect e = ev.full.spec.effects.front();
+  const d::ParamSpec main = d::EffectParams(e).front();
+  const int o = ev.full.spec.Offset(e);
+  ev.full.x[o] = main.upper;
+  if (e == d::Effect::kFeedSegregation) ev.full.x[o + 1] = 0;
+  ev.significance = 0;
+  ev.accepted = false;
+  ev.delta_bic = -9.8;
+  ev.ho_gain = 50;
+  ev.ho_rel = 0.875;
+  auto table = d::HypothesesTable(h.evals, r.setup.prob.rows);
+  d::AnnotateHypotheses(table, h, r.null.log_n);
+  const std::string why = table[k]["rejected_because"].get<std::string>();
+  STRCMP_CONTAINS("the held-out improvement 87.5 % passes, but information gain delta BIC -9.8 (needs > 10)", why.c_str());
+  STRCMP_CONTAINS("sits at the limit of its physical range", why.c_str());
+  STRCMP_CONTAINS(main.name.c_str(), why.c_str());
+  CHECK_TRUE(why.find("standard errors from zero") == std::string::npos);
+  bool at_limit = false;
+  for (const auto& t : table[k]["failed_tests"]) at_limit = at_limit || t["test"].get<std::string>() == "at_limit";
+  CHECK_TRUE(at_limit);
+}
