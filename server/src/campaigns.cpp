@@ -100,21 +100,32 @@ std::string ParseVoidBody(std::string_view text) {
   return reason;
 }
 
-RelineRequest ParseRelineBody(std::string_view text) {
-  if (mqtt::JsonNestingDepth(text) > 8) throw RelineError(400, "body is nested too deeply");
+json EventBody(std::string_view text, size_t max_depth, const std::vector<std::string>& keys) {
+  if (mqtt::JsonNestingDepth(text) > max_depth) throw RelineError(400, "body is nested too deeply");
   json body;
   std::string error;
   if (!mqtt::ParseJsonNamingField(text, &body, &error)) throw RelineError(400, "body is not valid JSON: " + error);
-  if (!body.is_object()) throw RelineError(400, "body must be a JSON object {\"time\", \"thickness_new_mm\", ...}");
+  std::string list;
+  for (const std::string& k : keys) list += (list.empty() ? "" : ", ") + k;
+  if (!body.is_object()) throw RelineError(400, "body must be a JSON object (" + list + ")");
   for (const auto& [key, value] : body.items()) {
-    if (key != "time" && key != "thickness_new_mm" && key != "scan_xyz" && key != "sensors")
-      throw RelineError(400, "unknown field \"" + key + "\" (time, thickness_new_mm, scan_xyz, sensors)");
+    if (std::find(keys.begin(), keys.end(), key) == keys.end())
+      throw RelineError(400, "unknown field \"" + key + "\" (" + list + ")");
   }
-  RelineRequest r;
+  return body;
+}
+
+core::TimePoint EventTime(const json& body) {
   if (!body.contains("time") || !body["time"].is_string()) throw RelineError(400, "\"time\" is required: an ISO-8601 UTC time");
   const auto time = core::ParseIsoTime(body["time"].get<std::string>());
   if (!time) throw RelineError(400, "\"time\" '" + body["time"].get<std::string>() + "' is not an ISO-8601 UTC time");
-  r.time = *time;
+  return *time;
+}
+
+RelineRequest ParseRelineBody(std::string_view text) {
+  const json body = EventBody(text, 8, {"time", "thickness_new_mm", "scan_xyz", "sensors"});
+  RelineRequest r;
+  r.time = EventTime(body);
   if (!body.contains("thickness_new_mm") || !body["thickness_new_mm"].is_number())
     throw RelineError(400, "\"thickness_new_mm\" is required: the new liner's thickness in mm");
   r.thickness_new_mm = body["thickness_new_mm"].get<double>();

@@ -5,7 +5,6 @@
 #include <cmath>
 
 #include "core/time.hpp"
-#include "mqtt/messages.hpp"
 #include "server/campaigns.hpp"
 
 namespace lw::server {
@@ -33,20 +32,9 @@ std::vector<core::SettingCheck> ToCore(const std::vector<SettingCheckRecord>& re
 }  // namespace
 
 SettingCheckRequest ParseSettingCheckBody(std::string_view text) {
-  if (mqtt::JsonNestingDepth(text) > 4) throw RelineError(400, "body is nested too deeply");
-  json body;
-  std::string error;
-  if (!mqtt::ParseJsonNamingField(text, &body, &error)) throw RelineError(400, "body is not valid JSON: " + error);
-  if (!body.is_object()) throw RelineError(400, "body must be a JSON object {\"time\", \"css_mm\", \"note\"}");
-  for (const auto& [key, value] : body.items()) {
-    if (key != "time" && key != "css_mm" && key != "note")
-      throw RelineError(400, "unknown field \"" + key + "\" (time, css_mm, note)");
-  }
+  const json body = EventBody(text, 4, {"time", "css_mm", "note"});
   SettingCheckRequest r;
-  if (!body.contains("time") || !body["time"].is_string()) throw RelineError(400, "\"time\" is required: an ISO-8601 UTC time");
-  const auto time = core::ParseIsoTime(body["time"].get<std::string>());
-  if (!time) throw RelineError(400, "\"time\" '" + body["time"].get<std::string>() + "' is not an ISO-8601 UTC time");
-  r.time = *time;
+  r.time = EventTime(body);
   if (!body.contains("css_mm") || !body["css_mm"].is_number())
     throw RelineError(400, "\"css_mm\" is required: the closed-side setting measured, in mm");
   r.css_mm = body["css_mm"].get<double>();
@@ -77,8 +65,8 @@ CampaignService::SettingOutcome CampaignService::CheckSetting(const std::string&
   const int64_t time_s = request.time.time_since_epoch().count();
   const std::string when = core::FormatIsoTime(request.time);
   if (!std::isfinite(request.css_mm) || !(request.css_mm > 0) || request.css_mm > kMaxCssMm)
-    throw RelineError(422, "\"css_mm\" " + json(request.css_mm).dump() + " must be above 0 and at most " +
-                               json(kMaxCssMm).dump() + " mm");
+    throw RelineError(
+        422, "\"css_mm\" " + json(request.css_mm).dump() + " must be above 0 and at most " + json(kMaxCssMm).dump() + " mm");
   if (time_s > now_s_() + kClockSlackS) throw RelineError(422, "\"time\" " + when + " is in the future");
   if (request.time < crusher->config.installed_at)
     throw RelineError(422, "\"time\" " + when + " is before the running liner's installation (" +
@@ -107,8 +95,8 @@ CampaignService::SettingOutcome CampaignService::CheckSetting(const std::string&
     for (const SettingCheckRecord& c : all)
       if (c.time_s == time_s) out.check = c;
     if (out.check.css_mm != request.css_mm)
-      throw RelineError(409, "a setting of " + json(out.check.css_mm).dump() + " mm is already recorded at " + when +
-                                 " (by " + out.check.by + ")");
+      throw RelineError(409, "a setting of " + json(out.check.css_mm).dump() + " mm is already recorded at " + when + " (by " +
+                                 out.check.by + ")");
     return out;
   }
   wear_.SetSettingChecks(crusher_id, ToCore(all));

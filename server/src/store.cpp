@@ -408,7 +408,8 @@ struct Store::Impl {
       // (NULL: not supported then), which the measured CSS anchors.
       Tx tx(db);
       db.Exec(
-          "CREATE TABLE IF NOT EXISTS setting_checks (crusher TEXT NOT NULL, time INTEGER NOT NULL, css_mm REAL NOT NULL, opening_mm REAL,"
+          "CREATE TABLE IF NOT EXISTS setting_checks (crusher TEXT NOT NULL, time INTEGER NOT NULL, css_mm REAL NOT NULL, "
+          "opening_mm REAL,"
           " by TEXT NOT NULL, note TEXT NOT NULL DEFAULT '', recorded INTEGER NOT NULL, PRIMARY KEY (crusher, time));"
           "PRAGMA user_version=8;");
       tx.Commit();
