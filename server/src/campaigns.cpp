@@ -8,6 +8,7 @@
 #include "core/wear_map.hpp"
 #include "mqtt/messages.hpp"
 #include "server/ingest.hpp"
+#include "server/rest.hpp"  // kMaxSmallBodyDepth
 
 namespace lw::server {
 namespace {
@@ -86,6 +87,7 @@ std::vector<CampaignRecord> Counted(std::vector<CampaignRecord> all) {
 
 std::string ParseVoidBody(std::string_view text) {
   if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) return "";
+  if (mqtt::JsonNestingDepth(text) > rest::kMaxSmallBodyDepth) throw RelineError(400, "body is nested too deeply");
   json body;
   std::string error;
   if (!mqtt::ParseJsonNamingField(text, &body, &error)) throw RelineError(400, "body is not valid JSON: " + error);
@@ -101,7 +103,7 @@ std::string ParseVoidBody(std::string_view text) {
 }
 
 RelineRequest ParseRelineBody(std::string_view text) {
-  if (mqtt::JsonNestingDepth(text) > 8) throw RelineError(400, "body is nested too deeply");
+  if (mqtt::JsonNestingDepth(text) > rest::kMaxSmallBodyDepth) throw RelineError(400, "body is nested too deeply");
   json body;
   std::string error;
   if (!mqtt::ParseJsonNamingField(text, &body, &error)) throw RelineError(400, "body is not valid JSON: " + error);
