@@ -8,6 +8,7 @@
 #include "core/wear_map.hpp"
 #include "mqtt/messages.hpp"
 #include "server/ingest.hpp"
+#include "server/rest.hpp"  // kMaxSmallBodyDepth
 
 namespace lw::server {
 namespace {
@@ -86,6 +87,7 @@ std::vector<CampaignRecord> Counted(std::vector<CampaignRecord> all) {
 
 std::string ParseVoidBody(std::string_view text) {
   if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) return "";
+  if (mqtt::JsonNestingDepth(text) > rest::kMaxSmallBodyDepth) throw RelineError(400, "body is nested too deeply");
   json body;
   std::string error;
   if (!mqtt::ParseJsonNamingField(text, &body, &error)) throw RelineError(400, "body is not valid JSON: " + error);
@@ -100,8 +102,8 @@ std::string ParseVoidBody(std::string_view text) {
   return reason;
 }
 
-json EventBody(std::string_view text, size_t max_depth, const std::vector<std::string>& keys) {
-  if (mqtt::JsonNestingDepth(text) > max_depth) throw RelineError(400, "body is nested too deeply");
+json EventBody(std::string_view text, const std::vector<std::string>& keys) {
+  if (mqtt::JsonNestingDepth(text) > rest::kMaxSmallBodyDepth) throw RelineError(400, "body is nested too deeply");
   json body;
   std::string error;
   if (!mqtt::ParseJsonNamingField(text, &body, &error)) throw RelineError(400, "body is not valid JSON: " + error);
@@ -123,7 +125,7 @@ core::TimePoint EventTime(const json& body) {
 }
 
 RelineRequest ParseRelineBody(std::string_view text) {
-  const json body = EventBody(text, 8, {"time", "thickness_new_mm", "scan_xyz", "sensors"});
+  const json body = EventBody(text, {"time", "thickness_new_mm", "scan_xyz", "sensors"});
   RelineRequest r;
   r.time = EventTime(body);
   if (!body.contains("thickness_new_mm") || !body["thickness_new_mm"].is_number())

@@ -385,18 +385,27 @@ bool GuardedServer::ReadHead(Conn& c) {
     }
   }
   // Read no further than one byte past the head cap: the cap holds whatever the client sends.
+  bool ended = false;  // the client has closed its sending side
   while (c.buf.size() <= limits_.max_head_bytes) {
     const size_t want = std::min<size_t>(16384, limits_.max_head_bytes + 1 - c.buf.size());
     const size_t old = c.buf.size();
     c.buf.resize(old + want);
     const ssize_t n = ::recv(c.fd, c.buf.data() + old, want, 0);
     c.buf.resize(old + static_cast<size_t>(std::max<ssize_t>(n, 0)));
-    if (n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) {
-      c.state = Conn::State::kLinger;  // the client went away: close now
+    if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
+      c.state = Conn::State::kLinger;  // the connection failed: close now
       c.deadline = Clock::now();
       return false;
     }
-    if (n < 0) break;
+    if (n == 0) ended = true;
+    if (n <= 0) break;
+  }
+  // A client that half-closes after its request (nc -N, a script's shutdown) still reads the
+  // answer: a whole head already received is served. Without one, nothing more can come: close.
+  if (ended && c.buf.find("\r\n\r\n") == std::string::npos) {
+    c.state = Conn::State::kLinger;
+    c.deadline = Clock::now();
+    return false;
   }
   if (c.buf.empty()) return false;
   if (c.state == Conn::State::kIdle) {

@@ -596,7 +596,10 @@ std::vector<Route> Resources::AlarmAndServiceRoutes() {
        kSmallBodyBytes,
        kAlarmRulesRequest.c_str(),
        kAlarmRules.c_str(),
-       {{"400", "the body is not JSON, or names a rule or setting that does not exist or a value out of range"}, kReadOnly}},
+       {{"400",
+         "the body is not JSON or is nested too deeply, or names a rule or setting that does not exist or a value out "
+         "of range"},
+        kReadOnly}},
       {Method::kGet,
        "/api/v1/crushers/{crusher}/plan",
        "Where to cast the next liner's sensors, the expected band of each layout, and what a scan now would do "
@@ -1146,6 +1149,7 @@ Response Resources::SetAlarmRules(const Request& req) {
   const Crusher* c = CrusherOf(req, &error);
   AlarmEngine* alarms = c ? AlarmsOf(&error) : nullptr;
   if (!alarms) return error;
+  if (mqtt::JsonNestingDepth(req.body) > kMaxSmallBodyDepth) return Error(400, "body is nested too deeply");
   const nlohmann::json body = nlohmann::json::parse(req.body, nullptr, false);
   if (body.is_discarded()) return Error(400, "the body is not JSON (an \"alarms\" object, docs/alarms.md)");
   try {

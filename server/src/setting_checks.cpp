@@ -32,7 +32,7 @@ std::vector<core::SettingCheck> ToCore(const std::vector<SettingCheckRecord>& re
 }  // namespace
 
 SettingCheckRequest ParseSettingCheckBody(std::string_view text) {
-  const json body = EventBody(text, 4, {"time", "css_mm", "note"});
+  const json body = EventBody(text, {"time", "css_mm", "note"});
   SettingCheckRequest r;
   r.time = EventTime(body);
   if (!body.contains("css_mm") || !body["css_mm"].is_number())

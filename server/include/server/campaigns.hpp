@@ -52,9 +52,9 @@ inline constexpr size_t kMaxVoidReasonBytes = 1000;
 /// none). Throws RelineError (400) naming the field.
 std::string ParseVoidBody(std::string_view body);
 
-/// A campaign event's JSON body (a reline, a setting check): an object nested at most `max_depth`,
-/// every key one of `keys`. Throws RelineError (400) naming what is wrong.
-nlohmann::json EventBody(std::string_view body, size_t max_depth, const std::vector<std::string>& keys);
+/// A campaign event's JSON body (a reline, a setting check): an object nested at most
+/// rest::kMaxSmallBodyDepth, every key one of `keys`. Throws RelineError (400) naming what is wrong.
+nlohmann::json EventBody(std::string_view body, const std::vector<std::string>& keys);
 /// The body's "time": required, ISO-8601 UTC. Throws RelineError (400).
 core::TimePoint EventTime(const nlohmann::json& body);
 

@@ -108,6 +108,10 @@ struct QueryDoc {
 
 /// A body limit for routes whose body is a small JSON document or nothing.
 inline constexpr uint64_t kSmallBodyBytes = 64 * 1024;
+/// The deepest nesting of [ and { an alarm rules, reline or void body may have (theirs is 3 at
+/// most: a reline's sensor objects). A deeper body is refused before it is parsed: copying or
+/// printing a parsed JSON value recurses once per level, and 64 KiB nest 32,000 deep.
+inline constexpr size_t kMaxSmallBodyDepth = 8;
 /// A reline's body: its end-of-life scan may be a few hundred thousand points (~30 bytes a line).
 inline constexpr uint64_t kMaxRelineBodyBytes = 16u << 20;
 /// Readings one POST may carry.

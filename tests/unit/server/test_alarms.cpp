@@ -326,3 +326,22 @@ TEST(Alarms, RulesChangeOverRestSurviveARestartAndBadKeysAreRefusedByName) {
   DOUBLES_EQUAL(3100, rules["battery_low"]["below_mv"].get<double>(), 0);
   STRCMP_EQUAL("critical", rules["battery_low"]["severity"].get<std::string>().c_str());
 }
+
+// A rules body nested 30,000 deep (60 KB, within the route's 64 KiB) is refused before it is
+// parsed: the merge copied the nested value, one stack frame per level, and overflowed the worker
+// thread's stack (a hand-made input that crashed fuzz_rest_bodies, which keeps it as
+// fuzz/corpus/rest_bodies/crash-rules-nested-30000).
+TEST(Alarms, ARulesBodyNestedTooDeeplyIsRefusedAndChangesNothing) {
+  Api a;
+  const std::string deep = std::string(30'000, '[') + std::string(30'000, ']');
+  for (const std::string& body : {R"({"battery_low": )" + deep + "}", R"({"battery_low": {"below_mv": )" + deep + "}}"}) {
+    auto [refused, err] = a.Post("/rules", body);
+    LONGS_EQUAL(400, refused);
+    STRCMP_EQUAL("body is nested too deeply", err["error"].get<std::string>().c_str());
+  }
+  // Nesting a rules body has (rule, setting, value) and a little more is still parsed and judged.
+  auto [bad, err] = a.Post("/rules", R"({"battery_low": {"below_mv": [[[[[1]]]]]}})");
+  LONGS_EQUAL(400, bad);
+  CHECK_TEXT(err["error"].get<std::string>().find("alarms.battery_low") != std::string::npos, err.dump().c_str());
+  DOUBLES_EQUAL(3300, a.Get("/rules").second["rules"]["battery_low"]["below_mv"].get<double>(), 0);
+}

@@ -396,3 +396,19 @@ TEST(Campaigns, AMeasuredSettingAnchorsTheCssAndSurvivesARestart) {
     DOUBLES_EQUAL(131.5, a.Wear()["setting"]["checked"]["css_mm"].get<double>(), 1e-9);
   }
 }
+
+// A void's body, like a reline's, is refused before it is parsed when it nests deeper than any
+// body of the route can (its parsed value would be copied or printed one stack frame per level).
+TEST(Campaigns, AVoidBodyNestedTooDeeplyIsRefusedBeforeItIsParsed) {
+  const std::string deep = std::string(30'000, '[') + std::string(30'000, ']');
+  for (const std::string& body : {R"({"reason": )" + deep + "}", deep}) {
+    try {
+      ParseVoidBody(body);
+      FAIL("a body nested 30,000 deep was taken");
+    } catch (const RelineError& e) {
+      LONGS_EQUAL(400, e.status());
+      STRCMP_EQUAL("body is nested too deeply", e.what());
+    }
+  }
+  STRCMP_EQUAL("x", ParseVoidBody(R"({"reason": "x"})").c_str());
+}
