@@ -91,15 +91,17 @@ CampaignService::SettingOutcome CampaignService::CheckSetting(const std::string&
     throw RelineError(500, std::string("not stored: ") + e.what());
   }
   SettingOutcome out{created, record};
+  // Handed on whether stored now or before: a retry after a 500 that had stored the row still
+  // reaches the live wear.
+  wear_.SetSettingChecks(crusher_id, ToCore(all));
   if (!created) {
     for (const SettingCheckRecord& c : all)
       if (c.time_s == time_s) out.check = c;
-    if (out.check.css_mm != request.css_mm)
+    if (std::abs(out.check.css_mm - request.css_mm) > 1e-9)
       throw RelineError(409, "a setting of " + json(out.check.css_mm).dump() + " mm is already recorded at " + when + " (by " +
                                  out.check.by + ")");
     return out;
   }
-  wear_.SetSettingChecks(crusher_id, ToCore(all));
   return out;
 }
 

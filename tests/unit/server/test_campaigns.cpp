@@ -335,6 +335,9 @@ TEST(Campaigns, AMeasuredSettingAnchorsTheCssAndSurvivesARestart) {
     STRCMP_EQUAL("writer", made["by"].get<std::string>().c_str());
     STRCMP_EQUAL("mantle raised 12 mm", made["note"].get<std::string>().c_str());
     // The opening stored is the one the wear at that time gives (null where the ring was not supported).
+    // The fixture's discharge ring must be supported at that time, or the CSS arithmetic below is
+    // never checked (the unsupported branch is covered in test_core_thinnest_area).
+    CHECK_TEXT(setting_then["supported"].get<bool>(), setting_then.dump().c_str());
     if (setting_then["supported"].get<bool>())
       DOUBLES_EQUAL(setting_then["opening_mm"].get<double>(), made["opening_mm"].get<double>(), 0.011);
     else
