@@ -675,6 +675,7 @@ nlohmann::ordered_json SettingJson(const SettingEstimate& s) {
   j["checked"] = s.check ? nlohmann::ordered_json{{"time", FormatIsoTime(s.check->time)},
                                                   {"css_mm", s.check->css_mm},
                                                   {"opening_mm", Rounded(s.check->opening_mm, 0.01)},
+                                                  {"opening_supported", s.check->opening_supported},
                                                   {"by", s.check->by}}
                          : nlohmann::ordered_json(nullptr);
   j["supported"] = a.supported;
@@ -710,7 +711,7 @@ std::string SettingText(const SettingEstimate& s) {
   }
   if (s.check && !std::isfinite(s.check->opening_mm))
     std::snprintf(b, sizeof b,
-                  "setting: measured %.0f mm on %s; the opening since is not known (the discharge ring was not supported "
+                  "setting: measured %.0f mm on %s; the opening since is not known (no reading of this liner up to "
                   "then), opened %.1f mm (band %.1f..%.1f) since installation",
                   s.check->css_mm, FormatIsoTime(s.check->time).substr(0, 10).c_str(), s.opening_mm, s.opening_lo_mm,
                   s.opening_hi_mm);
@@ -729,6 +730,8 @@ std::string SettingText(const SettingEstimate& s) {
     std::snprintf(b, sizeof b, "setting: opened %.1f mm (band %.1f..%.1f) by the concave's wear at the discharge ring",
                   s.opening_mm, s.opening_lo_mm, s.opening_hi_mm);
   std::string out = b;
+  if (s.check && std::isfinite(s.check->opening_mm) && !s.check->opening_supported)
+    out += "; the opening at the measurement is the central estimate of a ring not supported then";
   if (a.extrapolated) out += "; from the DEM map alone (no sensor within reach of the ring)";
   return out + "; the mantle's wear is not included";
 }

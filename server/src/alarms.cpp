@@ -129,12 +129,21 @@ void AlarmEngine::WearFindings(const core::CrusherConfig& cfg, const core::Alarm
     const double at_check = st.check ? st.check->opening_mm : 0.0;
     Finding open{"setting_open", "discharge", Verdict::kHold, since, so.threshold, {}};
     if (st.ring.supported && std::isfinite(since)) open.verdict = High<Verdict>(since, so);
-    open.detail = "the closed-side setting has opened " + Fixed(since) + " mm (band " + Fixed(st.opening_lo_mm - at_check) + "-" +
-                  Fixed(st.opening_hi_mm - at_check) + ") by the concave's wear at the discharge ring " +
-                  (st.check ? "since it was measured on " + core::FormatIsoTime(st.check->time).substr(0, 10)
-                            : std::string("since installation")) +
-                  " (the mantle's wear not included); alarm above " + Fixed(so.threshold) +
-                  " mm: raise the mantle, then record the CSS measured (POST .../setting/checks)";
+    const std::string from = st.check ? "since it was measured on " + core::FormatIsoTime(st.check->time).substr(0, 10)
+                                      : std::string("since installation");
+    if (std::isfinite(since))
+      open.detail =
+          "the closed-side setting has opened " + Fixed(since) + " mm (band " + Fixed(st.opening_lo_mm - at_check) + "-" +
+          Fixed(st.opening_hi_mm - at_check) + ") by the concave's wear at the discharge ring " + from +
+          (st.check && !st.check->opening_supported ? " (the opening then is the central estimate of a ring not supported then)"
+                                                    : "") +
+          " (the mantle's wear not included); alarm above " + Fixed(so.threshold) +
+          " mm: raise the mantle, then record the CSS measured (POST .../setting/checks)";
+    else
+      open.detail = "the closed-side setting's opening " + from +
+                    " is not known (no sensor sets a scale, or no reading of this liner up to the measurement); alarm "
+                    "above " +
+                    Fixed(so.threshold) + " mm";
     out.push_back(std::move(open));
     for (const core::RowForecast& rf : w->row_forecasts) {
       Finding due{"reline_due", rf.row, Verdict::kHold, {}, rules.Rule("reline_due").threshold, {}};

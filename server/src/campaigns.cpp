@@ -214,7 +214,8 @@ ordered_json CampaignJson(const CampaignRecord& c, int64_t now_s) {
 CampaignService::CampaignService(Registry& registry, LockedStore& store, LiveState& live, WearService& wear,
                                  std::function<int64_t()> now_s)
     : registry_(registry), store_(store), live_(live), wear_(wear), now_s_(std::move(now_s)) {
-  LoadSettingChecks();
+  // Failing to store an opening is not fatal: the checks count as estimated, and are estimated again next start.
+  store_.With([&](Store& s) { LoadSettingChecks(s, registry_, wear_, true); });
 }
 
 std::vector<CampaignRecord> CampaignService::CampaignsOf(Store& store, const Crusher& crusher) const {
@@ -287,6 +288,8 @@ CampaignService::Outcome CampaignService::Reline(const std::string& crusher_id, 
     const Crusher& current = *model;
     registry_.Replace(std::move(model));
     live_.Replace(current, s);
+    // A check at or after the reline's time measured the new liner: its opening is estimated again.
+    LoadSettingChecks(s, current, wear_, true);
   });
   wear_.Reset(crusher_id);
   return {true, next};
@@ -343,6 +346,8 @@ CampaignService::Outcome CampaignService::Void(const std::string& crusher_id, co
     else
       registry_.Restore(crusher_id);
     live_.Replace(current, s);
+    // The voided campaign's checks measured the reopened liner: their openings are estimated again.
+    LoadSettingChecks(s, current, wear_, true);
   });
   wear_.Reset(crusher_id);
   return {true, voided};

@@ -269,9 +269,12 @@ const std::string kSettingCheckRequestSchema =
     R"j("css_mm":{"type":"number","minimum":0,"exclusiveMinimum":true,"maximum":1000,"description":"the closed-side setting measured, mm"},)j" +
     R"j("note":{"type":"string","maxLength":1000}}})j";
 const std::string kSettingCheckSchema =
-    std::string(R"j({"type":"object","required":["time","css_mm","opening_mm","by","note","recorded"],"properties":{)j") +
+    std::string(
+        R"j({"type":"object","required":["time","css_mm","opening_mm","opening_supported","counts","by","note","recorded"],"properties":{)j") +
     R"j("time":{"type":"string","format":"date-time"},"css_mm":{"type":"number"},)j" +
-    R"j("opening_mm":{"type":"number","nullable":true,"description":"the concave's opening estimated at that time (null: not supported then)"},)j" +
+    R"j("opening_mm":{"type":"number","nullable":true,"description":"the concave's opening since installation estimated at that time from the readings stored now (null: not known)"},)j" +
+    R"j("opening_supported":{"type":"boolean","description":"false: opening_mm is the central estimate of a discharge ring not supported then"},)j" +
+    R"j("counts":{"type":"boolean","description":"measured on the running liner (a check before its installation does not count)"},)j" +
     R"j("by":{"type":"string","description":"the token's name"},"note":{"type":"string"},)j" +
     R"j("recorded":{"type":"string","format":"date-time"}}})j";
 const std::string kSettingCheckListSchema =
@@ -1217,16 +1220,17 @@ Response Resources::PostSettingCheck(const Request& req) {
   }
   // The wear is computed and published again with the setting counted from the check, as after a reline.
   if (out.created && ctx_.after_reline) ctx_.after_reline(c->config.crusher_id);
-  return Json(out.created ? 201 : 200, SettingCheckJson(out.check));
+  return Json(out.created ? 201 : 200, SettingCheckJson(out.check, c->config.installed_at));
 }
 
 Response Resources::SettingCheckList(const Request& req) {
   Response error;
   const Crusher* c = CrusherOf(req, &error);
   if (!c) return error;
-  if (!ctx_.campaigns) return Error(503, "campaigns are not available on this server");
+  // Read from the REST reads' store, so a read-only server lists them too.
+  const std::vector<SettingCheckRecord> checks = ctx_.read->With([&](Store& s) { return s.SettingChecks(c->config.crusher_id); });
   ordered_json list = ordered_json::array();
-  for (const SettingCheckRecord& k : ctx_.campaigns->SettingChecks(c->config.crusher_id)) list.push_back(SettingCheckJson(k));
+  for (const SettingCheckRecord& k : checks) list.push_back(SettingCheckJson(k, c->config.installed_at));
   return Json(200, {{"checks", std::move(list)}});
 }
 

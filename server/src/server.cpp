@@ -148,6 +148,10 @@ bool WaitForWritableDatabase(const ServerOptions& o, const std::atomic<bool>& st
   std::unique_ptr<Store> ingest_store = open_read_only(false);
   Ingestor refusing(*ingest_store, registry, [] { return WallMs() / 1000; });  // its Commit throws: 503, not stored
   WearService wear(registry, live);
+  // The measured settings count here too (the CSS and its alarm), estimated without storing.
+  read.With([&](Store& s) {
+    if (const std::string failed = LoadSettingChecks(s, registry, wear, false); !failed.empty()) log(failed);
+  });
   EventBus events;
   std::mutex reason_mutex;
   ServerMetrics metrics(o.db);

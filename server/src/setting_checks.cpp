@@ -18,15 +18,13 @@ constexpr int64_t kClockSlackS = 300;
 /// The widest closed-side setting accepted, mm (primary gyratories set 100-250 mm).
 constexpr double kMaxCssMm = 1000;
 
-core::SettingCheck ToCore(const SettingCheckRecord& r) {
-  return {core::TimePoint(std::chrono::seconds(r.time_s)), r.css_mm, r.opening_mm.value_or(std::nan("")), r.by};
-}
+/// A check with no reading of the liner up to it still knows its opening this long after the
+/// installation: nothing has opened yet.
+constexpr int64_t kNewLinerS = 86400;
 
-std::vector<core::SettingCheck> ToCore(const std::vector<SettingCheckRecord>& records) {
-  std::vector<core::SettingCheck> out;
-  out.reserve(records.size());
-  for (const SettingCheckRecord& r : records) out.push_back(ToCore(r));
-  return out;
+core::SettingCheck ToCore(const SettingCheckRecord& r) {
+  return {core::TimePoint(std::chrono::seconds(r.time_s)), r.css_mm, r.opening_mm.value_or(std::nan("")), r.by,
+          r.opening_supported};
 }
 
 }  // namespace
@@ -47,14 +45,72 @@ SettingCheckRequest ParseSettingCheckBody(std::string_view text) {
   return r;
 }
 
-ordered_json SettingCheckJson(const SettingCheckRecord& c) {
+std::vector<core::SettingCheck> ToCoreSettingChecks(const std::vector<SettingCheckRecord>& records) {
+  std::vector<core::SettingCheck> out;
+  out.reserve(records.size());
+  for (const SettingCheckRecord& r : records) out.push_back(ToCore(r));
+  return out;
+}
+
+ordered_json SettingCheckJson(const SettingCheckRecord& c, core::TimePoint installed_at) {
   const auto iso = [](int64_t s) { return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(s))); };
   return {{"time", iso(c.time_s)},
           {"css_mm", c.css_mm},
           {"opening_mm", c.opening_mm ? ordered_json(std::round(*c.opening_mm * 100) / 100) : ordered_json(nullptr)},
+          {"opening_supported", c.opening_supported},
+          {"counts", core::TimePoint(std::chrono::seconds(c.time_s)) >= installed_at},
           {"by", c.by},
           {"note", c.note},
           {"recorded", iso(c.recorded_s)}};
+}
+
+void EstimateOpening(Store& store, const Crusher& crusher, SettingCheckRecord* check) {
+  const core::TimePoint at{std::chrono::seconds(check->time_s)};
+  const estimate::ReadingWindow window = LoadWindow(store, crusher, check->time_s);
+  const CrusherState then = ComputeCrusherState(crusher, window.Readings(), at);
+  check->opening_mm.reset();
+  check->opening_supported = false;
+  if (!then.has_wear) {
+    if (at - crusher.config.installed_at <= std::chrono::seconds(kNewLinerS)) {
+      check->opening_mm = 0.0;
+      check->opening_supported = true;
+    }
+  } else if (std::isfinite(then.setting.opening_mm)) {
+    check->opening_mm = then.setting.opening_mm;
+    check->opening_supported = then.setting.ring.supported;
+  }
+}
+
+std::vector<SettingCheckRecord> EstimateSettingChecks(Store& store, const Crusher& crusher) {
+  std::vector<SettingCheckRecord> all = store.SettingChecks(crusher.config.crusher_id);
+  for (SettingCheckRecord& c : all)
+    if (core::TimePoint(std::chrono::seconds(c.time_s)) >= crusher.config.installed_at) EstimateOpening(store, crusher, &c);
+  return all;
+}
+
+std::string LoadSettingChecks(Store& store, const Crusher& crusher, WearService& wear, bool store_changes) {
+  std::vector<SettingCheckRecord> all;
+  try {
+    all = EstimateSettingChecks(store, crusher);
+  } catch (const std::runtime_error& e) {
+    return crusher.config.crusher_id + ": setting checks not read (" + e.what() + "); the ones counted before stay";
+  }
+  wear.SetSettingChecks(crusher.config.crusher_id, ToCoreSettingChecks(all));
+  if (!store_changes || all.empty()) return {};
+  try {
+    store.UpdateSettingCheckOpenings(all);
+  } catch (const std::runtime_error& e) {
+    return crusher.config.crusher_id + ": setting checks' openings not stored (" + e.what() +
+           "); counted as estimated, and estimated again at the next start";
+  }
+  return {};
+}
+
+std::string LoadSettingChecks(Store& store, const Registry& registry, WearService& wear, bool store_changes) {
+  std::string failed;
+  for (const Crusher* c : registry.All())
+    if (std::string e = LoadSettingChecks(store, *c, wear, store_changes); !e.empty()) failed += (failed.empty() ? "" : "; ") + e;
+  return failed;
 }
 
 CampaignService::SettingOutcome CampaignService::CheckSetting(const std::string& crusher_id, const SettingCheckRequest& request,
@@ -71,19 +127,12 @@ CampaignService::SettingOutcome CampaignService::CheckSetting(const std::string&
   if (request.time < crusher->config.installed_at)
     throw RelineError(422, "\"time\" " + when + " is before the running liner's installation (" +
                                core::FormatIsoTime(crusher->config.installed_at) + "): it measured the liner before");
-  // The concave's opening at that time, from the readings stored up to it, through the same
-  // estimate as GET .../wear?at=; no reading of this liner yet: a new liner, nothing opened.
-  SettingCheckRecord record{crusher_id, time_s, request.css_mm, std::nullopt, by, request.note, now_s_()};
+  SettingCheckRecord record{crusher_id, time_s, request.css_mm, std::nullopt, false, by, request.note, now_s_()};
   std::vector<SettingCheckRecord> all;
   bool created = false;
   try {
-    const estimate::ReadingWindow window = store_.With([&](Store& s) { return LoadWindow(s, *crusher, time_s); });
-    const CrusherState then = ComputeCrusherState(*crusher, window.Readings(), request.time);
-    if (!then.has_wear)
-      record.opening_mm = 0.0;
-    else if (then.setting.ring.supported && std::isfinite(then.setting.opening_mm))
-      record.opening_mm = then.setting.opening_mm;
-    store_.With([&](Store& s) {
+    store_.With([&](Store& s) {  // one hold of the store: no reline or void between the estimate and the insert
+      EstimateOpening(s, *crusher, &record);
       created = s.AddSettingCheck(record);
       all = s.SettingChecks(crusher_id);
     });
@@ -93,7 +142,7 @@ CampaignService::SettingOutcome CampaignService::CheckSetting(const std::string&
   SettingOutcome out{created, record};
   // Handed on whether stored now or before: a retry after a 500 that had stored the row still
   // reaches the live wear.
-  wear_.SetSettingChecks(crusher_id, ToCore(all));
+  wear_.SetSettingChecks(crusher_id, ToCoreSettingChecks(all));
   if (!created) {
     for (const SettingCheckRecord& c : all)
       if (c.time_s == time_s) out.check = c;
@@ -108,13 +157,6 @@ CampaignService::SettingOutcome CampaignService::CheckSetting(const std::string&
 std::vector<SettingCheckRecord> CampaignService::SettingChecks(const std::string& crusher_id) {
   if (!registry_.Find(crusher_id)) return {};
   return store_.With([&](Store& s) { return s.SettingChecks(crusher_id); });
-}
-
-void CampaignService::LoadSettingChecks() {
-  for (const Crusher* c : registry_.All()) {
-    const std::string& id = c->config.crusher_id;
-    wear_.SetSettingChecks(id, ToCore(store_.With([&](Store& s) { return s.SettingChecks(id); })));
-  }
 }
 
 }  // namespace lw::server

@@ -20,7 +20,7 @@ using Db = core::sqlite::Database<std::runtime_error>;
 using Stmt = core::sqlite::Statement<std::runtime_error>;
 using Tx = core::sqlite::Transaction<std::runtime_error>;
 
-constexpr int kSchemaVersion = 8;
+constexpr int kSchemaVersion = 9;
 
 StoredReading Row(const Stmt& s) {
   StoredReading r;
@@ -414,6 +414,20 @@ struct Store::Impl {
           "PRAGMA user_version=8;");
       tx.Commit();
     }
+    if (v < 9) {
+      // Version 9: whether a setting check's opening came from a supported discharge ring (an
+      // unsupported one now keeps its central estimate instead of NULL).
+      Tx tx(db);
+      Stmt cols(db, "SELECT COUNT(*) FROM pragma_table_info('setting_checks') WHERE name='opening_supported'");
+      cols.Step();
+      if (cols.Int(0) == 0) {
+        db.Exec(
+            "ALTER TABLE setting_checks ADD COLUMN opening_supported INTEGER NOT NULL DEFAULT 0;"
+            "UPDATE setting_checks SET opening_supported=1 WHERE opening_mm IS NOT NULL;");
+      }
+      db.Exec("PRAGMA user_version=9;");
+      tx.Commit();
+    }
   }
 };
 
@@ -679,9 +693,10 @@ void Store::VoidReline(const CampaignRecord& voided, int64_t reopened_id) {
 bool Store::AddSettingCheck(const SettingCheckRecord& c) {
   Impl& im = *impl_;
   Stmt add(im.db,
-           "INSERT INTO setting_checks(crusher, time, css_mm, opening_mm, by, note, recorded) VALUES(?1,?2,?3,?4,?5,?6,?7)"
-           " ON CONFLICT(crusher, time) DO NOTHING");
+           "INSERT INTO setting_checks(crusher, time, css_mm, opening_mm, by, note, recorded, opening_supported)"
+           " VALUES(?1,?2,?3,?4,?5,?6,?7,?8) ON CONFLICT(crusher, time) DO NOTHING");
   add.Bind(1, c.crusher).Bind(2, c.time_s).Bind(3, c.css_mm).Bind(5, c.by).Bind(6, c.note).Bind(7, c.recorded_s);
+  add.Bind(8, static_cast<int64_t>(c.opening_supported ? 1 : 0));
   if (c.opening_mm) add.Bind(4, *c.opening_mm);
   add.Step();
   return add.Changes() > 0;
@@ -690,15 +705,35 @@ bool Store::AddSettingCheck(const SettingCheckRecord& c) {
 std::vector<SettingCheckRecord> Store::SettingChecks(const std::string& crusher) {
   Impl& im = *impl_;
   Stmt list(im.db,
-            "SELECT crusher, time, css_mm, opening_mm, by, note, recorded FROM setting_checks WHERE crusher=?1 ORDER BY time");
+            "SELECT crusher, time, css_mm, opening_mm, by, note, recorded, opening_supported FROM setting_checks"
+            " WHERE crusher=?1 ORDER BY time");
   list.Bind(1, crusher);
   std::vector<SettingCheckRecord> out;
   while (list.Step()) {
-    SettingCheckRecord c{list.Text(0), list.Int(1), list.Real(2), std::nullopt, list.Text(4), list.Text(5), list.Int(6)};
+    SettingCheckRecord c{list.Text(0),     list.Int(1),  list.Real(2), std::nullopt,
+                         list.Int(7) != 0, list.Text(4), list.Text(5), list.Int(6)};
     if (!list.IsNull(3)) c.opening_mm = list.Real(3);
     out.push_back(std::move(c));
   }
   return out;
+}
+
+int Store::UpdateSettingCheckOpenings(const std::vector<SettingCheckRecord>& checks) {
+  Impl& im = *impl_;
+  Tx tx(im.db);
+  Stmt update(im.db,
+              "UPDATE setting_checks SET opening_mm=?3, opening_supported=?4 WHERE crusher=?1 AND time=?2"
+              " AND (opening_mm IS NOT ?3 OR opening_supported IS NOT ?4)");
+  int changed = 0;
+  for (const SettingCheckRecord& c : checks) {
+    InUse use(update);
+    update.Bind(1, c.crusher).Bind(2, c.time_s).Bind(4, static_cast<int64_t>(c.opening_supported ? 1 : 0));
+    if (c.opening_mm) update.Bind(3, *c.opening_mm);
+    update.Step();
+    changed += update.Changes();
+  }
+  tx.Commit();
+  return changed;
 }
 
 namespace {

@@ -101,8 +101,11 @@ ThinnestArea ThinnestPatchOf(const ReconstructionPlan& plan, const Eigen::Vector
 struct SettingCheck {
   TimePoint time{};
   double css_mm = 0;
-  double opening_mm = 0;  ///< the opening (since installation) estimated at `time`; NaN: not supported then
+  double opening_mm = 0;  ///< the opening (since installation) estimated at `time`; NaN: not known
   std::string by;         ///< who recorded it (the token's name)
+  /// False: opening_mm is the central estimate of a discharge ring that was not supported then
+  /// (its band wider than the thinnest-area target); the opening since is counted from it all the same.
+  bool opening_supported = true;
 };
 struct SettingEstimate {
   ThinnestArea ring;                  ///< the discharge ring: mean remaining thickness, band, support, reach
@@ -120,7 +123,8 @@ SettingEstimate EstimateSetting(const ReconstructionPlan& plan, const Reconstruc
 void ApplySettingChecks(const std::vector<SettingCheck>& checks, TimePoint at, SettingEstimate* setting);
 /// {"opening_mm", "opening_band_mm", "css_set_mm", "css_mm", "css_band_mm" (null without css_mm),
 /// "supported", "half_width_mm", "ring": {...}, "basis", "detail", "checked" (the SettingCheck
-/// anchoring the CSS: time, css_mm, opening_mm, by; null: none), "opening_since_mm"}; NaN is null.
+/// anchoring the CSS: time, css_mm, opening_mm, opening_supported, by; null: none),
+/// "opening_since_mm"}; NaN is null.
 nlohmann::ordered_json SettingJson(const SettingEstimate& setting);
 /// One line for people: "setting: opened 12.3 mm (band ...) ...: CSS about 137 mm (set 125)".
 std::string SettingText(const SettingEstimate& setting);

@@ -68,8 +68,28 @@ struct SettingCheckRequest {
 inline constexpr size_t kMaxSettingNoteBytes = 1000;
 /// Parses {"time", "css_mm", "note"?}. Throws RelineError (400) naming the field.
 SettingCheckRequest ParseSettingCheckBody(std::string_view body);
-/// One measured setting as GET .../setting/checks lists it (docs/wear.md, *Setting*).
-nlohmann::ordered_json SettingCheckJson(const SettingCheckRecord& check);
+/// One measured setting as GET .../setting/checks lists it (docs/wear.md, *Setting*); `installed_at`:
+/// the running liner's installation (a check before it measured an earlier liner and does not count).
+nlohmann::ordered_json SettingCheckJson(const SettingCheckRecord& check, core::TimePoint installed_at);
+
+/// The concave's opening at `check`'s time under `crusher`'s running liner, from the readings
+/// stored up to then, into check->opening_mm and opening_supported: the same estimate as GET
+/// .../wear?at=. No reading of the liner yet: 0 within a day of its installation (nothing opened
+/// yet), else not known.
+void EstimateOpening(Store& store, const Crusher& crusher, SettingCheckRecord* check);
+/// The crusher's stored checks, oldest first, with the openings of those of its running liner
+/// (at or after installed_at) estimated again from the readings stored now: after a reline or a
+/// void changed which liner they measured, and after readings of their time arrived late.
+std::vector<SettingCheckRecord> EstimateSettingChecks(Store& store, const Crusher& crusher);
+/// The crusher's checks, estimated again, handed to `wear`; with `store_changes` the changed
+/// openings are stored too. A failure is returned as text (empty: none): one to store leaves the
+/// checks handed on as estimated (estimated again at the next start), one to read leaves what
+/// `wear` had.
+std::string LoadSettingChecks(Store& store, const Crusher& crusher, WearService& wear, bool store_changes);
+/// The same for every crusher of `registry` (at start-up); the failures joined by "; ".
+std::string LoadSettingChecks(Store& store, const Registry& registry, WearService& wear, bool store_changes);
+/// The checks in the form live wear counts them.
+std::vector<core::SettingCheck> ToCoreSettingChecks(const std::vector<SettingCheckRecord>& records);
 
 /// `all` without the voided campaigns: the crusher's history as it counts, oldest first.
 std::vector<CampaignRecord> Counted(std::vector<CampaignRecord> all);
@@ -123,8 +143,6 @@ class CampaignService {
   int64_t Now() const { return now_s_(); }
 
  private:
-  /// Hands every crusher's stored setting checks to the wear service (at start-up).
-  void LoadSettingChecks();
   /// The crusher's stored campaigns, or the one crusher.json describes (not stored yet).
   std::vector<CampaignRecord> CampaignsOf(Store& store, const Crusher& crusher) const;
 

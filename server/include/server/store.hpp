@@ -92,8 +92,11 @@ struct SettingCheckRecord {
   std::string crusher;
   int64_t time_s = 0;  ///< when it was measured
   double css_mm = 0;
-  std::optional<double> opening_mm;  ///< the concave's opening estimated at time_s; none: not supported then
-  std::string by;                    ///< the token's name
+  /// The concave's opening since installation estimated at time_s (the central estimate); none:
+  /// not known (no sensor set a scale, or no reading of the liner up to then).
+  std::optional<double> opening_mm;
+  bool opening_supported = false;  ///< the discharge ring's band was within the thinnest-area target then
+  std::string by;                  ///< the token's name
   std::string note;
   int64_t recorded_s = 0;  ///< when the server stored it
 };
@@ -223,6 +226,10 @@ class Store {
   bool AddSettingCheck(const SettingCheckRecord& check);
   /// The crusher's measured settings, oldest first.
   std::vector<SettingCheckRecord> SettingChecks(const std::string& crusher);
+  /// Stores the openings (opening_mm, opening_supported) of `checks`, stored ones keyed by crusher
+  /// and time, in ONE transaction; returns how many rows changed. Throws std::runtime_error
+  /// (nothing stored).
+  int UpdateSettingCheckOpenings(const std::vector<SettingCheckRecord>& checks);
 
   /// Stores `alarm` (a new one when its id is 0) and appends `audit` (its alarm: the alarm's id)
   /// in ONE transaction; returns the alarm's id. Throws std::runtime_error (nothing stored).

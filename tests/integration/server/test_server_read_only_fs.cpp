@@ -78,6 +78,11 @@ TEST(ServerReadOnlyFileSystem, AStoredDatabaseIsServedReadOnlyWithTheReason) {
   {
     lw::test::ServerParts parts(folder.crushers, false, "", db);
     stored = static_cast<int64_t>(parts.ingestor->Ingest(lw::test::Messages(folder.bundle)).stored);
+    // A measured setting an hour after installation (before any opening): listed and counted read-only too.
+    const int64_t installed_s =
+        std::chrono::duration_cast<std::chrono::seconds>(folder.bundle.crusher.installed_at.time_since_epoch()).count();
+    lw::server::Store s(db);
+    CHECK(s.AddSettingCheck({folder.id(), installed_s + 3600, 133.0, 0.0, true, "ops", "gauge", installed_s + 7200}));
   }
   CHECK(stored > 0);
   const std::string before = ReadAll(db);
@@ -98,6 +103,18 @@ TEST(ServerReadOnlyFileSystem, AStoredDatabaseIsServedReadOnlyWithTheReason) {
   CHECK(crusher);
   LONGS_EQUAL_TEXT(200, crusher->status, crusher->body.c_str());
   LONGS_EQUAL(stored, nlohmann::json::parse(crusher->body)["counters"]["readings_stored"].get<int64_t>());
+  const auto checks = http.Get("/api/v1/crushers/" + folder.id() + "/setting/checks");
+  CHECK(checks);
+  LONGS_EQUAL_TEXT(200, checks->status, checks->body.c_str());
+  const nlohmann::json listed = nlohmann::json::parse(checks->body)["checks"];
+  LONGS_EQUAL(1, listed.size());
+  DOUBLES_EQUAL(133.0, listed[0]["css_mm"].get<double>(), 0);
+  const auto wear = http.Get("/api/v1/crushers/" + folder.id() + "/wear?faces=false");
+  CHECK(wear);
+  LONGS_EQUAL_TEXT(200, wear->status, wear->body.c_str());
+  const nlohmann::json checked = nlohmann::json::parse(wear->body)["setting"]["checked"];
+  CHECK_TEXT(checked.is_object(), wear->body.substr(0, 2000).c_str());
+  DOUBLES_EQUAL(133.0, checked["css_mm"].get<double>(), 0);
   nlohmann::json one = nlohmann::json::parse(lw::test::Messages(folder.bundle).front().payload);
   one["seq"] = 1'000'000;  // a reading not stored yet: it would need a write
   const auto post = http.Post("/api/v1/crushers/" + folder.id() + "/readings",

@@ -320,10 +320,17 @@ TEST(ThinnestArea, TheSettingOpensByTheDischargeRingsWear) {
   ApplySettingChecks(checks, t0 + std::chrono::hours(24 * 5), &checked);  // before the first: crusher.json's
   CHECK_FALSE(checked.check.has_value());
   DOUBLES_EQUAL(125.0 + s.opening_mm, SettingJson(checked)["css_mm"].get<double>(), 0.011);
-  ApplySettingChecks(checks, t0 + std::chrono::hours(24 * 50), &checked);  // a check the ring did not support
+  ApplySettingChecks(checks, t0 + std::chrono::hours(24 * 50), &checked);  // a check whose opening is not known
   CHECK(SettingJson(checked)["css_mm"].is_null());
   CHECK(std::isnan(checked.OpeningSince()));
   STRCMP_CONTAINS("the opening since is not known", SettingText(checked).c_str());
+  // A check whose ring was not supported then keeps its central estimate: the CSS counts from it, and says so.
+  const std::vector<SettingCheck> rough = {{t0 + std::chrono::hours(24 * 10), 130, s.opening_mm - 4, "ops", false}};
+  ApplySettingChecks(rough, t0 + std::chrono::hours(24 * 25), &checked);
+  DOUBLES_EQUAL(4.0, checked.OpeningSince(), 1e-9);
+  DOUBLES_EQUAL(134.0, SettingJson(checked)["css_mm"].get<double>(), 0.011);
+  CHECK_FALSE(SettingJson(checked)["checked"]["opening_supported"].get<bool>());
+  STRCMP_CONTAINS("central estimate of a ring not supported then", SettingText(checked).c_str());
 
   c.setting.css_mm.reset();
   const ReconstructionPlan plain = PrepareReconstruction(c, m);

@@ -1,6 +1,7 @@
 // Alarms (docs/alarms.md): the engine over a real SQLite file (raise and clear with hysteresis,
 // states, a restart), and its REST routes through the real HTTP server on loopback.
 #include <chrono>
+#include <cmath>
 #include <string>
 
 #include "core/time.hpp"
@@ -237,6 +238,18 @@ TEST(Alarms, EveryRuleRaisesHoldsAndClears) {
   LONGS_EQUAL(1, open("setting_open"));
   STRCMP_CONTAINS("opened 23.0 mm", p.alarms->Open(Id()).back().detail.c_str());
   STRCMP_CONTAINS("since it was measured on", p.alarms->Open(Id()).back().detail.c_str());
+  // A check whose ring was not supported then keeps its central estimate: the count goes on from it
+  // (it clears at 3 mm since) and the detail says what the opening then is.
+  st.setting.check->opening_supported = false;
+  st.setting.opening_mm = 31;
+  LONGS_EQUAL(0, open("setting_open"));
+  st.setting.opening_mm = 51;
+  LONGS_EQUAL(1, open("setting_open"));
+  STRCMP_CONTAINS("central estimate of a ring not supported then", p.alarms->Open(Id()).back().detail.c_str());
+  // An opening at the check not known (no reading of the liner up to it) neither raises nor clears.
+  st.setting.check->opening_mm = std::nan("");
+  st.setting.opening_mm = 18;
+  LONGS_EQUAL(1, open("setting_open"));
   st.setting.check.reset();
   st.setting.opening_mm = 18;
   LONGS_EQUAL(0, open("setting_open"));

@@ -400,6 +400,75 @@ TEST(Campaigns, AMeasuredSettingAnchorsTheCssAndSurvivesARestart) {
   }
 }
 
+// A check's opening follows what it measured: a check posted before the readings of its time
+// arrive is not known (and not 0: the liner had run 20 days), and is estimated at the next start;
+// a reline dated before it makes it the new liner's, a void of that reline the old liner's again.
+TEST(Campaigns, ASettingChecksOpeningFollowsTheLinerItMeasured) {
+  lw::test::TempDirectory keep{"lw-setting-liner"};
+  const std::string db = keep.File("db.sqlite");
+  const std::string at = Day(20);
+  const auto listed = [](Api& a) {
+    auto res = a.Client(kReadToken).Get(a.Base() + "/setting/checks");
+    CHECK(res);
+    LONGS_EQUAL_TEXT(200, res->status, res->body.c_str());
+    const json checks = json::parse(res->body)["checks"];
+    LONGS_EQUAL(1, checks.size());
+    return checks[0];
+  };
+  // The opening GET .../wear?at= gives at the check's time, and the one the live wear counts from.
+  const auto expect_as_wear_then = [&](Api& a) {
+    auto then = a.Client(kReadToken).Get(a.Base() + "/wear?faces=false&at=" + at);
+    CHECK(then);
+    const json setting_then = json::parse(then->body)["setting"];
+    const json check = listed(a);
+    if (setting_then["opening_mm"].is_number()) {
+      CHECK_TEXT(check["opening_mm"].is_number(), check.dump().c_str());
+      DOUBLES_EQUAL(setting_then["opening_mm"].get<double>(), check["opening_mm"].get<double>(), 0.011);
+      CHECK(check["opening_supported"] == setting_then["supported"]);
+    } else {
+      CHECK_TEXT(check["opening_mm"].is_null(), check.dump().c_str());
+    }
+    const json live = a.Wear()["setting"]["checked"];
+    CHECK_TEXT(live.is_object(), a.Wear()["setting"].dump().c_str());
+    CHECK_TEXT(live["opening_mm"] == check["opening_mm"], (live.dump() + " vs " + check.dump()).c_str());
+    CHECK_TRUE(check["counts"].get<bool>());
+    return check;
+  };
+  json first_liner;
+  {
+    Api a(db);
+    auto res = a.Client().Post(a.Base() + "/setting/checks", json({{"time", at}, {"css_mm", 131}}).dump(), "application/json");
+    CHECK(res);
+    LONGS_EQUAL_TEXT(201, res->status, res->body.c_str());
+    const json made = json::parse(res->body);
+    CHECK_TEXT(made["opening_mm"].is_null(), made.dump().c_str());  // no reading up to day 20: not known
+    CHECK_FALSE(made["opening_supported"].get<bool>());
+    a.LoadAll();                               // the readings of those 20 days arrive late
+    CHECK(listed(a)["opening_mm"].is_null());  // not moved before the next start
+  }
+  {
+    Api a(db);  // the next start estimates it from the readings stored by then
+    first_liner = expect_as_wear_then(a);
+    CHECK_TEXT(first_liner["opening_mm"].is_number(), first_liner.dump().c_str());
+    CHECK_TRUE(first_liner["opening_supported"].get<bool>());
+    // A reline dated before the check: the check measured the new liner.
+    const double fresh = Folder().bundle.crusher.thickness_new_mm + 15;
+    auto [status, made] = a.Reline({{"time", Day(12)}, {"thickness_new_mm", fresh}});
+    LONGS_EQUAL_TEXT(201, status, made.dump().c_str());
+    const json new_liner = expect_as_wear_then(a);
+    CHECK_TEXT(new_liner["opening_mm"] != first_liner["opening_mm"], (new_liner.dump() + " vs " + first_liner.dump()).c_str());
+    // The reline voided: the check is the first liner's again.
+    auto res = a.Client().Post(a.Base() + "/relines/" + Day(12) + "/void", json({{"reason", "test"}}).dump(), "application/json");
+    CHECK(res);
+    LONGS_EQUAL_TEXT(200, res->status, res->body.c_str());
+    DOUBLES_EQUAL(first_liner["opening_mm"].get<double>(), expect_as_wear_then(a)["opening_mm"].get<double>(), 0.011);
+  }
+  {
+    Api a(db);  // and so after a restart
+    DOUBLES_EQUAL(first_liner["opening_mm"].get<double>(), expect_as_wear_then(a)["opening_mm"].get<double>(), 0.011);
+  }
+}
+
 // A void's body, like a reline's, is refused before it is parsed when it nests deeper than any
 // body of the route can (its parsed value would be copied or printed one stack frame per level).
 TEST(Campaigns, AVoidBodyNestedTooDeeplyIsRefusedBeforeItIsParsed) {

@@ -210,7 +210,7 @@ TEST(Store, RefusesADatabaseFromANewerServer) {
   {
     sqlite3* h = nullptr;
     sqlite3_open(db().c_str(), &h);
-    sqlite3_exec(h, "PRAGMA user_version=9", nullptr, nullptr, nullptr);
+    sqlite3_exec(h, "PRAGMA user_version=99", nullptr, nullptr, nullptr);
     sqlite3_close(h);
   }
   try {
