@@ -719,7 +719,8 @@ std::string OneLine(std::string s) {
 
 int RunCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   try {
-    if (args.empty()) throw UsageError("missing command (diagnose, reconstruct, dem, plan, reline, campaigns); see --help");
+    if (args.empty())
+      throw UsageError("missing command (diagnose, reconstruct, dem, plan, reline, campaigns, setting-check); see --help");
     const std::string& command = args[0];
     for (const auto& a : args) {
       if (a == "--help" || a == "-h") {
@@ -733,7 +734,9 @@ int RunCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (command == "plan") return Plan(args, out);
     if (command == "reline") return Reline(args, out);
     if (command == "campaigns") return Campaigns(args, out);
-    throw UsageError("unknown command '" + command + "' (diagnose, reconstruct, dem, plan, reline, campaigns); see --help");
+    if (command == "setting-check") return SettingCheck(args, out);
+    throw UsageError("unknown command '" + command +
+                     "' (diagnose, reconstruct, dem, plan, reline, campaigns, setting-check); see --help");
   } catch (const core::ConfigFileError& e) {  // a bad --config file is bad input, not a usage error
     err << "linerwatch: " << OneLine(e.what()) << "\n";
     return 1;

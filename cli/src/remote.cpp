@@ -79,6 +79,19 @@ const core::OptionTable& CampaignsTable() {
   return table;
 }
 
+const core::OptionTable& SettingCheckTable() {
+  static const core::OptionTable table({
+      ServerOption(),
+      CrusherOption(),
+      Option::Text("time", "TIME", "when the closed-side setting was measured (with --css)"),
+      Option::Number("css", "MM", core::NumberRange{0, 1000, true, false}, "the closed-side setting measured (mm)"),
+      Option::Text("note", "TEXT", "kept with the check (e.g. \"mantle raised 12 mm\")"),
+      Option::Switch("list", "list the crusher's measured settings instead"),
+      TokenOption(),
+  });
+  return table;
+}
+
 /// A file's whole text; BadInput-style runtime_error naming the option and the file.
 std::string ReadFile(const std::string& path, const std::string& option, uintmax_t max_bytes) {
   std::error_code ec;
@@ -154,7 +167,8 @@ std::string CrusherPath(const core::ParsedOptions& o) {
   if (!scan_path.empty() && error.rfind("scan_xyz:", 0) == 0) error = scan_path + error.substr(8);
   std::string hint;
   if (r.status == 401 || r.status == 403)
-    hint = " (needs a token with the " + std::string(what == "reline" || what == "void" ? "write" : "read") +
+    hint = " (needs a token with the " +
+           std::string(what == "reline" || what == "void" || what == "setting check" ? "write" : "read") +
            " scope: --token-file FILE or LINERWATCH_TOKEN)";
   throw std::runtime_error("the server refused the " + what + " (" + std::to_string(r.status) + "): " + error + hint);
 }
@@ -267,6 +281,62 @@ int Campaigns(const std::vector<std::string>& args, std::ostream& out) {
   return 0;
 }
 
+namespace {
+
+/// `linerwatch setting-check --list`: GET .../setting/checks, one line per check.
+int SettingCheckList(const core::ParsedOptions& o, std::ostream& out) {
+  const std::string path = CrusherPath(o);
+  Server server(o);
+  const httplib::Result res = server.Check(server.client->Get(path + "/setting/checks"), "list the setting checks");
+  if (res->status != 200) Refused(*res, "setting check list", "");
+  const json j = json::parse(res->body, nullptr, false);
+  if (!j.is_object() || !j.contains("checks") || !j["checks"].is_array())
+    throw std::runtime_error("the server's setting check list is not {\"checks\": [...]}: " + res->body.substr(0, 200));
+  out << o.Text("crusher") << ": " << j["checks"].size() << " measured setting(s), oldest first\n";
+  out << "  time                  css (mm)  opening then (mm)  counts  by\n";
+  for (const json& c : j["checks"]) {
+    std::string opening = c["opening_mm"].is_number() ? Mm(c["opening_mm"]) : "not known";
+    if (c["opening_mm"].is_number() && !c.value("opening_supported", true)) opening += " (rough)";
+    out << "  " << std::left << std::setw(22) << c.value("time", "?") << std::right << std::setw(8)
+        << Mm(c.value("css_mm", json())) << std::setw(19) << opening << std::setw(8) << (c.value("counts", false) ? "yes" : "no")
+        << "  " << c.value("by", "?");
+    const std::string note = c.value("note", "");
+    out << (note.empty() ? "" : ": " + note) << "\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+int SettingCheck(const std::vector<std::string>& args, std::ostream& out) {
+  const core::ParsedOptions o = core::ParseOptions(SettingCheckTable(), std::vector<std::string>(args.begin() + 1, args.end()));
+  if (o.Has("list")) {
+    if (o.Has("time") || o.Has("css") || o.Has("note")) throw core::UsageError("--list takes no --time, --css or --note");
+    return SettingCheckList(o, out);
+  }
+  if (!o.Has("time") || !o.Has("css")) throw core::UsageError("--time and --css are required (or --list)");
+  const auto t = core::ParseIsoTime(o.Text("time"));
+  if (!t) throw core::UsageError("--time: '" + o.Text("time") + "' is not an ISO-8601 time (YYYY-MM-DD[THH:MM:SSZ])");
+  json body = {{"time", core::FormatIsoTime(*t)}, {"css_mm", o.Number("css", 0)}};
+  if (o.Has("note")) body["note"] = o.Text("note");
+  const std::string path = CrusherPath(o);
+  Server server(o);
+  const httplib::Result res =
+      server.Check(server.client->Post(path + "/setting/checks", body.dump(), "application/json"), "record the setting");
+  if (res->status != 200 && res->status != 201) Refused(*res, "setting check", "");
+  const json c = json::parse(res->body, nullptr, false);
+  if (!c.is_object())
+    throw std::runtime_error("the server's answer to the setting check is not JSON: " + res->body.substr(0, 200));
+  out << (res->status == 201 ? "setting recorded: " : "setting already recorded at this time (nothing changed): ")
+      << o.Text("crusher") << " measured " << Mm(c.value("css_mm", json())) << " mm at " << c.value("time", "?")
+      << "; the concave's opening then "
+      << (c["opening_mm"].is_number()
+              ? Mm(c["opening_mm"]) + " mm" + (c.value("opening_supported", true) ? "" : " (a rough estimate)")
+              : std::string("not known yet (no reading up to then)"))
+      << "; the CSS counts from it\n";
+  return 0;
+}
+
 std::string RemoteUsage(size_t column, size_t indent) {
   return "  reline " + RelineTable().Synopsis(9, 100) +
          "\n"
@@ -282,7 +352,12 @@ std::string RemoteUsage(size_t column, size_t indent) {
          "\n"
          "      List the crusher's liner campaigns on the server: start, end, life, thickness, sensors,\n"
          "      whether the end-of-life scan is kept.\n" +
-         CampaignsTable().Help(column, indent, false);
+         CampaignsTable().Help(column, indent, false) + "  setting-check " + SettingCheckTable().Synopsis(16, 100) +
+         "\n"
+         "      Record the closed-side setting measured on the crusher (after raising the mantle, say; the\n"
+         "      write scope): the CSS is counted from it, and the setting_open alarm restarts its count;\n"
+         "      --list prints the checks recorded (docs/wear.md, *Setting*).\n" +
+         SettingCheckTable().Help(column, indent, false);
 }
 
 }  // namespace lw::cli

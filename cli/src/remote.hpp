@@ -12,6 +12,8 @@ namespace lw::cli {
 int Reline(const std::vector<std::string>& args, std::ostream& out);
 /// `linerwatch campaigns ...`: GET .../campaigns, prints one line per campaign (and --json OUT).
 int Campaigns(const std::vector<std::string>& args, std::ostream& out);
+/// `linerwatch setting-check ...`: POST .../setting/checks (or with --list, GET), prints what the server recorded.
+int SettingCheck(const std::vector<std::string>& args, std::ostream& out);
 /// Their part of `linerwatch --help`, option text at `column`, flags `indent` spaces in.
 std::string RemoteUsage(size_t column, size_t indent);
 

@@ -177,3 +177,50 @@ TEST(CliRemote, AVoidedRelineIsListedVoidedByTheTokensName) {
   CHECK_TEXT(r.out.find("voided") != std::string::npos && r.out.find("wrong day") != std::string::npos, r.out.c_str());
   LONGS_EQUAL(2, site.CampaignCount());
 }
+
+// `linerwatch setting-check`: the measured CSS is recorded by the token's name (its write scope)
+// with the opening the server estimated then, once; --list shows it; refusals are one line.
+TEST(CliRemote, AMeasuredSettingIsRecordedOnceAndListed) {
+  Site site;
+  const std::vector<std::string> base = {"setting-check", "--server", site.api.Url(), "--crusher", Folder().id()};
+  auto with = [&](std::vector<std::string> more) {
+    std::vector<std::string> args = base;
+    args.insert(args.end(), more.begin(), more.end());
+    return lw::test::RunLinerwatch(args);
+  };
+  lw::test::CliRun r = with({"--time", Day(20), "--css", "131.5", "--note", "mantle raised", "--token-file", site.write_token});
+  LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
+  CHECK_TEXT(r.out.find("setting recorded: " + Folder().id() + " measured 131.5 mm at " + Day(20) +
+                        "; the concave's opening then ") != std::string::npos,
+             r.out.c_str());
+  CHECK_TEXT(r.out.find(" mm; the CSS counts from it") != std::string::npos, r.out.c_str());  // readings stored: a number
+  r = with({"--time", Day(20), "--css", "131.5", "--token-file", site.write_token});
+  LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
+  CHECK_TEXT(r.out.find("already recorded") != std::string::npos, r.out.c_str());
+  struct Case {
+    std::vector<std::string> args;
+    int code;
+    std::string says;
+  };
+  const std::vector<Case> cases = {
+      {{"--time", Day(21), "--css", "130", "--token-file", site.read_token}, 1, "write scope"},
+      {{"--time", Day(20), "--css", "140", "--token-file", site.write_token}, 1, "(409)"},
+      {{"--time", Day(-30), "--css", "130", "--token-file", site.write_token}, 1, "(422)"},
+      {{"--time", Day(21), "--css", "0", "--token-file", site.write_token}, 2, "--css"},
+      {{"--time", "soon", "--css", "130", "--token-file", site.write_token}, 2, "--time: 'soon'"},
+      {{"--css", "130", "--token-file", site.write_token}, 2, "--time and --css are required"},
+      {{"--list", "--css", "130", "--token-file", site.read_token}, 2, "--list takes no"},
+  };
+  for (const Case& c : cases) {
+    const lw::test::CliRun bad = with(c.args);
+    LONGS_EQUAL_TEXT(c.code, bad.code, (c.says + " -> " + bad.err).c_str());
+    CHECK_TEXT(OneLine(bad.err), bad.err.c_str());
+    CHECK_TEXT(bad.err.find(c.says) != std::string::npos, (c.says + " -> " + bad.err).c_str());
+  }
+  r = with({"--list", "--token-file", site.read_token});
+  LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
+  CHECK_TEXT(r.out.find("1 measured setting(s)") != std::string::npos, r.out.c_str());
+  CHECK_TEXT(r.out.find(Day(20)) != std::string::npos && r.out.find("131.5") != std::string::npos &&
+                 r.out.find("yes  writer: mantle raised") != std::string::npos,
+             r.out.c_str());
+}
