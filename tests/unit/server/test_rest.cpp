@@ -543,7 +543,8 @@ TEST(RestHandlers, TheCrusherListNeverLoadsOrComputesAndSaysPending) {
   restarted.ctx.starting = &starting;
   rest::Resources resources(restarted.ctx);
   const auto list = [&] {
-    return resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers"), {}).json["crushers"][0];
+    return lw::test::WithJson(resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers"), {}))
+        .json["crushers"][0];
   };
   // A crusher's own resources answer 503 until what they need is there, and compute nothing.
   const auto starting_503 = [&](const char* route, const char* what) {
