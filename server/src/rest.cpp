@@ -712,34 +712,56 @@ Response Resources::Health(const Request&) {
   return Json(status, std::move(j));
 }
 
+ordered_json Resources::ListEntryJson(const Crusher& c, const CrusherState* st, bool loaded, std::optional<int64_t> latest) {
+  return {{"crusher_id", c.config.crusher_id},
+          {"installed_at", core::FormatIsoTime(c.config.installed_at)},
+          {"thickness_new_mm", c.config.thickness_new_mm},
+          {"thickness_min_mm", c.config.thickness_min_mm},
+          {"rows", RowsJson(c.config)},
+          {"sensor_count", c.config.sensors.size()},
+          {"map_sha256", c.map.sha256},
+          {"face_count", c.map.face_count()},
+          {"latest_reading_time", latest ? ordered_json(Iso(*latest)) : ordered_json(nullptr)},
+          {"min_thickness_mm", st && st->has_wear && std::isfinite(st->reconstruction.min_thickness_mm)
+                                   ? ordered_json(st->reconstruction.min_thickness_mm)
+                                   : ordered_json(nullptr)},
+          {"wear_status", st && st->has_wear ? ordered_json(st->reconstruction.status) : ordered_json(nullptr)},
+          {"thinnest_area", st && st->has_wear ? core::ThinnestAreaJson(st->areas.liner) : ordered_json(nullptr)},
+          {"pending", !loaded || !st}};
+}
+
 Response Resources::Crushers(const Request&) {
-  ordered_json list = ordered_json::array();
+  // The bytes ordered_json's compact dump gives for {"crushers": [entries]}: each entry's text is
+  // kept from the request before while what it shows is unchanged, because building and dumping
+  // 100 entries' JSON was the list's cost (docs/performance.md).
+  std::string text = "{\"crushers\":[";
+  bool first = true;
+  std::lock_guard<std::mutex> lock(list_mutex_);
   for (const Crusher* c : ctx_.registry->All()) {
     // Never waits behind a wear recompute and never loads or computes anything: the wear as last
     // computed (the wear worker recomputes a changed crusher within --wear-interval-ms), the latest
     // reading time as loaded. At startup, before the wear worker's first pass reaches a crusher, its
     // entry says "pending" instead of making this request load and compute it.
     const std::string& id = c->config.crusher_id;
-    const auto st = ctx_.wear->Latest(id);
+    std::shared_ptr<const CrusherState> st = ctx_.wear->Latest(id);
     const bool loaded = ctx_.live->Loaded(id);
     const auto latest = loaded ? ctx_.live->LatestUsableTime(id) : std::nullopt;
-    list.push_back({{"crusher_id", c->config.crusher_id},
-                    {"installed_at", core::FormatIsoTime(c->config.installed_at)},
-                    {"thickness_new_mm", c->config.thickness_new_mm},
-                    {"thickness_min_mm", c->config.thickness_min_mm},
-                    {"rows", RowsJson(c->config)},
-                    {"sensor_count", c->config.sensors.size()},
-                    {"map_sha256", c->map.sha256},
-                    {"face_count", c->map.face_count()},
-                    {"latest_reading_time", latest ? ordered_json(Iso(*latest)) : ordered_json(nullptr)},
-                    {"min_thickness_mm", st && st->has_wear && std::isfinite(st->reconstruction.min_thickness_mm)
-                                             ? ordered_json(st->reconstruction.min_thickness_mm)
-                                             : ordered_json(nullptr)},
-                    {"wear_status", st && st->has_wear ? ordered_json(st->reconstruction.status) : ordered_json(nullptr)},
-                    {"thinnest_area", st && st->has_wear ? core::ThinnestAreaJson(st->areas.liner) : ordered_json(nullptr)},
-                    {"pending", !loaded || !st}});
+    ListEntry& e = list_entries_[id];
+    if (e.text.empty() || e.crusher != c || e.state != st || e.loaded != loaded || e.latest != latest) {
+      e.text = ListEntryJson(*c, st.get(), loaded, latest).dump(-1, ' ', false, ordered_json::error_handler_t::replace);
+      e.crusher = c;
+      e.state = std::move(st);
+      e.loaded = loaded;
+      e.latest = latest;
+    }
+    if (!first) text += ',';
+    first = false;
+    text += e.text;
   }
-  return Json(200, {{"crushers", list}});
+  text += "]}";
+  Response r;
+  r.raw = RawBody{std::move(text), "application/json"};
+  return r;
 }
 
 Response Resources::CrusherDetail(const Request& req) {

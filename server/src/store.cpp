@@ -524,6 +524,7 @@ Page Store::Range(const std::string& crusher, const std::string& sensor, int64_t
   int64_t after_t = INT64_MIN, after_seq = INT64_MIN;
   if (!cursor.empty()) ParseCursor(cursor, &after_t, &after_seq);
   Page page;
+  page.readings.reserve(static_cast<size_t>(std::clamp(limit, 0, 63)) + 1);  // a day of hourly readings without regrowing
   InUse use_range(im.range);
   im.range.Bind(1, crusher).Bind(2, sensor).Bind(3, std::max(from_s, after_t)).Bind(4, to_s).Bind(5, after_t);
   im.range.Bind(6, after_seq).Bind(7, static_cast<int64_t>(limit) + 1);

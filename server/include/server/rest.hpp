@@ -243,6 +243,21 @@ class Resources {
   int event_streams_ = 0;
   std::map<std::string, int> streams_per_client_;
   std::mutex post_mutex_;  ///< one readings body parsed at a time (a parsed body is ~20x its bytes)
+  /// A crusher's entry in the crusher list as JSON text, with what it was made from: the list
+  /// rebuilds an entry only when its crusher (a new object at each Registry::Replace), its wear
+  /// state or its latest reading time changed. The state is held so that its address is not reused.
+  struct ListEntry {
+    const Crusher* crusher = nullptr;
+    std::shared_ptr<const CrusherState> state;
+    bool loaded = false;
+    std::optional<int64_t> latest;
+    std::string text;
+  };
+  std::mutex list_mutex_;  ///< guards list_entries_
+  std::map<std::string, ListEntry> list_entries_;
+  /// The list entry's JSON (an object of the crusher list), as Crushers() sends it.
+  static nlohmann::ordered_json ListEntryJson(const Crusher& c, const CrusherState* st, bool loaded,
+                                              std::optional<int64_t> latest);
 };
 
 }  // namespace lw::server::rest

@@ -543,7 +543,8 @@ TEST(RestHandlers, TheCrusherListNeverLoadsOrComputesAndSaysPending) {
   restarted.ctx.starting = &starting;
   rest::Resources resources(restarted.ctx);
   const auto list = [&] {
-    return resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers"), {}).json["crushers"][0];
+    return lw::test::WithJson(resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers"), {}))
+        .json["crushers"][0];
   };
   // A crusher's own resources answer 503 until what they need is there, and compute nothing.
   const auto starting_503 = [&](const char* route, const char* what) {
@@ -577,6 +578,34 @@ TEST(RestHandlers, TheCrusherListNeverLoadsOrComputesAndSaysPending) {
   DOUBLES_EQUAL(st->reconstruction.min_thickness_mm, entry["min_thickness_mm"].get<double>(), 1e-9);
   const json wear = GetFrom(resources, "/api/v1/crushers/{crusher}/wear", Folder().id()).json;
   DOUBLES_EQUAL(wear["min_thickness_mm"].get<double>(), entry["min_thickness_mm"].get<double>(), 1e-3);
+}
+
+// The list keeps each crusher's entry as text while what it shows is unchanged: after more
+// readings are committed it shows the new latest reading time, byte for byte what a list built
+// from nothing shows.
+TEST(RestHandlers, TheCrusherListShowsNewReadingsAsAListBuiltAfreshDoes) {
+  Fixture f;
+  const json all = json::parse(Fixture::AllReadings());
+  const auto split = lw::core::FormatIsoTime(lw::core::AddDays(Folder().bundle.crusher.installed_at, 3));
+  json early = {{"readings", json::array()}}, late = {{"readings", json::array()}};
+  for (const auto& r : all["readings"]) (r["time"].get<std::string>() < split ? early : late)["readings"].push_back(r);
+  CHECK(!early["readings"].empty() && !late["readings"].empty());
+  const auto list = [](rest::Resources& resources) {
+    const rest::Response r = resources.Call(rest::Resources::Find(rest::Method::kGet, "/api/v1/crushers"), {});
+    LONGS_EQUAL(200, r.status);
+    return r.raw ? r.raw->content : r.json.dump();
+  };
+  PostReadingsTo(*f.resources, Folder().id(), early);
+  const std::string first = list(*f.resources);
+  STRCMP_EQUAL(first.c_str(), list(*f.resources).c_str());
+  PostReadingsTo(*f.resources, Folder().id(), late);
+  const std::string second = list(*f.resources);
+  rest::Resources fresh(f.parts.ctx);
+  STRCMP_EQUAL(list(fresh).c_str(), second.c_str());
+  const json a = json::parse(first)["crushers"][0], b = json::parse(second)["crushers"][0];
+  CHECK(a["latest_reading_time"].is_string() && b["latest_reading_time"].is_string());
+  CHECK_TEXT(a["latest_reading_time"].get<std::string>() < split, a.dump().substr(0, 300).c_str());
+  CHECK_TEXT(b["latest_reading_time"].get<std::string>() >= split, b.dump().substr(0, 300).c_str());
 }
 
 // The headline of GET .../wear (and of each row) is the thinnest area the data support, in the
