@@ -533,104 +533,102 @@ MapModel::Point MapModel::At(double z, double theta_deg) const {
   return p;
 }
 
-MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
-  MapModel model;
-  model.map = &map;
-  const Eigen::Index n = static_cast<Eigen::Index>(map.face_count());
-  const int threads = options.threads > 0 ? options.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-  model.clean = map.wear.size() == n ? Eigen::VectorXd(map.wear.cwiseMax(0.0)) : Eigen::VectorXd::Zero(n);
-  model.intensity = model.clean;
-  model.intensity_sd = Eigen::VectorXd::Zero(n);
-  model.intensity_noise_sd = Eigen::VectorXd::Zero(n);
-  if (map.has_normal_stress() && map.normal_stress.size() == n) model.normal_stress = map.normal_stress;
-  if (n == 0) return model;
-  const Eigen::VectorXd* nrm = model.normal_stress.size() ? &map.normal_stress : nullptr;
+namespace {
 
-  std::vector<double> sizes(static_cast<size_t>(n));
-  for (Eigen::Index i = 0; i < n; ++i) sizes[static_cast<size_t>(i)] = std::sqrt(2.0 * std::max(map.areas[i], 0.0));
-  model.face_size_m = std::max(Median(sizes), 1e-4);
-  const double extent = std::max(map.z.maxCoeff() - map.z.minCoeff(), 10 * model.face_size_m);
+/// 1. Pilot: each face predicted from its nearest neighbours (leave-one-out, 1.5 face sizes).
+struct Pilot {
+  Eigen::VectorXd value;  ///< per face: its neighbours' weighted mean, the face left out
+  Eigen::VectorXd neff;   ///< per face: the effective number of those neighbours
+};
 
-  // 1. Pilot: each face predicted from its nearest neighbours (leave-one-out, 1.5 face sizes).
-  Eigen::VectorXd pilot(n), pilot_neff(n);
-  {
-    const Kernel k(map, model.clean, nullptr, 0.5 * model.face_size_m, 3.0 * model.face_size_m);
-    ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
-      for (Eigen::Index i = begin; i < end; ++i) {
-        double s0 = 0, sy = 0, s2 = 0;
-        k.index.Visit(map.z[i], map.theta_deg[i], map.radius[i], [&](uint32_t j, double dz, double arc) {
-          if (static_cast<Eigen::Index>(j) == i) return;
-          const double w = k.W(j, dz, arc);
-          if (w <= 0) return;
-          s0 += w;
-          sy += w * model.clean[static_cast<Eigen::Index>(j)];
-          s2 += w * w;
-        });
-        pilot[i] = s0 > 0 ? sy / s0 : model.clean[i];
-        pilot_neff[i] = s2 > 0 ? s0 * s0 / s2 : 0;
-      }
-    });
-  }
-
-  // 2. Noise law var = phi m^p: a face's wear sums the energies of the contacts it received, so its
-  //    variance grows like its mean (compound Poisson, p = 1) when contacts are independent, and
-  //    like its square (p = 2, a constant relative scatter) when they come in bursts (a few heavy
-  //    particles, the same rock hitting again): real LIGGGHTS maps are close to p = 2, with a face's
-  //    relative scatter about the same everywhere. p is fitted (log-log, in [1, 2]) and phi then,
-  //    from wear_stderr (the spread of the run's windows) when the map has it, else from each face
-  //    against its neighbours; the top 2 % of ratios trimmed either way (spikes).
-  {
-    const bool use_stderr = map.has_wear_stderr() && map.wear_stderr.size() == n && map.wear_stderr.maxCoeff() > 0;
-    std::vector<std::pair<double, double>> obs;  // (mean, squared deviation)
-    for (Eigen::Index i = 0; i < n; ++i) {
-      if (pilot[i] <= 0) continue;
-      if (use_stderr) {
-        obs.push_back({pilot[i], map.wear_stderr[i] * map.wear_stderr[i]});
-      } else if (pilot_neff[i] > 0) {
-        const double d = model.clean[i] - pilot[i];
-        obs.push_back({pilot[i], d * d / (1.0 + 1.0 / pilot_neff[i])});
-      }
+Pilot PilotEstimate(const WearMap& map, const MapModel& model, int threads) {
+  const Eigen::Index n = model.clean.size();
+  Pilot out{Eigen::VectorXd(n), Eigen::VectorXd(n)};
+  Eigen::VectorXd& pilot = out.value;
+  Eigen::VectorXd& pilot_neff = out.neff;
+  const Kernel k(map, model.clean, nullptr, 0.5 * model.face_size_m, 3.0 * model.face_size_m);
+  ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
+    for (Eigen::Index i = begin; i < end; ++i) {
+      double s0 = 0, sy = 0, s2 = 0;
+      k.index.Visit(map.z[i], map.theta_deg[i], map.radius[i], [&](uint32_t j, double dz, double arc) {
+        if (static_cast<Eigen::Index>(j) == i) return;
+        const double w = k.W(j, dz, arc);
+        if (w <= 0) return;
+        s0 += w;
+        sy += w * model.clean[static_cast<Eigen::Index>(j)];
+        s2 += w * w;
+      });
+      pilot[i] = s0 > 0 ? sy / s0 : model.clean[i];
+      pilot_neff[i] = s2 > 0 ? s0 * s0 / s2 : 0;
     }
-    // p from the slope of log E[d^2] against log m over ten bins of m (bin means, not logs of
-    // single squares: those are biased by the chi-square's skew).
-    double p = 1.0;
-    if (obs.size() >= 50) {
-      std::sort(obs.begin(), obs.end());
-      const size_t bins = 10, per = obs.size() / bins;
-      double sx = 0, sy = 0, sxx = 0, sxy = 0, nb = 0;
-      for (size_t b = 0; b < bins; ++b) {
-        double m = 0, v = 0;
-        for (size_t k = b * per; k < (b + 1) * per; ++k) {
-          m += obs[k].first;
-          v += obs[k].second;
-        }
-        if (!(m > 0 && v > 0)) continue;
-        const double x = std::log(m / static_cast<double>(per)), y = std::log(v / static_cast<double>(per));
-        sx += x;
-        sy += y;
-        sxx += x * x;
-        sxy += x * y;
-        nb += 1;
-      }
-      const double den = nb * sxx - sx * sx;
-      if (nb >= 3 && den > 1e-12) p = std::clamp((nb * sxy - sx * sy) / den, 1.0, 2.0);
-    }
-    std::vector<double> ratio;
-    for (const auto& [m, d2] : obs) ratio.push_back(d2 / std::pow(m, p));
-    std::sort(ratio.begin(), ratio.end());
-    const size_t keep = ratio.size() - ratio.size() / 50;
-    double sum = 0;
-    for (size_t k = 0; k < keep; ++k) sum += ratio[k];
-    model.noise_power = p;
-    model.noise_phi = keep ? sum / static_cast<double>(keep) : 0.0;
-    model.noise_source =
-        use_stderr ? "wear_stderr (" +
-                         (map.windows > 0 ? std::to_string(map.windows) + " windows" : std::string("windows not stated")) + ")"
-                   : "neighbour differences";
-  }
+  });
+  return out;
+}
 
-  // 3. Outliers: a face far above its neighbourhood is capped (one-sided: DEM spikes are faces a
-  //    few particles hit hard, at the feed and discharge edges mostly).
+/// 2. Noise law var = phi m^p: a face's wear sums the energies of the contacts it received, so its
+///    variance grows like its mean (compound Poisson, p = 1) when contacts are independent, and
+///    like its square (p = 2, a constant relative scatter) when they come in bursts (a few heavy
+///    particles, the same rock hitting again): real LIGGGHTS maps are close to p = 2, with a face's
+///    relative scatter about the same everywhere. p is fitted (log-log, in [1, 2]) and phi then,
+///    from wear_stderr (the spread of the run's windows) when the map has it, else from each face
+///    against its neighbours; the top 2 % of ratios trimmed either way (spikes).
+void FitNoiseLaw(const WearMap& map, const Pilot& pilot_estimate, MapModel& model) {
+  const Eigen::Index n = model.clean.size();
+  const Eigen::VectorXd& pilot = pilot_estimate.value;
+  const Eigen::VectorXd& pilot_neff = pilot_estimate.neff;
+  const bool use_stderr = map.has_wear_stderr() && map.wear_stderr.size() == n && map.wear_stderr.maxCoeff() > 0;
+  std::vector<std::pair<double, double>> obs;  // (mean, squared deviation)
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (pilot[i] <= 0) continue;
+    if (use_stderr) {
+      obs.push_back({pilot[i], map.wear_stderr[i] * map.wear_stderr[i]});
+    } else if (pilot_neff[i] > 0) {
+      const double d = model.clean[i] - pilot[i];
+      obs.push_back({pilot[i], d * d / (1.0 + 1.0 / pilot_neff[i])});
+    }
+  }
+  // p from the slope of log E[d^2] against log m over ten bins of m (bin means, not logs of
+  // single squares: those are biased by the chi-square's skew).
+  double p = 1.0;
+  if (obs.size() >= 50) {
+    std::sort(obs.begin(), obs.end());
+    const size_t bins = 10, per = obs.size() / bins;
+    double sx = 0, sy = 0, sxx = 0, sxy = 0, nb = 0;
+    for (size_t b = 0; b < bins; ++b) {
+      double m = 0, v = 0;
+      for (size_t k = b * per; k < (b + 1) * per; ++k) {
+        m += obs[k].first;
+        v += obs[k].second;
+      }
+      if (!(m > 0 && v > 0)) continue;
+      const double x = std::log(m / static_cast<double>(per)), y = std::log(v / static_cast<double>(per));
+      sx += x;
+      sy += y;
+      sxx += x * x;
+      sxy += x * y;
+      nb += 1;
+    }
+    const double den = nb * sxx - sx * sx;
+    if (nb >= 3 && den > 1e-12) p = std::clamp((nb * sxy - sx * sy) / den, 1.0, 2.0);
+  }
+  std::vector<double> ratio;
+  for (const auto& [m, d2] : obs) ratio.push_back(d2 / std::pow(m, p));
+  std::sort(ratio.begin(), ratio.end());
+  const size_t keep = ratio.size() - ratio.size() / 50;
+  double sum = 0;
+  for (size_t k = 0; k < keep; ++k) sum += ratio[k];
+  model.noise_power = p;
+  model.noise_phi = keep ? sum / static_cast<double>(keep) : 0.0;
+  model.noise_source =
+      use_stderr ? "wear_stderr (" +
+                       (map.windows > 0 ? std::to_string(map.windows) + " windows" : std::string("windows not stated")) + ")"
+                 : "neighbour differences";
+}
+
+/// 3. Outliers: a face far above its neighbourhood is capped (one-sided: DEM spikes are faces a
+///    few particles hit hard, at the feed and discharge edges mostly).
+void CapOutliers(const Eigen::VectorXd& pilot, const MapModelOptions& options, MapModel& model) {
+  const Eigen::Index n = model.clean.size();
   if (options.robust) {
     for (Eigen::Index i = 0; i < n; ++i) {
       if (pilot[i] <= 0) continue;
@@ -641,9 +639,13 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
       }
     }
   }
+}
 
-  // 4. Bandwidth: along z, and around the circumference 1, 3 or 8 times that (a gyratory chamber's
-  //    wear changes much faster along z than around; the data decide how much).
+/// 4. Bandwidth: along z, and around the circumference 1, 3 or 8 times that (a gyratory chamber's
+///    wear changes much faster along z than around; the data decide how much).
+std::vector<std::pair<double, double>> BandwidthCandidates(const WearMap& map, const MapModelOptions& options, MapModel& model) {
+  const Eigen::Index n = model.clean.size();
+  const double extent = std::max(map.z.maxCoeff() - map.z.minCoeff(), 10 * model.face_size_m);
   std::vector<std::pair<double, double>> candidates;  // (along z, around)
   if (options.bandwidth_m > 0) {
     candidates.push_back({options.bandwidth_m, options.bandwidth_arc_m > 0 ? options.bandwidth_arc_m : options.bandwidth_m});
@@ -665,17 +667,27 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     }
     model.bandwidth_method = "cross-validation";
   }
-  if (candidates.empty()) {
-    model.bandwidth_m = 0;
-    model.bandwidth_method = "none";
-    for (Eigen::Index i = 0; i < n; ++i) model.intensity_sd[i] = std::sqrt(model.FaceVariance(pilot[i]));
-    model.intensity_noise_sd = model.intensity_sd;
-    std::vector<double> cv;
-    for (Eigen::Index i = 0; i < n; ++i)
-      if (pilot[i] > 0) cv.push_back(std::sqrt(model.FaceVariance(pilot[i])) / pilot[i]);
-    model.face_cv = Median(cv);
-    return model;
-  }
+  return candidates;
+}
+
+/// No bandwidth to choose from: each face as it is, with its noise law's sd.
+void WithoutSmoothing(const Eigen::VectorXd& pilot, MapModel& model) {
+  const Eigen::Index n = model.clean.size();
+  model.bandwidth_m = 0;
+  model.bandwidth_method = "none";
+  for (Eigen::Index i = 0; i < n; ++i) model.intensity_sd[i] = std::sqrt(model.FaceVariance(pilot[i]));
+  model.intensity_noise_sd = model.intensity_sd;
+  std::vector<double> cv;
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (pilot[i] > 0) cv.push_back(std::sqrt(model.FaceVariance(pilot[i])) / pilot[i]);
+  model.face_cv = Median(cv);
+}
+
+/// 4. (continued) The candidate (bandwidth and form) of least cross-validated error, on up to
+/// max_cv_faces faces, and the smoothing's own error at it.
+void ChooseBandwidth(const WearMap& map, const std::vector<std::pair<double, double>>& candidates, const Eigen::VectorXd& pilot,
+                     const MapModelOptions& options, int threads, MapModel& model) {
+  const Eigen::Index n = model.clean.size();
   const Eigen::Index step = std::max<Eigen::Index>(1, n / static_cast<Eigen::Index>(std::max<size_t>(options.max_cv_faces, 1)));
   std::vector<Eigen::Index> eval;
   for (Eigen::Index i = 0; i < n; i += step) eval.push_back(i);
@@ -757,132 +769,176 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
     const double bias2 = std::max(0.0, (error_sum - noise_sum - var_pred) / area_sum);
     model.smoothing_error_rel = m2_sum > 0 ? std::sqrt(bias2 / (m2_sum / area_sum)) : 0.0;
   }
+}
 
-  // 5. The field at the chosen bandwidth, and its standard error.
-  {
-    Kernel k(map, model.clean, nrm, model.bandwidth_m, model.bandwidth_arc_m);
-    k.linear = model.local_linear;
-    model.index = k.owned;
-    // The ladder of the local scale (6.).
-    if (model.bandwidth_method == "cross-validation" && options.local_scale) {
-      for (double h = 0.25 * model.face_size_m; h < model.bandwidth_m * 0.999; h *= 1.4) model.local_ladder_m.push_back(h);
-      model.local_ladder_m.push_back(model.bandwidth_m);
-    }
-    const bool ici = model.local_ladder_m.size() > 1;
-    // Large maps: the kernel sums on a grid (BinnedStep), unless the finest scale's grid would be
-    // much larger than the map (a map very long along z for its face size).
-    const double finest = ici ? model.local_ladder_m.front() : model.bandwidth_m;
-    const bool binned = static_cast<size_t>(n) > options.binned_above_faces &&
-                        BinnedGrid(map, finest, model.bandwidth_arc_m).Cells() <= 16.0 * static_cast<double>(n) + 1e6;
-    std::vector<Sums> sums(binned ? 0 : static_cast<size_t>(n));
-    if (binned) {
-      Eigen::VectorXd v;
-      BinnedStep(map, model.clean, nullptr, model.bandwidth_m, model.bandwidth_arc_m, model.local_linear, threads, v, nullptr);
-      for (Eigen::Index i = 0; i < n; ++i) model.intensity[i] = std::isfinite(v[i]) ? std::max(0.0, v[i]) : model.clean[i];
-    } else {
-      ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
-        for (Eigen::Index i = begin; i < end; ++i) {
-          sums[static_cast<size_t>(i)] = k.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
-          const Sums& s = sums[static_cast<size_t>(i)];
-          model.intensity[i] = s.s0 > 0 ? std::max(0.0, s.Value()) : model.clean[i];
-        }
-      });
-    }
-    // Normal stress at three times the wear's scale: its sampling noise is shared with the wear's
-    // (the same contacts), and at the wear's own scale it would carry the wear map's error into
-    // every stress-based hypothesis (a map over-predicting where it happened to sample more
-    // contacts would look like work hardening). The stress field's real pattern is broad.
-    if (nrm) {
-      model.normal_bandwidth_m = 3.0 * model.bandwidth_m;
-      Kernel kn(map, *nrm, nullptr, model.normal_bandwidth_m, 3.0 * model.bandwidth_arc_m);
-      kn.linear = false;
-      model.normal_index = kn.owned;
-      model.intensity_broad.resize(n);
-      if (binned) {
-        Eigen::VectorXd v;
-        BinnedStep(map, *nrm, nullptr, kn.h, kn.ha, false, threads, v, nullptr);
-        for (Eigen::Index i = 0; i < n; ++i) model.normal_stress[i] = std::isfinite(v[i]) ? v[i] : (*nrm)[i];
-        BinnedStep(map, model.clean, nullptr, kn.h, kn.ha, false, threads, v, nullptr);
-        for (Eigen::Index i = 0; i < n; ++i) model.intensity_broad[i] = std::isfinite(v[i]) ? v[i] : model.clean[i];
-      } else {
-        // The stress's kernel carries the capped wear as its second value (Sums::n0): both in one pass.
-        Kernel kb(map, *nrm, &model.clean, kn.h, kn.ha, kn.owned);
-        kb.linear = false;
-        ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
-          for (Eigen::Index i = begin; i < end; ++i) {
-            const Sums sn = kb.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
-            model.normal_stress[i] = sn.s0 > 0 ? sn.t0 / sn.s0 : (*nrm)[i];
-            model.intensity_broad[i] = sn.s0 > 0 ? sn.n0 / sn.s0 : model.clean[i];
-          }
-        });
+/// Normal stress at three times the wear's scale: its sampling noise is shared with the wear's
+/// (the same contacts), and at the wear's own scale it would carry the wear map's error into
+/// every stress-based hypothesis (a map over-predicting where it happened to sample more
+/// contacts would look like work hardening). The stress field's real pattern is broad.
+void SmoothNormalStress(const WearMap& map, const Eigen::VectorXd& normal, bool binned, int threads, MapModel& model) {
+  const Eigen::Index n = model.clean.size();
+  model.normal_bandwidth_m = 3.0 * model.bandwidth_m;
+  Kernel kn(map, normal, nullptr, model.normal_bandwidth_m, 3.0 * model.bandwidth_arc_m);
+  kn.linear = false;
+  model.normal_index = kn.owned;
+  model.intensity_broad.resize(n);
+  if (binned) {
+    Eigen::VectorXd v;
+    BinnedStep(map, normal, nullptr, kn.h, kn.ha, false, threads, v, nullptr);
+    for (Eigen::Index i = 0; i < n; ++i) model.normal_stress[i] = std::isfinite(v[i]) ? v[i] : normal[i];
+    BinnedStep(map, model.clean, nullptr, kn.h, kn.ha, false, threads, v, nullptr);
+    for (Eigen::Index i = 0; i < n; ++i) model.intensity_broad[i] = std::isfinite(v[i]) ? v[i] : model.clean[i];
+  } else {
+    // The stress's kernel carries the capped wear as its second value (Sums::n0): both in one pass.
+    Kernel kb(map, normal, &model.clean, kn.h, kn.ha, kn.owned);
+    kb.linear = false;
+    ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
+      for (Eigen::Index i = begin; i < end; ++i) {
+        const Sums sn = kb.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
+        model.normal_stress[i] = sn.s0 > 0 ? sn.t0 / sn.s0 : normal[i];
+        model.intensity_broad[i] = sn.s0 > 0 ? sn.n0 / sn.s0 : model.clean[i];
       }
-    }
-    Eigen::VectorXd& var = model.face_var;
-    var.resize(n);
-    for (Eigen::Index i = 0; i < n; ++i) var[i] = model.FaceVariance(model.intensity[i]);
-    // With the local scale (6.) the variance comes from its pass over the neighbours (its top step
-    // is this kernel, on the same face variances); without it, or where that pass finds no
-    // estimate, from this kernel here.
-    if (ici) {
-      model.local_gamma = options.local_gamma;
-      model.ref_var = model.face_var;
-      model.local_bandwidth_m = Eigen::VectorXd::Zero(n);
-    }
-    // Face i's result from its local-scale estimate r (none: no local scale, or no estimate) and
-    // the variance at the chosen bandwidth (called only when needed).
-    auto finish = [&](Eigen::Index i, const IciResult* r, auto&& top_variance) {
-      double v = std::numeric_limits<double>::quiet_NaN();
-      if (r && std::isfinite(r->value)) {
-        model.local_bandwidth_m[i] = model.local_ladder_m[r->level];
-        if (r->level + 1 < model.local_ladder_m.size()) {
-          model.intensity[i] = std::max(0.0, r->value);
-          // Stopped below the top: the estimate's bias is bounded by about its own sd (that is
-          // where the intervals stop intersecting), so its error is counted twice.
-          model.intensity_sd[i] = std::sqrt(2.0 * r->var);
-          model.intensity_noise_sd[i] = std::sqrt(r->var);
-          return;
-        }
-        v = r->var;  // the global scale: the value of 5., its variance from the top step
-      }
-      if (!std::isfinite(v)) v = top_variance();
-      model.intensity_sd[i] = std::sqrt(v + std::pow(model.smoothing_error_rel * model.intensity[i], 2));
-      model.intensity_noise_sd[i] = std::sqrt(v);
-    };
-    // 6. Local scale along z (ICI): the cross-validated scale is right on average over the liner,
-    //    and the average is dominated by the many faces where the field is flat; where it changes
-    //    within a kernel (a real map's discharge-edge band holds several times the wear of the
-    //    band above), a smaller scale is used, as small as the data show the change to be real.
-    if (binned) {
-      // Step by step over the whole map, each face's intervals kept between steps.
-      std::vector<IciState> state(ici ? static_cast<size_t>(n) : 0);
-      Eigen::VectorXd val, top_var;
-      const size_t nk = ici ? model.local_ladder_m.size() : 1;
-      for (size_t s = 0; s < nk; ++s) {
-        const double h = ici ? model.local_ladder_m[s] : model.bandwidth_m;
-        BinnedStep(map, model.clean, &var, h, model.bandwidth_arc_m, model.local_linear, threads, val, &top_var);
-        for (Eigen::Index i = 0; ici && i < n; ++i) {
-          IciState& st = state[static_cast<size_t>(i)];
-          if (!st.done && std::isfinite(val[i])) st.Step(s, val[i], top_var[i], model.local_gamma);
-        }
-      }
-      for (Eigen::Index i = 0; i < n; ++i)
-        finish(i, ici ? &state[static_cast<size_t>(i)].out : nullptr, [&] { return top_var[i]; });
-    } else {
-      ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
-        for (Eigen::Index i = begin; i < end; ++i) {
-          IciResult r;
-          if (ici)
-            r = Ici(map, model.clean, model.local_ladder_m, model.bandwidth_arc_m, model.local_linear, *model.index, map.z[i],
-                    map.theta_deg[i], map.radius[i], -1, model.ref_var, model.local_gamma);
-          finish(i, ici ? &r : nullptr,
-                 [&] { return k.Variance(sums[static_cast<size_t>(i)], map.z[i], map.theta_deg[i], map.radius[i], -1, var); });
-        }
-      });
-    }
-    if (ici) {
-      for (Eigen::Index i = 0; i < n; ++i) model.face_var[i] = model.FaceVariance(model.intensity[i]);
-    }
+    });
   }
+}
+
+/// The faces' variance and standard errors at the chosen bandwidth (kernel `k`; `sums`, its sums
+/// per face, unless `binned`) and, with `ici`, at the local scale (6.) where that is smaller.
+void LocalScaleAndError(const WearMap& map, const Kernel& k, const std::vector<Sums>& sums, bool binned, bool ici,
+                        const MapModelOptions& options, int threads, MapModel& model) {
+  const Eigen::Index n = model.clean.size();
+  Eigen::VectorXd& var = model.face_var;
+  // With the local scale (6.) the variance comes from its pass over the neighbours (its top step
+  // is this kernel, on the same face variances); without it, or where that pass finds no
+  // estimate, from this kernel here.
+  if (ici) {
+    model.local_gamma = options.local_gamma;
+    model.ref_var = model.face_var;
+    model.local_bandwidth_m = Eigen::VectorXd::Zero(n);
+  }
+  // Face i's result from its local-scale estimate r (none: no local scale, or no estimate) and
+  // the variance at the chosen bandwidth (called only when needed).
+  auto finish = [&](Eigen::Index i, const IciResult* r, auto&& top_variance) {
+    double v = std::numeric_limits<double>::quiet_NaN();
+    if (r && std::isfinite(r->value)) {
+      model.local_bandwidth_m[i] = model.local_ladder_m[r->level];
+      if (r->level + 1 < model.local_ladder_m.size()) {
+        model.intensity[i] = std::max(0.0, r->value);
+        // Stopped below the top: the estimate's bias is bounded by about its own sd (that is
+        // where the intervals stop intersecting), so its error is counted twice.
+        model.intensity_sd[i] = std::sqrt(2.0 * r->var);
+        model.intensity_noise_sd[i] = std::sqrt(r->var);
+        return;
+      }
+      v = r->var;  // the global scale: the value of 5., its variance from the top step
+    }
+    if (!std::isfinite(v)) v = top_variance();
+    model.intensity_sd[i] = std::sqrt(v + std::pow(model.smoothing_error_rel * model.intensity[i], 2));
+    model.intensity_noise_sd[i] = std::sqrt(v);
+  };
+  // 6. Local scale along z (ICI): the cross-validated scale is right on average over the liner,
+  //    and the average is dominated by the many faces where the field is flat; where it changes
+  //    within a kernel (a real map's discharge-edge band holds several times the wear of the
+  //    band above), a smaller scale is used, as small as the data show the change to be real.
+  if (binned) {
+    // Step by step over the whole map, each face's intervals kept between steps.
+    std::vector<IciState> state(ici ? static_cast<size_t>(n) : 0);
+    Eigen::VectorXd val, top_var;
+    const size_t nk = ici ? model.local_ladder_m.size() : 1;
+    for (size_t s = 0; s < nk; ++s) {
+      const double h = ici ? model.local_ladder_m[s] : model.bandwidth_m;
+      BinnedStep(map, model.clean, &var, h, model.bandwidth_arc_m, model.local_linear, threads, val, &top_var);
+      for (Eigen::Index i = 0; ici && i < n; ++i) {
+        IciState& st = state[static_cast<size_t>(i)];
+        if (!st.done && std::isfinite(val[i])) st.Step(s, val[i], top_var[i], model.local_gamma);
+      }
+    }
+    for (Eigen::Index i = 0; i < n; ++i)
+      finish(i, ici ? &state[static_cast<size_t>(i)].out : nullptr, [&] { return top_var[i]; });
+  } else {
+    ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
+      for (Eigen::Index i = begin; i < end; ++i) {
+        IciResult r;
+        if (ici)
+          r = Ici(map, model.clean, model.local_ladder_m, model.bandwidth_arc_m, model.local_linear, *model.index, map.z[i],
+                  map.theta_deg[i], map.radius[i], -1, model.ref_var, model.local_gamma);
+        finish(i, ici ? &r : nullptr,
+               [&] { return k.Variance(sums[static_cast<size_t>(i)], map.z[i], map.theta_deg[i], map.radius[i], -1, var); });
+      }
+    });
+  }
+  if (ici) {
+    for (Eigen::Index i = 0; i < n; ++i) model.face_var[i] = model.FaceVariance(model.intensity[i]);
+  }
+}
+
+/// 5. The field at the chosen bandwidth, and its standard error.
+void SmoothField(const WearMap& map, const Eigen::VectorXd* nrm, const MapModelOptions& options, int threads, MapModel& model) {
+  const Eigen::Index n = model.clean.size();
+  Kernel k(map, model.clean, nrm, model.bandwidth_m, model.bandwidth_arc_m);
+  k.linear = model.local_linear;
+  model.index = k.owned;
+  // The ladder of the local scale (6.).
+  if (model.bandwidth_method == "cross-validation" && options.local_scale) {
+    for (double h = 0.25 * model.face_size_m; h < model.bandwidth_m * 0.999; h *= 1.4) model.local_ladder_m.push_back(h);
+    model.local_ladder_m.push_back(model.bandwidth_m);
+  }
+  const bool ici = model.local_ladder_m.size() > 1;
+  // Large maps: the kernel sums on a grid (BinnedStep), unless the finest scale's grid would be
+  // much larger than the map (a map very long along z for its face size).
+  const double finest = ici ? model.local_ladder_m.front() : model.bandwidth_m;
+  const bool binned = static_cast<size_t>(n) > options.binned_above_faces &&
+                      BinnedGrid(map, finest, model.bandwidth_arc_m).Cells() <= 16.0 * static_cast<double>(n) + 1e6;
+  std::vector<Sums> sums(binned ? 0 : static_cast<size_t>(n));
+  if (binned) {
+    Eigen::VectorXd v;
+    BinnedStep(map, model.clean, nullptr, model.bandwidth_m, model.bandwidth_arc_m, model.local_linear, threads, v, nullptr);
+    for (Eigen::Index i = 0; i < n; ++i) model.intensity[i] = std::isfinite(v[i]) ? std::max(0.0, v[i]) : model.clean[i];
+  } else {
+    ParallelFor(n, threads, [&](Eigen::Index begin, Eigen::Index end) {
+      for (Eigen::Index i = begin; i < end; ++i) {
+        sums[static_cast<size_t>(i)] = k.At(map.z[i], map.theta_deg[i], map.radius[i], -1);
+        const Sums& s = sums[static_cast<size_t>(i)];
+        model.intensity[i] = s.s0 > 0 ? std::max(0.0, s.Value()) : model.clean[i];
+      }
+    });
+  }
+  if (nrm) SmoothNormalStress(map, *nrm, binned, threads, model);
+  Eigen::VectorXd& var = model.face_var;
+  var.resize(n);
+  for (Eigen::Index i = 0; i < n; ++i) var[i] = model.FaceVariance(model.intensity[i]);
+  LocalScaleAndError(map, k, sums, binned, ici, options, threads, model);
+}
+
+}  // namespace
+
+MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
+  MapModel model;
+  model.map = &map;
+  const Eigen::Index n = static_cast<Eigen::Index>(map.face_count());
+  const int threads = options.threads > 0 ? options.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  model.clean = map.wear.size() == n ? Eigen::VectorXd(map.wear.cwiseMax(0.0)) : Eigen::VectorXd::Zero(n);
+  model.intensity = model.clean;
+  model.intensity_sd = Eigen::VectorXd::Zero(n);
+  model.intensity_noise_sd = Eigen::VectorXd::Zero(n);
+  if (map.has_normal_stress() && map.normal_stress.size() == n) model.normal_stress = map.normal_stress;
+  if (n == 0) return model;
+  const Eigen::VectorXd* nrm = model.normal_stress.size() ? &map.normal_stress : nullptr;
+
+  std::vector<double> sizes(static_cast<size_t>(n));
+  for (Eigen::Index i = 0; i < n; ++i) sizes[static_cast<size_t>(i)] = std::sqrt(2.0 * std::max(map.areas[i], 0.0));
+  model.face_size_m = std::max(Median(sizes), 1e-4);
+
+  const Pilot pilot = PilotEstimate(map, model, threads);
+  FitNoiseLaw(map, pilot, model);
+  CapOutliers(pilot.value, options, model);
+  const std::vector<std::pair<double, double>> candidates = BandwidthCandidates(map, options, model);
+  if (candidates.empty()) {
+    WithoutSmoothing(pilot.value, model);
+    return model;
+  }
+  ChooseBandwidth(map, candidates, pilot.value, options, threads, model);
+  SmoothField(map, nrm, options, threads, model);
 
   std::vector<double> cv;
   for (Eigen::Index i = 0; i < n; ++i)

@@ -23,7 +23,7 @@
 
 namespace lw::server {
 
-/// What the rules of one crusher look at, at one time (gathered by the wear worker, server.cpp).
+/// What the rules of one crusher look at, at one time (gathered by the wear worker, server/wear_worker.hpp).
 struct AlarmInputs {
   int64_t now_s = 0;
   const CrusherState* wear = nullptr;  ///< the latest wear (nullptr or !has_wear: the wear rules hold)
