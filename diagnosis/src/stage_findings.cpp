@@ -174,6 +174,24 @@ void SummariseNoise(const Problem& prob, const NullModel& null, const std::vecto
       Round(null_fit.chi2 / std::max<double>(1.0, static_cast<double>(null_fit.n_train)), 3);
   result.noise["mismatch_z_score"] = Round(null.mismatch_z, 2);
   {
+    // Per observation type, the parts of the very chi-square z is made of (scan cells with their
+    // band offsets' priors; the sensors' intensity-error priors apart from their events).
+    const Chi2Parts& c = null.parts;
+    auto part = [](double chi2, size_t n) {
+      nlohmann::ordered_json j;
+      j["chi2"] = Round(chi2, 3);
+      j["n"] = n;
+      j["per_observation"] = Round(n ? chi2 / static_cast<double>(n) : 0.0, 4);
+      return j;
+    };
+    nlohmann::ordered_json by = nlohmann::ordered_json::object();
+    by["sensor_events"] = part(c.events, c.n_events);
+    by["sensor_priors"] = part(c.priors, c.n_priors);
+    by["scan_cells"] = part(c.scan, c.n_scan);
+    result.noise["refit_chi2_by_type"] = by;
+    result.noise["mismatch_dof"] = std::max(1.0, static_cast<double>(null.fit.n_train) - static_cast<double>(prob.rows));
+  }
+  {
     nlohmann::ordered_json f = nlohmann::ordered_json::array();
     for (const Fold& fold : folds) f.push_back(fold.name);
     result.noise["holdout_folds"] = f;

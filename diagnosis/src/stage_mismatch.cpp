@@ -69,6 +69,8 @@ NullModel TestMismatch(const Problem& prob, const Baseline& base, const std::vec
   null.mismatch_z = (null.fit.chi2 - dof) / std::sqrt(2.0 * dof);
   null.log_n = std::log(std::max<double>(static_cast<double>(prob.obs.size()), 2.0));
   null.eval = Evaluate(prob, base.spec, {}, null.fit, folds, base.k_scale);
+  const KindChi2 k = Chi2ByKind(prob, base.spec, null.fit.x);
+  null.parts = {k.sensors_events_only, k.u_prior, k.scan, k.n_sensors, k.n_u, k.n_scan};
   return null;
 }
 

@@ -12,12 +12,21 @@
 
 namespace lw::diagnosis::detail {
 
+/// The refit baseline's chi-square split by observation type: sensor events, the sensors'
+/// intensity-error priors (u^2 / sigma_u^2), scan cells (with the band offsets' priors). Each type
+/// has its own noise terms, so each is checked against its own count.
+struct Chi2Parts {
+  double events = 0, priors = 0, scan = 0;
+  size_t n_events = 0, n_priors = 0, n_scan = 0;
+};
+
 struct NullModel {
   FitResult fit;          ///< the baseline refitted on every observation, noise model on
   Eigen::MatrixXd w;      ///< its simulated wear (points x steps)
   double mismatch_z = 0;  ///< (chi2 - dof) / sqrt(2 dof)
   double log_n = 0;       ///< ln(observations): the BIC charge per parameter
   ModelEval eval;         ///< the refit baseline evaluated on the folds
+  Chi2Parts parts;        ///< its chi-square by observation type
 };
 
 /// Whether the refit baseline's fit is usable (parameters and map-noise terms finite).
