@@ -276,8 +276,9 @@ void PrintAreaSummary(const char* title, const std::vector<std::pair<std::string
 struct CalibrationRow {
   size_t case_index = 0;
   std::string chamber;
-  double z = kNaN, dof = kNaN;
-  double chi2[3] = {0, 0, 0};  // sensor events, sensor priors, scan cells
+  double z = kNaN, z_modelled = kNaN, dof = kNaN;
+  double chi2[3] = {0, 0, 0};                 // sensor events, sensor priors, scan cells
+  double calibrated[3] = {kNaN, kNaN, kNaN};  // chi-square per observation after the learned noise
   double n[3] = {0, 0, 0};
 };
 
@@ -290,6 +291,11 @@ CalibrationRow ReadCalibration(size_t k, const std::string& chamber, const lw::d
   row.z = r.mismatch_z_score;
   const auto& noise = r.noise;
   if (noise.contains("mismatch_dof")) row.dof = noise["mismatch_dof"].get<double>();
+  if (noise.contains("mismatch_z_modelled_noise")) row.z_modelled = noise["mismatch_z_modelled_noise"].get<double>();
+  if (noise.contains("mismatch_calibration"))
+    for (int t = 0; t < 3; ++t)
+      if (noise["mismatch_calibration"].contains(kObsTypes[t]))
+        row.calibrated[t] = noise["mismatch_calibration"][kObsTypes[t]]["chi2_per_observation"].get<double>();
   if (!noise.contains("refit_chi2_by_type")) return row;
   for (int t = 0; t < 3; ++t) {
     const auto& part = noise["refit_chi2_by_type"][kObsTypes[t]];
@@ -320,17 +326,27 @@ void PrintCalibrationSummary(const char* label, const std::vector<double>& z, co
 // chamber's: leave one chamber out.
 void PrintCalibration(const std::vector<CalibrationRow>& rows) {
   std::printf(
-      "\nCalibration of the mismatch test on the nulls (chi-square per observation by type, z = (chi2 - dof) / sqrt(2 dof)):\n");
-  std::printf("%-5s %-24s %8s %8s %7s %10s %7s %10s %7s %10s\n", "case", "chamber", "z", "dof", "events", "chi2/event", "priors",
-              "chi2/prior", "cells", "chi2/cell");
+      "\nCalibration of the mismatch test on the nulls. modelled: under the noise the map's windows suggest, z = (chi2 - "
+      "dof) / sqrt(2 dof);\nlearned: the diagnosis' z, and the chi-square per observation after the noise is learned per "
+      "type from the residuals (each group held out)\n");
+  std::printf("%-5s %-20s %8s %8s %6s %10s %8s %6s %10s %8s %6s %10s %8s\n", "case", "chamber", "z model", "z learn", "events",
+              "chi2/event", "learned", "priors", "chi2/prior", "learned", "cells", "chi2/cell", "learned");
+  auto per = [](const CalibrationRow& r, int t) { return r.n[t] > 0 ? r.chi2[t] / r.n[t] : kNaN; };
   for (const CalibrationRow& r : rows)
-    std::printf("%-5zu %-24s %8.2f %8.0f %7.0f %10.4g %7.0f %10.4g %7.0f %10.4g\n", r.case_index, r.chamber.c_str(), r.z, r.dof,
-                r.n[0], r.n[0] > 0 ? r.chi2[0] / r.n[0] : kNaN, r.n[1], r.n[1] > 0 ? r.chi2[1] / r.n[1] : kNaN, r.n[2],
-                r.n[2] > 0 ? r.chi2[2] / r.n[2] : kNaN);
-  std::vector<double> z;
-  for (const CalibrationRow& r : rows) z.push_back(r.z);
+    std::printf("%-5zu %-20s %8.2f %8.2f %6.0f %10.4g %8.3f %6.0f %10.4g %8.3f %6.0f %10.4g %8.3f\n", r.case_index,
+                r.chamber.c_str(), r.z_modelled, r.z, r.n[0], per(r, 0), r.calibrated[0], r.n[1], per(r, 1), r.calibrated[1],
+                r.n[2], per(r, 2), r.calibrated[2]);
+  std::vector<double> z, zm;
+  for (const CalibrationRow& r : rows) {
+    z.push_back(r.z);
+    zm.push_back(r.z_modelled);
+  }
   const std::vector<std::array<double, 3>> ones(rows.size(), {1.0, 1.0, 1.0});
-  PrintCalibrationSummary("as the diagnosis computes it", z, rows, ones);
+  PrintCalibrationSummary("modelled noise", zm, rows, ones);
+  std::vector<CalibrationRow> learned = rows;
+  for (CalibrationRow& r : learned)
+    for (int t = 0; t < 3; ++t) r.chi2[t] = std::isfinite(r.calibrated[t]) ? r.calibrated[t] * r.n[t] : 0;
+  PrintCalibrationSummary("noise learned from the residuals (the diagnosis' z)", z, learned, ones);
   std::vector<std::string> chambers;
   for (const CalibrationRow& r : rows)
     if (std::find(chambers.begin(), chambers.end(), r.chamber) == chambers.end()) chambers.push_back(r.chamber);
@@ -372,6 +388,7 @@ constexpr const char* kHelp =
     "                                the product (bench/diagnosis/RESULTS.md)\n"
     "  --calibration                 print the mismatch test's calibration on the nulls (z, chi-square per observation\n"
     "                                by type, a variance scale per type learned leaving one chamber out)\n"
+    "  --learned-noise               fit the hypotheses with the noise the mismatch test learns\n"
     "  --nulls N                     realdem: N nulls (default 30); --dem-dir takes a comma-separated list\n"
     "  --oracle                      also fit the true effect with its true parameters (what is detectable at all)\n"
     "  --forms diagnosis|alt         realdem: the effects in the diagnosis' own forms or other forms\n"
@@ -384,8 +401,9 @@ int main(int argc, char** argv) {
   int threads = 1;
   unsigned seed0 = 1;
   std::string keep, generator = "test", only, level_filter, json_dir, dem_dir;
-  bool calibration = false;  // print the mismatch test's calibration on the nulls
-  int null_count = 30;       // realdem: nulls
+  bool calibration = false;    // print the mismatch test's calibration on the nulls
+  bool learned_noise = false;  // DiagnoseOptions::learned_noise_in_hypotheses
+  int null_count = 30;         // realdem: nulls
   double truth_radius = 0.12;
   bool truth_local_linear = false;
   bool live_only = false, oracle = false, alt_forms = false;
@@ -433,6 +451,8 @@ int main(int argc, char** argv) {
       window_cv = true;
     else if (a == "--calibration")
       calibration = true;
+    else if (a == "--learned-noise")
+      learned_noise = true;
     else if (a == "--nulls" && i + 1 < argc)
       null_count = std::stoi(argv[++i]);
     else if (a == "--oracle")
@@ -444,7 +464,8 @@ int main(int argc, char** argv) {
                    "usage: lw_bench_diagnosis [--generator test|sim|realdem] [--dem-dir DIR] [--truth-radius F] [--truth-form "
                    "top-hat|local-linear] [--live-only] "
                    "[--live-shrink HZ,HA] [--live-fixed HZ,HA] [--live-window-cv] [--oracle] "
-                   "[--forms diagnosis|alt] [--calibration] [--nulls N] [--cases N] [--only TRUTH] [--level L[,L...]] [--seed S] "
+                   "[--forms diagnosis|alt] [--calibration] [--learned-noise] [--nulls N] [--cases N] [--only TRUTH] [--level "
+                   "L[,L...]] [--seed S] "
                    "[--keep DIR] [--json-dir "
                    "DIR] [--threads N]\n");
       return 2;
@@ -905,6 +926,7 @@ int main(int argc, char** argv) {
       return out_case;
     }
     lw::diagnosis::DiagnoseOptions opt;
+    opt.learned_noise_in_hypotheses = learned_noise;
     opt.predict_at = t_pred;
     if (oracle && !use_sim) opt.oracle = TrueEffect(c, use_real, bundle.crusher.thickness_new_mm);
     const auto start = std::chrono::steady_clock::now();

@@ -190,6 +190,24 @@ void SummariseNoise(const Problem& prob, const NullModel& null, const std::vecto
     by["scan_cells"] = part(c.scan, c.n_scan);
     result.noise["refit_chi2_by_type"] = by;
     result.noise["mismatch_dof"] = std::max(1.0, static_cast<double>(null.fit.n_train) - static_cast<double>(prob.rows));
+    result.noise["mismatch_z_modelled_noise"] = Round(null.mismatch_z_modelled, 2);
+    // The calibration the test uses (MismatchCalibration): each type's variance scale learned
+    // from its groups held out, its effective correlation, and the chi-square per observation
+    // after it (about 1 where the noise is learned).
+    const MismatchCalibration& m = null.calibration;
+    nlohmann::ordered_json cal = nlohmann::ordered_json::object();
+    const char* names[3] = {"sensor_events", "sensor_priors", "scan_cells"};
+    for (int t = 0; t < 3; ++t) {
+      if (m.n[t] == 0) continue;
+      nlohmann::ordered_json j;
+      j["groups"] = m.groups[t];
+      j["learned"] = m.learned[t];
+      j["variance_scale"] = Round(m.scale[t], 4);
+      j["correlation"] = Round(m.correlation[t], 2);
+      j["chi2_per_observation"] = Round(m.chi2_calibrated[t] / static_cast<double>(m.n[t]), 3);
+      cal[names[t]] = j;
+    }
+    result.noise["mismatch_calibration"] = cal;
   }
   {
     nlohmann::ordered_json f = nlohmann::ordered_json::array();
