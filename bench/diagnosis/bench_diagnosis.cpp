@@ -16,6 +16,7 @@
 // reported results are from a run without filters.
 // --forms alt (realdem): the effects in other shapes than the diagnosis fits (RealDemSpec::alt_forms).
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -271,6 +272,104 @@ void PrintAreaSummary(const char* title, const std::vector<std::pair<std::string
       in_band, n, Median(halfw), rows_sup, rows);
 }
 
+// One null's mismatch statistic and its chi-square by observation type (the diagnosis' `noise`).
+struct CalibrationRow {
+  size_t case_index = 0;
+  std::string chamber;
+  double z = kNaN, z_modelled = kNaN, dof = kNaN;
+  double chi2[3] = {0, 0, 0};                 // sensor events, sensor priors, scan cells
+  double calibrated[3] = {kNaN, kNaN, kNaN};  // chi-square per observation after the learned noise
+  double n[3] = {0, 0, 0};
+};
+
+constexpr const char* kObsTypes[3] = {"sensor_events", "sensor_priors", "scan_cells"};
+
+CalibrationRow ReadCalibration(size_t k, const std::string& chamber, const lw::diagnosis::DiagnosisResult& r) {
+  CalibrationRow row;
+  row.case_index = k;
+  row.chamber = chamber;
+  row.z = r.mismatch_z_score;
+  const auto& noise = r.noise;
+  if (noise.contains("mismatch_dof")) row.dof = noise["mismatch_dof"].get<double>();
+  if (noise.contains("mismatch_z_modelled_noise")) row.z_modelled = noise["mismatch_z_modelled_noise"].get<double>();
+  if (noise.contains("mismatch_calibration"))
+    for (int t = 0; t < 3; ++t)
+      if (noise["mismatch_calibration"].contains(kObsTypes[t]))
+        row.calibrated[t] = noise["mismatch_calibration"][kObsTypes[t]]["chi2_per_observation"].get<double>();
+  if (!noise.contains("refit_chi2_by_type")) return row;
+  for (int t = 0; t < 3; ++t) {
+    const auto& part = noise["refit_chi2_by_type"][kObsTypes[t]];
+    row.chi2[t] = part["chi2"].get<double>();
+    row.n[t] = part["n"].get<double>();
+  }
+  return row;
+}
+
+// The share of |z| <= 2 and the median chi-square per observation by type.
+void PrintCalibrationSummary(const char* label, const std::vector<double>& z, const std::vector<CalibrationRow>& rows,
+                             const std::vector<std::array<double, 3>>& scale) {
+  int within = 0;
+  for (double v : z) within += std::isfinite(v) && std::fabs(v) <= 2;
+  std::printf("%s: |z| <= 2 in %d / %zu nulls (%.0f %%, target >= 90 %%); z median %.2f", label, within, z.size(),
+              z.empty() ? 0.0 : 100.0 * within / static_cast<double>(z.size()), Median(z));
+  for (int t = 0; t < 3; ++t) {
+    std::vector<double> per;
+    for (size_t i = 0; i < rows.size(); ++i)
+      if (rows[i].n[t] > 0) per.push_back(rows[i].chi2[t] / rows[i].n[t] / scale[i][static_cast<size_t>(t)]);
+    if (!per.empty()) std::printf("; chi2 per %s median %.4g", kObsTypes[t], Median(per));
+  }
+  std::printf(" (target 0.5-2)\n");
+}
+
+// Per null: z and the chi-square per observation by type; then a variance scale per type learned on
+// the other chambers' nulls (the median of their chi-square per observation) and applied to this
+// chamber's: leave one chamber out.
+void PrintCalibration(const std::vector<CalibrationRow>& rows) {
+  std::printf(
+      "\nCalibration of the mismatch test on the nulls. modelled: under the noise the map's windows suggest, z = (chi2 - "
+      "dof) / sqrt(2 dof);\nlearned: the diagnosis' z, and the chi-square per observation after the noise is learned per "
+      "type from the residuals (each group held out)\n");
+  std::printf("%-5s %-20s %8s %8s %6s %10s %8s %6s %10s %8s %6s %10s %8s\n", "case", "chamber", "z model", "z learn", "events",
+              "chi2/event", "learned", "priors", "chi2/prior", "learned", "cells", "chi2/cell", "learned");
+  auto per = [](const CalibrationRow& r, int t) { return r.n[t] > 0 ? r.chi2[t] / r.n[t] : kNaN; };
+  for (const CalibrationRow& r : rows)
+    std::printf("%-5zu %-20s %8.2f %8.2f %6.0f %10.4g %8.3f %6.0f %10.4g %8.3f %6.0f %10.4g %8.3f\n", r.case_index,
+                r.chamber.c_str(), r.z_modelled, r.z, r.n[0], per(r, 0), r.calibrated[0], r.n[1], per(r, 1), r.calibrated[1],
+                r.n[2], per(r, 2), r.calibrated[2]);
+  std::vector<double> z, zm;
+  for (const CalibrationRow& r : rows) {
+    z.push_back(r.z);
+    zm.push_back(r.z_modelled);
+  }
+  const std::vector<std::array<double, 3>> ones(rows.size(), {1.0, 1.0, 1.0});
+  PrintCalibrationSummary("modelled noise", zm, rows, ones);
+  std::vector<CalibrationRow> learned = rows;
+  for (CalibrationRow& r : learned)
+    for (int t = 0; t < 3; ++t) r.chi2[t] = std::isfinite(r.calibrated[t]) ? r.calibrated[t] * r.n[t] : 0;
+  PrintCalibrationSummary("noise learned from the residuals (the diagnosis' z)", z, learned, ones);
+  std::vector<std::string> chambers;
+  for (const CalibrationRow& r : rows)
+    if (std::find(chambers.begin(), chambers.end(), r.chamber) == chambers.end()) chambers.push_back(r.chamber);
+  if (chambers.size() < 2) return;
+  std::vector<double> z_loco(rows.size(), kNaN);
+  std::vector<std::array<double, 3>> scale(rows.size(), {1.0, 1.0, 1.0});
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const CalibrationRow& r = rows[i];
+    double chi2 = 0;
+    for (int t = 0; t < 3; ++t) {
+      std::vector<double> other;
+      for (const CalibrationRow& o : rows)
+        if (o.chamber != r.chamber && o.n[t] > 0) other.push_back(o.chi2[t] / o.n[t]);
+      const double s = other.empty() ? 1.0 : std::max(Median(other), 1e-6);
+      scale[i][static_cast<size_t>(t)] = s;
+      chi2 += r.chi2[t] / s;
+    }
+    z_loco[i] = std::isfinite(r.dof) ? (chi2 - r.dof) / std::sqrt(2.0 * r.dof) : kNaN;
+  }
+  PrintCalibrationSummary("a variance scale per type from the other chambers' nulls (leave one chamber out)", z_loco, rows,
+                          scale);
+}
+
 }  // namespace
 
 // --help: what the benchmark does and each option (docs/diagnosis.md, "Benchmark").
@@ -287,6 +386,10 @@ constexpr const char* kHelp =
     "  --live-only                   realdem: live wear on the nulls only (no diagnosis)\n"
     "  --live-shrink HZ,HA, --live-fixed HZ,HA, --live-window-cv   realdem: prototypes of other kernels, printed beside\n"
     "                                the product (bench/diagnosis/RESULTS.md)\n"
+    "  --calibration                 print the mismatch test's calibration on the nulls (z, chi-square per observation\n"
+    "                                by type, a variance scale per type learned leaving one chamber out)\n"
+    "  --learned-noise               fit the hypotheses with the noise the mismatch test learns\n"
+    "  --nulls N                     realdem: N nulls (default 30); --dem-dir takes a comma-separated list\n"
     "  --oracle                      also fit the true effect with its true parameters (what is detectable at all)\n"
     "  --forms diagnosis|alt         realdem: the effects in the diagnosis' own forms or other forms\n"
     "  --cases N, --only TRUTH, --level L[,L...], --seed S   which cases\n"
@@ -298,6 +401,9 @@ int main(int argc, char** argv) {
   int threads = 1;
   unsigned seed0 = 1;
   std::string keep, generator = "test", only, level_filter, json_dir, dem_dir;
+  bool calibration = false;    // print the mismatch test's calibration on the nulls
+  bool learned_noise = false;  // DiagnoseOptions::learned_noise_in_hypotheses
+  int null_count = 30;         // realdem: nulls
   double truth_radius = 0.12;
   bool truth_local_linear = false;
   bool live_only = false, oracle = false, alt_forms = false;
@@ -343,6 +449,12 @@ int main(int argc, char** argv) {
       ++i;
     else if (a == "--live-window-cv")
       window_cv = true;
+    else if (a == "--calibration")
+      calibration = true;
+    else if (a == "--learned-noise")
+      learned_noise = true;
+    else if (a == "--nulls" && i + 1 < argc)
+      null_count = std::stoi(argv[++i]);
     else if (a == "--oracle")
       oracle = true;
     else if (a == "--forms" && i + 1 < argc && (std::string(argv[i + 1]) == "alt" || std::string(argv[i + 1]) == "diagnosis"))
@@ -352,7 +464,9 @@ int main(int argc, char** argv) {
                    "usage: lw_bench_diagnosis [--generator test|sim|realdem] [--dem-dir DIR] [--truth-radius F] [--truth-form "
                    "top-hat|local-linear] [--live-only] "
                    "[--live-shrink HZ,HA] [--live-fixed HZ,HA] [--live-window-cv] [--oracle] "
-                   "[--forms diagnosis|alt] [--cases N] [--only TRUTH] [--level L[,L...]] [--seed S] [--keep DIR] [--json-dir "
+                   "[--forms diagnosis|alt] [--calibration] [--learned-noise] [--nulls N] [--cases N] [--only TRUTH] [--level "
+                   "L[,L...]] [--seed S] "
+                   "[--keep DIR] [--json-dir "
                    "DIR] [--threads N]\n");
       return 2;
     }
@@ -376,7 +490,11 @@ int main(int argc, char** argv) {
   }
   std::vector<lw::bench::DemRun> runs;
   if (use_real) {
-    runs = lw::bench::LoadDemRuns(dem_dir);
+    // A comma-separated list of libraries: their runs together (the calibration's chambers).
+    for (const std::string& d : SplitCommas(dem_dir)) {
+      std::vector<lw::bench::DemRun> more = lw::bench::LoadDemRuns(d);
+      for (auto& r : more) runs.push_back(std::move(r));
+    }
     if (runs.empty()) {
       std::fprintf(stderr, "lw_bench_diagnosis: no run folders in %s\n", dem_dir.c_str());
       return 2;
@@ -523,7 +641,7 @@ int main(int argc, char** argv) {
         }
       }
     }
-    for (int rep = 0; rep < 30; ++rep) {
+    for (int rep = 0; rep < null_count; ++rep) {
       Case c;
       c.truth = "none";
       c.level = "-";
@@ -808,6 +926,7 @@ int main(int argc, char** argv) {
       return out_case;
     }
     lw::diagnosis::DiagnoseOptions opt;
+    opt.learned_noise_in_hypotheses = learned_noise;
     opt.predict_at = t_pred;
     if (oracle && !use_sim) opt.oracle = TrueEffect(c, use_real, bundle.crusher.thickness_new_mm);
     const auto start = std::chrono::steady_clock::now();
@@ -973,6 +1092,13 @@ int main(int argc, char** argv) {
     PrintAreaSummary("the liner's thinnest area at the inspection day, no scan", areas);
     PrintAreaSummary("the same 15 days after the scan, with the scan applied", areas_scan);
     if (live_only) return 0;
+  }
+  if (calibration) {
+    std::vector<CalibrationRow> rows;
+    for (size_t k = 0; k < cases.size(); ++k)
+      if (cases[k].truth == "none")
+        rows.push_back(ReadCalibration(k, use_real ? runs[cases[k].run].name : generator, outcomes[k].result));
+    PrintCalibration(rows);
   }
   std::printf("%-45s %-9s %-22s %-6s %8s %8s %8s\n", "truth", "level", "top finding", "conf", "base_mm", "impr_mm", "refit_mm");
   int effect_cases = 0, effect_better = 0, null_pred = 0, null_not_worse = 0;

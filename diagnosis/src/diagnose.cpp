@@ -11,7 +11,9 @@
 //   stage_report       what the outputs say about the decisions: excluded sensors, residuals
 //                      beside their noise, whether the noise model fits, why hypotheses failed
 #include <algorithm>
+#include <cmath>
 #include <optional>
+#include <vector>
 
 #include "diagnosis/diagnose.hpp"
 #include "stage_baseline.hpp"
@@ -87,7 +89,17 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   const detail::Problem& prob = setup.prob;
   const std::vector<detail::Fold> folds = detail::BuildFolds(setup, options.holdout_fraction);
 
-  const detail::NullModel null = detail::TestMismatch(prob, base, folds);
+  detail::NullModel null = detail::TestMismatch(prob, base, folds);
+  if (options.learned_noise_in_hypotheses) {
+    // The test's figures stay those of the modelled noise it learned from; the fits use the learned.
+    const detail::NullModel first = null;
+    detail::ApplyLearnedNoise(setup.prob, first.calibration);
+    null = detail::TestMismatch(prob, base, folds);
+    null.calibration = first.calibration;
+    null.mismatch_z = first.mismatch_z;
+    null.mismatch_z_modelled = first.mismatch_z_modelled;
+    null.parts = first.parts;
+  }
   result.mismatch_z_score = null.mismatch_z;
   if (oracle_effect) result.oracle = detail::MeasureOracle(prob, base, null, *oracle_effect, *options.oracle);
   result.baseline = detail::BaselineMetrics(prob, base, folds);
@@ -105,9 +117,16 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   result.sensors = detail::ExplainSensors(setup, base, null, result.data_quality,
                                           result.noise.value("map_pattern_error_source", std::string()));
   result.noise_fit = detail::JudgeNoiseFit(result.noise, result.mismatch_z_score, result.sensors);
-  detail::AddDetectionLimit(result.noise_fit, result.mismatch_z_score,
-                            std::max(1.0, static_cast<double>(null.fit.n_train) - static_cast<double>(prob.rows)),
-                            result.sensors);
+  {
+    // In the calibrated test's units: its variance is 2 sum(b n), and a sensor's static error costs
+    // (error / sd)^2 over the sensors' learned variance scale.
+    const detail::MismatchCalibration& cal = null.calibration;
+    double dof = 0;
+    for (int t = 0; t < 3; ++t) dof += cal.correlation[t] * static_cast<double>(cal.n[t]);
+    std::vector<SensorNoise> learned = result.sensors;
+    for (SensorNoise& n : learned) n.noise_sd_mm *= std::sqrt(cal.scale[1]);
+    detail::AddDetectionLimit(result.noise_fit, result.mismatch_z_score, std::max(1.0, dof), learned);
+  }
   // The improved model: the chosen one; with nothing chosen, the refit baseline (row scales fitted
   // to the sensors and scans together, each sensor's map-noise term: the map recalibrated where it
   // was measured, no physics added), unless its fit failed; then Eq. 9 itself.

@@ -174,6 +174,42 @@ void SummariseNoise(const Problem& prob, const NullModel& null, const std::vecto
       Round(null_fit.chi2 / std::max<double>(1.0, static_cast<double>(null_fit.n_train)), 3);
   result.noise["mismatch_z_score"] = Round(null.mismatch_z, 2);
   {
+    // Per observation type, the parts of the very chi-square z is made of (scan cells with their
+    // band offsets' priors; the sensors' intensity-error priors apart from their events).
+    const Chi2Parts& c = null.parts;
+    auto part = [](double chi2, size_t n) {
+      nlohmann::ordered_json j;
+      j["chi2"] = Round(chi2, 3);
+      j["n"] = n;
+      j["per_observation"] = Round(n ? chi2 / static_cast<double>(n) : 0.0, 4);
+      return j;
+    };
+    nlohmann::ordered_json by = nlohmann::ordered_json::object();
+    by["sensor_events"] = part(c.events, c.n_events);
+    by["sensor_priors"] = part(c.priors, c.n_priors);
+    by["scan_cells"] = part(c.scan, c.n_scan);
+    result.noise["refit_chi2_by_type"] = by;
+    result.noise["mismatch_dof"] = std::max(1.0, static_cast<double>(null.fit.n_train) - static_cast<double>(prob.rows));
+    result.noise["mismatch_z_modelled_noise"] = Round(null.mismatch_z_modelled, 2);
+    // The calibration the test uses (MismatchCalibration): each type's variance scale learned
+    // from its groups held out, its effective correlation, and the chi-square per observation
+    // after it (about 1 where the noise is learned).
+    const MismatchCalibration& m = null.calibration;
+    nlohmann::ordered_json cal = nlohmann::ordered_json::object();
+    const char* names[3] = {"sensor_events", "sensor_priors", "scan_cells"};
+    for (int t = 0; t < 3; ++t) {
+      if (m.n[t] == 0) continue;
+      nlohmann::ordered_json j;
+      j["groups"] = m.groups[t];
+      j["learned"] = m.learned[t];
+      j["variance_scale"] = Round(m.scale[t], 4);
+      j["correlation"] = Round(m.correlation[t], 2);
+      j["chi2_per_observation"] = Round(m.chi2_calibrated[t] / static_cast<double>(m.n[t]), 3);
+      cal[names[t]] = j;
+    }
+    result.noise["mismatch_calibration"] = cal;
+  }
+  {
     nlohmann::ordered_json f = nlohmann::ordered_json::array();
     for (const Fold& fold : folds) f.push_back(fold.name);
     result.noise["holdout_folds"] = f;

@@ -3,6 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <utility>
+#include <vector>
 #include <stdexcept>
 
 #include "levenberg_marquardt.hpp"
@@ -17,7 +20,17 @@ struct KindChi2 {
   double sensors_events_only = 0;
   double u_prior = 0;  ///< sum of u^2 / sigma_u^2 over the sensors
   size_t n_u = 0;
+  // Per group (sensor, or scan x sector x half) and type: chi-square and count.
+  std::map<std::pair<int, long>, std::pair<double, size_t>> groups;
 };
+
+// A scan cell's group: its scan, its sixth of the circumference and its half of the concave height.
+long ScanGroup(const Problem& prob, const Obs& o) {
+  const ModelPoint& p = prob.points[o.point];
+  const double theta = std::atan2(p.sin_t, p.cos_t) + kPi;  // [0, 2 pi]
+  const long sector = std::min(5L, static_cast<long>(theta / (2 * kPi / 6)));
+  return (static_cast<long>(o.scan) * 6 + sector) * 2 + (p.zn < 0 ? 0 : 1);
+}
 
 KindChi2 Chi2ByKind(const Problem& prob, const ModelSpec& spec, const Eigen::VectorXd& x) {
   const Mask all(prob.obs.size(), true);
@@ -36,6 +49,9 @@ KindChi2 Chi2ByKind(const Problem& prob, const ModelSpec& spec, const Eigen::Vec
     if (o.sensor >= 0) pred *= 1.0 + u[static_cast<size_t>(o.sensor)];
     if (o.scan >= 0) pred *= 1.0 + band[static_cast<size_t>(BandIndex(prob, o))];
     const double z = (pred - o.wear) / o.sigma;
+    auto& g = o.sensor >= 0 ? k.groups[{0, o.sensor}] : k.groups[{2, ScanGroup(prob, o)}];
+    g.first += z * z;
+    ++g.second;
     if (o.sensor >= 0) {
       k.sensors_events_only += z * z;
       ++k.n_sensors;
@@ -46,14 +62,74 @@ KindChi2 Chi2ByKind(const Problem& prob, const ModelSpec& spec, const Eigen::Vec
   }
   for (size_t s = 0; s < u.size(); ++s) {
     if (prob.sensor_obs[s].empty()) continue;
-    k.u_prior += u[s] * u[s] / (prob.sigma_u[s] * prob.sigma_u[s]);
+    const double c = u[s] * u[s] / (prob.sigma_u[s] * prob.sigma_u[s]);
+    k.u_prior += c;
     ++k.n_u;
+    k.groups[{1, static_cast<long>(s)}] = {c, 1};
   }
   k.sensors = k.sensors_events_only + k.u_prior;
   return k;
 }
 
+MismatchCalibration Calibrate(const KindChi2& k) {
+  MismatchCalibration cal;
+  double excess = 0, variance = 0;
+  for (int t = 0; t < 3; ++t) {
+    std::vector<std::pair<double, size_t>> g;
+    double c_all = 0;
+    size_t n_all = 0;
+    for (const auto& [key, v] : k.groups)
+      if (key.first == t && v.second > 0) {
+        g.push_back(v);
+        c_all += v.first;
+        n_all += v.second;
+      }
+    const auto n = static_cast<double>(n_all);
+    cal.n[t] = n_all;
+    cal.groups[t] = g.size();
+    if (n_all == 0) continue;
+    cal.scale[t] = c_all / n;
+    cal.learned[t] = g.size() >= 3 && c_all > 0;
+    if (!cal.learned[t]) {
+      // Too few groups to hold one out: the modelled noise, its observations independent.
+      cal.scale[t] = 1;
+      cal.chi2_calibrated[t] = c_all;
+      excess += c_all - n;
+      variance += 2 * n;
+      continue;
+    }
+    double q_sum = 0;
+    std::vector<double> spread;
+    for (const auto& [c, m] : g) {
+      const double others = (c_all - c) / (n - static_cast<double>(m));
+      const double q = c / std::max(others, 1e-12 * cal.scale[t]);
+      q_sum += q;
+      const double x = q / static_cast<double>(m) - 1;
+      spread.push_back(static_cast<double>(m) * x * x / 2);
+    }
+    // The largest group's spread is left out of b (from 4 groups on): with every group's in it, a
+    // mismatch in one sensor widens the noise it is judged against so much that z stays near 1
+    // however large the mismatch.
+    std::sort(spread.begin(), spread.end());
+    if (spread.size() >= 4) spread.pop_back();
+    double b = 0;
+    for (double v : spread) b += v;
+    cal.correlation[t] = std::max(1.0, b / static_cast<double>(spread.size()));
+    cal.chi2_calibrated[t] = q_sum;
+    excess += q_sum - n;
+    variance += 2 * cal.correlation[t] * n;
+  }
+  cal.z = variance > 0 ? excess / std::sqrt(variance) : 0;
+  return cal;
+}
+
 }  // namespace
+
+void ApplyLearnedNoise(Problem& prob, const MismatchCalibration& cal) {
+  auto factor = [&](int t) { return cal.learned[t] ? std::sqrt(cal.scale[t] * cal.correlation[t]) : 1.0; };
+  for (Obs& o : prob.obs) o.sigma *= factor(o.sensor >= 0 ? 0 : 2);
+  for (double& s : prob.sigma_u) s *= factor(1);
+}
 
 bool RefitUsable(const NullModel& null) {
   return null.fit.x.size() > 0 && null.fit.x.allFinite() &&
@@ -66,9 +142,13 @@ NullModel TestMismatch(const Problem& prob, const Baseline& base, const std::vec
   null.fit = Fit(prob, base.spec, base.all, joint, {base.eq9.x}, 30, base.k_scale);
   Simulate(base.spec, null.fit.x, prob.points, prob.grid, null.w);
   const double dof = std::max(1.0, static_cast<double>(null.fit.n_train) - static_cast<double>(prob.rows));
-  null.mismatch_z = (null.fit.chi2 - dof) / std::sqrt(2.0 * dof);
+  null.mismatch_z_modelled = (null.fit.chi2 - dof) / std::sqrt(2.0 * dof);
   null.log_n = std::log(std::max<double>(static_cast<double>(prob.obs.size()), 2.0));
   null.eval = Evaluate(prob, base.spec, {}, null.fit, folds, base.k_scale);
+  const KindChi2 k = Chi2ByKind(prob, base.spec, null.fit.x);
+  null.parts = {k.sensors_events_only, k.u_prior, k.scan, k.n_sensors, k.n_u, k.n_scan};
+  null.calibration = Calibrate(k);
+  null.mismatch_z = null.calibration.z;
   return null;
 }
 

@@ -297,16 +297,22 @@ NoiseFit JudgeNoiseFit(const nlohmann::ordered_json& noise, double mismatch_z, c
   auto num = [&](const char* key, double fallback) {
     return noise.contains(key) && noise[key].is_number() ? noise[key].get<double>() : fallback;
   };
-  auto under = [&](const char* chi2_key, const char* count_key, const char* what) {
-    const double c = num(chi2_key, 1.0);
-    if (num(count_key, 0.0) > 0 && c < 0.25)
-      why.push_back(c > 0 ? Fmt("chi-square per %s %.3g (1 expected: the modelled noise sd is %.0f times the scatter the data "
+  // The test's noise is learned per observation type (noise.mismatch_calibration): it fits unless a
+  // type's calibrated chi-square is still far below 1 (a type too small to learn its scale, whose
+  // modelled noise is far wider than its scatter).
+  auto under = [&](const char* type, const char* what) {
+    if (!noise.contains("mismatch_calibration") || !noise["mismatch_calibration"].contains(type)) return;
+    const auto& t = noise["mismatch_calibration"][type];
+    const double c = t.value("chi2_per_observation", 1.0);
+    if (c < 0.25)
+      why.push_back(c > 0 ? Fmt("chi-square per %s %.3g (1 expected: the noise sd is %.0f times the scatter the data "
                                 "show about the refit baseline)",
                                 what, c, 1.0 / std::sqrt(c))
                           : Fmt("chi-square per %s 0 (1 expected)", what));
   };
-  under("baseline_chi2_per_sensor_event", "sensor_events", "sensor event");
-  under("baseline_chi2_per_scan_cell", "scan_cells", "scan cell");
+  under("sensor_events", "sensor event");
+  under("sensor_priors", "sensor's intensity error");
+  under("scan_cells", "scan cell");
   if (mismatch_z < -4)
     why.push_back(
         Fmt("chi-square excess z %.1f (far below 0: the data agree with the refit far better than the noise model says they "

@@ -47,6 +47,10 @@ struct DiagnoseOptions {
   bool try_pairs = true;
   /// Benchmarks: measure the true effect's model against the baseline (DiagnosisResult::oracle).
   std::optional<OracleEffect> oracle;
+  /// Fit and judge the hypotheses with the noise the mismatch test learns from the residuals (each
+  /// observation type's variance scale times its effective correlation, noise.mismatch_calibration)
+  /// instead of the modelled noise.
+  bool learned_noise_in_hypotheses = false;
 };
 
 /// What a known effect (DiagnoseOptions::oracle) explains beyond the baseline, with the same

@@ -455,3 +455,27 @@ TEST(Diagnose, OracleMeasuresTheTrueEffectAgainstTheBaseline) {
   CHECK_THROWS(std::invalid_argument, RunWithOracle(null_spec, {"levitation", {}}));
   CHECK_THROWS(std::invalid_argument, RunWithOracle(null_spec, {"work_hardening", {{"h", 0.3}}}));
 }
+
+// The mismatch test on nulls whose true noise is known (the forward model's map, scan and reading
+// noise): its noise is learned from the residuals per observation type, so z lands within +-2 and
+// each type's chi-square per observation near 1, where the noise the map's faces suggest makes the
+// modelled statistic far below 0 (it is reported beside, `mismatch_z_modelled_noise`).
+TEST(Diagnose, TheMismatchTestIsCalibratedOnNullsOfKnownNoise) {
+  for (unsigned seed : {11u, 12u, 13u}) {
+    lw::test::SyntheticSpec spec;
+    spec.seed = seed;
+    spec.map_noise = 0.03 + 0.02 * (seed % 3);
+    spec.scan_day = 70;
+    const auto r = Run(spec);
+    CHECK_TRUE(std::fabs(r.mismatch_z_score) <= 2);
+    const auto& cal = r.noise.at("mismatch_calibration");
+    for (const char* type : {"sensor_events", "sensor_priors", "scan_cells"}) {
+      CHECK_TRUE(cal.contains(type));
+      CHECK_TRUE(cal.at(type).at("learned").get<bool>());
+      const double c = cal.at(type).at("chi2_per_observation").get<double>();
+      CHECK_TRUE(c >= 0.5 && c <= 2);
+    }
+    CHECK_TRUE(r.noise_fit.fits);
+    CHECK_FALSE(r.mismatch_detected);
+  }
+}
