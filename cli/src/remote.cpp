@@ -298,7 +298,10 @@ int SettingCheckList(const core::ParsedOptions& o, std::ostream& out) {
     std::string opening = c["opening_mm"].is_number() ? Mm(c["opening_mm"]) : "not known";
     if (c["opening_mm"].is_number() && !c.value("opening_supported", true)) opening += " (rough)";
     out << "  " << std::left << std::setw(22) << c.value("time", "?") << std::right << std::setw(8)
-        << Mm(c.value("css_mm", json())) << std::setw(19) << opening << std::setw(8) << (c.value("counts", false) ? "yes" : "no")
+        << Mm(c.value("css_mm", json())) << std::setw(19) << opening << std::setw(8)
+        << (!c.contains("counts")      ? "-"
+            : c.value("counts", false) ? "yes"
+                                       : "no")
         << "  " << c.value("by", "?");
     const std::string note = c.value("note", "");
     out << (note.empty() ? "" : ": " + note) << "\n";
@@ -331,9 +334,10 @@ int SettingCheck(const std::vector<std::string>& args, std::ostream& out) {
       << o.Text("crusher") << " measured " << Mm(c.value("css_mm", json())) << " mm at " << c.value("time", "?")
       << "; the concave's opening then "
       << (c["opening_mm"].is_number()
-              ? Mm(c["opening_mm"]) + " mm" + (c.value("opening_supported", true) ? "" : " (a rough estimate)")
-              : std::string("not known yet (no reading up to then)"))
-      << "; the CSS counts from it\n";
+              ? Mm(c["opening_mm"]) + " mm" + (c.value("opening_supported", true) ? "" : " (a rough estimate)") +
+                    "; the CSS counts from it"
+              : std::string("not known (no reading up to then, or no sensor sets a scale): no CSS until it is"))
+      << "\n";
   return 0;
 }
 

@@ -289,7 +289,7 @@ CampaignService::Outcome CampaignService::Reline(const std::string& crusher_id, 
     registry_.Replace(std::move(model));
     live_.Replace(current, s);
     // A check at or after the reline's time measured the new liner: its opening is estimated again.
-    LoadSettingChecks(s, current, wear_, true);
+    LoadSettingChecks(s, current, wear_, Reestimate::kAll, true);
   });
   wear_.Reset(crusher_id);
   return {true, next};
@@ -347,7 +347,7 @@ CampaignService::Outcome CampaignService::Void(const std::string& crusher_id, co
       registry_.Restore(crusher_id);
     live_.Replace(current, s);
     // The voided campaign's checks measured the reopened liner: their openings are estimated again.
-    LoadSettingChecks(s, current, wear_, true);
+    LoadSettingChecks(s, current, wear_, Reestimate::kAll, true);
   });
   wear_.Reset(crusher_id);
   return {true, voided};

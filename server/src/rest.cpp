@@ -1250,7 +1250,14 @@ Response Resources::SettingCheckList(const Request& req) {
   const Crusher* c = CrusherOf(req, &error);
   if (!c) return error;
   // Read from the REST reads' store, so a read-only server lists them too.
-  const std::vector<SettingCheckRecord> checks = ctx_.read->With([&](Store& s) { return s.SettingChecks(c->config.crusher_id); });
+  std::vector<SettingCheckRecord> checks = ctx_.read->With([&](Store& s) { return s.SettingChecks(c->config.crusher_id); });
+  // The openings live wear counts (estimated again where the stored ones could not be updated).
+  for (const core::SettingCheck& counted : ctx_.wear->SettingChecks(c->config.crusher_id))
+    for (SettingCheckRecord& k : checks)
+      if (core::TimePoint(std::chrono::seconds(k.time_s)) == counted.time) {
+        k.opening_mm = std::isfinite(counted.opening_mm) ? std::optional(counted.opening_mm) : std::nullopt;
+        k.opening_supported = k.opening_mm && counted.opening_supported;
+      }
   ordered_json list = ordered_json::array();
   for (const SettingCheckRecord& k : checks) list.push_back(SettingCheckJson(k, c->config.installed_at));
   return Json(200, {{"checks", std::move(list)}});

@@ -215,8 +215,9 @@ const std::string kWear =
           "basis":{"type":"string"},"detail":{"type":"string"},
           "opening_since_mm":{"type":"number","nullable":true,"description":"the opening since the CSS was last measured (else since installation)"},
           "checked":{"type":"object","nullable":true,"description":"the measured setting the CSS is counted from (POST .../setting/checks)",
-            "required":["time","css_mm","opening_mm","by"],"properties":{"time":{"type":"string","format":"date-time"},
-            "css_mm":{"type":"number"},"opening_mm":{"type":"number","nullable":true},"by":{"type":"string"}}}}},
+            "required":["time","css_mm","opening_mm","opening_supported","by"],"properties":{"time":{"type":"string","format":"date-time"},
+            "css_mm":{"type":"number"},"opening_mm":{"type":"number","nullable":true},"opening_supported":{"type":"boolean"},
+            "by":{"type":"string"}}}}},
         "map_error_at_sensors":{"type":"object","required":["factor","sensors"],"properties":{
           "factor":{"type":"number","nullable":true},"sensors":{"type":"integer"}}},
         "face_level":{"type":"object","required":["estimate_at_zero_faces","band_reaches_zero_faces"],"properties":{

@@ -81,27 +81,35 @@ void EstimateOpening(Store& store, const Crusher& crusher, SettingCheckRecord* c
   }
 }
 
-std::vector<SettingCheckRecord> EstimateSettingChecks(Store& store, const Crusher& crusher) {
+std::vector<SettingCheckRecord> EstimateSettingChecks(Store& store, const Crusher& crusher, Reestimate which) {
   std::vector<SettingCheckRecord> all = store.SettingChecks(crusher.config.crusher_id);
-  for (SettingCheckRecord& c : all)
-    if (core::TimePoint(std::chrono::seconds(c.time_s)) >= crusher.config.installed_at) EstimateOpening(store, crusher, &c);
+  for (SettingCheckRecord& c : all) {
+    if (core::TimePoint(std::chrono::seconds(c.time_s)) < crusher.config.installed_at) continue;  // an earlier liner's
+    if (which == Reestimate::kAll || !c.opening_mm) EstimateOpening(store, crusher, &c);
+  }
   return all;
 }
 
-std::string LoadSettingChecks(Store& store, const Crusher& crusher, WearService& wear, bool store_changes) {
+std::string LoadSettingChecks(Store& store, const Crusher& crusher, WearService& wear, Reestimate which, bool store_changes) {
+  const std::string& id = crusher.config.crusher_id;
   std::vector<SettingCheckRecord> all;
   try {
-    all = EstimateSettingChecks(store, crusher);
-  } catch (const std::runtime_error& e) {
-    return crusher.config.crusher_id + ": setting checks not read (" + e.what() + "); the ones counted before stay";
+    all = EstimateSettingChecks(store, crusher, which);
+  } catch (const std::exception& e) {
+    // The running liner's checks may have been counted under another liner (a reline or void just
+    // changed it): they hold the setting_open alarm (opening not known) rather than count wrongly.
+    std::vector<core::SettingCheck> held = wear.SettingChecks(id);
+    for (core::SettingCheck& c : held)
+      if (c.time >= crusher.config.installed_at) c.opening_mm = std::nan("");
+    wear.SetSettingChecks(id, std::move(held));
+    return id + ": setting checks not estimated (" + e.what() + "); the running liner's count as not known until the next start";
   }
-  wear.SetSettingChecks(crusher.config.crusher_id, ToCoreSettingChecks(all));
+  wear.SetSettingChecks(id, ToCoreSettingChecks(all));
   if (!store_changes || all.empty()) return {};
   try {
     store.UpdateSettingCheckOpenings(all);
-  } catch (const std::runtime_error& e) {
-    return crusher.config.crusher_id + ": setting checks' openings not stored (" + e.what() +
-           "); counted as estimated, and estimated again at the next start";
+  } catch (const std::exception& e) {
+    return id + ": setting checks' openings not stored (" + e.what() + "); counted as estimated";
   }
   return {};
 }
@@ -109,7 +117,8 @@ std::string LoadSettingChecks(Store& store, const Crusher& crusher, WearService&
 std::string LoadSettingChecks(Store& store, const Registry& registry, WearService& wear, bool store_changes) {
   std::string failed;
   for (const Crusher* c : registry.All())
-    if (std::string e = LoadSettingChecks(store, *c, wear, store_changes); !e.empty()) failed += (failed.empty() ? "" : "; ") + e;
+    if (std::string e = LoadSettingChecks(store, *c, wear, Reestimate::kUnknown, store_changes); !e.empty())
+      failed += (failed.empty() ? "" : "; ") + e;
   return failed;
 }
 

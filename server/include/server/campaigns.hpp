@@ -77,16 +77,18 @@ nlohmann::ordered_json SettingCheckJson(const SettingCheckRecord& check, core::T
 /// .../wear?at=. No reading of the liner yet: 0 within a day of its installation (nothing opened
 /// yet), else not known.
 void EstimateOpening(Store& store, const Crusher& crusher, SettingCheckRecord* check);
-/// The crusher's stored checks, oldest first, with the openings of those of its running liner
-/// (at or after installed_at) estimated again from the readings stored now: after a reline or a
-/// void changed which liner they measured, and after readings of their time arrived late.
-std::vector<SettingCheckRecord> EstimateSettingChecks(Store& store, const Crusher& crusher);
-/// The crusher's checks, estimated again, handed to `wear`; with `store_changes` the changed
+/// Which of the running liner's checks to estimate again: every one (after a reline or a void
+/// changed which liner they measured), or those whose opening is not known (at start-up: cheap,
+/// usually none; one LoadWindow and wear computation per check).
+enum class Reestimate { kAll, kUnknown };
+/// The crusher's stored checks, oldest first, with the openings of `which` of its running liner's
+/// (at or after installed_at) estimated again from the readings stored now.
+std::vector<SettingCheckRecord> EstimateSettingChecks(Store& store, const Crusher& crusher, Reestimate which);
+/// The crusher's checks, `which` estimated again, handed to `wear`; with `store_changes` the changed
 /// openings are stored too. A failure is returned as text (empty: none): one to store leaves the
-/// checks handed on as estimated (estimated again at the next start), one to read leaves what
-/// `wear` had.
-std::string LoadSettingChecks(Store& store, const Crusher& crusher, WearService& wear, bool store_changes);
-/// The same for every crusher of `registry` (at start-up); the failures joined by "; ".
+/// checks handed on as estimated, one to estimate hands on the running liner's checks as not known.
+std::string LoadSettingChecks(Store& store, const Crusher& crusher, WearService& wear, Reestimate which, bool store_changes);
+/// At start-up, for every crusher of `registry` (Reestimate::kUnknown); the failures joined by "; ".
 std::string LoadSettingChecks(Store& store, const Registry& registry, WearService& wear, bool store_changes);
 /// The checks in the form live wear counts them.
 std::vector<core::SettingCheck> ToCoreSettingChecks(const std::vector<SettingCheckRecord>& records);

@@ -412,8 +412,14 @@ TEST(Campaigns, ASettingChecksOpeningFollowsTheLinerItMeasured) {
     CHECK(res);
     LONGS_EQUAL_TEXT(200, res->status, res->body.c_str());
     const json checks = json::parse(res->body)["checks"];
-    LONGS_EQUAL(1, checks.size());
-    return checks[0];
+    LONGS_EQUAL(2, checks.size());
+    return checks[1];
+  };
+  // The earlier check (day 5, the first liner's in every campaign below).
+  const auto early = [](Api& a) {
+    auto res = a.Client(kReadToken).Get(a.Base() + "/setting/checks");
+    CHECK(res);
+    return json::parse(res->body)["checks"][0];
   };
   // The opening GET .../wear?at= gives at the check's time, and the one the live wear counts from.
   const auto expect_as_wear_then = [&](Api& a) {
@@ -443,12 +449,19 @@ TEST(Campaigns, ASettingChecksOpeningFollowsTheLinerItMeasured) {
     const json made = json::parse(res->body);
     CHECK_TEXT(made["opening_mm"].is_null(), made.dump().c_str());  // no reading up to day 20: not known
     CHECK_FALSE(made["opening_supported"].get<bool>());
-    a.LoadAll();                               // the readings of those 20 days arrive late
+    a.LoadAll();  // the readings of those 20 days arrive late
+    auto five =
+        a.Client().Post(a.Base() + "/setting/checks", json({{"time", Day(5)}, {"css_mm", 128}}).dump(), "application/json");
+    CHECK(five);
+    LONGS_EQUAL_TEXT(201, five->status, five->body.c_str());
     CHECK(listed(a)["opening_mm"].is_null());  // not moved before the next start
   }
+  json day5;
   {
     Api a(db);  // the next start estimates it from the readings stored by then
     first_liner = expect_as_wear_then(a);
+    day5 = early(a);
+    CHECK_TEXT(day5["opening_mm"].is_number(), day5.dump().c_str());
     CHECK_TEXT(first_liner["opening_mm"].is_number(), first_liner.dump().c_str());
     CHECK_TRUE(first_liner["opening_supported"].get<bool>());
     // A reline dated before the check: the check measured the new liner.
@@ -456,12 +469,17 @@ TEST(Campaigns, ASettingChecksOpeningFollowsTheLinerItMeasured) {
     auto [status, made] = a.Reline({{"time", Day(12)}, {"thickness_new_mm", fresh}});
     LONGS_EQUAL_TEXT(201, status, made.dump().c_str());
     const json new_liner = expect_as_wear_then(a);
+    // The day-5 check measured the liner before the reline: kept as it was, and no longer counted.
+    const json before_reline = early(a);
+    CHECK(before_reline["opening_mm"] == day5["opening_mm"]);
+    CHECK_FALSE(before_reline["counts"].get<bool>());
     CHECK_TEXT(new_liner["opening_mm"] != first_liner["opening_mm"], (new_liner.dump() + " vs " + first_liner.dump()).c_str());
     // The reline voided: the check is the first liner's again.
     auto res = a.Client().Post(a.Base() + "/relines/" + Day(12) + "/void", json({{"reason", "test"}}).dump(), "application/json");
     CHECK(res);
     LONGS_EQUAL_TEXT(200, res->status, res->body.c_str());
     DOUBLES_EQUAL(first_liner["opening_mm"].get<double>(), expect_as_wear_then(a)["opening_mm"].get<double>(), 0.011);
+    CHECK_TRUE(early(a)["counts"].get<bool>());
   }
   {
     Api a(db);  // and so after a restart
