@@ -7,10 +7,6 @@
 namespace lw::estimate {
 namespace {
 
-core::TimePoint FromUnix(int64_t s) {
-  return core::TimePoint(std::chrono::seconds(s));
-}
-
 /// The forecasts of `st` (its wear and areas already set) from the usable readings.
 void Forecast(const CrusherModel& model, const std::vector<core::Reading>& usable, const WearEstimate* previous,
               WearEstimate& st) {
@@ -103,14 +99,14 @@ WearEstimate Estimate(const CrusherModel& model, const std::vector<Sample>& read
   usable.reserve(readings.size());
   source.reserve(readings.size());
   for (const Sample& r : readings) {
-    if (FromUnix(r.time_s) > until || !UsableForWear(config, r.sensor, r)) continue;
+    if (core::FromUnixSeconds(r.time_s) > until || !UsableForWear(config, r.sensor, r)) continue;
     core::Reading c;
-    c.time = FromUnix(r.time_s);
+    c.time = core::FromUnixSeconds(r.time_s);
     c.sensor_id = r.sensor;
     c.thickness_mm = r.thickness_mm;
     usable.push_back(std::move(c));
     source.push_back(&r);
-    st.time = std::max(st.time, FromUnix(r.time_s));
+    st.time = std::max(st.time, core::FromUnixSeconds(r.time_s));
   }
   if (usable.empty()) return st;
   // A sensor whose latest reading lags the newest by more than 8 of its reporting periods (dead, or

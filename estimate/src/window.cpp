@@ -10,10 +10,6 @@
 namespace lw::estimate {
 namespace {
 
-int64_t Unix(core::TimePoint t) {
-  return t.time_since_epoch().count();
-}
-
 /// At the same time the thinner reading counts (wear only goes one way), then the lower seq: the
 /// reading core::LatestReadingIndices picks from readings ordered by time and seq.
 bool BetterAtSameTime(double thickness, int64_t seq, double best_thickness, int64_t best_seq) {
@@ -50,15 +46,14 @@ bool IsFaultReading(int64_t flags, int64_t loops_intact) {
 }
 
 bool UsableForWear(const core::CrusherConfig& crusher, const std::string& sensor, const Point& p) {
-  return !IsFaultReading(p.flags, p.loops_intact) &&
-         crusher.OfThisLiner(sensor, core::TimePoint(std::chrono::seconds(p.time_s)), p.thickness_mm);
+  return !IsFaultReading(p.flags, p.loops_intact) && crusher.OfThisLiner(sensor, core::FromUnixSeconds(p.time_s), p.thickness_mm);
 }
 
 ReadingWindow::ReadingWindow(const CrusherModel& model) : model_(&model) {}
 
 int64_t ReadingWindow::WindowStart(int64_t last_s) const {
   const core::ForecastOptions o;  // the options Estimate()'s forecasts use
-  const int64_t installed = Unix(model_->config.installed_at);
+  const int64_t installed = core::ToUnixSeconds(model_->config.installed_at);
   const double t_last = static_cast<double>(last_s - installed) / 86400.0;
   const double window = std::max(o.window_min_days, o.window_fraction * std::max(0.0, t_last));
   // A day's margin: the forecast selects its own window from what it is given, so a superset is exact.
@@ -90,7 +85,7 @@ bool ReadingWindow::Add(const std::string& sensor, const Point& p) {
   if (p.time_s >= start) s.window.insert(std::upper_bound(s.window.begin(), s.window.end(), p, Later), p);
   while (!s.window.empty() && s.window.front().time_s < start) s.window.pop_front();
   for (size_t k = 0; k < scans.size(); ++k) {
-    if (p.time_s > Unix(scans[k].scan.date)) continue;
+    if (p.time_s > core::ToUnixSeconds(scans[k].scan.date)) continue;
     std::optional<Point>& a = s.anchor[k];
     if (!a || p.time_s > a->time_s || (p.time_s == a->time_s && BetterAtSameTime(p.thickness_mm, p.seq, a->thickness_mm, a->seq)))
       a = p;
@@ -101,7 +96,7 @@ bool ReadingWindow::Add(const std::string& sensor, const Point& p) {
 void ReadingWindow::Load(const std::string& sensor, int64_t to_s, const Walk& walk) {
   const core::CrusherConfig& config = model_->config;
   const std::vector<ModelScan>& scans = model_->scans;
-  const int64_t liner_start = Unix(config.LinerStart());  // earlier readings: a previous liner's
+  const int64_t liner_start = core::ToUnixSeconds(config.LinerStart());  // earlier readings: a previous liner's
   SensorWindow& s = sensors_[sensor];
   s.anchor.resize(scans.size());
   // Newest first, to the newest usable reading.
@@ -123,7 +118,7 @@ void ReadingWindow::Load(const std::string& sensor, int64_t to_s, const Walk& wa
   });
   for (size_t k = 0; k < scans.size(); ++k) {
     std::optional<Point>& a = s.anchor[k];
-    walk(liner_start, std::min(to_s, Unix(scans[k].scan.date)), true, [&](const Point& p) {
+    walk(liner_start, std::min(to_s, core::ToUnixSeconds(scans[k].scan.date)), true, [&](const Point& p) {
       if (a && p.time_s < a->time_s) return false;  // past the newest usable time at or before the scan
       if (!UsableForWear(config, sensor, p)) return true;
       if (!a || BetterAtSameTime(p.thickness_mm, p.seq, a->thickness_mm, a->seq)) a = p;

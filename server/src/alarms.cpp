@@ -12,18 +12,10 @@ namespace {
 
 using ordered_json = nlohmann::ordered_json;
 
-std::string Iso(int64_t s) {
-  return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(s)));
-}
-
 std::string Fixed(double v, int decimals = 1) {
   char buf[48];
   std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
   return buf;
-}
-
-int64_t Seconds(core::TimePoint t) {
-  return std::chrono::duration_cast<std::chrono::seconds>(t.time_since_epoch()).count();
 }
 
 /// A low value is bad (a thickness, a battery): raise below `threshold`, clear at or above
@@ -149,7 +141,7 @@ void AlarmEngine::WearFindings(const core::CrusherConfig& cfg, const core::Alarm
       Finding due{"reline_due", rf.row, Verdict::kHold, {}, rules.Rule("reline_due").threshold, {}};
       if (rf.ok && !rf.below_minimum_since && !rf.reach_earliest) due.verdict = Verdict::kClear;
       if (rf.ok && !rf.below_minimum_since && rf.reach_earliest) {
-        const double days = static_cast<double>(Seconds(*rf.reach_earliest) - now_s) / 86400.0;
+        const double days = static_cast<double>(core::ToUnixSeconds(*rf.reach_earliest) - now_s) / 86400.0;
         due.value = days;
         const core::AlarmRule& d = rules.Rule("reline_due");
         due.verdict = days <= d.threshold                 ? Verdict::kRaise
@@ -185,11 +177,12 @@ void AlarmEngine::SensorFindings(const core::CrusherConfig& cfg, const core::Ala
   std::vector<Finding>& out = *findings;
   for (const AlarmInputs::Sensor& s : in.sensors) {
     const core::AlarmRule& r = rules.Rule("sensor_silent");
-    const int64_t last = s.latest_s.value_or(Seconds(cfg.installed_at));
+    const int64_t last = s.latest_s.value_or(core::ToUnixSeconds(cfg.installed_at));
     const double hours = static_cast<double>(in.now_s - last) / 3600.0;
     out.push_back({"sensor_silent", s.id, High<Verdict>(hours, r), hours, r.threshold,
                    "sensor " + s.id + ": no reading for " + Fixed(hours) + " h (last " +
-                       (s.latest_s ? Iso(*s.latest_s) : std::string("never")) + "); alarm after " + Fixed(r.threshold) + " h"});
+                       (s.latest_s ? core::FormatIsoSeconds(*s.latest_s) : std::string("never")) + "); alarm after " +
+                       Fixed(r.threshold) + " h"});
     const core::AlarmRule& b = rules.Rule("battery_low");
     if (s.battery_mv <= 0) continue;
     out.push_back(
@@ -209,7 +202,7 @@ std::vector<AlarmEngine::Finding> AlarmEngine::Findings(const Crusher& crusher, 
     const double minutes = static_cast<double>(in.now_s - status.since_s) / 60.0;
     Verdict v = status.online ? Verdict::kClear : minutes >= g.threshold ? Verdict::kRaise : Verdict::kHold;
     out.push_back({"gateway_offline", id, v, minutes, g.threshold,
-                   "gateway " + id + " offline since " + Iso(status.since_s) + " (its last will or status)"});
+                   "gateway " + id + " offline since " + core::FormatIsoSeconds(status.since_s) + " (its last will or status)"});
   }
   const core::AlarmRule& rj = rules.Rule("rejected_rate");
   const double rejected = RejectedLastHour(cfg.crusher_id, in.now_s, in.rejected_total);
@@ -326,14 +319,16 @@ std::vector<AlarmAuditEntry> AlarmEngine::Audit(int64_t id) {
 }
 
 ordered_json AlarmJson(const AlarmRecord& a, const std::vector<AlarmAuditEntry>* audit) {
-  const auto time_or_null = [](const std::optional<int64_t>& t) { return t ? ordered_json(Iso(*t)) : ordered_json(nullptr); };
+  const auto time_or_null = [](const std::optional<int64_t>& t) {
+    return t ? ordered_json(core::FormatIsoSeconds(*t)) : ordered_json(nullptr);
+  };
   const auto number_or_null = [](const std::optional<double>& v) { return v ? ordered_json(*v) : ordered_json(nullptr); };
   ordered_json j{{"id", a.id},
                  {"rule", a.rule},
                  {"subject", a.subject},
                  {"severity", a.severity},
                  {"state", a.state},
-                 {"since", Iso(a.since_s)},
+                 {"since", core::FormatIsoSeconds(a.since_s)},
                  {"detail", a.detail},
                  {"value", number_or_null(a.value)},
                  {"threshold", number_or_null(a.threshold)},
@@ -343,7 +338,7 @@ ordered_json AlarmJson(const AlarmRecord& a, const std::vector<AlarmAuditEntry>*
   if (audit) {
     ordered_json trail = ordered_json::array();
     for (const AlarmAuditEntry& e : *audit)
-      trail.push_back({{"time", Iso(e.time_s)}, {"action", e.action}, {"by", e.by}, {"detail", e.detail}});
+      trail.push_back({{"time", core::FormatIsoSeconds(e.time_s)}, {"action", e.action}, {"by", e.by}, {"detail", e.detail}});
     j["audit"] = std::move(trail);
   }
   return j;
@@ -352,7 +347,7 @@ ordered_json AlarmJson(const AlarmRecord& a, const std::vector<AlarmAuditEntry>*
 std::string AlarmsMessage(const std::string& crusher, const std::vector<AlarmRecord>& open, int64_t now_s) {
   ordered_json list = ordered_json::array();
   for (const AlarmRecord& a : open) list.push_back(AlarmJson(a));
-  return ordered_json{{"crusher", crusher}, {"time", Iso(now_s)}, {"alarms", std::move(list)}}.dump(
+  return ordered_json{{"crusher", crusher}, {"time", core::FormatIsoSeconds(now_s)}, {"alarms", std::move(list)}}.dump(
       -1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 

@@ -16,13 +16,6 @@ namespace {
 using nlohmann::json;
 using nlohmann::ordered_json;
 
-int64_t Unix(core::TimePoint t) {
-  return t.time_since_epoch().count();
-}
-core::TimePoint FromUnix(int64_t s) {
-  return core::TimePoint(std::chrono::seconds(s));
-}
-
 /// `config`'s sensors as crusher.json sensor objects (core::CrusherConfigJson's, so they read back the same).
 json SensorsJson(const core::CrusherConfig& config) {
   return json::parse(core::CrusherConfigJson(config))["sensors"];
@@ -31,7 +24,7 @@ json SensorsJson(const core::CrusherConfig& config) {
 /// The campaign crusher.json describes: before a crusher's first reline, its only one.
 CampaignRecord FolderCampaign(const core::CrusherConfig& config) {
   CampaignRecord c;
-  c.start_s = Unix(config.installed_at);
+  c.start_s = core::ToUnixSeconds(config.installed_at);
   c.thickness_new_mm = config.thickness_new_mm;
   c.sensors_json = SensorsJson(config).dump();
   c.final_readings_json = "[]";
@@ -44,14 +37,14 @@ std::string FinalReadings(Store& store, const core::CrusherConfig& config, int64
   json out = json::array();
   for (const core::SensorInfo& s : config.sensors) {
     std::optional<StoredReading> last;
-    store.Walk(config.crusher_id, s.id, Unix(config.LinerStart()), end_s, true, [&](const StoredReading& r) {
+    store.Walk(config.crusher_id, s.id, core::ToUnixSeconds(config.LinerStart()), end_s, true, [&](const StoredReading& r) {
       if (!UsableForWear(config, r)) return true;
       last = r;
       return false;
     });
     if (last) {
       out.push_back({{"sensor", s.id},
-                     {"time", core::FormatIsoTime(FromUnix(last->time_s))},
+                     {"time", core::FormatIsoSeconds(last->time_s)},
                      {"thickness_mm", last->thickness_mm},
                      {"seq", last->seq}});
     }
@@ -75,7 +68,7 @@ void CheckThickness(const core::CrusherConfig& config, double mm) {
 std::unique_ptr<Crusher> RunningModel(const Crusher& folder, const std::vector<CampaignRecord>& counted) {
   const CampaignRecord& before = counted[counted.size() - 2];
   return Registry::ForCampaign(folder, CampaignConfig(folder.config, counted.back()), before.final_scan,
-                               FromUnix(before.start_s));
+                               core::FromUnixSeconds(before.start_s));
 }
 
 }  // namespace
@@ -150,7 +143,7 @@ RelineRequest ParseRelineBody(std::string_view text) {
 
 core::CrusherConfig CampaignConfig(const core::CrusherConfig& base, const CampaignRecord& c) {
   core::CrusherConfig config = base;
-  config.installed_at = FromUnix(c.start_s);
+  config.installed_at = core::FromUnixSeconds(c.start_s);
   config.thickness_new_mm = c.thickness_new_mm;
   json sensors;
   try {
@@ -177,7 +170,7 @@ void ApplyStoredCampaigns(Registry& registry, Store& store, std::vector<std::str
     try {
       registry.Replace(RunningModel(*c, stored));
       log->push_back("crusher " + id + ": campaign " + std::to_string(stored.size()) + " (from " +
-                     core::FormatIsoTime(FromUnix(running.start_s)) +
+                     core::FormatIsoSeconds(running.start_s) +
                      ", the database's) sets installed_at, thickness_new_mm and sensors over crusher.json's");
     } catch (const std::exception& e) {
       log->push_back("crusher " + id + ": the database's running campaign does not fit the crusher folder (" + e.what() +
@@ -191,8 +184,8 @@ ordered_json CampaignJson(const CampaignRecord& c, int64_t now_s) {
   const json finals = json::parse(c.final_readings_json, nullptr, false);
   const int64_t until = c.end_s ? *c.end_s : std::max(now_s, c.start_s);
   const bool voided = c.voided_s.has_value();
-  ordered_json j = {{"start", core::FormatIsoTime(FromUnix(c.start_s))},
-                    {"end", c.end_s ? ordered_json(core::FormatIsoTime(FromUnix(*c.end_s))) : ordered_json(nullptr)},
+  ordered_json j = {{"start", core::FormatIsoSeconds(c.start_s)},
+                    {"end", c.end_s ? ordered_json(core::FormatIsoSeconds(*c.end_s)) : ordered_json(nullptr)},
                     {"running", !c.end_s && !voided},
                     {"thickness_new_mm", c.thickness_new_mm},
                     {"has_scan", !c.final_scan.empty()},
@@ -204,7 +197,7 @@ ordered_json CampaignJson(const CampaignRecord& c, int64_t now_s) {
                     {"final_readings", finals.is_array() ? finals : json::array()},
                     {"voided", voided}};
   if (voided) {
-    j["voided_at"] = core::FormatIsoTime(FromUnix(*c.voided_s));
+    j["voided_at"] = core::FormatIsoSeconds(*c.voided_s);
     j["voided_by"] = c.voided_by;
     j["void_reason"] = c.void_reason;
   }
@@ -234,7 +227,7 @@ CampaignService::Outcome CampaignService::Reline(const std::string& crusher_id, 
   std::lock_guard<std::mutex> one_at_a_time(reline_mutex_);
   const Crusher* crusher = registry_.Find(crusher_id);
   if (!crusher) throw RelineError(404, "unknown crusher '" + crusher_id + "'");
-  const int64_t time_s = Unix(request.time), now = now_s_();
+  const int64_t time_s = core::ToUnixSeconds(request.time), now = now_s_();
   const std::string when = core::FormatIsoTime(request.time);
   const std::vector<CampaignRecord> campaigns = Counted(store_.With([&](Store& s) { return CampaignsOf(s, *crusher); }));
   // A retry of a reline already stored (its time is the start of a campaign a reline began)
@@ -250,11 +243,10 @@ CampaignService::Outcome CampaignService::Reline(const std::string& crusher_id, 
   }
   CampaignRecord closed = campaigns.back();
   if (time_s <= closed.start_s) {
-    throw RelineError(422, "\"time\" " + when + " is not after the running campaign's start (" +
-                               core::FormatIsoTime(FromUnix(closed.start_s)) + ")");
+    throw RelineError(
+        422, "\"time\" " + when + " is not after the running campaign's start (" + core::FormatIsoSeconds(closed.start_s) + ")");
   }
-  if (time_s > now)
-    throw RelineError(422, "\"time\" " + when + " is in the future (now " + core::FormatIsoTime(FromUnix(now)) + ")");
+  if (time_s > now) throw RelineError(422, "\"time\" " + when + " is in the future (now " + core::FormatIsoSeconds(now) + ")");
   CheckThickness(crusher->config, request.thickness_new_mm);
   CampaignRecord next;
   next.start_s = time_s;
@@ -270,7 +262,7 @@ CampaignService::Outcome CampaignService::Reline(const std::string& crusher_id, 
   try {
     core::CrusherConfig config = CampaignConfig(crusher->config, next);
     next.sensors_json = SensorsJson(config).dump();  // as read: each sensor's thickness and id resolved
-    model = Registry::ForCampaign(*crusher, std::move(config), request.scan_xyz, FromUnix(closed.start_s));
+    model = Registry::ForCampaign(*crusher, std::move(config), request.scan_xyz, core::FromUnixSeconds(closed.start_s));
   } catch (const core::InputError& e) {
     throw RelineError(422, std::string("\"sensors\": ") + e.rule());
   }
@@ -299,7 +291,7 @@ CampaignService::Outcome CampaignService::Void(const std::string& crusher_id, co
                                                const std::string& reason) {
   std::lock_guard<std::mutex> one_at_a_time(reline_mutex_);
   if (!registry_.Find(crusher_id)) throw RelineError(404, "unknown crusher '" + crusher_id + "'");
-  const int64_t start_s = Unix(start);
+  const int64_t start_s = core::ToUnixSeconds(start);
   const std::string when = core::FormatIsoTime(start);
   const std::vector<CampaignRecord> all = store_.With([&](Store& s) { return s.Campaigns(crusher_id); });
   const std::vector<CampaignRecord> counted = Counted(all);
@@ -315,7 +307,7 @@ CampaignService::Outcome CampaignService::Void(const std::string& crusher_id, co
                       "the campaign from " + when + " began with crusher.json's installed_at, not a reline: nothing to void");
   if (at + 1 != counted.end()) {
     throw RelineError(409, "the campaign from " + when + " is not the running one: void the later reline at " +
-                               core::FormatIsoTime(FromUnix(counted.back().start_s)) + " first");
+                               core::FormatIsoSeconds(counted.back().start_s) + " first");
   }
   CampaignRecord voided = *at;
   const CampaignRecord& reopened = *(at - 1);
@@ -330,7 +322,7 @@ CampaignService::Outcome CampaignService::Void(const std::string& crusher_id, co
   try {
     if (after.size() >= 2) model = RunningModel(folder, after);
   } catch (const core::InputError& e) {
-    throw RelineError(409, "the campaign from " + core::FormatIsoTime(FromUnix(reopened.start_s)) +
+    throw RelineError(409, "the campaign from " + core::FormatIsoSeconds(reopened.start_s) +
                                " no longer fits the crusher folder (" + e.what() + "): not voided");
   }
   store_.With([&](Store& s) {

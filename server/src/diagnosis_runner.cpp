@@ -52,7 +52,7 @@ void DiagnosisRunner::Run(const std::string& crusher_id) {
     const std::vector<StoredReading> stored = store_.With([&](Store& s) { return s.All(crusher_id); });
     for (const StoredReading& r : stored) {
       core::Reading x;
-      x.time = core::TimePoint(std::chrono::seconds(r.time_s));
+      x.time = core::FromUnixSeconds(r.time_s);
       x.sensor_id = r.sensor;
       x.thickness_mm = r.thickness_mm;
       b.readings.push_back(std::move(x));
@@ -90,8 +90,7 @@ std::string DiagnosisRunner::StatusJson(const std::string& crusher) {
       j["status"] = latest ? "done" : "none";
       break;
   }
-  j["time"] = latest ? nlohmann::ordered_json(core::FormatIsoTime(core::TimePoint(std::chrono::seconds(latest->first))))
-                     : nlohmann::ordered_json(nullptr);
+  j["time"] = latest ? nlohmann::ordered_json(core::FormatIsoSeconds(latest->first)) : nlohmann::ordered_json(nullptr);
   j["result"] = latest ? nlohmann::ordered_json::parse(latest->second) : nlohmann::ordered_json(nullptr);
   if (run.state == RunState::kFailed) j["error"] = run.error;
   return j.dump();

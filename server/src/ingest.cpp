@@ -73,8 +73,8 @@ Validation CheckReading(const Incoming& in, const std::optional<mqtt::ReadingMes
   }
   if (time_s > now_s + kFutureSlackS) {
     v.error = "\"time\" " + m->time + " is " + std::to_string(time_s - now_s) + " s after the server's clock (" +
-              core::FormatIsoTime(core::TimePoint(std::chrono::seconds(now_s))) +
-              "): held, not acknowledged, until it is at most " + std::to_string(kFutureSlackS) + " s ahead";
+              core::FormatIsoSeconds(now_s) + "): held, not acknowledged, until it is at most " + std::to_string(kFutureSlackS) +
+              " s ahead";
     v.held = "future";
     return v;
   }

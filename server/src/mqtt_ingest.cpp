@@ -25,7 +25,7 @@ constexpr int kIgnoredLogged = 10;
 }  // namespace
 
 std::vector<mqtt::OutMessage> CommitAckMessages(const std::vector<Ack>& acks, const std::string& topic_root, int64_t now_s) {
-  const std::string when = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(now_s)));
+  const std::string when = core::FormatIsoSeconds(now_s);
   std::vector<mqtt::OutMessage> out;
   for (const Ack& a : acks) {
     const std::string topic = mqtt::Topics(a.site, a.crusher, topic_root).Committed(a.sensor);

@@ -28,10 +28,6 @@ int64_t WallS() {
   return std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-std::string Iso(int64_t s) {
-  return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(s)));
-}
-
 /// Reads one "notifications" object, naming each key by its path in errors.
 class Reader {
  public:
@@ -238,8 +234,9 @@ std::string EmailMessage(const NotificationConfig& config, const EmailTarget& em
     << "State:      " << HeaderText(a.state) << "\r\n"
     << "Detail:     " << HeaderText(a.detail) << "\r\n"
     << "Value:      " << Number(a.value) << " (threshold " << Number(a.threshold) << ")\r\n"
-    << "Since:      " << Iso(a.since_s) << "\r\n"
-    << "Event:      " << event.action << " at " << Iso(event.time_s) << " by " << HeaderText(event.by) << "\r\n"
+    << "Since:      " << core::FormatIsoSeconds(a.since_s) << "\r\n"
+    << "Event:      " << event.action << " at " << core::FormatIsoSeconds(event.time_s) << " by " << HeaderText(event.by)
+    << "\r\n"
     << "Alarm id:   " << a.id << " (event " << event_id << ")\r\n";
   if (!link.empty()) m << "Dashboard:  " << link << "\r\n";
   if (event.action != "cleared")
@@ -342,7 +339,7 @@ std::vector<QueuedNotification> MakeNotifications(const NotificationConfig& conf
   const std::string link = DashboardLink(config, alarm.crusher);
   const std::string body = ordered_json{{"event", event.action},
                                         {"event_id", event_id},
-                                        {"time", Iso(event.time_s)},
+                                        {"time", core::FormatIsoSeconds(event.time_s)},
                                         {"by", event.by},
                                         {"crusher", alarm.crusher},
                                         {"alarm", AlarmJson(alarm)},

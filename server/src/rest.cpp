@@ -32,24 +32,20 @@ Response Json(int status, ordered_json body) {
   return r;
 }
 
-std::string Iso(int64_t unix_s) {
-  return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(unix_s)));
-}
-
 /// The fields of a sensor's stored reading as JSON (without its sensor id), in order, given to `out`:
 /// "previous_liner": true when it is a previous liner's (before installed_at, or worn in the day of
 /// slack before it: core's OfThisLiner), which live wear leaves out (docs/server.md, Relining). One
 /// list of fields for the two writers below.
 template <typename Out>
 void ReadingFields(const core::CrusherConfig& config, const StoredReading& r, Out& out) {
-  out.Text("time", Iso(r.time_s));
+  out.Text("time", core::FormatIsoSeconds(r.time_s));
   out.Int("seq", r.seq);
   out.Real("thickness_mm", r.thickness_mm);
   out.Int("loops_intact", r.loops_intact);
   out.Int("flags", r.flags);
   out.Int("battery_mv", r.battery_mv);
-  out.Text("received", Iso(r.received_s));
-  if (!config.OfThisLiner(r.sensor, core::TimePoint(std::chrono::seconds(r.time_s)), r.thickness_mm)) out.True("previous_liner");
+  out.Text("received", core::FormatIsoSeconds(r.received_s));
+  if (!config.OfThisLiner(r.sensor, core::FromUnixSeconds(r.time_s), r.thickness_mm)) out.True("previous_liner");
 }
 
 /// A reading's fields into a JSON tree (a sensor's latest reading; the CSV export).
@@ -721,7 +717,7 @@ ordered_json Resources::ListEntryJson(const Crusher& c, const CrusherState* st, 
           {"sensor_count", c.config.sensors.size()},
           {"map_sha256", c.map.sha256},
           {"face_count", c.map.face_count()},
-          {"latest_reading_time", latest ? ordered_json(Iso(*latest)) : ordered_json(nullptr)},
+          {"latest_reading_time", latest ? ordered_json(core::FormatIsoSeconds(*latest)) : ordered_json(nullptr)},
           {"min_thickness_mm", st && st->has_wear && std::isfinite(st->reconstruction.min_thickness_mm)
                                    ? ordered_json(st->reconstruction.min_thickness_mm)
                                    : ordered_json(nullptr)},
@@ -964,13 +960,13 @@ Response WearVtk(const Crusher& c, const CrusherState& st) {
 /// installation, not after the server's "now" (`now_s`, the clock readings are validated against:
 /// a later time has no readings yet); else *error says why, naming the parameter.
 bool CheckWearTime(const core::CrusherConfig& config, const std::string& text, int64_t at_s, int64_t now_s, std::string* error) {
-  if (core::TimePoint(std::chrono::seconds(at_s)) < config.installed_at) {
+  if (core::FromUnixSeconds(at_s) < config.installed_at) {
     *error =
         "at='" + text + "' is before the liner's installation (installed_at " + core::FormatIsoTime(config.installed_at) + ")";
     return false;
   }
   if (at_s > now_s) {
-    *error = "at='" + text + "' is in the future (the server's time is " + Iso(now_s) + ")";
+    *error = "at='" + text + "' is in the future (the server's time is " + core::FormatIsoSeconds(now_s) + ")";
     return false;
   }
   return true;
@@ -1152,7 +1148,8 @@ Response Resources::AckAlarm(const Request& req) {
     case AlarmEngine::Ack::kUnknown:
       return Error(404, unknown);
     case AlarmEngine::Ack::kCleared:
-      return Error(409, "alarm " + id_text + " was cleared at " + Iso(alarm.cleared_s.value_or(0)) + ": nothing to acknowledge");
+      return Error(409, "alarm " + id_text + " was cleared at " + core::FormatIsoSeconds(alarm.cleared_s.value_or(0)) +
+                            ": nothing to acknowledge");
     case AlarmEngine::Ack::kAcknowledged:
     case AlarmEngine::Ack::kAlreadyAcknowledged:
       break;
@@ -1254,7 +1251,7 @@ Response Resources::SettingCheckList(const Request& req) {
   // The openings live wear counts (estimated again where the stored ones could not be updated).
   for (const core::SettingCheck& counted : ctx_.wear->SettingChecks(c->config.crusher_id))
     for (SettingCheckRecord& k : checks)
-      if (core::TimePoint(std::chrono::seconds(k.time_s)) == counted.time) {
+      if (core::FromUnixSeconds(k.time_s) == counted.time) {
         k.opening_mm = std::isfinite(counted.opening_mm) ? std::optional(counted.opening_mm) : std::nullopt;
         k.opening_supported = k.opening_mm && counted.opening_supported;
       }
@@ -1315,7 +1312,7 @@ Response Resources::RejectedList(const Request& req) {
   return ctx_.read->With([&](Store& s) {
     ordered_json list = ordered_json::array();
     for (const auto& r : s.RejectedMessages(limit)) {
-      list.push_back({{"received", Iso(r.received_s)},
+      list.push_back({{"received", core::FormatIsoSeconds(r.received_s)},
                       {"topic", r.topic},
                       {"payload", r.payload},
                       {"reason", r.reason},

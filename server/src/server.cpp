@@ -39,7 +39,7 @@ int64_t WallMs() {
 }
 
 std::string Stamp() {
-  return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(WallMs() / 1000)));
+  return core::FormatIsoSeconds(WallMs() / 1000);
 }
 
 // Lines carry topics, sensor ids, times and error text from the broker and REST bodies: the one

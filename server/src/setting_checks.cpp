@@ -23,8 +23,7 @@ constexpr double kMaxCssMm = 1000;
 constexpr int64_t kNewLinerS = 86400;
 
 core::SettingCheck ToCore(const SettingCheckRecord& r) {
-  return {core::TimePoint(std::chrono::seconds(r.time_s)), r.css_mm, r.opening_mm.value_or(std::nan("")), r.by,
-          r.opening_supported};
+  return {core::FromUnixSeconds(r.time_s), r.css_mm, r.opening_mm.value_or(std::nan("")), r.by, r.opening_supported};
 }
 
 }  // namespace
@@ -53,12 +52,12 @@ std::vector<core::SettingCheck> ToCoreSettingChecks(const std::vector<SettingChe
 }
 
 ordered_json SettingCheckJson(const SettingCheckRecord& c, core::TimePoint installed_at) {
-  const auto iso = [](int64_t s) { return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(s))); };
+  const auto iso = [](int64_t s) { return core::FormatIsoSeconds(s); };
   return {{"time", iso(c.time_s)},
           {"css_mm", c.css_mm},
           {"opening_mm", c.opening_mm ? ordered_json(std::round(*c.opening_mm * 100) / 100) : ordered_json(nullptr)},
           {"opening_supported", c.opening_supported},
-          {"counts", core::TimePoint(std::chrono::seconds(c.time_s)) >= installed_at},
+          {"counts", core::FromUnixSeconds(c.time_s) >= installed_at},
           {"by", c.by},
           {"note", c.note},
           {"recorded", iso(c.recorded_s)}};
@@ -84,7 +83,7 @@ void EstimateOpening(Store& store, const Crusher& crusher, SettingCheckRecord* c
 std::vector<SettingCheckRecord> EstimateSettingChecks(Store& store, const Crusher& crusher, Reestimate which) {
   std::vector<SettingCheckRecord> all = store.SettingChecks(crusher.config.crusher_id);
   for (SettingCheckRecord& c : all) {
-    if (core::TimePoint(std::chrono::seconds(c.time_s)) < crusher.config.installed_at) continue;  // an earlier liner's
+    if (core::FromUnixSeconds(c.time_s) < crusher.config.installed_at) continue;  // an earlier liner's
     if (which == Reestimate::kAll || !c.opening_mm) EstimateOpening(store, crusher, &c);
   }
   return all;

@@ -11,7 +11,7 @@ std::string ReadingEventData(const std::string& payload, const std::string& sens
   nlohmann::json j = nlohmann::json::parse(payload, nullptr, false);
   if (!j.is_object()) j = nlohmann::json::object();
   j["sensor"] = sensor;
-  j["time"] = core::FormatIsoTime(core::TimePoint(std::chrono::seconds(time_s)));
+  j["time"] = core::FormatIsoSeconds(time_s);
   return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 

@@ -14,10 +14,6 @@ namespace {
 
 using nlohmann::ordered_json;
 
-core::TimePoint FromUnix(int64_t s) {
-  return core::TimePoint(std::chrono::seconds(s));
-}
-
 ordered_json OptTime(const std::optional<core::TimePoint>& t) {
   return t ? ordered_json(core::FormatIsoTime(*t)) : ordered_json(nullptr);
 }
@@ -70,10 +66,8 @@ namespace {
 ordered_json ReadingsUsedJson(const CrusherState& st) {
   ordered_json used = ordered_json::array();
   for (const estimate::Sample& r : st.used) {
-    used.push_back({{"sensor", r.sensor},
-                    {"seq", r.seq},
-                    {"time", core::FormatIsoTime(FromUnix(r.time_s))},
-                    {"thickness_mm", r.thickness_mm}});
+    used.push_back(
+        {{"sensor", r.sensor}, {"seq", r.seq}, {"time", core::FormatIsoSeconds(r.time_s)}, {"thickness_mm", r.thickness_mm}});
   }
   return used;
 }

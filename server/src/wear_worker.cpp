@@ -45,7 +45,7 @@ AlarmInputs GatherAlarmInputs(const Crusher& crusher, const LiveState& live, con
     AlarmInputs::Sensor sensor{s.id, std::nullopt, 0};
     if (const auto it = latest.find(s.id);
         it != latest.end() &&
-        crusher.config.OfThisLiner(s.id, core::TimePoint(std::chrono::seconds(it->second->time_s)), it->second->thickness_mm)) {
+        crusher.config.OfThisLiner(s.id, core::FromUnixSeconds(it->second->time_s), it->second->thickness_mm)) {
       sensor.latest_s = it->second->time_s;
       sensor.battery_mv = it->second->battery_mv;
     }

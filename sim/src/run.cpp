@@ -163,10 +163,6 @@ fs::path FindCrusherFolder(const RunOptions& o) {
   return dir / names[0];
 }
 
-std::string Iso(int64_t unix_s) {
-  return core::FormatIsoTime(core::TimePoint(std::chrono::seconds(unix_s)));
-}
-
 std::string Mm(double mm) {
   std::ostringstream os;
   os << mm;
@@ -176,7 +172,7 @@ std::string Mm(double mm) {
 std::string LedgerCsv(const std::vector<LedgerEntry>& ledger) {
   std::string s = "sensor_id,seq,time,thickness_mm\n";
   for (const LedgerEntry& e : ledger)
-    s += e.sensor_id + "," + std::to_string(e.seq) + "," + Iso(e.time_s) + "," + Mm(e.thickness_mm) + "\n";
+    s += e.sensor_id + "," + std::to_string(e.seq) + "," + core::FormatIsoSeconds(e.time_s) + "," + Mm(e.thickness_mm) + "\n";
   return s;
 }
 
@@ -191,8 +187,7 @@ void WriteBundle(const fs::path& out, const CrusherFolder& folder, const Fleet& 
         std::stable_sort(sorted.begin(), sorted.end(),
                          [](const LedgerEntry& a, const LedgerEntry& b) { return a.time_s < b.time_s; });
         std::vector<core::Reading> readings;
-        for (const LedgerEntry& e : sorted)
-          readings.push_back({core::TimePoint(std::chrono::seconds(e.time_s)), e.sensor_id, e.thickness_mm});
+        for (const LedgerEntry& e : sorted) readings.push_back({core::FromUnixSeconds(e.time_s), e.sensor_id, e.thickness_mm});
         lw::core::WriteFileAtomically(tmp / "readings.csv", core::ReadingsCsv(readings));
         std::vector<core::OperationsSample> ops;
         const auto truth_ops = folder.truth->Operations();
@@ -202,8 +197,7 @@ void WriteBundle(const fs::path& out, const CrusherFolder& folder, const Fleet& 
         }
         // The map model wears at a constant rate: constant nominal tonnage, daily.
         if (truth_ops.empty())
-          for (int64_t t = fleet.start_s(); t <= end_s; t += 86400)
-            ops.push_back({core::TimePoint(std::chrono::seconds(t)), 3500.0, {}, {}});
+          for (int64_t t = fleet.start_s(); t <= end_s; t += 86400) ops.push_back({core::FromUnixSeconds(t), 3500.0, {}, {}});
         lw::core::WriteFileAtomically(tmp / "operations.csv", core::OperationsCsv(ops));
       },
       "--bundle-out");
@@ -487,7 +481,7 @@ int RunCommand(const std::vector<std::string>& args) {
     std::signal(SIGPIPE, SIG_IGN);
     if (!o.quiet) {
       std::fprintf(stderr, "linerwatch-sim: crusher %s: %zu boards, %.1f days from %s; truth: %s\n",
-                   folder.crusher.crusher_id.c_str(), fleet.board_count(), days, Iso(fleet.start_s()).c_str(),
+                   folder.crusher.crusher_id.c_str(), fleet.board_count(), days, core::FormatIsoSeconds(fleet.start_s()).c_str(),
                    folder.truth->Describe().c_str());
       std::fprintf(stderr, "linerwatch-sim: coordinator on %s -> %s (API mode %d)%s%s\n", o.serial_out.c_str(),
                    pty.slave_name().c_str(), o.api_mode, o.clock_out.empty() ? "" : ", virtual clock in ", o.clock_out.c_str());

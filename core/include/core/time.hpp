@@ -1,6 +1,7 @@
 #pragma once
 /// ISO-8601 UTC time handling shared by every host component.
 #include <chrono>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -16,6 +17,18 @@ std::optional<TimePoint> ParseIsoTime(std::string_view text);
 
 /// Formats as "YYYY-MM-DDTHH:MM:SSZ".
 std::string FormatIsoTime(TimePoint t);
+
+/// The store and the wire keep whole Unix seconds; the domain keeps TimePoints.
+inline TimePoint FromUnixSeconds(int64_t s) {
+  return TimePoint(std::chrono::seconds(s));
+}
+inline int64_t ToUnixSeconds(TimePoint t) {
+  return t.time_since_epoch().count();
+}
+/// FormatIsoTime of whole Unix seconds.
+inline std::string FormatIsoSeconds(int64_t s) {
+  return FormatIsoTime(FromUnixSeconds(s));
+}
 
 /// A wall-time length for progress lines: "12m05s" under an hour, "3h07m" from an hour on; "?"
 /// when not finite (not known yet). Negative lengths count as 0.
