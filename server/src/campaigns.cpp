@@ -205,10 +205,11 @@ ordered_json CampaignJson(const CampaignRecord& c, int64_t now_s) {
 }
 
 CampaignService::CampaignService(Registry& registry, LockedStore& store, LiveState& live, WearService& wear,
-                                 std::function<int64_t()> now_s)
-    : registry_(registry), store_(store), live_(live), wear_(wear), now_s_(std::move(now_s)) {
+                                 std::function<int64_t()> now_s, std::function<void(const std::string&)> log)
+    : registry_(registry), store_(store), live_(live), wear_(wear), now_s_(std::move(now_s)), log_(std::move(log)) {
   // Failing to store an opening is not fatal: the checks count as estimated, and are estimated again next start.
-  store_.With([&](Store& s) { LoadSettingChecks(s, registry_, wear_, true); });
+  const std::string failed = store_.With([&](Store& s) { return LoadSettingChecks(s, registry_, wear_, true); });
+  if (!failed.empty() && log_) log_(failed);
 }
 
 std::vector<CampaignRecord> CampaignService::CampaignsOf(Store& store, const Crusher& crusher) const {
@@ -281,7 +282,8 @@ CampaignService::Outcome CampaignService::Reline(const std::string& crusher_id, 
     registry_.Replace(std::move(model));
     live_.Replace(current, s);
     // A check at or after the reline's time measured the new liner: its opening is estimated again.
-    LoadSettingChecks(s, current, wear_, Reestimate::kAll, true);
+    if (const std::string failed = LoadSettingChecks(s, current, wear_, Reestimate::kAll, true); !failed.empty() && log_)
+      log_(failed);
   });
   wear_.Reset(crusher_id);
   return {true, next};
@@ -339,7 +341,8 @@ CampaignService::Outcome CampaignService::Void(const std::string& crusher_id, co
       registry_.Restore(crusher_id);
     live_.Replace(current, s);
     // The voided campaign's checks measured the reopened liner: their openings are estimated again.
-    LoadSettingChecks(s, current, wear_, Reestimate::kAll, true);
+    if (const std::string failed = LoadSettingChecks(s, current, wear_, Reestimate::kAll, true); !failed.empty() && log_)
+      log_(failed);
   });
   wear_.Reset(crusher_id);
   return {true, voided};

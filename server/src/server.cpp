@@ -227,7 +227,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   LockedStore diagnosis_store(std::make_unique<Store>(o.db));
   DiagnosisRunner diagnosis(*registry, diagnosis_store);
   LockedStore campaign_store(std::make_unique<Store>(o.db));
-  CampaignService campaigns(*registry, campaign_store, live, wear, now_s);
+  CampaignService campaigns(*registry, campaign_store, live, wear, now_s, [&log](const std::string& line) { log(line); });
   LockedStore alarm_store(std::make_unique<Store>(o.db));
   AlarmEngine alarms(*registry, alarm_store);
   ServerMetrics metrics(o.db);
@@ -238,7 +238,7 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
       o.notifications, o.db, [&log](const std::string& line) { log(line); }, &metrics);
   notifier.Start();
   // Joined on every way out of this function (an exception too), after the link's shutdown.
-  WearWorker worker({*registry, live, wear, alarms, ingestor, events, metrics, log}, now_s, o.wear_interval_ms);
+  WearWorker worker({*registry, live, wear, alarms, ingestor, events, metrics, log, &campaigns}, now_s, o.wear_interval_ms);
   alarms.OnChange([&](const std::string& c) {
     notifier.Wake();
     worker.AlarmsChanged(c);

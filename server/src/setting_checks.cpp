@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "core/clock.hpp"
 #include "core/time.hpp"
 #include "server/campaigns.hpp"
 
@@ -21,6 +22,8 @@ constexpr double kMaxCssMm = 1000;
 /// A check with no reading of the liner up to it still knows its opening this long after the
 /// installation: nothing has opened yet.
 constexpr int64_t kNewLinerS = 86400;
+/// The least wall time between two tries to estimate a crusher's not-known checks.
+constexpr int64_t kUnknownRetryMs = 60000;
 
 core::SettingCheck ToCore(const SettingCheckRecord& r) {
   return {core::FromUnixSeconds(r.time_s), r.css_mm, r.opening_mm.value_or(std::nan("")), r.by, r.opening_supported};
@@ -64,7 +67,7 @@ ordered_json SettingCheckJson(const SettingCheckRecord& c, core::TimePoint insta
 }
 
 void EstimateOpening(Store& store, const Crusher& crusher, SettingCheckRecord* check) {
-  const core::TimePoint at{std::chrono::seconds(check->time_s)};
+  const core::TimePoint at = core::FromUnixSeconds(check->time_s);
   const estimate::ReadingWindow window = LoadWindow(store, crusher, check->time_s);
   const CrusherState then = ComputeCrusherState(crusher, window.Readings(), at);
   check->opening_mm.reset();
@@ -126,7 +129,7 @@ CampaignService::SettingOutcome CampaignService::CheckSetting(const std::string&
   std::lock_guard<std::mutex> one_at_a_time(reline_mutex_);  // against a reline replacing the model meanwhile
   const Crusher* crusher = registry_.Find(crusher_id);
   if (!crusher) throw RelineError(404, "unknown crusher '" + crusher_id + "'");
-  const int64_t time_s = request.time.time_since_epoch().count();
+  const int64_t time_s = core::ToUnixSeconds(request.time);
   const std::string when = core::FormatIsoTime(request.time);
   if (!std::isfinite(request.css_mm) || !(request.css_mm > 0) || request.css_mm > kMaxCssMm)
     throw RelineError(
@@ -160,6 +163,27 @@ CampaignService::SettingOutcome CampaignService::CheckSetting(const std::string&
     return out;
   }
   return out;
+}
+
+bool CampaignService::EstimateUnknownSettings(const std::string& crusher_id) {
+  std::lock_guard<std::mutex> one_at_a_time(reline_mutex_);  // the registry's model stays the one estimated with
+  const Crusher* crusher = registry_.Find(crusher_id);
+  if (!crusher) return false;
+  bool unknown = false;
+  for (const core::SettingCheck& c : wear_.SettingChecks(crusher_id))
+    unknown = unknown || (c.time >= crusher->config.installed_at && !std::isfinite(c.opening_mm));
+  if (!unknown) return false;
+  // Each try reads the window up to every unknown check: not on every commit of a busy crusher.
+  const int64_t now_ms = core::WallClockMs();
+  int64_t& tried = unknown_tried_ms_[crusher_id];
+  if (tried != 0 && now_ms - tried < kUnknownRetryMs) return false;
+  tried = now_ms;
+  const std::string failed =
+      store_.With([&](Store& s) { return LoadSettingChecks(s, *crusher, wear_, Reestimate::kUnknown, true); });
+  if (!failed.empty() && log_) log_(failed);
+  for (const core::SettingCheck& c : wear_.SettingChecks(crusher_id))
+    if (c.time >= crusher->config.installed_at && !std::isfinite(c.opening_mm)) return false;
+  return true;
 }
 
 std::vector<SettingCheckRecord> CampaignService::SettingChecks(const std::string& crusher_id) {

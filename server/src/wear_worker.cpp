@@ -198,6 +198,13 @@ void WearWorker::ComputeAndHandBack(const std::string& c) {
   const auto started = std::chrono::steady_clock::now();
   const auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(); };
   try {
+    // A check posted before the readings of its time arrived counts once they have (the setting_open alarm holds till then).
+    if (p_.campaigns && p_.campaigns->EstimateUnknownSettings(c))
+      p_.log("crusher " + c + ": setting checks estimated from the readings now stored");
+  } catch (const std::exception& e) {
+    p_.log("crusher " + c + ": setting checks not estimated: " + e.what());
+  }
+  try {
     st = p_.wear.Get(c);
   } catch (const std::exception& e) {
     p_.metrics.WearDone(c, false, seconds(), WallMs());

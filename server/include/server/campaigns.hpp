@@ -8,6 +8,7 @@
 /// and sensors override crusher.json's.
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -111,7 +112,9 @@ nlohmann::ordered_json CampaignJson(const CampaignRecord& c, int64_t now_s);
 class CampaignService {
  public:
   /// `store` is a connection of the service's own (it writes campaigns); `now_s` the server's clock.
-  CampaignService(Registry& registry, LockedStore& store, LiveState& live, WearService& wear, std::function<int64_t()> now_s);
+  /// `log` takes what fails after a reline or void has been stored (a setting check not estimated).
+  CampaignService(Registry& registry, LockedStore& store, LiveState& live, WearService& wear, std::function<int64_t()> now_s,
+                  std::function<void(const std::string&)> log = {});
 
   struct Outcome {
     bool created = false;  ///< false: the same reline was stored before (a retry), `campaign` is that one
@@ -138,6 +141,10 @@ class CampaignService {
     SettingCheckRecord check;
   };
   SettingOutcome CheckSetting(const std::string& crusher_id, const SettingCheckRequest& request, const std::string& by);
+  /// The running liner's checks whose opening is not known (their readings had not arrived) are
+  /// estimated again from the readings stored by now, at most once a minute per crusher; the wear
+  /// worker calls this before it computes a crusher's wear. True when it tried and every one is known now.
+  bool EstimateUnknownSettings(const std::string& crusher_id);
   /// The crusher's measured settings, oldest first (every liner's).
   std::vector<SettingCheckRecord> SettingChecks(const std::string& crusher_id);
   /// Every campaign of the crusher (voided ones too), oldest first; before its first reline, the one crusher.json describes.
@@ -153,7 +160,9 @@ class CampaignService {
   LiveState& live_;
   WearService& wear_;
   std::function<int64_t()> now_s_;
+  std::function<void(const std::string&)> log_;
   std::mutex reline_mutex_;
+  std::map<std::string, int64_t> unknown_tried_ms_;  ///< under reline_mutex_
 };
 
 }  // namespace lw::server

@@ -20,6 +20,7 @@
 #include "mqtt/publisher.hpp"
 #include "mqtt/topics.hpp"
 #include "server/alarms.hpp"
+#include "server/campaigns.hpp"
 #include "server/events.hpp"
 #include "server/health.hpp"
 #include "server/ingest.hpp"
@@ -46,6 +47,9 @@ class WearWorker {
     EventBus& events;          ///< "wear" and "alarm" events
     ServerMetrics& metrics;
     core::Logger& log;
+    /// Estimates a crusher's setting checks whose opening was not known, before its wear (none: a
+    /// read-only server, which writes no check).
+    CampaignService* campaigns = nullptr;
   };
   /// `now_s`: the server's "now" (unix seconds) for alarms; `interval_ms`: the least time between
   /// two recomputations (--wear-interval-ms).

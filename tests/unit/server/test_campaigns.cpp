@@ -454,12 +454,17 @@ TEST(Campaigns, ASettingChecksOpeningFollowsTheLinerItMeasured) {
         a.Client().Post(a.Base() + "/setting/checks", json({{"time", Day(5)}, {"css_mm", 128}}).dump(), "application/json");
     CHECK(five);
     LONGS_EQUAL_TEXT(201, five->status, five->body.c_str());
-    CHECK(listed(a)["opening_mm"].is_null());  // not moved before the next start
+    CHECK(listed(a)["opening_mm"].is_null());  // not moved by the readings' commit itself
+    // The wear worker's step before it computes the wear: estimated from the readings now stored,
+    // and not tried again while nothing is unknown.
+    CHECK_TRUE(a.parts.campaigns->EstimateUnknownSettings(Folder().id()));
+    first_liner = expect_as_wear_then(a);
+    CHECK_FALSE(a.parts.campaigns->EstimateUnknownSettings(Folder().id()));
   }
   json day5;
   {
-    Api a(db);  // the next start estimates it from the readings stored by then
-    first_liner = expect_as_wear_then(a);
+    Api a(db);  // the next start reads them back as estimated
+    CHECK(expect_as_wear_then(a) == first_liner);
     day5 = early(a);
     CHECK_TEXT(day5["opening_mm"].is_number(), day5.dump().c_str());
     CHECK_TEXT(first_liner["opening_mm"].is_number(), first_liner.dump().c_str());
@@ -484,6 +489,45 @@ TEST(Campaigns, ASettingChecksOpeningFollowsTheLinerItMeasured) {
   {
     Api a(db);  // and so after a restart
     DOUBLES_EQUAL(first_liner["opening_mm"].get<double>(), expect_as_wear_then(a)["opening_mm"].get<double>(), 0.011);
+  }
+}
+
+// With no reading up to a check, the liner has not opened only within a day of its installation:
+// a check at installed_at and one a day later count 0, one a second after that is not known (the
+// alarm holds) and is estimated at the next start from the readings stored by then.
+TEST(Campaigns, ACheckWithNoReadingBeforeItIsZeroOnlyOnTheLinersFirstDay) {
+  lw::test::TempDirectory keep{"lw-setting-edge"};
+  const std::string db = keep.File("db.sqlite");
+  const auto post = [](Api& a, const std::string& time) {
+    auto res = a.Client().Post(a.Base() + "/setting/checks", json({{"time", time}, {"css_mm", 130}}).dump(), "application/json");
+    CHECK(res);
+    LONGS_EQUAL_TEXT(201, res->status, res->body.c_str());
+    return json::parse(res->body);
+  };
+  const std::string after_a_day = lw::core::FormatIsoTime(*lw::core::ParseIsoTime(Day(1)) + std::chrono::seconds(1));
+  {
+    Api a(db);
+    const json at_install = post(a, Day(0));
+    DOUBLES_EQUAL(0.0, at_install["opening_mm"].get<double>(), 1e-9);
+    CHECK_TRUE(at_install["opening_supported"].get<bool>());
+    DOUBLES_EQUAL(0.0, post(a, Day(1))["opening_mm"].get<double>(), 1e-9);
+    const json late = post(a, after_a_day);
+    CHECK_TEXT(late["opening_mm"].is_null(), late.dump().c_str());
+    a.LoadAll();
+  }
+  {
+    Api a(db);
+    auto res = a.Client(kReadToken).Get(a.Base() + "/setting/checks");
+    CHECK(res);
+    const json checks = json::parse(res->body)["checks"];
+    LONGS_EQUAL(3, checks.size());
+    CHECK_TEXT(checks[2]["opening_mm"].is_number(), checks[2].dump().c_str());
+    auto then = a.Client(kReadToken).Get(a.Base() + "/wear?faces=false&at=" + after_a_day);
+    CHECK(then);
+    const json setting_then = json::parse(then->body)["setting"];
+    CHECK_TEXT(setting_then["opening_mm"].is_number(), setting_then.dump().c_str());
+    DOUBLES_EQUAL(setting_then["opening_mm"].get<double>(), checks[2]["opening_mm"].get<double>(), 0.011);
+    DOUBLES_EQUAL(0.0, checks[0]["opening_mm"].get<double>(), 1e-9);  // a known opening is kept
   }
 }
 

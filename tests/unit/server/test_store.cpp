@@ -455,3 +455,36 @@ TEST(Store, AVersion6DatabaseKeepsItsCampaignsAndGainsVoidedRelines) {
   CHECK_FALSE(c[2].end_s.has_value());
   LONGS_EQUAL(200, c[0].end_s.value_or(0));
 }
+
+// Version 8 kept a check's opening, NULL where the ring was not supported: on opening it as
+// version 9 every check is kept, a stored opening counts as supported and a NULL one as not known.
+TEST(Store, AVersion8DatabaseKeepsItsSettingChecksAndMarksTheirSupport) {
+  { Store fresh(db()); }
+  {
+    sqlite3* h = nullptr;
+    sqlite3_open(db().c_str(), &h);
+    const int rc = sqlite3_exec(h,
+                                "DROP TABLE setting_checks;"
+                                "CREATE TABLE setting_checks (crusher TEXT NOT NULL, time INTEGER NOT NULL, css_mm REAL NOT NULL,"
+                                " opening_mm REAL, by TEXT NOT NULL, note TEXT NOT NULL DEFAULT '', recorded INTEGER NOT NULL,"
+                                " PRIMARY KEY (crusher, time));"
+                                "INSERT INTO setting_checks VALUES('c1', 100, 131.5, 2.25, 'ops', 'raised', 101),"
+                                " ('c1', 200, 128, NULL, 'ops', '', 201);"
+                                "PRAGMA user_version=8;",
+                                nullptr, nullptr, nullptr);
+    sqlite3_close(h);
+    LONGS_EQUAL(SQLITE_OK, rc);
+  }
+  for (int open = 0; open < 2; ++open) {  // and once more as version 9: nothing changes again
+    Store s(db());
+    const std::vector<lw::server::SettingCheckRecord> c = s.SettingChecks("c1");
+    LONGS_EQUAL(2, c.size());
+    DOUBLES_EQUAL(131.5, c[0].css_mm, 1e-9);
+    DOUBLES_EQUAL(2.25, c[0].opening_mm.value_or(-1), 1e-9);
+    CHECK_TRUE(c[0].opening_supported);
+    STRCMP_EQUAL("raised", c[0].note.c_str());
+    CHECK_FALSE(c[1].opening_mm.has_value());
+    CHECK_FALSE(c[1].opening_supported);
+    LONGS_EQUAL(201, c[1].recorded_s);
+  }
+}
