@@ -206,6 +206,14 @@ int VoidReline(const std::vector<std::string>& args, std::ostream& out) {
   return 0;
 }
 
+/// A list answer `{"KEY": [...]}` (`what` names it in the error); throws when it is not one.
+json ListAnswer(const httplib::Response& r, const std::string& key, const std::string& what) {
+  json j = json::parse(r.body, nullptr, false);
+  if (!j.is_object() || !j.contains(key) || !j[key].is_array())
+    throw std::runtime_error("the server's " + what + " is not {\"" + key + "\": [...]}: " + r.body.substr(0, 200));
+  return j;
+}
+
 }  // namespace
 
 int Reline(const std::vector<std::string>& args, std::ostream& out) {
@@ -258,9 +266,7 @@ int Campaigns(const std::vector<std::string>& args, std::ostream& out) {
   Server server(o);
   const httplib::Result res = server.Check(server.client->Get(path + "/campaigns"), "list the campaigns");
   if (res->status != 200) Refused(*res, "campaign list", "");
-  const json j = json::parse(res->body, nullptr, false);
-  if (!j.is_object() || !j.contains("campaigns") || !j["campaigns"].is_array())
-    throw std::runtime_error("the server's campaign list is not {\"campaigns\": [...]}: " + res->body.substr(0, 200));
+  const json j = ListAnswer(*res, "campaigns", "campaign list");
   if (o.Has("json")) core::WriteFileAtomically(o.Text("json"), j.dump(2) + "\n");
   out << o.Text("crusher") << ": " << j["campaigns"].size() << " campaign(s), oldest first\n";
   out << "  start                 end                   life (d)  new (mm)  sensors  end-of-life scan\n";
@@ -289,9 +295,7 @@ int SettingCheckList(const core::ParsedOptions& o, std::ostream& out) {
   Server server(o);
   const httplib::Result res = server.Check(server.client->Get(path + "/setting/checks"), "list the setting checks");
   if (res->status != 200) Refused(*res, "setting check list", "");
-  const json j = json::parse(res->body, nullptr, false);
-  if (!j.is_object() || !j.contains("checks") || !j["checks"].is_array())
-    throw std::runtime_error("the server's setting check list is not {\"checks\": [...]}: " + res->body.substr(0, 200));
+  const json j = ListAnswer(*res, "checks", "setting check list");
   out << o.Text("crusher") << ": " << j["checks"].size() << " measured setting(s), oldest first\n";
   out << "  time                  css (mm)  opening then (mm)  counts  by\n";
   for (const json& c : j["checks"]) {
