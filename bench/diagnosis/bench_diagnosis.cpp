@@ -396,6 +396,40 @@ constexpr const char* kHelp =
     "  --keep DIR                    keep every case's bundle in DIR; --json-dir DIR: every diagnosis as JSON\n"
     "  --threads N                   cases in parallel (default 1)\n";
 
+// The diagnosis' detection limits (its `limits`) against the bench's truth: per single-effect case,
+// the true strength beside the limit the diagnosis computed for that effect (named or not), and
+// whether the effect was named. Above the limit it should be named most of the time, below rarely.
+struct LimitCase {
+  std::string truth, level;
+  double param = 0;
+  const lw::diagnosis::DiagnosisResult* result = nullptr;
+};
+void PrintLimitCheck(const std::vector<LimitCase>& cases) {
+  int above = 0, above_found = 0, below = 0, below_found = 0;
+  std::map<std::string, std::array<int, 4>> per_effect;  // above, found; below, found
+  std::printf("\ndetection limits against the truth (the effect's limit from the diagnosis, the true strength):\n");
+  for (const LimitCase& c : cases) {
+    const lw::diagnosis::DetectionLimit* lim = nullptr;
+    for (const auto& l : c.result->limits)
+      if (l.effect == c.truth) lim = &l;
+    if (lim == nullptr) continue;
+    bool found = false;
+    for (const auto& f : c.result->findings) found = found || f.effect == c.truth;
+    const bool is_above = std::fabs(c.param) > lim->min_detectable;
+    (is_above ? above : below) += 1;
+    if (found) (is_above ? above_found : below_found) += 1;
+    auto& pe = per_effect[c.truth];
+    pe[is_above ? 0 : 2] += 1;
+    if (found) pe[is_above ? 1 : 3] += 1;
+    std::printf("  %-22s %-9s true %-8.3g limit %-8.3g (se %.3g, %s) %s %s\n", c.truth.c_str(), c.level.c_str(),
+                std::fabs(c.param), lim->min_detectable, lim->stderr_, lim->form.c_str(), is_above ? "above" : "below",
+                found ? "named" : "not named");
+  }
+  for (const auto& [e, v] : per_effect)
+    std::printf("  %-22s above the limit named %d / %d, below named %d / %d\n", e.c_str(), v[1], v[0], v[3], v[2]);
+  std::printf("limits: above the limit named %d / %d, below the limit named %d / %d\n\n", above_found, above, below_found, below);
+}
+
 int main(int argc, char** argv) {
   int max_cases = 1 << 30;
   int threads = 1;
@@ -1099,6 +1133,13 @@ int main(int argc, char** argv) {
       if (cases[k].truth == "none")
         rows.push_back(ReadCalibration(k, use_real ? runs[cases[k].run].name : generator, outcomes[k].result));
     PrintCalibration(rows);
+  }
+  {
+    std::vector<LimitCase> lc;
+    for (size_t k = 0; k < cases.size(); ++k)
+      if (cases[k].truth != "none" && cases[k].truth != "fault" && cases[k].truth.find('+') == std::string::npos)
+        lc.push_back({cases[k].truth, cases[k].level, cases[k].param, &outcomes[k].result});
+    if (!lc.empty()) PrintLimitCheck(lc);
   }
   std::printf("%-45s %-9s %-22s %-6s %8s %8s %8s\n", "truth", "level", "top finding", "conf", "base_mm", "impr_mm", "refit_mm");
   int effect_cases = 0, effect_better = 0, null_pred = 0, null_not_worse = 0;

@@ -20,6 +20,7 @@
 #include "stage_findings.hpp"
 #include "stage_folds.hpp"
 #include "stage_hypotheses.hpp"
+#include "stage_limits.hpp"
 #include "stage_mismatch.hpp"
 #include "stage_predictions.hpp"
 #include "stage_regions.hpp"
@@ -110,6 +111,11 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
   const detail::ModelEval* chosen = hyp.Chosen();
 
   result.findings = detail::RankFindings({bundle, setup, null, hyp});
+  {
+    double last_day = 0;
+    for (const detail::Obs& o : prob.obs) last_day = std::max(last_day, o.t);
+    result.limits = detail::DetectionLimits(hyp, null.log_n, prob.map_harmonic1_sd, result.findings, last_day);
+  }
   result.mismatch_detected = detail::MismatchDetected(result.mismatch_z_score, result.findings);
   result.hypotheses = detail::HypothesesTable(hyp.evals, prob.rows);
   detail::AnnotateHypotheses(result.hypotheses, hyp, null.log_n);

@@ -269,6 +269,23 @@ std::string HypothesisParams(const nlohmann::ordered_json& p, double thickness_n
   return s.str();
 }
 
+// Per effect not named, the smallest strength these data would have shown (the JSON's `limits`).
+std::string LimitsSection(const DiagnosisResult& r) {
+  std::ostringstream h;
+  h << "<h2 id='limits'>What these data could not show</h2>";
+  bool any = false;
+  for (const DetectionLimit& l : r.limits)
+    if (!l.named) {
+      if (!any) h << "<ul>";
+      any = true;
+      h << "<li>" << Esc(l.sentence) << ". To see a smaller one: " << Esc(l.would_show_with) << ".</li>";
+    }
+  h << (any ? "</ul>" : "<p>Every tested effect was named, or no effect could be tested.</p>");
+  h << "<p class='caption'>From each effect's fit: the standard error of its strength at this data's noise; an effect "
+       "this strong is named about 84 % of the time, one at the limit minus one standard error about half.</p>";
+  return h.str();
+}
+
 std::string EffectWords(const std::string& effect) {
   if (effect == kWorkHardening) return "work hardening: the liner hardened under impact and wore slower over time";
   if (effect == kHardnessGradient) return "hardness gradient: a softer core, wear accelerated with worn depth";
@@ -946,6 +963,8 @@ std::string RenderHtml(const DiagnosisResult& r) {
       h << EvidenceTable(f.evidence);
     }
   }
+
+  h << LimitsSection(r);
 
   h << "<h2 id='error'>Error (mm of wear)</h2><table><tr><th></th><th>RMSE</th><th>max |error|</th><th>held-out RMSE</th>"
        "<th>observations</th></tr>";

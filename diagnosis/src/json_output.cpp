@@ -24,6 +24,27 @@ nlohmann::ordered_json Errors(const ErrorSummary& e) {
 
 }  // namespace
 
+namespace {
+// Per effect not named: the smallest strength these data would have shown (CONTRACTS.md section 4).
+nlohmann::ordered_json LimitsJson(const std::vector<DetectionLimit>& limits) {
+  nlohmann::ordered_json out = nlohmann::ordered_json::array();
+  for (const DetectionLimit& l : limits) {
+    if (l.named) continue;
+    nlohmann::ordered_json x;
+    x["effect"] = l.effect;
+    x["min_detectable"] = {{l.parameter, Round(l.min_detectable, 4)}};
+    x["would_show_with"] = l.would_show_with;
+    x["form"] = l.form;
+    x["stderr"] = Round(l.stderr_, 4);
+    x["standard_errors_needed"] = Round(l.z_needed, 2);
+    x["until_day"] = Round(l.until_day, 1);
+    x["text"] = l.sentence;
+    out.push_back(x);
+  }
+  return out;
+}
+}  // namespace
+
 nlohmann::ordered_json ToJson(const DiagnosisResult& r) {
   nlohmann::ordered_json j;
   j["crusher_id"] = r.crusher_id;
@@ -59,6 +80,7 @@ nlohmann::ordered_json ToJson(const DiagnosisResult& r) {
   j["improved"] = Errors(r.improved);
   j["improved"]["model"] = ImprovedModelName(r.improved_model);
   j["improved"]["what"] = ImprovedModelDescription(r.improved_model);
+  j["limits"] = LimitsJson(r.limits);
   j["data_quality"] = nlohmann::ordered_json::array();
   for (const DataQualityIssue& d : r.data_quality) {
     nlohmann::ordered_json x;

@@ -176,6 +176,25 @@ struct NoiseFit {
   double median_predicted_wear_mm = std::numeric_limits<double>::quiet_NaN();
 };
 
+/// The smallest strength of an effect these data would have shown (JSON `limits`, for the effects
+/// not named): from the fit's information at its noise. Under the fit's curvature the effect's main
+/// parameter is estimated with standard error `stderr`; it is named when its chi-square gain
+/// (parameter / stderr)^2 passes the information criterion (delta BIC > 10 with its parameters'
+/// charge) and its size is more than 2 standard errors, and it is named most of the time (about
+/// 84 %) when the true strength is one standard error above that.
+struct DetectionLimit {
+  std::string effect;     ///< EffectName
+  std::string form;       ///< the form whose limit is the smallest (profile_evolution: shift or tilt)
+  std::string parameter;  ///< the main parameter's name in `findings[].parameters`
+  double min_detectable = std::numeric_limits<double>::quiet_NaN();
+  double stderr_ = std::numeric_limits<double>::quiet_NaN();  ///< the main parameter's, inflated by the dispersion
+  double z_needed = 0;                                        ///< the acceptance's bar in standard errors
+  double until_day = 0;                                       ///< the data's last observation, days since installation
+  bool named = false;                                         ///< a finding names this effect (the JSON then leaves it out)
+  std::string sentence;                                       ///< what a planner reads
+  std::string would_show_with;
+};
+
 /// The diagnosis' conclusion in words (JSON `verdict`; the report's headline; the CLI's line).
 struct Verdict {
   /// "mismatch_explained", "mismatch_unexplained", "no_mismatch", "not_testable" (the noise is as
@@ -339,6 +358,7 @@ struct DiagnosisResult {
   nlohmann::ordered_json hypotheses = nlohmann::ordered_json::array();  ///< every model tried
   std::vector<SensorNoise> sensors;                                     ///< every configured sensor, configuration order
   NoiseFit noise_fit;
+  std::vector<DetectionLimit> limits;  ///< every tested effect (JSON: those not named)
   std::vector<SensorCurve> curves;
   std::vector<ResidualGrid> grids;
   LinerReport liner;  ///< unwrapped-liner maps and the thinnest point (report only, not in the JSON)

@@ -447,3 +447,40 @@ TEST(HtmlReport, NoMismatchWithANoiseModelThatDoesNotFitIsNotGreen) {
   STRCMP_CONTAINS("the map&#39;s pattern error is 87 % of the predicted wear", verdict.c_str());
   STRCMP_CONTAINS("as large as the wear here", Between(html, "id='findings'", "<h2").c_str());
 }
+
+TEST(HtmlReport, EveryEffectNotNamedHasADetectionLimitInTheJsonAndTheReport) {
+  lw::test::SyntheticSpec spec;
+  spec.seed = 7;
+  spec.with_scan = false;
+  const Run run = Diagnose(spec);
+  const auto& r = run.result;
+  CHECK_TRUE(r.findings.empty());
+  // Every single effect tried has a limit from its fit's standard error: positive, finite, at
+  // least the size test's bar of 2 standard errors above zero.
+  CHECK_TRUE(r.limits.size() >= 4);
+  const nlohmann::ordered_json j = lw::diagnosis::ToJson(r);
+  CHECK_TRUE(j.contains("limits"));
+  size_t not_named = 0;
+  for (const auto& l : r.limits) {
+    CHECK_FALSE(l.named);
+    CHECK_TRUE(std::isfinite(l.min_detectable) && l.min_detectable > 0);
+    CHECK_TRUE(l.min_detectable >= 2.0 * l.stderr_);
+    CHECK_TRUE(l.z_needed >= 2.0);
+    ++not_named;
+    bool in_json = false;
+    for (const auto& x : j["limits"])
+      if (x["effect"] == l.effect) {
+        in_json = true;
+        CHECK_TRUE(x["min_detectable"].contains(l.parameter));
+        CHECK_TRUE(x["would_show_with"].is_string());
+      }
+    CHECK_TRUE(in_json);
+    CHECK_TRUE(l.sentence.find("would not show by day") != std::string::npos);
+    CHECK_TRUE(run.html.find(l.effect == "feed_segregation" ? "feed segregation" : "would not show") != std::string::npos);
+    CHECK_TRUE(run.html.find("would not show by day") != std::string::npos);
+  }
+  LONGS_EQUAL(not_named, j["limits"].size());
+  // One limit per effect (profile_evolution's smaller form).
+  for (size_t a = 0; a < r.limits.size(); ++a)
+    for (size_t b = a + 1; b < r.limits.size(); ++b) CHECK_TRUE(r.limits[a].effect != r.limits[b].effect);
+}
