@@ -33,7 +33,7 @@ struct ScaleMember {
 MapCalibration CalibrateAtSensors(const std::vector<ScaleMember>& members, size_t nrows, double q, double prior_dof) {
   MapCalibration out;
   if (!(prior_dof > 0)) return out;
-  double sum = 0;
+  double sum = 0, rel_sum = 0, model_rel = 0;
   for (size_t r = 0; r < nrows; ++r) {
     for (size_t j = 0; j < members.size(); ++j) {
       const ScaleMember& mj = members[j];
@@ -52,12 +52,21 @@ MapCalibration CalibrateAtSensors(const std::vector<ScaleMember>& members, size_
         q_var += f * f * q;
       }
       if (!(map_var > 0)) continue;
-      const double e = mj.w - k * mj.I;
+      const double e = mj.w - k * mj.I, pred = k * mj.I;
       sum += std::max(0.0, e * e - q_var) / map_var;
+      if (pred > 0) rel_sum += std::max(0.0, e * e - q_var) / (pred * pred), model_rel += map_var / (pred * pred);
       ++out.sensors;
     }
   }
   out.factor = std::min(4.0, std::sqrt((sum + prior_dof) / (static_cast<double>(out.sensors) + prior_dof)));
+  // The relative error of predicting a point from the other sensors of its row, pooled over the
+  // rows with prior_dof pseudo-sensors at the model's own (calibrated) relative error: what a point
+  // no sensor checks (one sensor's row scale, an area beyond every sensor's reach) is off by.
+  if (out.sensors > 0) {
+    const double n = static_cast<double>(out.sensors);
+    const double prior = out.factor * out.factor * model_rel / n;
+    out.point_rel_sd = std::min(1.0, std::sqrt((rel_sum + prior_dof * prior) / (n + prior_dof)));
+  }
   return out;
 }
 
@@ -441,6 +450,9 @@ RowScales FitRowScales(const ReconstructionPlan& plan, const std::vector<SensorW
     }
     v /= den[r] * den[r];
     if (used[r] >= 2) v = std::max(v, rss / static_cast<double>(used[r] - 1) / den[r]);
+    // One sensor has no scatter of its own to show how wrong the map's pattern along its row is:
+    // its scale carries the pattern error the other rows' sensors measure (point_rel_sd), not none.
+    if (used[r] == 1) v = std::max(v, std::pow(k * out.calibration.point_rel_sd, 2));
     row_var[r] = v;
   }
   return out;

@@ -25,11 +25,37 @@ struct FaceErrors {
   Eigen::VectorXd scale, bias, noise;
 };
 
-FaceErrors SplitErrors(const ReconstructionPlan& plan, const Reconstruction& rec) {
+/// Per face: whether it lies beyond every used sensor's reach (surface distance > sensor_reach_m).
+std::vector<char> BeyondReach(const ReconstructionPlan& plan, const std::vector<Reading>& used) {
+  const WearMap& map = *plan.map;
+  const double reach = plan.crusher->thinnest_area.sensor_reach_m;
+  std::vector<const SensorInfo*> sensors;
+  for (const Reading& r : used)
+    if (const SensorInfo* s = plan.crusher->FindSensor(r.sensor_id)) sensors.push_back(s);
+  std::vector<char> out(static_cast<size_t>(map.face_count()), 1);
+  for (Eigen::Index i = 0; i < map.z.size(); ++i)
+    for (const SensorInfo* s : sensors) {
+      const double dz = map.z[i] - s->z_m;
+      if (std::abs(dz) > reach) continue;
+      if (std::hypot(dz, map.radius[i] * AngleDiffDeg(map.theta_deg[i], s->theta_deg) * kDegToRad) <= reach) {
+        out[static_cast<size_t>(i)] = 0;
+        break;
+      }
+    }
+  return out;
+}
+
+FaceErrors SplitErrors(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used) {
   const Eigen::Index n = rec.remaining_sd_mm.size();
   const MapModel& m = plan.model;
   const bool split = m.intensity_noise_sd.size() == n && m.intensity_sd.size() == n;
   FaceErrors e{Eigen::VectorXd(n), Eigen::VectorXd(n), Eigen::VectorXd(n)};
+  // Beyond every sensor's reach nothing checks the map's pattern: there its error is at least what
+  // the sensors show when each is predicted from its row mates (the window spread of a finite DEM
+  // run can call an edge hot spot precise that the sensors' residuals say is not).
+  const double point_rel = rec.calibration.point_rel_sd;
+  const std::vector<char> beyond =
+      point_rel > 0 && rec.wear_estimate_mm.size() == n ? BeyondReach(plan, used) : std::vector<char>();
   for (Eigen::Index i = 0; i < n; ++i) {
     const double sd = rec.remaining_sd_mm[i];
     const double s = rec.scale_sd_mm.size() == n ? std::min(sd, rec.scale_sd_mm[i]) : 0.0;
@@ -40,6 +66,11 @@ FaceErrors SplitErrors(const ReconstructionPlan& plan, const Reconstruction& rec
     e.scale[i] = s;
     e.noise[i] = map_sd * std::sqrt(q);
     e.bias[i] = map_sd * std::sqrt(1.0 - q);
+    if (!beyond.empty() && beyond[static_cast<size_t>(i)]) {
+      // The floor is a pattern error: correlated over an area, so it goes in the bias.
+      const double floor = std::max(0.0, rec.wear_estimate_mm[i]) * point_rel;
+      if (floor > map_sd) e.bias[i] = std::sqrt(floor * floor - e.noise[i] * e.noise[i]);
+    }
   }
   return e;
 }
@@ -351,12 +382,12 @@ void Label(const Context& c, const RadiusProfile& radius, const std::vector<Read
   if (!a->supported) a->sensor_fallback = ThinnestReading(*c.plan.crusher, used, a->row);
 }
 
-Context MakeContext(const ReconstructionPlan& plan, const Reconstruction& rec) {
+Context MakeContext(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used) {
   const double face = plan.model.face_size_m;
   const double root4pi = 2.0 * std::sqrt(M_PI);
   return Context{plan,
                  rec,
-                 SplitErrors(plan, rec),
+                 SplitErrors(plan, rec, used),
                  plan.crusher->thickness_new_mm,
                  plan.options.band_sigmas,
                  std::max(face, root4pi * plan.model.bandwidth_m),
@@ -368,7 +399,7 @@ Context MakeContext(const ReconstructionPlan& plan, const Reconstruction& rec) {
 ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used) {
   const CrusherConfig& crusher = *plan.crusher;
   const ThinnestAreaConfig& cfg = crusher.thinnest_area;
-  const Context c = MakeContext(plan, rec);
+  const Context c = MakeContext(plan, rec, used);
   const RadiusProfile radius(*plan.map);
   const size_t nrows = crusher.rows.size();
   const double target = cfg.band_half_width_mm;
@@ -470,7 +501,7 @@ SettingEstimate EstimateSetting(const ReconstructionPlan& plan, const Reconstruc
   a.patch_m = h;
   a.z_m = row.z_min_m + 0.5 * h;
   if (rec.status == kStatusNoSensors) return out;
-  const Context c = MakeContext(plan, rec);
+  const Context c = MakeContext(plan, rec, used);
   const RadiusProfile radius(*plan.map);
   const RowRings rings(c, lowest);
   const Sums s = rings.Between(a.z_m, 0.5 * h);
@@ -737,7 +768,9 @@ std::string SettingText(const SettingEstimate& s) {
 }
 
 nlohmann::ordered_json MapCalibrationJson(const MapCalibration& calibration) {
-  return {{"factor", Rounded(calibration.factor, 0.001)}, {"sensors", calibration.sensors}};
+  return {{"factor", Rounded(calibration.factor, 0.001)},
+          {"sensors", calibration.sensors},
+          {"point_rel_sd", Rounded(calibration.point_rel_sd, 0.0001)}};
 }
 
 std::string ThinnestAreaText(const ThinnestArea& a) {

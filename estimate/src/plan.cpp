@@ -104,6 +104,8 @@ class Evaluator {
       scale_ *= target_wear / wear;
     }
     areas = Areas(reference);
+    row_thickness_.clear();
+    for (const core::ThinnestArea& a : areas.rows) row_thickness_.push_back(a.thickness_mm);
     if (patch_m > 0) {
       patch_ = patch_m;
       return;
@@ -115,6 +117,8 @@ class Evaluator {
     config_.thinnest_area.band_half_width_mm = on_row_ ? 1e-12 : std::numeric_limits<double>::max();
   }
   bool on_row() const { return on_row_; }
+  /// Each row's thinnest area at the reline point (by row index): where the liner wears fastest.
+  const std::vector<double>& row_thickness() const { return row_thickness_; }
   double patch() const { return patch_; }
 
   /// Band half-widths (band_sigmas sd) of the liner's thinnest area and each row's, on the compared area.
@@ -190,6 +194,7 @@ class Evaluator {
   size_t candidates_ = 0;
   std::vector<bool> current_valid_;
   double ell_z_ = 0, ell_arc_ = 0, scale_ = 1, patch_ = 0;
+  std::vector<double> row_thickness_;
   bool on_row_ = false;
 };
 
@@ -229,12 +234,25 @@ size_t BestAddition(const Evaluator& ev, const std::vector<size_t>& layout, doub
   return best;
 }
 
-/// The fewest sensors the search leaves in a row: two where K gives every row two. One sensor's row
+/// The fewest sensors the search leaves in each row (by row index): one in every row where K allows,
+/// and a second in as many rows as the sensors left over cover, the fastest-wearing rows (thinnest
+/// at the reline point, `row_thickness`) first, so the slowest rows give theirs up. One sensor's row
 /// scale carries only the map's sampling error at that sensor: nothing checks the map's pattern
 /// along the row, so its band is overconfident, and a search that minimises that band seeks such
-/// rows out (bench/diagnosis/RESULTS.md, *Why the plan's bands miss in 5 of 60 cases*).
-size_t MinPerRow(size_t k, size_t rows) {
-  return k >= 2 * rows ? 2 : k >= rows ? 1 : 0;
+/// rows out (bench/diagnosis/RESULTS.md, *Why the plan's bands miss in 5 of 60 cases*); where the
+/// thinnest area is expected that is the miss a planner acts on.
+std::vector<size_t> MinPerRow(size_t k, const std::vector<double>& row_thickness) {
+  const size_t rows = row_thickness.size();
+  std::vector<size_t> out(rows, k >= rows ? 1 : 0);
+  if (k <= rows) return out;
+  std::vector<size_t> order(rows);
+  for (size_t r = 0; r < rows; ++r) order[r] = r;
+  const auto thickness = [&](size_t r) {
+    return std::isfinite(row_thickness[r]) ? row_thickness[r] : std::numeric_limits<double>::max();
+  };
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return thickness(a) < thickness(b); });
+  for (size_t i = 0; i < std::min(rows, k - rows); ++i) out[order[i]] = 2;
+  return out;
 }
 
 /// Sensors of `layout` per row.
@@ -250,12 +268,28 @@ std::vector<size_t> PerRow(const Evaluator& ev, const std::vector<size_t>& layou
 /// falls, until a pass changes nothing. The fill serves rows below MinPerRow first; no removal takes
 /// a row below it (a row moved out of it stays where it was).
 std::vector<size_t> Search(const Evaluator& ev, std::vector<size_t> layout, size_t k, size_t rows) {
-  const size_t min_per_row = MinPerRow(k, rows);
+  std::vector<double> thickness = ev.row_thickness();
+  thickness.resize(rows, std::numeric_limits<double>::quiet_NaN());
+  const std::vector<size_t> min_per_row = MinPerRow(k, thickness);
   const auto keeps_row = [&](const std::vector<size_t>& l, size_t i) {
     const int r = ev.row_of(l[i]);
-    return r < 0 || static_cast<size_t>(r) >= rows || PerRow(ev, l, rows)[static_cast<size_t>(r)] > min_per_row;
+    return r < 0 || static_cast<size_t>(r) >= rows ||
+           PerRow(ev, l, rows)[static_cast<size_t>(r)] > min_per_row[static_cast<size_t>(r)];
   };
-  while (layout.size() > k) {
+  // A start that leaves a row below its minimum (crusher.json's layout) gives sensors up from the
+  // rows above theirs until the fill can serve it.
+  const auto deficit = [&](const std::vector<size_t>& l) {
+    const std::vector<size_t> n = PerRow(ev, l, rows);
+    size_t d = 0;
+    for (size_t r = 0; r < rows; ++r) d += n[r] < min_per_row[r] ? min_per_row[r] - n[r] : 0;
+    return d;
+  };
+  const auto any_spare = [&](const std::vector<size_t>& l) {
+    for (size_t i = 0; i < l.size(); ++i)
+      if (keeps_row(l, i)) return true;
+    return false;
+  };
+  while (layout.size() > k || (!layout.empty() && layout.size() + deficit(layout) > k && any_spare(layout))) {
     size_t drop = 0;
     double best = std::numeric_limits<double>::max();
     bool any = false;
@@ -274,7 +308,7 @@ std::vector<size_t> Search(const Evaluator& ev, std::vector<size_t> layout, size
   while (layout.size() < k) {
     const std::vector<size_t> n = PerRow(ev, layout, rows);
     std::vector<bool> short_rows(rows);
-    for (size_t r = 0; r < rows; ++r) short_rows[r] = n[r] < min_per_row;
+    for (size_t r = 0; r < rows; ++r) short_rows[r] = n[r] < min_per_row[r];
     size_t c = std::any_of(short_rows.begin(), short_rows.end(), [](bool b) { return b; })
                    ? BestAddition(ev, layout, nullptr, short_rows)
                    : SIZE_MAX;

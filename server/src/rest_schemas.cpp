@@ -218,8 +218,9 @@ const std::string kWear =
             "required":["time","css_mm","opening_mm","opening_supported","by"],"properties":{"time":{"type":"string","format":"date-time"},
             "css_mm":{"type":"number"},"opening_mm":{"type":"number","nullable":true},"opening_supported":{"type":"boolean"},
             "by":{"type":"string"}}}}},
-        "map_error_at_sensors":{"type":"object","required":["factor","sensors"],"properties":{
-          "factor":{"type":"number","nullable":true},"sensors":{"type":"integer"}}},
+        "map_error_at_sensors":{"type":"object","required":["factor","sensors","point_rel_sd"],"properties":{
+          "factor":{"type":"number","nullable":true},"sensors":{"type":"integer"},
+          "point_rel_sd":{"type":"number","nullable":true}}},
         "face_level":{"type":"object","required":["estimate_at_zero_faces","band_reaches_zero_faces"],"properties":{
           "estimate_at_zero_faces":{"type":"integer"},"band_reaches_zero_faces":{"type":"integer"}}},
         "min":{"type":"object","nullable":true,"required":["face","z_m","theta_deg","row"],"properties":{

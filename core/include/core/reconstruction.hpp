@@ -61,6 +61,10 @@ inline constexpr const char* kStatusNoSensors = "no_sensors";
 struct MapCalibration {
   double factor = 1.0;
   size_t sensors = 0;  ///< sensors predicted from their row mates
+  /// Relative sd of a point's wear predicted from its row mates (quantisation apart), pooled over
+  /// the rows with the model's own as a prior; 0 when no row has two reporting sensors. A row with
+  /// one sensor carries it in its scale, an area beyond every sensor's reach in its map part.
+  double point_rel_sd = 0.0;
 };
 
 struct Reconstruction {

@@ -343,3 +343,70 @@ TEST(ThinnestArea, TheSettingOpensByTheDischargeRingsWear) {
   CHECK(std::isnan(n.opening_mm));
   CHECK(SettingJson(n)["opening_mm"].is_null());
 }
+
+namespace {
+
+/// TwoRows with three sensors high in LDWN (z 0.85, around) and LUP's one: the discharge edge is
+/// 0.8 m below every sensor, beyond the default reach.
+CrusherConfig ThreeHighInLdwn() {
+  CrusherConfig c = TwoRows();
+  c.sensors = {{"1001", "LDWN", 0.85, 0.0, 120, {}},
+               {"1003", "LDWN", 0.85, 120.0, 120, {}},
+               {"1004", "LDWN", 0.85, 240.0, 120, {}},
+               {"1002", "LUP", 1.5, 90.0, 120, {}}};
+  return c;
+}
+
+/// Latest readings of ThreeHighInLdwn's sensors: LDWN's three `ldwn`, LUP's `lup`.
+std::vector<Reading> ReadingsOf(const CrusherConfig& c, const std::vector<double>& ldwn, double lup) {
+  const TimePoint t = AddDays(c.installed_at, 60);
+  return {{t, "1001", ldwn[0], 0}, {t, "1003", ldwn[1], 0}, {t, "1004", ldwn[2], 0}, {t, "1002", lup, 0}};
+}
+
+}  // namespace
+
+// Sensors of one row that disagree with each other about the map's pattern (each predicted from
+// its row mates 10-25 % off) say how far off the map is at a point no sensor checks. A row with
+// one sensor has no scatter of its own: its scale carries that error, not none.
+TEST(ThinnestArea, AOneSensorRowsScaleCarriesThePatternErrorTheOtherRowsSensorsShow) {
+  const CrusherConfig c = ThreeHighInLdwn();
+  const WearMap m = NoisyMap();
+  const ReconstructionPlan plan = PrepareReconstruction(c, m);
+  const Reconstruction rec = Reconstruct(plan, WearOf(ReadingsOf(c, {60, 80, 72}, 80)));
+  CHECK_TEXT(rec.calibration.point_rel_sd > 0.05, std::to_string(rec.calibration.point_rel_sd).c_str());
+  const RowSummary& lup = rec.rows[1];
+  LONGS_EQUAL(1, lup.sensors_used);
+  CHECK_TEXT(lup.scale_sd >= lup.scale_mm_per_unit * rec.calibration.point_rel_sd * (1 - 1e-9),
+             (std::to_string(lup.scale_sd) + " " + std::to_string(lup.scale_mm_per_unit)).c_str());
+  // Sensors that agree with the map leave the one-sensor row's scale as its own error says.
+  const Reconstruction agree = Reconstruct(plan, WearOf(ReadingsOf(c, {71, 71, 71}, 80)));
+  CHECK(agree.rows[1].scale_sd < lup.scale_sd);
+}
+
+// The thinnest area lies at the discharge edge, beyond every sensor's reach. When the sensors
+// disagree with the map's pattern more than its window spread says, the edge area carries that
+// error in its map part: a small patch there is no longer "supported" on the map's spread alone.
+TEST(ThinnestArea, AnExtrapolatedAreaCarriesTheMapErrorTheSensorsShow) {
+  CrusherConfig c = ThreeHighInLdwn();
+  c.thinnest_area.band_half_width_mm = 1e9;  // every area meets it: the thinnest 0.1 m patch is reported
+  c.thinnest_area.sensor_reach_m = 0.3;
+  const WearMap m = NoisyMap();
+  const ReconstructionPlan plan = PrepareReconstruction(c, m);
+  const std::vector<Reading> disagree = ReadingsOf(c, {60, 80, 72}, 80);
+  const Reconstruction rec = Reconstruct(plan, WearOf(disagree));
+  const ThinnestArea a = FindThinnestAreas(plan, rec, disagree).rows[0];
+  CHECK_TEXT(a.extrapolated, ThinnestAreaText(a).c_str());
+  // At least the sensors' point error over the area, less what averaging over its size keeps away.
+  const double wear = c.thickness_new_mm - a.thickness_mm;
+  CHECK_TEXT(
+      a.map_sd_mm >= 0.3 * wear * rec.calibration.point_rel_sd,
+      (std::to_string(a.map_sd_mm) + " wear " + std::to_string(wear) + " point " + std::to_string(rec.calibration.point_rel_sd))
+          .c_str());
+  // The same area within a sensor's reach keeps the map's own (calibrated) error: narrower.
+  c.thinnest_area.sensor_reach_m = 5.0;
+  const ThinnestArea within = FindThinnestAreas(plan, rec, disagree).rows[0];
+  CHECK_FALSE(within.extrapolated);
+  DOUBLES_EQUAL(a.z_m, within.z_m, 1e-12);
+  CHECK_TEXT(a.map_sd_mm > 1.2 * within.map_sd_mm,
+             (std::to_string(a.map_sd_mm) + " vs " + std::to_string(within.map_sd_mm)).c_str());
+}
