@@ -25,7 +25,7 @@ nlohmann::ordered_json Errors(const ErrorSummary& e) {
 }  // namespace
 
 namespace {
-// Per effect not named: the smallest strength these data would have shown (CONTRACTS.md section 4).
+// Per effect not named: the smallest strength these data would have shown (docs/diagnosis.md, *Reading the outputs*, `limits`).
 nlohmann::ordered_json LimitsJson(const std::vector<DetectionLimit>& limits) {
   nlohmann::ordered_json out = nlohmann::ordered_json::array();
   for (const DetectionLimit& l : limits) {
