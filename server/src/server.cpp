@@ -227,7 +227,8 @@ void RunServer(const ServerOptions& o, const std::atomic<bool>& stop, std::ostre
   LockedStore diagnosis_store(std::make_unique<Store>(o.db));
   DiagnosisRunner diagnosis(*registry, diagnosis_store);
   LockedStore campaign_store(std::make_unique<Store>(o.db));
-  CampaignService campaigns(*registry, campaign_store, live, wear, now_s, [&log](const std::string& line) { log(line); });
+  CampaignService campaigns(*registry, campaign_store, live, wear, now_s,
+                            [&log](const std::string& line) { log.Limited("setting checks", line); });
   LockedStore alarm_store(std::make_unique<Store>(o.db));
   AlarmEngine alarms(*registry, alarm_store);
   ServerMetrics metrics(o.db);

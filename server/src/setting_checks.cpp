@@ -3,8 +3,8 @@
 // time, and counts the setting from it.
 #include <chrono>
 #include <cmath>
+#include <optional>
 
-#include "core/clock.hpp"
 #include "core/time.hpp"
 #include "server/campaigns.hpp"
 
@@ -22,8 +22,8 @@ constexpr double kMaxCssMm = 1000;
 /// A check with no reading of the liner up to it still knows its opening this long after the
 /// installation: nothing has opened yet.
 constexpr int64_t kNewLinerS = 86400;
-/// The least wall time between two tries to estimate a crusher's not-known checks.
-constexpr int64_t kUnknownRetryMs = 60000;
+/// The least time between two tries to estimate a crusher's not-known checks.
+constexpr std::chrono::seconds kUnknownRetry{60};
 
 core::SettingCheck ToCore(const SettingCheckRecord& r) {
   return {core::FromUnixSeconds(r.time_s), r.css_mm, r.opening_mm.value_or(std::nan("")), r.by, r.opening_supported};
@@ -100,11 +100,14 @@ std::string LoadSettingChecks(Store& store, const Crusher& crusher, WearService&
   } catch (const std::exception& e) {
     // The running liner's checks may have been counted under another liner (a reline or void just
     // changed it): they hold the setting_open alarm (opening not known) rather than count wrongly.
+    // A try for the unknown ones only (Reestimate::kUnknown) keeps the known openings as they are.
+    if (which == Reestimate::kUnknown)
+      return id + ": setting checks not known not estimated (" + e.what() + "); tried again later";
     std::vector<core::SettingCheck> held = wear.SettingChecks(id);
     for (core::SettingCheck& c : held)
       if (c.time >= crusher.config.installed_at) c.opening_mm = std::nan("");
     wear.SetSettingChecks(id, std::move(held));
-    return id + ": setting checks not estimated (" + e.what() + "); the running liner's count as not known until the next start";
+    return id + ": setting checks not estimated (" + e.what() + "); the running liner's count as not known until estimated again";
   }
   wear.SetSettingChecks(id, ToCoreSettingChecks(all));
   if (!store_changes || all.empty()) return {};
@@ -166,18 +169,28 @@ CampaignService::SettingOutcome CampaignService::CheckSetting(const std::string&
 }
 
 bool CampaignService::EstimateUnknownSettings(const std::string& crusher_id) {
-  std::lock_guard<std::mutex> one_at_a_time(reline_mutex_);  // the registry's model stays the one estimated with
+  // What is not known is read without the reline lock (the registry and the wear service are
+  // thread-safe): the wear worker calls this for every crusher it computes, and a reline holds
+  // the lock for seconds.
+  const Crusher* seen = registry_.Find(crusher_id);
+  if (!seen) return false;
+  std::optional<core::TimePoint> oldest;
+  for (const core::SettingCheck& c : wear_.SettingChecks(crusher_id))
+    if (c.time >= seen->config.installed_at && !std::isfinite(c.opening_mm)) oldest = std::min(oldest.value_or(c.time), c.time);
+  if (!oldest) return false;
+  // Not before the crusher's readings reach past the check: a backfill in progress would give an
+  // opening from part of the readings, which is then kept.
+  const std::optional<int64_t> latest = live_.LatestUsableTime(crusher_id);
+  if (!latest || core::FromUnixSeconds(*latest) <= *oldest) return false;
+  std::unique_lock<std::mutex> one_at_a_time(reline_mutex_, std::try_to_lock);  // a reline's model stays the one estimated with
+  if (!one_at_a_time.owns_lock()) return false;  // a reline or check is running: the next commit tries
   const Crusher* crusher = registry_.Find(crusher_id);
   if (!crusher) return false;
-  bool unknown = false;
-  for (const core::SettingCheck& c : wear_.SettingChecks(crusher_id))
-    unknown = unknown || (c.time >= crusher->config.installed_at && !std::isfinite(c.opening_mm));
-  if (!unknown) return false;
   // Each try reads the window up to every unknown check: not on every commit of a busy crusher.
-  const int64_t now_ms = core::WallClockMs();
-  int64_t& tried = unknown_tried_ms_[crusher_id];
-  if (tried != 0 && now_ms - tried < kUnknownRetryMs) return false;
-  tried = now_ms;
+  const auto now = std::chrono::steady_clock::now();
+  auto& tried = unknown_tried_[crusher_id];
+  if (tried && now - *tried < kUnknownRetry) return false;
+  tried = now;
   const std::string failed =
       store_.With([&](Store& s) { return LoadSettingChecks(s, *crusher, wear_, Reestimate::kUnknown, true); });
   if (!failed.empty() && log_) log_(failed);

@@ -6,6 +6,7 @@
 /// and its sensor layout. crusher.json stays the site's description (geometry, map, rows, minimum
 /// thickness); once a crusher has campaigns stored, the running one's installed_at, thickness_new_mm
 /// and sensors override crusher.json's.
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -142,7 +143,8 @@ class CampaignService {
   };
   SettingOutcome CheckSetting(const std::string& crusher_id, const SettingCheckRequest& request, const std::string& by);
   /// The running liner's checks whose opening is not known (their readings had not arrived) are
-  /// estimated again from the readings stored by now, at most once a minute per crusher; the wear
+  /// estimated again from the readings stored by now, once the crusher's readings reach past them, at
+  /// most once a minute per crusher and never waiting for a reline; the wear
   /// worker calls this before it computes a crusher's wear. True when it tried and every one is known now.
   bool EstimateUnknownSettings(const std::string& crusher_id);
   /// The crusher's measured settings, oldest first (every liner's).
@@ -162,7 +164,7 @@ class CampaignService {
   std::function<int64_t()> now_s_;
   std::function<void(const std::string&)> log_;
   std::mutex reline_mutex_;
-  std::map<std::string, int64_t> unknown_tried_ms_;  ///< under reline_mutex_
+  std::map<std::string, std::optional<std::chrono::steady_clock::time_point>> unknown_tried_;  ///< under reline_mutex_
 };
 
 }  // namespace lw::server

@@ -406,7 +406,7 @@ TEST(Campaigns, AMeasuredSettingAnchorsTheCssAndSurvivesARestart) {
 TEST(Campaigns, ASettingChecksOpeningFollowsTheLinerItMeasured) {
   lw::test::TempDirectory keep{"lw-setting-liner"};
   const std::string db = keep.File("db.sqlite");
-  const std::string at = Day(20);
+  const std::string at = Day(15);  // the readings reach past it
   const auto listed = [](Api& a) {
     auto res = a.Client(kReadToken).Get(a.Base() + "/setting/checks");
     CHECK(res);
@@ -447,9 +447,9 @@ TEST(Campaigns, ASettingChecksOpeningFollowsTheLinerItMeasured) {
     CHECK(res);
     LONGS_EQUAL_TEXT(201, res->status, res->body.c_str());
     const json made = json::parse(res->body);
-    CHECK_TEXT(made["opening_mm"].is_null(), made.dump().c_str());  // no reading up to day 20: not known
+    CHECK_TEXT(made["opening_mm"].is_null(), made.dump().c_str());  // no reading up to day 15: not known
     CHECK_FALSE(made["opening_supported"].get<bool>());
-    a.LoadAll();  // the readings of those 20 days arrive late
+    a.LoadAll();  // the readings of the 20 days arrive late
     auto five =
         a.Client().Post(a.Base() + "/setting/checks", json({{"time", Day(5)}, {"css_mm", 128}}).dump(), "application/json");
     CHECK(five);
@@ -459,6 +459,13 @@ TEST(Campaigns, ASettingChecksOpeningFollowsTheLinerItMeasured) {
     // and not tried again while nothing is unknown.
     CHECK_TRUE(a.parts.campaigns->EstimateUnknownSettings(Folder().id()));
     first_liner = expect_as_wear_then(a);
+    {
+      Store stored(db);  // kept in the database, not only in the live wear
+      bool found = false;
+      for (const SettingCheckRecord& c : stored.SettingChecks(Folder().id()))
+        if (lw::core::FormatIsoSeconds(c.time_s) == at) found = c.opening_mm.has_value();
+      CHECK_TRUE(found);
+    }
     CHECK_FALSE(a.parts.campaigns->EstimateUnknownSettings(Folder().id()));
   }
   json day5;
