@@ -69,7 +69,9 @@ ordered_json SettingCheckJson(const SettingCheckRecord& c, core::TimePoint insta
 void EstimateOpening(Store& store, const Crusher& crusher, SettingCheckRecord* check) {
   const core::TimePoint at = core::FromUnixSeconds(check->time_s);
   const estimate::ReadingWindow window = LoadWindow(store, crusher, check->time_s);
-  const CrusherState then = ComputeCrusherState(crusher, window.Readings(), at);
+  estimate::EstimateOptions wear_only;
+  wear_only.forecast = false;  // the opening is the concave's wear then; no reline date is asked for
+  const CrusherState then = ComputeCrusherState(crusher, window.Readings(), at, nullptr, {}, wear_only);
   check->opening_mm.reset();
   check->opening_supported = false;
   if (!then.has_wear) {
@@ -168,35 +170,35 @@ CampaignService::SettingOutcome CampaignService::CheckSetting(const std::string&
   return out;
 }
 
-bool CampaignService::EstimateUnknownSettings(const std::string& crusher_id) {
+CampaignService::UnknownSettings CampaignService::EstimateUnknownSettings(const std::string& crusher_id) {
   // What is not known is read without the reline lock (the registry and the wear service are
   // thread-safe): the wear worker calls this for every crusher it computes, and a reline holds
   // the lock for seconds.
   const Crusher* seen = registry_.Find(crusher_id);
-  if (!seen) return false;
+  if (!seen) return UnknownSettings::kNone;
   std::optional<core::TimePoint> oldest;
   for (const core::SettingCheck& c : wear_.SettingChecks(crusher_id))
     if (c.time >= seen->config.installed_at && !std::isfinite(c.opening_mm)) oldest = std::min(oldest.value_or(c.time), c.time);
-  if (!oldest) return false;
+  if (!oldest) return UnknownSettings::kNone;
   // Not before the crusher's readings reach past the check: a backfill in progress would give an
   // opening from part of the readings, which is then kept.
   const std::optional<int64_t> latest = live_.LatestUsableTime(crusher_id);
-  if (!latest || core::FromUnixSeconds(*latest) <= *oldest) return false;
+  if (!latest || core::FromUnixSeconds(*latest) <= *oldest) return UnknownSettings::kWaiting;
   std::unique_lock<std::mutex> one_at_a_time(reline_mutex_, std::try_to_lock);  // a reline's model stays the one estimated with
-  if (!one_at_a_time.owns_lock()) return false;  // a reline or check is running: the next commit tries
+  if (!one_at_a_time.owns_lock()) return UnknownSettings::kWaiting;
   const Crusher* crusher = registry_.Find(crusher_id);
-  if (!crusher) return false;
+  if (!crusher) return UnknownSettings::kNone;
   // Each try reads the window up to every unknown check: not on every commit of a busy crusher.
   const auto now = std::chrono::steady_clock::now();
   auto& tried = unknown_tried_[crusher_id];
-  if (tried && now - *tried < kUnknownRetry) return false;
+  if (tried && now - *tried < kUnknownRetry) return UnknownSettings::kWaiting;
   tried = now;
   const std::string failed =
       store_.With([&](Store& s) { return LoadSettingChecks(s, *crusher, wear_, Reestimate::kUnknown, true); });
   if (!failed.empty() && log_) log_(failed);
   for (const core::SettingCheck& c : wear_.SettingChecks(crusher_id))
-    if (c.time >= crusher->config.installed_at && !std::isfinite(c.opening_mm)) return false;
-  return true;
+    if (c.time >= crusher->config.installed_at && !std::isfinite(c.opening_mm)) return UnknownSettings::kWaiting;
+  return UnknownSettings::kEstimated;
 }
 
 std::vector<SettingCheckRecord> CampaignService::SettingChecks(const std::string& crusher_id) {

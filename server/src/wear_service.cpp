@@ -32,11 +32,11 @@ ordered_json Num(double v, double step) {
 
 CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<estimate::Sample>& readings,
                                  std::optional<core::TimePoint> at, const CrusherState* previous,
-                                 const std::vector<core::SettingCheck>& checks) {
+                                 const std::vector<core::SettingCheck>& checks, const estimate::EstimateOptions& options) {
   CrusherState st;
   // Reline dates hold only against this crusher's own previous state.
   const bool hold = previous && previous->crusher == &crusher;
-  static_cast<estimate::WearEstimate&>(st) = estimate::Estimate(crusher, readings, at, {}, hold ? previous : nullptr);
+  static_cast<estimate::WearEstimate&>(st) = estimate::Estimate(crusher, readings, at, options, hold ? previous : nullptr);
   // A check before this liner's installation measured the liner before it.
   std::vector<core::SettingCheck> this_liner;
   for (const core::SettingCheck& c : checks)

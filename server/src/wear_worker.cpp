@@ -30,6 +30,9 @@ int64_t CpuMs(clockid_t clock) {
 // matters of time, not of new readings) and when a gateway's status changed; a crusher whose wear
 // was just recomputed is evaluated right after it.
 constexpr int64_t kAlarmIntervalMs = 10'000;
+// How often the crushers whose setting checks wait are asked again; a real try (a window read) is
+// rate-limited by CampaignService itself.
+constexpr int64_t kSettingsRetryMs = 1'000;
 
 }  // namespace
 
@@ -197,13 +200,7 @@ void WearWorker::ComputeAndHandBack(const std::string& c) {
   std::shared_ptr<const CrusherState> st;
   const auto started = std::chrono::steady_clock::now();
   const auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(); };
-  try {
-    // A check posted before the readings of its time arrived counts once they have (the setting_open alarm holds till then).
-    if (p_.campaigns && p_.campaigns->EstimateUnknownSettings(c))
-      p_.log("crusher " + c + ": setting checks estimated from the readings now stored");
-  } catch (const std::exception& e) {
-    p_.log("crusher " + c + ": setting checks not estimated: " + e.what());
-  }
+  SettleSettings(c);
   try {
     st = p_.wear.Get(c);
   } catch (const std::exception& e) {
@@ -221,6 +218,37 @@ void WearWorker::ComputeAndHandBack(const std::string& c) {
   wear_ready_.emplace_back(c, std::move(summary));
 }
 
+bool WearWorker::SettleSettings(const std::string& c) {
+  if (!p_.campaigns) return false;
+  using Unknown = CampaignService::UnknownSettings;
+  Unknown found = Unknown::kWaiting;
+  try {
+    // A check posted before the readings of its time arrived counts once they have (the
+    // setting_open alarm holds till then).
+    found = p_.campaigns->EstimateUnknownSettings(c);
+  } catch (const std::exception& e) {
+    p_.log.Limited("setting checks", "crusher " + c + ": setting checks not estimated: " + e.what());
+  }
+  if (found == Unknown::kWaiting) {
+    settings_waiting_.insert(c);
+    return false;
+  }
+  settings_waiting_.erase(c);
+  if (found != Unknown::kEstimated) return false;
+  p_.log("crusher " + c + ": setting checks estimated from the readings now stored");
+  return true;
+}
+
+void WearWorker::RetrySettings() {
+  if (settings_waiting_.empty() || WallMs() - last_settings_ms_ < kSettingsRetryMs) return;
+  last_settings_ms_ = WallMs();
+  const std::set<std::string> waiting = settings_waiting_;
+  for (const std::string& c : waiting) {
+    if (stop_) return;
+    if (SettleSettings(c)) Recompute(c);  // its wear and alarms count from the opening now known
+  }
+}
+
 void WearWorker::Run() {
   pthread_setname_np(pthread_self(), "lw-wear");  // named in top -H, perf and lw_bench_ingest's CPU by thread
   StartupPass();
@@ -233,6 +261,7 @@ void WearWorker::Run() {
       if (stop_) break;
       if (dirty_.empty()) {
         lock.unlock();
+        RetrySettings();
         EvaluateAllAlarms(false);
         continue;
       }

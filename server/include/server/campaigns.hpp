@@ -142,11 +142,18 @@ class CampaignService {
     SettingCheckRecord check;
   };
   SettingOutcome CheckSetting(const std::string& crusher_id, const SettingCheckRequest& request, const std::string& by);
+  /// What EstimateUnknownSettings found.
+  enum class UnknownSettings {
+    kNone,       ///< no check of the running liner is not known
+    kEstimated,  ///< it tried, and every one is known now
+    kWaiting,    ///< some are not known yet: the readings do not reach past them, a try within the last
+                 ///< minute, a reline running, or the try failed (logged): ask again later
+  };
   /// The running liner's checks whose opening is not known (their readings had not arrived) are
   /// estimated again from the readings stored by now, once the crusher's readings reach past them, at
-  /// most once a minute per crusher and never waiting for a reline; the wear
-  /// worker calls this before it computes a crusher's wear. True when it tried and every one is known now.
-  bool EstimateUnknownSettings(const std::string& crusher_id);
+  /// most once a minute per crusher and never waiting for a reline. The wear worker calls this
+  /// before it computes a crusher's wear, and again while the answer is kWaiting.
+  UnknownSettings EstimateUnknownSettings(const std::string& crusher_id);
   /// The crusher's measured settings, oldest first (every liner's).
   std::vector<SettingCheckRecord> SettingChecks(const std::string& crusher_id);
   /// Every campaign of the crusher (voided ones too), oldest first; before its first reline, the one crusher.json describes.

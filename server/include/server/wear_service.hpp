@@ -36,7 +36,8 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
 /// counted from the latest of `checks` (measured settings) up to `at` since the liner's installation.
 CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<estimate::Sample>& readings,
                                  std::optional<core::TimePoint> at, const CrusherState* previous = nullptr,
-                                 const std::vector<core::SettingCheck>& checks = {});
+                                 const std::vector<core::SettingCheck>& checks = {},
+                                 const estimate::EstimateOptions& options = {});
 
 /// The wear JSON of docs/server.md (GET .../wear and the retained MQTT `.../wear`, without faces);
 /// "at" when the state is a past time's.

@@ -47,8 +47,8 @@ class WearWorker {
     EventBus& events;          ///< "wear" and "alarm" events
     ServerMetrics& metrics;
     core::Logger& log;
-    /// Estimates a crusher's setting checks whose opening was not known, before its wear (none: a
-    /// read-only server, which writes no check).
+    /// Estimates a crusher's setting checks whose opening was not known, before its wear and, while
+    /// some wait, from the worker's loop (none: a read-only server, which writes no check).
     CampaignService* campaigns = nullptr;
   };
   /// `now_s`: the server's "now" (unix seconds) for alarms; `interval_ms`: the least time between
@@ -90,6 +90,12 @@ class WearWorker {
   void EvaluateAlarms(const std::string& crusher, const CrusherState* state);
   void EvaluateAllAlarms(bool force);
   void ComputeAndHandBack(const std::string& crusher);
+  /// Asks the campaigns to estimate `crusher`'s checks not known; true when it did (its wear is to
+  /// be computed again). Keeps settings_waiting_.
+  bool SettleSettings(const std::string& crusher);
+  /// Asks again for the crushers whose checks wait, at most every kSettingsRetryMs: the readings
+  /// they wait for may have been committed within a try's minute, with no commit after them.
+  void RetrySettings();
 
   Parts p_;
   std::function<int64_t()> now_s_;
@@ -98,8 +104,10 @@ class WearWorker {
   std::atomic<bool> stop_{false};
   std::atomic<bool> starting_{true};
   std::atomic<size_t> startup_loaded_{0}, startup_computed_{0};
-  std::atomic<bool> alarms_due_{false};  ///< a gateway's status changed: evaluate every crusher's alarms
-  int64_t last_alarms_ms_ = 0;           ///< the worker thread's
+  std::atomic<bool> alarms_due_{false};     ///< a gateway's status changed: evaluate every crusher's alarms
+  int64_t last_alarms_ms_ = 0;              ///< the worker thread's
+  std::set<std::string> settings_waiting_;  ///< the worker thread's: crushers with a check not known yet
+  int64_t last_settings_ms_ = 0;            ///< the worker thread's
 
   std::mutex dirty_mutex_;
   std::condition_variable dirty_cv_;

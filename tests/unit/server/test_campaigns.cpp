@@ -457,7 +457,7 @@ TEST(Campaigns, ASettingChecksOpeningFollowsTheLinerItMeasured) {
     CHECK(listed(a)["opening_mm"].is_null());  // not moved by the readings' commit itself
     // The wear worker's step before it computes the wear: estimated from the readings now stored,
     // and not tried again while nothing is unknown.
-    CHECK_TRUE(a.parts.campaigns->EstimateUnknownSettings(Folder().id()));
+    CHECK(a.parts.campaigns->EstimateUnknownSettings(Folder().id()) == CampaignService::UnknownSettings::kEstimated);
     first_liner = expect_as_wear_then(a);
     {
       Store stored(db);  // kept in the database, not only in the live wear
@@ -466,7 +466,7 @@ TEST(Campaigns, ASettingChecksOpeningFollowsTheLinerItMeasured) {
         if (lw::core::FormatIsoSeconds(c.time_s) == at) found = c.opening_mm.has_value();
       CHECK_TRUE(found);
     }
-    CHECK_FALSE(a.parts.campaigns->EstimateUnknownSettings(Folder().id()));
+    CHECK(a.parts.campaigns->EstimateUnknownSettings(Folder().id()) == CampaignService::UnknownSettings::kNone);
   }
   json day5;
   {
