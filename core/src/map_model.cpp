@@ -8,18 +8,13 @@
 #include <memory>
 #include <numeric>
 
+#include "core/median.hpp"
+
 namespace lw::core {
 
 namespace {
 
 constexpr double kCutoff = 2.5;  // kernel support in bandwidths
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
-  return v[mid];
-}
 
 /// Runs fn(begin, end) over [0, n) on `threads` threads, in chunks handed out in order. Each face's
 /// result depends only on the inputs, never on the split, so every value is the same for any
@@ -680,7 +675,7 @@ void WithoutSmoothing(const Eigen::VectorXd& pilot, MapModel& model) {
   std::vector<double> cv;
   for (Eigen::Index i = 0; i < n; ++i)
     if (pilot[i] > 0) cv.push_back(std::sqrt(model.FaceVariance(pilot[i])) / pilot[i]);
-  model.face_cv = Median(cv);
+  model.face_cv = UpperMedian(cv);
 }
 
 /// 4. (continued) The candidate (bandwidth and form) of least cross-validated error, on up to
@@ -927,7 +922,7 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
 
   std::vector<double> sizes(static_cast<size_t>(n));
   for (Eigen::Index i = 0; i < n; ++i) sizes[static_cast<size_t>(i)] = std::sqrt(2.0 * std::max(map.areas[i], 0.0));
-  model.face_size_m = std::max(Median(sizes), 1e-4);
+  model.face_size_m = std::max(UpperMedian(sizes), 1e-4);
 
   const Pilot pilot = PilotEstimate(map, model, threads);
   FitNoiseLaw(map, pilot, model);
@@ -943,7 +938,7 @@ MapModel BuildMapModel(const WearMap& map, const MapModelOptions& options) {
   std::vector<double> cv;
   for (Eigen::Index i = 0; i < n; ++i)
     if (model.intensity[i] > 0) cv.push_back(std::sqrt(model.FaceVariance(model.intensity[i])) / model.intensity[i]);
-  model.face_cv = Median(cv);
+  model.face_cv = UpperMedian(cv);
   return model;
 }
 

@@ -5,17 +5,13 @@
 #include <limits>
 #include <map>
 
+#include "core/median.hpp"
 #include "core/surface_index.hpp"
 
 namespace lw::core {
 namespace {
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
-  return v[mid];
-}
+constexpr double kNone = std::numeric_limits<double>::quiet_NaN();  // a median of no samples
 
 }  // namespace
 
@@ -36,7 +32,7 @@ ScanFaces ProjectScanToFaces(const WearMap& map, const Scan& scan, double floor_
   if (n == 0) return out;
   std::vector<double> sizes;
   for (Eigen::Index i = 0; i < n; ++i) sizes.push_back(std::sqrt(2.0 * std::max(map.areas[i], 0.0)));
-  const double face = std::max(Median(sizes), 1e-4);
+  const double face = std::max(UpperMedian(sizes, kNone), 1e-4);
   const SurfaceIndex index(map, 2.0 * face);
   std::vector<std::vector<double>> depth(static_cast<size_t>(n));
   for (const Eigen::Vector3d& q : scan.points) {
@@ -60,7 +56,7 @@ ScanFaces ProjectScanToFaces(const WearMap& map, const Scan& scan, double floor_
   for (Eigen::Index i = 0; i < n; ++i) {
     auto& d = depth[static_cast<size_t>(i)];
     if (d.empty()) continue;
-    const double m = Median(d);
+    const double m = UpperMedian(d, kNone);
     double ss = 0;
     for (double x : d) ss += (x - m) * (x - m);
     // One point: its scatter is unknown, counted as 1 mm; more: the sample sd / sqrt(n).
@@ -172,7 +168,7 @@ ScanCorrection ApplyScan(ReconstructionPlan& plan, const ScanFaces& scan, const 
     out.detail = "the scan covers no face of a row with sensors";
     return out;
   }
-  out.median_ratio = Median(ratios);
+  out.median_ratio = UpperMedian(ratios, kNone);
   // Places the scan measured no face at, from the corrected faces around them (Gaussian weights of
   // the map's face size, within 1.5 of it):
   // - sensors: the mean ratio (corrected / map), so the row scale after the scan divides the

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "core/atomic_file.hpp"
+#include "core/median.hpp"
 #include "core/wear_map.hpp"
 #include "dem/case_writer.hpp"
 #include "dem/runner.hpp"
@@ -139,12 +140,6 @@ nlohmann::json Attempts(const fs::path& case_dir) {
   while (in >> attempt >> from >> wall >> np >> state)
     a.push_back({{"attempt", attempt}, {"from_step", from}, {"wall_s", wall}, {"np", np}, {"state", state}});
   return a;
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
 }
 
 }  // namespace
@@ -319,7 +314,7 @@ nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::
                      {"faces", vals.size()},
                      {"mean_wear", mean},
                      {"cv", cv},
-                     {"median_rel_stderr", Median(rel_se)},
+                     {"median_rel_stderr", core::UpperMedian(rel_se)},
                      {"faces_over_10x_mean", row_out}});
   }
   const double lowest = *std::min_element(means.begin(), means.end());
@@ -332,7 +327,7 @@ nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::
   summary["faces_zero_fraction"] = static_cast<double>(zero_faces) / static_cast<double>(n);
   summary["faces_over_10x_row_mean"] = outliers;
   summary["edge_faces_over_10x_row_mean"] = edge_outliers;
-  summary["median_rel_stderr"] = Median(rel);
+  summary["median_rel_stderr"] = core::UpperMedian(rel);
   // Correlation of wear with normal stress across faces (shared sampling noise shows here too).
   {
     const double mw = total.mean(), ms = sn_avg.mean();

@@ -4,17 +4,9 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/median.hpp"
+
 namespace lw::dem {
-namespace {
-
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-}  // namespace
-
 SteadyWindow DetectSteadyWindow(const std::vector<double>& t, const std::vector<double>& mass, double rel_tol,
                                 double min_fraction) {
   SteadyWindow w;
@@ -26,14 +18,14 @@ SteadyWindow DetectSteadyWindow(const std::vector<double>& t, const std::vector<
   }
   const size_t tail = std::max<size_t>(2, n / 4);
   std::vector<double> last(mass.end() - static_cast<long>(tail), mass.end());
-  w.level = Median(last);
+  w.level = core::Median(last);
   if (!(w.level > 0)) {
     w.reason = "the chamber never filled (no mass in it at the end of the run)";
     return w;
   }
   std::vector<double> dev;
   for (double m : last) dev.push_back(std::abs(m - w.level));
-  const double robust_sd = 1.4826 * Median(dev);
+  const double robust_sd = 1.4826 * core::Median(dev);
   // A noisy plateau widens the band, but never past 3 x rel_tol: a ramp is not a plateau.
   w.band = std::max(rel_tol * w.level, std::min(3.0 * robust_sd, 3.0 * rel_tol * w.level));
   size_t start = n;  // first index of the final run of in-band samples

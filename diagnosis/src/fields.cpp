@@ -7,18 +7,13 @@
 #include <numeric>
 #include <unordered_map>
 
+#include "core/median.hpp"
+
 namespace lw::diagnosis::detail {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
-  return v[mid];
-}
 
 double WeightedQuantile(std::vector<std::pair<double, double>> value_weight, double q) {
   if (value_weight.empty()) return 0;
@@ -152,7 +147,7 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
   std::vector<double> positive;
   for (Eigen::Index i = 0; i < nf; ++i)
     if (raw[i] > 0) positive.push_back(raw[i]);
-  f.intensity_median = positive.empty() ? 1.0 : Median(positive);
+  f.intensity_median = positive.empty() ? 1.0 : core::UpperMedian(positive);
   if (f.intensity_median <= 0) f.intensity_median = 1.0;
   f.intensity = raw / f.intensity_median;
   f.rel_sd.resize(nf);
@@ -172,7 +167,7 @@ MapFields ComputeMapFields(const core::Bundle& bundle) {
     area_sum += map.areas[i];
     radius_sum += map.areas[i] * map.radius[i];
   }
-  f.face_size_m = std::max(Median(sizes), 1e-4);
+  f.face_size_m = std::max(core::UpperMedian(sizes), 1e-4);
   f.mean_radius_m = area_sum > 0 ? radius_sum / area_sum : 1.0;
 
   // Angular coverage: the complement of the largest empty arc (1 degree bins).
@@ -452,7 +447,7 @@ ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const C
     const double inflate = std::sqrt(static_cast<double>(n) / static_cast<double>(n - 3));
     for (Eigen::Index k = 0; k < res.size(); ++k) dev.push_back(std::fabs(res[k]) * inflate);
   }
-  s.point_noise_mm = dev.size() >= 10 ? 1.4826 * Median(dev) : 0.5;
+  s.point_noise_mm = dev.size() >= 10 ? 1.4826 * core::UpperMedian(dev) : 0.5;
   s.point_noise_mm = std::max(s.point_noise_mm, 0.05);
   std::vector<double> sw(nc, 0.0), swv(nc, 0.0), svar(nc, 0.0), ssd(nc, 0.0), ssn(nc, 0.0);
   s.fields.assign(nc, PointField{});
@@ -460,7 +455,7 @@ ScanCells ProjectScan(const core::WearMap& map, const MapFields& fields, const C
   for (size_t f = 0; f < nf; ++f) {
     if (per_face[f].empty()) continue;
     const double mean = std::accumulate(per_face[f].begin(), per_face[f].end(), 0.0) / static_cast<double>(per_face[f].size());
-    const double med = Median(per_face[f]);
+    const double med = core::UpperMedian(per_face[f]);
     // Robust face value: median when enough points, else the mean.
     const double value = per_face[f].size() >= 5 ? med : mean;
     s.face_wear_mm[f] = value;

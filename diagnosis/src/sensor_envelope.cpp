@@ -1,6 +1,7 @@
 // AnalyseSensor()'s monotone envelope, level segments and robust wear rate (sensor_steps.hpp).
 #include <algorithm>
 
+#include "core/median.hpp"
 #include "sensor_steps.hpp"
 
 namespace lw::diagnosis::detail {
@@ -98,7 +99,7 @@ double RobustRate(const std::vector<RawReading>& readings, const std::vector<Seg
     }
   }
   if (!rates.empty()) {
-    rate = Median(rates);
+    rate = core::UpperMedian(rates);
   } else if (t_end > 0) {
     rate = std::max(0.0, thickness_new_mm - segments.back().level - 0.5) / t_end;
   }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/median.hpp"
 #include "core/reconstruction.hpp"
 #include "sensor_steps.hpp"
 
@@ -16,7 +17,7 @@ std::vector<QualityIssue> Dropouts(const std::vector<RawReading>& readings) {
     const double g = readings[i].t_days - readings[i - 1].t_days;
     if (g > 0) gaps.push_back(g);
   }
-  const double typical = Median(gaps);
+  const double typical = core::UpperMedian(gaps);
   const core::Staleness rule;  // the live map's rule for a sensor too old to set a scale
   const double limit = std::max(rule.periods * typical, rule.min_days);
   for (size_t i = 1; i < n; ++i) {

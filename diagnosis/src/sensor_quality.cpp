@@ -33,13 +33,6 @@ void AddRuns(const std::vector<RawReading>& readings, const std::vector<bool>& m
   }
 }
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
-  return v[mid];
-}
-
 std::vector<RawReading> SortReadings(std::vector<RawReading> readings) {
   std::stable_sort(readings.begin(), readings.end(),
                    [](const RawReading& x, const RawReading& y) { return x.t_days < y.t_days; });

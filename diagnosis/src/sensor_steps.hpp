@@ -11,8 +11,6 @@ namespace lw::diagnosis::detail {
 
 /// printf into a std::string of at most 159 characters (the data-quality details).
 __attribute__((format(printf, 1, 2))) std::string IssueFmt(const char* format, ...);
-/// Median of `v` (the upper one of an even count); 0 when empty.
-double Median(std::vector<double> v);
 /// Reports each run of consecutive marked readings as one issue.
 void AddRuns(const std::vector<RawReading>& readings, const std::vector<bool>& mark, const std::string& issue,
              const std::string& detail, std::vector<QualityIssue>& issues);
