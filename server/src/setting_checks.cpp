@@ -188,14 +188,20 @@ CampaignService::UnknownSettings CampaignService::EstimateUnknownSettings(const 
   if (!one_at_a_time.owns_lock()) return UnknownSettings::kWaiting;
   const Crusher* crusher = registry_.Find(crusher_id);
   if (!crusher) return UnknownSettings::kNone;
-  // Each try reads the window up to every unknown check: not on every commit of a busy crusher.
+  // Each try reads the window up to every unknown check: not on every commit of a busy crusher,
+  // and not again on the same readings unless the last try failed (a check that stays not known,
+  // no sensor setting a scale then, costs nothing while no reading arrives).
   const auto now = std::chrono::steady_clock::now();
-  auto& tried = unknown_tried_[crusher_id];
-  if (tried && now - *tried < kUnknownRetry) return UnknownSettings::kWaiting;
-  tried = now;
+  const int64_t readings = live_.CountReadings(crusher_id);  // older readings arriving late count too
+  UnknownTry& tried = unknown_tried_[crusher_id];
+  if (tried.at && (now - *tried.at < kUnknownRetry || (tried.failure.empty() && tried.readings == readings)))
+    return UnknownSettings::kWaiting;
+  tried.at = now;
+  tried.readings = readings;
   const std::string failed =
       store_.With([&](Store& s) { return LoadSettingChecks(s, *crusher, wear_, Reestimate::kUnknown, true); });
-  if (!failed.empty() && log_) log_(failed);
+  if (failed != tried.failure && !failed.empty() && log_) log_(failed);  // once, not at every retry
+  tried.failure = failed;
   for (const core::SettingCheck& c : wear_.SettingChecks(crusher_id))
     if (c.time >= crusher->config.installed_at && !std::isfinite(c.opening_mm)) return UnknownSettings::kWaiting;
   return UnknownSettings::kEstimated;

@@ -32,7 +32,7 @@ int64_t CpuMs(clockid_t clock) {
 constexpr int64_t kAlarmIntervalMs = 10'000;
 // How often the crushers whose setting checks wait are asked again; a real try (a window read) is
 // rate-limited by CampaignService itself.
-constexpr int64_t kSettingsRetryMs = 1'000;
+constexpr std::chrono::seconds kSettingsRetry{1};
 
 }  // namespace
 
@@ -222,12 +222,18 @@ bool WearWorker::SettleSettings(const std::string& c) {
   if (!p_.campaigns) return false;
   using Unknown = CampaignService::UnknownSettings;
   Unknown found = Unknown::kWaiting;
+  std::string error;
   try {
     // A check posted before the readings of its time arrived counts once they have (the
     // setting_open alarm holds till then).
     found = p_.campaigns->EstimateUnknownSettings(c);
   } catch (const std::exception& e) {
-    p_.log.Limited("setting checks", "crusher " + c + ": setting checks not estimated: " + e.what());
+    error = e.what();
+  }
+  // A failure is logged when it first happens and when it changes, not at every retry.
+  if (std::string& last = settings_error_[c]; error != last) {
+    if (!error.empty()) p_.log("crusher " + c + ": setting checks not estimated: " + error);
+    last = error;
   }
   if (found == Unknown::kWaiting) {
     settings_waiting_.insert(c);
@@ -240,8 +246,9 @@ bool WearWorker::SettleSettings(const std::string& c) {
 }
 
 void WearWorker::RetrySettings() {
-  if (settings_waiting_.empty() || WallMs() - last_settings_ms_ < kSettingsRetryMs) return;
-  last_settings_ms_ = WallMs();
+  const auto now = std::chrono::steady_clock::now();
+  if (settings_waiting_.empty() || now - last_settings_ < kSettingsRetry) return;
+  last_settings_ = now;
   const std::set<std::string> waiting = settings_waiting_;
   for (const std::string& c : waiting) {
     if (stop_) return;
@@ -276,6 +283,10 @@ void WearWorker::Run() {
     }
     last_ms = WallMs();
     for (const std::string& c : work) ComputeAndHandBack(c);
+    // Also when some crusher is always dirty (a busy fleet): a silent crusher's waiting checks and
+    // its silence alarms are matters of time (both limit their own rate).
+    RetrySettings();
+    EvaluateAllAlarms(false);
   }
 }
 

@@ -144,14 +144,16 @@ class CampaignService {
   SettingOutcome CheckSetting(const std::string& crusher_id, const SettingCheckRequest& request, const std::string& by);
   /// What EstimateUnknownSettings found.
   enum class UnknownSettings {
-    kNone,       ///< no check of the running liner is not known
+    kNone,       ///< every check of the running liner has its opening (or the crusher is not known)
     kEstimated,  ///< it tried, and every one is known now
     kWaiting,    ///< some are not known yet: the readings do not reach past them, a try within the last
-                 ///< minute, a reline running, or the try failed (logged): ask again later
+                 ///< minute or on the same readings, a reline running, the try failed (logged), or it
+                 ///< tried and the readings do not give the opening: ask again later
   };
   /// The running liner's checks whose opening is not known (their readings had not arrived) are
   /// estimated again from the readings stored by now, once the crusher's readings reach past them, at
-  /// most once a minute per crusher and never waiting for a reline. The wear worker calls this
+  /// most once a minute per crusher, again only when readings arrived since the last try (or it
+  /// failed), and never waiting for a reline. The wear worker calls this
   /// before it computes a crusher's wear, and again while the answer is kWaiting.
   UnknownSettings EstimateUnknownSettings(const std::string& crusher_id);
   /// The crusher's measured settings, oldest first (every liner's).
@@ -171,7 +173,14 @@ class CampaignService {
   std::function<int64_t()> now_s_;
   std::function<void(const std::string&)> log_;
   std::mutex reline_mutex_;
-  std::map<std::string, std::optional<std::chrono::steady_clock::time_point>> unknown_tried_;  ///< under reline_mutex_
+  /// EstimateUnknownSettings' last try of a crusher: when, on how many stored readings, and what
+  /// failed (empty: nothing).
+  struct UnknownTry {
+    std::optional<std::chrono::steady_clock::time_point> at;
+    int64_t readings = 0;
+    std::string failure;
+  };
+  std::map<std::string, UnknownTry> unknown_tried_;  ///< under reline_mutex_
 };
 
 }  // namespace lw::server

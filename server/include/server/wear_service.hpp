@@ -34,6 +34,7 @@ CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<Store
 /// The same from the readings of a reading window (the live state's, or LoadWindow's), at `at`: the
 /// readings and scans up to it (nullopt: now, the newest scan whatever its date). The setting is
 /// counted from the latest of `checks` (measured settings) up to `at` since the liner's installation.
+/// `options`: estimate::Estimate's (a setting check's opening asks for no forecast).
 CrusherState ComputeCrusherState(const Crusher& crusher, const std::vector<estimate::Sample>& readings,
                                  std::optional<core::TimePoint> at, const CrusherState* previous = nullptr,
                                  const std::vector<core::SettingCheck>& checks = {},

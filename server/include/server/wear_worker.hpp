@@ -5,9 +5,11 @@
 /// At start-up it first loads every crusher's state and computes its wear, crusher by crusher.
 /// Wear is off the MQTT loop so a large map or a long campaign never delays commit acks.
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <set>
 #include <string>
@@ -93,8 +95,8 @@ class WearWorker {
   /// Asks the campaigns to estimate `crusher`'s checks not known; true when it did (its wear is to
   /// be computed again). Keeps settings_waiting_.
   bool SettleSettings(const std::string& crusher);
-  /// Asks again for the crushers whose checks wait, at most every kSettingsRetryMs: the readings
-  /// they wait for may have been committed within a try's minute, with no commit after them.
+  /// Asks again for the crushers whose checks wait, at most every second: the readings they wait
+  /// for may have been committed within a try's minute, with no commit after them.
   void RetrySettings();
 
   Parts p_;
@@ -104,10 +106,13 @@ class WearWorker {
   std::atomic<bool> stop_{false};
   std::atomic<bool> starting_{true};
   std::atomic<size_t> startup_loaded_{0}, startup_computed_{0};
-  std::atomic<bool> alarms_due_{false};     ///< a gateway's status changed: evaluate every crusher's alarms
-  int64_t last_alarms_ms_ = 0;              ///< the worker thread's
-  std::set<std::string> settings_waiting_;  ///< the worker thread's: crushers with a check not known yet
-  int64_t last_settings_ms_ = 0;            ///< the worker thread's
+  std::atomic<bool> alarms_due_{false};  ///< a gateway's status changed: evaluate every crusher's alarms
+  int64_t last_alarms_ms_ = 0;           ///< the worker thread's
+  // The worker thread's: crushers with a check not known yet, when they were last asked, and each
+  // crusher's last failure to estimate (logged once, not at every retry).
+  std::set<std::string> settings_waiting_;
+  std::chrono::steady_clock::time_point last_settings_{};
+  std::map<std::string, std::string> settings_error_;
 
   std::mutex dirty_mutex_;
   std::condition_variable dirty_cv_;
