@@ -161,7 +161,20 @@ void Assign(WearMap& map, const std::string& name, Eigen::VectorXd values) {
     map.extra[name] = std::move(values);
 }
 
-WearMap ParseVtk(const std::string& text, const std::string& file) {
+std::string TrimEnd(std::string s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  return s;
+}
+
+// The first three lines: the version (5.x may lay cells out as OFFSETS and CONNECTIVITY), the
+// title and the encoding.
+struct VtkHeader {
+  bool v5 = false;
+  std::string title;  // trimmed
+  size_t body = 0;    // offset of line 4, where the tokens start
+};
+
+VtkHeader ReadHeader(const std::string& text, const std::string& file) {
   // Header: 4 lines, the title line is free text.
   std::istringstream hs(text);
   std::string l1, l2, l3;
@@ -178,165 +191,210 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
                      std::isdigit(static_cast<unsigned char>(version[2])) && (version[0] < '5' || version[2] <= '1');
   if (!known) throw InputError(file, 1, "VTK version '" + version + "' is not a legacy VTK version (1.0 to 5.1)");
   const int major = version[0] - '0';
-  const bool v5 = major == 5;
-  auto trim = [](std::string s) {
-    while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
-    return s;
-  };
-  if (trim(l3) != "ASCII") throw InputError(file, 3, "only ASCII legacy VTK is supported (found '" + trim(l3) + "')");
-  // Tokens from line 4 on, keeping line numbers.
-  size_t offset = 0;
-  for (int i = 0; i < 3; ++i) offset = text.find('\n', offset) + 1;
-  Tokens t(text, file, offset, 4);
+  VtkHeader header;
+  header.v5 = major == 5;
+  if (TrimEnd(l3) != "ASCII") throw InputError(file, 3, "only ASCII legacy VTK is supported (found '" + TrimEnd(l3) + "')");
+  header.title = TrimEnd(l2);
+  for (int i = 0; i < 3; ++i) header.body = text.find('\n', header.body) + 1;
+  return header;
+}
 
-  WearMap map;
-  map.title = trim(l2);
+void ReadTitle(WearMap& map, std::string title, const std::string& file) {
+  map.title = std::move(title);
   // "linerwatch dem <case> windows=K ...": the number of independent time windows `wear` sums.
   if (const size_t at = map.title.find("windows="); at != std::string::npos) {
     const long k = std::strtol(map.title.c_str() + at + 8, nullptr, 10);
     if (k < 0 || k > 100000) throw InputError(file, 2, "title's windows=" + std::to_string(k) + " is not a window count");
     map.windows = static_cast<int>(k);
   }
-  if (t.Next("DATASET") != "DATASET" || t.Next("POLYDATA") != "POLYDATA") {
-    throw InputError(file, t.LastLine(), "expected 'DATASET POLYDATA'");
-  }
+}
+
+// The body read so far: the map, and the data section (CELL_DATA or POINT_DATA) that the arrays
+// which follow belong to.
+struct VtkBody {
+  VtkBody(const std::string& file_name, bool version_5) : file(file_name), v5(version_5) {}
+  const std::string& file;
+  bool v5;
+  WearMap map;
   size_t cell_count = 0;
   bool in_cell_data = false, in_point_data = false;
   // A cell array given twice would have its last copy win unseen (a second "wear" further down).
   std::set<std::string> assigned;
-  const auto assign = [&](const std::string& name, Eigen::VectorXd v, size_t line) {
-    if (!assigned.insert(name).second) throw InputError(file, line, "cell array '" + name + "' appears twice");
-    Assign(map, name, std::move(v));
-  };
   size_t point_data_count = 0;
-  while (!t.done()) {
-    const size_t kw_line = t.line();
-    const std::string kw = t.Next("keyword");
-    if (kw == "POINTS") {
-      const size_t n = t.Count("point count", 3);
-      t.Next("point type");
-      map.points.resize(n);
-      for (auto& p : map.points) {
-        p.x() = t.Number("x");
-        p.y() = t.Number("y");
-        p.z() = t.Number("z");
-        if (p.cwiseAbs().maxCoeff() > kMaxCoordinateM) throw InputError(file, t.LastLine(), OutOfFrame(p));
-      }
-    } else if (kw == "POLYGONS" || kw == "VERTICES" || kw == "LINES" || kw == "TRIANGLE_STRIPS") {
-      const size_t a = t.Count("cell count", 1);
-      const size_t b = t.Count("cell size", 1);
-      std::vector<std::array<uint32_t, 3>> faces;
-      if (v5 && t.Peek() == "OFFSETS") {
-        t.Next("OFFSETS");
-        t.Next("offset type");
-        std::vector<long long> offsets(a);
-        for (auto& o : offsets) o = t.Integer("offset");
-        for (size_t i = 0; i < a; ++i) {
-          if (static_cast<size_t>(offsets[i]) > b || (i > 0 && offsets[i] < offsets[i - 1])) {
-            throw InputError(file, kw_line,
-                             "OFFSETS must not decrease nor exceed the CONNECTIVITY size " + std::to_string(b) + " (offset " +
-                                 std::to_string(i) + " is " + std::to_string(offsets[i]) + ")");
-          }
-        }
-        if (t.Next("CONNECTIVITY") != "CONNECTIVITY") throw InputError(file, t.LastLine(), "expected CONNECTIVITY after OFFSETS");
-        t.Next("connectivity type");
-        t.NeedValues(b, 1, "cell size", kw_line);
-        std::vector<long long> conn(b);
-        for (auto& c : conn) c = t.Integer("point index");
-        for (size_t i = 0; i + 1 < a; ++i) {
-          if (offsets[i] > offsets[i + 1] || offsets[i + 1] > static_cast<long long>(b)) {
-            throw InputError(file, kw_line, "OFFSETS " + std::to_string(i + 1) + " is out of order or beyond the connectivity");
-          }
-          const long long k = offsets[i + 1] - offsets[i];
-          if (kw == "POLYGONS" && k != 3)
-            throw InputError(
-                file, kw_line,
-                "polygon " + std::to_string(i) + " has " + std::to_string(k) + " vertices; only triangles are supported");
-          if (kw == "POLYGONS") {
-            faces.push_back({static_cast<uint32_t>(conn[offsets[i]]), static_cast<uint32_t>(conn[offsets[i] + 1]),
-                             static_cast<uint32_t>(conn[offsets[i] + 2])});
-          }
-        }
-      } else {
-        for (size_t i = 0; i < a; ++i) {
-          const size_t line = t.line();
-          const size_t k = t.Count("vertex count", 1);
-          std::vector<uint32_t> idx(k);
-          for (auto& v : idx) v = static_cast<uint32_t>(t.Integer("point index"));
-          if (kw == "POLYGONS") {
-            if (k != 3)
-              throw InputError(file, line, "polygon with " + std::to_string(k) + " vertices; only triangles are supported");
-            faces.push_back({idx[0], idx[1], idx[2]});
-          }
-        }
-      }
-      if (kw == "POLYGONS") map.faces = std::move(faces);
-    } else if (kw == "CELL_DATA") {
-      cell_count = t.Count("cell data count", 0);  // checked per array (NeedValues)
-      in_cell_data = true;
-      in_point_data = false;
-    } else if (kw == "POINT_DATA") {
-      point_data_count = t.Count("point data count", 0);
-      in_point_data = true;
-      in_cell_data = false;
-    } else if (kw == "SCALARS") {
-      const std::string name = t.Next("array name");
-      t.Next("data type");
-      size_t ncomp = 1;
-      if (t.Peek() != "LOOKUP_TABLE") ncomp = static_cast<size_t>(t.Integer("component count"));
-      if (t.Next("LOOKUP_TABLE") != "LOOKUP_TABLE")
-        throw InputError(file, t.LastLine(), "expected LOOKUP_TABLE after SCALARS " + name);
-      t.Next("lookup table name");
-      if (ncomp < 1 || ncomp > 9) throw InputError(file, t.LastLine(), "SCALARS " + name + ": component count must be 1-9");
-      const size_t tuples = in_point_data ? point_data_count : cell_count;
-      t.NeedValues(tuples, ncomp, name.c_str(), t.LastLine());
-      const size_t n = tuples * ncomp;
-      Eigen::VectorXd v(static_cast<Eigen::Index>(n));
-      for (size_t i = 0; i < n; ++i) {
-        v[static_cast<Eigen::Index>(i)] = t.Number(name.c_str());
-        if (name == "wear" && v[static_cast<Eigen::Index>(i)] < 0)
-          throw InputError(file, t.LastLine(), NegativeWear(i, v[static_cast<Eigen::Index>(i)]));
-      }
-      if (in_cell_data && ncomp == 1) assign(name, std::move(v), t.LastLine());
-    } else if (kw == "FIELD") {
-      t.Next("field name");
-      const auto arrays = t.Integer("array count");
-      for (long long a = 0; a < arrays; ++a) {
-        const size_t line = t.line();
-        const std::string name = t.Next("array name");
-        const size_t ncomp = t.Count("component count");
-        const size_t ntuples = t.Count("tuple count", std::max<size_t>(ncomp, 1));
-        t.Next("data type");
-        if (in_cell_data && ntuples != cell_count) {
-          throw InputError(
-              file, line,
-              "array '" + name + "' has " + std::to_string(ntuples) + " tuples but CELL_DATA is " + std::to_string(cell_count));
-        }
-        t.NeedValues(ntuples, ncomp, name.c_str(), line);
-        Eigen::VectorXd v(static_cast<Eigen::Index>(ncomp * ntuples));
-        for (Eigen::Index i = 0; i < v.size(); ++i) {
-          v[i] = t.Number(name.c_str());
-          if (name == "wear" && v[i] < 0) throw InputError(file, t.LastLine(), NegativeWear(static_cast<size_t>(i), v[i]));
-        }
-        if (in_cell_data && ncomp == 1) assign(name, std::move(v), line);
-      }
-    } else if (kw == "VECTORS" || kw == "NORMALS") {
-      t.Next("array name");
-      t.Next("data type");
-      const size_t n = 3 * (in_point_data ? point_data_count : cell_count);
-      if (n > t.Remaining()) throw t.Error(kw + " promises more values than the file holds");
-      for (size_t i = 0; i < n; ++i) t.Number(kw.c_str());
-    } else if (kw == "METADATA") {
-      // VTK 5.1 may add METADATA blocks (INFORMATION ...); skip to the next known keyword.
-      while (!t.done()) {
-        const std::string_view p = t.Peek();
-        if (p == "CELL_DATA" || p == "POINT_DATA" || p == "SCALARS" || p == "FIELD" || p == "VECTORS") break;
-        t.Next("metadata");
-      }
-    } else {
-      throw InputError(file, kw_line, "unexpected keyword '" + kw + "'");
+};
+
+void AssignOnce(VtkBody& body, const std::string& name, Eigen::VectorXd v, size_t line) {
+  if (!body.assigned.insert(name).second) throw InputError(body.file, line, "cell array '" + name + "' appears twice");
+  Assign(body.map, name, std::move(v));
+}
+
+void ReadPoints(Tokens& t, VtkBody& body) {
+  const size_t n = t.Count("point count", 3);
+  t.Next("point type");
+  body.map.points.resize(n);
+  for (auto& p : body.map.points) {
+    p.x() = t.Number("x");
+    p.y() = t.Number("y");
+    p.z() = t.Number("z");
+    if (p.cwiseAbs().maxCoeff() > kMaxCoordinateM) throw InputError(body.file, t.LastLine(), OutOfFrame(p));
+  }
+}
+
+// VTK 5's cell layout: `a` offsets, then the CONNECTIVITY of `b` point indices they point into.
+std::vector<std::array<uint32_t, 3>> ReadOffsetCells(Tokens& t, const std::string& file, const std::string& kw, size_t kw_line,
+                                                     size_t a, size_t b) {
+  std::vector<std::array<uint32_t, 3>> faces;
+  t.Next("OFFSETS");
+  t.Next("offset type");
+  std::vector<long long> offsets(a);
+  for (auto& o : offsets) o = t.Integer("offset");
+  for (size_t i = 0; i < a; ++i) {
+    if (static_cast<size_t>(offsets[i]) > b || (i > 0 && offsets[i] < offsets[i - 1])) {
+      throw InputError(file, kw_line,
+                       "OFFSETS must not decrease nor exceed the CONNECTIVITY size " + std::to_string(b) + " (offset " +
+                           std::to_string(i) + " is " + std::to_string(offsets[i]) + ")");
     }
   }
+  if (t.Next("CONNECTIVITY") != "CONNECTIVITY") throw InputError(file, t.LastLine(), "expected CONNECTIVITY after OFFSETS");
+  t.Next("connectivity type");
+  t.NeedValues(b, 1, "cell size", kw_line);
+  std::vector<long long> conn(b);
+  for (auto& c : conn) c = t.Integer("point index");
+  for (size_t i = 0; i + 1 < a; ++i) {
+    if (offsets[i] > offsets[i + 1] || offsets[i + 1] > static_cast<long long>(b)) {
+      throw InputError(file, kw_line, "OFFSETS " + std::to_string(i + 1) + " is out of order or beyond the connectivity");
+    }
+    const long long k = offsets[i + 1] - offsets[i];
+    if (kw == "POLYGONS" && k != 3)
+      throw InputError(file, kw_line,
+                       "polygon " + std::to_string(i) + " has " + std::to_string(k) + " vertices; only triangles are supported");
+    if (kw == "POLYGONS") {
+      faces.push_back({static_cast<uint32_t>(conn[offsets[i]]), static_cast<uint32_t>(conn[offsets[i] + 1]),
+                       static_cast<uint32_t>(conn[offsets[i] + 2])});
+    }
+  }
+  return faces;
+}
+
+// The classic cell layout: `a` cells, each its vertex count and then its point indices.
+std::vector<std::array<uint32_t, 3>> ReadCountedCells(Tokens& t, const std::string& file, const std::string& kw, size_t a) {
+  std::vector<std::array<uint32_t, 3>> faces;
+  for (size_t i = 0; i < a; ++i) {
+    const size_t line = t.line();
+    const size_t k = t.Count("vertex count", 1);
+    std::vector<uint32_t> idx(k);
+    for (auto& v : idx) v = static_cast<uint32_t>(t.Integer("point index"));
+    if (kw == "POLYGONS") {
+      if (k != 3) throw InputError(file, line, "polygon with " + std::to_string(k) + " vertices; only triangles are supported");
+      faces.push_back({idx[0], idx[1], idx[2]});
+    }
+  }
+  return faces;
+}
+
+// POLYGONS are the map's faces; VERTICES, LINES and TRIANGLE_STRIPS are read and dropped.
+void ReadCells(Tokens& t, VtkBody& body, const std::string& kw, size_t kw_line) {
+  const size_t a = t.Count("cell count", 1);
+  const size_t b = t.Count("cell size", 1);
+  std::vector<std::array<uint32_t, 3>> faces =
+      body.v5 && t.Peek() == "OFFSETS" ? ReadOffsetCells(t, body.file, kw, kw_line, a, b) : ReadCountedCells(t, body.file, kw, a);
+  if (kw == "POLYGONS") body.map.faces = std::move(faces);
+}
+
+// Only single-component cell arrays go into the map; the others are read and dropped.
+void ReadScalars(Tokens& t, VtkBody& body) {
+  const std::string name = t.Next("array name");
+  t.Next("data type");
+  size_t ncomp = 1;
+  if (t.Peek() != "LOOKUP_TABLE") ncomp = static_cast<size_t>(t.Integer("component count"));
+  if (t.Next("LOOKUP_TABLE") != "LOOKUP_TABLE")
+    throw InputError(body.file, t.LastLine(), "expected LOOKUP_TABLE after SCALARS " + name);
+  t.Next("lookup table name");
+  if (ncomp < 1 || ncomp > 9) throw InputError(body.file, t.LastLine(), "SCALARS " + name + ": component count must be 1-9");
+  const size_t tuples = body.in_point_data ? body.point_data_count : body.cell_count;
+  t.NeedValues(tuples, ncomp, name.c_str(), t.LastLine());
+  const size_t n = tuples * ncomp;
+  Eigen::VectorXd v(static_cast<Eigen::Index>(n));
+  for (size_t i = 0; i < n; ++i) {
+    v[static_cast<Eigen::Index>(i)] = t.Number(name.c_str());
+    if (name == "wear" && v[static_cast<Eigen::Index>(i)] < 0)
+      throw InputError(body.file, t.LastLine(), NegativeWear(i, v[static_cast<Eigen::Index>(i)]));
+  }
+  if (body.in_cell_data && ncomp == 1) AssignOnce(body, name, std::move(v), t.LastLine());
+}
+
+void ReadField(Tokens& t, VtkBody& body) {
+  t.Next("field name");
+  const auto arrays = t.Integer("array count");
+  for (long long a = 0; a < arrays; ++a) {
+    const size_t line = t.line();
+    const std::string name = t.Next("array name");
+    const size_t ncomp = t.Count("component count");
+    const size_t ntuples = t.Count("tuple count", std::max<size_t>(ncomp, 1));
+    t.Next("data type");
+    if (body.in_cell_data && ntuples != body.cell_count) {
+      throw InputError(
+          body.file, line,
+          "array '" + name + "' has " + std::to_string(ntuples) + " tuples but CELL_DATA is " + std::to_string(body.cell_count));
+    }
+    t.NeedValues(ntuples, ncomp, name.c_str(), line);
+    Eigen::VectorXd v(static_cast<Eigen::Index>(ncomp * ntuples));
+    for (Eigen::Index i = 0; i < v.size(); ++i) {
+      v[i] = t.Number(name.c_str());
+      if (name == "wear" && v[i] < 0) throw InputError(body.file, t.LastLine(), NegativeWear(static_cast<size_t>(i), v[i]));
+    }
+    if (body.in_cell_data && ncomp == 1) AssignOnce(body, name, std::move(v), line);
+  }
+}
+
+void SkipVectors(Tokens& t, const VtkBody& body, const std::string& kw) {
+  t.Next("array name");
+  t.Next("data type");
+  const size_t n = 3 * (body.in_point_data ? body.point_data_count : body.cell_count);
+  if (n > t.Remaining()) throw t.Error(kw + " promises more values than the file holds");
+  for (size_t i = 0; i < n; ++i) t.Number(kw.c_str());
+}
+
+// VTK 5.1 may add METADATA blocks (INFORMATION ...); skip to the next known keyword.
+void SkipMetadata(Tokens& t) {
+  while (!t.done()) {
+    const std::string_view p = t.Peek();
+    if (p == "CELL_DATA" || p == "POINT_DATA" || p == "SCALARS" || p == "FIELD" || p == "VECTORS") break;
+    t.Next("metadata");
+  }
+}
+
+// One keyword of the body and what belongs to it.
+void ReadSection(Tokens& t, VtkBody& body) {
+  const size_t kw_line = t.line();
+  const std::string kw = t.Next("keyword");
+  if (kw == "POINTS") {
+    ReadPoints(t, body);
+  } else if (kw == "POLYGONS" || kw == "VERTICES" || kw == "LINES" || kw == "TRIANGLE_STRIPS") {
+    ReadCells(t, body, kw, kw_line);
+  } else if (kw == "CELL_DATA") {
+    body.cell_count = t.Count("cell data count", 0);  // checked per array (NeedValues)
+    body.in_cell_data = true;
+    body.in_point_data = false;
+  } else if (kw == "POINT_DATA") {
+    body.point_data_count = t.Count("point data count", 0);
+    body.in_point_data = true;
+    body.in_cell_data = false;
+  } else if (kw == "SCALARS") {
+    ReadScalars(t, body);
+  } else if (kw == "FIELD") {
+    ReadField(t, body);
+  } else if (kw == "VECTORS" || kw == "NORMALS") {
+    SkipVectors(t, body, kw);
+  } else if (kw == "METADATA") {
+    SkipMetadata(t);
+  } else {
+    throw InputError(body.file, kw_line, "unexpected keyword '" + kw + "'");
+  }
+}
+
+// What holds only for the file as a whole: triangles, each on existing points, one wear per face.
+void CheckWhole(const WearMap& map, size_t cell_count, const std::string& file) {
   if (map.faces.empty()) throw InputError(file, 0, "no triangles (POLYGONS) found");
   for (size_t i = 0; i < map.faces.size(); ++i) {
     for (uint32_t v : map.faces[i]) {
@@ -352,7 +410,20 @@ WearMap ParseVtk(const std::string& text, const std::string& file) {
         "CELL_DATA count " + std::to_string(cell_count) + " differs from the triangle count " + std::to_string(map.faces.size()));
   }
   if (map.wear.size() == 0) throw InputError(file, 0, "no per-face array named 'wear' in CELL_DATA");
-  return map;
+}
+
+WearMap ParseVtk(const std::string& text, const std::string& file) {
+  VtkHeader header = ReadHeader(text, file);
+  // Tokens from line 4 on, keeping line numbers.
+  Tokens t(text, file, header.body, 4);
+  VtkBody body(file, header.v5);
+  ReadTitle(body.map, std::move(header.title), file);
+  if (t.Next("DATASET") != "DATASET" || t.Next("POLYDATA") != "POLYDATA") {
+    throw InputError(file, t.LastLine(), "expected 'DATASET POLYDATA'");
+  }
+  while (!t.done()) ReadSection(t, body);
+  CheckWhole(body.map, body.cell_count, file);
+  return std::move(body.map);
 }
 
 WearMap ParseCsv(const std::string& text, const std::string& file) {

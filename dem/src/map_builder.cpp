@@ -142,6 +142,248 @@ nlohmann::json Attempts(const fs::path& case_dir) {
   return a;
 }
 
+// The dumps of the steady span (the first one at or after its start) and their split into windows.
+struct Span {
+  std::vector<double> dump_t;  // time of every dump, s
+  size_t first = 0, last = 0;  // indices of the span's first and last dump
+  double seconds = 0;          // from the first to the last dump
+  double min_window_s = 0;
+  int k = 0;  // windows
+  std::vector<std::pair<size_t, size_t>> win;
+};
+
+Span ChooseSpan(const ChamberSpec& spec, const fs::path& case_dir, const std::vector<long>& dump_steps,
+                const SteadyWindow& steady, int windows) {
+  Span sp;
+  for (long s : dump_steps) sp.dump_t.push_back(static_cast<double>(s) * spec.timestep_s);
+  while (sp.first < sp.dump_t.size() && sp.dump_t[sp.first] < steady.t_start - 1e-9) ++sp.first;
+  sp.last = sp.dump_t.size() - 1;
+  sp.seconds = sp.first < sp.dump_t.size() ? sp.dump_t[sp.last] - sp.dump_t[sp.first] : 0;
+  const double gyration_s = 60.0 / spec.speed_rpm;
+  sp.min_window_s = std::max(3 * gyration_s, spec.dump_interval_s);
+  const int requested = windows > 0 ? windows : spec.windows;
+  sp.k = ChooseWindowCount(sp.seconds, sp.min_window_s, requested);
+  if (sp.k > 0 && static_cast<long>(sp.last - sp.first) < sp.k) sp.k = static_cast<int>(sp.last - sp.first);
+  if (sp.k < 2) {
+    // What would be enough: the windows after the span's first dump, rounded up to a dump, so the
+    // user raises simulated_s once instead of by trial (the run resumes from its last restart).
+    const int want = requested > 0 ? requested : 2;
+    const double t_first = sp.first < sp.dump_t.size() ? sp.dump_t[sp.first] : steady.t_start;
+    const double need = std::ceil((t_first + want * sp.min_window_s) / spec.dump_interval_s - 1e-9) * spec.dump_interval_s;
+    char b[400];
+    std::snprintf(b, sizeof b,
+                  ": the steady span (%.2f s from t = %.2f s) holds fewer than %d windows of %.2f s; raise "
+                  "chamber.simulated_s to at least %.1f s (now %.1f s) and run again (it resumes; a longer run can "
+                  "move the steady start, so allow a little more)",
+                  sp.seconds, steady.t_start, want, sp.min_window_s, need, spec.simulated_s);
+    throw std::runtime_error(case_dir.string() + b);
+  }
+  sp.win = SplitWindows(sp.first, sp.last, sp.k);
+  return sp;
+}
+
+// The span's dumps, faces in the first one's order: wear is cumulative, stresses are per-dump averages.
+struct Dumps {
+  core::WearMap ref;  // the span's first dump
+  std::vector<Eigen::VectorXd> cum, sn, ss;
+};
+
+Dumps LoadDumps(const fs::path& post, const std::vector<long>& dump_steps, const Span& sp) {
+  const auto load = [&](size_t i) {
+    const fs::path f = post / ("concave_" + std::to_string(dump_steps[i]) + ".vtk");
+    return core::LoadWearMap(f);
+  };
+  Dumps d{load(sp.first), {}, {}, {}};
+  if (!d.ref.has_normal_stress() || !d.ref.has_shear_stress())
+    throw std::runtime_error(post.string() + ": dumps lack normal/shear stress (the case must dump `stress wear`)");
+  d.cum.resize(sp.dump_t.size()), d.sn.resize(sp.dump_t.size()), d.ss.resize(sp.dump_t.size());
+  d.cum[sp.first] = d.ref.wear, d.sn[sp.first] = d.ref.normal_stress, d.ss[sp.first] = d.ref.shear_stress;
+  for (size_t i = sp.first + 1; i <= sp.last; ++i) {
+    const core::WearMap m = load(i);
+    const auto idx = MatchFaces(d.ref, m, "concave_" + std::to_string(dump_steps[i]) + ".vtk");
+    d.cum[i] = Reorder(m.wear, idx), d.sn[i] = Reorder(m.normal_stress, idx), d.ss[i] = Reorder(m.shear_stress, idx);
+  }
+  return d;
+}
+
+// Per face: the wear of each window and of the span, its standard error, and the stresses averaged.
+struct Fields {
+  Eigen::Index n = 0;  // faces
+  std::vector<Eigen::VectorXd> w_inc, w_sn;
+  Eigen::VectorXd total, stderr_total, sn_avg, ss_avg;
+};
+
+Fields SumWindows(const Dumps& d, const Span& sp) {
+  Fields f;
+  const Eigen::Index n = f.n = static_cast<Eigen::Index>(d.ref.face_count());
+  f.total = Eigen::VectorXd::Zero(n), f.sn_avg = Eigen::VectorXd::Zero(n), f.ss_avg = Eigen::VectorXd::Zero(n);
+  for (const auto& [b, e] : sp.win) {
+    f.w_inc.push_back(d.cum[e] - d.cum[b]);
+    Eigen::VectorXd a = Eigen::VectorXd::Zero(n);
+    for (size_t i = b + 1; i <= e; ++i) a += d.sn[i];
+    f.w_sn.push_back(a / static_cast<double>(e - b));
+    f.total += f.w_inc.back();
+  }
+  for (size_t i = sp.first + 1; i <= sp.last; ++i) f.sn_avg += d.sn[i], f.ss_avg += d.ss[i];
+  f.sn_avg /= static_cast<double>(sp.last - sp.first), f.ss_avg /= static_cast<double>(sp.last - sp.first);
+  // Standard error of the total: sqrt(K) x the sample sd of the K window increments.
+  f.stderr_total = Eigen::VectorXd::Zero(n);
+  const Eigen::VectorXd mean_inc = f.total / sp.k;
+  for (const auto& w : f.w_inc) f.stderr_total += (w - mean_inc).cwiseAbs2();
+  f.stderr_total = (f.stderr_total / (sp.k - 1)).cwiseSqrt() * std::sqrt(static_cast<double>(sp.k));
+  return f;
+}
+
+// The map and the per-window map into `out_dir`; returns their mesh (shared points, the span's wear).
+core::WearMap WriteMaps(const ChamberSpec& spec, const fs::path& case_dir, const fs::path& out_dir, const Span& sp,
+                        const Fields& f, const core::WearMap& ref) {
+  const int k = sp.k;
+  core::WearMap out = SharedPointMesh(ref);
+  out.wear = f.total;
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  char title[256];
+  std::snprintf(title, sizeof title, "linerwatch dem %s windows=%d window_s=%.3f steady_from_s=%.3f steady_to_s=%.3f liggghts=%s",
+                spec.name.c_str(), k, sp.seconds / k, sp.dump_t[sp.first], sp.dump_t[sp.last], LiggghtsVersion(case_dir).c_str());
+  core::WriteWearMapVtk(out_dir / MapFiles::kMap, out,
+                        {{"wear", &f.total},
+                         {"wear_stderr", &f.stderr_total},
+                         {"normal_stress_average", &f.sn_avg},
+                         {"shear_stress_average", &f.ss_avg}},
+                        title);
+  std::vector<std::string> names;
+  std::vector<std::pair<std::string, const Eigen::VectorXd*>> arrays = {{"wear", &f.total}};  // loads as a map too
+  for (int i = 0; i < k; ++i) names.push_back("wear_w" + std::to_string(i + 1));
+  for (int i = 0; i < k; ++i) names.push_back("normal_stress_w" + std::to_string(i + 1));
+  for (int i = 0; i < k; ++i) arrays.push_back({names[static_cast<size_t>(i)], &f.w_inc[static_cast<size_t>(i)]});
+  for (int i = 0; i < k; ++i) arrays.push_back({names[static_cast<size_t>(k + i)], &f.w_sn[static_cast<size_t>(i)]});
+  core::WriteWearMapVtk(out_dir / MapFiles::kWindows, out, arrays, title);
+  return out;
+}
+
+// Steady span and flow.
+nlohmann::json SteadyJson(const std::vector<Sample>& series, const SteadyWindow& steady, const Span& sp) {
+  const std::vector<double>& dump_t = sp.dump_t;
+  double flow_tph = 0, hopper_min = 1e300;
+  {
+    const Sample* a = nullptr;
+    const Sample* b = nullptr;
+    for (const auto& s : series)
+      if (s.t >= dump_t[sp.first] - 1e-9 && s.t <= dump_t[sp.last] + 1e-9) {
+        if (!a) a = &s;
+        b = &s;
+        hopper_min = std::min(hopper_min, s.m_hopper);
+      }
+    if (a && b && b->t > a->t) flow_tph = ((b->m_inserted - b->m_total) - (a->m_inserted - a->m_total)) / (b->t - a->t) * 3.6;
+  }
+  return {{"from_s", dump_t[sp.first]},
+          {"to_s", dump_t[sp.last]},
+          {"chamber_mass_t", steady.level / 1000.0},
+          {"band_t", steady.band / 1000.0},
+          {"drift", steady.drift},
+          {"note", steady.reason},
+          {"mass_flow_tph", flow_tph},
+          {"hopper_min_t", hopper_min / 1000.0},
+          {"choke_fed", hopper_min > 0.05 * steady.level}};
+}
+
+// Rows: area-weighted mean intensity, spread, edge outliers, noise; and the faces over 10x their
+// row's mean, all rows together.
+struct RowStats {
+  nlohmann::json rows = nlohmann::json::array();
+  size_t outliers = 0, edge_outliers = 0;
+};
+
+RowStats Rows(const ChamberSpec& spec, const std::vector<core::Row>& rows, const core::WearMap& out, const Fields& f) {
+  const Eigen::Index n = f.n;
+  const Eigen::VectorXd& total = f.total;
+  RowStats st;
+  nlohmann::json& jrows = st.rows;
+  std::vector<double> means;
+  const double band_h = spec.height_m() / spec.mesh_n_z;
+  for (const auto& row : rows) {
+    double aw = 0, a = 0;
+    std::vector<double> vals, rel_se;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (out.z[i] < row.z_min_m || out.z[i] >= row.z_max_m) continue;
+      aw += out.areas[i] * total[i], a += out.areas[i];
+      vals.push_back(total[i]);
+      if (total[i] > 0) rel_se.push_back(f.stderr_total[i] / total[i]);
+    }
+    const double mean = a > 0 ? aw / a : 0;
+    double var = 0;
+    for (double v : vals) var += (v - mean) * (v - mean);
+    const double cv = vals.size() > 1 && mean > 0 ? std::sqrt(var / static_cast<double>(vals.size() - 1)) / mean : 0;
+    size_t row_out = 0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (out.z[i] < row.z_min_m || out.z[i] >= row.z_max_m || mean <= 0) continue;
+      if (total[i] > 10 * mean) {
+        ++row_out;
+        const bool edge = out.z[i] < band_h || out.z[i] > spec.height_m() - band_h;
+        st.edge_outliers += edge ? 1 : 0;
+      }
+    }
+    st.outliers += row_out;
+    means.push_back(mean);
+    jrows.push_back({{"row", row.name},
+                     {"z_min_m", row.z_min_m},
+                     {"z_max_m", row.z_max_m},
+                     {"faces", vals.size()},
+                     {"mean_wear", mean},
+                     {"cv", cv},
+                     {"median_rel_stderr", core::UpperMedian(rel_se)},
+                     {"faces_over_10x_mean", row_out}});
+  }
+  const double lowest = *std::min_element(means.begin(), means.end());
+  for (size_t r = 0; r < jrows.size(); ++r) jrows[r]["ratio"] = lowest > 0 ? means[r] / lowest : 0.0;
+  return st;
+}
+
+// Validation summary.
+nlohmann::json Summary(const ChamberSpec& spec, const fs::path& case_dir, const CaseSteps& steps,
+                       const std::vector<Sample>& series, const SteadyWindow& steady, const Span& sp, const Fields& f,
+                       const core::WearMap& out, std::vector<core::Row> rows) {
+  const Eigen::Index n = f.n;
+  const Eigen::VectorXd& total = f.total;
+  if (rows.empty()) {
+    const double h = spec.height_m();
+    rows = {{"LDWN", 0, h / 3}, {"LMID", h / 3, 2 * h / 3}, {"LUP", 2 * h / 3, h}};
+  }
+  nlohmann::json summary;
+  summary["name"] = spec.name;
+  summary["liggghts"] = LiggghtsVersion(case_dir);
+  summary["faces"] = out.face_count();
+  summary["steps"] = steps.total;
+  summary["simulated_s"] = static_cast<double>(steps.total) * spec.timestep_s;
+  summary["attempts"] = Attempts(case_dir);
+  double wall = 0;
+  for (const auto& a : summary["attempts"]) wall += a["wall_s"].get<double>();
+  summary["runtime_s"] = wall;
+  summary["steady"] = SteadyJson(series, steady, sp);
+  summary["windows"] = {{"count", sp.k}, {"window_s", sp.seconds / sp.k}, {"min_window_s", sp.min_window_s}};
+  size_t zero_faces = 0;
+  for (Eigen::Index i = 0; i < n; ++i) zero_faces += total[i] <= 0 ? 1 : 0;
+  const RowStats st = Rows(spec, rows, out, f);
+  summary["rows"] = st.rows;
+  std::vector<double> rel;
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (total[i] > 0) rel.push_back(f.stderr_total[i] / total[i]);
+  summary["faces_zero"] = zero_faces;
+  summary["faces_zero_fraction"] = static_cast<double>(zero_faces) / static_cast<double>(n);
+  summary["faces_over_10x_row_mean"] = st.outliers;
+  summary["edge_faces_over_10x_row_mean"] = st.edge_outliers;
+  summary["median_rel_stderr"] = core::UpperMedian(rel);
+  // Correlation of wear with normal stress across faces (shared sampling noise shows here too).
+  {
+    const double mw = total.mean(), ms = f.sn_avg.mean();
+    const double cov = ((total.array() - mw) * (f.sn_avg.array() - ms)).sum();
+    const double den = std::sqrt((total.array() - mw).square().sum() * (f.sn_avg.array() - ms).square().sum());
+    summary["corr_wear_normal_stress"] = den > 0 ? cov / den : 0.0;
+  }
+  summary["chamber"] = ToJson(spec);
+  return summary;
+}
+
 }  // namespace
 
 nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::vector<core::Row> rows, const fs::path& out_dir,
@@ -160,182 +402,11 @@ nlohmann::json BuildMap(const ChamberSpec& spec, const fs::path& case_dir, std::
   if (!steady.found)
     throw std::runtime_error((case_dir / CaseLayout::kMassSeries).string() + ": no steady, choke-fed span: " + steady.reason);
 
-  // Dumps inside the steady span (the first one at or after its start).
-  std::vector<double> dump_t;
-  for (long s : dump_steps) dump_t.push_back(static_cast<double>(s) * spec.timestep_s);
-  size_t first = 0;
-  while (first < dump_t.size() && dump_t[first] < steady.t_start - 1e-9) ++first;
-  const size_t last = dump_t.size() - 1;
-  const double span = first < dump_t.size() ? dump_t[last] - dump_t[first] : 0;
-  const double gyration_s = 60.0 / spec.speed_rpm;
-  const double min_window_s = std::max(3 * gyration_s, spec.dump_interval_s);
-  const int requested = windows > 0 ? windows : spec.windows;
-  int k = ChooseWindowCount(span, min_window_s, requested);
-  if (k > 0 && static_cast<long>(last - first) < k) k = static_cast<int>(last - first);
-  if (k < 2) {
-    // What would be enough: the windows after the span's first dump, rounded up to a dump, so the
-    // user raises simulated_s once instead of by trial (the run resumes from its last restart).
-    const int want = requested > 0 ? requested : 2;
-    const double t_first = first < dump_t.size() ? dump_t[first] : steady.t_start;
-    const double need = std::ceil((t_first + want * min_window_s) / spec.dump_interval_s - 1e-9) * spec.dump_interval_s;
-    char b[400];
-    std::snprintf(b, sizeof b,
-                  ": the steady span (%.2f s from t = %.2f s) holds fewer than %d windows of %.2f s; raise "
-                  "chamber.simulated_s to at least %.1f s (now %.1f s) and run again (it resumes; a longer run can "
-                  "move the steady start, so allow a little more)",
-                  span, steady.t_start, want, min_window_s, need, spec.simulated_s);
-    throw std::runtime_error(case_dir.string() + b);
-  }
-  const auto win = SplitWindows(first, last, k);
-
-  // Load the dumps of the span; wear is cumulative, stresses are per-dump averages.
-  const auto load = [&](size_t i) {
-    const fs::path f = post / ("concave_" + std::to_string(dump_steps[i]) + ".vtk");
-    return core::LoadWearMap(f);
-  };
-  const core::WearMap ref = load(first);
-  if (!ref.has_normal_stress() || !ref.has_shear_stress())
-    throw std::runtime_error(post.string() + ": dumps lack normal/shear stress (the case must dump `stress wear`)");
-  const auto n = static_cast<Eigen::Index>(ref.face_count());
-  std::vector<Eigen::VectorXd> cum(dump_t.size()), sn(dump_t.size()), ss(dump_t.size());
-  cum[first] = ref.wear, sn[first] = ref.normal_stress, ss[first] = ref.shear_stress;
-  for (size_t i = first + 1; i <= last; ++i) {
-    const core::WearMap d = load(i);
-    const auto idx = MatchFaces(ref, d, "concave_" + std::to_string(dump_steps[i]) + ".vtk");
-    cum[i] = Reorder(d.wear, idx), sn[i] = Reorder(d.normal_stress, idx), ss[i] = Reorder(d.shear_stress, idx);
-  }
-  std::vector<Eigen::VectorXd> w_inc, w_sn;
-  Eigen::VectorXd total = Eigen::VectorXd::Zero(n), sn_avg = Eigen::VectorXd::Zero(n), ss_avg = Eigen::VectorXd::Zero(n);
-  for (const auto& [b, e] : win) {
-    w_inc.push_back(cum[e] - cum[b]);
-    Eigen::VectorXd a = Eigen::VectorXd::Zero(n);
-    for (size_t i = b + 1; i <= e; ++i) a += sn[i];
-    w_sn.push_back(a / static_cast<double>(e - b));
-    total += w_inc.back();
-  }
-  for (size_t i = first + 1; i <= last; ++i) sn_avg += sn[i], ss_avg += ss[i];
-  sn_avg /= static_cast<double>(last - first), ss_avg /= static_cast<double>(last - first);
-  // Standard error of the total: sqrt(K) x the sample sd of the K window increments.
-  Eigen::VectorXd stderr_total = Eigen::VectorXd::Zero(n);
-  const Eigen::VectorXd mean_inc = total / k;
-  for (const auto& w : w_inc) stderr_total += (w - mean_inc).cwiseAbs2();
-  stderr_total = (stderr_total / (k - 1)).cwiseSqrt() * std::sqrt(static_cast<double>(k));
-
-  core::WearMap out = SharedPointMesh(ref);
-  out.wear = total;
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  char title[256];
-  std::snprintf(title, sizeof title, "linerwatch dem %s windows=%d window_s=%.3f steady_from_s=%.3f steady_to_s=%.3f liggghts=%s",
-                spec.name.c_str(), k, span / k, dump_t[first], dump_t[last], LiggghtsVersion(case_dir).c_str());
-  core::WriteWearMapVtk(
-      out_dir / MapFiles::kMap, out,
-      {{"wear", &total}, {"wear_stderr", &stderr_total}, {"normal_stress_average", &sn_avg}, {"shear_stress_average", &ss_avg}},
-      title);
-  std::vector<std::string> names;
-  std::vector<std::pair<std::string, const Eigen::VectorXd*>> arrays = {{"wear", &total}};  // loads as a map too
-  for (int i = 0; i < k; ++i) names.push_back("wear_w" + std::to_string(i + 1));
-  for (int i = 0; i < k; ++i) names.push_back("normal_stress_w" + std::to_string(i + 1));
-  for (int i = 0; i < k; ++i) arrays.push_back({names[static_cast<size_t>(i)], &w_inc[static_cast<size_t>(i)]});
-  for (int i = 0; i < k; ++i) arrays.push_back({names[static_cast<size_t>(k + i)], &w_sn[static_cast<size_t>(i)]});
-  core::WriteWearMapVtk(out_dir / MapFiles::kWindows, out, arrays, title);
-
-  // Validation summary.
-  if (rows.empty()) {
-    const double h = spec.height_m();
-    rows = {{"LDWN", 0, h / 3}, {"LMID", h / 3, 2 * h / 3}, {"LUP", 2 * h / 3, h}};
-  }
-  nlohmann::json summary;
-  summary["name"] = spec.name;
-  summary["liggghts"] = LiggghtsVersion(case_dir);
-  summary["faces"] = out.face_count();
-  summary["steps"] = steps.total;
-  summary["simulated_s"] = static_cast<double>(steps.total) * spec.timestep_s;
-  summary["attempts"] = Attempts(case_dir);
-  double wall = 0;
-  for (const auto& a : summary["attempts"]) wall += a["wall_s"].get<double>();
-  summary["runtime_s"] = wall;
-  // Steady span and flow.
-  double flow_tph = 0, hopper_min = 1e300;
-  {
-    const Sample* a = nullptr;
-    const Sample* b = nullptr;
-    for (const auto& s : series)
-      if (s.t >= dump_t[first] - 1e-9 && s.t <= dump_t[last] + 1e-9) {
-        if (!a) a = &s;
-        b = &s;
-        hopper_min = std::min(hopper_min, s.m_hopper);
-      }
-    if (a && b && b->t > a->t) flow_tph = ((b->m_inserted - b->m_total) - (a->m_inserted - a->m_total)) / (b->t - a->t) * 3.6;
-  }
-  summary["steady"] = {{"from_s", dump_t[first]},
-                       {"to_s", dump_t[last]},
-                       {"chamber_mass_t", steady.level / 1000.0},
-                       {"band_t", steady.band / 1000.0},
-                       {"drift", steady.drift},
-                       {"note", steady.reason},
-                       {"mass_flow_tph", flow_tph},
-                       {"hopper_min_t", hopper_min / 1000.0},
-                       {"choke_fed", hopper_min > 0.05 * steady.level}};
-  summary["windows"] = {{"count", k}, {"window_s", span / k}, {"min_window_s", min_window_s}};
-  // Rows: area-weighted mean intensity, spread, zero faces, edge outliers, noise.
-  nlohmann::json jrows = nlohmann::json::array();
-  std::vector<double> means;
-  size_t zero_faces = 0, outliers = 0, edge_outliers = 0;
-  const double band_h = spec.height_m() / spec.mesh_n_z;
-  for (Eigen::Index i = 0; i < n; ++i) zero_faces += total[i] <= 0 ? 1 : 0;
-  for (const auto& row : rows) {
-    double aw = 0, a = 0;
-    std::vector<double> vals, rel_se;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      if (out.z[i] < row.z_min_m || out.z[i] >= row.z_max_m) continue;
-      aw += out.areas[i] * total[i], a += out.areas[i];
-      vals.push_back(total[i]);
-      if (total[i] > 0) rel_se.push_back(stderr_total[i] / total[i]);
-    }
-    const double mean = a > 0 ? aw / a : 0;
-    double var = 0;
-    for (double v : vals) var += (v - mean) * (v - mean);
-    const double cv = vals.size() > 1 && mean > 0 ? std::sqrt(var / static_cast<double>(vals.size() - 1)) / mean : 0;
-    size_t row_out = 0;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      if (out.z[i] < row.z_min_m || out.z[i] >= row.z_max_m || mean <= 0) continue;
-      if (total[i] > 10 * mean) {
-        ++row_out;
-        const bool edge = out.z[i] < band_h || out.z[i] > spec.height_m() - band_h;
-        edge_outliers += edge ? 1 : 0;
-      }
-    }
-    outliers += row_out;
-    means.push_back(mean);
-    jrows.push_back({{"row", row.name},
-                     {"z_min_m", row.z_min_m},
-                     {"z_max_m", row.z_max_m},
-                     {"faces", vals.size()},
-                     {"mean_wear", mean},
-                     {"cv", cv},
-                     {"median_rel_stderr", core::UpperMedian(rel_se)},
-                     {"faces_over_10x_mean", row_out}});
-  }
-  const double lowest = *std::min_element(means.begin(), means.end());
-  for (size_t r = 0; r < jrows.size(); ++r) jrows[r]["ratio"] = lowest > 0 ? means[r] / lowest : 0.0;
-  summary["rows"] = jrows;
-  std::vector<double> rel;
-  for (Eigen::Index i = 0; i < n; ++i)
-    if (total[i] > 0) rel.push_back(stderr_total[i] / total[i]);
-  summary["faces_zero"] = zero_faces;
-  summary["faces_zero_fraction"] = static_cast<double>(zero_faces) / static_cast<double>(n);
-  summary["faces_over_10x_row_mean"] = outliers;
-  summary["edge_faces_over_10x_row_mean"] = edge_outliers;
-  summary["median_rel_stderr"] = core::UpperMedian(rel);
-  // Correlation of wear with normal stress across faces (shared sampling noise shows here too).
-  {
-    const double mw = total.mean(), ms = sn_avg.mean();
-    const double cov = ((total.array() - mw) * (sn_avg.array() - ms)).sum();
-    const double den = std::sqrt((total.array() - mw).square().sum() * (sn_avg.array() - ms).square().sum());
-    summary["corr_wear_normal_stress"] = den > 0 ? cov / den : 0.0;
-  }
-  summary["chamber"] = ToJson(spec);
+  const Span sp = ChooseSpan(spec, case_dir, dump_steps, steady, windows);
+  const Dumps dumps = LoadDumps(post, dump_steps, sp);
+  const Fields fields = SumWindows(dumps, sp);
+  const core::WearMap out = WriteMaps(spec, case_dir, out_dir, sp, fields, dumps.ref);
+  const nlohmann::json summary = Summary(spec, case_dir, steps, series, steady, sp, fields, out, std::move(rows));
   // Text read from the case (the log's version line, attempts.txt's states) need not be UTF-8: replace
   // what is not, rather than fail the whole map on it (found by fuzz/dem_case).
   const std::string text = summary.dump(2, ' ', false, nlohmann::json::error_handler_t::replace);

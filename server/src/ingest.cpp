@@ -107,6 +107,183 @@ const char* RejectionReason(const Incoming& in, const Validation& v, bool foreig
   return "malformed";
 }
 
+// One entry per record: a one-record message, or each record of a batch (docs/mqtt.md), each
+// validated, stored and acked alone. A malformed batch is one entry, rejected whole.
+struct Record {
+  size_t message = 0;   ///< its message in `messages`
+  std::string payload;  ///< its text: the message's, or the record's within its batch
+  Validation v;
+  bool foreign_site = false;  ///< a known crusher heard under another site
+  const char* reason = "";    ///< kRejectionReasons class when rejected
+};
+
+std::vector<Record> ValidateRecords(std::vector<Incoming>& messages, const Registry& registry, int64_t now) {
+  std::vector<Record> records;
+  records.reserve(messages.size());
+  std::vector<mqtt::BatchRecord> parts;
+  // A record must never fail the others: whatever its validation throws quarantines it alone.
+  const auto add = [&](size_t message, std::string payload, const auto& validate) {
+    Record& r = records.emplace_back();
+    r.message = message;
+    r.payload = std::move(payload);
+    try {
+      r.v = validate(r.payload);
+    } catch (const std::exception& e) {
+      r.v = {};
+      r.v.error = std::string("cannot validate: ") + e.what();
+    }
+  };
+  for (size_t i = 0; i < messages.size(); ++i) {
+    Incoming& in = messages[i];
+    std::string malformed;
+    bool well_formed = false;
+    try {
+      well_formed = mqtt::SplitAndDecodeReadingMessage(in.payload, &parts, &malformed);
+    } catch (const std::exception& e) {
+      parts.clear();
+      malformed = std::string("cannot validate: ") + e.what();
+    }
+    if (!well_formed) {
+      add(i, std::move(in.payload), [&](const std::string&) {
+        Validation v;
+        v.sensor = in.sensor;  // no seq: nothing to acknowledge
+        v.error = malformed;
+        return v;
+      });
+    } else if (parts.empty()) {
+      add(i, std::move(in.payload), [&](const std::string& text) {
+        mqtt::ReadingIdentity id;
+        std::string error;
+        const std::optional<mqtt::ReadingMessage> m = mqtt::DecodeReading(text, &error, &id);
+        return CheckReading(in, m, error, id, registry, now);
+      });
+    } else {
+      // Sized for the rest of the call at the first batch, assuming the messages still to come
+      // carry as many records as this one: grown record by record, the reallocations moved every
+      // record again into fresh pages (7.7 % of the main loop with batches of 64).
+      if (records.capacity() < records.size() + parts.size()) {
+        records.reserve(std::max(2 * records.capacity(), records.size() + parts.size() * (messages.size() - i)));
+      }
+      for (mqtt::BatchRecord& part : parts) {
+        add(i, std::move(part.text),
+            [&](const std::string&) { return CheckReading(in, part.reading, part.error, part.identity, registry, now); });
+      }
+    }
+  }
+  return records;
+}
+
+// Acks per (site, crusher, sensor); records come sensor by sensor, so the last key is tried first.
+class Acks {
+ public:
+  void Add(const std::string& site, const std::string& crusher, const std::string& sensor, int64_t seq) {
+    if (last_ == acks_.end() || std::get<2>(last_->first) != sensor || std::get<1>(last_->first) != crusher ||
+        std::get<0>(last_->first) != site) {
+      last_ = acks_.try_emplace(Key{site, crusher, sensor}).first;
+    }
+    last_->second.push_back(seq);
+  }
+  /// Each key's seqs, ascending and once each, into `out` (REST's, without a site, left out).
+  void MoveTo(std::vector<Ack>& out) {
+    for (auto& [key, seqs] : acks_) {
+      if (std::get<0>(key).empty()) continue;  // REST: no gateway to tell
+      std::sort(seqs.begin(), seqs.end());
+      seqs.erase(std::unique(seqs.begin(), seqs.end()), seqs.end());
+      out.push_back({std::get<0>(key), std::get<1>(key), std::get<2>(key), std::move(seqs)});
+    }
+  }
+
+ private:
+  using Key = std::tuple<std::string, std::string, std::string>;
+  std::map<Key, std::vector<int64_t>> acks_;
+  std::map<Key, std::vector<int64_t>>::iterator last_ = acks_.end();
+};
+
+// Per-crusher counters, the last crusher's tried first.
+class PerCrusherCounters {
+ public:
+  explicit PerCrusherCounters(std::map<std::string, IngestCounters>& per_crusher) : per_crusher_(per_crusher) {}
+  IngestCounters& Of(const std::string& crusher) {
+    if (last_ == per_crusher_.end() || last_->first != crusher) last_ = per_crusher_.try_emplace(crusher).first;
+    return last_->second;
+  }
+
+ private:
+  std::map<std::string, IngestCounters>& per_crusher_;
+  std::map<std::string, IngestCounters>::iterator last_ = per_crusher_.end();
+};
+
+// The store's outcome of each reading counted and acked; returns the conflicting readings, to be
+// quarantined.
+std::vector<Rejected> CountOutcomes(const std::vector<InsertOutcome>& outcomes, std::vector<StoredReading>& readings,
+                                    const std::vector<size_t>& reading_index, const std::vector<Record>& records,
+                                    const std::vector<Incoming>& messages, int64_t wall, Acks& acks, PerCrusherCounters& counters,
+                                    IngestResult& result) {
+  result.new_readings.reserve(readings.size());
+  std::vector<Rejected> conflicted;
+  for (size_t k = 0; k < outcomes.size(); ++k) {
+    StoredReading& r = readings[k];
+    const Incoming& in = messages[records[reading_index[k]].message];
+    acks.Add(in.site, r.crusher, r.sensor, r.seq);
+    switch (outcomes[k]) {
+      case InsertOutcome::kStored:
+        ++result.stored;
+        ++counters.Of(r.crusher).stored;
+        result.new_readings.push_back(std::move(r));  // not used below
+        break;
+      case InsertOutcome::kDuplicate:
+        ++result.duplicates;
+        ++counters.Of(r.crusher).duplicates;
+        break;
+      case InsertOutcome::kConflict:
+        ++result.conflicts;
+        ++counters.Of(r.crusher).conflicts;
+        result.log.push_back("conflict: " + r.crusher + "/" + r.sensor + " seq " + std::to_string(r.seq) +
+                             " was stored before with another time or thickness; the first is kept");
+        conflicted.push_back({wall, in.topic, std::move(r.payload), result.log.back() + ", this one quarantined", "conflict"});
+        break;
+    }
+  }
+  return conflicted;
+}
+
+// The records that are not readings counted, held or rejected, and the rejected ones acked.
+void CountTheOthers(const std::vector<Record>& records, const std::vector<Incoming>& messages, const Registry& registry,
+                    Acks& acks, PerCrusherCounters& counters, IngestCounters& totals, IngestResult& result) {
+  for (const Record& rec : records) {
+    const Validation& v = rec.v;
+    if (v.reading) continue;
+    const Incoming& in = messages[rec.message];
+    // Per crusher for known crushers only: a flood of made-up ids must not grow the map.
+    const bool known = registry.Find(in.crusher) != nullptr;
+    if (v.held) {
+      ++result.held;
+      if (known) ++counters.Of(in.crusher).held;
+      ++totals.held_by_reason[v.held];
+      result.log.push_back("held " + (in.topic.empty() ? std::string("REST reading") : in.topic) + ": " + v.error);
+      continue;  // not acknowledged: the gateway publishes it again (docs/gateway.md, Replay)
+    }
+    ++result.rejected;
+    if (known) ++counters.Of(in.crusher).rejected;
+    ++totals.rejected_by_reason[rec.reason];
+    result.log.push_back("rejected " + (in.topic.empty() ? std::string("REST reading") : in.topic) + ": " + v.error);
+    // Quarantined in the database: the gateway may drop it (resending cannot make it valid). Not
+    // under a site the crusher does not belong to: that publisher is not its gateway.
+    if (!rec.foreign_site && v.seq && !v.sensor.empty() && (in.sensor.empty() || in.sensor == v.sensor)) {
+      acks.Add(in.site, in.crusher, v.sensor, *v.seq);
+    }
+  }
+}
+
+void AddTotals(const IngestResult& result, IngestCounters& totals) {
+  totals.stored += static_cast<int64_t>(result.stored);
+  totals.duplicates += static_cast<int64_t>(result.duplicates);
+  totals.conflicts += static_cast<int64_t>(result.conflicts);
+  totals.rejected += static_cast<int64_t>(result.rejected);
+  totals.held += static_cast<int64_t>(result.held);
+  ++totals.batches;
+}
+
 }  // namespace
 
 Validation ValidateReading(const Incoming& in, const Registry& registry, int64_t now_s) {
@@ -177,67 +354,8 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
   const int64_t now = now_s_();
   const int64_t wall = static_cast<int64_t>(
       std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count());
-  // One entry per record: a one-record message, or each record of a batch (docs/mqtt.md), each
-  // validated, stored and acked alone. A malformed batch is one entry, rejected whole.
-  struct Record {
-    size_t message = 0;   ///< its message in `messages`
-    std::string payload;  ///< its text: the message's, or the record's within its batch
-    Validation v;
-    bool foreign_site = false;  ///< a known crusher heard under another site
-    const char* reason = "";    ///< kRejectionReasons class when rejected
-  };
-  std::vector<Record> records;
-  records.reserve(messages.size());
-  std::vector<mqtt::BatchRecord> parts;
-  // A record must never fail the others: whatever its validation throws quarantines it alone.
-  const auto add = [&](size_t message, std::string payload, const auto& validate) {
-    Record& r = records.emplace_back();
-    r.message = message;
-    r.payload = std::move(payload);
-    try {
-      r.v = validate(r.payload);
-    } catch (const std::exception& e) {
-      r.v = {};
-      r.v.error = std::string("cannot validate: ") + e.what();
-    }
-  };
-  for (size_t i = 0; i < messages.size(); ++i) {
-    Incoming& in = messages[i];
-    std::string malformed;
-    bool well_formed = false;
-    try {
-      well_formed = mqtt::SplitAndDecodeReadingMessage(in.payload, &parts, &malformed);
-    } catch (const std::exception& e) {
-      parts.clear();
-      malformed = std::string("cannot validate: ") + e.what();
-    }
-    if (!well_formed) {
-      add(i, std::move(in.payload), [&](const std::string&) {
-        Validation v;
-        v.sensor = in.sensor;  // no seq: nothing to acknowledge
-        v.error = malformed;
-        return v;
-      });
-    } else if (parts.empty()) {
-      add(i, std::move(in.payload), [&](const std::string& text) {
-        mqtt::ReadingIdentity id;
-        std::string error;
-        const std::optional<mqtt::ReadingMessage> m = mqtt::DecodeReading(text, &error, &id);
-        return CheckReading(in, m, error, id, registry_, now);
-      });
-    } else {
-      // Sized for the rest of the call at the first batch, assuming the messages still to come
-      // carry as many records as this one: grown record by record, the reallocations moved every
-      // record again into fresh pages (7.7 % of the main loop with batches of 64).
-      if (records.capacity() < records.size() + parts.size()) {
-        records.reserve(std::max(2 * records.capacity(), records.size() + parts.size() * (messages.size() - i)));
-      }
-      for (mqtt::BatchRecord& part : parts) {
-        add(i, std::move(part.text),
-            [&](const std::string&) { return CheckReading(in, part.reading, part.error, part.identity, registry_, now); });
-      }
-    }
-  }
+  std::vector<Record> records = ValidateRecords(messages, registry_, now);
+  // Each record a reading to store, a rejection to quarantine or held (here: CheckSite reads sites_).
   std::vector<StoredReading> readings;
   std::vector<size_t> reading_index;  // index in `records` of each reading
   readings.reserve(records.size());
@@ -270,49 +388,10 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
                          "' (the first site it was heard from; set \"site\" in its crusher.json to choose)");
   }
 
-  // Acks per (site, crusher, sensor); records come sensor by sensor, so the last key is tried first.
-  using AckKey = std::tuple<std::string, std::string, std::string>;
-  std::map<AckKey, std::vector<int64_t>> acks;
-  auto last_ack = acks.end();
-  const auto ack = [&](const std::string& site, const std::string& crusher, const std::string& sensor, int64_t seq) {
-    if (last_ack == acks.end() || std::get<2>(last_ack->first) != sensor || std::get<1>(last_ack->first) != crusher ||
-        std::get<0>(last_ack->first) != site) {
-      last_ack = acks.try_emplace(AckKey{site, crusher, sensor}).first;
-    }
-    last_ack->second.push_back(seq);
-  };
-  // Per-crusher counters, the last crusher's tried first.
-  std::map<std::string, IngestCounters>::iterator last_counters = per_crusher_.end();
-  const auto counters_of = [&](const std::string& crusher) -> IngestCounters& {
-    if (last_counters == per_crusher_.end() || last_counters->first != crusher)
-      last_counters = per_crusher_.try_emplace(crusher).first;
-    return last_counters->second;
-  };
-  result.new_readings.reserve(readings.size());
-  std::vector<Rejected> conflicted;
-  for (size_t k = 0; k < outcomes.size(); ++k) {
-    StoredReading& r = readings[k];
-    const Incoming& in = messages[records[reading_index[k]].message];
-    ack(in.site, r.crusher, r.sensor, r.seq);
-    switch (outcomes[k]) {
-      case InsertOutcome::kStored:
-        ++result.stored;
-        ++counters_of(r.crusher).stored;
-        result.new_readings.push_back(std::move(r));  // not used below
-        break;
-      case InsertOutcome::kDuplicate:
-        ++result.duplicates;
-        ++counters_of(r.crusher).duplicates;
-        break;
-      case InsertOutcome::kConflict:
-        ++result.conflicts;
-        ++counters_of(r.crusher).conflicts;
-        result.log.push_back("conflict: " + r.crusher + "/" + r.sensor + " seq " + std::to_string(r.seq) +
-                             " was stored before with another time or thickness; the first is kept");
-        conflicted.push_back({wall, in.topic, std::move(r.payload), result.log.back() + ", this one quarantined", "conflict"});
-        break;
-    }
-  }
+  Acks acks;
+  PerCrusherCounters counters(per_crusher_);
+  const std::vector<Rejected> conflicted =
+      CountOutcomes(outcomes, readings, reading_index, records, messages, wall, acks, counters, result);
   if (live_) {
     live_->Add(result.new_readings);
     commit_order.unlock();
@@ -320,41 +399,9 @@ IngestResult Ingestor::Ingest(std::vector<Incoming> messages) {
   // A conflict's reading is quarantined, not dropped (a board that restarted its seqs under a kept
   // id: docs/server.md). Before any ack: a crash in between resends it, and it conflicts again.
   if (!conflicted.empty()) store_.Commit({}, conflicted);
-  for (const Record& rec : records) {
-    const Validation& v = rec.v;
-    if (v.reading) continue;
-    const Incoming& in = messages[rec.message];
-    // Per crusher for known crushers only: a flood of made-up ids must not grow the map.
-    const bool known = registry_.Find(in.crusher) != nullptr;
-    if (v.held) {
-      ++result.held;
-      if (known) ++counters_of(in.crusher).held;
-      ++totals_.held_by_reason[v.held];
-      result.log.push_back("held " + (in.topic.empty() ? std::string("REST reading") : in.topic) + ": " + v.error);
-      continue;  // not acknowledged: the gateway publishes it again (docs/gateway.md, Replay)
-    }
-    ++result.rejected;
-    if (known) ++counters_of(in.crusher).rejected;
-    ++totals_.rejected_by_reason[rec.reason];
-    result.log.push_back("rejected " + (in.topic.empty() ? std::string("REST reading") : in.topic) + ": " + v.error);
-    // Quarantined in the database: the gateway may drop it (resending cannot make it valid). Not
-    // under a site the crusher does not belong to: that publisher is not its gateway.
-    if (!rec.foreign_site && v.seq && !v.sensor.empty() && (in.sensor.empty() || in.sensor == v.sensor)) {
-      ack(in.site, in.crusher, v.sensor, *v.seq);
-    }
-  }
-  for (auto& [key, seqs] : acks) {
-    if (std::get<0>(key).empty()) continue;  // REST: no gateway to tell
-    std::sort(seqs.begin(), seqs.end());
-    seqs.erase(std::unique(seqs.begin(), seqs.end()), seqs.end());
-    result.acks.push_back({std::get<0>(key), std::get<1>(key), std::get<2>(key), std::move(seqs)});
-  }
-  totals_.stored += static_cast<int64_t>(result.stored);
-  totals_.duplicates += static_cast<int64_t>(result.duplicates);
-  totals_.conflicts += static_cast<int64_t>(result.conflicts);
-  totals_.rejected += static_cast<int64_t>(result.rejected);
-  totals_.held += static_cast<int64_t>(result.held);
-  ++totals_.batches;
+  CountTheOthers(records, messages, registry_, acks, counters, totals_, result);
+  acks.MoveTo(result.acks);
+  AddTotals(result, totals_);
   return result;
 }
 

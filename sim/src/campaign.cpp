@@ -65,29 +65,30 @@ Throughput MakeThroughput(const CampaignSpec& s, const EffectSpec* effect, size_
   return t;
 }
 
-}  // namespace
+// The one random stream of a campaign, drawn from by every stage in turn (the normal distribution
+// keeps its second value between draws, so it is one object too): a seed gives one campaign.
+struct Draws {
+  explicit Draws(uint64_t seed) : rng(seed) {}
+  std::mt19937_64 rng;
+  std::normal_distribution<double> gauss{0.0, 1.0};
+  std::uniform_real_distribution<double> uni{0.0, 1.0};
+};
 
-Campaign GenerateCampaign(const CampaignSpec& input, uint64_t seed) {
-  Campaign c;
-  c.spec_ = input;
-  c.spec_.Complete();
-  c.seed_ = seed;
-  const CampaignSpec& s = c.spec_;
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> gauss(0.0, 1.0);
-  std::uniform_real_distribution<double> uni(0.0, 1.0);
+core::CrusherConfig MakeCrusher(const CampaignSpec& s) {
+  core::CrusherConfig crusher;
+  crusher.crusher_id = s.crusher_id;
+  crusher.installed_at = *core::ParseIsoTime(s.installed_at);
+  crusher.thickness_new_mm = s.thickness_new_mm;
+  crusher.thickness_min_mm = s.thickness_min_mm;
+  crusher.rows = s.rows;
+  for (const auto& x : s.sensors) crusher.sensors.push_back({x.id, x.row, x.z_m, x.theta_deg, s.thickness_new_mm, {}});
+  return crusher;
+}
 
-  // Crusher config.
-  c.crusher_.crusher_id = s.crusher_id;
-  c.crusher_.installed_at = *core::ParseIsoTime(s.installed_at);
-  c.crusher_.thickness_new_mm = s.thickness_new_mm;
-  c.crusher_.thickness_min_mm = s.thickness_min_mm;
-  c.crusher_.rows = s.rows;
-  for (const auto& x : s.sensors) c.crusher_.sensors.push_back({x.id, x.row, x.z_m, x.theta_deg, s.thickness_new_mm, {}});
-
-  // Mesh: truncated cone, n_theta x n_z quads split in two triangles, wound inward.
+// Mesh: truncated cone, n_theta x n_z quads split in two triangles, wound inward.
+core::WearMap MakeMesh(const CampaignSpec& s) {
   auto radius_at = [&](double z) { return s.r_bottom_m + (s.r_top_m - s.r_bottom_m) * z / s.height_m; };
-  core::WearMap& m = c.map_;
+  core::WearMap m;
   for (int k = 0; k <= s.n_z; ++k) {
     const double z = s.height_m * k / s.n_z;
     for (int j = 0; j < s.n_theta; ++j) {
@@ -104,11 +105,15 @@ Campaign GenerateCampaign(const CampaignSpec& input, uint64_t seed) {
     }
   }
   m.ComputeGeometry();
-  const auto nf = static_cast<Eigen::Index>(m.face_count());
+  return m;
+}
 
-  // Fields. The DEM map = true abrasion intensity x DEM error: per-face scatter plus patchy,
-  // spatially correlated error at the scale of contact patches (several random modes, 3-8 waves
-  // around the circumference, 2-5 along z): what a finite DEM run leaves in its averages.
+// Fields. The DEM map = true abrasion intensity x DEM error: per-face scatter plus patchy,
+// spatially correlated error at the scale of contact patches (several random modes, 3-8 waves
+// around the circumference, 2-5 along z): what a finite DEM run leaves in its averages.
+void MakeFields(const CampaignSpec& s, Draws& draws, core::WearMap& m, Eigen::VectorXd& intensity_true, Eigen::VectorXd& normal) {
+  auto& [rng, gauss, uni] = draws;
+  const auto nf = static_cast<Eigen::Index>(m.face_count());
   struct Mode {
     double amp, kth, kz, ph;
   };
@@ -117,46 +122,176 @@ Campaign GenerateCampaign(const CampaignSpec& input, uint64_t seed) {
     modes.push_back(
         {gauss(rng) * 0.4, static_cast<double>(3 + static_cast<int>(uni(rng) * 6)), 2.0 + 3.0 * uni(rng), 2 * kPi * uni(rng)});
   }
-  c.intensity_true_.resize(nf);
-  c.normal_.resize(nf);
+  intensity_true.resize(nf);
+  normal.resize(nf);
   m.wear.resize(nf);
   m.normal_stress.resize(nf);
   m.shear_stress.resize(nf);
   for (Eigen::Index i = 0; i < nf; ++i) {
     const double zeta = m.z[i] / s.height_m, th = m.theta_deg[i];
-    c.intensity_true_[i] = Abrasion(zeta);
-    c.normal_[i] = NormalStress(zeta, th);
+    intensity_true[i] = Abrasion(zeta);
+    normal[i] = NormalStress(zeta, th);
     double smooth = 0;
     for (const auto& md : modes) smooth += md.amp * std::cos(md.kth * th * kDeg + md.kz * kPi * zeta + md.ph);
     const double err = std::exp(s.dem_noise * (0.8 * gauss(rng) + 0.6 * smooth));
-    m.wear[i] = c.intensity_true_[i] * err;
-    m.normal_stress[i] = 2.0e5 * c.normal_[i] * std::exp(0.05 * gauss(rng));
-    m.shear_stress[i] = 5.0e4 * c.intensity_true_[i] * std::exp(0.05 * gauss(rng));
+    m.wear[i] = intensity_true[i] * err;
+    m.normal_stress[i] = 2.0e5 * normal[i] * std::exp(0.05 * gauss(rng));
+    m.shear_stress[i] = 5.0e4 * intensity_true[i] * std::exp(0.05 * gauss(rng));
   }
+}
+
+// Where each sensor sits and the true intensity and normal stress there.
+void PlaceSensors(const CampaignSpec& s, Eigen::VectorXd& intensity, Eigen::VectorXd& normal, Eigen::VectorXd& z,
+                  Eigen::VectorXd& theta) {
   const auto ns = static_cast<Eigen::Index>(s.sensors.size());
-  c.sensor_intensity_.resize(ns);
-  c.sensor_normal_.resize(ns);
-  c.sensor_z_.resize(ns);
-  c.sensor_theta_.resize(ns);
+  intensity.resize(ns);
+  normal.resize(ns);
+  z.resize(ns);
+  theta.resize(ns);
   for (Eigen::Index k = 0; k < ns; ++k) {
     const auto& x = s.sensors[static_cast<size_t>(k)];
-    c.sensor_z_[k] = x.z_m;
-    c.sensor_theta_[k] = x.theta_deg;
-    c.sensor_intensity_[k] = Abrasion(x.z_m / s.height_m);
-    c.sensor_normal_[k] = NormalStress(x.z_m / s.height_m, x.theta_deg);
+    z[k] = x.z_m;
+    theta[k] = x.theta_deg;
+    intensity[k] = Abrasion(x.z_m / s.height_m);
+    normal[k] = NormalStress(x.z_m / s.height_m, x.theta_deg);
   }
-  // Calibration: without effects, the mean LDWN sensor wears reference_wear_mm by reference_day.
+}
+
+// Calibration: without effects, the mean LDWN sensor wears reference_wear_mm by reference_day.
+double WearRate(const CampaignSpec& s, const Eigen::VectorXd& sensor_intensity) {
   double sum = 0;
   int cnt = 0;
-  for (Eigen::Index k = 0; k < ns; ++k) {
+  for (Eigen::Index k = 0; k < sensor_intensity.size(); ++k) {
     if (s.sensors[static_cast<size_t>(k)].row == s.rows.front().name) {
-      sum += c.sensor_intensity_[k];
+      sum += sensor_intensity[k];
       ++cnt;
     }
   }
-  const double mean_i = cnt ? sum / cnt : c.sensor_intensity_.maxCoeff();
-  c.k_mm_per_day_ = s.reference_wear_mm / (s.reference_day * mean_i);
+  const double mean_i = cnt ? sum / cnt : sensor_intensity.maxCoeff();
+  return s.reference_wear_mm / (s.reference_day * mean_i);
+}
 
+std::vector<core::OperationsSample> MakeOperations(const CampaignSpec& s, const Throughput& tp, core::TimePoint installed_at) {
+  std::vector<core::OperationsSample> operations;
+  for (size_t h = 0; h < static_cast<size_t>(s.days * 24.0); ++h) {
+    core::OperationsSample o;
+    o.time = core::AddDays(installed_at, static_cast<double>(h) / 24.0);
+    o.throughput_tph = tp.tph[h];
+    o.ore_ai = tp.ai[h];
+    o.power_kw = 250.0 + 0.11 * tp.tph[h];
+    operations.push_back(o);
+  }
+  return operations;
+}
+
+// Readings of sensor `k` from its true thickness, with its faults, appended to `readings`.
+void ReadSensor(const Campaign& c, size_t k, Draws& draws, std::vector<core::Reading>& readings) {
+  const CampaignSpec& s = c.spec();
+  const double poll_days = s.poll_minutes / 1440.0;
+  const auto& x = s.sensors[k];
+  std::vector<const FaultSpec*> faults;
+  for (const auto& f : s.faults) {
+    if (f.sensor == x.id) faults.push_back(&f);
+  }
+  double last_value = -1, last_time = -1e9;
+  double crack_level = -1;
+  double stuck_value = -1;
+  bool flicker_phase = false;
+  bool dead = false;
+  const auto polls = static_cast<long>(std::floor(s.days / poll_days + 1e-9));
+  for (long p = 0; p <= polls; ++p) {
+    const double day = static_cast<double>(p) * poll_days;
+    const double truth = c.TrueSensorThickness(k, day);
+    double value = std::max(0.0, std::floor(truth));
+    bool silent = false;
+    for (const FaultSpec* f : faults) {
+      if (day < f->day) continue;
+      if (f->kind == "dropout" && day < f->day + std::max(0.5, f->size)) silent = true;
+      if (f->kind == "flicker" && day < f->day + std::max(1.0, f->size) && truth - std::floor(truth) < 0.35) {
+        flicker_phase = !flicker_phase;
+        // The loop at the face is still half-cut; a new liner has no loop above its face, so the
+        // ladder never reads more than its top.
+        if (flicker_phase) value = std::min(value + 1, std::floor(s.thickness_new_mm));
+      }
+      if (f->kind == "crack") {
+        if (crack_level < 0) crack_level = std::floor(c.TrueSensorThickness(k, f->day)) - std::max(1.0, f->size);
+        value = std::min(value, crack_level);
+      }
+      if (f->kind == "stuck") {
+        if (stuck_value < 0) stuck_value = value;
+        value = stuck_value;
+      }
+      if (f->kind == "dead") {
+        if (!dead) {
+          dead = true;
+          value = 0;  // every loop reads open once, then the board is silent
+        } else {
+          silent = true;
+        }
+      }
+    }
+    if (silent) continue;
+    if (value != last_value || day - last_time >= s.heartbeat_hours / 24.0 - 1e-9) {
+      const double jitter = draws.uni(draws.rng) * 20.0 / 86400.0;
+      readings.push_back({core::AddDays(c.crusher().installed_at, day + jitter), x.id, value, 0});
+      last_value = value;
+      last_time = day;
+    }
+  }
+}
+
+// Laser scan of the worn surface: points on the as-new faces moved away from the axis by the
+// true wear, with noise and one occluded sector.
+std::vector<Eigen::Vector3d> Scan(const Campaign& c, Draws& draws) {
+  auto& [rng, gauss, uni] = draws;
+  const CampaignSpec& s = c.spec();
+  const core::WearMap& m = c.map();
+  const auto nf = static_cast<Eigen::Index>(m.face_count());
+  std::vector<Eigen::Vector3d> scan;
+  const double day = s.scan_day < 0 ? s.days : s.scan_day;
+  const Eigen::VectorXd wear = c.TrueFaceWear(day);
+  std::vector<double> cdf(static_cast<size_t>(nf));
+  double acc = 0;
+  for (Eigen::Index i = 0; i < nf; ++i) cdf[static_cast<size_t>(i)] = (acc += m.areas[i]);
+  const double occ = 360.0 * uni(rng);
+  for (int p = 0; p < s.scan_points; ++p) {
+    const double u = uni(rng) * acc;
+    const auto i = static_cast<Eigen::Index>(std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin());
+    double r1 = uni(rng), r2 = uni(rng);
+    if (r1 + r2 > 1) {
+      r1 = 1 - r1;
+      r2 = 1 - r2;
+    }
+    const auto& f = m.faces[static_cast<size_t>(i)];
+    const Eigen::Vector3d pt = m.points[f[0]] + r1 * (m.points[f[1]] - m.points[f[0]]) + r2 * (m.points[f[2]] - m.points[f[0]]);
+    double th = std::atan2(pt.y(), pt.x()) / kDeg;
+    if (th < 0) th += 360;
+    if (std::fmod(th - occ + 720.0, 360.0) < s.scan_occluded_deg) continue;
+    const double depth_m = (wear[i] + s.scan_noise_mm * gauss(rng)) / 1000.0;
+    scan.push_back(pt - m.normals[static_cast<size_t>(i)] * depth_m);  // normals point inward
+  }
+  return scan;
+}
+
+}  // namespace
+
+Campaign GenerateCampaign(const CampaignSpec& input, uint64_t seed) {
+  Campaign c;
+  c.spec_ = input;
+  c.spec_.Complete();
+  c.seed_ = seed;
+  const CampaignSpec& s = c.spec_;
+  Draws draws(seed);
+
+  c.crusher_ = MakeCrusher(s);
+  c.map_ = MakeMesh(s);
+  MakeFields(s, draws, c.map_, c.intensity_true_, c.normal_);
+  const auto nf = static_cast<Eigen::Index>(c.map_.face_count());
+  const auto ns = static_cast<Eigen::Index>(s.sensors.size());
+  PlaceSensors(s, c.sensor_intensity_, c.sensor_normal_, c.sensor_z_, c.sensor_theta_);
+  c.k_mm_per_day_ = WearRate(s, c.sensor_intensity_);
+
+  // The integrated truth starts from no wear at hour 0.
   c.face_now_ = Eigen::VectorXd::Zero(nf);
   c.sensor_now_ = Eigen::VectorXd::Zero(ns);
   c.face_daily_.push_back(c.face_now_);
@@ -164,103 +299,15 @@ Campaign GenerateCampaign(const CampaignSpec& input, uint64_t seed) {
 
   // Operations (needed by the integration).
   const size_t hours = static_cast<size_t>(std::ceil(std::max(s.days, s.reference_day) * 24.0)) + 24 * 400;
-  const Throughput tp = MakeThroughput(s, Find(s.effects, "throughput_variation"), hours, rng);
-  c.operations_.clear();
-  for (size_t h = 0; h < static_cast<size_t>(s.days * 24.0); ++h) {
-    core::OperationsSample o;
-    o.time = core::AddDays(c.crusher_.installed_at, static_cast<double>(h) / 24.0);
-    o.throughput_tph = tp.tph[h];
-    o.ore_ai = tp.ai[h];
-    o.power_kw = 250.0 + 0.11 * tp.tph[h];
-    c.operations_.push_back(o);
-  }
+  const Throughput tp = MakeThroughput(s, Find(s.effects, "throughput_variation"), hours, draws.rng);
+  c.operations_ = MakeOperations(s, tp, c.crusher_.installed_at);
   // Keep the wear factor series for on-demand integration.
   c.throughput_q_ = tp.q;
 
   c.Integrate(s.days);
 
-  // Readings from the true sensor thickness, with faults.
-  const double poll_days = s.poll_minutes / 1440.0;
-  for (Eigen::Index k = 0; k < ns; ++k) {
-    const auto& x = s.sensors[static_cast<size_t>(k)];
-    std::vector<const FaultSpec*> faults;
-    for (const auto& f : s.faults) {
-      if (f.sensor == x.id) faults.push_back(&f);
-    }
-    double last_value = -1, last_time = -1e9;
-    double crack_level = -1;
-    double stuck_value = -1;
-    bool flicker_phase = false;
-    bool dead = false;
-    const auto polls = static_cast<long>(std::floor(s.days / poll_days + 1e-9));
-    for (long p = 0; p <= polls; ++p) {
-      const double day = static_cast<double>(p) * poll_days;
-      const double truth = c.TrueSensorThickness(static_cast<size_t>(k), day);
-      double value = std::max(0.0, std::floor(truth));
-      bool silent = false;
-      for (const FaultSpec* f : faults) {
-        if (day < f->day) continue;
-        if (f->kind == "dropout" && day < f->day + std::max(0.5, f->size)) silent = true;
-        if (f->kind == "flicker" && day < f->day + std::max(1.0, f->size) && truth - std::floor(truth) < 0.35) {
-          flicker_phase = !flicker_phase;
-          // The loop at the face is still half-cut; a new liner has no loop above its face, so the
-          // ladder never reads more than its top.
-          if (flicker_phase) value = std::min(value + 1, std::floor(s.thickness_new_mm));
-        }
-        if (f->kind == "crack") {
-          if (crack_level < 0)
-            crack_level = std::floor(c.TrueSensorThickness(static_cast<size_t>(k), f->day)) - std::max(1.0, f->size);
-          value = std::min(value, crack_level);
-        }
-        if (f->kind == "stuck") {
-          if (stuck_value < 0) stuck_value = value;
-          value = stuck_value;
-        }
-        if (f->kind == "dead") {
-          if (!dead) {
-            dead = true;
-            value = 0;  // every loop reads open once, then the board is silent
-          } else {
-            silent = true;
-          }
-        }
-      }
-      if (silent) continue;
-      if (value != last_value || day - last_time >= s.heartbeat_hours / 24.0 - 1e-9) {
-        const double jitter = uni(rng) * 20.0 / 86400.0;
-        c.readings_.push_back({core::AddDays(c.crusher_.installed_at, day + jitter), x.id, value, 0});
-        last_value = value;
-        last_time = day;
-      }
-    }
-  }
-
-  // Laser scan of the worn surface: points on the as-new faces moved away from the axis by the
-  // true wear, with noise and one occluded sector.
-  if (s.write_scan) {
-    const double day = s.scan_day < 0 ? s.days : s.scan_day;
-    const Eigen::VectorXd wear = c.TrueFaceWear(day);
-    std::vector<double> cdf(static_cast<size_t>(nf));
-    double acc = 0;
-    for (Eigen::Index i = 0; i < nf; ++i) cdf[static_cast<size_t>(i)] = (acc += m.areas[i]);
-    const double occ = 360.0 * uni(rng);
-    for (int p = 0; p < s.scan_points; ++p) {
-      const double u = uni(rng) * acc;
-      const auto i = static_cast<Eigen::Index>(std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin());
-      double r1 = uni(rng), r2 = uni(rng);
-      if (r1 + r2 > 1) {
-        r1 = 1 - r1;
-        r2 = 1 - r2;
-      }
-      const auto& f = m.faces[static_cast<size_t>(i)];
-      const Eigen::Vector3d pt = m.points[f[0]] + r1 * (m.points[f[1]] - m.points[f[0]]) + r2 * (m.points[f[2]] - m.points[f[0]]);
-      double th = std::atan2(pt.y(), pt.x()) / kDeg;
-      if (th < 0) th += 360;
-      if (std::fmod(th - occ + 720.0, 360.0) < s.scan_occluded_deg) continue;
-      const double depth_m = (wear[i] + s.scan_noise_mm * gauss(rng)) / 1000.0;
-      c.scan_.push_back(pt - m.normals[static_cast<size_t>(i)] * depth_m);  // normals point inward
-    }
-  }
+  for (Eigen::Index k = 0; k < ns; ++k) ReadSensor(c, static_cast<size_t>(k), draws, c.readings_);
+  if (s.write_scan) c.scan_ = Scan(c, draws);
   return c;
 }
 
