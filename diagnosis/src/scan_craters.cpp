@@ -96,7 +96,7 @@ void Residuals(const core::WearMap& map, const std::vector<double>& wear, double
   }
 }
 
-// Faces within `index`'s reach of any face of `from`, not in `exclude` (marks), with a residual.
+// Faces within `index`'s reach of any face of `from` with a residual and not yet in `mark` (marked here).
 std::vector<size_t> Layer(const core::WearMap& map, const core::SurfaceIndex& index, const std::vector<size_t>& from,
                           const std::vector<double>& resid, std::vector<char>& mark) {
   std::vector<size_t> out;

@@ -68,7 +68,7 @@ std::vector<ScanCrater> FindScanCraters(const core::WearMap& map, const MapField
                                         size_t scan_index, const CraterRules& rules = {});
 
 /// Craters in every scan, one per place: a crater seen again in a later scan (centre within its
-/// own reach) is kept from the first scan that shows it, the later scans' dates in `seen_again`.
+/// own reach) is kept from the first scan that shows it, the later scans' dates in `seen_again_days`.
 struct CraterSighting {
   ScanCrater crater;
   std::vector<double> seen_again_days;
