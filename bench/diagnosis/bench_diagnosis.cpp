@@ -160,6 +160,52 @@ double MainParam(const lw::diagnosis::Finding& f, bool sim) {
   if (it == kKey.end() || !f.parameters.contains(it->second)) return kNaN;
   return f.parameters.at(it->second).get<double>();
 }
+// --loss-at between: a spall (0.07 m^2: a disc of 0.15 m) 8 / 15 / 25 mm deep by level, on the day
+// the sensor step would be, midway around between two neighbouring sensors of a row (the k-th such
+// place), at least 0.6 m from the map's ends (nearer, the scan's crater search does not look:
+// docs/diagnosis.md) and 0.15 m beyond its rim from every sensor.
+void PlaceSpallBetweenSensors(const lw::bench::DemRun& run, int level, unsigned k, lw::bench::RealDemSpec& r, double& param) {
+  static const double kDepth[3] = {8.0, 15.0, 25.0};
+  const double radius = 0.15;
+  const auto& cr = run.crusher;
+  double z_lo = std::numeric_limits<double>::max(), z_hi = -z_lo;
+  for (Eigen::Index i = 0; i < run.mesh.z.size(); ++i) {
+    z_lo = std::min(z_lo, run.mesh.z[i]);
+    z_hi = std::max(z_hi, run.mesh.z[i]);
+  }
+  const double mean_r = run.mesh.radius.size() ? run.mesh.radius.mean() : 1.0;
+  std::vector<std::pair<double, double>> places;  // (z, theta)
+  for (const auto& row : cr.rows) {
+    std::vector<std::pair<double, double>> in;  // (theta, z)
+    for (const auto& sn : cr.sensors)
+      if (sn.row == row.name) in.push_back({sn.theta_deg, sn.z_m});
+    std::sort(in.begin(), in.end());
+    for (size_t a = 0; a < in.size() && in.size() >= 2; ++a) {
+      const auto& p = in[a];
+      const auto& q = in[(a + 1) % in.size()];
+      const double gap = std::fmod(q.first - p.first + 720.0, 360.0);
+      const double theta = std::fmod(p.first + 0.5 * gap, 360.0), z = 0.5 * (p.second + q.second);
+      if (z < z_lo + 0.6 || z > z_hi - 0.6) continue;
+      bool clear = true;
+      for (const auto& sn : cr.sensors) {
+        const double arc = std::remainder(sn.theta_deg - theta, 360.0) * 3.14159265358979323846 / 180.0 * mean_r;
+        clear = clear && std::hypot(sn.z_m - z, arc) > radius + 0.15;
+      }
+      if (clear) places.push_back({z, theta});
+    }
+  }
+  r.loss_mm = 0;
+  r.loss_sensor.clear();
+  if (places.empty()) return;  // no place between sensors: no effect (reported as a null-like case)
+  const auto& place = places[k % places.size()];
+  r.crater_z = place.first;
+  r.crater_theta_deg = place.second;
+  r.crater_radius_m = radius;
+  r.crater_mm = kDepth[level];
+  r.crater_day = r.loss_day;
+  param = r.crater_mm;
+}
+
 // --forms alt: the generator's alternative shapes (RealDemSpec::alt_forms); the hardness step at the
 // test spec's onset (5-21 mm), which the sensors' 25-35 mm of wear pass.
 void SetForms(bool alt, const lw::test::SyntheticSpec& s, lw::bench::RealDemSpec& r) {
@@ -392,6 +438,11 @@ constexpr const char* kHelp =
     "  --nulls N                     realdem: N nulls (default 30); --dem-dir takes a comma-separated list\n"
     "  --oracle                      also fit the true effect with its true parameters (what is detectable at all)\n"
     "  --forms diagnosis|alt         realdem: the effects in the diagnosis' own forms or other forms\n"
+    "  --loss-at sensor|between      realdem: material loss as a step at a sensor of the lowest row (default), or as a\n"
+    "                                spall between the sensors (0.07 m^2, 8 / 15 / 25 mm deep, midway between two\n"
+    "                                sensors of a row at least 0.6 m from the map's ends, no sensor inside):\n"
+    "                                only a scan after it can show it\n"
+    "  --no-scan-craters             diagnose without looking for material loss in the scans' shape\n"
     "  --cases N, --only TRUTH, --level L[,L...], --seed S   which cases\n"
     "  --keep DIR                    keep every case's bundle in DIR; --json-dir DIR: every diagnosis as JSON\n"
     "  --threads N                   cases in parallel (default 1)\n";
@@ -437,6 +488,8 @@ int main(int argc, char** argv) {
   std::string keep, generator = "test", only, level_filter, json_dir, dem_dir;
   bool calibration = false;    // print the mismatch test's calibration on the nulls
   bool learned_noise = false;  // DiagnoseOptions::learned_noise_in_hypotheses
+  bool loss_between = false;   // --loss-at between: material loss as a spall between the sensors
+  bool scan_craters = true;    // DiagnoseOptions::scan_craters (--no-scan-craters: off)
   int null_count = 30;         // realdem: nulls
   double truth_radius = 0.12;
   bool truth_local_linear = false;
@@ -487,6 +540,10 @@ int main(int argc, char** argv) {
       calibration = true;
     else if (a == "--learned-noise")
       learned_noise = true;
+    else if (a == "--loss-at" && i + 1 < argc && (std::string(argv[i + 1]) == "sensor" || std::string(argv[i + 1]) == "between"))
+      loss_between = std::string(argv[++i]) == "between";
+    else if (a == "--no-scan-craters")
+      scan_craters = false;
     else if (a == "--nulls" && i + 1 < argc)
       null_count = std::stoi(argv[++i]);
     else if (a == "--oracle")
@@ -498,7 +555,8 @@ int main(int argc, char** argv) {
                    "usage: lw_bench_diagnosis [--generator test|sim|realdem] [--dem-dir DIR] [--truth-radius F] [--truth-form "
                    "top-hat|local-linear] [--live-only] "
                    "[--live-shrink HZ,HA] [--live-fixed HZ,HA] [--live-window-cv] [--oracle] "
-                   "[--forms diagnosis|alt] [--calibration] [--learned-noise] [--nulls N] [--cases N] [--only TRUTH] [--level "
+                   "[--forms diagnosis|alt] [--calibration] [--learned-noise] [--loss-at sensor|between] [--no-scan-craters] "
+                   "[--nulls N] [--cases N] [--only TRUTH] [--level "
                    "L[,L...]] [--seed S] "
                    "[--keep DIR] [--json-dir "
                    "DIR] [--threads N]\n");
@@ -652,7 +710,10 @@ int main(int argc, char** argv) {
             Apply(e, level, c.spec, c.param);
             ToRealDem(c.spec, c.rd);
             SetForms(alt_forms, c.spec, c.rd);
-            if (e == "material_loss") c.rd.loss_sensor = sensor_of(c.run, rs, true);
+            if (e == "material_loss" && loss_between)
+              PlaceSpallBetweenSensors(runs[c.run], level, rs, c.rd, c.param);
+            else if (e == "material_loss")
+              c.rd.loss_sensor = sensor_of(c.run, rs, true);
             if (e == "hardness_gradient") c.param = c.spec.gradient_g;
             cases.push_back(c);
           }
@@ -961,6 +1022,7 @@ int main(int argc, char** argv) {
     }
     lw::diagnosis::DiagnoseOptions opt;
     opt.learned_noise_in_hypotheses = learned_noise;
+    opt.scan_craters = scan_craters;
     opt.predict_at = t_pred;
     if (oracle && !use_sim) opt.oracle = TrueEffect(c, use_real, bundle.crusher.thickness_new_mm);
     const auto start = std::chrono::steady_clock::now();

@@ -445,13 +445,25 @@ double RealDemCampaign::TrueSensorThickness(size_t index, double day) const {
   const double new_mm = s.thickness_new_mm > 0 ? s.thickness_new_mm : run_.crusher.thickness_new_mm;
   double w = Wear(sensors_[index], day, new_mm);
   if (s.id == spec_.loss_sensor && day >= spec_.loss_day) w += spec_.loss_mm;
+  w += Crater(s.z_m, s.theta_deg, map_.radius[sensor_face_[index]], day);
   return std::max(0.0, new_mm - w);
+}
+
+double RealDemCampaign::Crater(double z, double theta_deg, double radius_m, double day) const {
+  if (spec_.crater_mm <= 0 || day < spec_.crater_day) return 0;
+  const double arc = std::remainder(theta_deg - spec_.crater_theta_deg, 360.0) * kPi / 180.0 * radius_m;
+  const double r = std::hypot(z - spec_.crater_z, arc);
+  return spec_.crater_mm * std::clamp((spec_.crater_radius_m + 0.005 - r) / 0.01, 0.0, 1.0);
 }
 
 Eigen::VectorXd RealDemCampaign::TrueFaceWear(double day) const {
   Eigen::VectorXd w(static_cast<Eigen::Index>(faces_.size()));
-  for (size_t i = 0; i < faces_.size(); ++i)
-    w[static_cast<Eigen::Index>(i)] = Wear(faces_[i], day, run_.crusher.thickness_new_mm);
+  for (size_t i = 0; i < faces_.size(); ++i) {
+    const auto fi = static_cast<Eigen::Index>(i);
+    w[fi] = std::min(
+        Wear(faces_[i], day, run_.crusher.thickness_new_mm) + Crater(map_.z[fi], map_.theta_deg[fi], map_.radius[fi], day),
+        run_.crusher.thickness_new_mm);
+  }
   return w;
 }
 

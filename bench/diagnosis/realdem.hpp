@@ -56,6 +56,10 @@ struct RealDemSpec {
   double stuck_from_day = 0;
   std::string loss_sensor;
   double loss_day = 0, loss_mm = 0;
+  /// A spall anywhere on the liner (--loss-at between): from `crater_day` on, a flat-bottomed disc of
+  /// `crater_radius_m` on the unwrapped surface, `crater_mm` deep, its wall 1 cm wide; scans and
+  /// any sensor inside see it (0 deep: none).
+  double crater_mm = 0, crater_z = 0, crater_theta_deg = 0, crater_radius_m = 0.15, crater_day = 0;
   /// Alternative effect forms (--forms alt): the same seven effects in shapes the diagnosis does not
   /// fit (what a held-out generator may use): hardening hyperbolic in time, hardness as a step at the
   /// onset, squeeze wear quadratic in normal stress, the profile changing exponentially, segregation
@@ -123,6 +127,8 @@ class RealDemCampaign {
     double intensity = 0, normal_tilde = 0, normal_i = 0, zn = 0, theta = 0;
   };
   double Wear(const Point& p, double day, double new_mm) const;
+  /// The spall's depth (mm) at (z, theta) on day `day`, arc lengths at `radius_m`.
+  double Crater(double z, double theta_deg, double radius_m, double day) const;
   double Throughput(double t) const;
   const DemRun& run_;
   RealDemSpec spec_;

@@ -110,7 +110,7 @@ DiagnosisResult Diagnose(const core::Bundle& bundle, const DiagnoseOptions& opti
       options.try_pairs, result);
   const detail::ModelEval* chosen = hyp.Chosen();
 
-  result.findings = detail::RankFindings({bundle, setup, null, hyp});
+  result.findings = detail::RankFindings({bundle, setup, null, hyp, options.scan_craters});
   {
     double last_day = 0;
     for (const detail::Obs& o : prob.obs) last_day = std::max(last_day, o.t);

@@ -146,9 +146,16 @@ constexpr ParamInfo kParams[] = {
      "Coefficient of variation of the throughput (x abrasiveness) over the campaign."},
     {"sensor_id", "sensor", "", "The sensor that saw the step."},
     {"time", "time", "UTC", "When the material broke out."},
-    {"depth_mm", "depth lost", "mm", "Depth of material lost at once (the later readings are offset by it)."},
-    {"z_m", "z", "m", "Height of that sensor on the liner."},
-    {"theta_deg", "&theta;", "deg", "Angle of that sensor around the liner."},
+    {"depth_mm", "depth lost", "mm",
+     "Depth of material lost at once (a sensor's step: the later readings are offset by it; else the crater's median "
+     "depth below the wear around it in the scan)."},
+    {"z_m", "z", "m", "Height of that sensor on the liner, or of the crater's centre."},
+    {"theta_deg", "&theta;", "deg", "Angle of that sensor around the liner, or of the crater's centre."},
+    {"z_min_m", "z from", "m", "Lowest face of the crater in the scan."},
+    {"z_max_m", "z to", "m", "Highest face of the crater in the scan."},
+    {"theta_min_deg", "&theta; from", "deg", "The crater's extent around the liner: from this angle..."},
+    {"theta_max_deg", "&theta; to", "deg", "...to this one (counter-clockwise)."},
+    {"area_m2", "area", "m^2", "Area of the scan's faces in the crater."},
 };
 
 // What the "improved" model is in this report's words (DiagnosisResult::improved_model).
@@ -293,7 +300,7 @@ std::string EffectWords(const std::string& effect) {
   if (effect == kProfileEvolution) return "profile evolution: the wear pattern moved along the liner as it wore";
   if (effect == kFeedSegregation) return "feed segregation: one side of the liner wears more";
   if (effect == kThroughputVariation) return "throughput variation: wear followed the tonnage, not the calendar";
-  if (effect == kMaterialLoss) return "material loss: a piece broke out at a sensor";
+  if (effect == kMaterialLoss) return "material loss: a piece broke out of the liner (seen by a sensor or in a scan)";
   if (effect == kUnexplained) return "unexplained: the mismatch is real but no modelled effect explains it";
   return effect;
 }

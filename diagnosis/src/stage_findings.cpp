@@ -1,6 +1,8 @@
 // Diagnosis stage 6, findings (stage_findings.hpp).
 #include "stage_findings.hpp"
 
+#include "scan_craters.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -84,32 +86,6 @@ std::vector<Finding> ModelFindings(const Hypotheses& h, const ModelEval& null_ev
     if (h.encompassing.explained_away >= 0)
       f.evidence["explains_away"] = evals[static_cast<size_t>(h.encompassing.explained_away)].full.spec.Name();
     findings.push_back(std::move(f));
-  }
-  return findings;
-}
-
-std::vector<Finding> MaterialLossFindings(const std::vector<SensorData>& sensors, core::TimePoint installed_at) {
-  std::vector<Finding> findings;
-  for (const SensorData& s : sensors) {
-    for (const auto& loss : s.analysis.losses) {
-      Finding f;
-      f.effect = kMaterialLoss;
-      f.confidence = Round(std::clamp(0.5 + 0.08 * loss.depth_mm, 0.5, 0.95), 3);
-      f.parameters["sensor_id"] = s.id;
-      f.parameters["time"] = core::FormatIsoTime(core::AddDays(installed_at, loss.t_days));
-      f.parameters["depth_mm"] = Round(loss.depth_mm, 1);
-      f.parameters["z_m"] = Round(s.z, 3);
-      f.parameters["theta_deg"] = Round(s.theta, 1);
-      f.explanation =
-          Fmt("Sensor lost %.0f mm at once on day %.1f, then kept wearing at its normal rate (%.2f mm/day) from the "
-              "lower level: material broke out of the liner (spall), which a DEM wear law does not model. Not a sensor "
-              "fault: a crack would stay flat until the wear caught up.",
-              loss.depth_mm, loss.t_days, s.analysis.rate_mm_per_day);
-      f.explanation = "Sensor " + s.id + " " + f.explanation.substr(7);
-      f.evidence["step_mm"] = loss.step_mm;
-      f.evidence["rate_mm_per_day"] = Round(s.analysis.rate_mm_per_day, 3);
-      findings.push_back(std::move(f));
-    }
   }
   return findings;
 }
@@ -253,7 +229,10 @@ std::vector<Finding> RankFindings(const FindingsInput& in) {
   context.corr_normal = evidence.corr_normal;
   context.corr_depth = evidence.corr_depth;
   std::vector<Finding> findings = ModelFindings(in.hypotheses, in.null.eval, context, s.prob.obs.size());
-  for (Finding& f : MaterialLossFindings(s.sensors, in.bundle.crusher.installed_at)) findings.push_back(std::move(f));
+  const std::vector<CraterSighting> craters =
+      in.scan_craters ? FindCratersInScans(in.bundle.map, s.fields, s.scans) : std::vector<CraterSighting>{};
+  for (Finding& f : MaterialLossFindings(s.sensors, craters, s.fields.face_size_m, in.bundle.crusher.installed_at))
+    findings.push_back(std::move(f));
   std::stable_sort(findings.begin(), findings.end(),
                    [](const Finding& a, const Finding& b) { return a.confidence > b.confidence; });
   const Encompassing& enc = in.hypotheses.encompassing;

@@ -1,6 +1,6 @@
 #pragma once
 /// Diagnosis stage 6, findings: the chosen model's effects ranked by their own contribution, with
-/// confidence and explanation; material loss seen by sensors; an "unexplained" finding when the
+/// confidence and explanation; material loss seen by sensors and scans (scan_craters.hpp); an "unexplained" finding when the
 /// mismatch is real and no effect explains it; the hypotheses table, the noise summary and the
 /// chosen model's error metrics.
 #include <optional>
@@ -28,9 +28,6 @@ double Confidence(const ModelEval& ev, double runner_up_score);
 /// One finding per effect of the chosen model, strongest contribution first; none without a chosen model.
 std::vector<Finding> ModelFindings(const Hypotheses& h, const ModelEval& null_eval, const ExplainContext& context, size_t n_obs);
 
-/// One material_loss finding per loss step a sensor saw.
-std::vector<Finding> MaterialLossFindings(const std::vector<SensorData>& sensors, core::TimePoint installed_at);
-
 /// The "unexplained" finding of a real mismatch (z above the threshold) no effect explains.
 Finding UnexplainedFinding(double mismatch_z, const std::vector<ModelEval>& evals);
 
@@ -48,6 +45,7 @@ struct FindingsInput {
   const ProblemSetup& setup;
   const NullModel& null;
   const Hypotheses& hypotheses;
+  bool scan_craters = true;  ///< DiagnoseOptions::scan_craters
 };
 
 /// The whole findings list, by confidence (model findings and material loss, or the unexplained one).

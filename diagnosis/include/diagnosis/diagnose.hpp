@@ -51,6 +51,9 @@ struct DiagnoseOptions {
   /// observation type's variance scale times its effective correlation, noise.mismatch_calibration)
   /// instead of the modelled noise.
   bool learned_noise_in_hypotheses = false;
+  /// Look for material loss in the scans' shape (docs/diagnosis.md, "Material loss in a scan");
+  /// off, only the sensors' steps show it (the benchmark's before/after).
+  bool scan_craters = true;
 };
 
 /// What a known effect (DiagnoseOptions::oracle) explains beyond the baseline, with the same

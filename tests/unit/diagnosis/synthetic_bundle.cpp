@@ -60,8 +60,21 @@ struct Truth {
     }
     q_mean = sum / n;
   }
+  // The spall's (or smooth dip's) depth at (z, theta) after `days` (theta in radians).
+  double Crater(double z, double theta, double days) const {
+    if (s.crater_mm <= 0 || days < s.crater_day) return 0;
+    const double dth = std::remainder(theta - s.crater_theta_deg * kPi / 180.0, 2 * kPi);
+    const double r = std::hypot(z - s.crater_z, dth * Radius(s.crater_z));
+    const double a = s.crater_radius_m;
+    if (s.crater_smooth) {
+      // Same volume as the disc: depth x pi a^2 = peak x 2 pi a^2.
+      return 0.5 * s.crater_mm * std::exp(-r * r / (2 * a * a));
+    }
+    return s.crater_mm * std::clamp((a + 0.005 - r) / 0.01, 0.0, 1.0);
+  }
   // Wear (mm) at (z, theta) after `days`.
-  double Wear(double z, double theta, double days) const {
+  double Wear(double z, double theta, double days) const { return BaseWear(z, theta, days) + Crater(z, theta, days); }
+  double BaseWear(double z, double theta, double days) const {
     const double intensity = TrueIntensity(z, theta);
     const double nt = TrueNormal(z, theta) / kNormalMax;
     const double n_i = TrueNormal(z, theta);  // in intensity units (both fields average near 1)

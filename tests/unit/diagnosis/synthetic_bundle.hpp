@@ -42,6 +42,12 @@ struct SyntheticSpec {
   double stuck_from_day = 0;
   std::string loss_sensor;
   double loss_day = 0, loss_mm = 0;
+  /// A spall on the liner from `crater_day` on (0 deep = none): a flat-bottomed disc of
+  /// `crater_radius_m` (on the unwrapped surface) `crater_mm` deep, its wall 1 cm wide; with
+  /// `crater_smooth` instead a Gaussian dip of the same volume with sd `crater_radius_m` (a wear
+  /// pattern, not a spall). Scans and any sensor inside see it.
+  double crater_mm = 0, crater_z = 1.3, crater_theta_deg = 67.5, crater_radius_m = 0.15, crater_day = 40;
+  bool crater_smooth = false;
 };
 
 /// Writes crusher.json, wear_map.vtk, readings.csv, optional operations.csv and scans/ into `dir`.

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "core/bundle.hpp"
 #include "core/scan_correction.hpp"
@@ -353,6 +354,77 @@ TEST(Diagnose, MaterialLossIsAPhysicsFindingWithDepth) {
   STRCMP_EQUAL("LMID-3", r.findings[0].parameters.at("sensor_id").get<std::string>().c_str());
   DOUBLES_EQUAL(8.0, Param(r.findings[0], "depth_mm"), 1.5);
   CHECK_TRUE(r.data_quality.empty());
+}
+
+// The material_loss findings of a result (sensor steps and scan craters).
+std::vector<const lw::diagnosis::Finding*> MaterialLoss(const lw::diagnosis::DiagnosisResult& r) {
+  std::vector<const lw::diagnosis::Finding*> out;
+  for (const auto& f : r.findings)
+    if (f.effect == "material_loss") out.push_back(&f);
+  return out;
+}
+
+// A spall between the sensors (z 1.3 m between rows LMID and LUP, 67.5 deg between two sensors of
+// each): 0.07 m^2, 24 mm deep from day 40, in the day-90 scan only.
+lw::test::SyntheticSpec SpallSpec() {
+  lw::test::SyntheticSpec spec;
+  spec.seed = 11;
+  // Half the default wear: the coarse test mesh's faces (0.1 m along z) then hold half the wear
+  // gradient, so the scan's face noise (about 0.8 mm) lets a smooth dip reach the wall test.
+  spec.rate = 0.3;
+  spec.scan_noise_mm = 2.0;  // a rough scan: its own noise sets the depth a crater needs
+  spec.crater_mm = 24;
+  spec.crater_z = 1.3;
+  spec.crater_theta_deg = 67.5;
+  spec.crater_radius_m = 0.15;
+  spec.crater_day = 40;
+  return spec;
+}
+
+TEST(Diagnose, ASpallBetweenSensorsIsFoundInTheScanAtItsPlace) {
+  const auto r = Run(SpallSpec());
+  const auto losses = MaterialLoss(r);
+  LONGS_EQUAL(1, losses.size());
+  const lw::diagnosis::Finding& f = *losses[0];
+  CHECK_FALSE(f.parameters.contains("sensor_id"));
+  DOUBLES_EQUAL(1.3, Param(f, "z_m"), 0.08);
+  DOUBLES_EQUAL(67.5, Param(f, "theta_deg"), 5.0);
+  CHECK_TRUE(Param(f, "theta_min_deg") < 67.5 && Param(f, "theta_max_deg") > 67.5);
+  CHECK_TRUE(Param(f, "z_min_m") < 1.3 && Param(f, "z_max_m") > 1.3);
+  DOUBLES_EQUAL(0.0707, Param(f, "area_m2"), 0.035);
+  DOUBLES_EQUAL(24.0, Param(f, "depth_mm"), 4.0);
+  STRCMP_EQUAL("2024-03-31", f.evidence.at("scan_date").get<std::string>().substr(0, 10).c_str());
+  CHECK_TRUE(f.explanation.find("scan of 2024-03-31") != std::string::npos);
+  CHECK_TRUE(r.data_quality.empty());
+}
+
+TEST(Diagnose, TheSameBundleWithoutTheSpallHasNoMaterialLoss) {
+  lw::test::SyntheticSpec spec = SpallSpec();
+  spec.crater_mm = 0;
+  LONGS_EQUAL(0, MaterialLoss(Run(spec)).size());
+}
+
+TEST(Diagnose, ASmoothDepressionOfTheSameVolumeIsNoCrater) {
+  // A wear pattern: a Gaussian dip of the spall's volume (sd 0.15 m, 12 mm at its centre: deeper
+  // than the seed threshold), no wall.
+  lw::test::SyntheticSpec spec = SpallSpec();
+  spec.crater_smooth = true;
+  LONGS_EQUAL(0, MaterialLoss(Run(spec)).size());
+}
+
+TEST(Diagnose, ASpallAtASensorIsOneFindingFromTheSensorAndTheScan) {
+  lw::test::SyntheticSpec spec = SpallSpec();
+  spec.crater_z = 1.0;  // LMID-3
+  spec.crater_theta_deg = 202.5;
+  spec.crater_mm = 15;
+  const auto r = Run(spec);
+  const auto losses = MaterialLoss(r);
+  LONGS_EQUAL(1, losses.size());
+  const lw::diagnosis::Finding& f = *losses[0];
+  STRCMP_EQUAL("LMID-3", f.parameters.at("sensor_id").get<std::string>().c_str());
+  DOUBLES_EQUAL(15.0, Param(f, "depth_mm"), 1.5);
+  CHECK_TRUE(f.parameters.contains("area_m2"));
+  STRCMP_EQUAL("sensor and scan", f.evidence.at("found_in").get<std::string>().c_str());
 }
 
 TEST(Diagnose, JsonHasEveryContractKeyAndPrediction) {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/bundle.hpp"
+#include "scan_craters.hpp"
 #include "stage_baseline.hpp"
 #include "stage_findings.hpp"
 #include "stage_folds.hpp"
@@ -468,7 +469,7 @@ TEST(StageFindings, MaterialLossUnexplainedAndConfidence) {
   d::SensorData s = Sensor("S7", "LMID", true);
   s.analysis.rate_mm_per_day = 0.5;
   s.analysis.losses.push_back({40, 5, 5.5});
-  const auto losses = d::MaterialLossFindings({s}, lw::core::TimePoint{});
+  const auto losses = d::MaterialLossFindings({s}, {}, 0.1, lw::core::TimePoint{});
   LONGS_EQUAL(1, losses.size());
   STRCMP_EQUAL(lw::diagnosis::kMaterialLoss, losses[0].effect.c_str());
   DOUBLES_EQUAL(0.9, losses[0].confidence, 1e-12);  // 0.5 + 0.08 x 5 mm
