@@ -8,6 +8,7 @@
 #include <numeric>
 #include <utility>
 
+#include "core/median.hpp"
 #include "core/surface_index.hpp"
 #include "model_fit.hpp"
 #include "text_format.hpp"
@@ -15,15 +16,7 @@
 namespace lw::diagnosis::detail {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kPi = 3.14159265358979323846;
-
-double MedianOf(std::vector<double> v) {
-  if (v.empty()) return kNaN;
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
-  return v[mid];
-}
 
 struct Background {
   double value = kNaN;
@@ -72,7 +65,7 @@ Background RingBackground(const core::WearMap& map, const core::SurfaceIndex& ri
     c = a.ldlt().solve(b);
     std::vector<double> res(pts.size());
     for (size_t k = 0; k < pts.size(); ++k) res[k] = std::fabs(pts[k].z() - row(pts[k]).dot(c));
-    const double s = 1.4826 * MedianOf(res);
+    const double s = 1.4826 * core::UpperMedian(res, kNaN);
     for (size_t k = 0; k < pts.size(); ++k) keep[k] = res[k] <= 3.0 * s + 1e-9;
   }
   if (!std::isfinite(c[0])) return {};
@@ -159,7 +152,7 @@ ScanCrater DescribePatch(const core::WearMap& map, const core::SurfaceIndex& adj
   c.theta_max_deg = std::fmod(c.theta_deg + hi + 360.0, 360.0);
   reach += 0.5 * std::sqrt(sa / static_cast<double>(patch.size()));  // to the outer face's edge
   compactness = sa / (kPi * reach * reach);
-  c.depth_mm = MedianOf(Values(patch, resid));
+  c.depth_mm = core::UpperMedian(Values(patch, resid), kNaN);
   c.faces = patch.size();
   // The edge: the patch's faces with a neighbour outside, those neighbours, and the next layer out.
   std::vector<char> mark(map.face_count(), 0);
@@ -182,8 +175,9 @@ ScanCrater DescribePatch(const core::WearMap& map, const core::SurfaceIndex& adj
     if (edge) boundary.push_back(f);
   }
   c.edge_faces = out1.size();
-  const double in_edge = MedianOf(Values(boundary, resid)), out_edge = MedianOf(Values(out1, resid));
-  const double next = MedianOf(Values(out2, resid));
+  const double in_edge = core::UpperMedian(Values(boundary, resid), kNaN),
+               out_edge = core::UpperMedian(Values(out1, resid), kNaN);
+  const double next = core::UpperMedian(Values(out2, resid), kNaN);
   c.edge_step_mm = std::isfinite(in_edge) && std::isfinite(out_edge) ? in_edge - out_edge : 0.0;
   c.outside_change_mm = std::isfinite(out_edge) && std::isfinite(next) ? out_edge - next : 0.0;
   return c;
@@ -232,9 +226,9 @@ std::vector<ScanCrater> FindScanCraters(const core::WearMap& map, const MapField
     if (std::isfinite(r)) finite.push_back(r);
   if (finite.size() < 20) return craters;
   // The scan's own face-to-face noise: the residuals' robust sd (a crater is a few of many faces).
-  const double centre = MedianOf(finite);
+  const double centre = core::UpperMedian(finite, kNaN);
   for (double& r : finite) r = std::fabs(r - centre);
-  const double noise = std::max(1.4826 * MedianOf(finite), 0.05);
+  const double noise = std::max(1.4826 * core::UpperMedian(finite, kNaN), 0.05);
   const double seed = std::max(rules.seed_sigmas * noise, rules.min_depth_mm);
   const core::SurfaceIndex adjacent(map, 1.2 * h);
   for (const std::vector<size_t>& patch : Patches(map, adjacent, resid, seed, 0.5 * seed)) {
