@@ -10,12 +10,8 @@
 #include <stdexcept>
 #include <unordered_map>
 
-#include "core/angles.hpp"
-
 namespace lw::core {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 /// One sensor in its row's least-squares scale: the map's intensity at it and its sd, its wear.
 struct ScaleMember {
@@ -33,7 +29,8 @@ struct ScaleMember {
 MapCalibration CalibrateAtSensors(const std::vector<ScaleMember>& members, size_t nrows, double q, double prior_dof) {
   MapCalibration out;
   if (!(prior_dof > 0)) return out;
-  double sum = 0, rel_sum = 0, model_rel = 0;
+  double sum = 0, excess_sum = 0, pred_sum = 0, model_sum = 0;
+  size_t predicted = 0;  // predictions above 0
   for (size_t r = 0; r < nrows; ++r) {
     for (size_t j = 0; j < members.size(); ++j) {
       const ScaleMember& mj = members[j];
@@ -52,21 +49,32 @@ MapCalibration CalibrateAtSensors(const std::vector<ScaleMember>& members, size_
         q_var += f * f * q;
       }
       if (!(map_var > 0)) continue;
-      const double e = mj.w - k * mj.I, pred = k * mj.I;
-      sum += std::max(0.0, e * e - q_var) / map_var;
-      if (pred > 0) rel_sum += std::max(0.0, e * e - q_var) / (pred * pred), model_rel += map_var / (pred * pred);
+      const double e = mj.w - k * mj.I, pred = k * mj.I, excess = std::max(0.0, e * e - q_var);
+      sum += excess / map_var;
+      if (pred > 0) excess_sum += excess, pred_sum += pred * pred, model_sum += map_var, ++predicted;
       ++out.sensors;
     }
   }
   out.factor = std::min(4.0, std::sqrt((sum + prior_dof) / (static_cast<double>(out.sensors) + prior_dof)));
-  // The relative error of predicting a point from the other sensors of its row, pooled over the
-  // rows with prior_dof pseudo-sensors at the model's own (calibrated) relative error: what a point
-  // no sensor checks (one sensor's row scale, an area beyond every sensor's reach) is off by.
-  if (out.sensors > 0) {
-    const double n = static_cast<double>(out.sensors);
-    const double prior = out.factor * out.factor * model_rel / n;
-    out.point_rel_sd = std::min(1.0, std::sqrt((rel_sum + prior_dof * prior) / (n + prior_dof)));
+  // The relative error of predicting a point from the other sensors of its row: what a point no
+  // sensor checks (one sensor's row scale, a face beyond every sensor's reach) is off by. A ratio
+  // of sums (squared excess errors over squared predictions), so that a sensor the map predicts
+  // little wear at does not stand for the rest; pooled with prior_dof pseudo-sensors, each at the
+  // mean squared prediction and the model's own calibrated relative error.
+  if (predicted > 0) {
+    const double mean_pred = pred_sum / static_cast<double>(predicted);
+    const double prior = out.factor * out.factor * model_sum / pred_sum;
+    out.point_rel_sd =
+        std::min(1.0, std::sqrt((excess_sum + prior_dof * prior * mean_pred) / (pred_sum + prior_dof * mean_pred)));
+    return out;
   }
+  // Nothing predicted (no row with two reporting sensors): the prior alone, the model's relative
+  // error of a sensor predicted from one row mate as uncertain as itself (both errors; with more
+  // mates a prediction carries less of theirs), so that losing a row's second sensor never narrows
+  // a band on a map whose error the model states. Over the sensors, a ratio of sums.
+  double var_sum = 0, i_sum = 0;
+  for (const ScaleMember& m : members) var_sum += 2.0 * m.sd * m.sd, i_sum += m.I * m.I;
+  if (i_sum > 0) out.point_rel_sd = std::min(1.0, out.factor * std::sqrt(var_sum / i_sum));
   return out;
 }
 
@@ -77,8 +85,7 @@ double LocalMean(const WearMap& map, const Eigen::VectorXd& values, double z, do
   for (Eigen::Index i = 0; i < map.z.size(); ++i) {
     const double dz = map.z[i] - z;
     if (std::abs(dz) > std::max(r, best)) continue;
-    const double arc = map.radius[i] * AngleDiffDeg(map.theta_deg[i], theta_deg) * kDegToRad;
-    const double d = std::hypot(dz, arc);
+    const double d = SurfaceDistance(dz, map.radius[i], map.theta_deg[i], theta_deg);
     if (d < best) {
       best = d;
       nearest = i;
@@ -92,6 +99,25 @@ double LocalMean(const WearMap& map, const Eigen::VectorXd& values, double z, do
 }
 
 }  // namespace
+
+double NearestSensorDistance(const std::vector<const SensorInfo*>& sensors, const RadiusProfile& radius, double z_m,
+                             double theta_deg, bool around, double within_m) {
+  // Squared distances, one square root at the end: the per-face loop asks this of every face.
+  const double inf = std::numeric_limits<double>::infinity();
+  const double within2 = within_m < inf ? within_m * within_m : inf;
+  double best2 = inf;
+  for (const SensorInfo* s : sensors) {
+    const double dz = s->z_m - z_m;
+    if (dz * dz > std::min(best2, within2)) continue;  // the distance is at least |dz|
+    double d2 = dz * dz;
+    if (around) {
+      const double arc = radius.At(0.5 * (s->z_m + z_m)) * AngleDiffDeg(s->theta_deg, theta_deg) * (M_PI / 180.0);
+      d2 += arc * arc;
+    }
+    if (d2 <= within2) best2 = std::min(best2, d2);
+  }
+  return best2 < inf ? std::sqrt(best2) : inf;
+}
 
 Eigen::VectorXd SmoothOverSurface(const WearMap& map, const Eigen::VectorXd& values, double radius_m) {
   const Eigen::Index n = values.size();
@@ -372,6 +398,7 @@ ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const Wea
     p.sensor_intensity[static_cast<Eigen::Index>(s)] = at.intensity;
     p.sensor_intensity_sd[static_cast<Eigen::Index>(s)] = at.sd;
   }
+  p.radius = RadiusProfile(map);
   p.face_row.assign(map.face_count(), -1);
   for (Eigen::Index i = 0; i < map.z.size(); ++i) {
     for (size_t r2 = 0; r2 < crusher.rows.size(); ++r2) {
@@ -395,10 +422,11 @@ namespace {
 
 /// Eq. 9 per row, as fitted at the sensors.
 struct RowScales {
-  std::vector<double> scale;              ///< mm per intensity unit; NaN: a row without sensors
-  std::vector<double> var;                ///< its variance
-  std::vector<size_t> used;               ///< sensors that count in each row
-  std::vector<size_t> without_intensity;  ///< sensors (index) in a row where the map has no intensity
+  std::vector<double> scale;               ///< mm per intensity unit; NaN: a row without sensors
+  std::vector<double> var;                 ///< its variance
+  std::vector<size_t> used;                ///< sensors that count in each row
+  std::vector<size_t> without_intensity;   ///< sensors (index) in a row where the map has no intensity
+  std::vector<const SensorInfo*> setting;  ///< the sensors that set a row scale
   MapCalibration calibration;
 };
 
@@ -425,6 +453,7 @@ RowScales FitRowScales(const ReconstructionPlan& plan, const std::vector<SensorW
       den[static_cast<size_t>(row)] += I * I;
       ++used[static_cast<size_t>(row)];
       members.push_back({static_cast<size_t>(row), I, plan.sensor_intensity_sd[static_cast<Eigen::Index>(s)], sw.wear_mm});
+      out.setting.push_back(&crusher.sensors[s]);
       break;
     }
   }
@@ -451,7 +480,8 @@ RowScales FitRowScales(const ReconstructionPlan& plan, const std::vector<SensorW
     v /= den[r] * den[r];
     if (used[r] >= 2) v = std::max(v, rss / static_cast<double>(used[r] - 1) / den[r]);
     // One sensor has no scatter of its own to show how wrong the map's pattern along its row is:
-    // its scale carries the pattern error the other rows' sensors measure (point_rel_sd), not none.
+    // its scale carries the error of a point predicted from its row mates (point_rel_sd, as the
+    // other rows' sensors measure it, or the model's own when no row has two), not none.
     if (used[r] == 1) v = std::max(v, std::pow(k * out.calibration.point_rel_sd, 2));
     row_var[r] = v;
   }
@@ -639,9 +669,10 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
     }
   }
   const double band = plan.options.band_sigmas;
+  const double point_rel = calibration.point_rel_sd, reach = crusher.thinnest_area.sensor_reach_m;
   const double* intensity = plan.intensity.data();
-  const double* rel_sd = plan.intensity_rel_sd.data();
   const double* z = map.z.data();
+  const double* theta = map.theta_deg.data();
   const double* area = map.areas.data();
   const int* face_row = plan.face_row.data();
   double* wear_out = out.wear_mm.data();
@@ -662,8 +693,13 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
       std::tie(scale, svar) = profile.At(z[i], r);
     }
     const double w_est = std::max(0.0, intensity[i] * scale);
-    const double map_rel = rel_sd[i] * calibration.factor;
-    const double sd = std::sqrt(w_est * w_est * map_rel * map_rel + intensity[i] * intensity[i] * svar);
+    double map_sd = ModelMapSd(plan, calibration, i, w_est);
+    // Beyond every scale-setting sensor's reach nothing checks the map's pattern: its error there is
+    // at least what the sensors show when each is predicted from its row mates (the window spread of
+    // a finite DEM run can call an edge hot spot precise that the sensors' residuals say is not).
+    if (w_est * point_rel > map_sd && !(NearestSensorDistance(fit.setting, plan.radius, z[i], theta[i], true, reach) <= reach))
+      map_sd = w_est * point_rel;
+    const double sd = std::sqrt(map_sd * map_sd + intensity[i] * intensity[i] * svar);
     // Physical: wear within [0, new]; a face whose estimate reaches the as-new thickness is worn through.
     const double w = std::min(w_est, new_mm);
     const double rem = new_mm - w;

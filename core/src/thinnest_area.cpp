@@ -7,7 +7,6 @@
 #include <cstdlib>
 #include <map>
 
-#include "core/angles.hpp"
 #include "core/time.hpp"
 
 #include "core/surface_index.hpp"
@@ -15,7 +14,6 @@
 namespace lw::core {
 namespace {
 
-constexpr double kDegToRad = M_PI / 180.0;
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
 
 /// Per face: the three parts of its sd that combine
@@ -25,37 +23,15 @@ struct FaceErrors {
   Eigen::VectorXd scale, bias, noise;
 };
 
-/// Per face: whether it lies beyond every used sensor's reach (surface distance > sensor_reach_m).
-std::vector<char> BeyondReach(const ReconstructionPlan& plan, const std::vector<Reading>& used) {
-  const WearMap& map = *plan.map;
-  const double reach = plan.crusher->thinnest_area.sensor_reach_m;
-  std::vector<const SensorInfo*> sensors;
-  for (const Reading& r : used)
-    if (const SensorInfo* s = plan.crusher->FindSensor(r.sensor_id)) sensors.push_back(s);
-  std::vector<char> out(static_cast<size_t>(map.face_count()), 1);
-  for (Eigen::Index i = 0; i < map.z.size(); ++i)
-    for (const SensorInfo* s : sensors) {
-      const double dz = map.z[i] - s->z_m;
-      if (std::abs(dz) > reach) continue;
-      if (std::hypot(dz, map.radius[i] * AngleDiffDeg(map.theta_deg[i], s->theta_deg) * kDegToRad) <= reach) {
-        out[static_cast<size_t>(i)] = 0;
-        break;
-      }
-    }
-  return out;
-}
-
-FaceErrors SplitErrors(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used) {
+/// Each face's sd in its three parts. The map's part (beyond the row scale's) is the model's, or
+/// Reconstruct's floor beyond every sensor's reach: its sampling noise is the model's share of the
+/// model's part, and the rest, the floor included, is pattern error (correlated over an area).
+FaceErrors SplitErrors(const ReconstructionPlan& plan, const Reconstruction& rec) {
   const Eigen::Index n = rec.remaining_sd_mm.size();
   const MapModel& m = plan.model;
   const bool split = m.intensity_noise_sd.size() == n && m.intensity_sd.size() == n;
+  const bool estimated = rec.wear_estimate_mm.size() == n;
   FaceErrors e{Eigen::VectorXd(n), Eigen::VectorXd(n), Eigen::VectorXd(n)};
-  // Beyond every sensor's reach nothing checks the map's pattern: there its error is at least what
-  // the sensors show when each is predicted from its row mates (the window spread of a finite DEM
-  // run can call an edge hot spot precise that the sensors' residuals say is not).
-  const double point_rel = rec.calibration.point_rel_sd;
-  const std::vector<char> beyond =
-      point_rel > 0 && rec.wear_estimate_mm.size() == n ? BeyondReach(plan, used) : std::vector<char>();
   for (Eigen::Index i = 0; i < n; ++i) {
     const double sd = rec.remaining_sd_mm[i];
     const double s = rec.scale_sd_mm.size() == n ? std::min(sd, rec.scale_sd_mm[i]) : 0.0;
@@ -63,14 +39,10 @@ FaceErrors SplitErrors(const ReconstructionPlan& plan, const Reconstruction& rec
     // Without the model's split, all of the map's error counts as correlated (the wider band).
     double q = 0.0;
     if (split && m.intensity_sd[i] > 0) q = std::clamp(std::pow(m.intensity_noise_sd[i] / m.intensity_sd[i], 2), 0.0, 1.0);
+    const double model_sd = estimated ? std::min(map_sd, ModelMapSd(plan, rec.calibration, i, rec.wear_estimate_mm[i])) : map_sd;
     e.scale[i] = s;
-    e.noise[i] = map_sd * std::sqrt(q);
-    e.bias[i] = map_sd * std::sqrt(1.0 - q);
-    if (!beyond.empty() && beyond[static_cast<size_t>(i)]) {
-      // The floor is a pattern error: correlated over an area, so it goes in the bias.
-      const double floor = std::max(0.0, rec.wear_estimate_mm[i]) * point_rel;
-      if (floor > map_sd) e.bias[i] = std::sqrt(floor * floor - e.noise[i] * e.noise[i]);
-    }
+    e.noise[i] = model_sd * std::sqrt(q);
+    e.bias[i] = std::sqrt(std::max(0.0, map_sd * map_sd - e.noise[i] * e.noise[i]));
   }
   return e;
 }
@@ -134,40 +106,6 @@ struct MinBand {
     a->raw_hi_mm = raw_hi;
     a->half_width_mm = 0.5 * (raw_hi - raw_lo);
   }
-};
-
-/// Mean surface radius at a height (faces binned by z), for the arc length of patch centres.
-class RadiusProfile {
- public:
-  explicit RadiusProfile(const WearMap& map) {
-    if (map.z.size() == 0) return;
-    zmin_ = map.z.minCoeff();
-    const double span = std::max(1e-6, map.z.maxCoeff() - zmin_);
-    step_ = span / 200.0;
-    sum_.assign(201, 0.0);
-    weight_.assign(201, 0.0);
-    for (Eigen::Index i = 0; i < map.z.size(); ++i) {
-      const size_t b = Bin(map.z[i]);
-      sum_[b] += map.areas[i] * map.radius[i];
-      weight_[b] += map.areas[i];
-    }
-  }
-  double At(double z) const {
-    if (sum_.empty()) return 1.0;
-    const size_t b = Bin(z);
-    for (size_t d = 0; d < sum_.size(); ++d) {  // the nearest bin with faces
-      if (b >= d && weight_[b - d] > 0) return sum_[b - d] / weight_[b - d];
-      if (b + d < sum_.size() && weight_[b + d] > 0) return sum_[b + d] / weight_[b + d];
-    }
-    return 1.0;
-  }
-
- private:
-  size_t Bin(double z) const {
-    return static_cast<size_t>(std::clamp(std::floor((z - zmin_) / step_), 0.0, static_cast<double>(sum_.size() - 1)));
-  }
-  double zmin_ = 0, step_ = 1;
-  std::vector<double> sum_, weight_;
 };
 
 /// The centres of a row's square patches of side `patch`: on a half-patch grid within the row
@@ -345,17 +283,10 @@ bool Within(const ThinnestArea& a, double target) {
 /// from its centre height); infinity when there is none.
 double NearestSensor(const CrusherConfig& crusher, const RadiusProfile& radius, const std::vector<Reading>& used,
                      const ThinnestArea& a) {
-  double best = std::numeric_limits<double>::infinity();
-  for (const Reading& r : used) {
-    const SensorInfo* s = crusher.FindSensor(r.sensor_id);
-    if (!s) continue;
-    const double dz = s->z_m - a.z_m;
-    const double arc = a.shape != AreaShape::kSquare
-                           ? 0.0
-                           : radius.At(0.5 * (s->z_m + a.z_m)) * AngleDiffDeg(s->theta_deg, a.theta_deg) * kDegToRad;
-    best = std::min(best, std::hypot(dz, arc));
-  }
-  return best;
+  std::vector<const SensorInfo*> sensors;
+  for (const Reading& r : used)
+    if (const SensorInfo* s = crusher.FindSensor(r.sensor_id)) sensors.push_back(s);
+  return NearestSensorDistance(sensors, radius, a.z_m, a.theta_deg, a.shape == AreaShape::kSquare);
 }
 
 /// The thinnest reading among `used` of `row` (empty: of every row).
@@ -382,12 +313,12 @@ void Label(const Context& c, const RadiusProfile& radius, const std::vector<Read
   if (!a->supported) a->sensor_fallback = ThinnestReading(*c.plan.crusher, used, a->row);
 }
 
-Context MakeContext(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used) {
+Context MakeContext(const ReconstructionPlan& plan, const Reconstruction& rec) {
   const double face = plan.model.face_size_m;
   const double root4pi = 2.0 * std::sqrt(M_PI);
   return Context{plan,
                  rec,
-                 SplitErrors(plan, rec, used),
+                 SplitErrors(plan, rec),
                  plan.crusher->thickness_new_mm,
                  plan.options.band_sigmas,
                  std::max(face, root4pi * plan.model.bandwidth_m),
@@ -399,8 +330,8 @@ Context MakeContext(const ReconstructionPlan& plan, const Reconstruction& rec, c
 ThinnestAreas FindThinnestAreas(const ReconstructionPlan& plan, const Reconstruction& rec, const std::vector<Reading>& used) {
   const CrusherConfig& crusher = *plan.crusher;
   const ThinnestAreaConfig& cfg = crusher.thinnest_area;
-  const Context c = MakeContext(plan, rec, used);
-  const RadiusProfile radius(*plan.map);
+  const Context c = MakeContext(plan, rec);
+  const RadiusProfile& radius = plan.radius;
   const size_t nrows = crusher.rows.size();
   const double target = cfg.band_half_width_mm;
   ThinnestAreas out;
@@ -501,8 +432,8 @@ SettingEstimate EstimateSetting(const ReconstructionPlan& plan, const Reconstruc
   a.patch_m = h;
   a.z_m = row.z_min_m + 0.5 * h;
   if (rec.status == kStatusNoSensors) return out;
-  const Context c = MakeContext(plan, rec, used);
-  const RadiusProfile radius(*plan.map);
+  const Context c = MakeContext(plan, rec);
+  const RadiusProfile& radius = plan.radius;
   const RowRings rings(c, lowest);
   const Sums s = rings.Between(a.z_m, 0.5 * h);
   if (!(s.area > 0)) return out;
@@ -533,7 +464,7 @@ double AreaMean(const ReconstructionPlan& plan, const Eigen::VectorXd& values, c
         sum += map.areas[i] * values[i], w += map.areas[i];
   } else {
     const SurfaceIndex index(map, 0.5 * area.patch_m, 0.5 * area.patch_m);
-    const RadiusProfile radius(map);
+    const RadiusProfile& radius = plan.radius;
     VisitPatch(plan, index, radius, row, area.z_m, area.theta_deg, area.patch_m,
                [&](Eigen::Index i) { sum += map.areas[i] * values[i], w += map.areas[i]; });
   }
@@ -545,7 +476,7 @@ ThinnestArea ThinnestPatchOf(const ReconstructionPlan& plan, const Eigen::Vector
   const WearMap& map = *plan.map;
   const CrusherConfig& crusher = *plan.crusher;
   const SurfaceIndex index(map, 0.5 * patch_m, 0.5 * patch_m);
-  const RadiusProfile radius(map);
+  const RadiusProfile& radius = plan.radius;
   ThinnestArea best;
   best.thickness_mm = best.lo_mm = best.hi_mm = kNan;
   best.patch_m = patch_m;

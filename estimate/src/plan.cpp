@@ -104,8 +104,8 @@ class Evaluator {
       scale_ *= target_wear / wear;
     }
     areas = Areas(reference);
-    row_thickness_.clear();
-    for (const core::ThinnestArea& a : areas.rows) row_thickness_.push_back(a.thickness_mm);
+    row_wear_.clear();
+    for (const core::RowSummary& r : core::Reconstruct(plan_, Wear(reference)).rows) row_wear_.push_back(r.mean_wear_mm);
     if (patch_m > 0) {
       patch_ = patch_m;
       return;
@@ -117,8 +117,9 @@ class Evaluator {
     config_.thinnest_area.band_half_width_mm = on_row_ ? 1e-12 : std::numeric_limits<double>::max();
   }
   bool on_row() const { return on_row_; }
-  /// Each row's thinnest area at the reline point (by row index): where the liner wears fastest.
-  const std::vector<double>& row_thickness() const { return row_thickness_; }
+  /// Each row's predicted mean wear at the reline point (by row index): the rows' wear rates, in
+  /// one measure for every row (their thinnest areas differ in shape and size from row to row).
+  const std::vector<double>& row_wear() const { return row_wear_; }
   double patch() const { return patch_; }
 
   /// Band half-widths (band_sigmas sd) of the liner's thinnest area and each row's, on the compared area.
@@ -194,7 +195,7 @@ class Evaluator {
   size_t candidates_ = 0;
   std::vector<bool> current_valid_;
   double ell_z_ = 0, ell_arc_ = 0, scale_ = 1, patch_ = 0;
-  std::vector<double> row_thickness_;
+  std::vector<double> row_wear_;
   bool on_row_ = false;
 };
 
@@ -235,22 +236,20 @@ size_t BestAddition(const Evaluator& ev, const std::vector<size_t>& layout, doub
 }
 
 /// The fewest sensors the search leaves in each row (by row index): one in every row where K allows,
-/// and a second in as many rows as the sensors left over cover, the fastest-wearing rows (thinnest
-/// at the reline point, `row_thickness`) first, so the slowest rows give theirs up. One sensor's row
+/// and a second in as many rows as the sensors left over cover, the fastest-wearing rows (the most
+/// predicted mean wear at the reline point, `row_wear`) first, so the slowest rows give theirs up. One sensor's row
 /// scale carries only the map's sampling error at that sensor: nothing checks the map's pattern
 /// along the row, so its band is overconfident, and a search that minimises that band seeks such
 /// rows out (bench/diagnosis/RESULTS.md, *Why the plan's bands miss in 5 of 60 cases*); where the
 /// thinnest area is expected that is the miss a planner acts on.
-std::vector<size_t> MinPerRow(size_t k, const std::vector<double>& row_thickness) {
-  const size_t rows = row_thickness.size();
+std::vector<size_t> MinPerRow(size_t k, const std::vector<double>& row_wear) {
+  const size_t rows = row_wear.size();
   std::vector<size_t> out(rows, k >= rows ? 1 : 0);
   if (k <= rows) return out;
   std::vector<size_t> order(rows);
   for (size_t r = 0; r < rows; ++r) order[r] = r;
-  const auto thickness = [&](size_t r) {
-    return std::isfinite(row_thickness[r]) ? row_thickness[r] : std::numeric_limits<double>::max();
-  };
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return thickness(a) < thickness(b); });
+  const auto wear = [&](size_t r) { return std::isfinite(row_wear[r]) ? row_wear[r] : -std::numeric_limits<double>::max(); };
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return wear(a) > wear(b); });
   for (size_t i = 0; i < std::min(rows, k - rows); ++i) out[order[i]] = 2;
   return out;
 }
@@ -268,9 +267,9 @@ std::vector<size_t> PerRow(const Evaluator& ev, const std::vector<size_t>& layou
 /// falls, until a pass changes nothing. The fill serves rows below MinPerRow first; no removal takes
 /// a row below it (a row moved out of it stays where it was).
 std::vector<size_t> Search(const Evaluator& ev, std::vector<size_t> layout, size_t k, size_t rows) {
-  std::vector<double> thickness = ev.row_thickness();
-  thickness.resize(rows, std::numeric_limits<double>::quiet_NaN());
-  const std::vector<size_t> min_per_row = MinPerRow(k, thickness);
+  std::vector<double> wear = ev.row_wear();
+  wear.resize(rows, std::numeric_limits<double>::quiet_NaN());
+  const std::vector<size_t> min_per_row = MinPerRow(k, wear);
   const auto keeps_row = [&](const std::vector<size_t>& l, size_t i) {
     const int r = ev.row_of(l[i]);
     return r < 0 || static_cast<size_t>(r) >= rows ||

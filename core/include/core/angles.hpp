@@ -6,7 +6,8 @@ namespace lw::core {
 
 /// Signed a - b wrapped to (-180, 180]: the short way round from b to a.
 inline double AngleDiffDeg(double a, double b) {
-  double d = std::fmod(a - b, 360.0);
+  double d = a - b;
+  if (!(d < 360.0 && d > -360.0)) d = std::fmod(d, 360.0);  // fmod is exact, and the identity, within +-360
   if (d > 180.0) d -= 360.0;
   if (d <= -180.0) d += 360.0;
   return d;

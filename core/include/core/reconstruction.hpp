@@ -7,11 +7,13 @@
 /// the thinnest point with a band from map noise, sensor quantisation and the row scale, and a
 /// status that says when the map or the sensors cannot support a number.
 #include <Eigen/Core>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include "core/bundle.hpp"
 #include "core/map_model.hpp"
+#include "core/surface_distance.hpp"
 
 namespace lw::core {
 
@@ -61,16 +63,21 @@ inline constexpr const char* kStatusNoSensors = "no_sensors";
 struct MapCalibration {
   double factor = 1.0;
   size_t sensors = 0;  ///< sensors predicted from their row mates
-  /// Relative sd of a point's wear predicted from its row mates (quantisation apart), pooled over
-  /// the rows with the model's own as a prior; 0 when no row has two reporting sensors. A row with
-  /// one sensor carries it in its scale, an area beyond every sensor's reach in its map part.
+  /// Relative sd of a point's wear predicted from its row mates (quantisation apart): the sensors'
+  /// squared excess errors over their squared predictions (those above 0), pooled with the model's
+  /// own as a prior. With no such prediction (no row with two reporting sensors), the prior alone:
+  /// the model's relative error of a sensor predicted from one row mate as uncertain as itself. A
+  /// row with one sensor carries it in its scale, a face beyond every scale-setting sensor's reach in
+  /// its map part. 0 only when the calibration is off (ReconstructionOptions::calibration_prior_dof).
   double point_rel_sd = 0.0;
 };
 
 struct Reconstruction {
-  Eigen::VectorXd wear_mm;          ///< per face, in [0, thickness_new]
-  Eigen::VectorXd remaining_mm;     ///< per face: thickness_new - wear, never negative
-  Eigen::VectorXd remaining_sd_mm;  ///< per face: standard error of remaining_mm
+  Eigen::VectorXd wear_mm;       ///< per face, in [0, thickness_new]
+  Eigen::VectorXd remaining_mm;  ///< per face: thickness_new - wear, never negative
+  /// Per face: standard error of remaining_mm; its map part at least calibration.point_rel_sd x the
+  /// wear where the face lies beyond every scale-setting sensor's reach (sensor_reach_m).
+  Eigen::VectorXd remaining_sd_mm;
   /// Per face: the row scale's part of remaining_sd_mm (intensity x the scale's sd): one error per
   /// row, shared by its faces (the rest is the map's, core/thinnest_area.hpp).
   Eigen::VectorXd scale_sd_mm;
@@ -101,7 +108,21 @@ struct ReconstructionPlan {
   Eigen::VectorXd sensor_intensity;     ///< per sensor (crusher order): the model at the sensor, same kernel
   Eigen::VectorXd sensor_intensity_sd;  ///< per sensor: its standard error
   std::vector<int> face_row;            ///< row index of each face by z (-1 outside every row)
+  RadiusProfile radius;                 ///< the map's radius by height, for surface distances
 };
+
+/// The map model's part of face `i`'s standard error (mm) at wear estimate `w_est`: its relative
+/// error times the calibration factor (Reconstruct raises it beyond the sensors' reach).
+inline double ModelMapSd(const ReconstructionPlan& plan, const MapCalibration& calibration, Eigen::Index i, double w_est) {
+  return w_est * plan.intensity_rel_sd[i] * calibration.factor;
+}
+
+/// Surface distance (as SurfaceDistance) from (z, theta) to the nearest of `sensors`, the arc at the
+/// map's radius midway between the two heights; along z only when `around` is false (a ring, a
+/// whole row: `theta_deg` is not read). Sensors farther than `within_m` are not looked for:
+/// infinity when none is nearer.
+double NearestSensorDistance(const std::vector<const SensorInfo*>& sensors, const RadiusProfile& radius, double z_m,
+                             double theta_deg, bool around = true, double within_m = std::numeric_limits<double>::infinity());
 
 ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const WearMap& map,
                                          const ReconstructionOptions& options = {});

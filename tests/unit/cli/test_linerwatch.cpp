@@ -1,6 +1,7 @@
 // The `linerwatch` CLI through its library entry point: help, bad input (non-zero, one line, no
 // output file), diagnose outputs (JSON keys, HTML, prediction VTK), --config equivalence.
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -11,10 +12,12 @@
 
 #include "cli/cli.hpp"
 #include "unit/cli/run_cli.hpp"
+#include "core/angles.hpp"
 #include "core/bundle.hpp"
 #include "core/reconstruction.hpp"
 #include "core/thinnest_area.hpp"
 #include "support/temp_directory.hpp"
+#include "unit/core/bundle_fixture.hpp"
 #include "unit/diagnosis/synthetic_bundle.hpp"
 
 // CppUTest last: its leak-detector macros redefine new.
@@ -357,8 +360,9 @@ TEST(Linerwatch, PlanLeavesEveryRowTwoSensorsWhenKGivesThem) {
 // Where K leaves some row one sensor, that row is one of the slowest, never the one where the
 // thinnest area is expected: a one-sensor row has no scale spread of its own, its band looks
 // narrower than it is, and the search took a sensor from the fastest-wearing row for it (a miss
-// 5.6 bands out on a held-out chamber). The fastest-wearing row: the thinnest at the reline point
-// if every crusher.json sensor read what the map predicts, as the plan judges layouts.
+// 5.6 bands out on a held-out chamber). The fastest-wearing row: the most predicted mean wear at
+// the reline point if every crusher.json sensor read what the map predicts, as the plan judges
+// layouts.
 TEST(Linerwatch, PlanKeepsTwoSensorsWhereTheThinnestAreaIsExpected) {
   const fs::path folder = fs::path(LW_DATA_DIR) / "dem-heldout8" / "c6580-steep4";
   const lw::core::CrusherConfig crusher = lw::core::LoadCrusherConfig(folder / "crusher.json");
@@ -372,9 +376,9 @@ TEST(Linerwatch, PlanKeepsTwoSensorsWhereTheThinnestAreaIsExpected) {
     wear.push_back({crusher.sensors[s].id, w});
     used.push_back({crusher.installed_at, crusher.sensors[s].id, crusher.thickness_new_mm - w, 0});
   }
-  const lw::core::ThinnestAreas areas = lw::core::FindThinnestAreas(plan, lw::core::Reconstruct(plan, wear), used);
-  std::vector<std::pair<double, std::string>> by_thickness;
-  for (const lw::core::ThinnestArea& a : areas.rows) by_thickness.emplace_back(a.thickness_mm, a.row);
+  std::vector<std::pair<double, std::string>> by_thickness;  // by the rows' mean wear, fastest first
+  for (const lw::core::RowSummary& row : lw::core::Reconstruct(plan, wear).rows)
+    by_thickness.emplace_back(-row.mean_wear_mm, row.row);
   std::sort(by_thickness.begin(), by_thickness.end());
   const size_t k = 2 * crusher.rows.size() - 1;
   const fs::path out = dir / "plan.json";
@@ -386,6 +390,50 @@ TEST(Linerwatch, PlanKeepsTwoSensorsWhereTheThinnestAreaIsExpected) {
   for (size_t i = 0; i + 1 < by_thickness.size(); ++i)  // every row but the slowest keeps two
     CHECK_TEXT(n[by_thickness[i].second] >= 2, (by_thickness[i].second + ": " + j["sensors"].dump()).c_str());
   CHECK_TEXT(n[by_thickness.back().second] >= 1, j["sensors"].dump().c_str());
+}
+
+// The rows are ranked for their second sensor by their predicted wear (rate), one measure for every
+// row, not by their thinnest areas, which differ in shape and size from row to row (a supported
+// small square in one, the whole row in another). LDWN wears 0.5 units a day but 2.5 in a 0.2 m
+// band at its discharge edge, LUP 1.2 all over: by the thinnest areas (here each row's 0.1 m square)
+// LDWN is first, by predicted wear LUP, which keeps two of K = 3.
+TEST(Linerwatch, PlanRanksRowsForTheirSecondSensorByTheirPredictedWear) {
+  const fs::path folder = dir / "rank";
+  fs::create_directories(folder);
+  {
+    nlohmann::json config = nlohmann::json::parse(lw::test::kCrusherJson);
+    config["thinnest_area"] = {{"band_half_width_mm", 120}};  // every row's area: its thinnest 0.1 m square
+    std::ofstream(folder / "crusher.json") << config.dump();
+  }
+  lw::core::WearMap m = lw::test::CylinderMap(72, 40, [](double z) { return z < 0.2 ? 2.5 : z < 1.0 ? 0.5 : 1.2; });
+  lw::core::WriteWearMapVtk(folder / "wear_map.vtk", m, {{"wear", &m.wear}});
+  // The two rankings differ here, as the plan judges layouts: crusher.json's sensors reading what
+  // the map predicts at the reline point.
+  const lw::core::CrusherConfig crusher = lw::core::LoadCrusherConfig(folder / "crusher.json");
+  const lw::core::WearMap map = lw::core::LoadWearMap(folder / "wear_map.vtk");
+  lw::core::ReconstructionOptions o;
+  o.calibration_prior_dof = 0;
+  const lw::core::ReconstructionPlan plan = lw::core::PrepareReconstruction(crusher, map, o);
+  const double scale = (crusher.thickness_new_mm - crusher.thickness_min_mm) / plan.intensity.maxCoeff();
+  std::vector<lw::core::SensorWear> wear;
+  std::vector<lw::core::Reading> used;
+  for (size_t s = 0; s < crusher.sensors.size(); ++s) {
+    const double w = scale * plan.sensor_intensity[static_cast<Eigen::Index>(s)];
+    wear.push_back({crusher.sensors[s].id, w});
+    used.push_back({crusher.installed_at, crusher.sensors[s].id, crusher.thickness_new_mm - w, 0});
+  }
+  const lw::core::Reconstruction rec = lw::core::Reconstruct(plan, wear);
+  const lw::core::ThinnestAreas areas = lw::core::FindThinnestAreas(plan, rec, used);
+  CHECK(rec.rows[1].mean_wear_mm > rec.rows[0].mean_wear_mm);
+  CHECK_TEXT(areas.rows[0].thickness_mm < areas.rows[1].thickness_mm,
+             (lw::core::ThinnestAreaText(areas.rows[0]) + " / " + lw::core::ThinnestAreaText(areas.rows[1])).c_str());
+  const fs::path out = dir / "plan.json";
+  const Run r = Cli({"plan", folder.string(), "--sensors", "3", "--json", out.string()});
+  LONGS_EQUAL_TEXT(0, r.code, r.err.c_str());
+  const auto j = nlohmann::json::parse(Slurp(out));
+  std::map<std::string, size_t> n;
+  for (const auto& s : j["sensors"]) ++n[s.at("row").get<std::string>()];
+  CHECK_TEXT(n["LUP"] == 2 && n["LDWN"] == 1, j["sensors"].dump().c_str());
 }
 
 // Bad input: a one-line reason, a non-zero status and no --json file.

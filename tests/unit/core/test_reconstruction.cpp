@@ -1,4 +1,5 @@
 #include <cmath>
+#include <string>
 
 #include "core/forecast.hpp"
 #include "core/reconstruction.hpp"
@@ -466,4 +467,36 @@ TEST(Reconstruction, OneSensorPerRowLeavesTheMapsErrorAsTheModelSaysIt) {
   const Reconstruction r = Reconstruct(PrepareReconstruction(c, m), {{"1001", 35.0}, {"1002", 12.5}});
   LONGS_EQUAL(0, r.calibration.sensors);
   DOUBLES_EQUAL(1.0, r.calibration.factor, 1e-12);
+}
+
+// The point error is the sensors' squared excess errors over their squared predictions: a sensor
+// where the map predicts almost no wear (0.1 mm, reading a loop more) adds its millimetre to the
+// sum, and is no ratio of 250 that stands for all the others (a mean of ratios put the figure at
+// its cap of 1, every one-sensor row's scale then as uncertain as the scale itself).
+TEST(Reconstruction, ASensorWhereTheMapPredictsAlmostNoWearDoesNotSetThePointError) {
+  CrusherConfig c = TwoRows();
+  c.sensors = {{"1001", "LDWN", 0.75, 0.0, 120, {}},   {"1003", "LDWN", 0.85, 120.0, 120, {}},
+               {"1005", "LDWN", 0.95, 240.0, 120, {}}, {"1002", "LUP", 1.3, 60.0, 120, {}},
+               {"1004", "LUP", 1.5, 180.0, 120, {}},   {"1006", "LUP", 1.7, 300.0, 120, {}}};
+  WearMap m = NoisyCylinder();
+  for (Eigen::Index i = 0; i < m.wear.size(); ++i)
+    if (m.z[i] < 0.5) m.wear[i] *= 0.001;  // the map predicts almost nothing there
+  ReconstructionOptions o;
+  o.calibration_prior_dof = 1e-9;  // the sensors' figure alone, no pseudo-sensors at the model's
+  const ReconstructionPlan plan = PrepareReconstruction(c, m, o);
+  // The six sensors 10 % off the map each way.
+  std::vector<SensorWear> w = WearAgainstMap(c, plan, {0.1, -0.1, 0.1, -0.1, 0.1, -0.1});
+  const Reconstruction without = Reconstruct(plan, w);
+  CHECK_TEXT(without.calibration.point_rel_sd > 0.03 && without.calibration.point_rel_sd < 0.3,
+             std::to_string(without.calibration.point_rel_sd).c_str());
+  CrusherConfig c7 = c;
+  c7.sensors.push_back({"1007", "LDWN", 0.1, 60.0, 120, {}});
+  const ReconstructionPlan plan7 = PrepareReconstruction(c7, m, o);
+  const double predicted = 30.0 * plan7.sensor_intensity[6];
+  CHECK_TEXT(predicted > 0 && predicted < 0.2, std::to_string(predicted).c_str());
+  w.push_back({"1007", predicted + 1.0});
+  const Reconstruction with = Reconstruct(plan7, w);
+  LONGS_EQUAL(7, with.calibration.sensors);
+  CHECK_TEXT(with.calibration.point_rel_sd < 0.5, std::to_string(with.calibration.point_rel_sd).c_str());
+  DOUBLES_EQUAL(without.calibration.point_rel_sd, with.calibration.point_rel_sd, 0.25 * without.calibration.point_rel_sd);
 }

@@ -1,7 +1,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
+#include <string>
 
+#include "core/angles.hpp"
 #include "core/reconstruction.hpp"
 #include "core/thinnest_area.hpp"
 #include "unit/core/bundle_fixture.hpp"
@@ -151,7 +154,11 @@ TEST(ThinnestArea, ABandClippedAtZeroIsNotSupportedByItsClippedWidth) {
   WearMap m = NoisyMap();
   for (Eigen::Index i = 0; i < m.wear.size(); ++i)
     if (m.z[i] < 0.2) m.wear[i] *= 3.0;  // a discharge-edge band far below the sensor at z 0.5
-  const ReconstructionPlan plan = PrepareReconstruction(c, m);
+  // The map model's error as it is (no point error: with one sensor a row it is the model's error
+  // of a sensor predicted from one row mate), so that the sweep reaches a band clipped at 0 mm.
+  ReconstructionOptions o;
+  o.calibration_prior_dof = 0;
+  const ReconstructionPlan plan = PrepareReconstruction(c, m, o);
   const double target = c.thinnest_area.band_half_width_mm;
   int seen = 0;
   for (double r1001 = 70; r1001 >= 0; r1001 -= 1) {
@@ -404,9 +411,100 @@ TEST(ThinnestArea, AnExtrapolatedAreaCarriesTheMapErrorTheSensorsShow) {
           .c_str());
   // The same area within a sensor's reach keeps the map's own (calibrated) error: narrower.
   c.thinnest_area.sensor_reach_m = 5.0;
-  const ThinnestArea within = FindThinnestAreas(plan, rec, disagree).rows[0];
+  const ThinnestArea within = FindThinnestAreas(plan, Reconstruct(plan, WearOf(disagree)), disagree).rows[0];
   CHECK_FALSE(within.extrapolated);
   DOUBLES_EQUAL(a.z_m, within.z_m, 1e-12);
   CHECK_TEXT(a.map_sd_mm > 1.2 * within.map_sd_mm,
              (std::to_string(a.map_sd_mm) + " vs " + std::to_string(within.map_sd_mm)).c_str());
+}
+
+namespace {
+
+/// Three rows on the noisy cylinder (LDWN 0-0.7 m, LMID 0.7-1.4, LUP 1.4-2): two sensors in LDWN,
+/// one in each of the others (2 / 1 / 1).
+CrusherConfig ThreeRows() {
+  CrusherConfig c = TwoRows();
+  c.rows = {{"LDWN", 0.0, 0.7}, {"LMID", 0.7, 1.4}, {"LUP", 1.4, 2.0}};
+  c.sensors = {{"1001", "LDWN", 0.35, 0.0, 120, {}},
+               {"1003", "LDWN", 0.35, 180.0, 120, {}},
+               {"1002", "LMID", 1.05, 90.0, 120, {}},
+               {"1004", "LUP", 1.7, 270.0, 120, {}}};
+  return c;
+}
+
+}  // namespace
+
+// A sensor that goes stale leaves fewer sensors to check the map with, so no band may narrow: with
+// its row's mate gone no row holds two sensors, and the point error the one-sensor rows' scales and
+// the faces beyond every sensor's reach carry is the model's own (a sensor predicted from one row
+// mate as uncertain as itself), not none. The LDWN pair reads 40 mm a unit of the map model's
+// intensity, each off by the model's own error at it (one up, one down); LMID and LUP the map.
+// Above LMID's centre the estimate does not depend on LDWN's sensors: the same faces and LUP's
+// area, compared directly.
+TEST(ThinnestArea, LosingTheOnlyPairsSecondSensorNarrowsNoBand) {
+  const CrusherConfig c = ThreeRows();
+  const WearMap m = NoisyMap();
+  const ReconstructionPlan plan = PrepareReconstruction(c, m);
+  const TimePoint t = AddDays(c.installed_at, 60);
+  std::vector<SensorWear> wear;
+  std::vector<Reading> used;
+  for (size_t s = 0; s < c.sensors.size(); ++s) {
+    const double rel =
+        plan.sensor_intensity_sd[static_cast<Eigen::Index>(s)] / plan.sensor_intensity[static_cast<Eigen::Index>(s)];
+    const double off = s == 0 ? 0.5 * rel : s == 1 ? -0.5 * rel : 0.0;
+    const double w = 40.0 * plan.sensor_intensity[static_cast<Eigen::Index>(s)] * (1.0 + off);
+    wear.push_back({c.sensors[s].id, w});
+    used.push_back({t, c.sensors[s].id, 120.0 - w, 0});
+  }
+  const Reconstruction pair = Reconstruct(plan, wear);
+  const ThinnestAreas pair_areas = FindThinnestAreas(plan, pair, used);
+  LONGS_EQUAL(2, pair.calibration.sensors);
+  wear.erase(wear.begin() + 1);  // 1003 stale
+  used.erase(used.begin() + 1);
+  const Reconstruction single = Reconstruct(plan, wear);
+  const ThinnestAreas single_areas = FindThinnestAreas(plan, single, used);
+  LONGS_EQUAL(0, single.calibration.sensors);
+  CHECK_TEXT(single.calibration.point_rel_sd > 0, std::to_string(single.calibration.point_rel_sd).c_str());
+  size_t compared = 0;
+  for (Eigen::Index i = 0; i < m.z.size(); ++i) {
+    if (m.z[i] < 1.05) continue;
+    DOUBLES_EQUAL(pair.remaining_mm[i], single.remaining_mm[i], 1e-9);
+    CHECK_TEXT(
+        single.remaining_sd_mm[i] >= pair.remaining_sd_mm[i] * (1 - 1e-9),
+        (std::to_string(i) + ": " + std::to_string(single.remaining_sd_mm[i]) + " < " + std::to_string(pair.remaining_sd_mm[i]))
+            .c_str());
+    ++compared;
+  }
+  CHECK(compared > 1000);
+  const ThinnestArea &before = pair_areas.rows[2], &after = single_areas.rows[2];
+  DOUBLES_EQUAL(before.thickness_mm, after.thickness_mm, 1e-9);
+  CHECK_TEXT(after.half_width_mm >= before.half_width_mm * (1 - 1e-9),
+             (ThinnestAreaText(after) + " vs " + ThinnestAreaText(before)).c_str());
+  CHECK(single.rows[2].scale_sd >= pair.rows[2].scale_sd * (1 - 1e-9));
+}
+
+// The per-face band carries the floor an area beyond every sensor's reach carries: a face there
+// (the discharge edge, 0.8 m below every sensor) has a map error of at least point_rel_sd x its
+// wear, so no face's band is narrower than its area's says the map is off there.
+TEST(ThinnestArea, AFaceBeyondEverySensorsReachCarriesThePointErrorInItsOwnBand) {
+  CrusherConfig c = ThreeHighInLdwn();
+  c.thinnest_area.sensor_reach_m = 0.3;
+  const WearMap m = NoisyMap();
+  const ReconstructionPlan plan = PrepareReconstruction(c, m);
+  const Reconstruction rec = Reconstruct(plan, WearOf(ReadingsOf(c, {60, 80, 72}, 80)));
+  const double point = rec.calibration.point_rel_sd;
+  CHECK_TEXT(point > 0.05, std::to_string(point).c_str());
+  size_t beyond = 0;
+  for (Eigen::Index i = 0; i < m.z.size(); ++i) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const SensorInfo& s : c.sensors)  // on the 1 m cylinder: along z and the arc
+      nearest = std::min(nearest, std::hypot(m.z[i] - s.z_m, AngleDiffDeg(m.theta_deg[i], s.theta_deg) * M_PI / 180.0));
+    if (nearest <= c.thinnest_area.sensor_reach_m) continue;
+    ++beyond;
+    CHECK_TEXT(
+        rec.remaining_sd_mm[i] >= point * rec.wear_estimate_mm[i] * (1 - 1e-9),
+        (std::to_string(i) + ": " + std::to_string(rec.remaining_sd_mm[i]) + " wear " + std::to_string(rec.wear_estimate_mm[i]))
+            .c_str());
+  }
+  CHECK(beyond > 1000);
 }
