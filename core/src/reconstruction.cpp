@@ -399,6 +399,15 @@ ReconstructionPlan PrepareReconstruction(const CrusherConfig& crusher, const Wea
     p.sensor_intensity_sd[static_cast<Eigen::Index>(s)] = at.sd;
   }
   p.radius = RadiusProfile(map);
+  const double reach = crusher.thinnest_area.sensor_reach_m;
+  p.within_reach_m = reach;
+  p.within_reach.assign(crusher.sensors.size(), std::vector<uint8_t>(map.face_count(), 0));
+  for (size_t s = 0; s < crusher.sensors.size(); ++s) {
+    const std::vector<const SensorInfo*> one = {&crusher.sensors[s]};
+    for (Eigen::Index i = 0; i < map.z.size(); ++i)
+      p.within_reach[s][static_cast<size_t>(i)] =
+          NearestSensorDistance(one, p.radius, map.z[i], map.theta_deg[i], true, reach) <= reach;
+  }
   p.face_row.assign(map.face_count(), -1);
   for (Eigen::Index i = 0; i < map.z.size(); ++i) {
     for (size_t r2 = 0; r2 < crusher.rows.size(); ++r2) {
@@ -420,13 +429,42 @@ Reconstruction Reconstruct(const ReconstructionPlan& plan, const std::vector<Sen
 
 namespace {
 
+/// Whether a face lies beyond the reach of every sensor that sets a row scale: from the plan's
+/// masks, or measured when the crusher's reach is not the one they were made for.
+class ReachCheck {
+ public:
+  ReachCheck(const ReconstructionPlan& plan, const std::vector<size_t>& setting) : plan_(plan), setting_(setting) {
+    const CrusherConfig& c = *plan.crusher;
+    reach_ = c.thinnest_area.sensor_reach_m;
+    masks_ = plan.within_reach_m == reach_ && plan.within_reach.size() == c.sensors.size();
+    if (!masks_)
+      for (size_t s : setting) sensors_.push_back(&c.sensors[s]);
+  }
+  bool Beyond(Eigen::Index i) const {
+    if (!masks_) {
+      const WearMap& m = *plan_.map;
+      return !(NearestSensorDistance(sensors_, plan_.radius, m.z[i], m.theta_deg[i], true, reach_) <= reach_);
+    }
+    for (size_t s : setting_)
+      if (plan_.within_reach[s][static_cast<size_t>(i)]) return false;
+    return true;
+  }
+
+ private:
+  const ReconstructionPlan& plan_;
+  const std::vector<size_t>& setting_;
+  double reach_ = 0;
+  bool masks_ = false;
+  std::vector<const SensorInfo*> sensors_;  // the measured path's
+};
+
 /// Eq. 9 per row, as fitted at the sensors.
 struct RowScales {
-  std::vector<double> scale;               ///< mm per intensity unit; NaN: a row without sensors
-  std::vector<double> var;                 ///< its variance
-  std::vector<size_t> used;                ///< sensors that count in each row
-  std::vector<size_t> without_intensity;   ///< sensors (index) in a row where the map has no intensity
-  std::vector<const SensorInfo*> setting;  ///< the sensors that set a row scale
+  std::vector<double> scale;              ///< mm per intensity unit; NaN: a row without sensors
+  std::vector<double> var;                ///< its variance
+  std::vector<size_t> used;               ///< sensors that count in each row
+  std::vector<size_t> without_intensity;  ///< sensors (index) in a row where the map has no intensity
+  std::vector<size_t> setting;            ///< the sensors (index) that set a row scale
   MapCalibration calibration;
 };
 
@@ -453,7 +491,7 @@ RowScales FitRowScales(const ReconstructionPlan& plan, const std::vector<SensorW
       den[static_cast<size_t>(row)] += I * I;
       ++used[static_cast<size_t>(row)];
       members.push_back({static_cast<size_t>(row), I, plan.sensor_intensity_sd[static_cast<Eigen::Index>(s)], sw.wear_mm});
-      out.setting.push_back(&crusher.sensors[s]);
+      out.setting.push_back(s);
       break;
     }
   }
@@ -669,10 +707,10 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
     }
   }
   const double band = plan.options.band_sigmas;
-  const double point_rel = calibration.point_rel_sd, reach = crusher.thinnest_area.sensor_reach_m;
+  const double point_rel = calibration.point_rel_sd;
+  const ReachCheck reach(plan, fit.setting);
   const double* intensity = plan.intensity.data();
   const double* z = map.z.data();
-  const double* theta = map.theta_deg.data();
   const double* area = map.areas.data();
   const int* face_row = plan.face_row.data();
   double* wear_out = out.wear_mm.data();
@@ -697,8 +735,7 @@ void ReconstructInto(const ReconstructionPlan& plan, const std::vector<SensorWea
     // Beyond every scale-setting sensor's reach nothing checks the map's pattern: its error there is
     // at least what the sensors show when each is predicted from its row mates (the window spread of
     // a finite DEM run can call an edge hot spot precise that the sensors' residuals say is not).
-    if (w_est * point_rel > map_sd && !(NearestSensorDistance(fit.setting, plan.radius, z[i], theta[i], true, reach) <= reach))
-      map_sd = w_est * point_rel;
+    if (w_est * point_rel > map_sd && reach.Beyond(i)) map_sd = w_est * point_rel;
     const double sd = std::sqrt(map_sd * map_sd + intensity[i] * intensity[i] * svar);
     // Physical: wear within [0, new]; a face whose estimate reaches the as-new thickness is worn through.
     const double w = std::min(w_est, new_mm);

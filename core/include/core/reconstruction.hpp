@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <limits>
 #include <string>
+#include <cstdint>
 #include <vector>
 
 #include "core/bundle.hpp"
@@ -109,6 +110,11 @@ struct ReconstructionPlan {
   Eigen::VectorXd sensor_intensity_sd;  ///< per sensor: its standard error
   std::vector<int> face_row;            ///< row index of each face by z (-1 outside every row)
   RadiusProfile radius;                 ///< the map's radius by height, for surface distances
+  /// Per sensor, per face: 1 when the face lies within `within_reach_m` (the crusher's
+  /// thinnest_area.sensor_reach_m when the plan was made) of the sensor, over the surface. Once
+  /// per plan: every reconstruction asks it of every face.
+  std::vector<std::vector<uint8_t>> within_reach;
+  double within_reach_m = 0;
 };
 
 /// The map model's part of face `i`'s standard error (mm) at wear estimate `w_est`: its relative
