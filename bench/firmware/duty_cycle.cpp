@@ -3,12 +3,22 @@
 // a battery-life estimate with datasheet currents.
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 
 #include "firmware/app.hpp"
 #include "hal/host/host_board.hpp"
 #include "protocol/sensor_payload.hpp"
 
-int main() {
+int main(int argc, char** argv) {
+  if (argc > 1) {
+    const bool help = argc == 2 && !std::strcmp(argv[1], "--help");
+    std::fputs(
+        "usage: lw_bench_duty_cycle\n"
+        "Runs the real firmware App on the host HAL through a 95-day campaign and prints its duty cycle (wakes,\n"
+        "ladder reads, radio frames and records per day); docs/firmware.md turns them into battery life.\n",
+        help ? stdout : stderr);
+    return help ? 0 : 2;
+  }
   using namespace lw;
   firmware::Config config;
   hal::host::HostBoard hb(config.ladder_loops, 0x0013A20000001001ull, config.api_mode);

@@ -437,6 +437,15 @@ int main(int argc, char** argv) {
   const char* const kUsage =
       "usage: lw_bench_gateway_replay [--frames N] [--sensors S] [--records-per-frame 1|2] [--window W] [--reps K] "
       "[--gateway-bin PATH] [--baseline-bin PATH] [--forms both|one|batch] [--broker-nodelay 0|1] [--broker-inflight N]\n";
+  if (argc == 2 && !std::strcmp(argv[1], "--help")) {
+    std::fputs(kUsage, stdout);
+    std::fputs(
+        "Recorded coordinator frames replayed through a pty into the real linerwatch-gateway, its SQLite spool and a "
+        "real mosquitto, against the same bytes through the same pty to a bare reader, interleaved in one run; prints "
+        "the throughputs and their ratio (bench/gateway/RESULTS.md).\n",
+        stdout);
+    return 0;
+  }
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
     const std::string value = argv[i + 1];

@@ -110,6 +110,15 @@ int main(int argc, char** argv) {
   std::string dir = "/var/tmp", compare_map;
   for (int i = 1; i < argc; ++i) {
     const bool has_value = i + 1 < argc;
+    if (!std::strcmp(argv[i], "--help")) {
+      std::puts(
+          "usage: lw_bench_map_model [--faces N] [--reps R] [--dir D] [--threads T] [--compare-faces M] [--no-exact] "
+          "[--compare-map FILE]\n"
+          "What a server start pays per crusher map against just reading the file: an N-face map (default 1,000,000) "
+          "read, parsed, and its map model built, alternating R repetitions in one run; prints medians and ratios, "
+          "then the binned against the face-by-face model on M faces (or on a map file) (bench/server/RESULTS.md).");
+      return 0;
+    }
     if (!std::strcmp(argv[i], "--no-exact")) {
       exact = false;
     } else if (has_value && !std::strcmp(argv[i], "--faces")) {
